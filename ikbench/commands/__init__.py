@@ -1,0 +1,7 @@
+"""CLI subcommands, one module each.
+
+Every module here defines ``register(subparsers)``, which adds its parser and sets
+``func`` (called with the parsed ``argparse.Namespace``; returns an exit code or None).
+:mod:`ikbench.cli` discovers the modules automatically. Import heavy libraries (torch,
+pinocchio, matplotlib) inside the handler, not at module level, so ``--help`` stays fast.
+"""

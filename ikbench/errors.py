@@ -1,0 +1,28 @@
+"""Exception hierarchy. Every message names the bad value and what is allowed.
+
+The CLI turns any :class:`IkbenchError` into one line on stderr and exit code 2.
+"""
+
+
+class IkbenchError(Exception):
+    """Base class of every error ikbench raises on bad input or a failed operation."""
+
+    exit_code = 2
+
+
+class InputError(IkbenchError):
+    """Bad user input: a pose, a targets file, an option value."""
+
+
+class TargetsError(InputError):
+    """A targets file that cannot be used."""
+
+
+class SolverError(IkbenchError):
+    """A method could not produce a trajectory."""
+
+
+class HardwareError(IkbenchError):
+    """A problem on the servo bus (missing motor, communication failure, ...)."""
+
+    exit_code = 3

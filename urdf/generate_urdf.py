@@ -1,0 +1,139 @@
+"""Write nico_right_arm.urdf from the paper's forward kinematics (Lucny et al., Eq. 4-11).
+
+Run: ``python urdf/generate_urdf.py`` (rewrites urdf/nico_right_arm.urdf).
+
+The paper's chain, translations in cm, one line per motor (theta = motor angle):
+
+    T(0,5,19.5)  Rz(90)             Rz(theta1)                 r_shoulder_z
+    T(0,-1.5,2.5) Ry(90)            Rz(theta2)                 r_shoulder_y
+    T(3,0,9.5)   Rx(-90)            Rz(-theta3)                r_arm_x
+    T(17.5,0,0)  Rx(90) Rz(180)     Rz(-theta4)                r_elbow_y
+    T(10,0,0)    Ry(90)             Rz(-theta5/2)              r_wrist_z
+    T(0,0,10)    Rx(-90) Rz(-90)    Rz(theta6/4.5 + 10)        r_wrist_x
+    T(0,-1,0) T(6,0,0)              Rz(20 + (theta7+180)/4.5)  r_indexfinger_x
+    T(6,0,0)     Ry(90)                                        -> r_indexfinger_tip
+
+R_y is the standard right-handed rotation (the matrix printed in the paper has its sine signs
+swapped). Each line becomes an optional fixed joint (translation + all rotations but the last)
+and one revolute joint about z whose origin carries the last constant rotation. The motor ->
+joint affine map and the motor ranges come from nico_right_arm.motors.json; URDF limits are the
+motor ranges mapped through it, in radians.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+CM = 0.01
+DEG = math.pi / 180.0
+
+# (joint name, child link, translation [cm], constant rotations [(axis, deg), ...])
+CHAIN = [
+    ("r_shoulder_z", "r_shoulder_link", (0, 5, 19.5), [("z", 90)]),
+    ("r_shoulder_y", "r_upper_shoulder_link", (0, -1.5, 2.5), [("y", 90)]),
+    ("r_arm_x", "r_upper_arm_link", (3, 0, 9.5), [("x", -90)]),
+    ("r_elbow_y", "r_forearm_link", (17.5, 0, 0), [("x", 90), ("z", 180)]),
+    ("r_wrist_z", "r_wrist_link", (10, 0, 0), [("y", 90)]),
+    ("r_wrist_x", "r_hand_link", (0, 0, 10), [("x", -90), ("z", -90)]),
+    ("r_indexfinger_x", "r_indexfinger_link", (6, -1, 0), []),
+]
+TIP = ("r_indexfinger_tip", (6, 0, 0), [("y", 90)])
+RPY_INDEX = {"x": 0, "y": 1, "z": 2}
+
+
+def _rpy(rotation):
+    rpy = [0.0, 0.0, 0.0]
+    if rotation:
+        axis, deg = rotation
+        rpy[RPY_INDEX[axis]] = deg * DEG
+    return rpy
+
+
+def _fmt(values):
+    return " ".join(f"{v:.17g}" for v in values)
+
+
+def _origin(xyz_m, rpy):
+    return f'<origin xyz="{_fmt(xyz_m)}" rpy="{_fmt(rpy)}"/>'
+
+
+def _link(name, next_xyz_m=None):
+    """A link with a thin cylinder from its origin to the next joint's origin."""
+    if next_xyz_m is None or math.dist(next_xyz_m, (0, 0, 0)) < 1e-9:
+        return f'  <link name="{name}"/>'
+    x, y, z = next_xyz_m
+    length = math.dist(next_xyz_m, (0, 0, 0))
+    pitch = math.atan2(math.hypot(x, y), z)
+    yaw = math.atan2(y, x)
+    mid = (x / 2, y / 2, z / 2)
+    return (
+        f'  <link name="{name}">\n'
+        f"    <visual>\n      {_origin(mid, (0, pitch, yaw))}\n"
+        f'      <geometry><cylinder radius="0.012" length="{length:.17g}"/></geometry>\n'
+        f'      <material name="grey"><color rgba="0.6 0.6 0.65 1"/></material>\n'
+        f"    </visual>\n  </link>"
+    )
+
+
+def _joint(name, kind, parent, child, xyz_m, rpy, limits=None):
+    lines = [f'  <joint name="{name}" type="{kind}">', f"    {_origin(xyz_m, rpy)}",
+             f'    <parent link="{parent}"/>', f'    <child link="{child}"/>']
+    if kind == "revolute":
+        lower, upper = limits
+        lines.append('    <axis xyz="0 0 1"/>')
+        lines.append(f'    <limit lower="{lower:.17g}" upper="{upper:.17g}" effort="10" velocity="5"/>')
+    lines.append("  </joint>")
+    return "\n".join(lines)
+
+
+def joint_limits_rad(motor_joint):
+    """URDF limits [rad] of one joint from its motor range and affine map."""
+    a = motor_joint["scale"] * motor_joint["lower_motor_deg"] + motor_joint["offset_deg"]
+    b = motor_joint["scale"] * motor_joint["upper_motor_deg"] + motor_joint["offset_deg"]
+    return min(a, b) * DEG, max(a, b) * DEG
+
+
+def build_urdf(motors: dict) -> str:
+    """Return the URDF text for the chain above with limits from ``motors``."""
+    by_name = {j["name"]: j for j in motors["joints"]}
+    # Each element: (joint name, kind, child link, xyz [m], rpy, limits)
+    joints = []
+    for name, child, xyz_cm, rotations in CHAIN:
+        xyz_m = tuple(v * CM for v in xyz_cm)
+        if len(rotations) > 1:
+            mount = f"{name}_mount"
+            joints.append((f"{mount}_joint", "fixed", mount, xyz_m, _rpy(rotations[0]), None))
+            xyz_m, rotations = (0.0, 0.0, 0.0), rotations[1:]
+        rpy = _rpy(rotations[0] if rotations else None)
+        joints.append((name, "revolute", child, xyz_m, rpy, joint_limits_rad(by_name[name])))
+    tip, tip_xyz_cm, tip_rot = TIP
+    joints.append((f"{tip}_joint", "fixed", tip, tuple(v * CM for v in tip_xyz_cm),
+                   _rpy(tip_rot[0]), None))
+
+    parts = ['<?xml version="1.0"?>',
+             "<!-- Generated by urdf/generate_urdf.py from Lucny et al., Eq. 4-11. "
+             "Do not edit by hand. -->",
+             '<robot name="nico_right_arm">']
+    parent = motors["root_link"]
+    parts.append(_link(parent, joints[0][3]))
+    for i, (jname, kind, child, xyz_m, rpy, limits) in enumerate(joints):
+        parts.append(_joint(jname, kind, parent, child, xyz_m, rpy, limits))
+        next_xyz = joints[i + 1][3] if i + 1 < len(joints) else None
+        parts.append(_link(child, next_xyz))
+        parent = child
+    parts.append("</robot>\n")
+    return "\n".join(parts)
+
+
+def main() -> None:
+    motors = json.loads((HERE / "nico_right_arm.motors.json").read_text())
+    out = HERE / motors["urdf"]
+    out.write_text(build_urdf(motors))
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
