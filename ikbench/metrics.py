@@ -1,0 +1,127 @@
+"""Quality figures of a trajectory, used by every method and every report.
+
+All functions take plain arrays: points in mm, directions as unit vectors, poses in motor
+degrees; they return mm and degrees. :func:`trajectory_metrics` gives the Table 1/2 columns.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Window of the paper's criterion 2: the displacement of the last 10 segments is averaged.
+CRITERION2_WINDOW = 10
+
+
+def line_distances_mm(points_mm, start_mm, end_mm) -> np.ndarray:
+    """Perpendicular distance [mm] of each point (N, 3) from the line through start and end."""
+    points = np.asarray(points_mm, dtype=float)
+    start = np.asarray(start_mm, dtype=float)
+    axis = np.asarray(end_mm, dtype=float) - start
+    axis = axis / np.linalg.norm(axis)
+    rel = points - start
+    return np.linalg.norm(rel - np.outer(rel @ axis, axis), axis=1)
+
+
+def pointing_deviations_deg(directions, goal_directions) -> np.ndarray:
+    """Angle [deg] between each direction (N, 3) and its goal direction ((N, 3) or (3,))."""
+    v = np.asarray(directions, dtype=float)
+    g = np.broadcast_to(np.asarray(goal_directions, dtype=float), v.shape)
+    v = v / np.linalg.norm(v, axis=1, keepdims=True)
+    g = g / np.linalg.norm(g, axis=1, keepdims=True)
+    # atan2(|v x g|, v.g) stays accurate near 0 and 180 deg, unlike arccos.
+    return np.degrees(np.arctan2(np.linalg.norm(np.cross(v, g), axis=1), np.sum(v * g, axis=1)))
+
+
+def criterion2_mm(points_mm, touch_point_mm, window: int = CRITERION2_WINDOW) -> np.ndarray:
+    """The paper's criterion 2 (Fig. 2): where the movement so far points, per step.
+
+    For step i the mean displacement m_i of segments j = max(0, i-window) .. min(i, n-1)
+    (segment j runs from P_j to P_{j+1}) defines a ray P_i + t m_i, t >= 0. The value is the
+    distance [mm] from the touch point to the ray's intersection with the horizontal plane
+    z = z_touch; NaN where the ray does not reach that plane (it is horizontal or moves away).
+
+    Args:
+        points_mm: (n+1, 3) fingertip points.
+        touch_point_mm: (3,) the touch point (goal end point).
+        window: number of preceding segments averaged.
+    """
+    points = np.asarray(points_mm, dtype=float)
+    touch = np.asarray(touch_point_mm, dtype=float)
+    steps = np.diff(points, axis=0)
+    n = len(steps)
+    out = np.full(n + 1, np.nan)
+    for i in range(n + 1):
+        j1 = min(i, n - 1)
+        j0 = min(max(0, i - window), j1)
+        m = steps[j0 : j1 + 1].mean(axis=0)
+        dz = touch[2] - points[i, 2]
+        if abs(dz) < 1e-12:
+            out[i] = np.linalg.norm(points[i, :2] - touch[:2])
+            continue
+        if abs(m[2]) < 1e-12 or dz / m[2] < 0:
+            continue
+        hit = points[i] + (dz / m[2]) * m
+        out[i] = np.linalg.norm(hit[:2] - touch[:2])
+    return out
+
+
+def smoothness(poses_motor_deg) -> dict[str, float]:
+    """Fluency figures of a trajectory (n+1, dof) [motor deg], per step (time-free).
+
+    Returns:
+        ``mean_sq_joint_step_deg2``: mean over steps and joints of (p_{i+1} - p_i)^2 (= L6);
+        ``max_joint_step_deg``: largest absolute joint change in one step;
+        ``mean_sq_jerk_deg2``: mean squared third difference of the poses (joint-space jerk
+        per step^3); ``velocity_sign_changes``: number of sign changes of joint velocity
+        summed over joints, ignoring steps smaller than 1e-3 deg (a "shaking" count).
+    """
+    poses = np.asarray(poses_motor_deg, dtype=float)
+    d1 = np.diff(poses, axis=0)
+    d3 = np.diff(poses, n=3, axis=0)
+    signs = np.sign(np.where(np.abs(d1) < 1e-3, 0.0, d1))
+    changes = 0
+    for column in signs.T:
+        nonzero = column[column != 0]
+        changes += int(np.sum(nonzero[1:] != nonzero[:-1]))
+    return {
+        "mean_sq_joint_step_deg2": float(np.mean(d1**2)),
+        "max_joint_step_deg": float(np.max(np.abs(d1))),
+        "mean_sq_jerk_deg2": float(np.mean(d3**2)) if len(d3) else 0.0,
+        "velocity_sign_changes": changes,
+    }
+
+
+def trajectory_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
+    """The Table 1/2 figures of one trajectory against its task.
+
+    Points and directions come from FK (Pinocchio, float64) of the poses. Line distance and
+    pointing deviation use only the task's pen-down points; for a line task the line runs
+    through P^s and P^e and the goal direction is d.
+
+    Returns:
+        dict with ``line_distance_mean_mm``, ``line_distance_std_mm`` (population std),
+        ``pointing_deviation_mean_deg``, ``pointing_deviation_std_deg``,
+        ``start_point_error_mm`` = |P_0 - P^s|, ``end_point_error_mm`` = |P_n - P^e|,
+        ``start_pose_error_deg`` / ``end_pose_error_deg`` = max |p - p^s| / |p - p^e| (NaN
+        when the task does not fix that pose), and the :func:`smoothness` figures.
+    """
+    poses = np.asarray(poses_motor_deg, dtype=float)
+    fk = robot.fk(poses)
+    mask = task.pen_down
+    distances = line_distances_mm(fk.point_mm[mask], task.start_point_mm, task.end_point_mm)
+    deviations = pointing_deviations_deg(fk.direction[mask], task.goal_directions[mask])
+
+    def pose_error(pose, goal):
+        return float("nan") if goal is None else float(np.max(np.abs(pose - goal)))
+
+    return {
+        "line_distance_mean_mm": float(distances.mean()),
+        "line_distance_std_mm": float(distances.std()),
+        "pointing_deviation_mean_deg": float(deviations.mean()),
+        "pointing_deviation_std_deg": float(deviations.std()),
+        "start_point_error_mm": float(np.linalg.norm(fk.point_mm[0] - task.start_point_mm)),
+        "end_point_error_mm": float(np.linalg.norm(fk.point_mm[-1] - task.end_point_mm)),
+        "start_pose_error_deg": pose_error(poses[0], task.start_pose_deg),
+        "end_pose_error_deg": pose_error(poses[-1], task.end_pose_deg),
+        **smoothness(poses),
+    }
