@@ -1,0 +1,1 @@
+"""Baseline methods the paper's method is compared with (registered in ikbench.methods)."""

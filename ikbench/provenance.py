@@ -1,0 +1,58 @@
+"""Versions, machine and git revision, recorded next to every result."""
+
+from __future__ import annotations
+
+import datetime
+import os
+import platform
+import subprocess
+from importlib import metadata
+from pathlib import Path
+
+PACKAGES = ("ikbench", "torch", "pytorch-kinematics", "pin", "numpy", "pandas", "matplotlib",
+            "yourdfpy", "dynamixel-sdk")
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _version(name: str) -> str | None:
+    try:
+        return metadata.version(name)
+    except metadata.PackageNotFoundError:
+        return None
+
+
+def cpu_model() -> str:
+    """The CPU's model name (Linux /proc/cpuinfo), else platform.processor()."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def git_revision() -> str | None:
+    """The checkout's commit (with ``-dirty`` if modified), or None outside git."""
+    try:
+        rev = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"],
+                             cwd=REPO, capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return rev.stdout.strip() or None
+
+
+def provenance() -> dict:
+    """A JSON-able record of what produced a result."""
+    import torch
+
+    return {
+        "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "cpu": cpu_model(),
+        "cpu_count": os.cpu_count(),
+        "torch_threads": torch.get_num_threads(),
+        "git_revision": git_revision(),
+        "packages": {name: _version(name) for name in PACKAGES},
+    }

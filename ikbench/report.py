@@ -1,0 +1,135 @@
+"""Figures and Markdown reports of a method's run, from the written trajectories.
+
+Every number and figure here is computed by :mod:`ikbench.metrics` from the poses read back
+from the trajectory CSVs. Paper values appear only in columns labelled as the paper's.
+"""
+
+from __future__ import annotations
+
+import json
+from importlib import resources
+
+import numpy as np
+import pandas as pd
+
+from ikbench.metrics import criterion2_mm
+
+TABLE_COLUMNS = [
+    "trajectory", "method", "iterations", "duration_s", "loss",
+    "line_distance_mean_mm", "line_distance_std_mm",
+    "pointing_deviation_mean_deg", "pointing_deviation_std_deg",
+    "start_point_error_mm", "end_point_error_mm", "start_pose_error_deg", "end_pose_error_deg",
+]
+
+
+def paper_values() -> dict:
+    """The paper's Table 1 and Table 2 (see ikbench/data/paper_values.json)."""
+    text = resources.files("ikbench").joinpath("data/paper_values.json").read_text()
+    return json.loads(text)
+
+
+def _matplotlib():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_trajectories_3d(tasks, points_by_id: dict, title: str):
+    """The paper's Fig. 1: fingertip paths in 3-D (front view) over the goal lines.
+
+    Args:
+        tasks: the tasks (goal points in mm).
+        points_by_id: trajectory id -> (n+1, 3) fingertip points [mm].
+        title: figure title.
+    """
+    plt = _matplotlib()
+    fig = plt.figure(figsize=(7.5, 6.5))
+    ax = fig.add_subplot(projection="3d")
+    colors = plt.cm.tab10(np.linspace(0, 1, 10))
+    for k, task in enumerate(tasks):
+        color = colors[k % 10]
+        goal = task.goal_points_mm
+        ax.plot(goal[:, 0], goal[:, 1], goal[:, 2], "--", color=color, lw=1, alpha=0.6)
+        points = points_by_id[task.name]
+        ax.plot(points[:, 0], points[:, 1], points[:, 2], "-o", color=color, ms=2, lw=1.5,
+                label=f"trajectory {task.name}")
+        ax.scatter(*goal[-1], color=color, marker="x", s=40)
+    start = tasks[0].goal_points_mm[0]
+    ax.scatter(*start, color="k", s=30, label="start point")
+    ax.set_xlabel("x [mm] (behind)")
+    ax.set_ylabel("y [mm] (right)")
+    ax.set_zlabel("z [mm] (up)")
+    ax.view_init(elev=12, azim=180)  # from the robot's front (-x) towards it
+    ax.set_title(f"{title}\nsolid: fingertip, dashed: goal line, x: touch point")
+    ax.legend(loc="upper left", fontsize=7)
+    return fig
+
+
+def plot_pointing_error(tasks, points_by_id: dict, title: str):
+    """The paper's Fig. 2: criterion 2 [mm] per step for every trajectory."""
+    plt = _matplotlib()
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for task in tasks:
+        values = criterion2_mm(points_by_id[task.name], task.end_point_mm)
+        ax.plot(np.arange(len(values)), values, "-", lw=1.3, label=f"trajectory {task.name}")
+    ax.set_xlabel("step")
+    ax.set_ylabel("criterion 2: pointing error [mm]")
+    ax.set_yscale("symlog", linthresh=10)
+    ax.grid(alpha=0.3)
+    ax.set_title(f"{title}\ndistance of the touch point from where the last 10 segments "
+                 "aim, on the touch plane")
+    ax.legend(fontsize=7, ncol=2)
+    return fig
+
+
+def _fmt(value, digits=2):
+    if value is None or (isinstance(value, float) and np.isnan(value)):
+        return ""
+    if isinstance(value, (bool, np.bool_)):
+        return "yes" if value else "no"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    return f"{value:.{digits}f}"
+
+
+def markdown_table(frame: pd.DataFrame, digits: dict | None = None) -> str:
+    """A DataFrame as a Markdown table (floats to 2 decimals unless ``digits`` says)."""
+    digits = digits or {}
+    lines = ["| " + " | ".join(frame.columns) + " |",
+             "|" + "|".join("---" for _ in frame.columns) + "|"]
+    for _, row in frame.iterrows():
+        cells = [_fmt(row[c], digits.get(c, 2)) if not isinstance(row[c], str) else row[c]
+                 for c in frame.columns]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def table1_comparison(table: pd.DataFrame) -> pd.DataFrame:
+    """Measured Table 1 figures beside the paper's (distance converted to mm)."""
+    paper = paper_values()["table1"]
+    scale = paper_values()["table1_cm_to_mm"]
+    rows = []
+    for _, row in table.iterrows():
+        p = paper.get(str(row["trajectory"]))
+        rows.append({
+            "trajectory": str(row["trajectory"]),
+            "iterations": int(row["iterations"]),
+            "paper iterations": p and p["iterations"],
+            "loss": row["loss"],
+            "paper loss": p and p["loss"],
+            "line distance [mm]": f"{row['line_distance_mean_mm']:.2f} ± "
+                                  f"{row['line_distance_std_mm']:.2f}",
+            "paper line distance [mm]": p and
+            f"{p['line_distance_mean_printed'] * scale:.1f} ± "
+            f"{p['line_distance_std_printed'] * scale:.1f}",
+            "pointing deviation [deg]": f"{row['pointing_deviation_mean_deg']:.2f} ± "
+                                        f"{row['pointing_deviation_std_deg']:.2f}",
+            "paper pointing deviation [deg]": p and
+            f"{p['pointing_deviation_mean_deg']} ± {p['pointing_deviation_std_deg']}",
+            "duration [s]": row["duration_s"],
+            "paper duration [s]": p and p["duration_s"],
+        })
+    return pd.DataFrame(rows)

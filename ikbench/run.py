@@ -1,0 +1,175 @@
+"""Run a method on targets and write trajectories, tables, figures and a report.
+
+``run(...)`` is what ``ikbench run`` calls; it returns the table as a DataFrame. Output layout
+under ``output/<method>/``: ``trajectory_<id>.csv``, ``table.csv`` (the Table 1/2 columns),
+``details.csv`` (smoothness and solver figures), ``run.json`` (settings and versions),
+``trajectories_3d.png``, ``pointing_error.png`` and ``report.md``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ikbench.errors import InputError
+from ikbench.io import atomic_savefig, atomic_write_csv, atomic_write_text
+from ikbench.methods import Method, get_method
+from ikbench.metrics import trajectory_metrics
+from ikbench.provenance import provenance
+from ikbench.report import (TABLE_COLUMNS, markdown_table, plot_pointing_error,
+                            plot_trajectories_3d, table1_comparison)
+from ikbench.robot import Robot, load_robot
+from ikbench.targets import Targets, load_targets
+from ikbench.task import line_tasks
+from ikbench.trajectory import DEFAULT_DURATION_S, read_trajectory_poses, write_trajectory_csv
+
+DEFAULT_OUTPUT = "results"
+
+
+class Progress:
+    """Progress lines on stderr: one per trajectory start/end, one per progress update."""
+
+    def __init__(self, label: str, stream=None, enabled: bool = True):
+        self.label = label
+        self.stream = stream or sys.stderr
+        self.enabled = enabled
+
+    def _print(self, text: str) -> None:
+        if self.enabled:
+            print(f"[{self.label}] {text}", file=self.stream, flush=True)
+
+    def start(self, task, index: int, total: int) -> None:
+        self._print(f"trajectory {task.name} ({index + 1}/{total}): solving, n = {task.steps}")
+
+    def update(self, task, iteration: int, loss: float) -> None:
+        self._print(f"trajectory {task.name}: iteration {iteration}, loss {loss:.4f}")
+
+    def done(self, task, solution) -> None:
+        loss = "" if solution.loss is None else f", loss {solution.loss:.4f}"
+        flag = "" if solution.converged else " (did not meet its stopping criterion)"
+        self._print(f"trajectory {task.name}: done in {solution.iterations} iterations, "
+                    f"{solution.duration_s:.2f} s{loss}{flag}")
+
+
+def evaluate(robot: Robot, tasks, method_dir: Path, method_name: str, solutions):
+    """Metrics of the written trajectories: returns (table, details, points_by_id)."""
+    rows, details, points_by_id = [], [], {}
+    for task, solution in zip(tasks, solutions):
+        poses = read_trajectory_poses(method_dir / f"trajectory_{task.name}.csv", robot)
+        metrics = trajectory_metrics(robot, task, poses)
+        points_by_id[task.name] = robot.fk(poses).point_mm
+        rows.append({
+            "trajectory": task.name, "method": method_name,
+            "iterations": solution.iterations, "duration_s": solution.duration_s,
+            "loss": np.nan if solution.loss is None else solution.loss,
+            **{k: metrics[k] for k in TABLE_COLUMNS[5:]},
+        })
+        extra = {k: v for k, v in metrics.items() if k not in TABLE_COLUMNS}
+        details.append({"trajectory": task.name, "method": method_name,
+                        "converged": solution.converged,
+                        "within_limits": robot.within_limits(poses),
+                        **extra, **solution.info})
+    return pd.DataFrame(rows, columns=TABLE_COLUMNS), pd.DataFrame(details), points_by_id
+
+
+def run(method: str | Method = "ours", *, targets: str | Path | Targets | None = None,
+        only: str | None = None, steps: int | None = None,
+        output: str | Path | None = DEFAULT_OUTPUT, duration_s: float = DEFAULT_DURATION_S,
+        options: dict | None = None, robot: Robot | None = None,
+        progress: bool = True) -> pd.DataFrame:
+    """Solve every selected target with ``method`` and write the results.
+
+    Args:
+        method: a method name (``"ours"``, ...) or a configured :class:`Method`.
+        targets: a targets file, a loaded :class:`Targets`, or None for the paper's.
+        only: comma-separated trajectory ids to keep (``"1,3"``).
+        steps: number of segments n (default: the targets file's).
+        output: output directory (the method writes to ``output/<method>/``); None writes
+            nothing and returns the table computed in a temporary directory.
+        duration_s: movement duration T [s] for the ``time_s`` column.
+        options: keyword options of the method (when ``method`` is a name).
+        robot: the robot (default NICO's right arm).
+        progress: print progress to stderr.
+
+    Returns:
+        The table (one row per trajectory, columns :data:`ikbench.report.TABLE_COLUMNS`).
+    """
+    if not (duration_s > 0 and np.isfinite(duration_s)):
+        raise InputError(f"--duration: {duration_s!r} must be a positive number of seconds")
+    robot = robot or load_robot()
+    if not isinstance(targets, Targets):
+        targets = load_targets(targets, robot)
+    targets = targets.select(only).with_steps(steps)
+    solver = method if isinstance(method, Method) else get_method(method)(**(options or {}))
+    tasks = line_tasks(robot, targets)
+
+    if output is None:
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as tmp:
+            return _solve_and_write(robot, targets, tasks, solver, Path(tmp), duration_s,
+                                    progress)
+    return _solve_and_write(robot, targets, tasks, solver, Path(output), duration_s, progress)
+
+
+def _solve_and_write(robot, targets, tasks, solver, output: Path, duration_s, progress):
+    method_dir = output / solver.name
+    started = time.perf_counter()
+    solutions = solver.solve_many(robot, tasks, Progress(solver.name, enabled=progress))
+    for task, solution in zip(tasks, solutions):
+        write_trajectory_csv(method_dir / f"trajectory_{task.name}.csv", robot,
+                             solution.poses_deg, duration_s)
+    table, details, points = evaluate(robot, tasks, method_dir, solver.name, solutions)
+    atomic_write_csv(method_dir / "table.csv", table, float_format="%.10g")
+    atomic_write_csv(method_dir / "details.csv", details, float_format="%.10g")
+    settings = {k: v for k, v in vars(solver).items() if not k.startswith("_")}
+    record = {"method": solver.name, "targets": targets.source, "trajectories": targets.ids,
+              "steps": targets.steps, "duration_s": duration_s,
+              "settings": json.loads(json.dumps(settings, default=_jsonable)),
+              "total_wall_time_s": time.perf_counter() - started, **provenance()}
+    atomic_write_text(method_dir / "run.json", json.dumps(record, indent=2) + "\n")
+    title = f"{solver.name}: {solver.description}"
+    atomic_savefig(method_dir / "trajectories_3d.png", plot_trajectories_3d(tasks, points, title))
+    atomic_savefig(method_dir / "pointing_error.png", plot_pointing_error(tasks, points, title))
+    atomic_write_text(method_dir / "report.md",
+                      method_report(solver, table, details, targets, record))
+    return table
+
+
+def _jsonable(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if hasattr(value, "__dict__"):
+        return vars(value)
+    return str(value)
+
+
+def method_report(solver, table: pd.DataFrame, details: pd.DataFrame, targets: Targets,
+                  record: dict) -> str:
+    """report.md of one method's run."""
+    lines = [f"# {solver.name}: {solver.description}", "",
+             f"Targets: {targets.source}; trajectories {', '.join(targets.ids)}; "
+             f"n = {targets.steps} segments. Produced by ikbench "
+             f"(git {record.get('git_revision')}) on {record['cpu']} "
+             f"({record['cpu_count']} cores), torch {record['packages']['torch']}.",
+             "", "## Measured", "",
+             "Computed by `ikbench.metrics` from the trajectory CSVs in this folder. Distances "
+             "in mm, angles in degrees, loss in the paper's units (cm, motor degrees).", "",
+             markdown_table(table.drop(columns=["method"]),
+                            {"loss": 3, "duration_s": 2, "iterations": 0}), ""]
+    if targets.is_paper and solver.name == "ours":
+        lines += ["## Beside the paper's Table 1", "",
+                  "Columns named *paper* are copied from the paper. Its \"distance from the "
+                  "line [mm]\" values are in centimetres (its unit label is off by a factor of "
+                  "ten, see shared/reference/README.md), so they are shown here x 10, in mm.",
+                  "", markdown_table(table1_comparison(table), {"loss": 2, "duration [s]": 2}),
+                  ""]
+    lines += ["## Figures", "", "![trajectories](trajectories_3d.png)", "",
+              "![criterion 2](pointing_error.png)", "", "## Solver details", "",
+              markdown_table(details.drop(columns=["method"]), {"iterations_per_s": 0}), ""]
+    return "\n".join(lines)
