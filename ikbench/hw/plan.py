@@ -1,0 +1,173 @@
+"""Motion plan: per-segment goals and speeds for playing a trajectory in a duration T.
+
+Segment k runs from pose k to pose k+1 in T/n seconds; each joint's speed is
+``|delta| / (T/n)`` in motor deg/s. A segment is flagged when a joint would exceed its motor's
+speed limit or when either end pose leaves the motor's angle limits.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ikbench.errors import InputError
+from ikbench.hw.motors import MotorConfig, speed_to_raw
+from ikbench.robot import load_robot
+from ikbench.trajectory import read_trajectory_csv
+
+#: Shortest segment [s] the executor accepts (one sync write takes ~0.5 ms at 1 Mbaud).
+MIN_SEGMENT_S = 0.005
+
+
+@dataclass(frozen=True)
+class MotionPlan:
+    """Goals and speeds of every segment.
+
+    Attributes:
+        config: the motors.
+        poses_motor_deg: (n+1, dof) trajectory poses [motor deg].
+        duration_s: T [s].
+        speed_deg_s: (n, dof) joint speeds [motor deg/s].
+        goal_raw: (n, dof) goal position register values (pose k+1).
+        speed_raw: (n, dof) moving-speed register values (1..1023).
+        over_speed: (n, dof) speed above the motor's ``max_speed_deg_s``.
+        out_of_limits: (n, dof) pose k or k+1 outside the motor's angle limits.
+    """
+
+    config: MotorConfig
+    poses_motor_deg: np.ndarray
+    duration_s: float
+    speed_deg_s: np.ndarray
+    goal_raw: np.ndarray
+    speed_raw: np.ndarray
+    over_speed: np.ndarray
+    out_of_limits: np.ndarray
+
+    @property
+    def n_segments(self) -> int:
+        return len(self.speed_deg_s)
+
+    @property
+    def segment_s(self) -> float:
+        """Duration of one segment [s]."""
+        return self.duration_s / self.n_segments
+
+    @property
+    def flagged(self) -> np.ndarray:
+        """(n,) True where a segment exceeds a speed limit or leaves the angle limits."""
+        return self.over_speed.any(axis=1) | self.out_of_limits.any(axis=1)
+
+    def table(self) -> pd.DataFrame:
+        """The segment table: one row per segment, speeds in motor deg/s, flags as text."""
+        n, names = self.n_segments, self.config.joint_names
+        frame = pd.DataFrame({
+            "segment": np.arange(n),
+            "from_step": np.arange(n),
+            "to_step": np.arange(1, n + 1),
+            "t_start_s": np.arange(n) * self.segment_s,
+            "t_end_s": np.arange(1, n + 1) * self.segment_s,
+        })
+        for j, name in enumerate(names):
+            frame[f"{name}_goal_deg"] = self.poses_motor_deg[1:, j]
+            frame[f"{name}_speed_deg_s"] = self.speed_deg_s[:, j]
+        for j, name in enumerate(names):
+            frame[f"{name}_goal_raw"] = self.goal_raw[:, j]
+            frame[f"{name}_speed_raw"] = self.speed_raw[:, j]
+        frame["over_speed"] = [_names(row, names) for row in self.over_speed]
+        frame["out_of_limits"] = [_names(row, names) for row in self.out_of_limits]
+        frame["flagged"] = self.flagged
+        return frame
+
+    def problems(self) -> list[str]:
+        """One line per joint and kind of flag, e.g. ``"r_wrist_z: 50 segments above ..."``."""
+        lines = []
+        for j, motor in enumerate(self.config.motors):
+            fast = np.flatnonzero(self.over_speed[:, j])
+            if len(fast):
+                k = fast[np.argmax(self.speed_deg_s[fast, j])]
+                lines.append(f"{motor.joint}: {len(fast)} segment(s) above its speed limit "
+                             f"{motor.max_speed_deg_s:g} deg/s (peak "
+                             f"{self.speed_deg_s[k, j]:.1f} deg/s in segment {k})")
+            outside = np.flatnonzero(self.out_of_limits[:, j])
+            if len(outside):
+                k = outside[0]
+                a, b = self.poses_motor_deg[k:k + 2, j]
+                lines.append(f"{motor.joint}: {len(outside)} segment(s) outside its limits "
+                             f"[{motor.lower_deg:g}, {motor.upper_deg:g}] deg (first: segment "
+                             f"{k}, {a:g} -> {b:g} deg)")
+        return lines
+
+    def check_executable(self) -> None:
+        """Raise InputError when any segment is flagged (the executor plays only clean plans)."""
+        if self.flagged.any():
+            raise InputError(
+                f"{int(self.flagged.sum())} of {self.n_segments} segments are flagged; "
+                f"{'; '.join(self.problems())}; use a longer --duration or fix the "
+                f"trajectory (see ikbench plan)"
+            )
+
+
+def make_plan(poses_motor_deg, config: MotorConfig, duration_s: float = 2.0) -> MotionPlan:
+    """Plan the segments of a trajectory.
+
+    Args:
+        poses_motor_deg: (n+1, dof) poses [motor deg] in the config's joint order.
+        config: the motors.
+        duration_s: T [s], the duration of the whole movement.
+    """
+    poses = np.asarray(poses_motor_deg, dtype=float)
+    if poses.ndim != 2 or poses.shape[1] != len(config.motors) or len(poses) < 2:
+        raise InputError(f"a plan needs (n+1, {len(config.motors)}) poses with n >= 1, "
+                         f"got shape {poses.shape}")
+    if not np.isfinite(poses).all():
+        raise InputError("a plan needs finite poses")
+    n = len(poses) - 1
+    if not (np.isfinite(duration_s) and duration_s / n >= MIN_SEGMENT_S):
+        raise InputError(f"--duration {duration_s:g} s gives segments of "
+                         f"{duration_s / n * 1000:g} ms; give at least "
+                         f"{MIN_SEGMENT_S * n:g} s for {n} segments "
+                         f"({MIN_SEGMENT_S * 1000:g} ms each)")
+    speed = np.abs(np.diff(poses, axis=0)) / (duration_s / n)
+    outside = config.outside_limits(poses)
+    return MotionPlan(
+        config=config,
+        poses_motor_deg=poses,
+        duration_s=float(duration_s),
+        speed_deg_s=speed,
+        goal_raw=config.poses_to_raw(poses[1:]),
+        speed_raw=speed_to_raw(speed),
+        over_speed=speed > config.max_speed_deg_s,
+        out_of_limits=outside[:-1] | outside[1:],
+    )
+
+
+def plan_trajectory_file(path, config: MotorConfig, duration_s: float = 2.0,
+                         strict: bool = True) -> tuple[MotionPlan, str | None]:
+    """Read a trajectory CSV and plan it; return the plan and a note when the file's own
+    ``time_s`` column ends at another duration than ``duration_s`` (else None).
+
+    Args:
+        strict: reject poses outside the robot's motor ranges (as the executor must); with
+            False they are let through so that the plan flags them.
+    """
+    robot = load_robot()
+    if not strict:
+        unbounded = np.full(robot.dof, np.inf)
+        robot = dataclasses.replace(robot, lower_motor_deg=-unbounded, upper_motor_deg=unbounded,
+                                    _cache={})
+    frame = read_trajectory_csv(path, robot)
+    plan = make_plan(frame[list(config.joint_names)].to_numpy(dtype=float), config, duration_s)
+    note = None
+    if "time_s" in frame:
+        file_end = float(pd.to_numeric(frame["time_s"], errors="coerce").iloc[-1])
+        if np.isfinite(file_end) and abs(file_end - duration_s) > 1e-6:
+            note = (f"note: the trajectory's time_s column ends at {file_end:g} s; playing it "
+                    f"in {duration_s:g} s (--duration)")
+    return plan, note
+
+
+def _names(mask, names) -> str:
+    return ";".join(name for name, bad in zip(names, mask) if bad)
