@@ -23,6 +23,15 @@ from ikbench.hw.protocol import PacketReader, packet
 START = [-24.92, 81.45, 46.55, 94.37, -59.03, 28.0, 45.67]
 
 
+@pytest.fixture(autouse=True)
+def tolerant_status_timeout(monkeypatch):
+    """dynamixel-sdk waits 2 x LATENCY_TIMER + 2 ms (34 ms) for a status packet; a loaded test
+    machine may not schedule the emulator thread that fast, so give it 200 ms here."""
+    import dynamixel_sdk.port_handler
+
+    monkeypatch.setattr(dynamixel_sdk.port_handler, "LATENCY_TIMER", 99)
+
+
 def _checksum(body: bytes) -> int:
     # written out here, independent of ikbench.hw.protocol
     return 255 - (sum(body) % 256)
@@ -82,15 +91,15 @@ def test_moves_towards_goal_at_moving_speed(config):
         speed_raw = 73  # 73 * 0.684 = 49.9 deg/s
         group = sdk.GroupSyncWrite(port, ph, 30, 4)
         group.addParam(21, [0x00, 0x08, speed_raw, 0])  # goal 2048 = 0 deg
-        t0 = time.monotonic()
         assert group.txPacket() == sdk.COMM_SUCCESS
         time.sleep(0.2)
         raw, _, _ = ph.read2ByteTxRx(port, 21, 36)
-        elapsed = time.monotonic() - t0
+        # timed by the emulator's own clock: when the packets arrived, not when we saw them
+        t_sync, t_read = [e.t for e in emulator.log if e.direction == "rx"][-2:]
         moved_deg = (raw - start_raw) * 360 / 4096
-        assert moved_deg == pytest.approx(speed_raw * 0.684 * elapsed, abs=0.5)
+        assert moved_deg == pytest.approx(speed_raw * 0.684 * (t_read - t_sync), abs=0.1)
         assert ph.read1ByteTxRx(port, 21, 46)[0] == 1  # moving
-        time.sleep(0.5 - elapsed + 0.05)  # 24.92 deg at 49.9 deg/s: there after 0.5 s
+        time.sleep(0.35)  # 24.92 deg at 49.9 deg/s: there after 0.5 s
         assert ph.read2ByteTxRx(port, 21, 36)[0] == 2048
         assert ph.read1ByteTxRx(port, 21, 46)[0] == 0
         port.closePort()

@@ -281,7 +281,9 @@ class Emulator:
         while True:
             ready, _, _ = select.select([self._master, self._stop_r], [], [])
             if self._stop_r in ready:
-                return
+                # serve what was sent before close() (e.g. a last hold command), then stop
+                if self._master not in select.select([self._master], [], [], 0)[0]:
+                    return
             try:
                 data = os.read(self._master, 4096)
             except OSError:  # no client has the slave open: wait for one

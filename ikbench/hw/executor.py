@@ -1,0 +1,431 @@
+"""Play a motion plan on Dynamixel servos through dynamixel-sdk (Protocol 1.0).
+
+Order of work: ping every motor, read present positions, refuse a start far from the first pose
+(or approach it slowly), write goal = present and enable torque, then send one SYNC WRITE per
+segment (goal position + moving speed, 4 bytes per motor, address 30) paced by
+``time.monotonic``, with no per-motor round trips in between unless recording was asked for.
+On Ctrl-C (a set ``stop_event``) or a communication failure it stops sending segments, writes
+goal = present position to the motors it can still read, and raises.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ikbench.errors import HardwareError
+from ikbench.hw.motors import (
+    ADDR_GOAL_POSITION,
+    ADDR_PRESENT_POSITION,
+    ADDR_TORQUE_ENABLE,
+    MODELS,
+    MotorConfig,
+    speed_to_raw,
+)
+from ikbench.hw.plan import MotionPlan
+from ikbench.hw.protocol import describe_error
+
+DEFAULT_START_TOLERANCE_DEG = 5.0
+DEFAULT_APPROACH_SPEED_DEG_S = 20.0
+#: Moving speed [deg/s] of the goal = present writes before the move and when holding.
+HOLD_SPEED_DEG_S = 10.0
+#: After the last segment, wait at most this long [s] for every joint to be within
+#: ``SETTLE_TOLERANCE_DEG`` of the final pose.
+SETTLE_S = 0.5
+SETTLE_TOLERANCE_DEG = 0.2
+
+
+class CommunicationError(HardwareError):
+    """No, late or corrupted status packet, an error bit set, or a port failure."""
+
+    def __init__(self, message: str, timeout: bool = False):
+        super().__init__(message)
+        self.timeout = timeout
+
+
+class ExecutionStopped(HardwareError):
+    """The move was stopped part-way (communication failure); the arm holds its position."""
+
+
+class ExecutionInterrupted(ExecutionStopped):
+    """The move was stopped by the user (Ctrl-C)."""
+
+    exit_code = 130
+
+
+@dataclass
+class ExecutionResult:
+    """What happened on the bus.
+
+    Attributes:
+        port: port name.
+        models: id -> model number reported at ping.
+        start_deg: (dof,) present pose before anything moved [motor deg].
+        segments_sent: SYNC WRITEs sent for trajectory segments.
+        n_segments: segments in the plan.
+        approached: whether an approach move to the first pose was made.
+        duration_s: first segment's SYNC WRITE to the end of settling [s].
+        max_late_s: worst lateness of a SYNC WRITE against its schedule [s].
+        final_deg: (dof,) last present pose read [motor deg] (None in a dry run).
+        settled: every joint within ``SETTLE_TOLERANCE_DEG`` of the final pose.
+        record: present poses read (time_s, phase, joints) or None.
+        dry_run: nothing was written to the bus.
+    """
+
+    port: str
+    models: dict
+    start_deg: np.ndarray
+    n_segments: int
+    segments_sent: int = 0
+    approached: bool = False
+    duration_s: float = 0.0
+    max_late_s: float = 0.0
+    final_deg: np.ndarray | None = None
+    settled: bool = False
+    record: pd.DataFrame | None = None
+    dry_run: bool = False
+
+
+class Bus:
+    """dynamixel-sdk port + Protocol 1.0 packet handler; failures raise CommunicationError."""
+
+    def __init__(self, port_name: str, config: MotorConfig):
+        import dynamixel_sdk as sdk
+
+        self.sdk, self.config, self.name = sdk, config, port_name
+        self.port = sdk.PortHandler(port_name)
+        self.handler = sdk.PacketHandler(1.0)
+
+    def open(self) -> None:
+        import serial
+
+        try:
+            ok = self.port.setBaudRate(self.config.baudrate)  # opens the port
+        except (OSError, serial.SerialException) as exc:
+            raise HardwareError(f"cannot open port {self.name!r}: {exc}") from None
+        if not ok:
+            raise HardwareError(f"baudrate {self.config.baudrate} in {self.config.source} is not "
+                                f"supported by dynamixel-sdk; NICO uses 1000000")
+
+    def close(self) -> None:
+        if self.port.is_open:
+            self.port.closePort()
+
+    def _call(self, what: str, index: int | None, function, *args):
+        import serial
+
+        label = "the bus" if index is None else f"motor {self.config.label(index)}"
+        try:
+            *values, result, error = function(self.port, *args)
+        except (OSError, serial.SerialException) as exc:
+            self.port.is_using = False
+            raise CommunicationError(f"{what} on {label}: port {self.name!r} failed: {exc}") \
+                from None
+        if result != self.sdk.COMM_SUCCESS:
+            raise CommunicationError(f"{what} on {label}: {self._describe(result)}",
+                                     timeout=result == self.sdk.COMM_RX_TIMEOUT)
+        if error:
+            raise CommunicationError(f"{what}: motor {self.config.label(index)} reports error "
+                                     f"{describe_error(error)} (status error byte 0x{error:02x})")
+        return values[0] if values else None
+
+    def _describe(self, result: int) -> str:
+        sdk = self.sdk
+        return {sdk.COMM_RX_TIMEOUT: "no status packet (timeout)",
+                sdk.COMM_RX_CORRUPT: "corrupted status packet (bad checksum or length)",
+                sdk.COMM_TX_FAIL: "could not send the instruction packet",
+                sdk.COMM_PORT_BUSY: "port busy"}.get(result, self.handler.getTxRxResult(result))
+
+    def ping(self) -> dict[int, int]:
+        """Ping every motor; return id -> model number. Names all missing ids at once."""
+        models, missing = {}, []
+        for index, motor in enumerate(self.config.motors):
+            try:
+                models[motor.id] = self._call("ping", index, self.handler.ping, motor.id)
+            except CommunicationError as exc:
+                if not exc.timeout:
+                    raise
+                missing.append(self.config.label(index))
+        if missing:
+            raise CommunicationError(
+                f"no answer from motor(s) {', '.join(missing)} on {self.name} at "
+                f"{self.config.baudrate} baud; check power, cables and the ids in "
+                f"{self.config.source}")
+        for index, motor in enumerate(self.config.motors):
+            if motor.model_number not in (None, models[motor.id]):
+                names = {number: name for name, (number, _) in MODELS.items()}
+                raise HardwareError(
+                    f"motor {self.config.label(index)} reports model number {models[motor.id]} "
+                    f"({names.get(models[motor.id], 'unknown')}) but {self.config.source} says "
+                    f"{motor.model}")
+        return models
+
+    def read_present_raw(self, index: int) -> int:
+        return self._call("read present position", index, self.handler.read2ByteTxRx,
+                          self.config.motors[index].id, ADDR_PRESENT_POSITION)
+
+    def read_all_raw(self) -> np.ndarray:
+        """(dof,) present positions (register values): one READ per motor."""
+        return np.array([self.read_present_raw(i) for i in range(len(self.config.motors))])
+
+    def write_goal(self, index: int, goal_raw: int, speed_raw: int) -> None:
+        """WRITE goal position and moving speed of one motor, with its status checked."""
+        self._check_goal(index, goal_raw)
+        data = list(int(goal_raw).to_bytes(2, "little") + int(speed_raw).to_bytes(2, "little"))
+        self._call("write goal position", index, self.handler.writeTxRx,
+                   self.config.motors[index].id, ADDR_GOAL_POSITION, 4, data)
+
+    def enable_torque(self, index: int) -> None:
+        self._call("enable torque", index, self.handler.write1ByteTxRx,
+                   self.config.motors[index].id, ADDR_TORQUE_ENABLE, 1)
+
+    def sync_write(self, goals_raw: dict[int, int], speeds_raw: dict[int, int]) -> None:
+        """One SYNC WRITE at address 30: goal position + moving speed for the given indices."""
+        group = self.sdk.GroupSyncWrite(self.port, self.handler, ADDR_GOAL_POSITION, 4)
+        for index, goal in goals_raw.items():
+            self._check_goal(index, goal)
+            data = int(goal).to_bytes(2, "little") + int(speeds_raw[index]).to_bytes(2, "little")
+            group.addParam(self.config.motors[index].id, list(data))
+        self._call("sync write", None, lambda port: (group.txPacket(), 0))
+
+    def _check_goal(self, index: int, goal_raw: int) -> None:
+        low, high = self.config.motors[index].raw_limits
+        if not low <= goal_raw <= high:  # the plan is checked first; this is a last guard
+            raise HardwareError(f"refusing goal {goal_raw} for motor {self.config.label(index)}: "
+                                f"outside its limits [{low}, {high}]")
+
+
+def execute(plan: MotionPlan, port_name: str, *, approach: bool = False,
+            approach_speed_deg_s: float = DEFAULT_APPROACH_SPEED_DEG_S,
+            start_tolerance_deg: float = DEFAULT_START_TOLERANCE_DEG, dry_run: bool = False,
+            record_rate_hz: float = 0.0, stop_event: threading.Event | None = None,
+            log=print) -> ExecutionResult:
+    """Play ``plan`` on the servos at ``port_name``.
+
+    Args:
+        plan: an unflagged motion plan (see :meth:`MotionPlan.check_executable`).
+        port_name: serial port (``/dev/ttyUSB0``) or an emulator's pty.
+        approach: when the arm is farther than ``start_tolerance_deg`` from the first pose, move
+            it there at ``approach_speed_deg_s`` [deg/s] instead of refusing.
+        dry_run: ping and read only; write nothing.
+        record_rate_hz: also read present positions during the move, at most this often [Hz]
+            and only when the next segment is not due (0: only after the move).
+        stop_event: set it (e.g. from a SIGINT handler) to stop the move and hold.
+        log: called with progress lines.
+
+    Raises:
+        HardwareError: before anything moved (missing motors, far start, ...).
+        ExecutionStopped / ExecutionInterrupted: after motion began; the arm holds.
+    """
+    plan.check_executable()
+    stop_event = stop_event or threading.Event()
+    bus = Bus(port_name, plan.config)
+    bus.open()
+    try:
+        return _Run(plan, bus, stop_event, log, record_rate_hz).run(
+            approach, approach_speed_deg_s, start_tolerance_deg, dry_run)
+    finally:
+        bus.close()
+
+
+class _Run:
+    """One execution: state shared by its phases."""
+
+    def __init__(self, plan, bus, stop_event, log, record_rate_hz):
+        self.plan, self.bus, self.stop, self.log = plan, bus, stop_event, log
+        self.config = plan.config
+        self.record_period = 1.0 / record_rate_hz if record_rate_hz > 0 else None
+        self.next_sample = 0.0
+        self.read_times: list[float] = []
+        self.rows: list[tuple] = []
+        self.moving = False
+        self.t0 = None
+        self.result: ExecutionResult | None = None
+
+    def run(self, approach, approach_speed, tolerance, dry_run) -> ExecutionResult:
+        try:
+            return self._run(approach, approach_speed, tolerance, dry_run)
+        except (HardwareError, KeyboardInterrupt) as exc:
+            raise self._stopped(exc) from None
+
+    def _run(self, approach, approach_speed, tolerance, dry_run) -> ExecutionResult:
+        models = self.bus.ping()
+        self.log(f"pinged {len(models)} motors on {self.bus.name}: ids "
+                 f"{', '.join(str(i) for i in self.config.ids)}")
+        start_raw = self.bus.read_all_raw()
+        start = self.config.raw_to_poses(start_raw)
+        self._sample(start, "start", time.monotonic())
+        result = self.result = ExecutionResult(self.bus.name, models, start,
+                                               self.plan.n_segments, dry_run=dry_run)
+        far = self._check_start(start, tolerance, approach, approach_speed)
+        if dry_run:
+            self.log(f"dry run: would send {self.plan.n_segments} SYNC WRITEs, one every "
+                     f"{self.plan.segment_s * 1000:g} ms; nothing was written")
+            result.record = self._record()
+            return result
+        self._check_stop()
+        self._prepare(start_raw)
+        if far:
+            self._approach(start, approach_speed)
+            result.approached = True
+        self._play(result)
+        self._settle(result)
+        result.record = self._record()
+        return result
+
+    # ----- phases -------------------------------------------------------------------------
+    def _check_start(self, start, tolerance, approach, approach_speed) -> bool:
+        gap = np.abs(start - self.plan.poses_motor_deg[0])
+        if gap.max() <= tolerance:
+            self.log(f"arm within {gap.max():.2f} deg of the first pose")
+            return False
+        j = int(gap.argmax())
+        what = (f"{self.config.joint_names[j]} is at {start[j]:.2f} motor deg, {gap[j]:.2f} deg "
+                f"from the first pose ({self.plan.poses_motor_deg[0, j]:g}); tolerance "
+                f"{tolerance:g} deg")
+        outside = self.config.outside_limits(start)
+        if approach and not outside.any():
+            self.log(f"{what}: approaching the first pose at <= {approach_speed:g} deg/s "
+                     f"(about {gap.max() / approach_speed:.1f} s)")
+            return True
+        if outside.any():
+            motor = self.config.motors[int(np.flatnonzero(outside)[0])]
+            angle = start[self.config.joint_names.index(motor.joint)]
+            raise HardwareError(f"{motor.joint} is at {angle:.2f} motor deg, outside its limits "
+                                f"[{motor.lower_deg:g}, {motor.upper_deg:g}]; move the arm into "
+                                f"range first or check offset_deg in {self.config.source}")
+        raise HardwareError(f"{what}; move the arm there or pass --approach")
+
+    def _check_stop(self) -> None:
+        if self.stop.is_set():
+            raise ExecutionInterrupted("interrupted")
+
+    def _prepare(self, start_raw) -> None:
+        """Goal = present (no jump when torque comes on), slow speed, torque on."""
+        hold = int(speed_to_raw(HOLD_SPEED_DEG_S))
+        for index, raw in enumerate(start_raw):
+            low, high = self.config.motors[index].raw_limits
+            self.bus.write_goal(index, int(np.clip(raw, low, high)), hold)
+            self.bus.enable_torque(index)
+
+    def _approach(self, start, speed_deg_s) -> None:
+        first = self.plan.poses_motor_deg[0]
+        gap = np.abs(first - start)
+        duration = gap.max() / speed_deg_s
+        speeds = speed_to_raw(gap / duration)
+        goals = self.config.poses_to_raw(first)
+        dof = range(len(self.config.motors))
+        self.moving = True
+        self.bus.sync_write({i: goals[i] for i in dof}, {i: speeds[i] for i in dof})
+        deadline = time.monotonic() + duration + 2.0
+        while True:
+            if self.stop.wait(0.05):
+                raise ExecutionInterrupted("interrupted")
+            pose = self.config.raw_to_poses(self.bus.read_all_raw())
+            if np.abs(pose - first).max() <= SETTLE_TOLERANCE_DEG:
+                return
+            if time.monotonic() > deadline:
+                raise HardwareError(f"approach did not reach the first pose in {duration + 2:.1f} "
+                                    f"s (worst joint off by {np.abs(pose - first).max():.1f} deg)")
+
+    def _play(self, result: ExecutionResult) -> None:
+        plan, dof = self.plan, range(len(self.config.motors))
+        segment_s = plan.segment_s
+        self.log(f"playing {plan.n_segments} segments of {segment_s * 1000:g} ms "
+                 f"(T = {plan.duration_s:g} s)")
+        self.moving = True
+        self.t0 = time.monotonic()
+        for k in range(plan.n_segments):
+            due = self.t0 + k * segment_s
+            if self.stop.wait(max(0.0, due - time.monotonic())):
+                raise ExecutionInterrupted("interrupted")
+            result.max_late_s = max(result.max_late_s, time.monotonic() - due)
+            self.bus.sync_write({i: plan.goal_raw[k, i] for i in dof},
+                                {i: plan.speed_raw[k, i] for i in dof})
+            result.segments_sent = k + 1
+            if self.record_period:
+                self._sample_between_segments(self.t0 + (k + 1) * segment_s)
+        if self.stop.wait(max(0.0, self.t0 + plan.duration_s - time.monotonic())):
+            raise ExecutionInterrupted("interrupted")
+
+    def _sample_between_segments(self, next_due: float) -> None:
+        """Read the present pose if a sample is due and it fits before ``next_due``."""
+        now = time.monotonic()
+        elapsed = now - self.t0
+        typical_s = float(np.median(self.read_times)) if self.read_times else 0.0
+        early_s = 0.25 * self.plan.segment_s  # samples follow segment starts, give or take
+        if elapsed < self.next_sample - early_s or next_due - now <= 2 * typical_s:
+            return
+        pose = self.config.raw_to_poses(self.bus.read_all_raw())
+        self.read_times.append(time.monotonic() - now)
+        self._sample(pose, "move", now)
+        self.next_sample = elapsed + self.record_period
+
+    def _settle(self, result: ExecutionResult) -> None:
+        final = self.plan.poses_motor_deg[-1]
+        deadline = time.monotonic() + SETTLE_S
+        while True:
+            now = time.monotonic()
+            pose = self.config.raw_to_poses(self.bus.read_all_raw())
+            self._sample(pose, "settle", now)
+            result.final_deg = pose
+            result.settled = bool(np.abs(pose - final).max() <= SETTLE_TOLERANCE_DEG)
+            if result.settled or now > deadline or self.stop.wait(0.01):
+                break
+        result.duration_s = time.monotonic() - self.t0
+        self.moving = False
+
+    # ----- failure ------------------------------------------------------------------------
+    def _stopped(self, exc) -> HardwareError:
+        """The error to raise for ``exc``; holds the arm first when it was moving."""
+        interrupted = isinstance(exc, (KeyboardInterrupt, ExecutionInterrupted))
+        if not self.moving:
+            if interrupted:
+                return ExecutionInterrupted("interrupted before anything moved")
+            if isinstance(exc, CommunicationError):
+                return CommunicationError(f"{exc}; nothing moved", exc.timeout)
+            return exc  # a refusal (far start, wrong model, ...): nothing was sent
+        reason = "interrupted" if interrupted else str(exc)
+        sent = self.result.segments_sent
+        where = (f"sent {sent} of {self.plan.n_segments} segments"
+                 + (f" (last: segment {sent - 1})" if sent else ""))
+        error = (ExecutionInterrupted if interrupted else ExecutionStopped)(
+            f"{reason}; {where}; {self._hold()}")
+        self.result.record = self._record()
+        error.result = self.result
+        return error
+
+    def _hold(self) -> str:
+        """Goal = present position for every motor still readable; return what was done."""
+        self.bus.port.is_using = False
+        goals, lost = {}, []
+        for index, motor in enumerate(self.config.motors):
+            try:
+                low, high = motor.raw_limits
+                goals[index] = int(np.clip(self.bus.read_present_raw(index), low, high))
+            except HardwareError:
+                lost.append(self.config.label(index))
+        speed = int(speed_to_raw(HOLD_SPEED_DEG_S))
+        if goals:
+            try:
+                self.bus.sync_write(goals, {i: speed for i in goals})
+            except HardwareError:
+                return "could not send the hold command; motors stop at their last goal"
+        if lost:
+            return (f"holding present position; {', '.join(lost)} did not answer and stop at "
+                    f"their last goal")
+        return "holding present position"
+
+    # ----- recording ----------------------------------------------------------------------
+    def _sample(self, pose, phase: str, t: float) -> None:
+        self.rows.append((t, phase, *pose))
+
+    def _record(self) -> pd.DataFrame:
+        t0 = self.t0 if self.t0 is not None else (self.rows[0][0] if self.rows else 0.0)
+        frame = pd.DataFrame(self.rows, columns=["t", "phase", *self.config.joint_names])
+        frame.insert(0, "time_s", frame.pop("t") - t0)
+        return frame

@@ -1,0 +1,353 @@
+"""``ikbench execute`` end to end against the emulated bus, through the real dynamixel-sdk.
+
+What went over the bus is decoded here from the emulator's raw packet log (not through
+ikbench.hw), and the expected register values are computed here from the issue's formulas.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from ikbench.cli import main
+from ikbench.hw.emulator import Emulator, Fault
+from ikbench.hw.executor import Bus, ExecutionInterrupted, execute
+from ikbench.hw.motors import default_config_path, load_motor_config
+from ikbench.hw.plan import make_plan
+from ikbench.trajectory import write_trajectory_csv
+
+START = np.array([-24.92, 81.45, 46.55, 94.37, -59.03, 28.0, 45.67])
+TOUCH_1 = np.array([33, 39, 25, 134, 102, 77, -168.0])
+IDS = [21, 1, 3, 5, 31, 33, 36]
+STEP_DEG = 360 / 4096
+LIMITS_DEG = {21: (-30, 80), 1: (-30, 180), 3: (0, 70), 5: (50, 180), 31: (-180, 180),
+              33: (-180, 180), 36: (-180, 180)}
+
+
+@pytest.fixture(autouse=True)
+def tolerant_status_timeout(monkeypatch):
+    """dynamixel-sdk waits 2 x LATENCY_TIMER + 2 ms (34 ms) for a status packet; a loaded test
+    machine may not schedule the emulator thread that fast, so give it 200 ms here."""
+    import dynamixel_sdk.port_handler
+
+    monkeypatch.setattr(dynamixel_sdk.port_handler, "LATENCY_TIMER", 99)
+
+
+def line_poses(n: int = 50, fraction: float = 1.0) -> np.ndarray:
+    """Joint-space interpolation from the start pose towards touch pose 1, (n+1, 7)."""
+    return START + np.linspace(0.0, fraction, n + 1)[:, None] * (TOUCH_1 - START)
+
+
+def goal_raw(deg) -> list[int]:
+    return [min(4095, round(2048 + q * 4096 / 360)) for q in deg]
+
+
+def speed_raw(delta_deg, segment_s) -> list[int]:
+    return [min(1023, max(1, math.ceil(abs(d) / segment_s / 0.684 - 1e-9))) for d in delta_deg]
+
+
+def sync_writes(emulator) -> list[tuple[float, dict[int, tuple[int, int]]]]:
+    """(t, {id: (goal, speed)}) of every SYNC WRITE, decoded from the raw log."""
+    writes = []
+    for entry in emulator.log:
+        data = entry.data
+        if entry.direction != "rx" or len(data) < 7 or data[2] != 0xFE or data[4] != 0x83:
+            continue
+        assert (data[5], data[6]) == (30, 4), "goal position + moving speed at address 30"
+        assert data[-1] == 255 - sum(data[2:-1]) % 256
+        chunks = [data[i:i + 5] for i in range(7, len(data) - 1, 5)]
+        writes.append((entry.t, {c[0]: (c[1] | c[2] << 8, c[3] | c[4] << 8) for c in chunks}))
+    return writes
+
+
+def motion_commands(emulator, after: float = -1.0) -> list:
+    """SYNC WRITEs, and WRITEs touching torque enable (24) .. moving speed (33), after ``after``."""
+    found = []
+    for entry in emulator.log:
+        data = entry.data
+        if entry.direction != "rx" or entry.t <= after or len(data) < 7:
+            continue
+        is_write = data[4] == 0x03 and data[5] <= 33 and data[5] + len(data) - 7 > 24
+        if data[4] == 0x83 or is_write:
+            found.append(entry)
+    return found
+
+
+def assert_is_a_hold(last_two) -> None:
+    """The last SYNC WRITE commands nothing new: each goal is a present position the servo
+    passed on its way to the goal of the segment before (goal = present when read), at a
+    slow speed."""
+    segment, hold = last_two
+    assert set(hold.data) == set(IDS)
+    for motor_id in IDS:
+        ends = (segment.present_before[motor_id], segment.word(motor_id))
+        assert min(ends) - 1 <= hold.word(motor_id) <= max(ends) + 1
+        assert hold.word(motor_id, 2) <= math.ceil(10 / 0.684)
+
+
+def first_fault_time(emulator) -> float:
+    return next(e.t for e in emulator.log if e.note.startswith("fault"))
+
+
+@pytest.fixture()
+def traj(tmp_path, robot):
+    return write_trajectory_csv(tmp_path / "line.csv", robot, line_poses())
+
+
+@pytest.fixture()
+def short_traj(tmp_path, robot):
+    """10 segments, a fifth of the way to the touch pose: fine at T = 0.3 s."""
+    return write_trajectory_csv(tmp_path / "short.csv", robot, line_poses(10, 0.2), 0.3)
+
+
+def test_end_to_end_two_seconds(traj, tmp_path, capsys):
+    record = tmp_path / "rec.csv"
+    poses = line_poses()
+    with Emulator(load_motor_config(), START) as emulator:
+        code = main(["execute", str(traj), "--port", emulator.port, "--record", str(record)])
+        t_done = time.monotonic()
+        final = emulator.present_deg()
+    out = capsys.readouterr().out
+    assert code == 0, out
+    writes = sync_writes(emulator)
+    assert len(writes) == 50
+    for k, (_, goals) in enumerate(writes):
+        assert list(goals) == IDS  # every motor, in joint order, in one packet
+        assert [g for g, _ in goals.values()] == goal_raw(poses[k + 1])
+        assert [s for _, s in goals.values()] == speed_raw(poses[k + 1] - poses[k], 0.04)
+        for motor_id, (goal, _) in goals.items():
+            low, high = LIMITS_DEG[motor_id]
+            assert goal_raw([low])[0] <= goal <= goal_raw([high])[0]
+    # no per-motor round trips while the segments go out
+    between = [e for e in emulator.log if writes[0][0] < e.t < writes[-1][0]]
+    assert {e.name for e in between} == {"SYNC_WRITE"}
+    assert not emulator.violations
+    np.testing.assert_allclose(final, TOUCH_1, atol=STEP_DEG)
+    total = t_done - writes[0][0]
+    assert 2.0 <= total <= 3.0, total
+    assert 1.9 <= writes[-1][0] - writes[0][0] <= 2.5
+    assert "done: 50 SYNC WRITEs in 2." in out
+    rows = pd.read_csv(record)
+    assert rows["phase"].iloc[0] == "start" and rows["phase"].iloc[-1] == "settle"
+    np.testing.assert_allclose(rows.iloc[-1][2:].to_numpy(float), TOUCH_1, atol=0.2)
+
+
+def test_record_rate_reads_between_segments(tmp_path, robot):
+    path = write_trajectory_csv(tmp_path / "t.csv", robot, line_poses(20, 0.3), 1.0)
+    record = tmp_path / "rec.csv"
+    with Emulator(load_motor_config(), START) as emulator:
+        assert main(["execute", str(path), "--port", emulator.port, "--duration", "1",
+                     "--record", str(record), "--record-rate", "20"]) == 0
+    assert len(sync_writes(emulator)) == 20
+    rows = pd.read_csv(record)
+    moving = rows[rows["phase"] == "move"]
+    # about 20 Hz over 1 s; fewer when reads would delay a segment (a loaded machine)
+    assert 1 <= len(moving) <= 20
+    assert np.all(np.diff(moving["time_s"]) >= 0.05 - 0.0125 - 0.005)
+    # the recorded finger moves steadily from the first towards the last pose
+    finger = moving["r_indexfinger_x"].to_numpy()
+    last = START[6] + 0.3 * (TOUCH_1[6] - START[6])
+    assert np.all(np.diff(finger) <= 0)
+    assert np.all((finger <= START[6] + 0.1) & (finger >= last - 0.1))
+
+
+def test_far_start_is_refused_without_motion(short_traj, capsys):
+    away = START + [0, 0, 0, 20, 0, 0, 0]
+    with Emulator(load_motor_config(), away) as emulator:
+        code = main(["execute", str(short_traj), "--port", emulator.port, "--duration", "0.3"])
+    err = capsys.readouterr().err
+    assert code == 3
+    assert err == ("ikbench: error: r_elbow_y is at 114.35 motor deg, 19.98 deg from the first "
+                   "pose (94.37); tolerance 5 deg; move the arm there or pass --approach\n")
+    assert motion_commands(emulator) == []
+
+
+def test_approach_moves_slowly_to_the_first_pose(short_traj, capsys):
+    away = START + [0, 0, 0, 20, 0, 0, -10]
+    with Emulator(load_motor_config(), away) as emulator:
+        code = main(["execute", str(short_traj), "--port", emulator.port, "--duration", "0.3",
+                     "--approach", "--approach-speed", "100"])
+        final = emulator.present_deg()
+    assert code == 0, capsys.readouterr()
+    writes = sync_writes(emulator)
+    assert len(writes) == 1 + 10
+    approach = writes[0][1]
+    assert [g for g, _ in approach.values()] == goal_raw(START)
+    assert max(s for _, s in approach.values()) <= math.ceil(100 / 0.684)
+    assert writes[1][0] - writes[0][0] >= 20 / 100  # waited for the arm to get there
+    np.testing.assert_allclose(final, line_poses(10, 0.2)[-1], atol=STEP_DEG)
+
+
+def test_missing_motors_are_named(short_traj, capsys):
+    with Emulator(load_motor_config(), START, missing_ids={5, 33}) as emulator:
+        code = main(["execute", str(short_traj), "--port", emulator.port, "--duration", "0.3"])
+    err = capsys.readouterr().err
+    assert code == 3
+    assert "no answer from motor(s) id 5 (r_elbow_y), id 33 (r_wrist_x) on /dev/" in err
+    assert err.count("\n") == 1
+    assert motion_commands(emulator) == []
+
+
+@pytest.mark.parametrize("fault, message", [
+    (Fault("drop", 31, 0x02, after=1),
+     "read present position on motor id 31 (r_wrist_z): no status packet (timeout)"),
+    (Fault("corrupt", 3, 0x02, after=1),
+     "read present position on motor id 3 (r_arm_x): corrupted status packet"),
+    (Fault("error", 36, 0x03, error_bits=0x20),
+     ("write goal position: motor id 36 (r_indexfinger_x) reports error overload (status "
+      "error byte 0x20)")),
+    (Fault("error", 1, 0x03, after=1, error_bits=0x04),
+     "enable torque: motor id 1 (r_shoulder_y) reports error overheating"),
+])
+def test_faults_before_the_move(short_traj, capsys, fault, message):
+    with Emulator(load_motor_config(), START, faults=[fault]) as emulator:
+        code = main(["execute", str(short_traj), "--port", emulator.port, "--duration", "0.3"])
+    err = capsys.readouterr().err
+    assert code == 3
+    assert err.startswith(f"ikbench: error: {message}")
+    assert err.rstrip().endswith("nothing moved")
+    assert sync_writes(emulator) == []
+    assert motion_commands(emulator, after=first_fault_time(emulator)) == []
+
+
+def test_fault_during_the_move_stops_and_holds(short_traj, tmp_path, capsys):
+    # reads of id 5: model number at ping, start pose, then one per recorded sample
+    fault = Fault("corrupt", 5, 0x02, after=2 + 4, count=1)
+    record = tmp_path / "rec.csv"
+    with Emulator(load_motor_config(), START, faults=[fault]) as emulator:
+        code = main(["execute", str(short_traj), "--port", emulator.port, "--duration", "0.6",
+                     "--record-rate", "100", "--record", str(record)])
+        time.sleep(0.1)
+        settled = emulator.present_deg()
+    err = capsys.readouterr().err
+    assert code == 3
+    writes = sync_writes(emulator)
+    t_fault = first_fault_time(emulator)
+    before = [w for w in writes if w[0] < t_fault]
+    after = [w for w in writes if w[0] > t_fault]
+    assert 1 <= len(before) < 10
+    assert f"sent {len(before)} of 10 segments (last: segment {len(before) - 1})" in err
+    assert "corrupted status packet" in err and "holding present position" in err
+    assert len(after) == 1  # the hold: goal = present position, at a slow speed
+    assert_is_a_hold(emulator.sync_writes()[-2:])
+    # the arm stopped part-way instead of finishing the trajectory
+    assert np.abs(settled - line_poses(10, 0.2)[-1]).max() > 1.0
+    assert pd.read_csv(record)["phase"].iloc[-1] == "move"
+
+
+def test_ctrl_c_stops_and_holds(short_traj):
+    config = load_motor_config()
+    poses = line_poses(10, 0.2)
+    plan = make_plan(poses, config, duration_s=0.6)
+    stop = threading.Event()
+    with Emulator(config, START) as emulator:
+
+        def press_ctrl_c_after_three_segments():
+            deadline = time.monotonic() + 10
+            while len(emulator.sync_writes()) < 3 and time.monotonic() < deadline:
+                time.sleep(0.001)
+            stop.set()
+
+        threading.Thread(target=press_ctrl_c_after_three_segments, daemon=True).start()
+        with pytest.raises(ExecutionInterrupted) as info:
+            execute(plan, emulator.port, stop_event=stop, log=lambda line: None)
+        t_after = time.monotonic()
+    writes = sync_writes(emulator)
+    sent = info.value.result.segments_sent
+    assert 3 <= sent <= 5  # 60 ms segments: stopped before the 4th or 5th
+    assert str(info.value).startswith(f"interrupted; sent {sent} of 10 segments (last: "
+                                      f"segment {sent - 1}); holding present position")
+    assert info.value.exit_code == 130
+    assert len(writes) == sent + 1
+    assert_is_a_hold(emulator.sync_writes()[-2:])
+    assert t_after - writes[0][0] < 0.6
+
+
+def test_ctrl_c_from_the_terminal(traj):
+    exe = Path(sys.executable).with_name("ikbench")
+    with Emulator(load_motor_config(), START) as emulator:
+        proc = subprocess.Popen([str(exe), "execute", str(traj), "--port", emulator.port],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            deadline = time.monotonic() + 20
+            while len(emulator.sync_writes()) < 5 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            proc.send_signal(signal.SIGINT)
+            _, err = proc.communicate(timeout=10)
+        finally:
+            proc.kill()
+        final = emulator.present_deg()
+    assert proc.returncode == 130
+    sent = len(sync_writes(emulator)) - 1
+    assert err == (f"ikbench: error: interrupted; sent {sent} of 50 segments (last: segment "
+                   f"{sent - 1}); holding present position\n")
+    assert sent < 30
+    assert np.abs(final - TOUCH_1).max() > 50  # nowhere near the end
+
+
+def test_port_emulator_shortcut(short_traj, capsys):
+    assert main(["execute", str(short_traj), "--port", "emulator", "--duration", "0.3"]) == 0
+    out = capsys.readouterr().out
+    assert "emulator: 10 SYNC WRITEs received, 0 limit violations" in out
+    assert "done: 10 SYNC WRITEs in 0.3" in out
+
+
+def test_dry_run_writes_nothing(short_traj, tmp_path, capsys):
+    record = tmp_path / "rec.csv"
+    with Emulator(load_motor_config(), START) as emulator:
+        code = main(["execute", str(short_traj), "--port", emulator.port, "--dry-run",
+                     "--duration", "0.3", "--record", str(record)])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "dry run: would send 10 SYNC WRITEs, one every 30 ms; nothing was written" in out
+    assert {e.name for e in emulator.log if e.direction == "rx"} == {"PING", "READ"}
+    assert pd.read_csv(record)["phase"].tolist() == ["start"]
+
+
+@pytest.mark.parametrize("args, code, message", [
+    (["--approach-speed", "0"], 2, "--approach-speed 0; allowed: (0, 699.7] deg/s"),
+    (["--record-rate", "-1"], 2, "--record-rate -1; allowed: [0, 1000] Hz"),
+    (["--duration", "0.04"], 2, "--duration 0.04 s gives segments of 4 ms"),
+    (["--duration", "0.1"], 2, "segments are flagged; r_wrist_z"),
+    (["--port", "/dev/does-not-exist"], 3, "cannot open port '/dev/does-not-exist'"),
+])
+def test_bad_options(short_traj, capsys, args, code, message):
+    argv = ["execute", str(short_traj), "--port", "emulator", "--duration", "0.3", *args]
+    assert main(argv) == code
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+
+
+def test_model_number_is_checked(short_traj, tmp_path, capsys):
+    spec = json.loads(default_config_path().read_text())
+    spec["motors"]["r_shoulder_z"]["model"] = "MX-64"
+    path = tmp_path / "mx64.json"
+    path.write_text(json.dumps(spec))
+    with Emulator(load_motor_config(), START) as emulator:  # reports MX-28's number, 29
+        code = main(["execute", str(short_traj), "--port", emulator.port, "--motors", str(path),
+                     "--duration", "0.3"])
+    assert code == 3
+    assert ("motor id 21 (r_shoulder_z) reports model number 29 (MX-28) but "
+            f"{path} says MX-64") in capsys.readouterr().err
+    assert motion_commands(emulator) == []
+
+
+def test_bus_refuses_goals_outside_limits():
+    config = load_motor_config()
+    with Emulator(config, START) as emulator:
+        bus = Bus(emulator.port, config)
+        bus.open()
+        with pytest.raises(Exception, match=r"refusing goal 4000 for motor id 3 \(r_arm_x\)"):
+            bus.sync_write({i: 2048 for i in range(6)} | {2: 4000}, {i: 10 for i in range(7)})
+        bus.close()
+    assert sync_writes(emulator) == []
