@@ -11,7 +11,7 @@ import numpy as np
 
 
 def _float64_transform(origin):
-    """URDF origin -> Transform3d in float64 (pytorch-kinematics' own parser rounds rpy to float32)."""
+    """URDF origin -> float64 Transform3d (pytorch-kinematics rounds rpy to float32)."""
     import pytorch_kinematics.transforms as tf
     import torch
 

@@ -73,7 +73,7 @@ class LossGoals:
     end_pose_deg: object        # (dof,) or None
 
     @classmethod
-    def from_task(cls, task, dtype, device="cpu") -> "LossGoals":
+    def from_task(cls, task, dtype, device="cpu") -> LossGoals:
         import torch
 
         def tensor(x):

@@ -55,7 +55,7 @@ class Targets:
         """Trajectory ids in file order."""
         return list(self.touch_poses_deg)
 
-    def select(self, only: str | list[str] | None) -> "Targets":
+    def select(self, only: str | list[str] | None) -> Targets:
         """Keep only the given trajectory ids (``"1,3"`` or a list); None keeps all."""
         if only is None or only == "":
             return self
@@ -69,7 +69,7 @@ class Targets:
         poses = {k: self.touch_poses_deg[k] for k in dict.fromkeys(wanted)}
         return Targets(self.joint_names, self.start_pose_deg, poses, self.steps, self.source)
 
-    def with_steps(self, steps: int | None) -> "Targets":
+    def with_steps(self, steps: int | None) -> Targets:
         """A copy with another number of segments (None keeps the file's)."""
         if steps is None:
             return self

@@ -10,13 +10,12 @@ import pytest
 import torch
 
 from ikbench.cli import main
+from ikbench.errors import InputError
 from ikbench.losses import PAPER_WEIGHTS, objective, parse_terms, parse_weights
 from ikbench.methods.ours import AdamSettings, Ours, initial_logits, optimise
-from ikbench.errors import InputError
 from ikbench.report import TABLE_COLUMNS
 from ikbench.task import line_task
 from ikbench.trajectory import trajectory_columns
-
 from tests.conftest import PAPER_START
 from tests.test_kinematics import paper_fk_cm
 

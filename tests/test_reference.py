@@ -8,7 +8,6 @@ import pytest
 
 from ikbench.metrics import trajectory_metrics
 from ikbench.task import line_tasks
-
 from tests.conftest import REFERENCE
 
 pytestmark = pytest.mark.skipif(not REFERENCE.is_dir(), reason="../shared/reference absent")

@@ -10,7 +10,6 @@ import pytest
 from ikbench.cli import main
 from ikbench.errors import TargetsError
 from ikbench.targets import load_targets, parse_pose
-
 from tests.conftest import PAPER_START
 
 NAMES = ["r_shoulder_z", "r_shoulder_y", "r_arm_x", "r_elbow_y", "r_wrist_z", "r_wrist_x",
@@ -61,8 +60,8 @@ BAD_FILES = [
     ("unknown joint", _doc(joint_names=NAMES[:6] + ["r_thumb"]), None, r"joint_names .* must be"),
     ("reordered", _doc(joint_names=NAMES[::-1]), None, r"joint_names .* must be exactly"),
     ("duplicate id", None,
-     '{"joint_names": %s, "start_pose": %s, "targets": {"a": %s, "a": %s}}'
-     % (json.dumps(NAMES), PAPER_START, PAPER_START, PAPER_START), r"duplicate key 'a'"),
+     f'{{"joint_names": {json.dumps(NAMES)}, "start_pose": {PAPER_START}, '
+     f'"targets": {{"a": {PAPER_START}, "a": {PAPER_START}}}}}', r"duplicate key 'a'"),
     ("empty id", _doc(targets={"": PAPER_START}), None, r"target id '' is empty"),
     ("no targets", _doc(targets={}), None, r"targets must be a non-empty object"),
     ("steps < 2", _doc(steps=1), None, r"steps = 1 must be an integer >= 2"),

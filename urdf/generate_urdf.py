@@ -84,7 +84,8 @@ def _joint(name, kind, parent, child, xyz_m, rpy, limits=None):
     if kind == "revolute":
         lower, upper = limits
         lines.append('    <axis xyz="0 0 1"/>')
-        lines.append(f'    <limit lower="{lower:.17g}" upper="{upper:.17g}" effort="10" velocity="5"/>')
+        lines.append(f'    <limit lower="{lower:.17g}" upper="{upper:.17g}" '
+                     'effort="10" velocity="5"/>')
     lines.append("  </joint>")
     return "\n".join(lines)
 

@@ -60,7 +60,7 @@ class Method:
         """Add this method's CLI options to an argparse group (defaults must be None)."""
 
     @classmethod
-    def from_args(cls, args) -> "Method":
+    def from_args(cls, args) -> Method:
         kwargs = {kw: getattr(args, dest) for dest, kw in cls.options.items()
                   if getattr(args, dest, None) is not None}
         return cls(**kwargs)
