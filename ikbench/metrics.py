@@ -1,7 +1,8 @@
 """Quality figures of a trajectory, used by every method and every report.
 
 All functions take plain arrays: points in mm, directions as unit vectors, poses in motor
-degrees; they return mm and degrees. :func:`trajectory_metrics` gives the Table 1/2 columns.
+degrees; they return mm and degrees. :func:`trajectory_metrics` gives the Table 1/2 columns;
+:func:`shape_metrics` the figures of a general shape (polyline, spline, letter).
 """
 
 from __future__ import annotations
@@ -91,6 +92,11 @@ def smoothness(poses_motor_deg) -> dict[str, float]:
     }
 
 
+def _pose_error(pose, goal) -> float:
+    """max |pose - goal| [deg], NaN when the task fixes no such pose."""
+    return float("nan") if goal is None else float(np.max(np.abs(pose - goal)))
+
+
 def trajectory_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
     """The Table 1/2 figures of one trajectory against its task.
 
@@ -111,9 +117,6 @@ def trajectory_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
     distances = line_distances_mm(fk.point_mm[mask], task.start_point_mm, task.end_point_mm)
     deviations = pointing_deviations_deg(fk.direction[mask], task.goal_directions[mask])
 
-    def pose_error(pose, goal):
-        return float("nan") if goal is None else float(np.max(np.abs(pose - goal)))
-
     return {
         "line_distance_mean_mm": float(distances.mean()),
         "line_distance_std_mm": float(distances.std()),
@@ -121,7 +124,46 @@ def trajectory_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
         "pointing_deviation_std_deg": float(deviations.std()),
         "start_point_error_mm": float(np.linalg.norm(fk.point_mm[0] - task.start_point_mm)),
         "end_point_error_mm": float(np.linalg.norm(fk.point_mm[-1] - task.end_point_mm)),
-        "start_pose_error_deg": pose_error(poses[0], task.start_pose_deg),
-        "end_pose_error_deg": pose_error(poses[-1], task.end_pose_deg),
+        "start_pose_error_deg": _pose_error(poses[0], task.start_pose_deg),
+        "end_pose_error_deg": _pose_error(poses[-1], task.end_pose_deg),
+        **smoothness(poses),
+    }
+
+
+def shape_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
+    """Figures of a trajectory against a general shape (its task has a ``curve``).
+
+    Points and directions come from FK (Pinocchio, float64) of the poses; distances and
+    deviations use only the pen-down points.
+
+    Returns:
+        dict with ``curve_distance_{mean,std,max}_mm``: distance of each fingertip point from
+        the target curve (the nearest point of any pen-down stroke; std is the population
+        std); ``point_error_{mean,max}_mm``: |P_i - P^g_i| from the goal points;
+        ``pointing_deviation_{mean,std,max}_deg`` from the goal directions;
+        ``start_point_error_mm`` / ``end_point_error_mm``; ``start_pose_error_deg`` /
+        ``end_pose_error_deg`` (NaN when the task fixes no pose); the :func:`smoothness`
+        figures.
+    """
+    poses = np.asarray(poses_motor_deg, dtype=float)
+    fk = robot.fk(poses)
+    mask = task.pen_down
+    distances = task.curve.distances_mm(fk.point_mm[mask])
+    errors = np.linalg.norm(fk.point_mm - task.goal_points_mm, axis=1)[mask]
+    deviations = pointing_deviations_deg(fk.direction[mask], task.goal_directions[mask])
+
+    return {
+        "curve_distance_mean_mm": float(distances.mean()),
+        "curve_distance_std_mm": float(distances.std()),
+        "curve_distance_max_mm": float(distances.max()),
+        "point_error_mean_mm": float(errors.mean()),
+        "point_error_max_mm": float(errors.max()),
+        "pointing_deviation_mean_deg": float(deviations.mean()),
+        "pointing_deviation_std_deg": float(deviations.std()),
+        "pointing_deviation_max_deg": float(deviations.max()),
+        "start_point_error_mm": float(np.linalg.norm(fk.point_mm[0] - task.start_point_mm)),
+        "end_point_error_mm": float(np.linalg.norm(fk.point_mm[-1] - task.end_point_mm)),
+        "start_pose_error_deg": _pose_error(poses[0], task.start_pose_deg),
+        "end_pose_error_deg": _pose_error(poses[-1], task.end_pose_deg),
         **smoothness(poses),
     }

@@ -3,16 +3,32 @@
 A :class:`Task` holds n+1 goal points P^g_i [mm] and unit goal directions v^g_i, plus the
 start and end poses [motor deg] that the start/end loss terms pin. The paper's task is the
 straight line of Eq. 1 from FK(start pose) to FK(touch pose), pointing along it.
+
+:func:`build_tasks` makes the tasks of any shape (``--shape``):
+
+- ``line``: one line per touch pose of the targets file (the paper's task).
+- ``polyline:FILE`` / ``spline:FILE``: control points [mm, torso frame] from a CSV file
+  (:func:`ikbench.shapes.read_points_csv`), joined by straight lines or a centripetal
+  Catmull-Rom spline; one task named after the file's stem. No pose is pinned.
+- ``letter:P`` or ``letter:P,A,B``: one task per letter, named after it, drawn on the frontal
+  plane through the fingertip at the start pose (:mod:`ikbench.letters`). No pose is pinned
+  and the task asks for the paper's letter weights (no start/end pose or point terms).
+
+Curves are resampled to n+1 goal points evenly by arc length. Goal directions default to the
+path tangent (line, polyline, spline) or the drawing plane's normal (letters).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
+from ikbench import letters
 from ikbench.errors import InputError
 from ikbench.robot import Robot
+from ikbench.shapes import Curve, catmull_rom, read_points_csv
 from ikbench.targets import Targets
 
 #: Below this distance [mm] start and touch points coincide and a line has no direction.
@@ -32,6 +48,12 @@ class Task:
         shape: the shape's name (``"line"``, ...).
         pen_down: (n+1,) True where the point belongs to the drawn shape (metrics skip the
             others, e.g. pen-up moves between strokes).
+        curve: the target curve the goal points were sampled from; None for a line (the
+            segment from P^s to P^e).
+        default_weights: loss weights c0..c6 (keys L0..L6) this task is meant for, under any
+            the user sets; None: the method's own defaults (the paper's).
+        reference_pose_deg: (dof,) the pose the shape was placed from (a letter's start pose);
+            pinned by no loss term, a starting guess for methods that need one.
     """
 
     name: str
@@ -41,6 +63,9 @@ class Task:
     end_pose_deg: np.ndarray | None
     shape: str = "line"
     pen_down: np.ndarray = field(default=None)
+    curve: Curve | None = None
+    default_weights: dict | None = None
+    reference_pose_deg: np.ndarray | None = None
 
     def __post_init__(self):
         if self.pen_down is None:
@@ -95,3 +120,120 @@ def line_tasks(robot: Robot, targets: Targets) -> list[Task]:
         line_task(robot, targets.start_pose_deg, pose, targets.steps, name)
         for name, pose in targets.touch_poses_deg.items()
     ]
+
+
+# ----- general shapes ------------------------------------------------------------------------
+SHAPE_KINDS = ("line", "polyline", "spline", "letter")
+DIRECTION_CHOICES = "tangent, normal or x,y,z"
+
+
+def parse_shape(spec: str) -> tuple[str, str]:
+    """``"spline:path.csv"`` -> ``("spline", "path.csv")``; ``"line"`` -> ``("line", "")``."""
+    kind, sep, arg = str(spec).partition(":")
+    kind = kind.strip().lower()
+    if kind not in SHAPE_KINDS or (kind == "line") == bool(sep):
+        raise InputError(f"--shape: {spec!r} is not one of line, polyline:FILE, spline:FILE, "
+                         "letter:X (e.g. letter:P or letter:P,A,B)")
+    if kind != "line" and not arg.strip():
+        raise InputError(f"--shape: {spec!r} names no {'letter' if kind == 'letter' else 'file'}")
+    return kind, arg.strip()
+
+
+def curve_task(curve: Curve, steps: int, name: str, shape: str, direction="tangent",
+               **fields) -> Task:
+    """A task following ``curve`` with n+1 = ``steps`` + 1 goal points evenly by arc length.
+
+    Args:
+        curve: the target curve [mm].
+        steps: number of segments n.
+        name: trajectory id.
+        shape: the shape's name, e.g. ``"spline"``.
+        direction: ``"tangent"`` (along the path), ``"normal"`` (the curve's drawing plane
+            normal) or a vector (3,).
+        **fields: further :class:`Task` fields (start/end poses default to None).
+    """
+    samples = curve.resample(steps)
+    fields = {"start_pose_deg": None, "end_pose_deg": None, **fields}
+    return Task(name, samples.points_mm, goal_directions(curve, samples.tangents, direction),
+                shape=shape, pen_down=samples.pen_down, curve=curve, **fields)
+
+
+def goal_directions(curve: Curve | None, tangents: np.ndarray, direction) -> np.ndarray:
+    """(n+1, 3) unit goal directions: the tangents, the plane normal or a fixed vector."""
+    if isinstance(direction, str) and direction == "tangent":
+        return tangents
+    if isinstance(direction, str) and direction == "normal":
+        if curve is None:
+            raise InputError("--direction normal: a line has no drawing plane; give a vector "
+                             "x,y,z")
+        vector = curve.drawing_plane().normal
+    else:
+        vector = parse_direction(direction)
+    return np.repeat(vector[None] / np.linalg.norm(vector), len(tangents), axis=0)
+
+
+def parse_direction(value) -> np.ndarray:
+    """A fixed direction from ``"x,y,z"`` or a sequence; non-zero and finite."""
+    text = ",".join(map(str, value)) if not isinstance(value, str) else value
+    try:
+        vector = np.array([float(v) for v in text.split(",")], dtype=float)
+    except ValueError:
+        vector = np.array([])
+    if vector.shape != (3,) or not np.all(np.isfinite(vector)) or not np.any(vector):
+        raise InputError(f"--direction: {text!r} is not one of {DIRECTION_CHOICES} (a non-zero "
+                         "finite vector)")
+    return vector
+
+
+def letter_task(robot: Robot, letter: str, start_pose_deg, steps: int = letters.DEFAULT_STEPS,
+                size_mm: float = letters.DEFAULT_SIZE_MM, direction="normal") -> Task:
+    """The paper's letter in the air: ``letter`` on the frontal plane x = FK(start pose).x.
+
+    The letter's box is centred on the fingertip at the start pose, ``size_mm`` high, read
+    by a viewer facing the robot (see :mod:`ikbench.letters`); goal direction the plane
+    normal (-1, 0, 0); no pose pinned, default weights :data:`ikbench.letters.LETTER_WEIGHTS`.
+    """
+    start = np.asarray(start_pose_deg, dtype=float)
+    tip_mm = robot.fk(start).point_mm[0]
+    curve = letters.letter_curve(letter, size_mm, tip_mm)
+    return curve_task(curve, steps, letter, "letter", direction,
+                      default_weights=dict(letters.LETTER_WEIGHTS), reference_pose_deg=start)
+
+
+def file_task(kind: str, path: str | Path, steps: int, direction="tangent",
+              reference_pose_deg=None) -> Task:
+    """A polyline or spline task through the control points [mm] of a CSV file."""
+    points = read_points_csv(path)
+    curve = Curve((points if kind == "polyline" else catmull_rom(points),))
+    return curve_task(curve, steps, Path(path).stem, kind, direction,
+                      reference_pose_deg=reference_pose_deg)
+
+
+def build_tasks(robot: Robot, targets: Targets, shape: str = "line", steps: int | None = None,
+                size_mm: float | None = None, direction=None) -> list[Task]:
+    """The tasks of a shape (see the module docstring).
+
+    Args:
+        robot: the robot.
+        targets: start pose (and, for lines, the touch poses and default n).
+        shape: ``line``, ``polyline:FILE``, ``spline:FILE`` or ``letter:X[,Y...]``.
+        steps: number of segments n (default: the targets file's for a line,
+            :data:`ikbench.letters.DEFAULT_STEPS` for other shapes).
+        size_mm: letter height [mm] (letters only; default 300).
+        direction: ``"tangent"``, ``"normal"`` or a vector; None: the shape's default.
+    """
+    kind, arg = parse_shape(shape)
+    if size_mm is not None and kind != "letter":
+        raise InputError(f"--size: only letters are scaled; shape {shape!r} is in mm as given")
+    if kind == "line":
+        tasks = line_tasks(robot, targets.with_steps(steps))
+        if direction is None:
+            return tasks
+        return [replace(t, goal_directions=goal_directions(None, t.goal_directions, direction))
+                for t in tasks]
+    steps = letters.DEFAULT_STEPS if steps is None else targets.with_steps(steps).steps
+    if kind == "letter":
+        size = letters.DEFAULT_SIZE_MM if size_mm is None else size_mm
+        return [letter_task(robot, ch, targets.start_pose_deg, steps, size, direction or "normal")
+                for ch in dict.fromkeys(letters.parse_letters(arg))]
+    return [file_task(kind, arg, steps, direction or "tangent", targets.start_pose_deg)]

@@ -13,10 +13,18 @@ Initial logits (``init``):
   back through the sigmoid, as the paper's text describes. It starts much closer to the goal,
   so the stopping rule fires after about 100 iterations instead of the paper's 369-12394.
 
-Stopping rule (the authors' code): append each step's loss to a history seeded with 1000;
-stop when loss < 10 and loss > the median of the last 10 entries. The result is the poses with the
-lowest loss seen among those below 10 (the poses at which that loss was evaluated); if no
-loss fell below 10 before the iteration cap, the lowest loss overall (``converged`` False).
+Stopping rule (``stop``):
+
+- ``"paper"`` (default; the authors' code for lines): append each step's loss to a history
+  seeded with 1000; stop when loss < 10 and loss > the median of the last 10 entries. The
+  result is the poses with the lowest loss seen among those below 10 (the poses at which that
+  loss was evaluated); if no loss fell below 10 before the iteration cap, the lowest loss
+  overall (``converged`` False).
+- ``"none"`` (the authors' letter script): run exactly ``max_iterations`` iterations and keep
+  the poses with the lowest loss seen.
+
+Weights: a task may name the weights it is meant for (``Task.default_weights``, e.g. a letter's
+c0=1, c1=50, c6=1); ``--weights`` changes then apply on top of those instead of the paper's.
 """
 
 from __future__ import annotations
@@ -24,15 +32,16 @@ from __future__ import annotations
 import math
 import statistics
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ikbench.errors import InputError
-from ikbench.losses import PAPER_WEIGHTS, LossGoals, loss_terms, parse_weights, weighted_loss
+from ikbench.losses import PAPER_WEIGHTS, TERMS, LossGoals, loss_terms, parse_weights, weighted_loss
 from ikbench.methods import Method, Solution, register
 
 DTYPES = ("float32", "float64")
+STOPS = ("paper", "none")
 #: Logit clamp used when mapping the initial poses back through the sigmoid.
 LOGIT_EPS = 1e-6
 
@@ -50,6 +59,7 @@ class AdamSettings:
         median_window: the stopping rule's number of previous losses.
         history_seed: the loss history's initial value.
         progress_every: report progress every this many iterations.
+        stop: ``"paper"`` (the stopping rule) or ``"none"`` (all ``max_iterations``).
     """
 
     lr: float = 0.1
@@ -62,13 +72,18 @@ class AdamSettings:
     progress_every: int = 250
     init: str = "random"
     seed: int = 0
+    stop: str = "paper"
 
 
 INITS = ("random", "interpolation")
 
 
 def initial_logits(robot, task, dtype, init: str = "random", seed: int = 0):
-    """Initial logits (n+1, dof): seeded uniform +-1/sqrt(n+1), or the joint interpolation."""
+    """Initial logits (n+1, dof): seeded uniform +-1/sqrt(n+1), or the joint interpolation.
+
+    The interpolation runs from the task's start to its end pose; a task that pins neither
+    (a letter) starts with every pose at its reference pose.
+    """
     import torch
 
     if init == "random":
@@ -80,16 +95,20 @@ def initial_logits(robot, task, dtype, init: str = "random", seed: int = 0):
     if init != "interpolation":
         raise InputError(f"--init: {init!r} is not one of {', '.join(INITS)}")
     lo, hi = robot.lower_motor_deg, robot.upper_motor_deg
-    if task.start_pose_deg is None or task.end_pose_deg is None:
-        raise InputError(f"trajectory {task.name!r}: ours needs a start and an end pose")
     t = np.linspace(0.0, 1.0, task.steps + 1)[:, None]
-    poses = task.start_pose_deg + t * (task.end_pose_deg - task.start_pose_deg)
+    if task.start_pose_deg is not None and task.end_pose_deg is not None:
+        poses = task.start_pose_deg + t * (task.end_pose_deg - task.start_pose_deg)
+    elif task.reference_pose_deg is not None:
+        poses = task.reference_pose_deg + 0.0 * t
+    else:
+        raise InputError(f"trajectory {task.name!r}: ours --init interpolation needs a start "
+                         "and an end pose or a reference pose")
     unit = np.clip((poses - lo) / (hi - lo), LOGIT_EPS, 1.0 - LOGIT_EPS)
     return torch.tensor(np.log(unit / (1.0 - unit)), dtype=dtype)
 
 
 def optimise(robot, task, settings: AdamSettings, progress=None, logits=None) -> Solution:
-    """Run the paper's Adam optimisation for one task; return the best poses below 10.
+    """Run the paper's Adam optimisation for one task; return the best poses (see module doc).
 
     Args:
         robot: the robot.
@@ -125,7 +144,7 @@ def optimise(robot, task, settings: AdamSettings, progress=None, logits=None) ->
         optimiser.step()
         iterations += 1
         value = float(loss.detach())
-        below = value < settings.stop_below
+        below = settings.stop == "paper" and value < settings.stop_below
         if (below and (not best_below or value < best_loss)) or (
             not best_below and value < best_loss
         ):
@@ -137,6 +156,7 @@ def optimise(robot, task, settings: AdamSettings, progress=None, logits=None) ->
             converged = True
             break
     duration = time.perf_counter() - start
+    converged = converged or settings.stop == "none"
     return Solution(
         poses_deg=best_poses.to(torch.float64).numpy(),
         iterations=iterations,
@@ -144,8 +164,14 @@ def optimise(robot, task, settings: AdamSettings, progress=None, logits=None) ->
         loss=best_loss,
         converged=converged,
         info={"iterations_per_s": iterations / duration, "hit_cap": not converged,
-              "dtype": settings.dtype, "init": settings.init, "seed": settings.seed},
+              "dtype": settings.dtype, "init": settings.init, "seed": settings.seed,
+              "stop": settings.stop, "weights": format_weights(settings.weights)},
     )
+
+
+def format_weights(weights: dict) -> str:
+    """``{"L0": 1.0, ...}`` -> ``"c0=1,c1=50,..."`` (the --weights syntax)."""
+    return ",".join(f"c{name[1:]}={weights.get(name, 0.0):g}" for name in TERMS)
 
 
 @register
@@ -155,10 +181,11 @@ class Ours(Method):
     name = "ours"
     description = "the paper's method: whole trajectory by Adam through pytorch-kinematics FK"
     options = {"dtype": "dtype", "lr": "lr", "max_iterations": "max_iterations",
-               "weights": "weights", "init": "init", "seed": "seed"}
+               "weights": "weights", "init": "init", "seed": "seed", "stop": "stop"}
 
     def __init__(self, dtype: str = "float32", lr: float = 0.1, max_iterations: int = 15000,
-                 weights: dict | str | None = None, init: str = "random", seed: int = 0):
+                 weights: dict | str | None = None, init: str = "random", seed: int = 0,
+                 stop: str = "paper"):
         if dtype not in DTYPES:
             raise InputError(f"--dtype: {dtype!r} is not one of {', '.join(DTYPES)}")
         if init not in INITS:
@@ -167,10 +194,16 @@ class Ours(Method):
             raise InputError(f"--lr: {lr!r} must be a positive number")
         if max_iterations < 1:
             raise InputError(f"--max-iterations: {max_iterations!r} must be >= 1")
-        if isinstance(weights, str) or weights is None:
+        if stop not in STOPS:
+            raise InputError(f"--stop: {stop!r} is not one of {', '.join(STOPS)}")
+        # Changes (a --weights string) go on top of a task's own default weights; a dict is
+        # the complete set and is used for every task.
+        self._explicit_weights = isinstance(weights, dict)
+        self._weight_changes = None if self._explicit_weights else weights
+        if not self._explicit_weights:
             weights = parse_weights(weights)
         self.settings = AdamSettings(lr=lr, max_iterations=max_iterations, dtype=dtype,
-                                     weights=weights, init=init, seed=seed)
+                                     weights=weights, init=init, seed=seed, stop=stop)
 
     @classmethod
     def add_arguments(cls, group) -> None:
@@ -188,6 +221,17 @@ class Ours(Method):
                            "Table 1; default) or interpolation (the paper's text)")
         group.add_argument("--seed", type=int, default=None,
                            help="ours: seed of the random initialisation (default 0)")
+        group.add_argument("--stop", choices=STOPS, default=None,
+                           help="ours: paper (the stopping rule: loss < 10 and above the median "
+                           "of the last 10; default) or none (run all --max-iterations, keep the "
+                           "lowest loss; the paper's letter setting)")
+
+    def settings_for(self, task) -> AdamSettings:
+        """The settings for one task: its default weights, if any, under the user's changes."""
+        if task.default_weights is None or self._explicit_weights:
+            return self.settings
+        return replace(self.settings, weights=parse_weights(self._weight_changes,
+                                                            task.default_weights))
 
     def solve(self, robot, task, progress=None) -> Solution:
-        return optimise(robot, task, self.settings, progress)
+        return optimise(robot, task, self.settings_for(task), progress)

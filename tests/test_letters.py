@@ -1,0 +1,119 @@
+"""Letters A-Z, their placement on the drawing plane, and letter tasks with ours."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ikbench.errors import InputError
+from ikbench.letters import (
+    LETTER_WEIGHTS,
+    LETTERS,
+    PAPER_START_POSE_DEG,
+    letter_box,
+    letter_curve,
+    letter_strokes,
+    parse_letters,
+)
+from ikbench.losses import objective
+from ikbench.methods.ours import Ours, initial_logits
+from ikbench.task import build_tasks, letter_task
+
+
+def test_every_letter_is_defined_and_fits_its_box():
+    assert "".join(LETTERS) == "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
+    for letter in LETTERS:
+        strokes = letter_strokes(letter)  # raises if an arc does not join its predecessor
+        points = np.concatenate(strokes)
+        assert points[:, 1].min() == pytest.approx(0, abs=1e-9), letter
+        assert points[:, 1].max() == pytest.approx(1, abs=1e-9), letter
+        lo, hi = letter_box(letter)
+        assert lo == pytest.approx(0, abs=1e-9) and 0.4 <= hi <= 0.8, letter
+        assert len(strokes) == (2 if letter == "X" else 1), letter
+
+
+def test_parse_letters():
+    assert parse_letters("P, a,B") == ["P", "A", "B"]
+    with pytest.raises(InputError, match="letter 'PA' is not one of A-Z; separate letters "
+                                         "with commas, e.g. P,A"):
+        parse_letters("PA")
+    for bad in ("1", "", "Ä", "P,,A"):
+        with pytest.raises(InputError, match="is not one of A-Z"):
+            parse_letters(bad)
+
+
+def test_letter_curve_placement_and_reading_direction():
+    centre = np.array([-300.0, 100.0, 200.0])
+    curve = letter_curve("P", 300, centre)
+    points = np.concatenate(curve.strokes_mm)
+    assert np.allclose(points[:, 0], -300)
+    assert points[:, 2].max() - points[:, 2].min() == pytest.approx(300)
+    lo, hi = letter_box("P")
+    assert np.ptp(points[:, 1]) == pytest.approx(300 * (hi - lo))
+    assert (points[:, 1].max() + points[:, 1].min()) / 2 == pytest.approx(100)
+    assert (points[:, 2].max() + points[:, 2].min()) / 2 == pytest.approx(200)
+    # P's stem is on the viewer's left = the robot's right (+y); its bowl towards -y
+    stem_y = curve.strokes_mm[0][0, 1]
+    assert stem_y == pytest.approx(points[:, 1].max())
+    assert np.allclose(curve.plane.normal, [-1, 0, 0])
+    with pytest.raises(InputError, match="--size"):
+        letter_curve("P", 0, centre)
+
+
+def test_letter_task_in_the_papers_setting(robot):
+    task = letter_task(robot, "P", PAPER_START_POSE_DEG, steps=40)
+    tip = robot.fk(PAPER_START_POSE_DEG).point_mm[0]
+    assert task.name == "P" and task.shape == "letter" and task.steps == 40
+    assert np.allclose(task.goal_points_mm[:, 0], tip[0])
+    assert np.allclose(task.goal_directions, [-1, 0, 0])
+    assert task.start_pose_deg is None and task.end_pose_deg is None
+    assert task.default_weights == LETTER_WEIGHTS and task.pen_down.all()
+    assert np.allclose(task.reference_pose_deg, PAPER_START_POSE_DEG)
+    projected = task.curve.plane.project(np.concatenate(task.curve.strokes_mm))
+    box_centre = (projected.max(axis=0) + projected.min(axis=0)) / 2
+    assert np.allclose(box_centre, 0, atol=1e-9)  # the box is centred on the fingertip
+    x = letter_task(robot, "X", PAPER_START_POSE_DEG, steps=40)
+    assert 0 < np.count_nonzero(~x.pen_down) < 10
+
+
+def test_build_tasks_letters(robot, paper_targets):
+    tasks = build_tasks(robot, paper_targets, "letter:P,a,P", size_mm=150)
+    assert [t.name for t in tasks] == ["P", "A"] and tasks[0].steps == 100
+    z = np.concatenate(tasks[0].curve.strokes_mm)[:, 2]
+    assert np.ptp(z) == pytest.approx(150)
+    with pytest.raises(InputError, match="letter '7' is not one of A-Z"):
+        build_tasks(robot, paper_targets, "letter:7")
+
+
+def test_ours_on_a_letter_uses_the_letter_weights_under_user_changes(robot):
+    task = letter_task(robot, "L", PAPER_START_POSE_DEG, steps=10)
+    assert Ours().settings_for(task).weights == LETTER_WEIGHTS
+    changed = Ours(weights="c0=1000").settings_for(task).weights
+    assert changed == {**LETTER_WEIGHTS, "L0": 1000.0}
+    full = {"L0": 2.0, "L1": 0, "L2": 0, "L3": 0, "L4": 0, "L5": 0, "L6": 0}
+    assert Ours(weights=full).settings_for(task).weights == full
+
+
+def test_ours_stop_none_runs_every_iteration_and_keeps_the_best(robot):
+    task = letter_task(robot, "L", PAPER_START_POSE_DEG, steps=6)
+    solution = Ours(stop="none", max_iterations=80, dtype="float64").solve(robot, task)
+    assert solution.iterations == 80 and solution.converged
+    assert solution.info["weights"] == "c0=1,c1=50,c2=0,c3=0,c4=0,c5=0,c6=1"
+    final, _ = objective(robot, task, solution.poses_deg, LETTER_WEIGHTS)
+    assert final == pytest.approx(solution.loss, rel=1e-9)
+    first = Ours(stop="none", max_iterations=1, dtype="float64").solve(robot, task)
+    assert solution.loss < 0.5 * first.loss
+    with pytest.raises(InputError, match="--stop: 'never' is not one of paper, none"):
+        Ours(stop="never")
+
+
+def test_interpolation_init_of_a_letter_starts_at_the_reference_pose(robot):
+    import torch
+
+    task = letter_task(robot, "O", PAPER_START_POSE_DEG, steps=6)
+    z = initial_logits(robot, task, torch.float64, init="interpolation")
+    poses = robot.lower_motor_deg + torch.sigmoid(z).numpy() * (
+        robot.upper_motor_deg - robot.lower_motor_deg)
+    clipped = np.clip(PAPER_START_POSE_DEG, robot.lower_motor_deg + 1e-3,
+                      robot.upper_motor_deg - 1e-3)
+    assert np.allclose(poses, clipped, atol=1e-3)
