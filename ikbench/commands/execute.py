@@ -51,6 +51,8 @@ def run(args) -> int:
     import signal
     import threading
 
+    import numpy as np
+
     from ikbench.errors import InputError
     from ikbench.hw.executor import ExecutionStopped, execute
     from ikbench.hw.motors import SPEED_RAW_MAX, SPEED_UNIT_DEG_S, load_motor_config
@@ -98,9 +100,11 @@ def run(args) -> int:
             signal.signal(signal.SIGINT, previous)
         if emulator is not None:
             emulator.close()
-            print(f"emulator: {len(emulator.sync_writes())} SYNC WRITEs received, "
-                  f"{len(emulator.violations)} limit violations")
     _report(result, plan)
+    if emulator is not None:
+        print(f"emulator: {len(emulator.sync_writes())} SYNC WRITEs received, "
+              f"{len(emulator.violations)} limit violations; servos now off the final pose by "
+              f"at most {np.abs(emulator.present_deg() - plan.poses_motor_deg[-1]).max():.2f} deg")
     if args.record and result.record is not None:
         _write_record(args.record, result.record)
     return 0
