@@ -20,8 +20,9 @@ import pandas as pd
 import pytest
 
 from ikbench.cli import main
+from ikbench.hw.bus import Bus
 from ikbench.hw.emulator import Emulator, Fault
-from ikbench.hw.executor import Bus, ExecutionInterrupted, execute
+from ikbench.hw.executor import ExecutionInterrupted, execute
 from ikbench.hw.motors import default_config_path, load_motor_config
 from ikbench.hw.plan import make_plan
 from ikbench.trajectory import write_trajectory_csv
