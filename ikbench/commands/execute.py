@@ -102,9 +102,10 @@ def run(args) -> int:
             emulator.close()
     _report(result, plan)
     if emulator is not None:
+        off = np.abs(emulator.present_deg() - plan.poses_motor_deg[-1]).max()
         print(f"emulator: {len(emulator.sync_writes())} SYNC WRITEs received, "
-              f"{len(emulator.violations)} limit violations; servos now off the final pose by "
-              f"at most {np.abs(emulator.present_deg() - plan.poses_motor_deg[-1]).max():.2f} deg")
+              f"{len(emulator.violations)} limit violations"
+              + ("" if result.dry_run else f"; servos off the final pose by <= {off:.2f} deg"))
     if args.record and result.record is not None:
         _write_record(args.record, result.record)
     return 0
