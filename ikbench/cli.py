@@ -45,6 +45,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("ikbench: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # e.g. `ikbench plan X | head`: the reader went away
+        sys.stderr.close()
+        return 0
     return int(code or 0)
 
 

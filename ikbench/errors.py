@@ -1,6 +1,7 @@
 """Exception hierarchy. Every message names the bad value and what is allowed.
 
-The CLI turns any :class:`IkbenchError` into one line on stderr and exit code 2.
+The CLI turns any :class:`IkbenchError` into one line on stderr and its ``exit_code``: 2 for
+bad input and failed solves, 3 for hardware (bus) failures; Ctrl-C exits with 130.
 """
 
 
