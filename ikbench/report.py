@@ -20,6 +20,14 @@ TABLE_COLUMNS = [
     "pointing_deviation_mean_deg", "pointing_deviation_std_deg",
     "start_point_error_mm", "end_point_error_mm", "start_pose_error_deg", "end_pose_error_deg",
 ]
+#: The table of a general shape (polyline, spline, letter); see ikbench.metrics.shape_metrics.
+SHAPE_TABLE_COLUMNS = [
+    "trajectory", "method", "iterations", "duration_s", "loss",
+    "curve_distance_mean_mm", "curve_distance_std_mm", "curve_distance_max_mm",
+    "point_error_mean_mm", "point_error_max_mm",
+    "pointing_deviation_mean_deg", "pointing_deviation_std_deg", "pointing_deviation_max_deg",
+    "mean_sq_joint_step_deg2", "max_joint_step_deg",
+]
 
 
 def paper_values() -> dict:
@@ -65,6 +73,56 @@ def plot_trajectories_3d(tasks, points_by_id: dict, title: str):
     ax.view_init(elev=12, azim=180)  # from the robot's front (-x) towards it
     ax.set_title(f"{title}\nsolid: fingertip, dashed: goal line, x: touch point")
     ax.legend(loc="upper left", fontsize=7)
+    return fig
+
+
+def plot_shapes(tasks, points_by_id: dict, title: str):
+    """Drawn curves over their target curves: on the drawing plane (top) and in 3-D (bottom).
+
+    One column per task. The plane is the task curve's own (a letter's frontal plane, seen
+    from the front) or the best-fit plane of the target curve.
+
+    Args:
+        tasks: tasks with a target ``curve``.
+        points_by_id: trajectory id -> (n+1, 3) fingertip points [mm].
+        title: figure title.
+    """
+    plt = _matplotlib()
+    fig = plt.figure(figsize=(4.2 * len(tasks), 8.4))
+    for k, task in enumerate(tasks):
+        curve, points = task.curve, points_by_id[task.name]
+        plane = curve.drawing_plane()
+        ax = fig.add_subplot(2, len(tasks), k + 1)
+        vertices, pen = curve.path()
+        for j in np.flatnonzero(~pen):  # pen-up moves
+            ax.plot(*plane.project(vertices[j:j + 2]).T, ":", color="0.6", lw=1)
+        for stroke in curve.strokes_mm:
+            ax.plot(*plane.project(stroke).T, "-", color="0.75", lw=4, solid_capstyle="round")
+        drawn = plane.project(points)
+        ax.plot(*drawn.T, "-", color="tab:blue", lw=1)
+        ax.plot(*drawn[task.pen_down].T, "o", color="tab:blue", ms=2.5)
+        ax.plot(*drawn[~task.pen_down].T, "o", mfc="none", color="tab:blue", ms=3)
+        ax.plot(0, 0, "k+", ms=10)
+        ax.set_aspect("equal")
+        ax.grid(alpha=0.3)
+        ax.set_xlabel("u [mm] (right, seen from the front)")
+        ax.set_ylabel("v [mm] (up)")
+        ax.set_title(f"{task.shape} {task.name}: drawing plane")
+        ax3 = fig.add_subplot(2, len(tasks), len(tasks) + k + 1, projection="3d")
+        for stroke in curve.strokes_mm:
+            ax3.plot(*stroke.T, "-", color="0.6", lw=2)
+        ax3.plot(*points.T, "-o", color="tab:blue", ms=1.5, lw=1)
+        ax3.set_xlabel("x [mm]")
+        ax3.set_ylabel("y [mm]")
+        ax3.set_zlabel("z [mm]")
+        extent = np.ptp(np.vstack([points, *curve.strokes_mm]), axis=0)
+        ax3.set_box_aspect(np.maximum(extent, 0.3 * extent.max()))  # keep a flat curve's depth
+        ax3.view_init(elev=20, azim=-150)
+        ax3.set_title(f"{task.name}: 3-D (torso frame)")
+    fig.suptitle(f"{title}\ngrey: target curve (dotted: pen-up move), blue: fingertip "
+                 "(hollow: pen up), +: plane origin (letters: fingertip at the start pose)",
+                 fontsize=9)
+    fig.tight_layout()
     return fig
 
 

@@ -4,6 +4,12 @@
 under ``output/<method>/``: ``trajectory_<id>.csv``, ``table.csv`` (the Table 1/2 columns),
 ``details.csv`` (smoothness and solver figures), ``run.json`` (settings and versions),
 ``trajectories_3d.png``, ``pointing_error.png`` and ``report.md``.
+
+Shapes other than the paper's line (``shape=``, see :func:`ikbench.task.build_tasks`) use no
+touch poses: a letter shape gives one trajectory per letter (``trajectory_P.csv``), a file
+shape one named after the file. Their table has the general-shape columns
+(:data:`ikbench.report.SHAPE_TABLE_COLUMNS`) and their figure is ``shapes.png`` (the drawn
+curve on the drawing plane over the target curve, and the 3-D view).
 """
 
 from __future__ import annotations
@@ -11,6 +17,7 @@ from __future__ import annotations
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -19,13 +26,20 @@ import pandas as pd
 from ikbench.errors import InputError
 from ikbench.io import atomic_savefig, atomic_write_csv, atomic_write_text
 from ikbench.methods import Method, get_method
-from ikbench.metrics import trajectory_metrics
+from ikbench.metrics import shape_metrics, trajectory_metrics
 from ikbench.provenance import provenance
-from ikbench.report import (TABLE_COLUMNS, markdown_table, plot_pointing_error,
-                            plot_trajectories_3d, table1_comparison)
+from ikbench.report import (
+    SHAPE_TABLE_COLUMNS,
+    TABLE_COLUMNS,
+    markdown_table,
+    plot_pointing_error,
+    plot_shapes,
+    plot_trajectories_3d,
+    table1_comparison,
+)
 from ikbench.robot import Robot, load_robot
 from ikbench.targets import Targets, load_targets
-from ikbench.task import line_tasks
+from ikbench.task import build_tasks, parse_shape
 from ikbench.trajectory import DEFAULT_DURATION_S, read_trajectory_poses, write_trajectory_csv
 
 DEFAULT_OUTPUT = "results"
@@ -57,31 +71,40 @@ class Progress:
 
 
 def evaluate(robot: Robot, tasks, method_dir: Path, method_name: str, solutions):
-    """Metrics of the written trajectories: returns (table, details, points_by_id)."""
+    """Metrics of the written trajectories: returns (table, details, points_by_id).
+
+    Line tasks get :func:`ikbench.metrics.trajectory_metrics` and the Table 1/2 columns;
+    tasks with a target curve :func:`ikbench.metrics.shape_metrics` and
+    :data:`ikbench.report.SHAPE_TABLE_COLUMNS`.
+    """
+    shaped = any(task.curve is not None for task in tasks)
+    columns = SHAPE_TABLE_COLUMNS if shaped else TABLE_COLUMNS
+    measure = shape_metrics if shaped else trajectory_metrics
     rows, details, points_by_id = [], [], {}
     for task, solution in zip(tasks, solutions):
         poses = read_trajectory_poses(method_dir / f"trajectory_{task.name}.csv", robot)
-        metrics = trajectory_metrics(robot, task, poses)
+        metrics = measure(robot, task, poses)
         points_by_id[task.name] = robot.fk(poses).point_mm
         rows.append({
             "trajectory": task.name, "method": method_name,
             "iterations": solution.iterations, "duration_s": solution.duration_s,
             "loss": np.nan if solution.loss is None else solution.loss,
-            **{k: metrics[k] for k in TABLE_COLUMNS[5:]},
+            **{k: metrics[k] for k in columns[5:]},
         })
-        extra = {k: v for k, v in metrics.items() if k not in TABLE_COLUMNS}
+        extra = {k: v for k, v in metrics.items() if k not in columns}
         details.append({"trajectory": task.name, "method": method_name,
                         "converged": solution.converged,
                         "within_limits": robot.within_limits(poses),
                         **extra, **solution.info})
-    return pd.DataFrame(rows, columns=TABLE_COLUMNS), pd.DataFrame(details), points_by_id
+    return pd.DataFrame(rows, columns=columns), pd.DataFrame(details), points_by_id
 
 
 def run(method: str | Method = "ours", *, targets: str | Path | Targets | None = None,
         only: str | None = None, steps: int | None = None,
         output: str | Path | None = DEFAULT_OUTPUT, duration_s: float = DEFAULT_DURATION_S,
         options: dict | None = None, robot: Robot | None = None,
-        progress: bool = True) -> pd.DataFrame:
+        progress: bool = True, shape: str = "line", size_mm: float | None = None,
+        start_pose=None, direction=None) -> pd.DataFrame:
     """Solve every selected target with ``method`` and write the results.
 
     Args:
@@ -95,29 +118,44 @@ def run(method: str | Method = "ours", *, targets: str | Path | Targets | None =
         options: keyword options of the method (when ``method`` is a name).
         robot: the robot (default NICO's right arm).
         progress: print progress to stderr.
+        shape: ``line`` (one trajectory per touch pose), ``polyline:FILE``, ``spline:FILE``
+            or ``letter:X[,Y...]``; see :func:`ikbench.task.build_tasks`.
+        size_mm: letter height [mm] (default 300).
+        start_pose: (dof,) start pose [motor deg] replacing the targets file's.
+        direction: goal directions ``"tangent"``, ``"normal"`` or a vector (default: the
+            shape's own, see :func:`ikbench.task.build_tasks`).
 
     Returns:
-        The table (one row per trajectory, columns :data:`ikbench.report.TABLE_COLUMNS`).
+        The table (one row per trajectory, columns :data:`ikbench.report.TABLE_COLUMNS`,
+        or :data:`ikbench.report.SHAPE_TABLE_COLUMNS` for shapes other than the line).
     """
     if not (duration_s > 0 and np.isfinite(duration_s)):
         raise InputError(f"--duration: {duration_s!r} must be a positive number of seconds")
     robot = robot or load_robot()
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
-    targets = targets.select(only).with_steps(steps)
+    if start_pose is not None:
+        targets = replace(targets, start_pose_deg=robot.check_pose(start_pose, "--start-pose"))
+    kind, _ = parse_shape(shape)
+    if only and kind != "line":
+        raise InputError(f"--only selects touch poses of the line shape; shape {shape!r} has "
+                         "none (name the letters in the shape instead, e.g. letter:P,A)")
+    targets = targets.select(only)
+    tasks = build_tasks(robot, targets, shape, steps, size_mm, direction)
     solver = method if isinstance(method, Method) else get_method(method)(**(options or {}))
-    tasks = line_tasks(robot, targets)
 
     if output is None:
         import tempfile
 
         with tempfile.TemporaryDirectory() as tmp:
             return _solve_and_write(robot, targets, tasks, solver, Path(tmp), duration_s,
-                                    progress)
-    return _solve_and_write(robot, targets, tasks, solver, Path(output), duration_s, progress)
+                                    progress, shape)
+    return _solve_and_write(robot, targets, tasks, solver, Path(output), duration_s, progress,
+                            shape)
 
 
-def _solve_and_write(robot, targets, tasks, solver, output: Path, duration_s, progress):
+def _solve_and_write(robot, targets, tasks, solver, output: Path, duration_s, progress,
+                     shape="line"):
     method_dir = output / solver.name
     started = time.perf_counter()
     solutions = solver.solve_many(robot, tasks, Progress(solver.name, enabled=progress))
@@ -128,16 +166,27 @@ def _solve_and_write(robot, targets, tasks, solver, output: Path, duration_s, pr
     atomic_write_csv(method_dir / "table.csv", table, float_format="%.10g")
     atomic_write_csv(method_dir / "details.csv", details, float_format="%.10g")
     settings = {k: v for k, v in vars(solver).items() if not k.startswith("_")}
-    record = {"method": solver.name, "targets": targets.source, "trajectories": targets.ids,
-              "steps": targets.steps, "duration_s": duration_s,
+    record = {"method": solver.name, "targets": targets.source,
+              "trajectories": [task.name for task in tasks], "steps": tasks[0].steps,
+              "shape": shape, "start_pose_deg": targets.start_pose_deg.tolist(),
+              # weights a task asks for (letters); ours applies --weights changes on top and
+              # details.csv names the weights each trajectory was solved with
+              "task_default_weights": tasks[0].default_weights,
+              "duration_s": duration_s,
               "settings": json.loads(json.dumps(settings, default=_jsonable)),
               "total_wall_time_s": time.perf_counter() - started, **provenance()}
     atomic_write_text(method_dir / "run.json", json.dumps(record, indent=2) + "\n")
     title = f"{solver.name}: {solver.description}"
-    atomic_savefig(method_dir / "trajectories_3d.png", plot_trajectories_3d(tasks, points, title))
-    atomic_savefig(method_dir / "pointing_error.png", plot_pointing_error(tasks, points, title))
-    atomic_write_text(method_dir / "report.md",
-                      method_report(solver, table, details, targets, record))
+    if tasks[0].curve is None:
+        figures = [("trajectories", "trajectories_3d.png",
+                    plot_trajectories_3d(tasks, points, title)),
+                   ("criterion 2", "pointing_error.png", plot_pointing_error(tasks, points, title))]
+    else:
+        figures = [("shapes", "shapes.png", plot_shapes(tasks, points, title))]
+    for _, name, figure in figures:
+        atomic_savefig(method_dir / name, figure)
+    atomic_write_text(method_dir / "report.md", method_report(
+        solver, table, details, targets, record, {caption: name for caption, name, _ in figures}))
     return table
 
 
@@ -150,11 +199,16 @@ def _jsonable(value):
 
 
 def method_report(solver, table: pd.DataFrame, details: pd.DataFrame, targets: Targets,
-                  record: dict) -> str:
-    """report.md of one method's run."""
+                  record: dict, figures: dict | None = None) -> str:
+    """report.md of one method's run; ``figures`` maps captions to the PNG names written."""
+    figures = figures or {"trajectories": "trajectories_3d.png",
+                          "criterion 2": "pointing_error.png"}
+    shape = record.get("shape", "line")
+    where = (f"Targets: {targets.source}" if shape == "line" else
+             f"Shape: {shape}, start pose {record['start_pose_deg']} [motor deg]")
     lines = [f"# {solver.name}: {solver.description}", "",
-             f"Targets: {targets.source}; trajectories {', '.join(targets.ids)}; "
-             f"n = {targets.steps} segments. Produced by ikbench "
+             f"{where}; trajectories {', '.join(record['trajectories'])}; "
+             f"n = {record['steps']} segments. Produced by ikbench "
              f"(git {record.get('git_revision')}) on {record['cpu']} "
              f"({record['cpu_count']} cores), torch {record['packages']['torch']}.",
              "", "## Measured", "",
@@ -162,14 +216,26 @@ def method_report(solver, table: pd.DataFrame, details: pd.DataFrame, targets: T
              "in mm, angles in degrees, loss in the paper's units (cm, motor degrees).", "",
              markdown_table(table.drop(columns=["method"]),
                             {"loss": 3, "duration_s": 2, "iterations": 0}), ""]
-    if targets.is_paper and solver.name == "ours":
+    if shape != "line":
+        lines += ["curve_distance: distance of each fingertip point from the target curve "
+                  "(its nearest point); point_error: from the point's own goal point; "
+                  "pointing deviation: from the goal direction (letters: the drawing plane's "
+                  "normal (-1, 0, 0)). Points on pen-up moves are skipped.", ""]
+    if targets.is_paper and solver.name == "ours" and shape == "line":
         lines += ["## Beside the paper's Table 1", "",
                   "Columns named *paper* are copied from the paper. Its \"distance from the "
                   "line [mm]\" values are in centimetres (its unit label is off by a factor of "
                   "ten, see shared/reference/README.md), so they are shown here x 10, in mm.",
                   "", markdown_table(table1_comparison(table), {"loss": 2, "duration [s]": 2}),
                   ""]
-    lines += ["## Figures", "", "![trajectories](trajectories_3d.png)", "",
-              "![criterion 2](pointing_error.png)", "", "## Solver details", "",
+    if (targets.is_paper and solver.name == "sequential-ik"
+            and record.get("shape", "line") == "line"):
+        from ikbench.compare import table2_section
+
+        lines += table2_section(table, record["steps"])
+    lines += ["## Figures", ""]
+    for caption, name in figures.items():
+        lines += [f"![{caption}]({name})", ""]
+    lines += ["## Solver details", "",
               markdown_table(details.drop(columns=["method"]), {"iterations_per_s": 0}), ""]
     return "\n".join(lines)

@@ -117,3 +117,43 @@ def test_interpolation_init_of_a_letter_starts_at_the_reference_pose(robot):
     clipped = np.clip(PAPER_START_POSE_DEG, robot.lower_motor_deg + 1e-3,
                       robot.upper_motor_deg - 1e-3)
     assert np.allclose(poses, clipped, atol=1e-3)
+
+
+def test_cli_letters_uses_the_papers_letter_setting(tmp_path, capsys):
+    import json
+
+    import pandas as pd
+
+    from ikbench.cli import main
+
+    out = tmp_path / "letters"
+    assert main(["letters", "L,X", "--steps", "8", "--max-iterations", "20", "--size", "200",
+                 "--output", str(out), "--quiet"]) == 0
+    folder = out / "ours"
+    record = json.loads((folder / "run.json").read_text())
+    assert record["shape"] == "letter:L,X" and record["trajectories"] == ["L", "X"]
+    assert record["start_pose_deg"] == list(PAPER_START_POSE_DEG) and record["steps"] == 8
+    assert record["settings"]["settings"]["stop"] == "none"
+    details = pd.read_csv(folder / "details.csv")
+    assert details["weights"].tolist() == ["c0=1,c1=50,c2=0,c3=0,c4=0,c5=0,c6=1"] * 2
+    table = pd.read_csv(folder / "table.csv")
+    assert table["iterations"].tolist() == [20, 20]
+    assert (folder / "trajectory_X.csv").is_file() and (folder / "shapes.png").is_file()
+    assert main(["letters", "7", "--output", str(tmp_path / "bad"), "--quiet"]) == 2
+    assert "letter '7' is not one of A-Z" in capsys.readouterr().err
+
+
+def test_run_letter_with_start_pose_override(robot, tmp_path):
+    import json
+
+    from ikbench.run import run
+
+    pose = [10, 50, 10, 100, 170, 170, -140]
+    table = run("ours", shape="letter:I", start_pose=pose, steps=6, size_mm=100,
+                output=tmp_path, progress=False, options={"max_iterations": 5})
+    assert table["trajectory"].tolist() == ["I"]
+    record = json.loads((tmp_path / "ours" / "run.json").read_text())
+    assert record["start_pose_deg"] == pose and record["targets"] == "paper"
+    with pytest.raises(InputError, match="--start-pose: r_shoulder_z = 99 motor deg is outside"):
+        run("ours", shape="letter:I", start_pose=[99, 50, 10, 100, 170, 170, -140],
+            output=None, progress=False)

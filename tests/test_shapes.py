@@ -202,3 +202,62 @@ def test_shape_metrics_skip_pen_up_points(robot):
     assert m["curve_distance_max_mm"] < 1e-9
     assert m["point_error_max_mm"] == pytest.approx(np.hypot(400, 1))
     assert m["point_error_mean_mm"] == pytest.approx(np.hypot(400, 1) / 2)
+
+
+# ----- through the CLI -----------------------------------------------------------------------
+@pytest.mark.parametrize("text, message", [
+    ("1,2,3\n", "1 distinct point(s); a shape needs at least 2"),
+    ("1,2,3\nnan,2,3\n", "line 2: 'nan,2,3' is not finite"),
+    ("1,2,3\n1,two,3\n", "line 2: 'two' is not a number"),
+])
+def test_cli_bad_shape_files(tmp_path, capsys, text, message):
+    from ikbench.cli import main
+
+    path = _write(tmp_path, text)
+    out = tmp_path / "out"
+    assert main(["run", "--shape", f"spline:{path}", "--output", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and str(path) in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--shape", "circle"], "--shape: 'circle' is not one of line, polyline:FILE"),
+    (["--shape", "letter:PQ"], "letter 'PQ' is not one of A-Z; separate letters with commas"),
+    (["--shape", "letter:P", "--only", "1"], "--only selects touch poses of the line shape"),
+    (["--size", "100"], "--size: only letters are scaled"),
+    (["--shape", "letter:P", "--size", "-5"], "--size: -5.0 must be a positive number"),
+    (["--shape", "letter:P", "--direction", "0,0,0"], "--direction: '0,0,0' is not one of"),
+    (["--start-pose", "1,2,3"], "--start-pose: expected 7 angles"),
+    (["--shape", "spline:/nonexistent.csv"], "cannot read shape file '/nonexistent.csv'"),
+])
+def test_cli_bad_shape_options(tmp_path, capsys, argv, message):
+    from ikbench.cli import main
+
+    out = tmp_path / "out"
+    assert main(["run", *argv, "--output", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_cli_spline_run_writes_shape_outputs(robot, tmp_path, capsys):
+    import pandas as pd
+
+    from ikbench.cli import main
+    from ikbench.report import SHAPE_TABLE_COLUMNS
+
+    tip = robot.fk(PAPER_START).point_mm[0]
+    control = tip + np.array([[0, 0, 0], [0, -40, 30], [0, -80, 0], [0, -120, 30.0]])
+    path = tmp_path / "wave.csv"
+    np.savetxt(path, control, delimiter=",", header="x_mm,y_mm,z_mm", comments="")
+    out = tmp_path / "res"
+    assert main(["run", "--shape", f"spline:{path}", "--steps", "12", "--max-iterations", "30",
+                 "--output", str(out), "--quiet"]) == 0
+    folder = out / "ours"
+    assert {"trajectory_wave.csv", "table.csv", "details.csv", "run.json", "shapes.png",
+            "report.md"} <= {p.name for p in folder.iterdir()}
+    table = pd.read_csv(folder / "table.csv")
+    assert list(table.columns) == SHAPE_TABLE_COLUMNS and table["trajectory"].tolist() == ["wave"]
+    assert "![shapes](shapes.png)" in (folder / "report.md").read_text()
+    assert "curve_distance_mean_mm" in capsys.readouterr().out
