@@ -115,8 +115,7 @@ def plot_shapes(tasks, points_by_id: dict, title: str):
         ax3.set_xlabel("x [mm]")
         ax3.set_ylabel("y [mm]")
         ax3.set_zlabel("z [mm]")
-        extent = np.ptp(np.vstack([points, *curve.strokes_mm]), axis=0)
-        ax3.set_box_aspect(np.maximum(extent, 0.3 * extent.max()))  # keep a flat curve's depth
+        _equal_axes_3d(ax3, np.vstack([points, *curve.strokes_mm]))
         ax3.view_init(elev=20, azim=-150)
         ax3.set_title(f"{task.name}: 3-D (torso frame)")
     fig.suptitle(f"{title}\ngrey: target curve (dotted: pen-up move), blue: fingertip "
@@ -124,6 +123,16 @@ def plot_shapes(tasks, points_by_id: dict, title: str):
                  fontsize=9)
     fig.tight_layout()
     return fig
+
+
+def _equal_axes_3d(ax, points_mm) -> None:
+    """One scale on all three axes (a flat curve looks flat; deviations keep their size)."""
+    lo, hi = points_mm.min(axis=0), points_mm.max(axis=0)
+    centre, half = (lo + hi) / 2, max(np.max(hi - lo) / 2, 1.0)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+    ax.set_box_aspect((1, 1, 1))
 
 
 def plot_pointing_error(tasks, points_by_id: dict, title: str):
