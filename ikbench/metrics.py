@@ -92,9 +92,20 @@ def smoothness(poses_motor_deg) -> dict[str, float]:
     }
 
 
-def _pose_error(pose, goal) -> float:
-    """max |pose - goal| [deg], NaN when the task fixes no such pose."""
-    return float("nan") if goal is None else float(np.max(np.abs(pose - goal)))
+def _end_errors_and_smoothness(task, points_mm, poses) -> dict[str, float]:
+    """Start/end point errors [mm], start/end pose errors [deg] (NaN where the task fixes no
+    such pose) and the :func:`smoothness` figures."""
+
+    def pose_error(pose, goal):
+        return float("nan") if goal is None else float(np.max(np.abs(pose - goal)))
+
+    return {
+        "start_point_error_mm": float(np.linalg.norm(points_mm[0] - task.start_point_mm)),
+        "end_point_error_mm": float(np.linalg.norm(points_mm[-1] - task.end_point_mm)),
+        "start_pose_error_deg": pose_error(poses[0], task.start_pose_deg),
+        "end_pose_error_deg": pose_error(poses[-1], task.end_pose_deg),
+        **smoothness(poses),
+    }
 
 
 def trajectory_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
@@ -122,11 +133,7 @@ def trajectory_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
         "line_distance_std_mm": float(distances.std()),
         "pointing_deviation_mean_deg": float(deviations.mean()),
         "pointing_deviation_std_deg": float(deviations.std()),
-        "start_point_error_mm": float(np.linalg.norm(fk.point_mm[0] - task.start_point_mm)),
-        "end_point_error_mm": float(np.linalg.norm(fk.point_mm[-1] - task.end_point_mm)),
-        "start_pose_error_deg": _pose_error(poses[0], task.start_pose_deg),
-        "end_pose_error_deg": _pose_error(poses[-1], task.end_pose_deg),
-        **smoothness(poses),
+        **_end_errors_and_smoothness(task, fk.point_mm, poses),
     }
 
 
@@ -161,9 +168,5 @@ def shape_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
         "pointing_deviation_mean_deg": float(deviations.mean()),
         "pointing_deviation_std_deg": float(deviations.std()),
         "pointing_deviation_max_deg": float(deviations.max()),
-        "start_point_error_mm": float(np.linalg.norm(fk.point_mm[0] - task.start_point_mm)),
-        "end_point_error_mm": float(np.linalg.norm(fk.point_mm[-1] - task.end_point_mm)),
-        "start_pose_error_deg": _pose_error(poses[0], task.start_pose_deg),
-        "end_pose_error_deg": _pose_error(poses[-1], task.end_pose_deg),
-        **smoothness(poses),
+        **_end_errors_and_smoothness(task, fk.point_mm, poses),
     }
