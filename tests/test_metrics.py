@@ -6,10 +6,14 @@ import numpy as np
 import pytest
 
 from ikbench.errors import InputError
-from ikbench.metrics import (criterion2_mm, line_distances_mm, pointing_deviations_deg,
-                             smoothness, trajectory_metrics)
+from ikbench.metrics import (
+    criterion2_mm,
+    line_distances_mm,
+    pointing_deviations_deg,
+    smoothness,
+    trajectory_metrics,
+)
 from ikbench.task import line_task
-
 from tests.conftest import PAPER_START
 
 
