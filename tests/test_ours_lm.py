@@ -1,0 +1,230 @@
+"""ours-lm: the residual form equals the objective, analytic Jacobians, batching, limits, CLI."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from ikbench.cli import main
+from ikbench.errors import InputError
+from ikbench.losses import PAPER_WEIGHTS, TERMS, objective, parse_weights
+from ikbench.methods import get_method
+from ikbench.methods.ours import AdamSettings, optimise
+from ikbench.methods.ours_lm import (
+    ChainKinematics,
+    LMSettings,
+    OursLM,
+    Problem,
+    block_matvec,
+    evaluate,
+    initial_poses,
+    pinocchio_kinematics,
+    solve_batch,
+    solve_normal_equations,
+)
+from ikbench.task import line_task
+from tests.conftest import PAPER_START
+from tests.test_kinematics import paper_fk_cm
+
+TOUCH = {"1": [33, 39, 25, 134, 102, 77, -168], "3": [57, 33, 40, 134, 80, 36, -159],
+         "7": [34, 17, 39, 107, 106, 78, -180]}
+
+
+def _task(robot, key="1", n=10):
+    return line_task(robot, PAPER_START, TOUCH[key], n, key)
+
+
+def _random_poses(robot, task, seed=0, noise=4.0):
+    rng = np.random.default_rng(seed)
+    poses = np.linspace(task.start_pose_deg, task.end_pose_deg, task.steps + 1)
+    poses = poses + rng.normal(0.0, noise, poses.shape)
+    return np.clip(poses, robot.lower_motor_deg, robot.upper_motor_deg)
+
+
+def _dense_residuals(robot, task, poses, weights=PAPER_WEIGHTS):
+    """The residual vector r (loss = |r|^2) written out directly, with the tests' own FK."""
+    n_poses, dof = poses.shape
+    fk = [paper_fk_cm(p) for p in poses]
+    points, dirs = np.array([f[0] for f in fk]), np.array([f[1] for f in fk])
+    goals, d = task.goal_points_mm / 10.0, task.goal_directions
+    c = [weights[t] for t in TERMS]
+    return np.concatenate([
+        np.sqrt(c[0] / (3 * n_poses)) * (points - goals).ravel(),
+        np.sqrt(c[1] / (2 * n_poses)) * (dirs - d).ravel(),
+        np.sqrt(c[2]) * (poses[0] - task.start_pose_deg),
+        np.sqrt(c[3]) * (poses[-1] - task.end_pose_deg),
+        np.sqrt(c[4]) * (points[0] - goals[0]),
+        np.sqrt(c[5]) * (points[-1] - goals[-1]),
+        np.sqrt(c[6] / ((n_poses - 1) * dof)) * np.diff(poses, axis=0).ravel(),
+    ])
+
+
+@pytest.mark.parametrize("weights", [PAPER_WEIGHTS, parse_weights("c0=100,c1=3,c6=0.5")])
+def test_loss_equals_objective_and_sum_of_squared_residuals(robot, weights):
+    task = _task(robot, "3", n=8)
+    poses = _random_poses(robot, task, seed=3)
+    problem = Problem.from_tasks(robot, [task], weights)
+    ev = evaluate(ChainKinematics(robot), problem, poses[None])
+    expected, terms = objective(robot, task, poses, weights)
+    assert ev.loss[0] == pytest.approx(expected, rel=1e-12)
+    assert ev.terms[0] == pytest.approx([terms[t] for t in TERMS], rel=1e-10, abs=1e-14)
+    r = _dense_residuals(robot, task, poses, weights)
+    assert float(r @ r) == pytest.approx(expected, rel=1e-9)
+
+
+def test_numpy_kinematics_match_pinocchio_frame_jacobian(robot):
+    poses = np.random.default_rng(1).uniform(robot.lower_motor_deg, robot.upper_motor_deg,
+                                             (20, robot.dof))
+    ours = ChainKinematics(robot)(poses)
+    reference = pinocchio_kinematics(robot, poses)
+    for a, b in zip(ours, reference):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-11)
+
+
+def test_jacobian_matches_finite_differences(robot):
+    poses = np.random.default_rng(2).uniform(robot.lower_motor_deg, robot.upper_motor_deg,
+                                             (5, robot.dof))
+    kin = ChainKinematics(robot)
+    _, _, j_point, j_dir = kin(poses)
+    h = 1e-6
+    for j in range(robot.dof):
+        plus, minus = poses.copy(), poses.copy()
+        plus[:, j] += h
+        minus[:, j] -= h
+        (pp, dp, _, _), (pm, dm, _, _) = kin(plus, False), kin(minus, False)
+        np.testing.assert_allclose(j_point[:, :, j], (pp - pm) / (2 * h), atol=1e-6)
+        np.testing.assert_allclose(j_dir[:, :, j], (dp - dm) / (2 * h), atol=1e-8)
+
+
+def test_gradient_and_gauss_newton_matrix_match_finite_differences(robot):
+    task = _task(robot, "1", n=6)
+    poses = _random_poses(robot, task, seed=5)
+    problem = Problem.from_tasks(robot, [task], PAPER_WEIGHTS)
+    ev = evaluate(ChainKinematics(robot), problem, poses[None])
+    h = 1e-4  # central differences: truncation ~h^2, rounding ~1e-16 * loss / h
+    flat = poses.ravel()
+    grad_fd = np.empty(flat.size)
+    jac_fd = np.empty((_dense_residuals(robot, task, poses).size, flat.size))
+    for k in range(flat.size):
+        plus, minus = flat.copy(), flat.copy()
+        plus[k] += h
+        minus[k] -= h
+        grad_fd[k] = (objective(robot, task, plus.reshape(poses.shape))[0]
+                      - objective(robot, task, minus.reshape(poses.shape))[0]) / (2 * h)
+        jac_fd[:, k] = (_dense_residuals(robot, task, plus.reshape(poses.shape))
+                        - _dense_residuals(robot, task, minus.reshape(poses.shape))) / (2 * h)
+    # dL/dp = 2 J^T r
+    np.testing.assert_allclose(2 * ev.gradient[0].ravel(), grad_fd, rtol=1e-6, atol=1e-6)
+    # the block-tridiagonal J^T J times any vector equals the dense one
+    x = np.random.default_rng(0).normal(size=poses.shape)
+    dense = jac_fd.T @ (jac_fd @ x.ravel())
+    np.testing.assert_allclose(block_matvec(ev, x[None])[0].ravel(), dense, rtol=1e-5,
+                               atol=1e-6)
+
+
+@pytest.mark.parametrize("solver", ["banded", "thomas"])
+def test_block_tridiagonal_solvers_equal_dense_solve(solver):
+    rng = np.random.default_rng(4)
+    b, n_poses, k = 3, 6, 7
+    a = rng.normal(size=(b, n_poses, k, k))
+    diagonal = a @ a.swapaxes(-1, -2) + 3 * np.eye(k)
+    coupling = np.array([0.5, 1.0, 2.0])
+    rhs = rng.normal(size=(b, n_poses, k))
+    free = rng.random((b, n_poses, k)) > 0.2
+    x, ok = solve_normal_equations(diagonal, coupling, rhs, free, solver)
+    assert ok.all()
+    for t in range(b):
+        dense = np.zeros((n_poses * k, n_poses * k))
+        for i in range(n_poses):
+            dense[i * k:(i + 1) * k, i * k:(i + 1) * k] = diagonal[t, i]
+            if i:
+                dense[i * k:(i + 1) * k, (i - 1) * k:i * k] = -coupling[t] * np.eye(k)
+                dense[(i - 1) * k:i * k, i * k:(i + 1) * k] = -coupling[t] * np.eye(k)
+        f = free[t].ravel()
+        expected = np.zeros(n_poses * k)
+        expected[f] = np.linalg.solve(dense[np.ix_(f, f)], rhs[t].ravel()[f])
+        np.testing.assert_allclose(x[t].ravel(), expected, rtol=1e-9, atol=1e-10)
+
+
+def test_batched_equals_one_at_a_time(robot):
+    tasks = [_task(robot, key, n=10) for key in TOUCH]
+    batch = solve_batch(robot, tasks)
+    for k, task in enumerate(tasks):
+        single = solve_batch(robot, [task])
+        np.testing.assert_allclose(batch.poses_deg[k], single.poses_deg[0], atol=1e-10)
+        assert batch.loss[k] == pytest.approx(single.loss[0], rel=1e-12)
+        assert batch.iterations[k] == single.iterations[0]
+
+
+def test_per_task_weights_equal_separate_solves(robot):
+    task = _task(robot, "1", n=10)
+    strong = parse_weights("c0=100")
+    both = solve_batch(robot, [task, task], weights=[PAPER_WEIGHTS, strong])
+    alone = solve_batch(robot, [task], weights=strong)
+    np.testing.assert_allclose(both.poses_deg[1], alone.poses_deg[0], atol=1e-10)
+    assert both.loss[0] != pytest.approx(both.loss[1])
+
+
+def test_limits_respected_and_kkt_at_the_bound(robot):
+    # with n = 50, r_arm_x runs into its upper limit 70 in the middle of trajectory 1
+    task = _task(robot, "1", n=50)
+    result = solve_batch(robot, [task])
+    poses = result.poses_deg[0]
+    assert robot.within_limits(poses, tol_deg=0.0)
+    at_upper = poses >= robot.upper_motor_deg
+    assert at_upper[:, 2].sum() >= 2 and result.converged[0]
+    problem = Problem.from_tasks(robot, [task], PAPER_WEIGHTS)
+    gradient = evaluate(ChainKinematics(robot), problem, poses[None]).gradient[0]
+    assert np.all(gradient[at_upper] < 0)            # the loss would fall beyond the limit
+    assert np.max(np.abs(gradient[~at_upper])) < 1e-4 * np.max(np.abs(gradient[at_upper]))
+
+
+def test_kinematics_and_linear_solver_options_agree(robot):
+    task = _task(robot, "3", n=8)
+    reference = solve_batch(robot, [task])
+    for settings in (LMSettings(kinematics="pinocchio"), LMSettings(linear_solver="thomas")):
+        other = solve_batch(robot, [task], settings)
+        assert other.loss[0] == pytest.approx(reference.loss[0], rel=1e-9)
+
+
+def test_lm_reaches_a_loss_no_higher_than_adam(robot):
+    task = _task(robot, "1", n=10)
+    adam = optimise(robot, task, AdamSettings(max_iterations=150, dtype="float64",
+                                              init="interpolation"))
+    solution = OursLM().solve(robot, task)
+    lm_loss, _ = objective(robot, task, solution.poses_deg)
+    adam_loss, _ = objective(robot, task, adam.poses_deg)
+    assert solution.loss == pytest.approx(lm_loss, rel=1e-12)
+    assert lm_loss <= adam_loss
+    assert solution.converged and solution.iterations < 50
+    initial, _ = objective(robot, task, initial_poses(robot, [task])[0])
+    assert lm_loss < initial
+
+
+def test_method_registered_and_options_validated():
+    assert get_method("ours-lm") is OursLM
+    with pytest.raises(InputError, match="--lm-tolerance"):
+        OursLM(tolerance=-1.0)
+    with pytest.raises(InputError, match="--lm-max-iterations"):
+        OursLM(max_iterations=0)
+    with pytest.raises(InputError, match="--weights"):
+        OursLM(weights="c9=1")
+
+
+def test_run_cli_with_ours_lm(tmp_path, capsys, robot):
+    code = main(["run", "--method", "ours-lm", "--only", "3", "--steps", "10", "--weights",
+                 "c0=2", "--output", str(tmp_path), "--quiet"])
+    assert code == 0
+    assert (tmp_path / "ours-lm" / "trajectory_3.csv").is_file()
+    assert "written to" in capsys.readouterr().out
+
+
+def test_run_cli_bad_option_one_line_exit_2(tmp_path):
+    exe = [sys.executable, "-m", "ikbench.cli", "run", "--method", "ours-lm",
+           "--lm-tolerance", "-3", "--output", str(tmp_path)]
+    proc = subprocess.run(exe, capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == "ikbench: error: --lm-tolerance: -3.0 must be a positive number"
