@@ -1,0 +1,64 @@
+"""``ikbench bench``: wall-time benchmark of methods on the same targets."""
+
+from __future__ import annotations
+
+
+def register(subparsers) -> None:
+    from ikbench.bench import DEFAULT_METHODS, DEFAULT_REPEAT
+
+    parser = subparsers.add_parser(
+        "bench",
+        help="time methods on the same targets (median/min/max, ratios, losses)",
+        description=(
+            "Solve the targets with each method in one process: warm-up rounds, then timed "
+            "rounds; every trajectory is timed on its own, and batched methods also solve all "
+            "targets in one call. Writes OUTPUT/benchmark.csv (median, min, max wall time per "
+            "method and trajectory, totals, speed-ups against the first method, final losses "
+            "and metrics), benchmark_runs.csv (every timed solve), benchmark.json (settings, "
+            "CPU, versions, git revision) and benchmark.md. The paper's method takes tens of "
+            "seconds per round, so by default it runs 3 rounds and other methods 5."
+        ),
+    )
+    parser.add_argument("--methods", default=DEFAULT_METHODS,
+                        help=f"comma-separated methods; the first is the baseline of the ratios "
+                        f"(default: {DEFAULT_METHODS})")
+    parser.add_argument("--repeat", default=DEFAULT_REPEAT,
+                        help="timed rounds: N for every method, or N,method=M to give a "
+                        f"method its own count (default: {DEFAULT_REPEAT})")
+    parser.add_argument("--warmup", type=int, default=1,
+                        help="untimed rounds before timing (default 1)")
+    parser.add_argument("--targets", default=None,
+                        help="targets JSON file (default: the paper's seven touch poses)")
+    parser.add_argument("--only", default=None, help="comma-separated trajectory ids, e.g. 1,3")
+    parser.add_argument("--steps", type=int, default=None,
+                        help="number of segments n (default: the targets file's, 50)")
+    parser.add_argument("--output", default="results",
+                        help="output directory (default: results)")
+    parser.add_argument("--threads", type=int, default=1,
+                        help="torch threads (default 1, as ikbench reproduce: the tensors are "
+                        "tiny, and on a busy 2-core machine 2 threads ran ours much slower)")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ikbench.bench import benchmark, headline, write
+    from ikbench.errors import InputError
+
+    if args.steps is not None and args.steps < 2:
+        raise InputError(f"--steps: {args.steps} must be an integer >= 2")
+    if args.threads < 1:
+        raise InputError(f"--threads: {args.threads} must be an integer >= 1")
+    import torch
+
+    torch.set_num_threads(args.threads)
+    result = benchmark(args.methods, repeat=args.repeat, warmup=args.warmup,
+                       targets=args.targets, only=args.only, steps=args.steps,
+                       progress=not args.quiet)
+    path = write(result, args.output)
+    table = headline(result).drop(columns=["iterations", "line_distance_mean_mm",
+                                           "pointing_deviation_mean_deg", "end_point_error_mm",
+                                           "within_limits"], errors="ignore")
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print(f"written to {path} (and benchmark.md, benchmark_runs.csv, benchmark.json)")
+    return 0

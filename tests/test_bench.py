@@ -1,0 +1,79 @@
+"""ikbench bench: timings, ratios, losses and the files it writes; bad input via the CLI."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pandas as pd
+import pytest
+
+from ikbench.bench import TOTAL, TOTAL_BATCHED, benchmark, parse_repeat, write
+from ikbench.cli import main
+from ikbench.errors import InputError
+from ikbench.methods.ours import Ours
+
+
+def test_parse_repeat():
+    assert parse_repeat("5,ours=3", ["ours", "ours-lm"]) == {"ours": 3, "ours-lm": 5}
+    assert parse_repeat(2, ["ours-lm"]) == {"ours-lm": 2}
+    for bad in ("0", "x", "ours=", "=3", "5,ours=-1"):
+        with pytest.raises(InputError, match="--repeat"):
+            parse_repeat(bad, ["ours"])
+
+
+def test_benchmark_two_methods_summary_and_files(tmp_path):
+    # a capped Adam keeps the test fast; the ratios are against the first method
+    solvers = {"ours": Ours(max_iterations=20, init="interpolation")}
+    result = benchmark(["ours", "ours-lm"], repeat="2,ours=1", warmup=0, only="1,3", steps=8,
+                       solvers=solvers, progress=False)
+    s = result.summary.set_index(["method", "trajectory"])
+    assert set(s.index) == {("ours", "1"), ("ours", "3"), ("ours", TOTAL), ("ours-lm", "1"),
+                            ("ours-lm", "3"), ("ours-lm", TOTAL), ("ours-lm", TOTAL_BATCHED)}
+    assert s.loc[("ours-lm", "1"), "rounds"] == 2 and s.loc[("ours", "1"), "rounds"] == 1
+    row = s.loc[("ours-lm", "3")]
+    assert row["wall_min_s"] <= row["wall_median_s"] <= row["wall_max_s"]
+    # 20 Adam steps are far from the optimum that LM reaches
+    assert s.loc[("ours-lm", "1"), "loss"] < s.loc[("ours", "1"), "loss"]
+    assert s.loc[("ours-lm", "1"), "loss_change_vs_ours_pct"] < 0
+    total = s.loc[("ours-lm", TOTAL)]
+    assert total["speedup_vs_ours"] == pytest.approx(
+        s.loc[("ours", TOTAL), "wall_median_s"] / total["wall_median_s"])
+    runs = result.runs
+    assert len(runs[(runs["method"] == "ours-lm") & (runs["mode"] == "single")]) == 4
+    assert bool(s["within_limits"].dropna().all())
+
+    path = write(result, tmp_path)
+    assert pd.read_csv(path).shape[0] == len(result.summary)
+    record = json.loads((tmp_path / "benchmark.json").read_text())
+    assert record["repeat"] == {"ours": 1, "ours-lm": 2}
+    assert {"cpu", "git_revision", "packages"} <= set(record)
+    md = (tmp_path / "benchmark.md").read_text()
+    assert "## Totals" in md and "speedup_vs_ours" in md
+
+
+def test_bench_cli_writes_csv(tmp_path, capsys):
+    code = main(["bench", "--methods", "ours-lm", "--repeat", "2", "--warmup", "0",
+                 "--only", "2", "--steps", "6", "--output", str(tmp_path), "--quiet"])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "total" in out and "benchmark.csv" in out
+    frame = pd.read_csv(tmp_path / "benchmark.csv", dtype={"trajectory": str})
+    assert list(frame["trajectory"]) == ["2", TOTAL, TOTAL_BATCHED]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--methods", "ours,nope"], "ikbench: error: --methods: unknown method 'nope'; available:"),
+    (["--repeat", "ours=x"], "ikbench: error: --repeat: 'ours=x' is not N or method=N"),
+    (["--warmup", "-1"], "ikbench: error: --warmup: -1 must be an integer >= 0"),
+    (["--threads", "0"], "ikbench: error: --threads: 0 must be an integer >= 1"),
+    (["--only", "9"], "ikbench: error: --only: unknown trajectory id(s) '9'; available:"),
+])
+def test_bench_cli_bad_input_one_line_exit_2(tmp_path, args, message):
+    exe = [sys.executable, "-m", "ikbench.cli", "bench", "--methods", "ours-lm",
+           "--output", str(tmp_path), "--quiet", *args]
+    proc = subprocess.run(exe, capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and proc.stderr.startswith(message)
+    assert not (tmp_path / "benchmark.csv").exists()
