@@ -63,17 +63,26 @@ def add_run_arguments(parser, methods: dict, default_output: str) -> None:
     parser.add_argument("--duration", type=float, default=2.0,
                         help="movement duration T [s] for the time_s column (default 2)")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    parser.add_argument("--threads", type=int, default=1,
+                        help="torch threads (default 1: the tensors are tiny, and on a busy "
+                        "2-core machine 2 threads ran ours 15x slower than 1)")
     for name, cls in methods.items():
         cls.add_arguments(parser.add_argument_group(f"options of {name}"))
 
 
 def run(args, shape: str | None = None) -> int:
+    from ikbench.errors import InputError
     from ikbench.methods import get_method
     from ikbench.run import run as run_method
     from ikbench.targets import TargetsError, parse_pose
 
     if args.steps is not None and args.steps < 2:
         raise TargetsError(f"--steps: {args.steps} must be an integer >= 2")
+    if args.threads < 1:
+        raise InputError(f"--threads: {args.threads} must be an integer >= 1")
+    import torch
+
+    torch.set_num_threads(args.threads)
     start_pose = None if args.start_pose is None else parse_pose(args.start_pose,
                                                                  what="--start-pose")
     solver = get_method(args.method).from_args(args)
