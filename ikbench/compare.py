@@ -24,7 +24,7 @@ import pandas as pd
 from ikbench.errors import InputError
 from ikbench.io import atomic_savefig, atomic_write_text
 from ikbench.metrics import pointing_deviations_deg, trajectory_metrics
-from ikbench.report import markdown_table, paper_values
+from ikbench.report import accuracy_beside_paper, markdown_table, paper_values
 
 OURS, BASELINE = "ours", "sequential-ik"
 REPORT_NAME = "report.md"
@@ -263,15 +263,7 @@ def table2_comparison(table: pd.DataFrame) -> pd.DataFrame:
         p = paper.get(str(row["trajectory"]))
         rows.append({
             "trajectory": str(row["trajectory"]),
-            "line distance [mm]": f"{row['line_distance_mean_mm']:.2f} ± "
-                                  f"{row['line_distance_std_mm']:.2f}",
-            "paper line distance [mm]": p and
-            f"{p['line_distance_mean_printed'] * scale:.1f} ± "
-            f"{p['line_distance_std_printed'] * scale:.1f}",
-            "pointing deviation [deg]": f"{row['pointing_deviation_mean_deg']:.2f} ± "
-                                        f"{row['pointing_deviation_std_deg']:.2f}",
-            "paper pointing deviation [deg]": p and
-            f"{p['pointing_deviation_mean_deg']} ± {p['pointing_deviation_std_deg']}",
+            **accuracy_beside_paper(row, p, scale),
             "start point variation [mm]": f"{row['start_point_error_mm']:.2f}",
             "paper start point variation [mm]": p and
             f"{p['start_point_variation_printed'] * scale:.0f}",

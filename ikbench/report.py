@@ -174,6 +174,29 @@ def markdown_table(frame: pd.DataFrame, digits: dict | None = None) -> str:
     return "\n".join(lines)
 
 
+def accuracy_beside_paper(row, paper_row: dict | None, scale: float) -> dict:
+    """Measured line distance and pointing (mean ± std) beside the paper's printed values.
+
+    Args:
+        row: measured figures (``line_distance_mean_mm``, ``..._std_mm``,
+            ``pointing_deviation_mean_deg``, ``..._std_deg``).
+        paper_row: the paper's row (``*_printed`` distances), or None off the paper's targets.
+        scale: factor turning the paper's printed distances into mm (its cm slip).
+    """
+    p = paper_row
+    return {
+        "line distance [mm]": f"{row['line_distance_mean_mm']:.2f} ± "
+                              f"{row['line_distance_std_mm']:.2f}",
+        "paper line distance [mm]": p and
+        f"{p['line_distance_mean_printed'] * scale:.1f} ± "
+        f"{p['line_distance_std_printed'] * scale:.1f}",
+        "pointing deviation [deg]": f"{row['pointing_deviation_mean_deg']:.2f} ± "
+                                    f"{row['pointing_deviation_std_deg']:.2f}",
+        "paper pointing deviation [deg]": p and
+        f"{p['pointing_deviation_mean_deg']} ± {p['pointing_deviation_std_deg']}",
+    }
+
+
 def table1_comparison(table: pd.DataFrame) -> pd.DataFrame:
     """Measured Table 1 figures beside the paper's (distance converted to mm)."""
     paper = paper_values()["table1"]
@@ -187,15 +210,7 @@ def table1_comparison(table: pd.DataFrame) -> pd.DataFrame:
             "paper iterations": p and p["iterations"],
             "loss": row["loss"],
             "paper loss": p and p["loss"],
-            "line distance [mm]": f"{row['line_distance_mean_mm']:.2f} ± "
-                                  f"{row['line_distance_std_mm']:.2f}",
-            "paper line distance [mm]": p and
-            f"{p['line_distance_mean_printed'] * scale:.1f} ± "
-            f"{p['line_distance_std_printed'] * scale:.1f}",
-            "pointing deviation [deg]": f"{row['pointing_deviation_mean_deg']:.2f} ± "
-                                        f"{row['pointing_deviation_std_deg']:.2f}",
-            "paper pointing deviation [deg]": p and
-            f"{p['pointing_deviation_mean_deg']} ± {p['pointing_deviation_std_deg']}",
+            **accuracy_beside_paper(row, p, scale),
             "duration [s]": row["duration_s"],
             "paper duration [s]": p and p["duration_s"],
         })
