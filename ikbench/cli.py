@@ -11,9 +11,16 @@ from ikbench import commands
 from ikbench.errors import IkbenchError
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (the usage is in ``--help``)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the ``ikbench`` parser with every subcommand found in :mod:`ikbench.commands`."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="ikbench",
         description=(
             "Generate robot-arm trajectories of a required shape (NICO right arm) and compare "
@@ -48,6 +55,10 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # e.g. `ikbench plan X | head`: the reader went away
         sys.stderr.close()
         return 0
+    except OSError as exc:  # a file or folder the user named that cannot be used
+        where = f" {exc.filename}" if exc.filename else ""
+        print(f"ikbench: error:{where}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
     return int(code or 0)
 
 

@@ -15,7 +15,7 @@ stated threshold (:data:`FASTER_FACTOR`, ...), with a verdict *holds* / *does no
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +24,7 @@ import pandas as pd
 from ikbench.errors import InputError
 from ikbench.io import atomic_savefig, atomic_write_text
 from ikbench.metrics import pointing_deviations_deg, trajectory_metrics
-from ikbench.report import accuracy_beside_paper, markdown_table, paper_values
+from ikbench.report import PAPER_STEPS, accuracy_beside_paper, markdown_table, paper_values
 
 OURS, BASELINE = "ours", "sequential-ik"
 REPORT_NAME = "report.md"
@@ -39,9 +39,6 @@ CONSTANT_START_DEG = 1.0
 VARIES_FACTOR = 10.0
 #: "comparable" fluency: the baseline's median figure is within this factor of ours (either way).
 COMPARABLE_FACTOR = 2.0
-#: The paper's Table 2 was measured with n = 50 segments.
-PAPER_STEPS = 50
-
 PAPER_BASELINE_NOTE = (
     "The paper's baseline is not this one: the authors solved it with ikpy on a *different* "
     "NICO URDF (other joint conventions; shared/reference/README.md), so only its qualitative "
@@ -126,15 +123,23 @@ def load_runs(output_dir) -> tuple[dict, list, object]:
     if shaped:
         raise InputError(f"report: compares line runs (touch poses) only; {', '.join(shaped)} "
                          f"in {str(output_dir)!r} drew another shape")
-    keys = {name: (str(r.record.get("targets")), r.record.get("steps")) for name, r in runs.items()}
+    turned = [n for n, r in runs.items() if r.record.get("direction") is not None]
+    if turned:
+        raise InputError(f"report: compares runs pointing along the line only; "
+                         f"{', '.join(turned)} in {str(output_dir)!r} used --direction")
+    keys = {name: (str(r.record.get("targets")), r.record.get("steps"),
+                   tuple(r.record.get("start_pose_deg") or ())) for name, r in runs.items()}
     if len(set(keys.values())) > 1:
-        raise InputError("report: the method folders were run on different targets or steps: "
-                         + "; ".join(f"{n}: targets {t}, n = {s}" for n, (t, s) in keys.items()))
-    source, steps = keys[OURS]
+        raise InputError("report: the method folders were run on different targets, steps or "
+                         "start poses: " + "; ".join(f"{n}: targets {t}, n = {s}, start {p}"
+                                                     for n, (t, s, p) in keys.items()))
+    source, steps, start = keys[OURS]
     shared = [t for t in runs[OURS].poses if all(t in r.poses for r in runs.values())]
     if not shared:
         raise InputError("report: the method folders share no trajectory id")
     targets = load_targets(source, robot).select(shared).with_steps(int(steps))
+    if start:  # the run's own start pose (--start-pose may have replaced the file's)
+        targets = replace(targets, start_pose_deg=np.asarray(start, dtype=float))
     return runs, line_tasks(robot, targets), targets
 
 

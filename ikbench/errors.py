@@ -15,6 +15,10 @@ class InputError(IkbenchError):
     """Bad user input: a pose, a targets file, an option value."""
 
 
+class OutputError(InputError):
+    """A result file or folder that cannot be written (checked before long work starts)."""
+
+
 class TargetsError(InputError):
     """A targets file that cannot be used."""
 

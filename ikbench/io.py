@@ -8,22 +8,63 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
+from ikbench.errors import OutputError
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def check_writable(path: str | os.PathLike) -> Path:
+    """Fail early, before any long work, if ``path`` cannot be written; return it as a Path.
+
+    Creates missing parent directories (as :func:`atomic_path` would) and probes them with a
+    temporary file that is removed again.
+
+    Raises:
+        OutputError: the path is a directory or its folder cannot be created or written.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"cannot write {path}: it is a directory")
+    with atomic_path(path) as tmp:
+        tmp.unlink()  # nothing to move: only the folder was probed
+    return path
+
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; move it onto ``path`` only on success.
 
+    The file gets the usual permissions (0666 less the umask), not mkstemp's 0600.
+
     Args:
         path: final destination. Its parent directory is created if missing.
+
+    Raises:
+        OutputError: the folder cannot be created or written, or the move fails.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    blocker = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
+    if blocker is not None:
+        raise OutputError(f"cannot write {path}: {blocker} is a file, not a directory")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
     os.close(fd)
     tmp_path = Path(tmp)
     try:
         yield tmp_path
-        os.replace(tmp_path, path)
+        if tmp_path.exists():
+            os.chmod(tmp_path, 0o666 & ~_umask())
+            try:
+                os.replace(tmp_path, path)
+            except OSError as exc:
+                raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
     finally:
         if tmp_path.exists():
             tmp_path.unlink()

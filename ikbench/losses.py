@@ -60,6 +60,8 @@ def parse_weights(text: str | None, base: dict | None = None) -> dict[str, float
                 "L0..L6) and a finite value >= 0"
             )
         weights[key] = number
+    if not any(weights.values()):
+        raise InputError(f"--weights: {text!r} sets every term to 0; the loss would be empty")
     return weights
 
 

@@ -30,6 +30,10 @@ SHAPE_TABLE_COLUMNS = [
 ]
 
 
+#: The paper's number of segments n (51 poses per trajectory).
+PAPER_STEPS = 50
+
+
 def paper_values() -> dict:
     """The paper's Table 1 and Table 2 (see ikbench/data/paper_values.json)."""
     text = resources.files("ikbench").joinpath("data/paper_values.json").read_text()

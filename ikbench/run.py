@@ -24,11 +24,12 @@ import numpy as np
 import pandas as pd
 
 from ikbench.errors import InputError
-from ikbench.io import atomic_savefig, atomic_write_csv, atomic_write_text
+from ikbench.io import atomic_savefig, atomic_write_csv, atomic_write_text, check_writable
 from ikbench.methods import Method, get_method
 from ikbench.metrics import shape_metrics, trajectory_metrics
 from ikbench.provenance import provenance
 from ikbench.report import (
+    PAPER_STEPS,
     SHAPE_TABLE_COLUMNS,
     TABLE_COLUMNS,
     markdown_table,
@@ -141,6 +142,8 @@ def run(method: str | Method = "ours", *, targets: str | Path | Targets | None =
         raise InputError(f"--only selects touch poses of the line shape; shape {shape!r} has "
                          "none (name the letters in the shape instead, e.g. letter:P,A)")
     targets = targets.select(only)
+    if kind == "line":
+        targets = targets.with_steps(steps)  # so targets.is_paper sees a changed n
     tasks = build_tasks(robot, targets, shape, steps, size_mm, direction)
     solver = method if isinstance(method, Method) else get_method(method)(**(options or {}))
 
@@ -149,14 +152,15 @@ def run(method: str | Method = "ours", *, targets: str | Path | Targets | None =
 
         with tempfile.TemporaryDirectory() as tmp:
             return _solve_and_write(robot, targets, tasks, solver, Path(tmp), duration_s,
-                                    progress, shape)
+                                    progress, shape, direction)
     return _solve_and_write(robot, targets, tasks, solver, Path(output), duration_s, progress,
-                            shape)
+                            shape, direction)
 
 
 def _solve_and_write(robot, targets, tasks, solver, output: Path, duration_s, progress,
-                     shape="line"):
+                     shape="line", direction=None):
     method_dir = output / solver.name
+    check_writable(method_dir / "table.csv")  # before the solve, not after minutes of it
     started = time.perf_counter()
     solutions = solver.solve_many(robot, tasks, Progress(solver.name, enabled=progress))
     for task, solution in zip(tasks, solutions):
@@ -168,7 +172,8 @@ def _solve_and_write(robot, targets, tasks, solver, output: Path, duration_s, pr
     settings = {k: v for k, v in vars(solver).items() if not k.startswith("_")}
     record = {"method": solver.name, "targets": targets.source,
               "trajectories": [task.name for task in tasks], "steps": tasks[0].steps,
-              "shape": shape, "start_pose_deg": targets.start_pose_deg.tolist(),
+              "shape": shape, "direction": direction,
+              "start_pose_deg": targets.start_pose_deg.tolist(),
               # weights a task asks for (letters); ours applies --weights changes on top and
               # details.csv names the weights each trajectory was solved with
               "task_default_weights": tasks[0].default_weights,
@@ -221,15 +226,20 @@ def method_report(solver, table: pd.DataFrame, details: pd.DataFrame, targets: T
                   "(its nearest point); point_error: from the point's own goal point; "
                   "pointing deviation: from the goal direction (letters: the drawing plane's "
                   "normal (-1, 0, 0)). Points on pen-up moves are skipped.", ""]
-    if targets.is_paper and solver.name == "ours" and shape == "line":
+    # the paper's columns only beside the paper's task: its targets, start pose, n, line
+    paper_task = (targets.is_paper and shape == "line"
+                  and record.get("direction") is None)
+    if paper_task and solver.name == "ours":
         lines += ["## Beside the paper's Table 1", "",
                   "Columns named *paper* are copied from the paper. Its \"distance from the "
                   "line [mm]\" values are in centimetres (its unit label is off by a factor of "
                   "ten, see shared/reference/README.md), so they are shown here x 10, in mm.",
-                  "", markdown_table(table1_comparison(table), {"loss": 2, "duration [s]": 2}),
                   ""]
-    if (targets.is_paper and solver.name == "sequential-ik"
-            and record.get("shape", "line") == "line"):
+        if record["steps"] != PAPER_STEPS:
+            lines += [f"The paper used n = {PAPER_STEPS} segments; this run used "
+                      f"n = {record['steps']}.", ""]
+        lines += [markdown_table(table1_comparison(table), {"loss": 2, "duration [s]": 2}), ""]
+    if paper_task and solver.name == "sequential-ik":
         from ikbench.compare import table2_section
 
         lines += table2_section(table, record["steps"])

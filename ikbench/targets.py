@@ -5,15 +5,20 @@ Format (JSON)::
     {"joint_names": [...dof names, in the robot's order...],
      "start_pose": [...dof...],
      "targets": {"1": [...dof...], "2": [...], ...},
-     "steps": 50}
+     "steps": 50,                      # optional, default 50
+     "description": "..."}             # optional
 
+Target ids name files (``trajectory_<id>.csv``): letters, digits, ``_``, ``-`` and ``.``.
+Unknown keys are rejected (a misspelt "steps" would otherwise be ignored silently).
 The paper's seven touch poses ship as the default (:data:`PAPER_TARGETS`).
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import math
+import re
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -25,6 +30,9 @@ from ikbench.robot import Robot, load_robot
 
 PAPER_TARGETS = "paper"
 MIN_STEPS = 2
+KEYS = ("joint_names", "start_pose", "targets", "steps", "description")
+#: A target id names files (trajectory_<id>.csv) and is chosen with --only "1,3".
+ID_PATTERN = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 
 
 @dataclass(frozen=True)
@@ -47,8 +55,14 @@ class Targets:
 
     @property
     def is_paper(self) -> bool:
-        """True for the paper's targets (reports then show the paper's values beside ours)."""
-        return self.source == PAPER_TARGETS
+        """True for the paper's targets and start pose (reports then show the paper's values
+        beside the measured ones, with a note where n differs); False once either is changed."""
+        if self.source != PAPER_TARGETS:
+            return False
+        paper = _paper_spec()
+        return (np.array_equal(self.start_pose_deg, np.asarray(paper["start_pose"], float))
+                and all(np.array_equal(pose, np.asarray(paper["targets"][key], float))
+                        for key, pose in self.touch_poses_deg.items()))
 
     @property
     def ids(self) -> list[str]:
@@ -57,10 +71,13 @@ class Targets:
 
     def select(self, only: str | list[str] | None) -> Targets:
         """Keep only the given trajectory ids (``"1,3"`` or a list); None keeps all."""
-        if only is None or only == "":
+        if only is None:
             return self
         wanted = [s.strip() for s in only.split(",")] if isinstance(only, str) else list(only)
         unknown = [w for w in wanted if w not in self.touch_poses_deg]
+        if "" in wanted:
+            raise TargetsError(f"--only: {only!r} names an empty trajectory id; give ids such "
+                               f"as 1,3 (available: {', '.join(self.ids)})")
         if unknown or not wanted:
             raise TargetsError(
                 f"--only: unknown trajectory id(s) {', '.join(map(repr, unknown)) or repr(only)}; "
@@ -104,11 +121,15 @@ def parse_targets(spec: dict, robot: Robot, source: str) -> Targets:
     where = "targets file" if source == PAPER_TARGETS else source
     if not isinstance(spec, dict):
         raise TargetsError(f"{where}: top level must be a JSON object")
+    unknown = [k for k in spec if k not in KEYS]
+    if unknown:
+        raise TargetsError(f"{where}: unknown key(s) {', '.join(map(repr, unknown))}; "
+                           f"allowed: {', '.join(KEYS)}")
     missing = [k for k in ("joint_names", "start_pose", "targets") if k not in spec]
     if missing:
         raise TargetsError(
             f"{where}: missing key(s) {', '.join(missing)}; required: joint_names, start_pose, "
-            "targets (steps optional)"
+            "targets (steps, description optional)"
         )
     names = spec["joint_names"]
     if not isinstance(names, list) or tuple(names) != robot.joint_names:
@@ -121,8 +142,9 @@ def parse_targets(spec: dict, robot: Robot, source: str) -> Targets:
         raise TargetsError(f"{where}: targets must be a non-empty object of id -> pose")
     poses = {}
     for key, value in targets.items():
-        if not key.strip():
-            raise TargetsError(f"{where}: target id {key!r} is empty; ids must be non-empty")
+        if not ID_PATTERN.fullmatch(key):
+            raise TargetsError(f"{where}: target id {key!r} is not allowed; ids are letters, "
+                               "digits, '_', '-' and '.' (not first), as they name files")
         if key in poses:
             raise TargetsError(f"{where}: duplicate target id {key!r}")
         poses[key] = _check_pose(robot, value, f"{where}: target {key!r}")
@@ -139,8 +161,9 @@ def _reject_duplicate_keys(pairs):
     return seen
 
 
-def _reject_constant(token):
-    raise TargetsError(f"{token} is not a finite number")
+@functools.lru_cache(maxsize=1)
+def _paper_spec() -> dict:
+    return json.loads(resources.files("ikbench").joinpath("data/paper_targets.json").read_text())
 
 
 def load_targets(path: str | Path | None = None, robot: Robot | None = None) -> Targets:
@@ -156,9 +179,8 @@ def load_targets(path: str | Path | None = None, robot: Robot | None = None) -> 
         except (OSError, UnicodeDecodeError) as exc:
             raise TargetsError(f"cannot read targets file {source!r}: {exc}") from None
     try:
-        spec = json.loads(
-            text, object_pairs_hook=_reject_duplicate_keys, parse_constant=_reject_constant
-        )
+        # NaN/Infinity parse as floats; check_pose then names the target and joint
+        spec = json.loads(text, object_pairs_hook=_reject_duplicate_keys)
     except TargetsError as exc:
         raise TargetsError(f"{source}: {exc}") from None
     except json.JSONDecodeError as exc:

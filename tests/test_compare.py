@@ -156,4 +156,4 @@ def test_runs_on_different_steps_are_refused(small_runs, tmp_path, capsys):
     capsys.readouterr()
     assert main(["report", str(tmp_path)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "different targets or steps" in err
+    assert err.count("\n") == 1 and "different targets, steps or start poses" in err

@@ -153,8 +153,17 @@ def test_cli_run_writes_exact_schemas(tmp_path, capsys):
     assert table["iterations"].iloc[0] <= 200
     report = (folder / "report.md").read_text()
     assert "paper iterations" in report  # paper targets: paper columns present
+    assert "The paper used n = 50 segments; this run used n = 10." in report
     record = json.loads((folder / "run.json").read_text())
     assert record["packages"]["torch"] and record["settings"]["settings"]["max_iterations"] == 200
+
+
+def test_cli_changed_start_pose_has_no_paper_columns(tmp_path):
+    out = tmp_path / "res"
+    assert main(["run", "--only", "1", "--steps", "8", "--max-iterations", "50",
+                 "--start-pose=0,45,0,90,0,0,0", "--output", str(out), "--quiet"]) == 0
+    report = (out / "ours" / "report.md").read_text()
+    assert "paper iterations" not in report and "Table 1" not in report
 
 
 def test_cli_user_targets_have_no_paper_columns(tmp_path):
@@ -177,9 +186,28 @@ def test_cli_user_targets_have_no_paper_columns(tmp_path):
     (["run", "--steps", "1"], "--steps: 1 must be an integer >= 2"),
     (["run", "--weights", "c1=abc"], "--weights: 'c1=abc' is not term=value"),
     (["run", "--targets", "/nonexistent.json"], "cannot read targets file"),
+    (["run", "--damping", "5"], "--damping is an option of --method sequential-ik, not of"),
+    (["run", "--dtype", "float16"], "argument --dtype: invalid choice: 'float16'"),
+    (["run", "--steps", "abc"], "argument --steps: invalid int value: 'abc'"),
+    (["run", "--seed", "100000000000000000000000"], "--seed: 100000000000000000000000 must be"),
+    (["run", "--weights", "c0=0,c1=0,c2=0,c3=0,c4=0,c5=0,c6=0"], "sets every term to 0"),
 ])
 def test_cli_run_bad_input(tmp_path, capsys, argv, message):
-    assert main(argv + ["--output", str(tmp_path / "out"), "--quiet"]) == 2
+    try:
+        code = main(argv + ["--output", str(tmp_path / "out"), "--quiet"])
+    except SystemExit as exc:  # argparse's own errors exit from the parser
+        code = exc.code
+    assert code == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
     assert not (tmp_path / "out").exists()
+
+
+def test_cli_run_unwritable_output_fails_before_solving(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    code = main(["run", "--only", "1", "--steps", "10", "--max-iterations", "5000",
+                 "--output", str(blocker), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert f"cannot write {blocker}/ours/table.csv: {blocker} is a file" in err

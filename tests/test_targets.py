@@ -25,8 +25,10 @@ def test_paper_targets_shipped(paper_targets):
 
 def test_select_and_steps(paper_targets):
     sub = paper_targets.select("3,1")
-    assert sub.ids == ["3", "1"]
+    assert sub.ids == ["3", "1"] and sub.is_paper
     assert paper_targets.with_steps(10).steps == 10
+    with pytest.raises(TargetsError, match=r"--only: '' names an empty trajectory id"):
+        paper_targets.select("")
     with pytest.raises(TargetsError, match=r"unknown trajectory id.*'9'.*available: 1, 2"):
         paper_targets.select("1,9")
 
@@ -44,6 +46,13 @@ def _write(tmp_path, doc, raw=None):
     return path
 
 
+def test_changed_start_pose_is_not_the_paper_task(paper_targets):
+    from dataclasses import replace
+
+    moved = replace(paper_targets, start_pose_deg=np.array([0, 45, 0, 90, 0, 0, 0], float))
+    assert paper_targets.is_paper and not moved.is_paper
+
+
 def test_user_file_loads(tmp_path):
     targets = load_targets(_write(tmp_path, _doc()))
     assert not targets.is_paper and targets.ids == ["a"] and targets.steps == 20
@@ -53,8 +62,10 @@ BAD_FILES = [
     ("unparseable", None, "{not json", r"not valid JSON"),
     ("wrong length", _doc(start_pose=[1, 2, 3]), None, r"start_pose: expected 7 angles"),
     ("non-numeric", _doc(targets={"a": [1, 2, 3, "x", 5, 6, 7]}), None, r"target 'a'.*not a list"),
-    ("nan", None, json.dumps(_doc()).replace("-168", "NaN"), r"NaN is not a finite number"),
-    ("inf", None, json.dumps(_doc()).replace("-168", "Infinity"), r"Infinity is not a finite"),
+    ("nan", None, json.dumps(_doc()).replace("-168", "NaN"),
+     r"target 'a': r_indexfinger_x = nan is not a finite number"),
+    ("inf", None, json.dumps(_doc()).replace("-168", "Infinity"),
+     r"target 'a': r_indexfinger_x = inf is not a finite"),
     ("out of range", _doc(targets={"a": [33, 39, 25, 20, 102, 77, -168]}), None,
      r"r_elbow_y = 20 motor deg is outside its range \[50, 180\]"),
     ("unknown joint", _doc(joint_names=NAMES[:6] + ["r_thumb"]), None, r"joint_names .* must be"),
@@ -62,7 +73,10 @@ BAD_FILES = [
     ("duplicate id", None,
      f'{{"joint_names": {json.dumps(NAMES)}, "start_pose": {PAPER_START}, '
      f'"targets": {{"a": {PAPER_START}, "a": {PAPER_START}}}}}', r"duplicate key 'a'"),
-    ("empty id", _doc(targets={"": PAPER_START}), None, r"target id '' is empty"),
+    ("empty id", _doc(targets={"": PAPER_START}), None, r"target id '' is not allowed"),
+    ("path in id", _doc(targets={"../x": PAPER_START}), None, r"target id '../x' is not allowed"),
+    ("comma in id", _doc(targets={"1,2": PAPER_START}), None, r"target id '1,2' is not allowed"),
+    ("unknown key", _doc(stpes=3), None, r"unknown key\(s\) 'stpes'; allowed: joint_names"),
     ("no targets", _doc(targets={}), None, r"targets must be a non-empty object"),
     ("steps < 2", _doc(steps=1), None, r"steps = 1 must be an integer >= 2"),
     ("missing key", {"joint_names": NAMES}, None, r"missing key\(s\) start_pose, targets"),

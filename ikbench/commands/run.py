@@ -70,6 +70,18 @@ def add_run_arguments(parser, methods: dict, default_output: str) -> None:
         cls.add_arguments(parser.add_argument_group(f"options of {name}"))
 
 
+def reject_foreign_options(args, method) -> None:
+    """InputError if an option of another method was given (it would be silently ignored)."""
+    from ikbench.errors import InputError
+    from ikbench.methods import available_methods
+
+    for name, cls in available_methods().items():
+        for dest in cls.options:
+            if dest not in method.options and getattr(args, dest, None) is not None:
+                raise InputError(f"--{dest.replace('_', '-')} is an option of --method {name}, "
+                                 f"not of --method {method.name}")
+
+
 def run(args, shape: str | None = None) -> int:
     from ikbench.errors import InputError
     from ikbench.methods import get_method
@@ -85,7 +97,9 @@ def run(args, shape: str | None = None) -> int:
     torch.set_num_threads(args.threads)
     start_pose = None if args.start_pose is None else parse_pose(args.start_pose,
                                                                  what="--start-pose")
-    solver = get_method(args.method).from_args(args)
+    method = get_method(args.method)
+    reject_foreign_options(args, method)
+    solver = method.from_args(args)
     table = run_method(solver, targets=getattr(args, "targets", None),
                        only=getattr(args, "only", None), steps=args.steps, output=args.output,
                        duration_s=args.duration, progress=not args.quiet,

@@ -196,6 +196,8 @@ class Ours(Method):
             raise InputError(f"--max-iterations: {max_iterations!r} must be >= 1")
         if stop not in STOPS:
             raise InputError(f"--stop: {stop!r} is not one of {', '.join(STOPS)}")
+        if not 0 <= seed < 2**63:
+            raise InputError(f"--seed: {seed!r} must be an integer in [0, 2^63)")
         # Changes (a --weights string) go on top of a task's own default weights; a dict is
         # the complete set and is used for every task.
         self._explicit_weights = isinstance(weights, dict)
