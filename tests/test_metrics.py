@@ -47,6 +47,36 @@ def test_criterion2_offset_aim_and_window():
     assert np.isnan(got[0]) and np.allclose(got[2:-1], 5.0)
 
 
+def test_criterion2_window_averages_the_last_segments_including_the_current():
+    # segments: down, down-and-right (+1 mm x), down, down; touch point (1, 0, 0)
+    points = np.array([[0, 0, 4], [0, 0, 3], [1, 0, 2], [1, 0, 1], [1, 0, 0]], dtype=float)
+    touch = [1.0, 0.0, 0.0]
+    # step 2, window 0: segment 2 only, straight down from x = 1: hits the touch point
+    assert criterion2_mm(points, touch, window=0)[2] == pytest.approx(0.0)
+    # window 1: mean of segments 1 and 2 = (0.5, 0, -1), 2 mm above: lands at x = 2
+    assert criterion2_mm(points, touch, window=1)[2] == pytest.approx(1.0)
+    # default window (10): segments 0..2, mean (1/3, 0, -1): lands at x = 1 + 2/3
+    got = criterion2_mm(points, touch)
+    assert got[2] == pytest.approx(2 / 3)
+    # step 1: segments 0..1, mean (0.5, 0, -1), 3 mm above from x = 0: lands at x = 1.5
+    assert got[1] == pytest.approx(0.5)
+
+
+def test_start_and_end_errors_known(robot):
+    touch = np.array([33, 39, 25, 134, 102, 77, -168], dtype=float)
+    task = line_task(robot, PAPER_START, touch, 4, "1")
+    poses = np.linspace(PAPER_START, touch, 5)
+    poses[0, 3] += 2.0   # r_elbow_y 2 deg off at the start
+    poses[-1, 6] -= 3.0  # r_indexfinger_x 3 deg off at the end
+    m = trajectory_metrics(robot, task, poses)
+    assert m["start_pose_error_deg"] == pytest.approx(2.0)
+    assert m["end_pose_error_deg"] == pytest.approx(3.0)
+    fk = robot.fk(poses[[0, -1]]).point_mm
+    assert m["start_point_error_mm"] == pytest.approx(np.linalg.norm(fk[0] - task.start_point_mm))
+    assert m["end_point_error_mm"] == pytest.approx(np.linalg.norm(fk[1] - task.end_point_mm))
+    assert m["start_point_error_mm"] > 1 and m["end_point_error_mm"] > 0.1
+
+
 def test_smoothness_known():
     poses = np.zeros((5, 2))
     poses[:, 0] = [0, 1, 0, 1, 0]  # shaking joint: 3 sign changes

@@ -85,6 +85,8 @@ def test_paper_trajectory_3_iterations_reproduce(robot):
     assert solution.converged
     assert 0.65 * 374 <= solution.iterations <= 1.35 * 374
     assert solution.loss < 10
+    # under the stopping rule too, the poses returned are those the reported loss was taken at
+    assert objective(robot, task, solution.poses_deg)[0] == pytest.approx(solution.loss, rel=1e-4)
 
 
 def test_float32_and_float64_agree(robot):
