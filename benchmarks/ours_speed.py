@@ -11,7 +11,9 @@ L0..L6, backward, step) at n = 50 in float32 for
 
 with several repetitions after a warm-up, and prints medians and the ratio.
 
-Run: ``.venv/bin/python benchmarks/ours_speed.py [--repeat 7] [--iterations 300]``
+Run: ``.venv/bin/python benchmarks/ours_speed.py [--repeat 7] [--iterations 300] [--threads 1]
+[--output results/ours_speed.csv]``; the CSV has one row per (repetition, formulation) with the
+CPU, versions and git revision in every row.
 """
 
 from __future__ import annotations
@@ -21,9 +23,11 @@ import math
 import statistics
 import time
 
+import pandas as pd
 import torch
 
 from ikbench import load_robot, load_targets
+from ikbench.io import atomic_write_csv, check_writable
 from ikbench.losses import PAPER_WEIGHTS, LossGoals, loss_terms, weighted_loss
 from ikbench.methods.ours import initial_logits
 from ikbench.provenance import provenance
@@ -105,29 +109,47 @@ def time_iterations(robot, task, fk_kind: str, iterations: int) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeat", type=int, default=7)
-    parser.add_argument("--iterations", type=int, default=300)
+    parser.add_argument("--repeat", type=int, default=7, help="timed repetitions (default 7)")
+    parser.add_argument("--iterations", type=int, default=300,
+                        help="Adam iterations per repetition (default 300)")
+    parser.add_argument("--threads", type=int, default=1,
+                        help="torch threads (default 1, as ikbench run uses)")
+    parser.add_argument("--output", default="results/ours_speed.csv",
+                        help="CSV of every repetition (default results/ours_speed.csv)")
     args = parser.parse_args()
+    if min(args.repeat, args.iterations, args.threads) < 1:
+        parser.error("--repeat, --iterations and --threads must be >= 1")
+    check_writable(args.output)
+    torch.set_num_threads(args.threads)
     robot = load_robot()
     task = line_tasks(robot, load_targets().select("1"))[0]
     kinds = ["pytorch-kinematics", "paper-matrix-chain"]
     for kind in kinds:  # warm-up
         time_iterations(robot, task, kind, 20)
-    rates = {k: [] for k in kinds}
-    for _ in range(args.repeat):
+    rows = []
+    for rep in range(args.repeat):
         for kind in kinds:  # interleaved, so background load hits both sides alike
-            rates[kind].append(time_iterations(robot, task, kind, args.iterations))
+            rows.append({"repetition": rep, "fk": kind, "steps": task.steps,
+                         "iterations": args.iterations,
+                         "iterations_per_s": time_iterations(robot, task, kind, args.iterations)})
     info = provenance()
+    frame = pd.DataFrame(rows).assign(
+        cpu=info["cpu"], cpu_count=info["cpu_count"], torch_threads=info["torch_threads"],
+        torch=info["packages"]["torch"], pytorch_kinematics=info["packages"]["pytorch-kinematics"],
+        git_revision=info["git_revision"], created_utc=info["created_utc"])
+    atomic_write_csv(args.output, frame)
     print(f"CPU: {info['cpu']} ({info['cpu_count']} cores, torch threads "
           f"{info['torch_threads']}), torch {info['packages']['torch']}, "
           f"pytorch-kinematics {info['packages']['pytorch-kinematics']}")
     print(f"n = {task.steps}, float32, {args.iterations} iterations x {args.repeat} repetitions")
+    rates = {k: frame.loc[frame["fk"] == k, "iterations_per_s"].tolist() for k in kinds}
     for kind in kinds:
         r = rates[kind]
         print(f"{kind:>20}: median {statistics.median(r):7.1f} it/s "
               f"(min {min(r):.1f}, max {max(r):.1f})")
     ratio = statistics.median(rates[kinds[0]]) / statistics.median(rates[kinds[1]])
     print(f"ratio pytorch-kinematics / paper-matrix-chain: {ratio:.2f}")
+    print(f"written to {args.output}")
 
 
 if __name__ == "__main__":
