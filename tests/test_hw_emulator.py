@@ -215,3 +215,13 @@ def test_parse_fault_spec():
     assert (fault.kind, fault.motor_id, fault.instruction, fault.after) == ("error", 31, 3, 2)
     fault = parse_fault("drop")
     assert (fault.motor_id, fault.instruction, fault.after) == (None, None, 0)
+
+
+def test_emulate_cli_unwritable_log_is_refused_before_serving(tmp_path, capsys):
+    blocker = tmp_path / "blocker"
+    blocker.write_text("not a folder")
+    log = blocker / "bus.csv"
+    assert main(["emulate", "--log", str(log), "--for", "0.1"]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""  # no port printed: nothing was started
+    assert err == f"ikbench: error: cannot write {log}: {blocker} is a file, not a directory\n"

@@ -6,8 +6,10 @@ ikbench.hw), and the expected register values are computed here from the issue's
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+import re
 import signal
 import subprocess
 import sys
@@ -84,20 +86,46 @@ def motion_commands(emulator, after: float = -1.0) -> list:
     return found
 
 
-def assert_is_a_hold(last_two) -> None:
-    """The last SYNC WRITE commands nothing new: each goal is a present position the servo
-    passed on its way to the goal of the segment before (goal = present when read), at a
-    slow speed."""
-    segment, hold = last_two
-    assert set(hold.data) == set(IDS)
-    for motor_id in IDS:
+def segments_sent(emulator) -> list:
+    """The emulator's SYNC WRITEs that carry every motor (trajectory segments, approach)."""
+    return [w for w in emulator.sync_writes() if set(w.data) == set(IDS)]
+
+
+def assert_is_a_hold(emulator) -> list:
+    """After the last segment, the only motion commands are the hold: one SYNC WRITE per
+    motor, in joint order, each commanding nothing new: a goal the servo passed on its way to
+    the goal of the last segment (its present position when read, or that goal itself), at a
+    slow speed. Returns the hold's SYNC WRITEs."""
+    segment = segments_sent(emulator)[-1]
+    holds = [w for w in emulator.sync_writes() if w.t > segment.t]
+    assert [list(w.data) for w in holds] == [[motor_id] for motor_id in IDS]
+    assert len(motion_commands(emulator, after=segment.t)) == len(IDS)  # nothing but the hold
+    for motor_id, hold in zip(IDS, holds):
         ends = (segment.present_before[motor_id], segment.word(motor_id))
         assert min(ends) - 1 <= hold.word(motor_id) <= max(ends) + 1
         assert hold.word(motor_id, 2) <= math.ceil(10 / 0.684)
+    return holds
 
 
 def first_fault_time(emulator) -> float:
     return next(e.t for e in emulator.log if e.note.startswith("fault"))
+
+
+def writes_before_motion(emulator) -> list[tuple[int, int, list[int]]]:
+    """(id, address, data) of every WRITE before the first SYNC WRITE, decoded from the raw
+    log, each checked to have been answered by a status packet without error bits."""
+    found, log = [], emulator.log
+    for i, entry in enumerate(log):
+        data = entry.data
+        if entry.direction != "rx" or len(data) < 6:
+            continue
+        if data[4] == 0x83:
+            break
+        if data[4] == 0x03:
+            status = log[i + 1].data
+            assert log[i + 1].direction == "tx" and status[2] == data[2] and status[4] == 0
+            found.append((data[2], data[5], list(data[6:-1])))
+    return found
 
 
 @pytest.fixture()
@@ -221,9 +249,16 @@ def test_faults_before_the_move(short_traj, capsys, fault, message):
     assert motion_commands(emulator, after=first_fault_time(emulator)) == []
 
 
-def test_fault_during_the_move_stops_and_holds(short_traj, tmp_path, capsys):
+@pytest.mark.parametrize("kind, message", [
+    ("corrupt", ("read present position on motor id 5 (r_elbow_y): corrupted status packet "
+                 "(bad checksum or length)")),
+    ("drop", "read present position on motor id 5 (r_elbow_y): no status packet (timeout)"),
+    ("error", ("read present position: motor id 5 (r_elbow_y) reports error overload (status "
+               "error byte 0x20)")),
+])
+def test_fault_during_the_move_stops_and_holds(short_traj, tmp_path, capsys, kind, message):
     # reads of id 5: model number at ping, start pose, then one per recorded sample
-    fault = Fault("corrupt", 5, 0x02, after=2 + 4, count=1)
+    fault = Fault(kind, 5, 0x02, after=2 + 4, count=1)
     record = tmp_path / "rec.csv"
     with Emulator(load_motor_config(), START, faults=[fault]) as emulator:
         code = main(["execute", str(short_traj), "--port", emulator.port, "--duration", "0.6",
@@ -237,10 +272,11 @@ def test_fault_during_the_move_stops_and_holds(short_traj, tmp_path, capsys):
     before = [w for w in writes if w[0] < t_fault]
     after = [w for w in writes if w[0] > t_fault]
     assert 1 <= len(before) < 10
-    assert f"sent {len(before)} of 10 segments (last: segment {len(before) - 1})" in err
-    assert "corrupted status packet" in err and "holding present position" in err
-    assert len(after) == 1  # the hold: goal = present position, at a slow speed
-    assert_is_a_hold(emulator.sync_writes()[-2:])
+    assert err == (f"ikbench: error: {message}; sent {len(before)} of 10 segments (last: "
+                   f"segment {len(before) - 1}); holding present position\n")
+    # no motion command after the failure but the hold: goal = present, at a slow speed
+    assert len(after) == 7 and all(len(goals) == 1 for _, goals in after)
+    assert_is_a_hold(emulator)
     # the arm stopped part-way instead of finishing the trajectory
     assert np.abs(settled - line_poses(10, 0.2)[-1]).max() > 1.0
     assert pd.read_csv(record)["phase"].iloc[-1] == "move"
@@ -269,8 +305,9 @@ def test_ctrl_c_stops_and_holds(short_traj):
     assert str(info.value).startswith(f"interrupted; sent {sent} of 10 segments (last: "
                                       f"segment {sent - 1}); holding present position")
     assert info.value.exit_code == 130
-    assert len(writes) == sent + 1
-    assert_is_a_hold(emulator.sync_writes()[-2:])
+    assert len(segments_sent(emulator)) == sent
+    assert len(writes) == sent + 7  # the segments, then the hold, one motor at a time
+    assert_is_a_hold(emulator)
     assert t_after - writes[0][0] < 0.6
 
 
@@ -289,7 +326,8 @@ def test_ctrl_c_from_the_terminal(traj):
             proc.kill()
         final = emulator.present_deg()
     assert proc.returncode == 130
-    sent = len(sync_writes(emulator)) - 1
+    sent = len(segments_sent(emulator))
+    assert len(sync_writes(emulator)) == sent + 7
     assert err == (f"ikbench: error: interrupted; sent {sent} of 50 segments (last: segment "
                    f"{sent - 1}); holding present position\n")
     assert sent < 30
@@ -352,3 +390,143 @@ def test_bus_refuses_goals_outside_limits():
             bus.sync_write({i: 2048 for i in range(6)} | {2: 4000}, {i: 10 for i in range(7)})
         bus.close()
     assert sync_writes(emulator) == []
+
+
+def test_torque_enabled_at_24_after_goal_equals_present_before_motion(short_traj):
+    with Emulator(load_motor_config(), START) as emulator:
+        assert main(["execute", str(short_traj), "--port", emulator.port, "--duration",
+                     "0.3"]) == 0
+    hold_speed = math.ceil(10 / 0.684)
+    expected = []
+    for motor_id, raw in zip(IDS, goal_raw(START)):
+        # goal = present (2 bytes) + moving speed (2 bytes) at 30, then torque enable 1 at 24
+        expected += [(motor_id, 30, [raw & 0xFF, raw >> 8, hold_speed & 0xFF, hold_speed >> 8]),
+                     (motor_id, 24, [1])]
+    assert writes_before_motion(emulator) == expected
+    assert len(segments_sent(emulator)) == 10
+
+
+def test_port_failure_during_the_move_stops_and_reports(short_traj, capsys):
+    """The port goes away mid-move (the emulator's pty closes, as when a USB adapter is
+    unplugged): dynamixel-sdk's flush raises termios.error, not an OSError; it must end as
+    one line with the report and exit 3, not as a traceback."""
+    emulator = Emulator(load_motor_config(), START)
+    emulator.start()
+
+    def unplug_after_five_segments():
+        deadline = time.monotonic() + 10
+        while len(emulator.sync_writes()) < 5 and time.monotonic() < deadline:
+            time.sleep(0.001)
+        emulator.close()
+
+    unplug = threading.Thread(target=unplug_after_five_segments, daemon=True)
+    unplug.start()
+    try:
+        code = main(["execute", str(short_traj), "--port", emulator.port, "--duration", "0.6"])
+    finally:
+        unplug.join(timeout=10)
+        emulator.close()
+    err = capsys.readouterr().err
+    assert code == 3, err
+    match = re.fullmatch(
+        r"ikbench: error: sync write on the bus: port '(.+)' failed: (.+); sent (\d+) of 10 "
+        r"segments \(last: segment (\d+)\); no motor could be held: no answer from any motor, "
+        r"and the hold could not be sent; each motor stops at the last goal it received\n", err)
+    assert match, err
+    assert match[1] == emulator.port
+    sent, received = int(match[3]), len(segments_sent(emulator))
+    assert int(match[4]) == sent - 1
+    assert 5 <= received <= sent <= received + 1 < 11  # it stopped when the port went away
+
+
+def test_unexpected_sdk_exception_during_the_move_stops_and_holds(short_traj, capsys,
+                                                                  monkeypatch):
+    import dynamixel_sdk
+
+    original = dynamixel_sdk.GroupSyncWrite.txPacket
+    calls = []
+
+    def fourth_fails(group):
+        calls.append(group)
+        if len(calls) == 4:
+            raise ValueError("list index out of range")
+        return original(group)
+
+    monkeypatch.setattr(dynamixel_sdk.GroupSyncWrite, "txPacket", fourth_fails)
+    with Emulator(load_motor_config(), START) as emulator:
+        code = main(["execute", str(short_traj), "--port", emulator.port, "--duration", "0.6"])
+    err = capsys.readouterr().err
+    assert code == 3
+    assert err == ("ikbench: error: sync write on the bus: dynamixel-sdk raised ValueError: list "
+                   "index out of range; sent 3 of 10 segments (last: segment 2); holding "
+                   "present position\n")
+    assert len(segments_sent(emulator)) == 3
+    assert_is_a_hold(emulator)
+
+
+def test_hold_sends_its_last_goal_to_a_motor_that_does_not_answer(short_traj, capsys):
+    # reads of id 5: model number at ping, start pose, 4 recorded samples; then none answered
+    fault = Fault("drop", 5, 0x02, after=2 + 4)
+    with Emulator(load_motor_config(), START, faults=[fault]) as emulator:
+        code = main(["execute", str(short_traj), "--port", emulator.port, "--duration", "0.6",
+                     "--record-rate", "100"])
+    err = capsys.readouterr().err
+    assert code == 3
+    sent = len(segments_sent(emulator))
+    assert 1 <= sent < 10
+    assert err == (f"ikbench: error: read present position on motor id 5 (r_elbow_y): no status "
+                   f"packet (timeout); sent {sent} of 10 segments (last: segment {sent - 1}); "
+                   f"holding present position of 6 of 7 motors; no answer from id 5 "
+                   f"(r_elbow_y): sent the last goal again at 10 deg/s; a motor not held stops "
+                   f"at the last goal it received\n")
+    holds = assert_is_a_hold(emulator)
+    assert holds[IDS.index(5)].word(5) == segments_sent(emulator)[-1].word(5)
+
+
+def test_ctrl_c_while_settling_is_reported_and_holds():
+    config = load_motor_config()
+    plan = make_plan(line_poses(10, 0.2), config, duration_s=0.3)
+    speed = plan.speed_raw.copy()
+    speed[-1, 6] = 1  # the finger lags in the last segment: settling takes its full 0.5 s
+    plan = dataclasses.replace(plan, speed_raw=speed)
+    stop = threading.Event()
+    with Emulator(config, START) as emulator:
+
+        def press_ctrl_c_while_settling():
+            deadline = time.monotonic() + 10
+            while time.monotonic() < deadline:
+                writes = emulator.sync_writes()
+                if len(writes) == 10 and any(e.direction == "rx" and e.name == "READ"
+                                             and e.t > writes[-1].t for e in list(emulator.log)):
+                    break  # every segment sent, and the settle reads have begun
+                time.sleep(0.001)
+            stop.set()
+
+        threading.Thread(target=press_ctrl_c_while_settling, daemon=True).start()
+        with pytest.raises(ExecutionInterrupted) as info:
+            execute(plan, emulator.port, stop_event=stop, log=lambda line: None)
+    assert str(info.value) == ("interrupted while settling after the last segment; sent 10 of "
+                               "10 segments (last: segment 9); holding present position")
+    assert info.value.exit_code == 130
+    assert info.value.result.record["phase"].iloc[-1] == "settle"
+    assert len(segments_sent(emulator)) == 10
+    assert_is_a_hold(emulator)
+
+
+@pytest.mark.parametrize("blocked_by", ["file", "directory"])
+def test_unwritable_record_is_refused_before_anything_moves(short_traj, tmp_path, capsys,
+                                                            blocked_by):
+    blocker = tmp_path / "blocker"
+    if blocked_by == "file":
+        blocker.write_text("not a folder")
+        record, reason = blocker / "rec.csv", f"{blocker} is a file, not a directory"
+    else:
+        blocker.mkdir()
+        record, reason = blocker, "it is a directory"
+    with Emulator(load_motor_config(), START) as emulator:
+        code = main(["execute", str(short_traj), "--port", emulator.port, "--duration", "0.3",
+                     "--record", str(record)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err == f"ikbench: error: cannot write {record}: {reason}\n"
+    assert emulator.log == []  # the port was not even opened: no ping, no SYNC WRITE

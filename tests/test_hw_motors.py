@@ -89,6 +89,14 @@ def test_speed_units_never_zero_and_clamped():
     ({"r_wrist_z": {"offset_deg": 30.0}},
      "angle limit 180 deg maps to raw 4437, outside the encoder range 0..4095"),
     ({"r_elbow_y": {"max_speed_deg_s": 0}}, "r_elbow_y.max_speed_deg_s = 0; allowed: (0, 699.7]"),
+    # a misspelt key must not silently drop the calibration it was meant to give
+    ({"r_elbow_y": {"orientaton": "indirect"}},
+     "r_elbow_y: unknown key 'orientaton' (did you mean 'orientation'?); allowed: id, model, "
+     "offset_deg, orientation, angle_limit_deg, max_speed_deg_s, description"),
+    ({"r_wrist_z": {"offset": 10.0}},
+     "r_wrist_z: unknown key 'offset' (did you mean 'offset_deg'?); allowed: id, model, "
+     "offset_deg, orientation, angle_limit_deg, max_speed_deg_s, description"),
+    ({"r_arm_x": {"limits": [0, 60]}}, "r_arm_x: unknown key 'limits'; allowed: id, model,"),
 ])
 def test_bad_config_names_value_through_cli(robot, tmp_path, capsys, changes, message):
     path = tmp_path / "motors.json"
@@ -110,3 +118,18 @@ def test_missing_joint_and_missing_file(robot, tmp_path):
         parse_motor_config(spec, robot, "x.json")
     with pytest.raises(InputError, match="motor config file .*nope.json' not found"):
         load_motor_config(tmp_path / "nope.json")
+
+
+def test_unknown_top_level_key_is_refused(robot):
+    spec = _spec(robot)
+    spec["baud_rate"] = 57600
+    with pytest.raises(InputError) as info:
+        parse_motor_config(spec, robot, "x.json")
+    assert str(info.value) == ("x.json: unknown top-level key 'baud_rate' (did you mean "
+                               "'baudrate'?); allowed: description, baudrate, motors")
+
+
+def test_description_keys_are_allowed(robot):
+    spec = _spec(robot, r_elbow_y={"description": "replaced in 2024"})
+    assert "description" in spec  # the default file has one at top level
+    assert parse_motor_config(spec, robot, "x.json").motors[3].joint == "r_elbow_y"

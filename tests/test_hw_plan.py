@@ -126,3 +126,18 @@ def test_plan_cli_bad_duration(traj, capsys, duration, message):
 def test_plan_cli_missing_file(tmp_path, capsys):
     assert main(["plan", str(tmp_path / "none.csv")]) == 2
     assert "trajectory file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("blocked_by", ["file", "directory"])
+def test_plan_cli_unwritable_out_is_one_line(traj, tmp_path, capsys, blocked_by):
+    blocker = tmp_path / "blocker"
+    if blocked_by == "file":
+        blocker.write_text("not a folder")
+        out_csv, reason = blocker / "plan.csv", f"{blocker} is a file, not a directory"
+    else:
+        blocker.mkdir()
+        out_csv, reason = blocker, "it is a directory"
+    assert main(["plan", str(traj), "--out", str(out_csv)]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""  # refused before the table is printed
+    assert err == f"ikbench: error: cannot write {out_csv}: {reason}\n"

@@ -68,7 +68,7 @@ def run(args) -> int:
     from ikbench.errors import InputError
     from ikbench.hw.emulator import Emulator
     from ikbench.hw.motors import load_motor_config
-    from ikbench.io import atomic_write_csv
+    from ikbench.io import atomic_write_csv, check_writable
     from ikbench.targets import load_targets, parse_pose
 
     config = load_motor_config(args.motors)
@@ -79,6 +79,8 @@ def run(args) -> int:
     faults = [parse_fault(text) for text in args.fault]
     if args.seconds is not None and not args.seconds > 0:
         raise InputError(f"--for {args.seconds:g}; give a positive number of seconds")
+    if args.log:
+        check_writable(args.log)  # before serving, not when stopping
 
     stop = threading.Event()
     handlers = {}

@@ -17,8 +17,9 @@ def register(subparsers) -> None:
             "Play a trajectory CSV on NICO's arm: ping every motor, read the present pose, "
             "refuse if it is far from the trajectory's first pose (unless --approach), then "
             "send one SYNC WRITE (goal position + moving speed for all motors) per segment, "
-            "paced by a monotonic clock. Ctrl-C or a communication failure stops the motion "
-            "and holds the present position (exit code 130 or 3). See docs/hardware.md."
+            "paced by a monotonic clock. Ctrl-C (also while settling after the last segment) "
+            "or a failure on the bus stops the motion and holds the present position (exit "
+            "code 130 or 3). See docs/hardware.md."
         ),
     )
     add_plan_arguments(parser)
@@ -53,10 +54,11 @@ def run(args) -> int:
 
     import numpy as np
 
-    from ikbench.errors import InputError
+    from ikbench.errors import InputError, OutputError
     from ikbench.hw.executor import ExecutionStopped, execute
     from ikbench.hw.motors import SPEED_RAW_MAX, SPEED_UNIT_DEG_S, load_motor_config
     from ikbench.hw.plan import plan_trajectory_file
+    from ikbench.io import check_writable
 
     top = SPEED_RAW_MAX * SPEED_UNIT_DEG_S
     _check("--approach-speed", args.approach_speed, 0 < args.approach_speed <= top,
@@ -66,6 +68,8 @@ def run(args) -> int:
     _check("--record-rate", args.record_rate, 0 <= args.record_rate <= 1000, "[0, 1000] Hz")
     config = load_motor_config(args.motors)
     plan, note = plan_trajectory_file(args.trajectory, config, args.duration)
+    if args.record:
+        check_writable(args.record)  # before anything moves, not after the whole move
     if note:
         print(note)
     plan.check_executable()
@@ -93,7 +97,10 @@ def run(args) -> int:
     except ExecutionStopped as exc:
         record = getattr(getattr(exc, "result", None), "record", None)
         if args.record and record is not None:
-            _write_record(args.record, record)
+            try:
+                _write_record(args.record, record)
+            except OutputError as write_error:  # keep the report of the stop as the error
+                print(f"warning: {write_error}", flush=True)
         raise
     finally:
         if previous is not None:

@@ -39,11 +39,12 @@ def add_plan_arguments(parser) -> None:
 def run(args) -> int:
     from ikbench.hw.motors import load_motor_config
     from ikbench.hw.plan import plan_trajectory_file
-    from ikbench.io import atomic_write_csv
+    from ikbench.io import atomic_write_csv, check_writable
 
     config = load_motor_config(args.motors)
     plan, note = plan_trajectory_file(args.trajectory, config, args.duration, strict=False)
     out = args.out or _default_out(args.trajectory)
+    check_writable(out)  # after reading the inputs (no folder made for a missing trajectory)
     atomic_write_csv(out, plan.table(), float_format="%.10g")
     print(format_plan(plan))
     if note:

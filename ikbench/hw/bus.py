@@ -24,8 +24,36 @@ class CommunicationError(HardwareError):
         self.timeout = timeout
 
 
+def describe_sdk_exception(exc: Exception) -> tuple[bool, str]:
+    """(whether it is a port failure, words for it) for an exception raised inside
+    dynamixel-sdk or pyserial.
+
+    The SDK flushes the port with ``termios.tcflush`` before every instruction; when the port
+    goes away (USB adapter unplugged, an emulator's pty closed) that raises ``termios.error``,
+    which is not an OSError. Anything else the SDK raises is named by its type.
+    """
+    try:
+        import termios
+
+        termios_error = termios.error
+    except ImportError:  # not on POSIX: no termios
+        termios_error = ()
+    import serial
+
+    if isinstance(exc, termios_error) and len(exc.args) == 2:
+        return True, f"{exc.args[1]} (errno {exc.args[0]})"
+    if isinstance(exc, (OSError, termios_error, serial.SerialException)):
+        return True, str(exc)
+    return False, f"dynamixel-sdk raised {type(exc).__name__}: {exc}"
+
+
 class Bus:
-    """dynamixel-sdk port + Protocol 1.0 packet handler; failures raise CommunicationError."""
+    """dynamixel-sdk port + Protocol 1.0 packet handler; failures raise CommunicationError.
+
+    Attributes:
+        last_goal_raw: motor index -> goal position register value of the last goal sent to
+            it successfully (by :meth:`write_goal` or :meth:`sync_write`).
+    """
 
     def __init__(self, port_name: str, config: MotorConfig):
         import dynamixel_sdk as sdk
@@ -33,32 +61,41 @@ class Bus:
         self.sdk, self.config, self.name = sdk, config, port_name
         self.port = sdk.PortHandler(port_name)
         self.handler = sdk.PacketHandler(1.0)
+        self.last_goal_raw: dict[int, int] = {}
 
     def open(self) -> None:
-        import serial
+        """Open the port at the config's baud rate.
 
+        Raises:
+            HardwareError: the port cannot be opened or the baud rate is not supported.
+        """
         try:
             ok = self.port.setBaudRate(self.config.baudrate)  # opens the port
-        except (OSError, serial.SerialException) as exc:
-            raise HardwareError(f"cannot open port {self.name!r}: {exc}") from None
+        except Exception as exc:  # whatever pyserial or termios raise: say so
+            raise HardwareError(f"cannot open port {self.name!r}: "
+                                f"{describe_sdk_exception(exc)[1]}") from None
         if not ok:
             raise HardwareError(f"baudrate {self.config.baudrate} in {self.config.source} is not "
                                 f"supported by dynamixel-sdk; NICO uses 1000000")
 
     def close(self) -> None:
-        if self.port.is_open:
-            self.port.closePort()
+        """Close the port; a port that already failed is given up without a further error
+        (the failure that matters has been reported)."""
+        try:
+            if self.port.is_open:
+                self.port.closePort()
+        except Exception:  # closing a dead port: nothing left to do
+            pass
 
     def _call(self, what: str, index: int | None, function, *args):
-        import serial
-
         label = "the bus" if index is None else f"motor {self.config.label(index)}"
         try:
             *values, result, error = function(self.port, *args)
-        except (OSError, serial.SerialException) as exc:
-            self.port.is_using = False
-            raise CommunicationError(f"{what} on {label}: port {self.name!r} failed: {exc}") \
-                from None
+        except Exception as exc:  # termios.error, OSError, serial, SDK bugs
+            self.port.is_using = False  # the SDK leaves it set when it raises mid-packet
+            port_failed, reason = describe_sdk_exception(exc)
+            where = f"port {self.name!r} failed: " if port_failed else ""
+            raise CommunicationError(f"{what} on {label}: {where}{reason}") from None
         if result != self.sdk.COMM_SUCCESS:
             raise CommunicationError(f"{what} on {label}: {self._describe(result)}",
                                      timeout=result == self.sdk.COMM_RX_TIMEOUT)
@@ -112,6 +149,7 @@ class Bus:
         data = list(int(goal_raw).to_bytes(2, "little") + int(speed_raw).to_bytes(2, "little"))
         self._call("write goal position", index, self.handler.writeTxRx,
                    self.config.motors[index].id, ADDR_GOAL_POSITION, 4, data)
+        self.last_goal_raw[index] = int(goal_raw)
 
     def enable_torque(self, index: int) -> None:
         self._call("enable torque", index, self.handler.write1ByteTxRx,
@@ -125,6 +163,7 @@ class Bus:
             data = int(goal).to_bytes(2, "little") + int(speeds_raw[index]).to_bytes(2, "little")
             group.addParam(self.config.motors[index].id, list(data))
         self._call("sync write", None, lambda port: (group.txPacket(), 0))
+        self.last_goal_raw.update({index: int(goal) for index, goal in goals_raw.items()})
 
     def _check_goal(self, index: int, goal_raw: int) -> None:
         low, high = self.config.motors[index].raw_limits

@@ -4,8 +4,10 @@ Order of work: ping every motor, read present positions, refuse a start far from
 (or approach it slowly), write goal = present and enable torque, then send one SYNC WRITE per
 segment (goal position + moving speed, 4 bytes per motor, address 30) paced by
 ``time.monotonic``, with no per-motor round trips in between unless recording was asked for.
-On Ctrl-C (a set ``stop_event``) or a communication failure it stops sending segments, writes
-goal = present position to the motors it can still read, and raises.
+On Ctrl-C (a set ``stop_event``, also while settling after the last segment) or any failure
+once motion began (a bad status packet, the port failing, an unexpected error) it stops
+sending segments, holds each motor (goal = its present position, sent right after reading it;
+the last goal sent for a motor that does not answer), and raises.
 """
 
 from __future__ import annotations
@@ -33,10 +35,12 @@ HOLD_SPEED_DEG_S = 10.0
 #: ``SETTLE_TOLERANCE_DEG`` of the final pose.
 SETTLE_S = 0.5
 SETTLE_TOLERANCE_DEG = 0.2
+SETTLE_INTERRUPTED = "interrupted while settling after the last segment"
 
 
 class ExecutionStopped(HardwareError):
-    """The move was stopped part-way (communication failure); the arm holds its position."""
+    """The move was stopped part-way (communication or other failure); the arm holds its
+    position. ``result`` is the :class:`ExecutionResult` so far."""
 
 
 class ExecutionInterrupted(ExecutionStopped):
@@ -98,7 +102,9 @@ def execute(plan: MotionPlan, port_name: str, *, approach: bool = False,
 
     Raises:
         HardwareError: before anything moved (missing motors, far start, ...).
-        ExecutionStopped / ExecutionInterrupted: after motion began; the arm holds.
+        ExecutionStopped: any failure after motion began (exit code 3); the arm holds.
+        ExecutionInterrupted: ``stop_event`` set or Ctrl-C, at any time (exit code 130); the
+            arm holds if it was moving, including while settling after the last segment.
     """
     plan.check_executable()
     stop_event = stop_event or threading.Event()
@@ -130,6 +136,10 @@ class _Run:
             return self._run(approach, approach_speed, tolerance, dry_run)
         except (HardwareError, KeyboardInterrupt) as exc:
             raise self._stopped(exc) from None
+        except Exception as exc:
+            if not self.moving:
+                raise  # nothing moved: an unexpected error is a bug, shown as it is
+            raise self._stopped(exc) from exc  # the arm moves: stop and hold first
 
     def _run(self, approach, approach_speed, tolerance, dry_run) -> ExecutionResult:
         models = self.bus.ping()
@@ -245,6 +255,9 @@ class _Run:
         self.next_sample = elapsed + self.record_period
 
     def _settle(self, result: ExecutionResult) -> None:
+        """Read the present pose until it is within ``SETTLE_TOLERANCE_DEG`` of the last pose,
+        for at most ``SETTLE_S``. Ctrl-C here is an interruption like any other (the arm may
+        still be moving): it raises, and the arm holds."""
         final = self.plan.poses_motor_deg[-1]
         deadline = time.monotonic() + SETTLE_S
         while True:
@@ -253,7 +266,10 @@ class _Run:
             self._sample(pose, "settle", now)
             result.final_deg = pose
             result.settled = bool(np.abs(pose - final).max() <= SETTLE_TOLERANCE_DEG)
-            if result.settled or now > deadline or self.stop.wait(0.01):
+            if self.stop.is_set() or (not result.settled and now <= deadline
+                                      and self.stop.wait(0.01)):
+                raise ExecutionInterrupted(SETTLE_INTERRUPTED)
+            if result.settled or now > deadline:
                 break
         result.duration_s = time.monotonic() - self.t0
         self.moving = False
@@ -268,7 +284,14 @@ class _Run:
             if isinstance(exc, CommunicationError):
                 return CommunicationError(f"{exc}; nothing moved", exc.timeout)
             return exc  # a refusal (far start, wrong model, ...): nothing was sent
-        reason = "interrupted" if interrupted else str(exc)
+        if isinstance(exc, ExecutionInterrupted):
+            reason = str(exc)
+        elif interrupted:
+            reason = "interrupted"
+        elif isinstance(exc, HardwareError):
+            reason = str(exc)
+        else:
+            reason = f"unexpected {type(exc).__name__}: {exc}"
         sent = self.result.segments_sent
         where = (f"sent {sent} of {self.plan.n_segments} segments"
                  + (f" (last: segment {sent - 1})" if sent else ""))
@@ -279,25 +302,62 @@ class _Run:
         return error
 
     def _hold(self) -> str:
-        """Goal = present position for every motor still readable; return what was done."""
+        """Stop every motor where it is; return what was done, for the error message.
+
+        Motor by motor: READ its present position and at once send goal = present at
+        ``HOLD_SPEED_DEG_S`` in a SYNC WRITE for that motor alone, so that no goal is older
+        than one read (reading all motors first would make the early goals stale by the
+        later reads, up to a status timeout each, and pull those joints back). A motor that
+        does not answer is sent the last goal it was sent (clipped to its limits) at the hold
+        speed: it stops there, at most one segment further.
+        """
         self.bus.port.is_using = False
-        goals, lost = {}, []
+        speed = int(speed_to_raw(HOLD_SPEED_DEG_S))
+        silent, unsent = [], []
         for index, motor in enumerate(self.config.motors):
             try:
-                low, high = motor.raw_limits
-                goals[index] = int(np.clip(self.bus.read_present_raw(index), low, high))
+                goal = self.bus.read_present_raw(index)
             except HardwareError:
-                lost.append(self.config.label(index))
-        speed = int(speed_to_raw(HOLD_SPEED_DEG_S))
-        if goals:
+                silent.append(index)
+                goal = self.bus.last_goal_raw.get(index)
+                if goal is None:
+                    unsent.append(index)
+                    continue
+            low, high = motor.raw_limits
             try:
-                self.bus.sync_write(goals, {i: speed for i in goals})
+                self.bus.sync_write({index: int(np.clip(goal, low, high))}, {index: speed})
             except HardwareError:
-                return "could not send the hold command; motors stop at their last goal"
+                unsent.append(index)
+        return self._describe_hold(silent, unsent)
+
+    def _describe_hold(self, silent: list[int], unsent: list[int]) -> str:
+        """Plain words for the outcome of :meth:`_hold` (motor indices that did not answer,
+        and those the hold could not be sent to)."""
+        n = len(self.config.motors)
+
+        def who(indices) -> str:
+            return "any motor" if len(indices) == n else ", ".join(
+                self.config.label(i) for i in indices)
+
+        held = [i for i in range(n) if i not in silent and i not in unsent]
+        if len(held) == n:
+            return "holding present position"
+        resent = [i for i in silent if i not in unsent]
+        lost = [i for i in silent if i in unsent]
+        refused = [i for i in unsent if i not in silent]
+        details = []
+        if resent:
+            details.append(f"no answer from {who(resent)}: sent the last goal again at "
+                           f"{HOLD_SPEED_DEG_S:g} deg/s")
         if lost:
-            return (f"holding present position; {', '.join(lost)} did not answer and stop at "
-                    f"their last goal")
-        return "holding present position"
+            details.append(f"no answer from {who(lost)}, and the hold could not be sent")
+        if refused:
+            details.append(f"the hold could not be sent to {who(refused)}")
+        if not held:
+            return (f"no motor could be held: {'; '.join(details)}; each motor stops at the "
+                    f"last goal it received")
+        return (f"holding present position of {len(held)} of {n} motors; {'; '.join(details)}; "
+                f"a motor not held stops at the last goal it received")
 
     # ----- recording ----------------------------------------------------------------------
     def _sample(self, pose, phase: str, t: float) -> None:

@@ -56,6 +56,12 @@ MODELS = {
     "MX": (None, 270.0),
 }
 DEFAULT_CONFIG = "nico_right_arm.dynamixel.json"
+#: Keys a config file may have at top level and per motor ("description": free text, ignored).
+#: Anything else is refused: a misspelt key (``"offset"``, ``"orientaton"``) would otherwise
+#: silently drop the calibration it was meant to give.
+CONFIG_KEYS = ("description", "baudrate", "motors")
+MOTOR_KEYS = ("id", "model", "offset_deg", "orientation", "angle_limit_deg", "max_speed_deg_s",
+              "description")
 
 
 @dataclass(frozen=True)
@@ -218,6 +224,7 @@ def parse_motor_config(spec, robot: Robot, source: str) -> MotorConfig:
     """Validate a motor config (the parsed JSON); see :func:`load_motor_config`."""
     if not isinstance(spec, dict) or not isinstance(spec.get("motors"), dict):
         raise InputError(f"{source}: needs an object with a \"motors\" object keyed by joint name")
+    _check_keys(spec, CONFIG_KEYS, f"{source}: unknown top-level key")
     entries = spec["motors"]
     unknown = [name for name in entries if name not in robot.joint_names]
     missing = [name for name in robot.joint_names if name not in entries]
@@ -239,6 +246,17 @@ def parse_motor_config(spec, robot: Robot, source: str) -> MotorConfig:
     return MotorConfig(motors=motors, baudrate=baudrate, source=source)
 
 
+def _check_keys(entry: dict, allowed: tuple[str, ...], what: str) -> None:
+    """Refuse keys of ``entry`` not in ``allowed``; ``what`` starts the message."""
+    import difflib
+
+    for key in entry:
+        if key not in allowed:
+            close = difflib.get_close_matches(str(key), allowed, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise InputError(f"{what} {key!r}{hint}; allowed: {', '.join(allowed)}")
+
+
 def _number(entry: dict, key: str, where: str, default=None) -> float:
     value = entry.get(key, default)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
@@ -250,6 +268,7 @@ def _parse_motor(name: str, entry, where: str) -> Motor:
     if not isinstance(entry, dict):
         raise InputError(f"{where}: expected an object with id, model, offset_deg, orientation, "
                          f"angle_limit_deg")
+    _check_keys(entry, MOTOR_KEYS, f"{where}: unknown key")
     motor_id = entry.get("id")
     if isinstance(motor_id, bool) or not isinstance(motor_id, int) or not 0 <= motor_id <= 252:
         raise InputError(f"{where}.id = {motor_id!r}; give an integer Dynamixel id in 0..252")
