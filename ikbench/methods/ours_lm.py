@@ -501,9 +501,9 @@ class OursLM(Method):
     name = "ours-lm"
     description = ("the paper's objective (same L0..L6, units, weights) by batched "
                    "Levenberg-Marquardt with analytic Jacobians and joint-limit boxes")
-    options = {"lm_max_iterations": "max_iterations", "lm_tolerance": "tolerance",
-               "lm_damping": "damping", "lm_kinematics": "kinematics",
-               "lm_linear_solver": "linear_solver"}
+    options = {"weights": "weights", "lm_max_iterations": "max_iterations",
+               "lm_tolerance": "tolerance", "lm_damping": "damping",
+               "lm_kinematics": "kinematics", "lm_linear_solver": "linear_solver"}
 
     def __init__(self, weights: dict | str | None = None, max_iterations: int = 200,
                  tolerance: float = 1e-9, damping: float = 1e-3, kinematics: str = "numpy",
@@ -525,12 +525,6 @@ class OursLM(Method):
         self.settings = LMSettings(weights=weights, max_iterations=int(max_iterations),
                                    tolerance=float(tolerance), damping=float(damping),
                                    kinematics=kinematics, linear_solver=linear_solver)
-
-    @classmethod
-    def from_args(cls, args) -> OursLM:
-        kwargs = {kw: getattr(args, dest) for dest, kw in cls.options.items()
-                  if getattr(args, dest, None) is not None}
-        return cls(weights=getattr(args, "weights", None), **kwargs)
 
     @classmethod
     def add_arguments(cls, group) -> None:
