@@ -88,15 +88,42 @@ class PointResult(NamedTuple):
     converged: bool
 
 
+#: |up x d| below this (unit vectors) means the up vector cannot fix the roll.
+PARALLEL_EPS = 1e-9
+
+
+def format_vector(vector) -> str:
+    """``(0.1, -0.53, 0.84)``: a vector as plain numbers (6 significant digits)."""
+    return "(" + ", ".join(f"{float(v):.6g}" for v in np.ravel(vector)) + ")"
+
+
+def check_up_vector(up, direction, where: str = "") -> None:
+    """InputError if ``up`` (3,) is parallel to ``direction`` (3,): the roll would be undefined.
+
+    Args:
+        up: reference up vector (any length but zero).
+        direction: goal direction d (any length but zero).
+        where: what the direction belongs to, for the message (``"trajectory 1"``).
+    """
+    z = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    u = np.asarray(up, dtype=float) / np.linalg.norm(up)
+    if np.linalg.norm(np.cross(u, z)) < PARALLEL_EPS:
+        of = f" of {where}" if where else ""
+        raise InputError(f"--up-vector: {format_vector(up)} is parallel to the goal direction"
+                         f"{of} {format_vector(z)}, so it cannot fix the roll; give a vector "
+                         "at an angle to it, or 'touch'")
+
+
 def rotation_from_z(direction, up) -> np.ndarray:
-    """Rotation (3, 3) with z-axis ``direction`` and x-axis up x z, y = z x x (columns)."""
+    """Rotation (3, 3) with z-axis ``direction`` and x-axis up x z, y = z x x (columns).
+
+    Raises:
+        InputError: ``up`` is parallel to ``direction`` (see :func:`check_up_vector`).
+    """
+    check_up_vector(up, direction)
     z = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
     x = np.cross(np.asarray(up, dtype=float), z)
-    norm = np.linalg.norm(x)
-    if norm < 1e-9:
-        raise InputError(f"--up-vector: {list(np.round(up, 6))} is parallel to the goal "
-                         f"direction {list(np.round(z, 6))}; it cannot fix the roll")
-    x = x / norm
+    x = x / np.linalg.norm(x)
     return np.column_stack([x, np.cross(z, x), z])
 
 
@@ -208,17 +235,42 @@ def solve_point(residual: Residual, q0_rad, settings: DLSSettings, lower, upper)
         q = q_next
 
 
-def walk(robot, task, settings: DLSSettings) -> Solution:
-    """The sequential walk from the touch pose back to P_0 (see the module doc)."""
+class Walk(NamedTuple):
+    """The raw result of the walk, before the conversion to motor degrees.
+
+    Attributes:
+        q_rad: (n+1, nv) joint angles [rad] as the IK left them; row n is the touch pose
+            converted to radians (where the walk starts), rows n-1..0 the solved points.
+        iterations: total IK iterations over the n points.
+        points_not_converged: points whose solve stopped without reaching the tolerance.
+        max_position_error_mm: largest fingertip distance from its goal point [mm].
+        max_orientation_error_deg: largest orientation error [deg] (see the module doc).
+        up: (3,) up vector used in frame mode (root frame), or None in the other modes.
+    """
+
+    q_rad: np.ndarray
+    iterations: int
+    points_not_converged: int
+    max_position_error_mm: float
+    max_orientation_error_deg: float
+    up: np.ndarray | None
+
+
+def walk_joint_rad(robot, task, settings: DLSSettings) -> Walk:
+    """The walk from the touch pose back to P_0 in the URDF's joint space (see the module doc).
+
+    Raises:
+        InputError: the task has no touch pose, or the up vector is parallel to the line.
+    """
     if task.end_pose_deg is None:
         raise InputError(f"trajectory {task.name!r}: sequential-ik starts at the touch pose; "
-                         "the task has no end pose")
-    started = time.perf_counter()
+                         "the task has no end pose (for letters, polylines and splines use "
+                         "--method ours or --method ours-lm)")
     pin_fk = robot.pinocchio_fk()
     data = pin_fk.model.createData()
     lower, upper = pin_fk.model.lowerPositionLimit, pin_fk.model.upperPositionLimit
     q = robot.motor_to_joint_rad(np.asarray(task.end_pose_deg, dtype=float))
-    up = _up_vector(settings.up_vector, pin_fk, q)
+    up = _up_vector(settings, pin_fk, q)
     n = task.steps
     q_rad = np.empty((n + 1, len(q)))
     q_rad[n] = q
@@ -234,22 +286,56 @@ def walk(robot, task, settings: DLSSettings) -> Solution:
         missed += not result.converged
         pos_mm, angle_deg = _point_errors(pin_fk, data, result.q_rad, task, i, rotation)
         worst_pos_mm, worst_angle_deg = max(worst_pos_mm, pos_mm), max(worst_angle_deg, angle_deg)
-    poses_deg = np.clip(robot.joint_rad_to_motor_deg(q_rad), robot.lower_motor_deg,
+    return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, up)
+
+
+def walk(robot, task, settings: DLSSettings) -> Solution:
+    """The sequential walk as a :class:`Solution` in motor degrees (see the module doc).
+
+    Poses 0..n-1 are the IK's joint angles converted to motor degrees (and clipped to the
+    motor ranges, which the URDF limits the IK respects map onto: the clip only removes
+    round-off); pose n is the touch pose as given (the walk's starting point, not solved).
+    """
+    started = time.perf_counter()
+    raw = walk_joint_rad(robot, task, settings)
+    poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), robot.lower_motor_deg,
                         robot.upper_motor_deg)
-    poses_deg[n] = task.end_pose_deg  # exactly the touch pose, no round trip through radians
+    poses_deg[-1] = task.end_pose_deg  # exactly the touch pose, no round trip through radians
     duration = time.perf_counter() - started
+    missed = raw.points_not_converged
     return Solution(
-        poses_deg=poses_deg, iterations=iterations, duration_s=duration, loss=None,
+        poses_deg=poses_deg, iterations=raw.iterations, duration_s=duration, loss=None,
         converged=missed == 0,
-        info={"points_not_converged": missed, "points_solved": n,
-              "max_position_error_mm": worst_pos_mm,
-              "max_orientation_error_deg": worst_angle_deg,
+        info={"points_not_converged": missed, "points_solved": task.steps,
+              "max_position_error_mm": raw.max_position_error_mm,
+              "max_orientation_error_deg": raw.max_orientation_error_deg,
               "orientation": settings.orientation,
-              "up_vector": ",".join(f"{v:.6f}" for v in up) if up is not None else ""},
+              "up_vector": "" if raw.up is None else ",".join(f"{v:.6f}" for v in raw.up)},
     )
 
 
-def _up_vector(setting, pin_fk, q_touch_rad):
+def check_tasks(robot, tasks, settings: DLSSettings) -> None:
+    """Fail before any solve: every task needs a touch pose, and in frame mode an up vector
+    that is not parallel to its line (InputError naming the trajectory)."""
+    pin_fk = robot.pinocchio_fk()
+    for task in tasks:
+        if task.end_pose_deg is None:
+            raise InputError(f"trajectory {task.name!r}: sequential-ik starts at the touch "
+                             "pose; the task has no end pose (for letters, polylines and "
+                             "splines use --method ours or --method ours-lm)")
+        if settings.orientation != "frame":
+            continue
+        up = _up_vector(settings, pin_fk,
+                        robot.motor_to_joint_rad(np.asarray(task.end_pose_deg, dtype=float)))
+        for d in np.unique(np.asarray(task.goal_directions, dtype=float), axis=0):
+            check_up_vector(up, d, f"trajectory {task.name}")
+
+
+def _up_vector(settings: DLSSettings, pin_fk, q_touch_rad) -> np.ndarray | None:
+    """The (3,) up vector of frame mode (None in the other modes)."""
+    if settings.orientation != "frame":
+        return None
+    setting = settings.up_vector
     if isinstance(setting, str) and setting == UP_FROM_TOUCH:
         return pin_fk.placement(q_touch_rad).rotation[:, 1].copy()
     return np.asarray(setting, dtype=float)
@@ -343,3 +429,8 @@ class SequentialIK(Method):
 
     def solve(self, robot, task, progress=None) -> Solution:
         return walk(robot, task, self.settings)
+
+    def solve_many(self, robot, tasks, progress=None) -> list[Solution]:
+        """Check every task first (:func:`check_tasks`), then walk each."""
+        check_tasks(robot, tasks, self.settings)
+        return super().solve_many(robot, tasks, progress)

@@ -11,12 +11,19 @@ stopping rule are untouched). Output under ``output/ablation/``:
 - ``summary.csv`` (means per variant), ``run.json`` (settings, weights, versions);
 - ``metrics.png``, ``trajectories_3d.png``, ``joints.png`` and ``report.md``, which checks the
   paper's claims about the terms (:func:`check_claims`).
+
+The output folder is checked (:func:`ikbench.io.check_writable`) before any solve. After a
+successful write, files of earlier ablations that this one did not write are removed:
+``trajectory_*.csv`` of trajectories not run in a variant folder, and the trajectory CSVs of
+variant folders (``full``, ``no-L...``: :data:`VARIANT_FOLDER`) not run, with the folder
+itself when nothing else is left in it.
 """
 
 from __future__ import annotations
 
 import inspect
 import json
+import re
 import sys
 import time
 from dataclasses import dataclass
@@ -26,19 +33,21 @@ import numpy as np
 import pandas as pd
 
 from ikbench.errors import InputError
-from ikbench.io import atomic_savefig, atomic_write_csv, atomic_write_text
+from ikbench.io import atomic_savefig, atomic_write_csv, atomic_write_text, check_writable
 from ikbench.losses import PAPER_WEIGHTS, TERM_DESCRIPTIONS, TERMS, objective, parse_terms
 from ikbench.methods import available_methods, get_method
 from ikbench.provenance import provenance
 from ikbench.report import TABLE_COLUMNS, _matplotlib, markdown_table
 from ikbench.robot import Robot, load_robot
-from ikbench.run import DEFAULT_OUTPUT, Progress, evaluate
+from ikbench.run import DEFAULT_OUTPUT, Progress, evaluate, remove_stale_trajectories
 from ikbench.targets import Targets, load_targets
 from ikbench.task import line_tasks
 from ikbench.trajectory import DEFAULT_DURATION_S, read_trajectory_poses, write_trajectory_csv
 
 EACH = "each"
 FULL = "full"
+#: The folder names of variants (:attr:`Variant.name`): ``full``, ``no-L1``, ``no-L2-L5``...
+VARIANT_FOLDER = re.compile(r"full|no-L[0-9](-L[0-9])*")
 #: Columns of table.csv after ``variant, dropped`` and :data:`ikbench.report.TABLE_COLUMNS`.
 EXTRA_COLUMNS = ["converged", "hit_cap", "paper_loss", "mean_sq_joint_step_deg2",
                  "max_joint_step_deg", "mean_sq_jerk_deg2", "velocity_sign_changes",
@@ -111,6 +120,10 @@ def parse_drops(specs: str | list[str] | tuple[str, ...]) -> list[Variant]:
         if spec.strip().lower() == EACH:
             variants += [Variant((term,)) for term in TERMS]
             continue
+        if EACH in [part.strip().lower() for part in spec.split(",")]:
+            raise InputError(f"--drop: {spec!r}: {EACH!r} must be its own --drop value (e.g. "
+                             f"--drop {EACH} --drop L2,L3); a list names terms among "
+                             f"{', '.join(TERMS)}")
         try:
             names = parse_terms(spec)
         except InputError as exc:
@@ -222,6 +235,8 @@ def ablate(drops: str | list[str] = EACH, method: str = "ours", *,
     solvers = [cls(**{**(options or {}), "weights": v.weights(base)}) for v in variants]
     tasks = line_tasks(robot, targets)
     root = Path(output) / "ablation"
+    # the first file written, before any solve, not after minutes of it
+    check_writable(root / variants[0].name / f"trajectory_{tasks[0].name}.csv")
 
     started = time.perf_counter()
     tables, poses = [], {}
@@ -254,8 +269,38 @@ def ablate(drops: str | list[str] = EACH, method: str = "ours", *,
     by_joint = joint_interpolation_by_joint(robot, tasks, poses)
     atomic_write_text(root / "report.md",
                       ablation_report(table, summary, variants, record, by_joint))
+    removed = remove_stale_variants(root, variants, [task.name for task in tasks])
+    if removed:
+        _say(f"removed {len(removed)} trajectory file(s) of earlier runs not run now", progress)
     _say(f"written to {root}/ in {time.perf_counter() - started:.1f} s", progress)
     return table
+
+
+def remove_stale_variants(root: Path, variants, trajectory_ids) -> list[Path]:
+    """Remove what earlier ablations left in ``root`` that this one did not write.
+
+    In the folders of ``variants``: ``trajectory_*.csv`` of trajectories not in
+    ``trajectory_ids``. In other folders named like a variant (:data:`VARIANT_FOLDER`): every
+    ``trajectory_*.csv``, then the folder if it is empty. Nothing else is touched.
+
+    Args:
+        root: the ablation folder (``output/ablation``).
+        variants: the variants just written.
+        trajectory_ids: the trajectory ids just written.
+
+    Returns:
+        The removed trajectory files (sorted).
+    """
+    current = {v.name for v in variants}
+    removed = []
+    for folder in sorted(p for p in Path(root).iterdir() if p.is_dir()):
+        if folder.name in current:
+            removed += remove_stale_trajectories(folder, trajectory_ids)
+        elif VARIANT_FOLDER.fullmatch(folder.name):
+            removed += remove_stale_trajectories(folder, ())
+            if not any(folder.iterdir()):
+                folder.rmdir()
+    return sorted(removed)
 
 
 def _solve_variant(robot, tasks, solver, variant: Variant, folder: Path, duration_s,

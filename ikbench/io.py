@@ -20,8 +20,10 @@ def _umask() -> int:
 def check_writable(path: str | os.PathLike) -> Path:
     """Fail early, before any long work, if ``path`` cannot be written; return it as a Path.
 
-    Creates missing parent directories (as :func:`atomic_path` would) and probes them with a
-    temporary file that is removed again.
+    Probes the folder with a temporary file, as :func:`atomic_path` would write it, and
+    removes it again. Missing parent folders are created for the probe and removed again
+    (deepest first, each only if still empty), so a check, failed or not, leaves nothing
+    behind; the later write creates them.
 
     Raises:
         OutputError: the path is a directory or its folder cannot be created or written.
@@ -29,8 +31,20 @@ def check_writable(path: str | os.PathLike) -> Path:
     path = Path(path)
     if path.is_dir():
         raise OutputError(f"cannot write {path}: it is a directory")
-    with atomic_path(path) as tmp:
-        tmp.unlink()  # nothing to move: only the folder was probed
+    created = []  # deepest first: the missing folders the probe will create
+    for folder in path.parents:
+        if folder.exists() or folder.is_symlink():
+            break
+        created.append(folder)
+    try:
+        with atomic_path(path) as tmp:
+            tmp.unlink()  # nothing to move: only the folder was probed
+    finally:
+        for folder in created:
+            try:
+                folder.rmdir()
+            except OSError:  # not created (the probe failed first) or no longer empty
+                pass
     return path
 
 

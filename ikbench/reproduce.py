@@ -3,12 +3,16 @@
 :func:`reproduce` runs, into one results directory:
 
 1. Table 1: ``ours`` on the paper's targets (:func:`ikbench.run.run`) -> ``ours/``;
-2. Table 2: the ``sequential-ik`` baseline -> ``sequential-ik/``;
-3. the comparison report of the two (:func:`ikbench.compare.write_comparison_report`);
-4. the loss-term ablation (:func:`ikbench.ablation.ablate`, every single term and L2..L5
+2. Table 2: the ``sequential-ik`` baseline in its default ``frame`` mode -> ``sequential-ik/``;
+3. the baseline's other orientation modes -> ``sequential-ik-pointing/`` and
+   ``sequential-ik-position/`` (``--orientation pointing`` / ``position``);
+4. ``ours`` with ``--init interpolation`` (the paper's text) -> ``ours-init-interpolation/``,
+   which measures how soon that initialisation stops;
+5. the comparison report of all these runs (:func:`ikbench.compare.write_comparison_report`);
+6. the loss-term ablation (:func:`ikbench.ablation.ablate`, every single term and L2..L5
    together) -> ``ablation/``;
-5. ``README.md``: each paper table beside the measured one, the figures, the deviations from
-   the paper, the versions and machine used.
+7. ``README.md``: each paper table beside the measured one, the baseline's three modes, the
+   figures, the deviations from the paper, the versions and machine used.
 
 ``quick=True`` runs the same pipeline on a reduced configuration (:data:`QUICK`) to check that
 it works end to end; its numbers are not the paper's.
@@ -21,11 +25,12 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from ikbench.ablation import FULL, SUMMARY_METRICS, ablate, check_claims, claims_table
-from ikbench.errors import IkbenchError
-from ikbench.io import atomic_write_text
+from ikbench.errors import IkbenchError, InputError
+from ikbench.io import atomic_write_text, check_writable
 from ikbench.methods import get_method
 from ikbench.provenance import provenance
 from ikbench.report import markdown_table, paper_values, table1_comparison
@@ -33,7 +38,12 @@ from ikbench.run import run
 
 DEFAULT_OUTPUT = "results"
 QUICK_OUTPUT = "results-quick"
+OURS = "ours"
 BASELINE = "sequential-ik"
+#: The baseline's other orientation modes: mode -> folder (Table 2 is ``frame``, the default).
+BASELINE_MODES = {"pointing": f"{BASELINE}-pointing", "position": f"{BASELINE}-position"}
+#: ``ours`` with the paper's text's initialisation (measures when it stops).
+INTERPOLATION_RUN = "ours-init-interpolation"
 #: The ablation variants: every single term, and L2..L5 together (the paper's last claim).
 ABLATION_DROPS = ["each", "L2,L3,L4,L5"]
 #: Ablation figures shown in README.md (mean over trajectories per variant).
@@ -42,6 +52,12 @@ SUMMARY_COLUMNS = ["iterations", "line_distance_mean_mm", "pointing_deviation_me
                    "velocity_sign_changes", "joint_interpolation_distance_deg"]
 #: The reduced configuration of ``--quick``: one trajectory, n = 10, capped iterations.
 QUICK = {"only": "1", "steps": 10, "max_iterations": 100}
+#: What reproduce writes into the results directory (files and folders).
+WRITES = ("README.md", "report.md", "pointing_deviation_per_step.png", OURS, BASELINE,
+          *BASELINE_MODES.values(), INTERPOLATION_RUN, "ablation")
+#: Other commands that write into a results directory, by the first word of what they write.
+OTHER_COMMANDS = {"benchmark": "ikbench bench", "sweep": "ikbench sweep",
+                  "batch": "ikbench batch", "letters": "ikbench letters"}
 
 
 class ReproduceError(IkbenchError):
@@ -68,8 +84,21 @@ def _comparison_writer():
 
 
 def _elapsed(seconds: float) -> str:
+    """``0.2 s``, ``42.0 s`` or ``2 min 36 s``."""
+    if seconds < 59.95:
+        return f"{seconds:.1f} s"
     minutes, seconds = divmod(int(round(seconds)), 60)
-    return f"{minutes} min {seconds:02d} s" if minutes else f"{seconds} s"
+    return f"{minutes} min {seconds:02d} s"
+
+
+def _output_dir(output: str | Path | None, quick: bool) -> Path:
+    """The results directory; InputError for an empty ``--output``."""
+    if output is None:
+        return Path(QUICK_OUTPUT if quick else DEFAULT_OUTPUT)
+    if not str(output).strip():
+        raise InputError(f"--output: {str(output)!r} is empty; give a directory (default "
+                         f"{DEFAULT_OUTPUT}, or {QUICK_OUTPUT} with --quick)")
+    return Path(output)
 
 
 def reproduce(output: str | Path | None = None, quick: bool = False,
@@ -85,23 +114,39 @@ def reproduce(output: str | Path | None = None, quick: bool = False,
         Wall time [s] per stage, plus ``"total"``.
 
     Raises:
+        InputError: an empty ``output``.
+        OutputError: before any work, when the results directory cannot be written.
         ReproduceError: before any work, when sequential-ik or the comparison is missing.
     """
-    output = Path(output or (QUICK_OUTPUT if quick else DEFAULT_OUTPUT))
+    output = _output_dir(output, quick)
     baseline, write_comparison_report = _baseline(), _comparison_writer()
+    for first in (output / OURS / "table.csv", output / "README.md"):
+        check_writable(first)  # before any solving, not after minutes of it
     subset = {"only": QUICK["only"], "steps": QUICK["steps"]} if quick else {}
     ours_options = {"max_iterations": QUICK["max_iterations"]} if quick else {}
+    ours = get_method(OURS)
+
+    def modes(mode, name):
+        return (f"{BASELINE} --orientation {mode}",
+                lambda: run(baseline(orientation=mode), output=output, progress=progress,
+                            name=name, **subset))
+
     stages = [
-        ("Table 1: ours", lambda: run(get_method("ours")(**ours_options), output=output,
+        ("Table 1: ours", lambda: run(ours(**ours_options), output=output,
                                       progress=progress, **subset)),
         (f"Table 2: {BASELINE}", lambda: run(baseline(), output=output, progress=progress,
                                              **subset)),
+        *[modes(mode, name) for mode, name in BASELINE_MODES.items()],
+        ("ours --init interpolation",
+         lambda: run(ours(init="interpolation", **ours_options), output=output,
+                     progress=progress, name=INTERPOLATION_RUN, **subset)),
         ("comparison report", lambda: write_comparison_report(output)),
         ("ablation", lambda: ablate(ABLATION_DROPS, "ours", output=output,
                                     options=ours_options, progress=progress, **subset)),
     ]
     started = time.perf_counter()
     times, results = {}, {}
+    total = len(stages) + 1
 
     def say(text):
         if progress:
@@ -109,14 +154,14 @@ def reproduce(output: str | Path | None = None, quick: bool = False,
                   file=sys.stderr, flush=True)
 
     say(f"{'quick pipeline check' if quick else 'full reproduction'} into {output}/, "
-        f"{len(stages) + 1} stages")
+        f"{total} stages")
     for k, (title, stage) in enumerate(stages):
-        say(f"stage {k + 1}/{len(stages) + 1}: {title}")
+        say(f"stage {k + 1}/{total}: {title}")
         stage_start = time.perf_counter()
         results[title] = stage()
         times[title] = time.perf_counter() - stage_start
-        say(f"stage {k + 1}/{len(stages) + 1}: {title} done in {_elapsed(times[title])}")
-    say(f"stage {len(stages) + 1}/{len(stages) + 1}: {output}/README.md")
+        say(f"stage {k + 1}/{total}: {title} done in {_elapsed(times[title])}")
+    say(f"stage {total}/{total}: {output}/README.md")
     times["total"] = time.perf_counter() - started
     path = write_results_readme(output, times, quick, results["comparison report"])
     times["total"] = time.perf_counter() - started
@@ -129,20 +174,15 @@ def _read(output: Path, name: str) -> pd.DataFrame:
     return pd.read_csv(output / name, dtype={"trajectory": str})
 
 
-def _section(path: Path, heading: str) -> list[str]:
-    """The lines of the Markdown section of ``path`` whose heading starts with ``heading``
-    (one level deeper), or [] when there is none."""
-    lines = path.read_text().splitlines()
-    starts = [k for k, line in enumerate(lines) if line.startswith("## " + heading)]
-    if not starts:
-        return []
-    end = next((k for k in range(starts[0] + 1, len(lines)) if lines[k].startswith("## ")),
-               len(lines))
-    return ["#" + lines[starts[0]], *lines[starts[0] + 1:end]]
-
-
 def _figures(folder: str, names: list[str]) -> list[str]:
     return [f"![{folder} {name}]({folder}/{name})" for name in names] + [""]
+
+
+def _span(values, digits: int = 0) -> str:
+    """``89-99`` (or ``98`` when all equal)."""
+    lo, hi = float(np.min(values)), float(np.max(values))
+    return f"{lo:.{digits}f}" if f"{lo:.{digits}f}" == f"{hi:.{digits}f}" else \
+        f"{lo:.{digits}f}-{hi:.{digits}f}"
 
 
 def _table1_findings(table: pd.DataFrame) -> list[str]:
@@ -167,6 +207,46 @@ def _table1_findings(table: pd.DataFrame) -> list[str]:
     ]
 
 
+def _initialisation_finding(ours: pd.DataFrame, interpolation: pd.DataFrame) -> str:
+    """The initialisation deviation with the iterations measured in both runs."""
+    return (
+        "- **Initialisation.** The paper's text initialises the logits from the joint-space "
+        "interpolation of start and touch pose; the authors' released code uses PyTorch's "
+        "default random `nn.Linear` initialisation. `ours` defaults to the code's (seeded) "
+        "random initialisation, which reproduces the paper's iteration counts and losses "
+        f"({_span(ours['iterations'])} iterations here). With `--init interpolation` (the "
+        f"text; run into [{INTERPOLATION_RUN}/]({INTERPOLATION_RUN}/report.md)) the paper's "
+        "stopping rule fires after "
+        f"{_span(interpolation['iterations'])} iterations (median "
+        f"{interpolation['iterations'].median():.0f}), at mean line distances of "
+        f"{_span(interpolation['line_distance_mean_mm'], 2)} mm and mean pointing deviations "
+        f"of {_span(interpolation['pointing_deviation_mean_deg'], 1)} deg.")
+
+
+def _baseline_finding(frame: pd.DataFrame) -> str:
+    """The Table 2 baseline deviation with the pointing deviation measured per mode."""
+    paper = paper_values()["table2"]
+    ids = [t for t in dict.fromkeys(frame["trajectory"]) if t in paper]
+    by_run = {name: frame[frame["method"] == name]
+              for name in (OURS, BASELINE, BASELINE_MODES["position"])}
+    position = BASELINE_MODES["position"]
+    paper_deg = [paper[t]["pointing_deviation_mean_deg"] for t in ids]
+    paper_text = f" against the paper's {_span(paper_deg)} deg" if ids else ""
+    return (
+        "- **Table 2 baseline.** The text says the traditional IK specified the orientation as "
+        "well as the point; the authors' script solved the position only (ikpy's "
+        "`inverse_kinematics_frame` without `orientation_mode`), on another URDF. Solving that "
+        f"problem here (`--orientation position`, [{position}/]({position}/report.md)) gives "
+        "mean pointing deviations of "
+        f"{_span(by_run[position]['pointing_deviation_mean_deg'], 1)} deg per "
+        f"trajectory{paper_text}, on the line (mean line distances "
+        f"{_span(by_run[position]['line_distance_mean_mm'], 2)} mm). The full frame "
+        f"(`{BASELINE}`, the default and Table 2 here) gives "
+        f"{_span(by_run[BASELINE]['pointing_deviation_mean_deg'], 2)} deg at mean line "
+        f"distances of {_span(by_run[BASELINE]['line_distance_mean_mm'], 2)} mm (`{OURS}`: "
+        f"{_span(by_run[OURS]['line_distance_mean_mm'], 2)} mm).")
+
+
 DEVIATIONS = [
     "- **Unit of the distance columns.** The paper's \"distance from the line [mm]\" (Tables 1 "
     "and 2) and \"start point variation [mm]\" (Table 2) are in centimetres: the authors' own "
@@ -175,23 +255,34 @@ DEVIATIONS = [
     "- **R_y sign slip.** The paper prints the rotation about y with its sine signs swapped; "
     "the standard right-handed R_y is used (it reproduces the authors' trajectories' "
     "figures; see `urdf/generate_urdf.py`).",
-    "- **Initialisation.** The paper's text initialises the logits from the joint-space "
-    "interpolation of start and touch pose; the authors' released code uses PyTorch's "
-    "default random `nn.Linear` initialisation. `ours` defaults to the code's (seeded) random "
-    "initialisation, which reproduces the paper's iteration counts and losses; "
-    "`--init interpolation` (the text) stops after about 100 iterations "
-    "(see `ikbench/methods/ours.py`).",
     "- **Stopping rule.** The text says training stops \"when the angles do not change enough\" "
     "or the shape is sufficient; the code (used here) stops when the loss is below 10 and "
     "above the median of the last 10 losses.",
     "- **Ablation term name.** The ablation paragraph says \"L7 causes the robot arm to "
     "shake\"; there is no L7: the smoothness term L6 is meant (and tested here).",
-    "- **Table 2 baseline.** The text says the traditional IK specified the orientation as "
-    "well as the point; the authors' script solved the position only, on another URDF (see "
-    "Table 2 above), which fits the paper's 59-70 deg pointing deviations. `sequential-ik` "
-    "solves the full frame by default.",
     "- **Durations** depend on the machine; the paper's were measured on the authors' CPU.",
 ]
+
+
+def _provenance_lines(output: Path, command: str) -> list[str]:
+    """What in ``output`` this command wrote, and which commands wrote the rest."""
+    others = sorted(p.name for p in output.iterdir()
+                    if not p.name.startswith(".") and p.name not in WRITES)
+    by_command: dict[str, list[str]] = {}
+    for name in others:
+        word = name.split(".")[0].split("_")[0]
+        by_command.setdefault(OTHER_COMMANDS.get(word, ""), []).append(
+            name + ("/" if (output / name).is_dir() else ""))
+    written = ", ".join(f"`{n}/`" if (output / n).is_dir() else f"`{n}`" for n in WRITES
+                        if n == "README.md" or (output / n).exists())
+    text = f"`{command}` wrote {written}."
+    if others:
+        parts = [f"{', '.join(f'`{n}`' for n in names)} by `{cmd}`" if cmd else
+                 f"{', '.join(f'`{n}`' for n in names)} by no stage of `ikbench reproduce`"
+                 for cmd, names in sorted(by_command.items())]
+        text += (" The other files here come from other commands, which `ikbench reproduce` "
+                 "does not run: " + "; ".join(parts) + ".")
+    return [text, ""]
 
 
 def write_results_readme(output: str | Path, times: dict[str, float], quick: bool,
@@ -206,25 +297,29 @@ def write_results_readme(output: str | Path, times: dict[str, float], quick: boo
     """
     from ikbench.compare import (
         FIGURE_NAME,
+        MODES_NOTE,
         PAPER_BASELINE_NOTE,
         TABLE2_UNITS_NOTE,
+        compare,
+        escaped_table,
         table2_comparison,
     )
 
     output = Path(output)
-    compared = _section(Path(comparison), "The paper's claims")
     figure = Path(os.path.relpath(Path(comparison).parent / FIGURE_NAME, output)).as_posix()
     comparison = Path(os.path.relpath(comparison, output)).as_posix()
-    ours, baseline = _read(output, "ours/table.csv"), _read(output, f"{BASELINE}/table.csv")
+    ours, baseline = _read(output, f"{OURS}/table.csv"), _read(output, f"{BASELINE}/table.csv")
+    interpolation = _read(output, f"{INTERPOLATION_RUN}/table.csv")
     ablation = _read(output, "ablation/table.csv")
     summary = _read(output, "ablation/summary.csv")
     claims = check_claims(ablation)
+    measured = compare(output)
     record = provenance()
     command = "ikbench reproduce" + (" --quick" if quick else "")
     lines = [
         "# Reproduction of *Generating and Customizing Robotic Arm Trajectories using Neural "
         "Networks* (Lúčny et al.)", "",
-        f"Everything in this folder was produced by `{command}` "
+        f"Produced by `{command}` "
         + (f"(**quick pipeline check**: trajectory {QUICK['only']}, n = {QUICK['steps']}, "
            f"at most {QUICK['max_iterations']} iterations; not the paper's configuration) "
            if quick else "")
@@ -232,6 +327,7 @@ def write_results_readme(output: str | Path, times: dict[str, float], quick: boo
         f"torch threads {record['torch_threads']}), {record['created_utc']}. Every measured "
         "number is computed by `ikbench.metrics` from the trajectory CSVs written here; paper "
         "values appear only in columns labelled *paper*.", "",
+        *_provenance_lines(output, command),
         "| stage | wall time |", "|---|---|",
         *[f"| {stage} | {_elapsed(t)} |" for stage, t in times.items()], "",
         "## Table 1: the paper's method (`ours`)", "",
@@ -239,13 +335,21 @@ def write_results_readme(output: str | Path, times: dict[str, float], quick: boo
                                                  "duration [s]": 1, "paper duration [s]": 0}),
         "", "Details: [ours/report.md](ours/report.md).", "",
         *_figures("ours", ["trajectories_3d.png", "pointing_error.png"]),
-        f"## Table 2: the traditional baseline (`{BASELINE}`)", "",
+        f"## Table 2: the traditional baseline (`{BASELINE}`, --orientation frame)", "",
         markdown_table(table2_comparison(baseline)), "", TABLE2_UNITS_NOTE, "",
         PAPER_BASELINE_NOTE, "", f"Details: [{BASELINE}/report.md]({BASELINE}/report.md).", "",
         *_figures(BASELINE, ["trajectories_3d.png", "pointing_error.png"]),
-        "## Comparison of the two", "",
-        f"From [{comparison}]({comparison}) (`ikbench.compare`), which has the details.", "",
-        *compared, f"![pointing deviation per step]({figure})", "",
+        "### The baseline's three orientation modes", "",
+        f"`{BASELINE}/` (frame, the default), "
+        + ", ".join(f"`{name}/` (`--orientation {mode}`)" for mode, name in
+                    BASELINE_MODES.items())
+        + f", beside `{OURS}` and the paper's Table 2:", "",
+        escaped_table(measured.modes_table()), "", MODES_NOTE, "",
+        "## Comparison with the baseline", "",
+        f"The paper's claims about its baseline, checked for each mode (from "
+        f"[{comparison}]({comparison}), `ikbench.compare`, which also has the runs side by "
+        "side per trajectory).", "",
+        *measured.claims_lines(level=3), f"![pointing deviation per step]({figure})", "",
         "## Ablation of the loss terms", "", claims_table(claims), "",
         markdown_table(summary[["variant", "trajectories", "hit_cap", *SUMMARY_COLUMNS]]
                        .rename(columns={"hit_cap": "runs at cap", **SUMMARY_METRICS}),
@@ -254,6 +358,7 @@ def write_results_readme(output: str | Path, times: dict[str, float], quick: boo
         "figures and the tests behind each verdict: [ablation/report.md](ablation/report.md).",
         "", *_figures("ablation", ["metrics.png", "trajectories_3d.png", "joints.png"]),
         "## Deviations from the paper", "", *DEVIATIONS,
+        _initialisation_finding(ours, interpolation), _baseline_finding(measured.frame),
         *([] if quick else _table1_findings(ours)),
         *[f"- **Ablation: not confirmed.** {c['claim']} ({c['evidence']}; test: {c['test']})"
           for c in claims if c["verdict"] == "does not hold"], "",

@@ -1,9 +1,12 @@
 """Run a method on targets and write trajectories, tables, figures and a report.
 
 ``run(...)`` is what ``ikbench run`` calls; it returns the table as a DataFrame. Output layout
-under ``output/<method>/``: ``trajectory_<id>.csv``, ``table.csv`` (the Table 1/2 columns),
-``details.csv`` (smoothness and solver figures), ``run.json`` (settings and versions),
-``trajectories_3d.png``, ``pointing_error.png`` and ``report.md``.
+under ``output/<name>/`` (``name`` defaults to the method's name, e.g. ``ours``):
+``trajectory_<id>.csv``, ``table.csv`` (the Table 1/2 columns), ``details.csv`` (smoothness
+and solver figures), ``run.json`` (method, folder name, settings and versions),
+``trajectories_3d.png``, ``pointing_error.png`` and ``report.md``. After a successful write,
+``trajectory_*.csv`` files of earlier runs in that folder that this run did not write are
+removed, so the folder's trajectories are exactly those its table.csv lists.
 
 Shapes other than the paper's line (``shape=``, see :func:`ikbench.task.build_tasks`) use no
 touch poses: a letter shape gives one trajectory per letter (``trajectory_P.csv``), a file
@@ -15,6 +18,7 @@ curve on the drawing plane over the target curve, and the 3-D view).
 from __future__ import annotations
 
 import json
+import re
 import sys
 import time
 from dataclasses import replace
@@ -44,6 +48,46 @@ from ikbench.task import build_tasks, parse_shape
 from ikbench.trajectory import DEFAULT_DURATION_S, read_trajectory_poses, write_trajectory_csv
 
 DEFAULT_OUTPUT = "results"
+#: Folders other commands write into an output directory; no method run may take them.
+RESERVED_NAMES = ("ablation", "sweep", "batch", "letters")
+#: A run's folder name: letters, digits, '_', '-' and '.' (not first), as it names a folder.
+NAME_PATTERN = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
+#: A trajectory CSV that a run writes (``trajectory_<id>.csv``).
+TRAJECTORY_FILE = re.compile(r"trajectory_(.+)\.csv")
+
+
+def check_name(name: str) -> str:
+    """``name`` if it can name a run's folder; InputError naming what is allowed otherwise.
+
+    Args:
+        name: folder name under the output directory (``sequential-ik-position``).
+    """
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+        raise InputError(f"--name: {name!r} is not allowed; a name is letters, digits, '_', "
+                         "'-' and '.' (not first), as it names a folder")
+    if name in RESERVED_NAMES:
+        raise InputError(f"--name: {name!r} is the folder of another command; reserved: "
+                         f"{', '.join(RESERVED_NAMES)}")
+    return name
+
+
+def remove_stale_trajectories(folder: Path, keep) -> list[Path]:
+    """Delete ``trajectory_<id>.csv`` files in ``folder`` whose id is not in ``keep``.
+
+    Args:
+        folder: a run's folder.
+        keep: the trajectory ids the run wrote.
+
+    Returns:
+        The removed paths (sorted).
+    """
+    keep = {str(k) for k in keep}
+    stale = sorted(p for p in Path(folder).glob("trajectory_*.csv")
+                   if p.is_file() and (m := TRAJECTORY_FILE.fullmatch(p.name))
+                   and m.group(1) not in keep)
+    for path in stale:
+        path.unlink()
+    return stale
 
 
 class Progress:
@@ -105,7 +149,7 @@ def run(method: str | Method = "ours", *, targets: str | Path | Targets | None =
         output: str | Path | None = DEFAULT_OUTPUT, duration_s: float = DEFAULT_DURATION_S,
         options: dict | None = None, robot: Robot | None = None,
         progress: bool = True, shape: str = "line", size_mm: float | None = None,
-        start_pose=None, direction=None) -> pd.DataFrame:
+        start_pose=None, direction=None, name: str | None = None) -> pd.DataFrame:
     """Solve every selected target with ``method`` and write the results.
 
     Args:
@@ -113,7 +157,7 @@ def run(method: str | Method = "ours", *, targets: str | Path | Targets | None =
         targets: a targets file, a loaded :class:`Targets`, or None for the paper's.
         only: comma-separated trajectory ids to keep (``"1,3"``).
         steps: number of segments n (default: the targets file's).
-        output: output directory (the method writes to ``output/<method>/``); None writes
+        output: output directory (the run writes to ``output/<name>/``); None writes
             nothing and returns the table computed in a temporary directory.
         duration_s: movement duration T [s] for the ``time_s`` column.
         options: keyword options of the method (when ``method`` is a name).
@@ -125,6 +169,9 @@ def run(method: str | Method = "ours", *, targets: str | Path | Targets | None =
         start_pose: (dof,) start pose [motor deg] replacing the targets file's.
         direction: goal directions ``"tangent"``, ``"normal"`` or a vector (default: the
             shape's own, see :func:`ikbench.task.build_tasks`).
+        name: the run's folder under ``output`` (default: the method's name); letters,
+            digits, ``_``, ``-``, ``.``, not one of :data:`RESERVED_NAMES`. Trajectory CSVs of
+            earlier runs in that folder that this run does not write are removed.
 
     Returns:
         The table (one row per trajectory, columns :data:`ikbench.report.TABLE_COLUMNS`,
@@ -132,6 +179,8 @@ def run(method: str | Method = "ours", *, targets: str | Path | Targets | None =
     """
     if not (duration_s > 0 and np.isfinite(duration_s)):
         raise InputError(f"--duration: {duration_s!r} must be a positive number of seconds")
+    if name is not None:
+        check_name(name)
     robot = robot or load_robot()
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
@@ -152,17 +201,18 @@ def run(method: str | Method = "ours", *, targets: str | Path | Targets | None =
 
         with tempfile.TemporaryDirectory() as tmp:
             return _solve_and_write(robot, targets, tasks, solver, Path(tmp), duration_s,
-                                    progress, shape, direction)
+                                    progress, shape, direction, name)
     return _solve_and_write(robot, targets, tasks, solver, Path(output), duration_s, progress,
-                            shape, direction)
+                            shape, direction, name)
 
 
 def _solve_and_write(robot, targets, tasks, solver, output: Path, duration_s, progress,
-                     shape="line", direction=None):
-    method_dir = output / solver.name
+                     shape="line", direction=None, name=None):
+    name = name or solver.name
+    method_dir = output / name
     check_writable(method_dir / "table.csv")  # before the solve, not after minutes of it
     started = time.perf_counter()
-    solutions = solver.solve_many(robot, tasks, Progress(solver.name, enabled=progress))
+    solutions = solver.solve_many(robot, tasks, Progress(name, enabled=progress))
     for task, solution in zip(tasks, solutions):
         write_trajectory_csv(method_dir / f"trajectory_{task.name}.csv", robot,
                              solution.poses_deg, duration_s)
@@ -170,7 +220,7 @@ def _solve_and_write(robot, targets, tasks, solver, output: Path, duration_s, pr
     atomic_write_csv(method_dir / "table.csv", table, float_format="%.10g")
     atomic_write_csv(method_dir / "details.csv", details, float_format="%.10g")
     settings = {k: v for k, v in vars(solver).items() if not k.startswith("_")}
-    record = {"method": solver.name, "targets": targets.source,
+    record = {"method": solver.name, "name": name, "targets": targets.source,
               "trajectories": [task.name for task in tasks], "steps": tasks[0].steps,
               "shape": shape, "direction": direction,
               "start_pose_deg": targets.start_pose_deg.tolist(),
@@ -188,10 +238,11 @@ def _solve_and_write(robot, targets, tasks, solver, output: Path, duration_s, pr
                    ("criterion 2", "pointing_error.png", plot_pointing_error(tasks, points, title))]
     else:
         figures = [("shapes", "shapes.png", plot_shapes(tasks, points, title))]
-    for _, name, figure in figures:
-        atomic_savefig(method_dir / name, figure)
+    for _, file, figure in figures:
+        atomic_savefig(method_dir / file, figure)
     atomic_write_text(method_dir / "report.md", method_report(
-        solver, table, details, targets, record, {caption: name for caption, name, _ in figures}))
+        solver, table, details, targets, record, {caption: file for caption, file, _ in figures}))
+    remove_stale_trajectories(method_dir, [task.name for task in tasks])
     return table
 
 
@@ -211,7 +262,9 @@ def method_report(solver, table: pd.DataFrame, details: pd.DataFrame, targets: T
     shape = record.get("shape", "line")
     where = (f"Targets: {targets.source}" if shape == "line" else
              f"Shape: {shape}, start pose {record['start_pose_deg']} [motor deg]")
-    lines = [f"# {solver.name}: {solver.description}", "",
+    name = record.get("name") or solver.name
+    heading = solver.name if name == solver.name else f"{name} ({solver.name})"
+    lines = [f"# {heading}: {solver.description}", "",
              f"{where}; trajectories {', '.join(record['trajectories'])}; "
              f"n = {record['steps']} segments. Produced by ikbench "
              f"(git {record.get('git_revision')}) on {record['cpu']} "
@@ -220,7 +273,7 @@ def method_report(solver, table: pd.DataFrame, details: pd.DataFrame, targets: T
              "Computed by `ikbench.metrics` from the trajectory CSVs in this folder. Distances "
              "in mm, angles in degrees, loss in the paper's units (cm, motor degrees).", "",
              markdown_table(table.drop(columns=["method"]),
-                            {"loss": 3, "duration_s": 2, "iterations": 0}), ""]
+                            {"loss": 3, "duration_s": 4, "iterations": 0}), ""]
     if shape != "line":
         lines += ["curve_distance: distance of each fingertip point from the target curve "
                   "(its nearest point); point_error: from the point's own goal point; "

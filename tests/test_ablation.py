@@ -173,3 +173,57 @@ def test_small_ablation_really_drops_the_term(small_ablation, robot, paper_targe
     assert no_l1["paper_loss"] == pytest.approx(full_loss, rel=1e-12)
     full = table.set_index("variant").loc[FULL]
     assert full["loss"] == pytest.approx(full["paper_loss"], rel=1e-4)
+
+
+@pytest.mark.parametrize("spec", ["each,L1", "L1, EACH"])
+def test_each_inside_a_list_says_it_must_be_its_own_value(spec):
+    with pytest.raises(InputError, match=r"'each' must be its own --drop value \(e\.g\. --drop "
+                       r"each --drop L2,L3\); a list names terms among L0, L1"):
+        parse_drops(spec)
+
+
+def test_cli_rejects_options_of_other_methods(capsys):
+    assert main(["ablate", "--drop", "L1", "--method", "ours", "--lm-linear-solver", "thomas",
+                 "--only", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err == ("ikbench: error: --lm-linear-solver is an option of --method ours-lm, not "
+                   "of --method ours\n")
+
+
+def test_unwritable_output_fails_before_any_solve(tmp_path, monkeypatch, capsys):
+    import ikbench.ablation as ablation
+
+    def no_solving(*args, **kwargs):
+        raise AssertionError("solved before checking the output folder")
+
+    monkeypatch.setattr(ablation, "_solve_variant", no_solving)
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main(["ablate", "--drop", "L1", "--only", "1", "--output", str(blocker)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot write" in err and "is a file" in err
+    out = tmp_path / "fresh"
+    (tmp_path / "fresh").mkdir()
+    (out / "ablation").write_text("")  # the ablation folder's name taken by a file
+    assert main(["ablate", "--drop", "L1", "--only", "1", "--output", str(out)]) == 2
+    assert "is a file, not a directory" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["ablation"]
+
+
+def test_a_smaller_ablation_removes_stale_variants_and_trajectories(tmp_path):
+    common = {"steps": 4, "output": tmp_path, "options": {"max_iterations": 3},
+              "progress": False}
+    ablate(["L1", "L2,L5"], only="1,2", **common)
+    root = tmp_path / "ablation"
+    (root / "no-L2-L5" / "notes.txt").write_text("mine")  # kept, and so is its folder
+    (root / "no-L3").mkdir()  # a variant-named folder of an even older run: emptied, removed
+    (root / "no-L3" / "trajectory_1.csv").write_text("old")
+    (root / "plots").mkdir()  # not a variant name: untouched
+    (root / "plots" / "trajectory_1.csv").write_text("mine")
+    ablate(["L1"], only="2", **common)
+    assert sorted(p.relative_to(root).as_posix() for p in root.rglob("trajectory_*.csv")) == [
+        "full/trajectory_2.csv", "no-L1/trajectory_2.csv", "plots/trajectory_1.csv"]
+    assert not (root / "no-L3").exists()
+    assert sorted(p.name for p in (root / "no-L2-L5").iterdir()) == ["notes.txt"]
+    table = pd.read_csv(root / "table.csv", dtype={"trajectory": str})
+    assert list(zip(table["variant"], table["trajectory"])) == [("full", "2"), ("no-L1", "2")]

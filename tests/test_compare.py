@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -11,8 +13,10 @@ from ikbench.compare import (
     BASELINE,
     OURS,
     check_claims,
+    compare,
     evaluate_runs,
     load_runs,
+    pointing_tradeoff_note,
     table2_comparison,
     write_comparison_report,
 )
@@ -29,6 +33,28 @@ def small_runs(tmp_path_factory):
     common = ["--only", "1", "--steps", "10", "--output", str(out), "--quiet"]
     assert main(["run", "--method", "ours", "--max-iterations", "300", *common]) == 0
     assert main(["run", "--method", "sequential-ik", *common]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def mode_runs(small_runs, tmp_path_factory):
+    """small_runs plus the other two orientation modes (--name), and folders of other
+    commands that hold a run.json and trajectory CSVs too (decoys)."""
+    import shutil
+
+    out = tmp_path_factory.mktemp("modes")
+    for name in (OURS, BASELINE):
+        shutil.copytree(small_runs / name, out / name)
+    common = ["--only", "1", "--steps", "10", "--output", str(out), "--quiet"]
+    for mode in ("position", "pointing"):
+        assert main(["run", "--method", "sequential-ik", "--orientation", mode, "--name",
+                     f"sequential-ik-{mode}", *common]) == 0
+    for decoy in ("ablation", "batch", "sweep"):  # another command's folder, not a run
+        shutil.copytree(out / "sequential-ik-position", out / decoy)
+    shutil.copytree(out / BASELINE, out / "letters" / BASELINE)  # one level deeper
+    (out / "notes").mkdir()  # a run.json that names no method
+    (out / "notes" / "run.json").write_text('{"comment": "not a run"}')
+    shutil.copy(out / BASELINE / "trajectory_1.csv", out / "notes")
     return out
 
 
@@ -87,10 +113,12 @@ def _summary(ours: dict, base: dict) -> pd.DataFrame:
     keys = ["median duration [s]", "mean pointing deviation [deg]", "max |p_0 - p^s| [deg]",
             "median |p_0 - p^s| [deg]", "start pose spread [deg]", "start point spread [mm]",
             "max |P_0 - P_s| [mm]", "median mean sq. joint step [deg^2]",
-            "median mean sq. jerk [deg^2]"]
+            "median mean sq. jerk [deg^2]", "mean line distance [mm]"]
     defaults = dict.fromkeys(keys, 1.0)
-    return pd.DataFrame([{"method": OURS, **defaults, **ours},
-                         {"method": BASELINE, **defaults, **base}])
+    return pd.DataFrame([{"method": OURS, **defaults, "points missing the IK tolerance": np.nan,
+                          "points solved": np.nan, **ours},
+                         {"method": BASELINE, **defaults, "points missing the IK tolerance": 0,
+                          "points solved": 350, **base}])
 
 
 def _verdicts(summary):
@@ -157,3 +185,106 @@ def test_runs_on_different_steps_are_refused(small_runs, tmp_path, capsys):
     assert main(["report", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "different targets, steps or start poses" in err
+
+
+def test_every_run_folder_side_by_side_and_claims_per_baseline_mode(mode_runs, capsys):
+    assert main(["report", str(mode_runs)]) == 0
+    capsys.readouterr()
+    text = (mode_runs / "report.md").read_text()
+    assert text.splitlines()[0] == ("# Comparison: ours, sequential-ik, sequential-ik-pointing, "
+                                    "sequential-ik-position")
+    for decoy in ("ablation", "batch", "sweep", "letters", "notes"):
+        assert f"| {decoy} |" not in text and f"`{decoy}`" not in text
+    claims = text.split("## The paper's claims")[1].split("\n## ")[0]
+    headings = [line for line in claims.splitlines() if line.startswith("### ")]
+    assert headings == [f"### `{name}` (--orientation {mode}) against `ours`" for name, mode in
+                        [("sequential-ik", "frame"), ("sequential-ik-pointing", "pointing"),
+                         ("sequential-ik-position", "position")]]
+    tables = claims.split("### ")[1:]
+    for table, name in zip(tables, ["sequential-ik", "sequential-ik-pointing",
+                                    "sequential-ik-position"]):
+        assert table.count("| holds |") + table.count("| does not hold |") == 4
+        assert f"ratio ours / {name} = " in table and table.startswith(f"`{name}` ")
+    modes = text.split("## The baseline's orientation modes")[1].split("\n## ")[0]
+    rows = [line for line in modes.splitlines() if line.startswith("| ")][1:]
+    assert [row.split(" | ")[0:2] for row in rows] == [
+        ["| ours", ""], ["| sequential-ik", "frame"], ["| sequential-ik-pointing", "pointing"],
+        ["| sequential-ik-position", "position"], ["| paper (ikpy, other URDF)", ""]]
+    assert "## Beside the paper's Table 2: sequential-ik (--orientation frame)" in text
+    for name in ("sequential-ik-pointing", "sequential-ik-position"):
+        assert f"| 1 | {name} |" in text  # side by side per trajectory
+
+
+def test_modes_table_figures_come_from_the_runs(mode_runs):
+    result = compare(mode_runs)
+    table = result.modes_table().set_index("run")
+    frame = result.frame.set_index("method")
+    for name in ("sequential-ik", "sequential-ik-pointing", "sequential-ik-position"):
+        row = frame.loc[name]
+        assert table.loc[name, "line distance, mean [mm]"] == \
+            f"{row['line_distance_mean_mm']:.2f}"
+        assert table.loc[name, "pointing deviation, mean [deg]"] == \
+            f"{row['pointing_deviation_mean_deg']:.2f}"
+        assert table.loc[name, "time per trajectory [ms]"] == f"{row['duration_s'] * 1000:.1f}"
+        details = pd.read_csv(mode_runs / name / "details.csv")
+        missed = int(details["points_not_converged"].iloc[0])
+        assert table.loc[name, "points missing the IK tolerance (of 10, per trajectory)"] == \
+            ("none" if missed == 0 else str(missed))
+    # the paper's row: its trajectory-1 values, cm shown x 10
+    assert table.loc["paper (ikpy, other URDF)", "line distance, mean [mm]"] == "28.4"
+    assert table.loc["paper (ikpy, other URDF)", "pointing deviation, mean [deg]"] == "65"
+
+
+def test_pointing_claim_shows_the_line_distance_and_missed_points():
+    summary = _summary(
+        {"mean pointing deviation [deg]": 11.9, "mean line distance [mm]": 3.2},
+        {"mean pointing deviation [deg]": 0.26, "mean line distance [mm]": 32.9,
+         "points missing the IK tolerance": 197, "points solved": 350})
+    measured = check_claims(summary).set_index("paper's claim").loc[
+        "its pointing deviation is much worse", "measured"]
+    assert "mean line distance: ours 3.20 mm, sequential-ik 32.90 mm" in measured
+    assert "sequential-ik: 197 of 350 points missed the IK tolerance" in measured
+    note = pointing_tradeoff_note(summary)
+    assert "gives up the position" in note and "32.90 mm against 3.20 mm" in note
+    assert "197 of 350 points missed the IK tolerance" in note
+    # pointing worse, or line followed: no note
+    assert pointing_tradeoff_note(_summary(
+        {"mean pointing deviation [deg]": 11.9, "mean line distance [mm]": 3.2},
+        {"mean pointing deviation [deg]": 35.0, "mean line distance [mm]": 32.9})) == ""
+    assert pointing_tradeoff_note(_summary(
+        {"mean pointing deviation [deg]": 11.9, "mean line distance [mm]": 3.2},
+        {"mean pointing deviation [deg]": 0.2, "mean line distance [mm]": 0.0})) == ""
+
+
+def test_claims_table_names_the_baseline_run():
+    summary = _summary({}, {}).replace({"method": {BASELINE: "sequential-ik-position"}})
+    claims = check_claims(summary, "sequential-ik-position")
+    assert "ratio ours / sequential-ik-position" in claims["measured"].iloc[0]
+    assert not any("sequential-ik " in m for m in claims["measured"])
+
+
+@pytest.mark.parametrize("name, message", [
+    ("../out", "--name: '../out' is not allowed"),
+    ("", "--name: '' is not allowed"),
+    ("ablation", "--name: 'ablation' is the folder of another command"),
+])
+def test_bad_name_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, name, message):
+    code = main(["run", "--method", "sequential-ik", "--only", "1", "--steps", "4",
+                 "--output", str(tmp_path / "out"), "--name", name, "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and message in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_run_name_sets_the_folder_and_run_json(tmp_path):
+    from ikbench.run import run
+
+    table = run("sequential-ik", only="7", steps=4, output=tmp_path, progress=False,
+                options={"orientation": "position"}, name="position-mode")
+    folder = tmp_path / "position-mode"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["position-mode"]
+    record = json.loads((folder / "run.json").read_text())
+    assert record["method"] == "sequential-ik" and record["name"] == "position-mode"
+    assert list(table["method"]) == ["sequential-ik"]
+    assert (folder / "report.md").read_text().startswith(
+        "# position-mode (sequential-ik): ")

@@ -42,5 +42,35 @@ def test_unwritable_paths_raise_one_line_output_errors(tmp_path):
         atomic_write_text(blocker / "x.csv", "x")
     with pytest.raises(OutputError, match="it is a directory"):
         check_writable(tmp_path)
-    assert check_writable(tmp_path / "new" / "x.csv").parent.is_dir()
-    assert list((tmp_path / "new").iterdir()) == []  # the probe left nothing behind
+
+
+def test_check_writable_leaves_nothing_behind(tmp_path):
+    path = tmp_path / "new" / "deeper" / "x.csv"
+    assert check_writable(path) == path
+    assert list(tmp_path.iterdir()) == []  # the folders made for the probe are gone again
+    (tmp_path / "kept").mkdir()
+    check_writable(tmp_path / "kept" / "x.csv")
+    assert [p.name for p in tmp_path.iterdir()] == ["kept"]  # existing folders stay
+    assert list((tmp_path / "kept").iterdir()) == []
+    atomic_write_text(path, "x")  # the real write creates the folders
+    assert path.read_text() == "x"
+
+
+def test_failed_check_removes_the_folders_it_created(tmp_path, monkeypatch):
+    import tempfile
+
+    def refuse(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(tempfile, "mkstemp", refuse)
+    with pytest.raises(OutputError, match=r"cannot write .*x\.csv: Permission denied"):
+        check_writable(tmp_path / "a" / "b" / "x.csv")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_check_below_a_file_creates_nothing(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    with pytest.raises(OutputError, match="is a file, not a directory"):
+        check_writable(blocker / "sub" / "x.csv")
+    assert [p.name for p in tmp_path.iterdir()] == ["file"]

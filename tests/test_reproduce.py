@@ -3,31 +3,56 @@ errors when a part it needs is missing."""
 
 from __future__ import annotations
 
+import contextlib
+import io
+import json
+import re
 import sys
 
 import pandas as pd
+import pytest
 
 import ikbench.reproduce as reproduce_module
 from ikbench.cli import main
 from ikbench.errors import InputError
 
 
-def test_quick_pipeline_end_to_end(tmp_path, capsys):
-    out = tmp_path / "results"
-    assert main(["reproduce", "--quick", "--output", str(out)]) == 0
-    captured = capsys.readouterr()
-    assert "stage 5/5" in captured.err and "total time" in captured.err
-    assert captured.out.splitlines()[-1].startswith("total")
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    """``reproduce --quick`` into a folder that already holds other commands' files."""
+    out = tmp_path_factory.mktemp("reproduce") / "results"
+    (out / "sweep").mkdir(parents=True)
+    (out / "benchmark.md").write_text("by ikbench bench")
+    (out / "benchmark_runs.csv").write_text("by ikbench bench")
+    (out / "mystery.txt").write_text("by hand")
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        assert main(["reproduce", "--quick", "--output", str(out)]) == 0
+    return out, stdout.getvalue(), stderr.getvalue()
+
+
+def test_quick_pipeline_end_to_end(quick):
+    out, stdout, stderr = quick
+    assert "stage 8/8" in stderr and "total time" in stderr
+    assert stdout.splitlines()[-1].startswith("total")
     for name in ["ours/table.csv", "sequential-ik/table.csv", "ablation/table.csv",
+                 "sequential-ik-pointing/table.csv", "sequential-ik-position/table.csv",
+                 "ours-init-interpolation/table.csv", "report.md",
                  "ablation/report.md", "ablation/metrics.png", "README.md"]:
         assert (out / name).stat().st_size > 0, name
+    for name, mode in [("sequential-ik", "frame"), ("sequential-ik-pointing", "pointing"),
+                       ("sequential-ik-position", "position")]:
+        record = json.loads((out / name / "run.json").read_text())
+        assert record["settings"]["settings"]["orientation"] == mode and record["name"] == name
+    assert json.loads((out / "ours-init-interpolation" / "run.json").read_text())[
+        "settings"]["settings"]["init"] == "interpolation"
     ablation = pd.read_csv(out / "ablation/table.csv")
     assert list(ablation["variant"]) == ["full", "no-L0", "no-L1", "no-L2", "no-L3", "no-L4",
                                          "no-L5", "no-L6", "no-L2-L3-L4-L5"]
     readme = (out / "README.md").read_text()
-    for heading in ["## Table 1", "## Table 2", "## Comparison of the two",
-                    "## Ablation of the loss terms", "## Deviations from the paper",
-                    "## Versions and machine"]:
+    for heading in ["## Table 1", "## Table 2", "### The baseline's three orientation modes",
+                    "## Comparison with the baseline", "## Ablation of the loss terms",
+                    "## Deviations from the paper", "## Versions and machine"]:
         assert heading in readme
     assert "quick pipeline check" in readme
     assert "paper line distance [mm]" in readme and "paper start point variation [mm]" in readme
@@ -35,6 +60,91 @@ def test_quick_pipeline_end_to_end(tmp_path, capsys):
     # every figure and report the page links to exists
     for link in [part.split(")")[0] for part in readme.split("](")[1:]]:
         assert (out / link).exists(), link
+
+
+def test_readme_says_which_command_wrote_what(quick):
+    out, _, _ = quick
+    readme = (out / "README.md").read_text()
+    assert "Everything in this folder" not in readme
+    assert ("`ikbench reproduce --quick` wrote `README.md`, `report.md`, "
+            "`pointing_deviation_per_step.png`, `ours/`, `sequential-ik/`, "
+            "`sequential-ik-pointing/`, `sequential-ik-position/`, `ours-init-interpolation/`, "
+            "`ablation/`.") in readme
+    assert "`benchmark.md`, `benchmark_runs.csv` by `ikbench bench`" in readme
+    assert "`sweep/` by `ikbench sweep`" in readme
+    assert "`mystery.txt` by no stage of `ikbench reproduce`" in readme
+
+
+def test_readme_text_is_measured_and_self_contained(quick):
+    out, _, _ = quick
+    readme = (out / "README.md").read_text()
+    for stale in ("settings above", "see the last section", "59-70", "about 100 iterations"):
+        assert stale not in readme, stale
+    # the three modes, from their runs
+    modes = readme.split("### The baseline's three orientation modes")[1].split("\n## ")[0]
+    for name in ("sequential-ik", "sequential-ik-pointing", "sequential-ik-position"):
+        table = pd.read_csv(out / name / "table.csv")
+        row = next(line for line in modes.splitlines() if line.startswith(f"| {name} |"))
+        assert f"| {table['pointing_deviation_mean_deg'].iloc[0]:.2f} |" in row
+        assert f"| {table['line_distance_mean_mm'].iloc[0]:.2f} |" in row
+        assert f"| {table['start_point_error_mm'].iloc[0]:.2f} |" in row
+    # the deviations quote the runs
+    interpolation = pd.read_csv(out / "ours-init-interpolation" / "table.csv")
+    assert f"fires after {interpolation['iterations'].iloc[0]} iterations" in readme
+    position = pd.read_csv(out / "sequential-ik-position" / "table.csv")
+    assert (f"mean pointing deviations of {position['pointing_deviation_mean_deg'].iloc[0]:.1f}"
+            " deg per trajectory against the paper's 65 deg") in readme
+    # one claims table per mode, each with the line distance in the pointing claim
+    for name, mode in [("sequential-ik", "frame"), ("sequential-ik-pointing", "pointing"),
+                       ("sequential-ik-position", "position")]:
+        assert f"### `{name}` (--orientation {mode}) against `ours`" in readme
+        claims = readme.split(f"### `{name}` (--orientation {mode})")[1].split("\n### ")[0]
+        pointing = next(line for line in claims.splitlines()
+                        if line.startswith("| its pointing deviation is much worse"))
+        assert "meanwhile mean line distance: ours " in pointing and f", {name} " in pointing
+        assert f"{name}: " in pointing and " points missed the IK tolerance" in pointing
+    # stage times: sub-second stages are not "0 s"
+    stages = readme.split("| stage | wall time |")[1].split("\n\n")[0]
+    times = [line.split(" | ")[1].rstrip(" |") for line in stages.splitlines()[2:]]
+    assert len(times) == 8 and all(re.fullmatch(r"\d+\.\d s|\d+ min \d\d s", t)
+                                   for t in times), times
+
+
+def test_elapsed_shows_tenths_below_a_minute():
+    assert reproduce_module._elapsed(0.2) == "0.2 s"
+    assert reproduce_module._elapsed(42.04) == "42.0 s"
+    assert reproduce_module._elapsed(156.4) == "2 min 36 s"
+
+
+def test_empty_output_is_rejected(capsys):
+    assert main(["reproduce", "--quick", "--output", ""]) == 2
+    err = capsys.readouterr().err
+    assert err == ("ikbench: error: --output: '' is empty; give a directory (default results, "
+                   "or results-quick with --quick)\n")
+
+
+def test_unwritable_output_fails_before_any_solve(tmp_path, monkeypatch, capsys):
+    def no_solving(*args, **kwargs):
+        raise AssertionError("solved before checking the output folder")
+
+    monkeypatch.setattr(reproduce_module, "run", no_solving)
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main(["reproduce", "--quick", "--output", str(blocker / "results")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is a file, not a directory" in err
+    out = tmp_path / "results"
+    (out / "README.md").mkdir(parents=True)  # README.md, written last, is taken by a folder
+    assert main(["reproduce", "--quick", "--output", str(out)]) == 2
+    assert "README.md: it is a directory" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["README.md"]  # no ours/ left behind
+
+
+def test_help_gives_the_measured_duration(capsys):
+    with pytest.raises(SystemExit):
+        main(["reproduce", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "takes a few minutes on 2 cores" in text and "15 minutes" not in text
 
 
 def test_missing_baseline_is_a_clear_error_before_any_work(tmp_path, monkeypatch, capsys):

@@ -3,17 +3,21 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from baselines.sequential_ik import (
     DLSSettings,
     Residual,
     SequentialIK,
+    check_tasks,
     dls_step,
+    format_vector,
     parse_up_vector,
     rotation_from_z,
     solve_point,
     walk,
+    walk_joint_rad,
 )
 from ikbench.cli import main
 from ikbench.errors import InputError
@@ -104,25 +108,85 @@ def test_rotation_from_z_builds_a_right_handed_frame_with_z_along_d():
     assert np.linalg.det(R) == pytest.approx(1.0)
     assert np.allclose(R[:, 2], d)
     assert abs(R[:, 0] @ up) < 1e-12  # x = up x d is orthogonal to up
-    with pytest.raises(InputError, match="parallel"):
+    with pytest.raises(InputError, match="parallel") as error:
         rotation_from_z(d, 2 * d)
+    assert "float64" not in str(error.value)
+    assert "(-1.09357, -0.835087, -1.45146) is parallel to the goal direction (-0.546783, " \
+        "-0.417544, -0.725731)" in str(error.value)
+
+
+def test_vectors_in_messages_are_plain_numbers():
+    assert format_vector(np.array([np.float64(-0.5312345678), 0.0, 1e-7])) == \
+        "(-0.531235, 0, 1e-07)"
+
+
+def test_up_vector_parallel_to_a_line_fails_before_any_solve(robot, paper_targets):
+    task = line_tasks(robot, paper_targets.select("3"))[0]
+    settings = DLSSettings(up_vector=tuple(-task.goal_directions[0]))
+    with pytest.raises(InputError, match=r"--up-vector: \(.*\) is parallel to the goal "
+                       r"direction of trajectory 3 \(-?0\.\d+, "):
+        check_tasks(robot, [task], settings)
+    check_tasks(robot, [task], DLSSettings(orientation="position",
+                                           up_vector=settings.up_vector))  # unused there
+
+
+def test_cli_parallel_up_vector_is_one_readable_line_and_creates_nothing(
+        robot, paper_targets, tmp_path, capsys):
+    d = line_tasks(robot, paper_targets.select("1"))[0].goal_directions[0]
+    out = tmp_path / "out"
+    code = main(["run", "--method", "sequential-ik", "--only", "1", "--output", str(out),
+                 f"--up-vector={','.join(repr(float(v)) for v in d)}", "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "is parallel to the goal direction of trajectory 1" in err
+    assert "np.float64" not in err and "[" not in err
+    assert not out.exists()
 
 
 @pytest.mark.parametrize("orientation", ["frame", "pointing", "position"])
-def test_walk_ends_at_the_touch_pose_within_limits_and_is_deterministic(
+def test_walk_joint_values_respect_the_limits_and_the_walk_is_deterministic(
         robot, paper_targets, orientation):
     settings = DLSSettings(orientation=orientation)
+    pin_fk = robot.pinocchio_fk()
+    lower, upper = pin_fk.model.lowerPositionLimit, pin_fk.model.upperPositionLimit
     for task in line_tasks(robot, paper_targets.with_steps(20)):
-        first = walk(robot, task, settings)
-        second = walk(robot, task, settings)
-        assert first.poses_deg.shape == (21, robot.dof)
-        assert np.array_equal(first.poses_deg[-1], task.end_pose_deg)
+        raw = walk_joint_rad(robot, task, settings)
+        # the IK's own joint values [rad], before any conversion or clip: inside the URDF
+        assert raw.q_rad.shape == (21, robot.dof)
+        assert np.all(raw.q_rad >= lower) and np.all(raw.q_rad <= upper)
+        # ... and so inside the motor ranges: walk()'s final clip moves nothing
+        motor_deg = robot.joint_rad_to_motor_deg(raw.q_rad)
+        assert np.all(motor_deg >= robot.lower_motor_deg - 1e-9)
+        assert np.all(motor_deg <= robot.upper_motor_deg + 1e-9)
+        first, second = walk(robot, task, settings), walk(robot, task, settings)
+        assert np.max(np.abs(first.poses_deg - motor_deg)) <= 1e-9
         assert np.array_equal(first.poses_deg, second.poses_deg)
-        assert np.all(first.poses_deg >= robot.lower_motor_deg)
-        assert np.all(first.poses_deg <= robot.upper_motor_deg)
-        assert first.iterations >= task.steps and first.loss is None
-        assert 0 <= first.info["points_not_converged"] <= task.steps
-        assert first.converged == (first.info["points_not_converged"] == 0)
+        assert first.iterations == raw.iterations >= task.steps and first.loss is None
+        assert first.info["points_not_converged"] == raw.points_not_converged
+        assert first.converged == (raw.points_not_converged == 0)
+
+
+@pytest.mark.parametrize("orientation", ["frame", "pointing", "position"])
+def test_the_walk_starts_at_the_touch_pose_and_solves_point_n_minus_1_from_it(
+        robot, paper_targets, orientation):
+    """Pose n is the touch pose by design (the walk's start, not solved; the module doc);
+    pose n-1 is the IK's first solve, from that pose, for P_{n-1}."""
+    settings = DLSSettings(orientation=orientation)
+    for task in line_tasks(robot, paper_targets.with_steps(20)):
+        raw = walk_joint_rad(robot, task, settings)
+        # row n is the touch pose in radians: its conversion back changes it by round-off only
+        assert np.max(np.abs(robot.joint_rad_to_motor_deg(raw.q_rad[-1])
+                             - task.end_pose_deg)) < 1e-9
+        solution = walk(robot, task, settings)
+        fk = robot.fk(solution.poses_deg, backend="torch")
+        error_mm = np.linalg.norm(fk.point_mm - task.goal_points_mm, axis=1)
+        assert error_mm[-1] < 1e-9  # P_n = P_e
+        assert 0.0 < np.max(np.abs(solution.poses_deg[-2] - solution.poses_deg[-1]))
+        # the largest point error the solver reports is what the written poses show
+        assert np.max(error_mm[:-1]) == pytest.approx(
+            solution.info["max_position_error_mm"], abs=1e-6)
+        if orientation != "frame":  # reachable: the IK itself lands on P_{n-1}
+            assert error_mm[-2] < 1e-3
 
 
 @pytest.mark.parametrize("orientation", ["pointing", "position"])
@@ -198,3 +262,31 @@ def test_cli_bad_option_is_one_line_exit_2(tmp_path, capsys):
                  "--output", str(tmp_path), "--quiet"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "--up-vector" in err
+
+
+def test_a_smaller_run_removes_stale_trajectories_of_its_folder(tmp_path, capsys):
+    common = ["run", "--method", "sequential-ik", "--steps", "4", "--output", str(tmp_path),
+              "--quiet"]
+    assert main([*common, "--only", "1,7"]) == 0
+    folder = tmp_path / "sequential-ik"
+    (folder / "notes.txt").write_text("mine")
+    (folder / "trajectory_7.csv.bak").write_text("mine")
+    assert main([*common, "--only", "1"]) == 0
+    capsys.readouterr()
+    assert sorted(p.name for p in folder.glob("trajectory_*")) == ["trajectory_1.csv",
+                                                                   "trajectory_7.csv.bak"]
+    assert (folder / "notes.txt").read_text() == "mine"
+    table = pd.read_csv(folder / "table.csv", dtype={"trajectory": str})
+    assert list(table["trajectory"]) == ["1"]
+
+
+def test_report_shows_durations_to_four_decimals(tmp_path, capsys):
+    """A few-ms walk must not read 0.01 s (two decimals)."""
+    assert main(["run", "--method", "sequential-ik", "--only", "7", "--steps", "4",
+                 "--output", str(tmp_path), "--quiet"]) == 0
+    capsys.readouterr()
+    folder = tmp_path / "sequential-ik"
+    duration = pd.read_csv(folder / "table.csv")["duration_s"].iloc[0]
+    row = next(line for line in (folder / "report.md").read_text().splitlines()
+               if line.startswith("| 7 |"))
+    assert f"| {duration:.4f} |" in row

@@ -19,14 +19,16 @@ def register(subparsers) -> None:
             "the joint-space interpolation, whether the iteration cap was hit), summary.csv, "
             "run.json, metrics.png, trajectories_3d.png, joints.png and report.md, which "
             "checks the paper's claims about the terms. Terms: L0 line points, L1 pointing, "
-            "L2 start pose, L3 end pose, L4 start point, L5 end point, L6 smoothness."
+            "L2 start pose, L3 end pose, L4 start point, L5 end point, L6 smoothness. The "
+            "output folder is checked before any solve; trajectory CSVs and variant folders "
+            "of an earlier ablation there that this run does not write are removed."
         ),
     )
     parser.add_argument(
         "--drop", action="append", default=None, metavar="TERMS",
-        help="terms to drop together, e.g. L1 or L2,L3,L4,L5; 'each' runs every single-term "
-        "ablation; repeat for more variants (--drop each --drop L2,L3,L4,L5). The full loss "
-        "always runs too (default: each)")
+        help="terms to drop together, e.g. L1 or L2,L3,L4,L5; 'each' (its own --drop value, "
+        "not in a list) runs every single-term ablation; repeat for more variants (--drop "
+        "each --drop L2,L3,L4,L5). The full loss always runs too (default: each)")
     parser.add_argument("--method", default="ours",
                         help=f"a method with loss weights: {', '.join(methods)} (default: ours)")
     parser.add_argument("--targets", default=None,
@@ -51,6 +53,7 @@ def run(args) -> int:
     import torch
 
     from ikbench.ablation import ablate, check_method, parse_drops
+    from ikbench.commands.run import reject_foreign_options
     from ikbench.errors import InputError
     from ikbench.losses import parse_weights
     from ikbench.targets import TargetsError
@@ -62,6 +65,7 @@ def run(args) -> int:
     drops = args.drop or ["each"]
     parse_drops(drops)  # bad term names fail before any set-up
     cls = check_method(args.method)
+    reject_foreign_options(args, cls)
     torch.set_num_threads(args.threads)
     options = {kw: getattr(args, dest) for dest, kw in cls.options.items()
                if kw != "weights" and getattr(args, dest, None) is not None}

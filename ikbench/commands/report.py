@@ -6,12 +6,16 @@ from __future__ import annotations
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "report",
-        help="compare the methods run into DIR (ours vs sequential-ik); write DIR/report.md",
+        help="compare the runs in DIR (ours vs each sequential-ik run); write DIR/report.md",
         description=(
-            "Read every method folder that `ikbench run --output DIR` wrote (at least ours and "
-            "sequential-ik, same targets and n), recompute all figures from the trajectory CSVs, "
-            "and write DIR/report.md (methods side by side per trajectory, the paper's claims "
-            "about its baseline checked with numbers, Table 2 beside the paper's) and "
+            "Read every run folder that `ikbench run --output DIR [--name NAME]` wrote (the "
+            "folder ours and at least one sequential-ik run, e.g. sequential-ik/, "
+            "sequential-ik-pointing/, sequential-ik-position/; same targets and n; the folders "
+            "ablation/, sweep/, batch/ and letters/ of other commands are skipped), recompute "
+            "all figures from the trajectory CSVs, and write DIR/report.md (all runs side by "
+            "side per trajectory; the paper's claims about its baseline checked with numbers "
+            "once per sequential-ik run, labelled with its --orientation mode; the modes in one "
+            "table; Table 2 beside the paper's, from the frame-mode run) and "
             "DIR/pointing_deviation_per_step.png."
         ),
     )

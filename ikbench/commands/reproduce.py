@@ -9,16 +9,22 @@ def register(subparsers) -> None:
         help="regenerate Tables 1 and 2, the comparison, the ablation, all figures and "
         "results/README.md",
         description=(
-            "Run the paper's method (Table 1) and the sequential-ik baseline (Table 2) on the "
-            "paper's targets, write the comparison report and the loss-term ablation (every "
-            "single term, and L2..L5 together), and write OUTPUT/README.md: each paper table "
-            "beside the measured one, the figures, the deviations from the paper, and the "
-            "versions and machine used. Progress goes to stderr; the total time is printed "
-            "at the end. The full run takes about 15 minutes on 2 cores."
+            "Run the paper's method (Table 1: OUTPUT/ours/) and the sequential-ik baseline "
+            "(Table 2, --orientation frame: OUTPUT/sequential-ik/; also --orientation pointing "
+            "and position: OUTPUT/sequential-ik-pointing/, OUTPUT/sequential-ik-position/) on "
+            "the paper's targets, ours with --init interpolation (OUTPUT/"
+            "ours-init-interpolation/), write the comparison report (OUTPUT/report.md) and the "
+            "loss-term ablation (OUTPUT/ablation/: every single term, and L2..L5 together), "
+            "and write OUTPUT/README.md: each paper table beside the measured one, the "
+            "baseline's three modes, the figures, the deviations from the paper, and the "
+            "versions and machine used. The output folder is checked before any solving. "
+            "Progress goes to stderr; the total time is printed at the end. The full run "
+            "takes a few minutes on 2 cores."
         ),
     )
     parser.add_argument("--output", default=None,
-                        help="results directory (default: results; results-quick with --quick)")
+                        help="results directory (default: results; results-quick with "
+                        "--quick)")
     parser.add_argument("--quick", action="store_true",
                         help="pipeline check on a reduced configuration: trajectory 1, n = 10, "
                         "at most 100 iterations (seconds, not the paper's numbers)")
@@ -39,6 +45,7 @@ def run(args) -> int:
         raise InputError(f"--threads: {args.threads} must be an integer >= 1")
     torch.set_num_threads(args.threads)
     times = reproduce(args.output, quick=args.quick, progress=not args.quiet)
+    width = max(map(len, times))
     for stage, seconds in times.items():
-        print(f"{stage:<24} {seconds:8.1f} s")
+        print(f"{stage:<{width}} {seconds:8.1f} s")
     return 0

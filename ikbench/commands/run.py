@@ -18,10 +18,12 @@ def register(subparsers) -> None:
         description=(
             "Generate one trajectory per touch pose (or per letter, or one along a polyline or "
             "spline) with a method and write, under "
-            "OUTPUT/<method>/, trajectory_<id>.csv (motor degrees), table.csv (line distance "
+            "OUTPUT/NAME/ (NAME: --name, default the method's name), trajectory_<id>.csv "
+            "(motor degrees), table.csv (line distance "
             "[mm], pointing deviation [deg], start/end errors; for other shapes the distance "
             "from the target curve), details.csv, run.json "
-            "(settings and versions), figures and report.md. "
+            "(settings and versions), figures and report.md. Trajectory CSVs of an earlier "
+            "run in that folder that this run does not write are removed. "
             "Methods: " + "; ".join(f"{name}: {cls.description}"
                                     for name, cls in methods.items())
         ),
@@ -45,6 +47,9 @@ def register(subparsers) -> None:
                         help="number of segments n (default: the targets file's, 50, for "
                         "lines; 100 for other shapes)")
     add_run_arguments(parser, methods, "results")
+    parser.add_argument("--name", default=None,
+                        help="folder under OUTPUT for this run (default: the method's name), "
+                        "e.g. sequential-ik-position; letters, digits, '_', '-', '.'")
     parser.set_defaults(func=run)
 
 
@@ -85,6 +90,7 @@ def reject_foreign_options(args, method) -> None:
 def run(args, shape: str | None = None) -> int:
     from ikbench.errors import InputError
     from ikbench.methods import get_method
+    from ikbench.run import check_name
     from ikbench.run import run as run_method
     from ikbench.targets import TargetsError, parse_pose
 
@@ -99,13 +105,16 @@ def run(args, shape: str | None = None) -> int:
                                                                  what="--start-pose")
     method = get_method(args.method)
     reject_foreign_options(args, method)
+    name = getattr(args, "name", None)
+    if name is not None:
+        check_name(name)
     solver = method.from_args(args)
     table = run_method(solver, targets=getattr(args, "targets", None),
                        only=getattr(args, "only", None), steps=args.steps, output=args.output,
                        duration_s=args.duration, progress=not args.quiet,
                        shape=shape or args.shape, size_mm=args.size, start_pose=start_pose,
-                       direction=args.direction)
+                       direction=args.direction, name=name)
     columns = LINE_COLUMNS if "line_distance_mean_mm" in table else SHAPE_COLUMNS
     print(table[columns].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
-    print(f"written to {args.output}/{solver.name}/")
+    print(f"written to {args.output}/{name or solver.name}/")
     return 0
