@@ -44,6 +44,8 @@ LINE_TOLERANCE_MM = 1.0
 END_TOLERANCE_MM = 0.5
 SAMPLE_CHUNK = 4096
 MAX_DRAWS = 10_000_000
+#: Seeds are integers in [0, MAX_SEED) (numpy's default_rng refuses negative ones).
+MAX_SEED = 2**63
 
 
 @dataclass(frozen=True)
@@ -79,6 +81,7 @@ def sample_touch_poses(robot, start_pose_deg, count: int, seed: int = 0,
 
     if isinstance(count, bool) or not isinstance(count, int) or count < 1:
         raise InputError(f"--count: {count!r} must be an integer >= 1")
+    check_seed(seed)
     workspace = workspace or WorkspaceFilter()
     kin = ChainKinematics(robot)
     start_mm = robot.fk(start_pose_deg).point_mm[0]
@@ -94,6 +97,14 @@ def sample_touch_poses(robot, start_pose_deg, count: int, seed: int = 0,
         kept.append(poses[workspace.accept(point_cm * 10.0, direction, start_mm)])
         draws += SAMPLE_CHUNK
     return np.concatenate(kept)[:count], draws
+
+
+def check_seed(seed) -> int:
+    """Return ``seed`` if it is an integer in [0, 2^63); InputError naming it otherwise."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) \
+            or not 0 <= seed < MAX_SEED:
+        raise InputError(f"--seed: {seed!r} must be an integer in [0, 2^63)")
+    return int(seed)
 
 
 def weight_setting(text: str) -> tuple[str, dict]:
@@ -122,7 +133,7 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
 
     Args:
         count: number of touch poses N.
-        seed: sampling seed.
+        seed: sampling seed, an integer in [0, 2^63).
         steps: number of segments n per trajectory.
         weights: weight settings, each ``"paper"`` or ``"c0=100,..."``.
         targets: where the start pose comes from (default the paper's targets file).
@@ -138,6 +149,7 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
             raise InputError(f"{flag}: {value!r} must be a positive number of mm")
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 2:
         raise InputError(f"--steps: {steps!r} must be an integer >= 2")
+    check_seed(seed)
     settings = [weight_setting(w) for w in weights]
     robot = load_robot()
     if not isinstance(targets, Targets):

@@ -42,11 +42,23 @@ TOTAL = "total"
 TOTAL_BATCHED = "total (batched)"
 
 
-def parse_repeat(text: str | int, methods: list[str]) -> dict[str, int]:
-    """``"5"`` or ``"5,ours=3"`` -> repetitions per method (each >= 1)."""
+def parse_repeat(text: str | int | None, methods: list[str]) -> dict[str, int]:
+    """``"5"`` or ``"5,ours=3"`` -> repetitions per method (each >= 1).
+
+    None gives :data:`DEFAULT_REPEAT` (its ``ours=3`` applies only when ``ours`` is among
+    ``methods``).
+
+    Raises:
+        InputError: an item that is not N or method=N (N an integer >= 1), or a method name
+            that is not one of ``methods`` (the methods being benchmarked).
+    """
+    if text is None:
+        counts = parse_repeat(DEFAULT_REPEAT, [*methods, "ours"])
+        return {m: counts[m] for m in methods}
     counts, default = {}, None
     for item in str(text).split(","):
         name, sep, value = item.strip().rpartition("=")
+        name = name.strip()
         try:
             number = int(value)
         except ValueError:
@@ -54,6 +66,9 @@ def parse_repeat(text: str | int, methods: list[str]) -> dict[str, int]:
         if number < 1 or (sep and not name):
             raise InputError(f"--repeat: {item.strip()!r} is not N or method=N with N an "
                              "integer >= 1, e.g. 5,ours=3")
+        if sep and name not in methods:
+            raise InputError(f"--repeat: {item.strip()!r} names {name!r}, which is not "
+                             f"benchmarked; methods: {', '.join(methods)}")
         if sep:
             counts[name] = number
         else:
@@ -97,7 +112,7 @@ class _Log:
             print(f"[bench] {text}", file=sys.stderr, flush=True)
 
 
-def benchmark(methods: list[str] | str = DEFAULT_METHODS, *, repeat: str | int = DEFAULT_REPEAT,
+def benchmark(methods: list[str] | str = DEFAULT_METHODS, *, repeat: str | int | None = None,
               warmup: int = 1, targets: str | Path | Targets | None = None,
               only: str | None = None, steps: int | None = None, solvers: dict | None = None,
               progress: bool = True) -> BenchResult:
@@ -105,7 +120,8 @@ def benchmark(methods: list[str] | str = DEFAULT_METHODS, *, repeat: str | int =
 
     Args:
         methods: method names (list or comma-separated); the first is the ratios' baseline.
-        repeat: timed rounds, ``N`` or ``"N,method=M"``.
+        repeat: timed rounds, ``N`` or ``"N,method=M"`` (each method named must be in
+            ``methods``); None: :data:`DEFAULT_REPEAT`.
         warmup: untimed rounds before timing (>= 0).
         targets: a targets file, :class:`Targets`, or None for the paper's.
         only: trajectory ids to keep (``"1,3"``).
@@ -210,6 +226,37 @@ def write(result: BenchResult, output: str | Path) -> Path:
     return out / "benchmark.csv"
 
 
+def speedup_ranges(summary: pd.DataFrame, base: str) -> dict[str, tuple]:
+    """Per method other than ``base``: the smallest and largest per-trajectory speed-up.
+
+    Returns:
+        ``{method: (min ratio, trajectory, max ratio, trajectory)}``, ratios of median wall
+        times against ``base`` on the same trajectory, each solved on its own.
+    """
+    speed = f"speedup_vs_{base}"
+    per_traj = summary[~summary["trajectory"].isin([TOTAL, TOTAL_BATCHED])]
+    out = {}
+    for method, rows in per_traj.groupby("method", sort=False):
+        if method == base or rows.empty:
+            continue
+        low, high = rows.loc[rows[speed].idxmin()], rows.loc[rows[speed].idxmax()]
+        out[method] = (float(low[speed]), str(low["trajectory"]), float(high[speed]),
+                       str(high["trajectory"]))
+    return out
+
+
+def _range_lines(summary: pd.DataFrame, base: str) -> list[str]:
+    """benchmark.md's paragraph on the per-trajectory speed-ups (none for one method)."""
+    ranges = speedup_ranges(summary, base)
+    if not ranges:
+        return []
+    return [f"Per-trajectory speed-ups (ratio of median wall times against {base} on the same "
+            "trajectory, each solved on its own; the total hides how much the slowest one "
+            "gains):", "",
+            *[f"- {method}: {low:.1f}x (trajectory {t_low}) to {high:.1f}x (trajectory "
+              f"{t_high})" for method, (low, t_low, high, t_high) in ranges.items()], ""]
+
+
 def headline(result: BenchResult) -> pd.DataFrame:
     """The totals: median/min/max wall time and speed-up per method (and batched)."""
     s = result.summary
@@ -238,6 +285,7 @@ def markdown(result: BenchResult) -> str:
         f"medians against {base} measured in this run; losses are "
         "`ikbench.losses.objective` (cm, motor degrees) of the last round's poses.", "",
         "## Totals", "", markdown_table(headline(result)[cols], digits), "",
+        *_range_lines(s, base),
         "## Per trajectory", "",
         markdown_table(per_traj[cols + ["line_distance_mean_mm", "pointing_deviation_mean_deg",
                                         "end_point_error_mm", "within_limits"]], digits), "",

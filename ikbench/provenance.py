@@ -9,8 +9,9 @@ import subprocess
 from importlib import metadata
 from pathlib import Path
 
-PACKAGES = ("ikbench", "torch", "pytorch-kinematics", "pin", "numpy", "pandas", "matplotlib",
-            "yourdfpy", "dynamixel-sdk")
+#: Distributions whose versions are recorded (scipy: ours-lm's banded Cholesky, LAPACK pbsv).
+PACKAGES = ("ikbench", "torch", "pytorch-kinematics", "pin", "numpy", "scipy", "pandas",
+            "matplotlib", "yourdfpy", "dynamixel-sdk")
 REPO = Path(__file__).resolve().parents[1]
 
 

@@ -160,33 +160,36 @@ def read_points_csv(path: str | Path) -> np.ndarray:
     """Read control points (k, 3) [mm] from a CSV file.
 
     Format: one point per line, ``x,y,z`` in mm in the torso frame; an optional first line
-    of column names (e.g. ``x_mm,y_mm,z_mm``); blank lines and lines starting with ``#`` are
-    ignored. Consecutive duplicate points are merged.
+    of column names (e.g. ``x_mm,y_mm,z_mm``; at most one such line, before any point); blank
+    lines and lines starting with ``#`` are ignored. Consecutive duplicate points are merged.
 
     Raises:
         InputError: unreadable file, wrong number of columns, a non-numeric or non-finite
-            value, or fewer than 2 distinct points; the message names the file and line.
+            value (a second header line included), or fewer than 2 distinct points; the
+            message names the file and line.
     """
     where = str(path)
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read shape file {where!r}: {exc}") from None
-    rows = []
+    rows, seen_line = [], False
     for number, fields in enumerate(csv.reader(text.splitlines()), start=1):
         if not fields or not "".join(fields).strip() or fields[0].lstrip().startswith("#"):
             continue
+        first, seen_line = not seen_line, True
         if len(fields) != 3:
             raise InputError(f"{where}, line {number}: expected 3 values x,y,z [mm], "
                              f"got {len(fields)}: {','.join(fields)!r}")
         try:
             values = [float(f) for f in fields]
         except ValueError:
-            if not rows and not any(_is_number(f) for f in fields):
-                continue  # a header line
+            if first and not any(_is_number(f) for f in fields):
+                continue  # the one header line allowed
             bad = next(f for f in fields if not _is_number(f))
             raise InputError(f"{where}, line {number}: {bad.strip()!r} is not a number "
-                             "(x,y,z in mm)") from None
+                             "(x,y,z in mm; only the first line may be a header of column "
+                             "names)") from None
         if not all(math.isfinite(v) for v in values):
             raise InputError(f"{where}, line {number}: {','.join(fields)!r} is not finite")
         rows.append(values)

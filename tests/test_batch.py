@@ -68,6 +68,8 @@ def test_batch_cli(tmp_path, capsys):
     (["--count", "0"], "ikbench: error: --count: 0 must be an integer >= 1"),
     (["--weights", "c0=abc"], "ikbench: error: --weights: 'c0=abc' is not term=value"),
     (["--line-tolerance-mm", "-1"], "ikbench: error: --line-tolerance-mm: -1.0 must be"),
+    (["--seed", "-1"], "ikbench: error: --seed: -1 must be an integer in [0, 2^63)"),
+    (["--seed", str(2**63)], f"ikbench: error: --seed: {2**63} must be an integer in [0, 2^63)"),
 ])
 def test_batch_cli_bad_input_one_line_exit_2(tmp_path, args, message):
     exe = [sys.executable, "-m", "ikbench.cli", "batch", "--count", "3", "--steps", "4",
@@ -80,3 +82,25 @@ def test_batch_cli_bad_input_one_line_exit_2(tmp_path, args, message):
 def test_sampling_rejects_bad_count(robot):
     with pytest.raises(InputError, match="--count"):
         sample_touch_poses(robot, PAPER_START, 0)
+
+
+@pytest.mark.parametrize("seed", [-1, 2**63, 1.5, True])
+def test_bad_seeds_rejected_before_sampling(robot, seed):
+    with pytest.raises(InputError, match=r"--seed: .* must be an integer in \[0, 2\^63\)"):
+        sample_touch_poses(robot, PAPER_START, 2, seed=seed)
+    with pytest.raises(InputError, match="--seed"):
+        run_batch(2, seed=seed, steps=4, progress=False)
+
+
+def test_batch_cli_checks_the_output_before_sampling(tmp_path, capsys, monkeypatch):
+    import ikbench.batch
+
+    def boom(*args, **kwargs):
+        raise AssertionError("sampled before the output folder was checked")
+
+    monkeypatch.setattr(ikbench.batch, "run_batch", boom)
+    (tmp_path / "file").write_text("")
+    assert main(["batch", "--count", "2", "--output", str(tmp_path / "file" / "out"),
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot write" in err and "is a file" in err

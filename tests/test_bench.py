@@ -9,7 +9,16 @@ import sys
 import pandas as pd
 import pytest
 
-from ikbench.bench import TOTAL, TOTAL_BATCHED, benchmark, parse_repeat, write
+from ikbench.bench import (
+    TOTAL,
+    TOTAL_BATCHED,
+    BenchResult,
+    benchmark,
+    markdown,
+    parse_repeat,
+    speedup_ranges,
+    write,
+)
 from ikbench.cli import main
 from ikbench.errors import InputError
 from ikbench.methods.ours import Ours
@@ -21,6 +30,13 @@ def test_parse_repeat():
     for bad in ("0", "x", "ours=", "=3", "5,ours=-1"):
         with pytest.raises(InputError, match="--repeat"):
             parse_repeat(bad, ["ours"])
+    with pytest.raises(InputError, match="--repeat: 'foo=3' names 'foo', which is not "
+                                         "benchmarked; methods: ours, ours-lm"):
+        parse_repeat("2,foo=3", ["ours", "ours-lm"])
+    assert parse_repeat("2, ours-lm = 4", ["ours", "ours-lm"]) == {"ours": 2, "ours-lm": 4}
+    # the default's ours=3 applies only when ours is benchmarked
+    assert parse_repeat(None, ["ours", "ours-lm"]) == {"ours": 3, "ours-lm": 5}
+    assert parse_repeat(None, ["ours-lm"]) == {"ours-lm": 5}
 
 
 def test_benchmark_two_methods_summary_and_files(tmp_path):
@@ -49,6 +65,7 @@ def test_benchmark_two_methods_summary_and_files(tmp_path):
     record = json.loads((tmp_path / "benchmark.json").read_text())
     assert record["repeat"] == {"ours": 1, "ours-lm": 2}
     assert {"cpu", "git_revision", "packages"} <= set(record)
+    assert record["packages"]["scipy"]           # ours-lm's LAPACK pbsv comes from scipy
     md = (tmp_path / "benchmark.md").read_text()
     assert "## Totals" in md and "speedup_vs_ours" in md
 
@@ -69,6 +86,8 @@ def test_bench_cli_writes_csv(tmp_path, capsys):
     (["--warmup", "-1"], "ikbench: error: --warmup: -1 must be an integer >= 0"),
     (["--threads", "0"], "ikbench: error: --threads: 0 must be an integer >= 1"),
     (["--only", "9"], "ikbench: error: --only: unknown trajectory id(s) '9'; available:"),
+    (["--repeat", "2,foo=3"], "ikbench: error: --repeat: 'foo=3' names 'foo', which is not "
+     "benchmarked; methods: ours-lm"),
 ])
 def test_bench_cli_bad_input_one_line_exit_2(tmp_path, args, message):
     exe = [sys.executable, "-m", "ikbench.cli", "bench", "--methods", "ours-lm",
@@ -77,3 +96,39 @@ def test_bench_cli_bad_input_one_line_exit_2(tmp_path, args, message):
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and proc.stderr.startswith(message)
     assert not (tmp_path / "benchmark.csv").exists()
+
+
+def test_markdown_states_the_range_of_per_trajectory_speedups():
+    rows = [("ours", "1", 2.0), ("ours", "2", 9.0), ("ours", TOTAL, 11.0),
+            ("ours-lm", "1", 0.01), ("ours-lm", "2", 0.002), ("ours-lm", TOTAL, 0.012),
+            ("ours-lm", TOTAL_BATCHED, 0.005)]
+    summary = pd.DataFrame([{"method": m, "trajectory": t, "rounds": 3, "wall_median_s": w,
+                             "wall_min_s": w, "wall_max_s": w, "loss": 1.0} for m, t, w in rows])
+    base = summary[summary["method"] == "ours"].set_index("trajectory")["wall_median_s"]
+    summary["speedup_vs_ours"] = [base.get(t, base[TOTAL]) / w for _, t, w in rows]
+    summary["loss_change_vs_ours_pct"] = 0.0
+    for column in ("line_distance_mean_mm", "pointing_deviation_mean_deg",
+                   "end_point_error_mm", "within_limits"):
+        summary[column] = 0.0
+    # per trajectory 200x and 4500x; the total (917x) lies between and hides the 200x
+    assert speedup_ranges(summary, "ours") == {"ours-lm": (200.0, "1", 4500.0, "2")}
+    record = {"methods": ["ours", "ours-lm"], "repeat": {"ours": 3, "ours-lm": 3},
+              "warmup": 1, "targets": "paper", "trajectories": ["1", "2"], "steps": 50,
+              "packages": {}, "cpu": "cpu", "cpu_count": 2, "torch_threads": 1,
+              "python": "3", "platform": "p", "git_revision": "g", "created_utc": "t"}
+    md = markdown(BenchResult(summary, pd.DataFrame(), record))
+    assert "- ours-lm: 200.0x (trajectory 1) to 4500.0x (trajectory 2)" in md
+
+
+def test_bench_cli_checks_the_output_before_timing(tmp_path, capsys, monkeypatch):
+    import ikbench.bench
+
+    def boom(*args, **kwargs):
+        raise AssertionError("timed before the output folder was checked")
+
+    monkeypatch.setattr(ikbench.bench, "benchmark", boom)
+    (tmp_path / "file").write_text("")
+    assert main(["bench", "--methods", "ours-lm", "--output", str(tmp_path / "file" / "out"),
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot write" in err and "is a file" in err

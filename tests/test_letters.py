@@ -195,3 +195,26 @@ def test_ours_reproduces_the_authors_letter_p(robot):
     assert m["point_error_mean_mm"] == pytest.approx(15, abs=1.5)
     assert m["point_error_max_mm"] == pytest.approx(51, abs=4)
     assert m["pointing_deviation_mean_deg"] == pytest.approx(11, abs=1)
+
+
+def test_sequential_ik_refuses_a_letter_and_names_the_methods_that_draw_it(tmp_path, capsys):
+    from ikbench.cli import main
+
+    out = tmp_path / "out"
+    assert main(["letters", "P", "--method", "sequential-ik", "--steps", "6",
+                 "--output", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "trajectory 'P': sequential-ik starts at the touch pose" in err
+    assert "use --method ours or --method ours-lm" in err
+    assert not out.exists()
+
+
+def test_ours_lm_draws_a_letter_with_the_letter_weights_under_user_changes(robot):
+    from ikbench.methods.ours_lm import OursLM
+
+    task = letter_task(robot, "C", PAPER_START_POSE_DEG, steps=10)
+    solution = OursLM(weights="c6=2").solve(robot, task)
+    weights = {**LETTER_WEIGHTS, "L6": 2.0}
+    assert solution.info["weights"] == "c0=1,c1=50,c2=0,c3=0,c4=0,c5=0,c6=2"
+    assert solution.loss == pytest.approx(objective(robot, task, solution.poses_deg,
+                                                    weights)[0], rel=1e-9)

@@ -228,3 +228,91 @@ def test_run_cli_bad_option_one_line_exit_2(tmp_path):
     proc = subprocess.run(exe, capture_output=True, text=True)
     assert proc.returncode == 2
     assert proc.stderr.strip() == "ikbench: error: --lm-tolerance: -3.0 must be a positive number"
+
+
+# ----- shapes: letters, polylines, splines (no start/end pose) ----------------------------------
+def test_letter_starts_at_the_reference_pose_with_the_letter_weights(robot):
+    from ikbench.letters import LETTER_WEIGHTS, PAPER_START_POSE_DEG
+    from ikbench.task import letter_task
+
+    task = letter_task(robot, "P", PAPER_START_POSE_DEG, steps=20)
+    start = initial_poses(robot, [task])[0]
+    expected = np.clip(PAPER_START_POSE_DEG, robot.lower_motor_deg, robot.upper_motor_deg)
+    np.testing.assert_allclose(start, np.repeat(expected[None], 21, axis=0))
+    assert OursLM().settings_for(task).weights == LETTER_WEIGHTS
+    assert OursLM(weights="c0=100").settings_for(task).weights == {**LETTER_WEIGHTS,
+                                                                   "L0": 100.0}
+    full = {"L0": 2.0, "L1": 0, "L2": 0, "L3": 0, "L4": 0, "L5": 0, "L6": 1.0}
+    assert OursLM(weights=full).settings_for(task).weights == full   # a dict is complete
+    line = _task(robot, "1", n=20)
+    assert OursLM(weights="c0=100").settings_for(line).weights == parse_weights("c0=100")
+
+    solution = OursLM().solve(robot, task)
+    loss, _ = objective(robot, task, solution.poses_deg, LETTER_WEIGHTS)
+    assert solution.loss == pytest.approx(loss, rel=1e-9)
+    assert solution.info["weights"] == "c0=1,c1=50,c2=0,c3=0,c4=0,c5=0,c6=1"
+    assert solution.converged and robot.within_limits(solution.poses_deg, tol_deg=0.0)
+    assert loss < 0.5 * objective(robot, task, start, LETTER_WEIGHTS)[0]
+    # the paper's weights would add the start/end point terms (c4, c5): another optimum
+    paper, _ = objective(robot, task, solution.poses_deg, PAPER_WEIGHTS)
+    assert paper > loss
+
+
+def test_letter_loss_no_higher_than_adam_and_c0_draws_closer(robot):
+    from ikbench.letters import LETTER_WEIGHTS, PAPER_START_POSE_DEG
+    from ikbench.methods.ours import Ours
+    from ikbench.metrics import shape_metrics
+    from ikbench.task import letter_task
+
+    task = letter_task(robot, "L", PAPER_START_POSE_DEG, steps=12)
+    adam = Ours(stop="none", max_iterations=300, dtype="float64").solve(robot, task)
+    lm = OursLM().solve(robot, task)
+    assert lm.loss <= objective(robot, task, adam.poses_deg, LETTER_WEIGHTS)[0]
+    close = OursLM(weights="c0=100").solve(robot, task)
+    assert close.info["weights"] == "c0=100,c1=50,c2=0,c3=0,c4=0,c5=0,c6=1"
+    near = shape_metrics(robot, task, close.poses_deg)["point_error_mean_mm"]
+    assert near < 0.2 * shape_metrics(robot, task, lm.poses_deg)["point_error_mean_mm"]
+
+
+def test_line_and_letter_in_one_batch_each_with_its_own_weights(robot):
+    from ikbench.letters import PAPER_START_POSE_DEG
+    from ikbench.task import letter_task
+
+    line, letter = _task(robot, "3", n=12), letter_task(robot, "V", PAPER_START_POSE_DEG, 12)
+    method = OursLM(weights="c0=10")
+    both = method.solve_many(robot, [line, letter])
+    for task, solution in zip((line, letter), both):
+        alone = solve_batch(robot, [task], weights=method.settings_for(task).weights)
+        np.testing.assert_allclose(solution.poses_deg, alone.poses_deg[0], atol=1e-10)
+    assert both[0].info["weights"] == "c0=10,c1=50,c2=5,c3=100,c4=10,c5=200,c6=1"
+    assert both[1].info["weights"] == "c0=10,c1=50,c2=0,c3=0,c4=0,c5=0,c6=1"
+
+
+def test_polyline_starts_at_its_reference_pose_and_a_bare_task_is_refused(robot, tmp_path):
+    from dataclasses import replace
+
+    from ikbench.task import file_task
+
+    tip = robot.fk(PAPER_START).point_mm[0]
+    path = tmp_path / "zig.csv"
+    path.write_text("\n".join(",".join(f"{v:.3f}" for v in tip + offset) for offset in
+                          ([0, 0, 0], [0, -40, 30], [0, -80, 0])) + "\n")
+    task = file_task("polyline", path, 10, reference_pose_deg=PAPER_START)
+    np.testing.assert_allclose(initial_poses(robot, [task])[0, 5], PAPER_START)
+    solution = OursLM().solve(robot, task)
+    assert solution.loss == pytest.approx(objective(robot, task, solution.poses_deg)[0],
+                                          rel=1e-9)
+    with pytest.raises(InputError, match="'zig': ours-lm needs a start and an end pose or a "
+                                         "reference pose"):
+        initial_poses(robot, [replace(task, reference_pose_deg=None)])
+
+
+def test_letters_cli_with_ours_lm(tmp_path, capsys):
+    import pandas as pd
+
+    assert main(["letters", "P", "--method", "ours-lm", "--steps", "20", "--weights", "c0=100",
+                 "--output", str(tmp_path), "--quiet"]) == 0
+    details = pd.read_csv(tmp_path / "ours-lm" / "details.csv")
+    assert details["weights"].tolist() == ["c0=100,c1=50,c2=0,c3=0,c4=0,c5=0,c6=1"]
+    table = pd.read_csv(tmp_path / "ours-lm" / "table.csv")
+    assert table["point_error_mean_mm"].iloc[0] < 1.0

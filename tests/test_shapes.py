@@ -109,6 +109,9 @@ def _write(tmp_path, text, name="shape.csv"):
 def test_read_points_csv_with_header_comments_and_duplicates(tmp_path):
     path = _write(tmp_path, "x_mm,y_mm,z_mm\n# a comment\n0,0,0\n\n0,0,0\n10, 20 ,30\n")
     assert np.allclose(read_points_csv(path), [[0, 0, 0], [10, 20, 30]])
+    # a comment or blank line before the header does not make it a second line
+    path = _write(tmp_path, "# points\n\nx_mm,y_mm,z_mm\n0,0,0\n10,20,30\n")
+    assert np.allclose(read_points_csv(path), [[0, 0, 0], [10, 20, 30]])
 
 
 @pytest.mark.parametrize("text, message", [
@@ -118,6 +121,9 @@ def test_read_points_csv_with_header_comments_and_duplicates(tmp_path):
     ("1,2,3\n4,nan,6\n", "line 2: '4,nan,6' is not finite"),
     ("1,2,3\n4,abc,6\n", "line 2: 'abc' is not a number"),
     ("1,2,3\n4,5\n", "line 2: expected 3 values x,y,z [mm], got 2"),
+    ("x,y,z\nu,v,w\n1,2,3\n4,5,6\n", "line 2: 'u' is not a number (x,y,z in mm; only the "
+     "first line may be a header of column names)"),
+    ("1,2,3\nx,y,z\n4,5,6\n", "line 2: 'x' is not a number"),
 ])
 def test_read_points_csv_bad_files(tmp_path, text, message):
     with pytest.raises(InputError, match=message.replace("[", r"\[").replace("(", r"\(")
@@ -209,6 +215,8 @@ def test_shape_metrics_skip_pen_up_points(robot):
     ("1,2,3\n", "1 distinct point(s); a shape needs at least 2"),
     ("1,2,3\nnan,2,3\n", "line 2: 'nan,2,3' is not finite"),
     ("1,2,3\n1,two,3\n", "line 2: 'two' is not a number"),
+    ("x,y,z\nx,y,z\n1,2,3\n4,5,6\n", "line 2: 'x' is not a number (x,y,z in mm; only the "
+     "first line may be a header"),
 ])
 def test_cli_bad_shape_files(tmp_path, capsys, text, message):
     from ikbench.cli import main

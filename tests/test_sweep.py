@@ -83,6 +83,33 @@ def test_sweep_cli(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, message", [
+    (["--weight", "c0=1", "--shape", "letter:P", "--only", "1"],
+     "ikbench: error: --only selects touch poses of the line shape"),
+    (["--weight", "c0=1", "--shape", "letter:P", "--start-pose", "1,2"],
+     "ikbench: error: --start-pose: expected 7 angles"),
+    (["--weight", "c0=1", "--size", "100"], "ikbench: error: --size: only letters are scaled"),
+    (["--weight", "c0=0", "--weight", "c1=0", "--weight", "c6=0", "--shape", "letter:P"],
+     "ikbench: error: --weight: the setting 'c0=0,c1=0,c6=0' and the other terms (c2, c3, c4, "
+     "c5) are 0: every weight is 0"),
+    (["--weight", "c0=0,1", "--weight", "c1=0", "--weight", "c2=0", "--weight", "c3=0",
+      "--weight", "c4=0", "--weight", "c5=0", "--weight", "c6=0"],
+     "ikbench: error: --weight: the setting 'c0=0,c1=0,c2=0,c3=0,c4=0,c5=0,c6=0': every "
+     "weight is 0 and the loss would be empty"),
+    (["--weight", "c0=0", "--weight", "c1=0", "--weight", "c6=0", "--weight", "c2=1",
+      "--shape", "letter:P"],
+     "ikbench: error: --weight: the setting 'c0=0,c1=0,c6=0,c2=1' weights only the start/end "
+     "pose terms c2, c3, which shape 'letter:P' does not pin"),
+])
+def test_sweep_cli_bad_shape_input_one_line_exit_2(tmp_path, args, message):
+    exe = [sys.executable, "-m", "ikbench.cli", "sweep", "--output", str(tmp_path / "out"),
+           "--quiet", *args]
+    proc = subprocess.run(exe, capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and proc.stderr.startswith(message)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("args, message", [
     (["--weight", "c0:1,10"], "ikbench: error: --weight: 'c0:1,10' is not term=v1,v2,..."),
     (["--weight", "c0=1", "--only", "x"], "ikbench: error: --only: unknown trajectory id"),
     ([], "ikbench: error: --weight: give at least one term"),
@@ -92,3 +119,63 @@ def test_sweep_cli_bad_input_one_line_exit_2(tmp_path, args, message):
     proc = subprocess.run(exe, capture_output=True, text=True)
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and proc.stderr.startswith(message)
+
+
+def test_sweep_on_a_letter_uses_the_letter_setting_and_equals_ours_lm(tmp_path, robot):
+    from ikbench.letters import LETTER_WEIGHTS, PAPER_START_POSE_DEG
+    from ikbench.methods.ours_lm import OursLM
+    from ikbench.task import letter_task
+
+    result = sweep(parse_grid(["c0=1,100"]), shape="letter:P", steps=16, progress=False)
+    table = result.settings.set_index("setting")
+    assert list(table.index) == ["c0=1", "c0=100"]
+    assert bool(table.loc["c0=1", "paper_weights"]) and not table.loc["c0=100", "paper_weights"]
+    assert (table[["c2", "c3", "c4", "c5"]] == 0).all().all() and (table["c1"] == 50).all()
+    assert table.loc["c0=100", "point_error_mean_mm"] < 0.2 * table.loc[
+        "c0=1", "point_error_mean_mm"]
+    assert result.record["start_pose_deg"] == list(PAPER_START_POSE_DEG)
+    assert result.record["reference_weights"] == {f"c{k}": LETTER_WEIGHTS[f"L{k}"]
+                                                  for k in range(7)}
+    # each setting is what ours-lm --weights gives on the letter task
+    task = letter_task(robot, "P", PAPER_START_POSE_DEG, steps=16)
+    rows = result.trajectories.set_index("setting")
+    for label in ("c0=1", "c0=100"):
+        solution = OursLM(weights=label).solve(robot, task)
+        assert rows.loc[label, "loss"] == pytest.approx(solution.loss, rel=1e-9)
+        assert rows.loc[label, "paper_loss"] == pytest.approx(
+            objective(robot, task, solution.poses_deg, LETTER_WEIGHTS)[0], rel=1e-9)
+    write(result, tmp_path)
+    md = (tmp_path / "sweep.md").read_text()
+    assert "shape `letter:P`" in md and "the paper's letter setting" in md
+    assert "## Pareto-optimal settings (point error vs pointing deviation)" in md
+    assert pd.read_csv(tmp_path / "sweep.csv")["point_error_max_mm"].notna().all()
+
+
+def test_sweep_start_pose_moves_the_letter(robot):
+    pose = [10, 50, 10, 100, 170, 170, -140]
+    result = sweep(parse_grid(["c0=1"]), shape="letter:I", steps=6, size_mm=100,
+                   start_pose=pose, progress=False)
+    assert result.record["start_pose_deg"] == pose and result.record["size_mm"] == 100
+
+
+def test_grid_settings_reject_a_setting_with_every_weight_zero():
+    from ikbench.letters import LETTER_WEIGHTS
+
+    grid = parse_grid(["c0=0,1", "c1=0", "c6=0"])
+    with pytest.raises(InputError, match="'c0=0,c1=0,c6=0' and the other terms"):
+        grid_settings(grid, LETTER_WEIGHTS)
+    assert len(grid_settings(grid, PAPER_WEIGHTS)) == 3   # c2..c5 still weigh something
+
+
+def test_sweep_cli_checks_the_output_before_solving(tmp_path, capsys, monkeypatch):
+    import ikbench.sweep
+
+    def boom(*args, **kwargs):
+        raise AssertionError("solved before the output folder was checked")
+
+    monkeypatch.setattr(ikbench.sweep, "sweep", boom)
+    (tmp_path / "file").write_text("")
+    assert main(["sweep", "--weight", "c0=1", "--output", str(tmp_path / "file" / "out"),
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot write" in err and "is a file" in err

@@ -21,7 +21,8 @@ def register(subparsers) -> None:
     )
     parser.add_argument("--count", type=int, default=1000,
                         help="number of touch poses N (default 1000)")
-    parser.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
+    parser.add_argument("--seed", type=int, default=0,
+                        help="sampling seed, an integer in [0, 2^63) (default 0)")
     parser.add_argument("--steps", type=int, default=50,
                         help="number of segments n per trajectory (default 50)")
     parser.add_argument("--weights", action="append", metavar="SETTING",
@@ -41,8 +42,13 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from ikbench.batch import DEFAULT_WEIGHTS, run_batch, write
+    from pathlib import Path
 
+    from ikbench.batch import DEFAULT_WEIGHTS, check_seed, run_batch, write
+    from ikbench.io import check_writable
+
+    check_seed(args.seed)
+    check_writable(Path(args.output) / "batch.csv")  # before sampling and solving
     report = run_batch(args.count, seed=args.seed, steps=args.steps,
                        weights=args.weights or DEFAULT_WEIGHTS, targets=args.targets,
                        line_tolerance_mm=args.line_tolerance_mm,

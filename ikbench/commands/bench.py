@@ -15,16 +15,17 @@ def register(subparsers) -> None:
             "targets in one call. Writes OUTPUT/benchmark.csv (median, min, max wall time per "
             "method and trajectory, totals, speed-ups against the first method, final losses "
             "and metrics), benchmark_runs.csv (every timed solve), benchmark.json (settings, "
-            "CPU, versions, git revision) and benchmark.md. The paper's method takes tens of "
-            "seconds per round, so by default it runs 3 rounds and other methods 5."
+            "CPU, versions, git revision) and benchmark.md (with the range of per-trajectory "
+            "speed-ups). The output folder is checked before timing. The paper's method takes "
+            "tens of seconds per round, so by default it runs 3 rounds and other methods 5."
         ),
     )
     parser.add_argument("--methods", default=DEFAULT_METHODS,
                         help=f"comma-separated methods; the first is the baseline of the ratios "
                         f"(default: {DEFAULT_METHODS})")
-    parser.add_argument("--repeat", default=DEFAULT_REPEAT,
+    parser.add_argument("--repeat", default=None,
                         help="timed rounds: N for every method, or N,method=M to give a "
-                        f"method its own count (default: {DEFAULT_REPEAT})")
+                        f"method of --methods its own count (default: {DEFAULT_REPEAT})")
     parser.add_argument("--warmup", type=int, default=1,
                         help="untimed rounds before timing (default 1)")
     parser.add_argument("--targets", default=None,
@@ -42,13 +43,17 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from ikbench.bench import benchmark, headline, write
+    from pathlib import Path
+
+    from ikbench.bench import benchmark, headline, speedup_ranges, write
     from ikbench.errors import InputError
+    from ikbench.io import check_writable
 
     if args.steps is not None and args.steps < 2:
         raise InputError(f"--steps: {args.steps} must be an integer >= 2")
     if args.threads < 1:
         raise InputError(f"--threads: {args.threads} must be an integer >= 1")
+    check_writable(Path(args.output) / "benchmark.csv")  # before the timed rounds
     import torch
 
     torch.set_num_threads(args.threads)
@@ -60,5 +65,9 @@ def run(args) -> int:
                                            "pointing_deviation_mean_deg", "end_point_error_mm",
                                            "within_limits"], errors="ignore")
     print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    base = result.record["methods"][0]
+    for method, (low, t_low, high, t_high) in speedup_ranges(result.summary, base).items():
+        print(f"per trajectory, {method} vs {base}: {low:.1f}x (trajectory {t_low}) to "
+              f"{high:.1f}x (trajectory {t_high})")
     print(f"written to {path} (and benchmark.md, benchmark_runs.csv, benchmark.json)")
     return 0

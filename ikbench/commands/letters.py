@@ -18,11 +18,12 @@ def register(subparsers) -> None:
             "its box centred on the fingertip, read by a viewer facing the robot, the finger "
             "pointing along the plane normal (-1, 0, 0); no start/end pose or point terms. "
             "Same as `ikbench run --shape letter:LETTERS` with the paper's letter setting as "
-            f"defaults: start pose {pose}, letters 300 mm high, n = {DEFAULT_STEPS}, and for "
-            f"ours --stop none --max-iterations {PAPER_ITERATIONS} (best loss kept; weights "
-            "c0=1, c1=50, c6=1, others 0, to which --weights changes apply). Writes "
-            "OUTPUT/<method>/trajectory_<letter>.csv, table.csv, details.csv, run.json, "
-            "shapes.png and report.md."
+            f"defaults: start pose {pose}, letters 300 mm high, n = {DEFAULT_STEPS}, weights "
+            "c0=1, c1=50, c6=1, others 0, to which --weights changes apply (ours and ours-lm), "
+            f"and for ours --stop none --max-iterations {PAPER_ITERATIONS} (best loss kept). "
+            "--method ours-lm solves a letter in a fraction of a second, starting with every "
+            "pose at the start pose. Writes OUTPUT/<method>/trajectory_<letter>.csv, "
+            "table.csv, details.csv, run.json, shapes.png and report.md."
         ),
     )
     parser.add_argument("letters", help="letters A-Z, comma-separated, e.g. P or P,A,S")

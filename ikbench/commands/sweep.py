@@ -4,16 +4,24 @@ from __future__ import annotations
 
 
 def register(subparsers) -> None:
+    from ikbench.commands.run import add_start_pose_argument
+    from ikbench.letters import PAPER_START_POSE_DEG
+
+    pose = ",".join(f"{v:g}" for v in PAPER_START_POSE_DEG)
     parser = subparsers.add_parser(
         "sweep",
-        help="solve the targets for a grid of loss weights (ours-lm); CSV, Pareto figure",
+        help="solve the targets or a shape for a grid of loss weights (ours-lm); CSV, Pareto "
+        "figure",
         description=(
             "Minimise the paper's objective with ours-lm for every combination of the given "
-            "weights (other terms keep the paper's weights; the paper's setting is always "
-            "included) on the targets, in one batched solve. Writes OUTPUT/sweep.csv (one row "
-            "per setting: mean line distance [mm], pointing deviation [deg], smoothness, "
-            "worst end errors, Pareto flag), sweep_trajectories.csv, pareto.png (line "
-            "distance vs pointing deviation, smoothness as colour), sweep.json and sweep.md."
+            "weights (other terms keep the reference weights: the paper's for lines, "
+            "polylines and splines, the paper's letter setting c0=1, c1=50, c6=1, others 0, "
+            "for letters; the reference setting is always included) on the targets or a "
+            "shape, in one batched solve. Writes OUTPUT/sweep.csv (one row per setting: mean "
+            "line distance [mm] for lines, point error and distance from the curve [mm] for "
+            "other shapes, pointing deviation [deg], smoothness, worst errors, Pareto flag), "
+            "sweep_trajectories.csv, pareto.png (accuracy vs pointing deviation, smoothness "
+            "as colour), sweep.json and sweep.md."
         ),
     )
     parser.add_argument("--weight", action="append", metavar="TERM=V1,V2,...",
@@ -21,9 +29,24 @@ def register(subparsers) -> None:
                         "(repeat for a grid over several terms: --weight c1=5,50)")
     parser.add_argument("--targets", default=None,
                         help="targets JSON file (default: the paper's seven touch poses)")
-    parser.add_argument("--only", default=None, help="comma-separated trajectory ids, e.g. 1,3")
+    parser.add_argument("--only", default=None,
+                        help="comma-separated trajectory ids, e.g. 1,3 (line only)")
+    parser.add_argument("--shape", default="line",
+                        help="line (default: one per touch pose), polyline:FILE or spline:FILE "
+                        "(CSV of x,y,z control points [mm], torso frame), or letter:X[,Y...] "
+                        "(letters A-Z on the frontal plane through the fingertip at the start "
+                        "pose)")
+    parser.add_argument("--size", type=float, default=None,
+                        help="letter height [mm] (default 300)")
+    parser.add_argument("--direction", default=None,
+                        help="goal pointing directions: tangent (default for line, polyline, "
+                        "spline), normal (of the drawing plane; default for letters) or a "
+                        "vector x,y,z")
+    add_start_pose_argument(parser, f"the targets file's; for letters the paper's letter pose "
+                            f"{pose}")
     parser.add_argument("--steps", type=int, default=None,
-                        help="number of segments n (default: the targets file's, 50)")
+                        help="number of segments n (default: the targets file's, 50, for "
+                        "lines; 100 for other shapes)")
     parser.add_argument("--output", default="results/sweep",
                         help="output directory (default: results/sweep)")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -31,18 +54,26 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    from pathlib import Path
+
     from ikbench.errors import InputError
-    from ikbench.sweep import parse_grid, sweep, write
+    from ikbench.io import check_writable
+    from ikbench.sweep import measures_of, parse_grid, sweep, write
+    from ikbench.targets import parse_pose
 
     grid = parse_grid(args.weight)
     if args.steps is not None and args.steps < 2:
         raise InputError(f"--steps: {args.steps} must be an integer >= 2")
+    start_pose = None if args.start_pose is None else parse_pose(args.start_pose,
+                                                                 what="--start-pose")
+    check_writable(Path(args.output) / "sweep.csv")  # before the solve, not after it
     result = sweep(grid, targets=args.targets, only=args.only, steps=args.steps,
-                   progress=not args.quiet)
+                   shape=args.shape, size_mm=args.size, start_pose=start_pose,
+                   direction=args.direction, progress=not args.quiet)
     path = write(result, args.output)
-    cols = ["setting", "line_distance_mean_mm", "pointing_deviation_mean_deg",
-            "mean_sq_joint_step_deg2", "end_point_error_mm", "pareto"]
-    table = result.settings.sort_values("line_distance_mean_mm")[cols]
+    m = measures_of(result.settings)
+    cols = [c for c in m.table_columns if c not in ("loss", "paper_loss", "converged")]
+    table = result.settings.sort_values(m.accuracy)[cols]
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     print(f"written to {path} (and sweep.md, pareto.png, sweep_trajectories.csv)")
     return 0

@@ -18,15 +18,20 @@ matrix J^T J is block-tridiagonal (dof x dof blocks): a band matrix of half-band
 solved by banded Cholesky (LAPACK ``pbsv`` via scipy; a numpy block-Thomas solver otherwise).
 Joint limits are box constraints: projected LM with an active set (a variable at a bound whose
 gradient points outwards is held), steps clipped to the box, Marquardt damping diag(J^T J)
-with Nielsen's update. Initial poses: the joint interpolation from start to touch pose.
-Many trajectories are solved at once, vectorised over trajectories and poses.
+with Nielsen's update. Initial poses: the joint interpolation from start to touch pose, or,
+for a task that pins neither (a letter, polyline or spline), every pose at the task's reference
+pose. Many trajectories are solved at once, vectorised over trajectories and poses.
+
+Weights: as in ``ours``, a task may name the weights it is meant for
+(``Task.default_weights``, e.g. a letter's c0=1, c1=50, c6=1, others 0); ``--weights`` changes
+then apply on top of those instead of the paper's, per task in one batch.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -379,13 +384,24 @@ class BatchResult:
 
 
 def initial_poses(robot, tasks) -> np.ndarray:
-    """Joint interpolation from start to touch pose, (B, N, dof) [motor deg]."""
+    """Initial poses (B, N, dof) [motor deg], clipped to the motor ranges.
+
+    The joint interpolation from start to touch pose; a task that pins neither (a letter,
+    polyline or spline) starts with every pose at its reference pose.
+
+    Raises:
+        InputError: a task has neither a start and an end pose nor a reference pose.
+    """
     out = []
     for task in tasks:
-        if task.start_pose_deg is None or task.end_pose_deg is None:
-            raise InputError(f"trajectory {task.name!r}: ours-lm needs a start and an end pose")
         t = np.linspace(0.0, 1.0, task.steps + 1)[:, None]
-        out.append(task.start_pose_deg + t * (task.end_pose_deg - task.start_pose_deg))
+        if task.start_pose_deg is not None and task.end_pose_deg is not None:
+            out.append(task.start_pose_deg + t * (task.end_pose_deg - task.start_pose_deg))
+        elif task.reference_pose_deg is not None:
+            out.append(np.asarray(task.reference_pose_deg, dtype=float) + 0.0 * t)
+        else:
+            raise InputError(f"trajectory {task.name!r}: ours-lm needs a start and an end pose "
+                             "or a reference pose to start from")
     return np.clip(np.stack(out), robot.lower_motor_deg, robot.upper_motor_deg)
 
 
@@ -508,7 +524,11 @@ class OursLM(Method):
     def __init__(self, weights: dict | str | None = None, max_iterations: int = 200,
                  tolerance: float = 1e-9, damping: float = 1e-3, kinematics: str = "numpy",
                  linear_solver: str = "banded"):
-        if isinstance(weights, str) or weights is None:
+        # As in ``ours``: changes (a --weights string) go on top of a task's own default
+        # weights; a dict is the complete set and is used for every task.
+        self._explicit_weights = isinstance(weights, dict)
+        self._weight_changes = None if self._explicit_weights else weights
+        if not self._explicit_weights:
             weights = parse_weights(weights)
         if isinstance(max_iterations, bool) or int(max_iterations) != max_iterations \
                 or max_iterations < 1:
@@ -544,15 +564,26 @@ class OursLM(Method):
                            help="ours-lm: banded Cholesky via LAPACK (default) or numpy "
                            "block Thomas")
 
+    def settings_for(self, task) -> LMSettings:
+        """The settings for one task: its default weights, if any, under the user's changes."""
+        if task.default_weights is None or self._explicit_weights:
+            return self.settings
+        return replace(self.settings, weights=parse_weights(self._weight_changes,
+                                                            task.default_weights))
+
     def solve(self, robot, task, progress=None) -> Solution:
         return self.solve_many(robot, [task])[0]
 
     def solve_many(self, robot, tasks, progress=None) -> list[Solution]:
-        """One batched solve of every task; each Solution's duration_s is its share."""
+        """One batched solve of every task (each with :meth:`settings_for`'s weights); each
+        Solution's duration_s is its share of the batch's wall time."""
+        from ikbench.methods.ours import format_weights
+
+        weights = [self.settings_for(task).weights for task in tasks]
         if progress:
             for k, task in enumerate(tasks):
                 progress.start(task, k, len(tasks))
-        result = solve_batch(robot, tasks, self.settings)
+        result = solve_batch(robot, tasks, self.settings, weights=weights)
         share = result.duration_s / len(tasks)
         solutions = []
         for k, task in enumerate(tasks):
@@ -561,6 +592,7 @@ class OursLM(Method):
                 duration_s=share, loss=float(result.loss[k]),
                 converged=bool(result.converged[k]),
                 info={"batch_size": len(tasks), "batch_wall_time_s": result.duration_s,
+                      "weights": format_weights(weights[k]),
                       **{f"{t}": float(v) for t, v in zip(TERMS, result.terms[k])}}))
             if progress:
                 progress.done(task, solutions[-1])
