@@ -43,15 +43,13 @@ from ikbench.report import (
     table1_comparison,
 )
 from ikbench.robot import Robot, load_robot
-from ikbench.targets import Targets, load_targets
+from ikbench.targets import ID_PATTERN, Targets, load_targets
 from ikbench.task import build_tasks, parse_shape
 from ikbench.trajectory import DEFAULT_DURATION_S, read_trajectory_poses, write_trajectory_csv
 
 DEFAULT_OUTPUT = "results"
 #: Folders other commands write into an output directory; no method run may take them.
 RESERVED_NAMES = ("ablation", "sweep", "batch", "letters")
-#: A run's folder name: letters, digits, '_', '-' and '.' (not first), as it names a folder.
-NAME_PATTERN = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 #: A trajectory CSV that a run writes (``trajectory_<id>.csv``).
 TRAJECTORY_FILE = re.compile(r"trajectory_(.+)\.csv")
 
@@ -62,7 +60,7 @@ def check_name(name: str) -> str:
     Args:
         name: folder name under the output directory (``sequential-ik-position``).
     """
-    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+    if not isinstance(name, str) or not ID_PATTERN.fullmatch(name):
         raise InputError(f"--name: {name!r} is not allowed; a name is letters, digits, '_', "
                          "'-' and '.' (not first), as it names a folder")
     if name in RESERVED_NAMES:
@@ -220,6 +218,8 @@ def _solve_and_write(robot, targets, tasks, solver, output: Path, duration_s, pr
     atomic_write_csv(method_dir / "table.csv", table, float_format="%.10g")
     atomic_write_csv(method_dir / "details.csv", details, float_format="%.10g")
     settings = {k: v for k, v in vars(solver).items() if not k.startswith("_")}
+    if hasattr(solver, "settings_for"):  # the settings used: the task's weights under changes
+        settings["settings"] = solver.settings_for(tasks[0])
     record = {"method": solver.name, "name": name, "targets": targets.source,
               "trajectories": [task.name for task in tasks], "steps": tasks[0].steps,
               "shape": shape, "direction": direction,

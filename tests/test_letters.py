@@ -134,6 +134,9 @@ def test_cli_letters_uses_the_papers_letter_setting(tmp_path, capsys):
     assert record["shape"] == "letter:L,X" and record["trajectories"] == ["L", "X"]
     assert record["start_pose_deg"] == list(PAPER_START_POSE_DEG) and record["steps"] == 8
     assert record["settings"]["settings"]["stop"] == "none"
+    # run.json names the weights used (the letter's), not the paper's line weights
+    assert record["settings"]["settings"]["weights"] == {
+        "L0": 1.0, "L1": 50.0, "L2": 0.0, "L3": 0.0, "L4": 0.0, "L5": 0.0, "L6": 1.0}
     details = pd.read_csv(folder / "details.csv")
     assert details["weights"].tolist() == ["c0=1,c1=50,c2=0,c3=0,c4=0,c5=0,c6=1"] * 2
     table = pd.read_csv(folder / "table.csv")
