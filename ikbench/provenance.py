@@ -34,13 +34,24 @@ def cpu_model() -> str:
 
 
 def git_revision() -> str | None:
-    """The checkout's commit (with ``-dirty`` if modified), or None outside git."""
+    """The checkout's commit, with ``-dirty`` if code is modified; None outside git.
+
+    Changes under ``results*/`` do not count: regenerating the committed results changes only
+    them, and the code that produced them is still the commit named.
+    """
+    def git(*args):
+        return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True,
+                              timeout=10).stdout.strip()
+
     try:
-        rev = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"],
-                             cwd=REPO, capture_output=True, text=True, timeout=10)
+        rev = git("rev-parse", "--short=12", "HEAD")
+        changed = git("status", "--porcelain", "--untracked-files=no", "--", ".",
+                      ":(exclude,glob)results*/**")
     except (OSError, subprocess.SubprocessError):
         return None
-    return rev.stdout.strip() or None
+    if not rev:
+        return None
+    return rev + ("-dirty" if changed else "")
 
 
 def provenance() -> dict:

@@ -57,7 +57,8 @@ WRITES = ("README.md", "report.md", "pointing_deviation_per_step.png", OURS, BAS
           *BASELINE_MODES.values(), INTERPOLATION_RUN, "ablation")
 #: Other commands that write into a results directory, by the first word of what they write.
 OTHER_COMMANDS = {"benchmark": "ikbench bench", "sweep": "ikbench sweep",
-                  "batch": "ikbench batch", "letters": "ikbench letters"}
+                  "batch": "ikbench batch", "letters": "ikbench letters",
+                  "ours_speed": "python benchmarks/ours_speed.py"}
 
 
 class ReproduceError(IkbenchError):
@@ -270,8 +271,9 @@ def _provenance_lines(output: Path, command: str) -> list[str]:
                     if not p.name.startswith(".") and p.name not in WRITES)
     by_command: dict[str, list[str]] = {}
     for name in others:
-        word = name.split(".")[0].split("_")[0]
-        by_command.setdefault(OTHER_COMMANDS.get(word, ""), []).append(
+        stem = name.split(".")[0]
+        writer = OTHER_COMMANDS.get(stem) or OTHER_COMMANDS.get(stem.split("_")[0], "")
+        by_command.setdefault(writer, []).append(
             name + ("/" if (output / name).is_dir() else ""))
     written = ", ".join(f"`{n}/`" if (output / n).is_dir() else f"`{n}`" for n in WRITES
                         if n == "README.md" or (output / n).exists())

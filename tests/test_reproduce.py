@@ -25,6 +25,7 @@ def quick(tmp_path_factory):
     (out / "benchmark.md").write_text("by ikbench bench")
     (out / "benchmark_runs.csv").write_text("by ikbench bench")
     (out / "mystery.txt").write_text("by hand")
+    (out / "ours_speed.csv").write_text("by benchmarks/ours_speed.py")
     stdout, stderr = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
         assert main(["reproduce", "--quick", "--output", str(out)]) == 0
@@ -72,6 +73,7 @@ def test_readme_says_which_command_wrote_what(quick):
             "`ablation/`.") in readme
     assert "`benchmark.md`, `benchmark_runs.csv` by `ikbench bench`" in readme
     assert "`sweep/` by `ikbench sweep`" in readme
+    assert "`ours_speed.csv` by `python benchmarks/ours_speed.py`" in readme
     assert "`mystery.txt` by no stage of `ikbench reproduce`" in readme
 
 
