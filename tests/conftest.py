@@ -23,3 +23,16 @@ def robot():
 @pytest.fixture(scope="session")
 def paper_targets():
     return load_targets()
+
+
+def blocked_output(tmp_path: Path, blocked_by: str, name: str) -> tuple[Path, str]:
+    """An output path that cannot be written, and the reason the error must name.
+
+    ``blocked_by="file"``: ``name`` under a regular file; ``"directory"``: a directory itself.
+    """
+    blocker = tmp_path / "blocker"
+    if blocked_by == "file":
+        blocker.write_text("not a folder")
+        return blocker / name, f"{blocker} is a file, not a directory"
+    blocker.mkdir()
+    return blocker, "it is a directory"

@@ -28,6 +28,7 @@ from ikbench.hw.executor import ExecutionInterrupted, execute
 from ikbench.hw.motors import default_config_path, load_motor_config
 from ikbench.hw.plan import make_plan
 from ikbench.trajectory import write_trajectory_csv
+from tests.conftest import blocked_output
 
 START = np.array([-24.92, 81.45, 46.55, 94.37, -59.03, 28.0, 45.67])
 TOUCH_1 = np.array([33, 39, 25, 134, 102, 77, -168.0])
@@ -516,13 +517,7 @@ def test_ctrl_c_while_settling_is_reported_and_holds():
 @pytest.mark.parametrize("blocked_by", ["file", "directory"])
 def test_unwritable_record_is_refused_before_anything_moves(short_traj, tmp_path, capsys,
                                                             blocked_by):
-    blocker = tmp_path / "blocker"
-    if blocked_by == "file":
-        blocker.write_text("not a folder")
-        record, reason = blocker / "rec.csv", f"{blocker} is a file, not a directory"
-    else:
-        blocker.mkdir()
-        record, reason = blocker, "it is a directory"
+    record, reason = blocked_output(tmp_path, blocked_by, "rec.csv")
     with Emulator(load_motor_config(), START) as emulator:
         code = main(["execute", str(short_traj), "--port", emulator.port, "--duration", "0.3",
                      "--record", str(record)])

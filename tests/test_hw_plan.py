@@ -13,6 +13,7 @@ from ikbench.errors import InputError
 from ikbench.hw.motors import default_config_path, load_motor_config, parse_motor_config
 from ikbench.hw.plan import make_plan
 from ikbench.trajectory import write_trajectory_csv
+from tests.conftest import blocked_output
 
 START = np.array([-24.92, 81.45, 46.55, 94.37, -59.03, 28.0, 45.67])
 TOUCH_1 = np.array([33, 39, 25, 134, 102, 77, -168.0])
@@ -130,13 +131,7 @@ def test_plan_cli_missing_file(tmp_path, capsys):
 
 @pytest.mark.parametrize("blocked_by", ["file", "directory"])
 def test_plan_cli_unwritable_out_is_one_line(traj, tmp_path, capsys, blocked_by):
-    blocker = tmp_path / "blocker"
-    if blocked_by == "file":
-        blocker.write_text("not a folder")
-        out_csv, reason = blocker / "plan.csv", f"{blocker} is a file, not a directory"
-    else:
-        blocker.mkdir()
-        out_csv, reason = blocker, "it is a directory"
+    out_csv, reason = blocked_output(tmp_path, blocked_by, "plan.csv")
     assert main(["plan", str(traj), "--out", str(out_csv)]) == 2
     out, err = capsys.readouterr()
     assert out == ""  # refused before the table is printed

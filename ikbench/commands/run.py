@@ -28,29 +28,37 @@ def register(subparsers) -> None:
                                     for name, cls in methods.items())
         ),
     )
+    add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3",
+                       letters_help=", one trajectory each",
+                       start_pose_default="the targets file's")
+    add_run_arguments(parser, methods, "results")
+    parser.add_argument("--name", default=None,
+                        help="folder under OUTPUT for this run (default: the method's name), "
+                        "e.g. sequential-ik-position; letters, digits, '_', '-', '.'")
+    parser.set_defaults(func=run)
+
+
+def add_task_arguments(parser, only_help: str, letters_help: str,
+                       start_pose_default: str) -> None:
+    """--targets, --only, --shape, --size, --direction, --start-pose, --steps (run, sweep)."""
     parser.add_argument("--targets", default=None,
                         help="targets JSON file (default: the paper's seven touch poses)")
-    parser.add_argument("--only", default=None, help="comma-separated trajectory ids, e.g. 1,3")
+    parser.add_argument("--only", default=None, help=only_help)
     parser.add_argument("--shape", default="line",
                         help="line (default: one per touch pose), polyline:FILE or spline:FILE "
                         "(CSV of x,y,z control points [mm], torso frame), or letter:X[,Y...] "
                         "(letters A-Z on the frontal plane through the fingertip at the start "
-                        "pose, one trajectory each)")
+                        f"pose{letters_help})")
     parser.add_argument("--size", type=float, default=None,
                         help="letter height [mm] (default 300)")
     parser.add_argument("--direction", default=None,
                         help="goal pointing directions: tangent (default for line, polyline, "
                         "spline), normal (of the drawing plane; default for letters) or a "
                         "vector x,y,z")
-    add_start_pose_argument(parser, "the targets file's")
+    add_start_pose_argument(parser, start_pose_default)
     parser.add_argument("--steps", type=int, default=None,
                         help="number of segments n (default: the targets file's, 50, for "
                         "lines; 100 for other shapes)")
-    add_run_arguments(parser, methods, "results")
-    parser.add_argument("--name", default=None,
-                        help="folder under OUTPUT for this run (default: the method's name), "
-                        "e.g. sequential-ik-position; letters, digits, '_', '-', '.'")
-    parser.set_defaults(func=run)
 
 
 def add_start_pose_argument(parser, default: str) -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 
 def register(subparsers) -> None:
-    from ikbench.commands.run import add_start_pose_argument
+    from ikbench.commands.run import add_task_arguments
     from ikbench.letters import PAPER_START_POSE_DEG
 
     pose = ",".join(f"{v:g}" for v in PAPER_START_POSE_DEG)
@@ -27,26 +27,10 @@ def register(subparsers) -> None:
     parser.add_argument("--weight", action="append", metavar="TERM=V1,V2,...",
                         help="a term of the grid and its values, e.g. --weight c0=1,10,100,1000 "
                         "(repeat for a grid over several terms: --weight c1=5,50)")
-    parser.add_argument("--targets", default=None,
-                        help="targets JSON file (default: the paper's seven touch poses)")
-    parser.add_argument("--only", default=None,
-                        help="comma-separated trajectory ids, e.g. 1,3 (line only)")
-    parser.add_argument("--shape", default="line",
-                        help="line (default: one per touch pose), polyline:FILE or spline:FILE "
-                        "(CSV of x,y,z control points [mm], torso frame), or letter:X[,Y...] "
-                        "(letters A-Z on the frontal plane through the fingertip at the start "
-                        "pose)")
-    parser.add_argument("--size", type=float, default=None,
-                        help="letter height [mm] (default 300)")
-    parser.add_argument("--direction", default=None,
-                        help="goal pointing directions: tangent (default for line, polyline, "
-                        "spline), normal (of the drawing plane; default for letters) or a "
-                        "vector x,y,z")
-    add_start_pose_argument(parser, f"the targets file's; for letters the paper's letter pose "
-                            f"{pose}")
-    parser.add_argument("--steps", type=int, default=None,
-                        help="number of segments n (default: the targets file's, 50, for "
-                        "lines; 100 for other shapes)")
+    add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3 (line only)",
+                       letters_help="",
+                       start_pose_default=f"the targets file's; for letters the paper's "
+                       f"letter pose {pose}")
     parser.add_argument("--output", default="results/sweep",
                         help="output directory (default: results/sweep)")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
