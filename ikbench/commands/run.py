@@ -29,7 +29,6 @@ def register(subparsers) -> None:
         ),
     )
     add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3",
-                       letters_help=", one trajectory each",
                        start_pose_default="the targets file's")
     add_run_arguments(parser, methods, "results")
     parser.add_argument("--name", default=None,
@@ -38,8 +37,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def add_task_arguments(parser, only_help: str, letters_help: str,
-                       start_pose_default: str) -> None:
+def add_task_arguments(parser, only_help: str, start_pose_default: str) -> None:
     """--targets, --only, --shape, --size, --direction, --start-pose, --steps (run, sweep)."""
     parser.add_argument("--targets", default=None,
                         help="targets JSON file (default: the paper's seven touch poses)")
@@ -48,7 +46,7 @@ def add_task_arguments(parser, only_help: str, letters_help: str,
                         help="line (default: one per touch pose), polyline:FILE or spline:FILE "
                         "(CSV of x,y,z control points [mm], torso frame), or letter:X[,Y...] "
                         "(letters A-Z on the frontal plane through the fingertip at the start "
-                        f"pose{letters_help})")
+                        "pose, one trajectory each)")
     parser.add_argument("--size", type=float, default=None,
                         help="letter height [mm] (default 300)")
     parser.add_argument("--direction", default=None,

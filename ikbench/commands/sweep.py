@@ -28,7 +28,6 @@ def register(subparsers) -> None:
                         help="a term of the grid and its values, e.g. --weight c0=1,10,100,1000 "
                         "(repeat for a grid over several terms: --weight c1=5,50)")
     add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3 (line only)",
-                       letters_help="",
                        start_pose_default=f"the targets file's; for letters the paper's "
                        f"letter pose {pose}")
     parser.add_argument("--output", default="results/sweep",
