@@ -46,8 +46,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ikbench.errors import InputError
-from ikbench.methods import Method, Solution, register
+from ikbench.core.errors import InputError
+from ikbench.methods.base import Method, Solution, check_choice, check_positive, option
 
 ORIENTATIONS = ("frame", "pointing", "position")
 #: ``up_vector`` value that takes the roll from the touch pose (y-axis of its end frame).
@@ -60,7 +60,7 @@ LIMIT_EPS_RAD = 1e-12
 
 @dataclass
 class DLSSettings:
-    """Settings of the damped-least-squares solve of one point.
+    """Settings of the damped-least-squares solve of one point (CLI options from ``option``).
 
     Attributes:
         orientation: ``"frame"``, ``"pointing"`` or ``"position"`` (see the module doc).
@@ -71,12 +71,27 @@ class DLSSettings:
         up_vector: ``"touch"`` or a (3,) vector fixing the roll in ``frame`` mode.
     """
 
-    orientation: str = "frame"
-    damping: float = 1e-3
-    ik_step: float = 1.0
-    tolerance: float = 1e-6
-    max_ik_iterations: int = 100
-    up_vector: str | tuple = UP_FROM_TOUCH
+    orientation: str = option("frame", choices=ORIENTATIONS,
+                              help="frame (6-D, the paper's text), pointing (position + "
+                              "pointing axis, roll free) or position (what the authors' ikpy "
+                              "call solved)")
+    damping: float = option(1e-3, unit="m, rad", help="DLS damping lambda")
+    ik_step: float = option(1.0, help="fraction of the DLS step applied, in (0, 1]")
+    tolerance: float = option(1e-6, unit="m, rad",
+                              help="stop a point when the task error norm is below this")
+    max_ik_iterations: int = option(100, help="iteration cap per point")
+    up_vector: str | tuple = option(UP_FROM_TOUCH, type=str,
+                                    help="frame mode: reference up vector x,y,z fixing the roll "
+                                    "(x-axis = up x d); 'touch' takes the touch pose's roll")
+
+    def __post_init__(self):
+        check_choice(self, "orientation", ORIENTATIONS)
+        check_positive(self, "damping", "ik_step", "tolerance")
+        if self.ik_step > 1:
+            raise InputError(f"--ik-step: {self.ik_step!r} must be in (0, 1]")
+        check_positive(self, "max_ik_iterations", integer=True)
+        self.max_ik_iterations = int(self.max_ik_iterations)
+        self.up_vector = parse_up_vector(self.up_vector)
 
 
 class PointResult(NamedTuple):
@@ -140,7 +155,7 @@ class Residual:
     """Task error e (goal - current) and its Jacobian de/dq for one goal, via Pinocchio.
 
     Args:
-        pin_fk: the robot's :class:`ikbench.kinematics.PinocchioFK` (model and frame id).
+        pin_fk: the robot's :class:`ikbench.core.kinematics.PinocchioFK` (model and frame id).
         data: a ``pinocchio.Data`` of that model (scratch space).
         orientation: ``"frame"``, ``"pointing"`` or ``"position"``.
         point_m: (3,) goal point [m].
@@ -374,63 +389,23 @@ def parse_up_vector(value) -> str | tuple:
     return vector
 
 
-@register
 class SequentialIK(Method):
     """Point-by-point damped-least-squares IK walked back from the touch pose."""
 
     name = "sequential-ik"
     description = ("baseline: point-by-point damped-least-squares IK on Pinocchio, walked "
                    "back from the touch pose")
-    options = {"orientation": "orientation", "damping": "damping", "ik_step": "ik_step",
-               "tolerance": "tolerance", "max_ik_iterations": "max_ik_iterations",
-               "up_vector": "up_vector"}
+    library = "pin"
+    Settings = DLSSettings
+    requires_touch_pose = True
 
-    def __init__(self, orientation: str = "frame", damping: float = 1e-3, ik_step: float = 1.0,
-                 tolerance: float = 1e-6, max_ik_iterations: int = 100,
-                 up_vector: str | tuple = UP_FROM_TOUCH):
-        if orientation not in ORIENTATIONS:
-            raise InputError(f"--orientation: {orientation!r} is not one of "
-                             f"{', '.join(ORIENTATIONS)}")
-        for flag, value in (("--damping", damping), ("--ik-step", ik_step),
-                            ("--tolerance", tolerance)):
-            if not (value > 0 and math.isfinite(value)):
-                raise InputError(f"{flag}: {value!r} must be a positive number")
-        if ik_step > 1:
-            raise InputError(f"--ik-step: {ik_step!r} must be in (0, 1]")
-        if isinstance(max_ik_iterations, bool) or int(max_ik_iterations) != max_ik_iterations \
-                or max_ik_iterations < 1:
-            raise InputError(f"--max-ik-iterations: {max_ik_iterations!r} must be an integer "
-                             ">= 1")
-        self.settings = DLSSettings(orientation=orientation, damping=float(damping),
-                                    ik_step=float(ik_step), tolerance=float(tolerance),
-                                    max_ik_iterations=int(max_ik_iterations),
-                                    up_vector=parse_up_vector(up_vector))
+    def prepare(self, robot) -> None:
+        robot.pinocchio_fk()
 
-    @classmethod
-    def add_arguments(cls, group) -> None:
-        group.add_argument("--orientation", choices=ORIENTATIONS, default=None,
-                           help="sequential-ik: frame (6-D, the paper's text; default), "
-                           "pointing (position + pointing axis, roll free) or position "
-                           "(what the authors' ikpy call solved)")
-        group.add_argument("--damping", type=float, default=None,
-                           help="sequential-ik: DLS damping lambda (default 1e-3)")
-        group.add_argument("--ik-step", type=float, default=None,
-                           help="sequential-ik: fraction of the DLS step applied, in (0, 1] "
-                           "(default 1)")
-        group.add_argument("--tolerance", type=float, default=None,
-                           help="sequential-ik: stop a point when the task error norm "
-                           "(metres, radians) is below this (default 1e-6)")
-        group.add_argument("--max-ik-iterations", type=int, default=None,
-                           help="sequential-ik: iteration cap per point (default 100)")
-        group.add_argument("--up-vector", default=None, metavar="touch|X,Y,Z",
-                           help="sequential-ik, frame mode: reference up vector fixing the "
-                           "roll (x-axis = up x d); 'touch' (default) takes the touch pose's "
-                           "roll")
+    def check_tasks(self, robot, tasks) -> None:
+        """Every task needs a touch pose, and in frame mode an up vector that is not parallel
+        to its line (:func:`check_tasks`)."""
+        check_tasks(robot, tasks, self.settings)
 
     def solve(self, robot, task, progress=None) -> Solution:
         return walk(robot, task, self.settings)
-
-    def solve_many(self, robot, tasks, progress=None) -> list[Solution]:
-        """Check every task first (:func:`check_tasks`), then walk each."""
-        check_tasks(robot, tasks, self.settings)
-        return super().solve_many(robot, tasks, progress)

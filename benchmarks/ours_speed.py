@@ -27,11 +27,11 @@ import pandas as pd
 import torch
 
 from ikbench import load_robot, load_targets
-from ikbench.io import atomic_write_csv, check_writable
-from ikbench.losses import PAPER_WEIGHTS, LossGoals, loss_terms, weighted_loss
+from ikbench.core.io import atomic_write_csv, check_writable
+from ikbench.core.losses import PAPER_WEIGHTS, LossGoals, loss_terms, weighted_loss
+from ikbench.core.provenance import provenance
+from ikbench.core.task import line_tasks
 from ikbench.methods.ours import initial_logits
-from ikbench.provenance import provenance
-from ikbench.task import line_tasks
 
 
 def _rot(axis: str, deg):

@@ -1,13 +1,96 @@
 """ikbench: generate robot-arm trajectories of a required shape and compare kinematics methods.
 
-Poses are in motor degrees, reports in millimetres and degrees. Start with
-:func:`load_robot` and :func:`load_targets`.
+The public API, in a few names::
+
+    import ikbench
+    robot = ikbench.load_robot("nico_right_arm")        # or a config .toml / URDF + end frame
+    targets = ikbench.load_targets(robot=robot)         # the robot's start and touch poses
+    tasks = ikbench.build_tasks(robot, targets)         # goal points [mm] and directions
+    solution = ikbench.get_method("ours-lm")().solve(robot, tasks[0])
+    metrics = ikbench.trajectory_metrics(robot, tasks[0], solution.poses_deg)
+    table = ikbench.run("ours-lm", robot=robot, output=None)   # a pandas DataFrame
+
+Poses are in the robot's units (motor degrees for NICO; joint degrees, mm for prismatic
+joints, otherwise), reports in millimetres and degrees. Names are imported on first use, so
+``import ikbench`` is quick.
 """
 
-__version__ = "0.1.0"
+from __future__ import annotations
 
-from ikbench.errors import IkbenchError, InputError  # noqa: E402
-from ikbench.robot import Robot, load_robot  # noqa: E402
-from ikbench.targets import Targets, load_targets  # noqa: E402
+import importlib
+import importlib.abc
+import importlib.util
+import sys
+from typing import TYPE_CHECKING
 
-__all__ = ["IkbenchError", "InputError", "Robot", "Targets", "load_robot", "load_targets"]
+import ikbench.paper  # noqa: F401  registers the paper's report sections (nothing heavy)
+
+__version__ = "0.2.0"
+
+#: public name -> module that defines it
+_EXPORTS = {
+    "IkbenchError": "ikbench.core.errors", "InputError": "ikbench.core.errors",
+    "SolverError": "ikbench.core.errors",
+    "Robot": "ikbench.core.robot", "load_robot": "ikbench.core.robot",
+    "Targets": "ikbench.core.targets", "load_targets": "ikbench.core.targets",
+    "Task": "ikbench.core.task", "build_tasks": "ikbench.core.task",
+    "line_task": "ikbench.core.task", "line_tasks": "ikbench.core.task",
+    "trajectory_metrics": "ikbench.core.metrics", "shape_metrics": "ikbench.core.metrics",
+    "Method": "ikbench.methods.base", "Solution": "ikbench.methods.base",
+    "option": "ikbench.methods.base",
+    "get_method": "ikbench.methods.registry", "available_methods": "ikbench.methods.registry",
+    "method_status": "ikbench.methods.registry",
+    "run": "ikbench.studies.run",
+}
+__all__ = ["IkbenchError", "InputError", "Method", "Robot", "Solution", "SolverError", "Targets",
+           "Task", "available_methods", "build_tasks", "get_method", "line_task", "line_tasks",
+           "load_robot", "load_targets", "method_status", "option", "run", "shape_metrics",
+           "trajectory_metrics"]
+
+if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
+    from ikbench.core.errors import IkbenchError, InputError, SolverError
+    from ikbench.core.metrics import shape_metrics, trajectory_metrics
+    from ikbench.core.robot import Robot, load_robot
+    from ikbench.core.targets import Targets, load_targets
+    from ikbench.core.task import Task, build_tasks, line_task, line_tasks
+    from ikbench.methods.base import Method, Solution, option
+    from ikbench.methods.registry import available_methods, get_method, method_status
+    from ikbench.studies.run import run
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'ikbench' has no attribute {name!r}")
+
+
+# ----- the module paths of ikbench 0.1 (before the layers), kept importable ----------------
+_MOVED = {
+    **{f"ikbench.{m}": f"ikbench.core.{m}" for m in (
+        "errors", "io", "provenance", "robot", "kinematics", "task", "shapes", "letters",
+        "targets", "losses", "metrics", "trajectory")},
+    **{f"ikbench.{m}": f"ikbench.studies.{m}" for m in (
+        "run", "report", "ablation", "sweep", "bench", "batch")},
+    "ikbench.compare": "ikbench.paper.comparison", "ikbench.reproduce": "ikbench.paper.reproduce",
+    "ikbench.commands": "ikbench.cli.commands",
+}
+
+
+class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """``import ikbench.task`` gives ``ikbench.core.task`` (the same module object)."""
+
+    def find_spec(self, fullname, path, target=None):
+        if fullname in _MOVED:
+            return importlib.util.spec_from_loader(fullname, self)
+        return None
+
+    def create_module(self, spec):
+        return importlib.import_module(_MOVED[spec.name])
+
+    def exec_module(self, module):
+        pass
+
+
+sys.meta_path.append(_MovedModules())

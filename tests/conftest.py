@@ -36,3 +36,10 @@ def blocked_output(tmp_path: Path, blocked_by: str, name: str) -> tuple[Path, st
         return blocker / name, f"{blocker} is a file, not a directory"
     blocker.mkdir()
     return blocker, "it is a directory"
+
+
+def register_temporarily(monkeypatch, cls) -> None:
+    """Make the method class ``cls`` available by its name for one test."""
+    from ikbench.methods.registry import MethodStatus, method_status
+
+    monkeypatch.setitem(method_status(), cls.name, MethodStatus(cls.name, cls))

@@ -3,28 +3,31 @@ small end-to-end run whose numbers are re-derived from the written trajectories.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pandas as pd
 import pytest
 
 from ikbench import methods
-from ikbench.ablation import (
+from ikbench.cli import main
+from ikbench.core.errors import InputError
+from ikbench.core.losses import PAPER_WEIGHTS, TERMS, objective
+from ikbench.core.metrics import trajectory_metrics
+from ikbench.core.task import line_tasks
+from ikbench.core.trajectory import read_trajectory_poses
+from ikbench.paper.ablation_claims import check_claims
+from ikbench.studies.ablation import (
     FULL,
     SUMMARY_METRICS,
     Variant,
     ablate,
-    check_claims,
     check_method,
     joint_interpolation_distance_deg,
     parse_drops,
 )
-from ikbench.cli import main
-from ikbench.errors import InputError
-from ikbench.losses import PAPER_WEIGHTS, TERMS, objective
-from ikbench.metrics import trajectory_metrics
-from ikbench.report import TABLE_COLUMNS
-from ikbench.task import line_tasks
-from ikbench.trajectory import read_trajectory_poses
+from ikbench.studies.report import TABLE_COLUMNS
+from tests.conftest import register_temporarily
 
 
 def test_parse_drops_full_first_then_each_spec():
@@ -54,13 +57,15 @@ def test_cli_unknown_term_one_line_exit_2(capsys):
 
 
 def test_method_without_weights_rejected(monkeypatch, capsys):
+    @dataclass
+    class Tolerance:
+        tolerance: float = methods.option(1.0, help="a tolerance")
+
     class NoWeights(methods.Method):
         name = "no-weights"
+        Settings = Tolerance
 
-        def __init__(self, tolerance: float = 1.0):
-            self.tolerance = tolerance
-
-    monkeypatch.setitem(methods._REGISTRY, NoWeights.name, NoWeights)
+    register_temporarily(monkeypatch, NoWeights)
     assert check_method("ours").name == "ours"
     with pytest.raises(InputError, match="'no-weights' has no loss weights to drop; methods "
                        "that have: .*ours"):
@@ -191,12 +196,12 @@ def test_cli_rejects_options_of_other_methods(capsys):
 
 
 def test_unwritable_output_fails_before_any_solve(tmp_path, monkeypatch, capsys):
-    import ikbench.ablation as ablation
+    import ikbench.studies.ablation as ablation
 
     def no_solving(*args, **kwargs):
         raise AssertionError("solved before checking the output folder")
 
-    monkeypatch.setattr(ablation, "_solve_variant", no_solving)
+    monkeypatch.setattr(ablation, "solve_tasks", no_solving)
     blocker = tmp_path / "file"
     blocker.write_text("")
     assert main(["ablate", "--drop", "L1", "--only", "1", "--output", str(blocker)]) == 2

@@ -9,9 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from ikbench.batch import WorkspaceFilter, run_batch, sample_touch_poses, write
 from ikbench.cli import main
-from ikbench.errors import InputError
+from ikbench.core.errors import InputError
+from ikbench.studies.batch import WorkspaceFilter, run_batch, sample_touch_poses, write
 from tests.conftest import PAPER_START
 
 
@@ -24,7 +24,9 @@ def test_sampling_is_seeded_within_ranges_and_in_the_workspace(robot):
     assert poses.shape == (25, 7) and draws >= 25 and robot.within_limits(poses)
     fk = robot.fk(poses)
     start = robot.fk(PAPER_START).point_mm[0]
-    f = WorkspaceFilter()
+    f = WorkspaceFilter.of(robot)
+    assert (f.max_x_mm, f.min_z_mm, f.min_drop_below_start_mm, f.max_pointing_angle_deg) == (
+        -250.0, 0.0, 100.0, 20.0)  # the front workspace of NICO's config
     assert np.all(fk.point_mm[:, 0] <= f.max_x_mm)
     assert np.all(fk.point_mm[:, 2] >= f.min_z_mm)
     assert np.all(fk.point_mm[:, 2] <= start[2] - f.min_drop_below_start_mm)
@@ -93,12 +95,12 @@ def test_bad_seeds_rejected_before_sampling(robot, seed):
 
 
 def test_batch_cli_checks_the_output_before_sampling(tmp_path, capsys, monkeypatch):
-    import ikbench.batch
+    import ikbench.studies.batch
 
     def boom(*args, **kwargs):
         raise AssertionError("sampled before the output folder was checked")
 
-    monkeypatch.setattr(ikbench.batch, "run_batch", boom)
+    monkeypatch.setattr(ikbench.studies.batch, "run_batch", boom)
     (tmp_path / "file").write_text("")
     assert main(["batch", "--count", "2", "--output", str(tmp_path / "file" / "out"),
                  "--quiet"]) == 2

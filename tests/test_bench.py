@@ -9,7 +9,10 @@ import sys
 import pandas as pd
 import pytest
 
-from ikbench.bench import (
+from ikbench.cli import main
+from ikbench.core.errors import InputError
+from ikbench.methods.ours import Ours
+from ikbench.studies.bench import (
     TOTAL,
     TOTAL_BATCHED,
     BenchResult,
@@ -19,9 +22,6 @@ from ikbench.bench import (
     speedup_ranges,
     write,
 )
-from ikbench.cli import main
-from ikbench.errors import InputError
-from ikbench.methods.ours import Ours
 
 
 def test_parse_repeat():
@@ -121,12 +121,12 @@ def test_markdown_states_the_range_of_per_trajectory_speedups():
 
 
 def test_bench_cli_checks_the_output_before_timing(tmp_path, capsys, monkeypatch):
-    import ikbench.bench
+    import ikbench.studies.bench
 
     def boom(*args, **kwargs):
         raise AssertionError("timed before the output folder was checked")
 
-    monkeypatch.setattr(ikbench.bench, "benchmark", boom)
+    monkeypatch.setattr(ikbench.studies.bench, "benchmark", boom)
     (tmp_path / "file").write_text("")
     assert main(["bench", "--methods", "ours-lm", "--output", str(tmp_path / "file" / "out"),
                  "--quiet"]) == 2

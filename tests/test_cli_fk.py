@@ -18,8 +18,9 @@ def test_fk_json_exact_object(capsys, backend):
     out = capsys.readouterr().out
     obj = json.loads(out)
     assert out.strip().count("\n") == 0
-    assert set(obj) == {"backend", "pose_deg", "point_mm", "direction"}
-    assert obj["backend"] == backend
+    assert set(obj) == {"robot", "backend", "pose_deg", "pose_unit", "point_mm", "direction"}
+    assert obj["backend"] == backend and obj["robot"] == "nico_right_arm"
+    assert obj["pose_unit"] == "motor deg"
     assert obj["point_mm"] == pytest.approx([-114.44, 293.53, 455.65], abs=0.006)
     assert obj["direction"] == pytest.approx([-0.6798, -0.7313, 0.0553], abs=6e-5)
 

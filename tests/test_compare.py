@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from ikbench.cli import main
-from ikbench.compare import (
+from ikbench.paper.comparison import (
     BASELINE,
     OURS,
     check_claims,
@@ -20,7 +20,7 @@ from ikbench.compare import (
     table2_comparison,
     write_comparison_report,
 )
-from ikbench.report import paper_values
+from ikbench.paper.values import paper_values
 from tests.conftest import PAPER_START
 
 TOUCH_1 = [33, 39, 25, 134, 102, 77, -168]
@@ -277,7 +277,7 @@ def test_bad_name_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, name, 
 
 
 def test_run_name_sets_the_folder_and_run_json(tmp_path):
-    from ikbench.run import run
+    from ikbench.studies.run import run
 
     table = run("sequential-ik", only="7", steps=4, output=tmp_path, progress=False,
                 options={"orientation": "position"}, name="position-mode")

@@ -15,7 +15,7 @@ import pytest
 import serial
 
 from ikbench.cli import main
-from ikbench.commands.emulate import parse_fault
+from ikbench.cli.commands.emulate import parse_fault
 from ikbench.hw.emulator import Emulator, Fault
 from ikbench.hw.motors import load_motor_config
 from ikbench.hw.protocol import PacketReader, packet

@@ -22,12 +22,12 @@ import pandas as pd
 import pytest
 
 from ikbench.cli import main
+from ikbench.core.trajectory import write_trajectory_csv
 from ikbench.hw.bus import Bus
 from ikbench.hw.emulator import Emulator, Fault
 from ikbench.hw.executor import ExecutionInterrupted, execute
 from ikbench.hw.motors import default_config_path, load_motor_config
 from ikbench.hw.plan import make_plan
-from ikbench.trajectory import write_trajectory_csv
 from tests.conftest import blocked_output
 
 START = np.array([-24.92, 81.45, 46.55, 94.37, -59.03, 28.0, 45.67])

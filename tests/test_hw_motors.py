@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ikbench.cli import main
-from ikbench.errors import InputError
+from ikbench.core.errors import InputError
 from ikbench.hw.motors import (
     SPEED_UNIT_DEG_S,
     default_config_path,

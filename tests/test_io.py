@@ -8,8 +8,8 @@ import stat
 import pandas as pd
 import pytest
 
-from ikbench.errors import OutputError
-from ikbench.io import atomic_path, atomic_write_csv, atomic_write_text, check_writable
+from ikbench.core.errors import OutputError
+from ikbench.core.io import atomic_path, atomic_write_csv, atomic_write_text, check_writable
 
 
 def test_write_is_complete_and_leaves_no_temporary(tmp_path):

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ikbench.errors import InputError
-from ikbench.letters import (
+from ikbench.core.errors import InputError
+from ikbench.core.letters import (
     LETTER_WEIGHTS,
     LETTERS,
     PAPER_START_POSE_DEG,
@@ -15,9 +15,9 @@ from ikbench.letters import (
     letter_strokes,
     parse_letters,
 )
-from ikbench.losses import objective
+from ikbench.core.losses import objective
+from ikbench.core.task import build_tasks, letter_task
 from ikbench.methods.ours import Ours, initial_logits
-from ikbench.task import build_tasks, letter_task
 
 
 def test_every_letter_is_defined_and_fits_its_box():
@@ -149,7 +149,7 @@ def test_cli_letters_uses_the_papers_letter_setting(tmp_path, capsys):
 def test_run_letter_with_start_pose_override(robot, tmp_path):
     import json
 
-    from ikbench.run import run
+    from ikbench.studies.run import run
 
     pose = [10, 50, 10, 100, 170, 170, -140]
     table = run("ours", shape="letter:I", start_pose=pose, steps=6, size_mm=100,
@@ -168,7 +168,7 @@ def _authors_letter_p_goal_points_mm(robot):
     in 5 cm steps, then a half ellipse (15 cm wide, 15 cm high) in 30 points evenly spaced by
     arc length; on the plane x = FK(start).x, z = letter z + 30 cm - (FK(start).z - 10 cm)
     (the script's later version)."""
-    from ikbench.shapes import Curve
+    from ikbench.core.shapes import Curve
 
     stem = [(0.0, z) for z in range(30, 0, -1)] + [(0.0, z) for z in range(0, 30, 5)]
     theta = np.linspace(0, np.pi, 2001)
@@ -185,9 +185,9 @@ def _authors_letter_p_goal_points_mm(robot):
 def test_ours_reproduces_the_authors_letter_p(robot):
     """On the authors' own goal points and setting, ours lands where their script does
     (measured for issue 8: 15 mm mean, 51 mm max from the goal points, 11 deg pointing)."""
-    from ikbench.metrics import shape_metrics
-    from ikbench.shapes import Curve
-    from ikbench.task import Task
+    from ikbench.core.metrics import shape_metrics
+    from ikbench.core.shapes import Curve
+    from ikbench.core.task import Task
 
     goal = _authors_letter_p_goal_points_mm(robot)
     assert len(goal) == 66

@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ikbench.errors import InputError
-from ikbench.metrics import (
+from ikbench.core.errors import InputError
+from ikbench.core.metrics import (
     criterion2_mm,
     line_distances_mm,
     pointing_deviations_deg,
     smoothness,
     trajectory_metrics,
 )
-from ikbench.task import line_task
+from ikbench.core.task import line_task
 from tests.conftest import PAPER_START
 
 

@@ -10,12 +10,12 @@ import pytest
 import torch
 
 from ikbench.cli import main
-from ikbench.errors import InputError
-from ikbench.losses import PAPER_WEIGHTS, objective, parse_terms, parse_weights
+from ikbench.core.errors import InputError
+from ikbench.core.losses import PAPER_WEIGHTS, objective, parse_terms, parse_weights
+from ikbench.core.task import line_task
+from ikbench.core.trajectory import trajectory_columns
 from ikbench.methods.ours import AdamSettings, Ours, initial_logits, optimise
-from ikbench.report import TABLE_COLUMNS
-from ikbench.task import line_task
-from ikbench.trajectory import trajectory_columns
+from ikbench.studies.report import TABLE_COLUMNS
 from tests.conftest import PAPER_START
 from tests.test_kinematics import paper_fk_cm
 
@@ -94,7 +94,7 @@ def test_float32_and_float64_agree(robot):
     rng = np.random.default_rng(3)
     poses = np.clip(np.linspace(PAPER_START, TOUCH_1, 11) + rng.normal(0, 2, (11, 7)),
                     robot.lower_motor_deg, robot.upper_motor_deg)
-    from ikbench.losses import LossGoals, loss_terms, weighted_loss
+    from ikbench.core.losses import LossGoals, loss_terms, weighted_loss
 
     values = {}
     for dtype in (torch.float32, torch.float64):
@@ -185,11 +185,11 @@ def test_cli_user_targets_have_no_paper_columns(tmp_path):
 @pytest.mark.parametrize("argv, message", [
     (["run", "--only", "9"], "--only: unknown trajectory id(s) '9'; available: 1, 2, 3"),
     (["run", "--method", "magic"], "--method: unknown method 'magic'; available:"),
-    (["run", "--steps", "1"], "--steps: 1 must be an integer >= 2"),
+    (["run", "--steps", "1"], "--steps: steps = 1 must be an integer in [2, 5000]"),
     (["run", "--weights", "c1=abc"], "--weights: 'c1=abc' is not term=value"),
     (["run", "--targets", "/nonexistent.json"], "cannot read targets file"),
     (["run", "--damping", "5"], "--damping is an option of --method sequential-ik, not of"),
-    (["run", "--dtype", "float16"], "argument --dtype: invalid choice: 'float16'"),
+    (["run", "--dtype", "float16"], "--dtype: 'float16' is not one of float32, float64"),
     (["run", "--steps", "abc"], "argument --steps: invalid int value: 'abc'"),
     (["run", "--seed", "100000000000000000000000"], "--seed: 100000000000000000000000 must be"),
     (["run", "--weights", "c0=0,c1=0,c2=0,c3=0,c4=0,c5=0,c6=0"], "sets every term to 0"),
@@ -212,4 +212,4 @@ def test_cli_run_unwritable_output_fails_before_solving(tmp_path, capsys):
                  "--output", str(blocker), "--quiet"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1
-    assert f"cannot write {blocker}/ours/table.csv: {blocker} is a file" in err
+    assert f"cannot write {blocker}/.ours.probe: {blocker} is a file" in err

@@ -6,8 +6,8 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from ikbench.metrics import trajectory_metrics
-from ikbench.task import line_tasks
+from ikbench.core.metrics import trajectory_metrics
+from ikbench.core.task import line_tasks
 from tests.conftest import REFERENCE
 
 pytestmark = pytest.mark.skipif(not REFERENCE.is_dir(), reason="../shared/reference absent")

@@ -12,9 +12,9 @@ import sys
 import pandas as pd
 import pytest
 
-import ikbench.reproduce as reproduce_module
+import ikbench.paper.reproduce as reproduce_module
 from ikbench.cli import main
-from ikbench.errors import InputError
+from ikbench.core.errors import InputError
 
 
 @pytest.fixture(scope="module")
@@ -71,8 +71,8 @@ def test_readme_says_which_command_wrote_what(quick):
             "`pointing_deviation_per_step.png`, `ours/`, `sequential-ik/`, "
             "`sequential-ik-pointing/`, `sequential-ik-position/`, `ours-init-interpolation/`, "
             "`ablation/`.") in readme
-    assert "`benchmark.md`, `benchmark_runs.csv` by `ikbench bench`" in readme
-    assert "`sweep/` by `ikbench sweep`" in readme
+    assert "`benchmark.md`, `benchmark_runs.csv` by `ikbench bench --output results`" in readme
+    assert "`sweep/` by `ikbench sweep --output results/sweep`" in readme
     assert "`ours_speed.csv` by `python benchmarks/ours_speed.py`" in readme
     assert "`mystery.txt` by no stage of `ikbench reproduce`" in readme
 
@@ -166,8 +166,8 @@ def test_missing_baseline_is_a_clear_error_before_any_work(tmp_path, monkeypatch
 
 
 def test_missing_comparison_is_a_clear_error(tmp_path, monkeypatch, capsys):
-    monkeypatch.setitem(sys.modules, "ikbench.compare", None)
+    monkeypatch.setitem(sys.modules, "ikbench.paper.comparison", None)
     assert main(["reproduce", "--quick", "--output", str(tmp_path / "r")]) == 2
-    assert "the comparison report needs ikbench.compare.write_comparison_report" in (
+    assert "the comparison report needs ikbench.paper.comparison.write_comparison_report" in (
         capsys.readouterr().err)
     assert not (tmp_path / "r").exists()

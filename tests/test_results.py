@@ -10,8 +10,8 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from ikbench.compare import BASELINE, OURS, evaluate_runs, load_runs
-from ikbench.report import TABLE_COLUMNS
+from ikbench.paper.comparison import BASELINE, OURS, evaluate_runs, load_runs
+from ikbench.studies.report import TABLE_COLUMNS
 from tests.conftest import REPO
 
 RESULTS = REPO / "results"

@@ -20,9 +20,9 @@ from baselines.sequential_ik import (
     walk_joint_rad,
 )
 from ikbench.cli import main
-from ikbench.errors import InputError
-from ikbench.metrics import line_distances_mm, pointing_deviations_deg
-from ikbench.task import line_task, line_tasks
+from ikbench.core.errors import InputError
+from ikbench.core.metrics import line_distances_mm, pointing_deviations_deg
+from ikbench.core.task import line_task, line_tasks
 from tests.conftest import PAPER_START
 
 TOUCH_7 = [34, 17, 39, 107, 106, 78, -180]  # the paper's touch pose 7

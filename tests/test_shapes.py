@@ -5,16 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ikbench.errors import InputError
-from ikbench.metrics import pointing_deviations_deg, shape_metrics
-from ikbench.shapes import (
+from ikbench.core.errors import InputError
+from ikbench.core.metrics import pointing_deviations_deg, shape_metrics
+from ikbench.core.shapes import (
     Curve,
     best_fit_plane,
     catmull_rom,
     distances_to_polylines_mm,
     read_points_csv,
 )
-from ikbench.task import build_tasks, curve_task, file_task, parse_shape
+from ikbench.core.task import build_tasks, curve_task, file_task, parse_shape
 from tests.conftest import PAPER_START
 
 
@@ -253,7 +253,7 @@ def test_cli_spline_run_writes_shape_outputs(robot, tmp_path, capsys):
     import pandas as pd
 
     from ikbench.cli import main
-    from ikbench.report import SHAPE_TABLE_COLUMNS
+    from ikbench.studies.report import SHAPE_TABLE_COLUMNS
 
     tip = robot.fk(PAPER_START).point_mm[0]
     control = tip + np.array([[0, 0, 0], [0, -40, 30], [0, -80, 0], [0, -120, 30.0]])

@@ -10,12 +10,12 @@ import pandas as pd
 import pytest
 
 from ikbench.cli import main
-from ikbench.errors import InputError
-from ikbench.losses import PAPER_WEIGHTS, objective, parse_weights
+from ikbench.core.errors import InputError
+from ikbench.core.losses import PAPER_WEIGHTS, objective, parse_weights
+from ikbench.core.targets import load_targets
+from ikbench.core.task import line_tasks
 from ikbench.methods.ours_lm import solve_batch
-from ikbench.sweep import grid_settings, parse_grid, summarise, sweep, write
-from ikbench.targets import load_targets
-from ikbench.task import line_tasks
+from ikbench.studies.sweep import grid_settings, parse_grid, summarise, sweep, write
 
 
 def test_parse_grid_and_settings():
@@ -122,9 +122,9 @@ def test_sweep_cli_bad_input_one_line_exit_2(tmp_path, args, message):
 
 
 def test_sweep_on_a_letter_uses_the_letter_setting_and_equals_ours_lm(tmp_path, robot):
-    from ikbench.letters import LETTER_WEIGHTS, PAPER_START_POSE_DEG
+    from ikbench.core.letters import LETTER_WEIGHTS, PAPER_START_POSE_DEG
+    from ikbench.core.task import letter_task
     from ikbench.methods.ours_lm import OursLM
-    from ikbench.task import letter_task
 
     result = sweep(parse_grid(["c0=1,100"]), shape="letter:P", steps=16, progress=False)
     table = result.settings.set_index("setting")
@@ -159,7 +159,7 @@ def test_sweep_start_pose_moves_the_letter(robot):
 
 
 def test_grid_settings_reject_a_setting_with_every_weight_zero():
-    from ikbench.letters import LETTER_WEIGHTS
+    from ikbench.core.letters import LETTER_WEIGHTS
 
     grid = parse_grid(["c0=0,1", "c1=0", "c6=0"])
     with pytest.raises(InputError, match="'c0=0,c1=0,c6=0' and the other terms"):
@@ -168,12 +168,12 @@ def test_grid_settings_reject_a_setting_with_every_weight_zero():
 
 
 def test_sweep_cli_checks_the_output_before_solving(tmp_path, capsys, monkeypatch):
-    import ikbench.sweep
+    import ikbench.studies.sweep
 
     def boom(*args, **kwargs):
         raise AssertionError("solved before the output folder was checked")
 
-    monkeypatch.setattr(ikbench.sweep, "sweep", boom)
+    monkeypatch.setattr(ikbench.studies.sweep, "sweep", boom)
     (tmp_path / "file").write_text("")
     assert main(["sweep", "--weight", "c0=1", "--output", str(tmp_path / "file" / "out"),
                  "--quiet"]) == 2

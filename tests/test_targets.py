@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from ikbench.cli import main
-from ikbench.errors import TargetsError
-from ikbench.targets import load_targets, parse_pose
+from ikbench.core.errors import TargetsError
+from ikbench.core.targets import load_targets, parse_pose
 from tests.conftest import PAPER_START
 
 NAMES = ["r_shoulder_z", "r_shoulder_y", "r_arm_x", "r_elbow_y", "r_wrist_z", "r_wrist_x",
@@ -78,7 +78,7 @@ BAD_FILES = [
     ("comma in id", _doc(targets={"1,2": PAPER_START}), None, r"target id '1,2' is not allowed"),
     ("unknown key", _doc(stpes=3), None, r"unknown key\(s\) 'stpes'; allowed: joint_names"),
     ("no targets", _doc(targets={}), None, r"targets must be a non-empty object"),
-    ("steps < 2", _doc(steps=1), None, r"steps = 1 must be an integer >= 2"),
+    ("steps < 2", _doc(steps=1), None, r"steps = 1 must be an integer in \[2, 5000\]"),
     ("missing key", {"joint_names": NAMES}, None, r"missing key\(s\) start_pose, targets"),
 ]
 

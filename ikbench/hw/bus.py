@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ikbench.errors import HardwareError
+from ikbench.core.errors import HardwareError
 from ikbench.hw.motors import (
     ADDR_GOAL_POSITION,
     ADDR_PRESENT_POSITION,
@@ -56,7 +56,11 @@ class Bus:
     """
 
     def __init__(self, port_name: str, config: MotorConfig):
-        import dynamixel_sdk as sdk
+        try:
+            import dynamixel_sdk as sdk
+        except ImportError:
+            raise HardwareError("playing on servos needs dynamixel-sdk, which is not "
+                                "installed: pip install 'ikbench[hw]'") from None
 
         self.sdk, self.config, self.name = sdk, config, port_name
         self.port = sdk.PortHandler(port_name)

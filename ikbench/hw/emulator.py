@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ikbench.errors import InputError
+from ikbench.core.errors import InputError
 from ikbench.hw import protocol as p1
 from ikbench.hw.motors import (
     ADDR_CCW_ANGLE_LIMIT,

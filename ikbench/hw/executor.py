@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ikbench.errors import HardwareError
+from ikbench.core.errors import HardwareError
 from ikbench.hw.bus import Bus, CommunicationError
 from ikbench.hw.motors import speed_to_raw
 from ikbench.hw.plan import MotionPlan

@@ -18,13 +18,12 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
-from ikbench.errors import InputError
-from ikbench.robot import Robot, load_robot
+from ikbench.core.errors import InputError
+from ikbench.core.robot import Robot, load_robot
 
 BAUDRATE = 1_000_000
 PROTOCOL_VERSION = 1.0
@@ -55,7 +54,6 @@ MODELS = {
     "MX-106": (320, 270.0),
     "MX": (None, 270.0),
 }
-DEFAULT_CONFIG = "nico_right_arm.dynamixel.json"
 #: Keys a config file may have at top level and per motor ("description": free text, ignored).
 #: Anything else is refused: a misspelt key (``"offset"``, ``"orientaton"``) would otherwise
 #: silently drop the calibration it was meant to give.
@@ -130,7 +128,7 @@ class MotorConfig:
 
     motors: tuple[Motor, ...]
     baudrate: int = BAUDRATE
-    source: str = DEFAULT_CONFIG
+    source: str = "nico_right_arm.dynamixel.json"
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -197,20 +195,30 @@ def raw_to_speed(raw) -> np.ndarray:
     return np.asarray(raw, dtype=float) * SPEED_UNIT_DEG_S
 
 
-def default_config_path() -> Path:
-    """Path of the packaged default config (NICO's right arm)."""
-    return Path(str(resources.files("ikbench") / "data" / DEFAULT_CONFIG))
+def default_config_path(robot: Robot | None = None) -> Path:
+    """Path of the robot's motor config (its config's ``hardware`` file; NICO's right arm by
+    default).
+
+    Raises:
+        InputError: the robot names no motor config.
+    """
+    robot = robot or load_robot()
+    name = robot.config.get("hardware")
+    if not name:
+        raise InputError(f"robot {robot.name} has no motor config (no 'hardware' in its robot "
+                         "config); give --motors FILE")
+    return Path(robot.config["config_path"]).parent / name
 
 
 def load_motor_config(path: str | Path | None = None, robot: Robot | None = None) -> MotorConfig:
-    """Read and validate a motor config file (default: NICO's right arm).
+    """Read and validate a motor config file (default: the robot's; NICO's right arm).
 
     Raises:
         InputError: a missing or unreadable file, or an entry naming the bad value and what is
             allowed.
     """
     robot = robot or load_robot()
-    path = Path(path) if path is not None else default_config_path()
+    path = Path(path) if path is not None else default_config_path(robot)
     try:
         spec = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:

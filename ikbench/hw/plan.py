@@ -13,10 +13,10 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ikbench.errors import InputError
+from ikbench.core.errors import InputError
+from ikbench.core.robot import load_robot
+from ikbench.core.trajectory import read_trajectory_csv
 from ikbench.hw.motors import MotorConfig, speed_to_raw
-from ikbench.robot import load_robot
-from ikbench.trajectory import read_trajectory_csv
 
 #: Shortest segment [s] the executor accepts (one sync write takes ~0.5 ms at 1 Mbaud).
 MIN_SEGMENT_S = 0.005
@@ -145,15 +145,16 @@ def make_plan(poses_motor_deg, config: MotorConfig, duration_s: float = 2.0) -> 
 
 
 def plan_trajectory_file(path, config: MotorConfig, duration_s: float = 2.0,
-                         strict: bool = True) -> tuple[MotionPlan, str | None]:
+                         strict: bool = True, robot=None) -> tuple[MotionPlan, str | None]:
     """Read a trajectory CSV and plan it; return the plan and a note when the file's own
     ``time_s`` column ends at another duration than ``duration_s`` (else None).
 
     Args:
         strict: reject poses outside the robot's motor ranges (as the executor must); with
             False they are let through so that the plan flags them.
+        robot: the robot whose joints the CSV holds (default NICO's right arm).
     """
-    robot = load_robot()
+    robot = robot or load_robot()
     if not strict:
         unbounded = np.full(robot.dof, np.inf)
         robot = dataclasses.replace(robot, lower_motor_deg=-unbounded, upper_motor_deg=unbounded,

@@ -2,7 +2,7 @@
 
 Variables are logits z (n+1, dof); poses p = lo + sigmoid(z) * (hi - lo) stay inside the motor
 ranges. FK runs through pytorch-kinematics on the URDF, batched over the n+1 poses, and the
-loss is :mod:`ikbench.losses` in the paper's units.
+loss is :mod:`ikbench.core.losses` in the paper's units.
 
 Initial logits (``init``):
 
@@ -32,13 +32,21 @@ from __future__ import annotations
 import math
 import statistics
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ikbench.errors import InputError
-from ikbench.losses import PAPER_WEIGHTS, TERMS, LossGoals, loss_terms, parse_weights, weighted_loss
-from ikbench.methods import Method, Solution, register
+from ikbench.core.errors import InputError
+from ikbench.core.losses import (
+    PAPER_WEIGHTS_TEXT,
+    LossGoals,
+    check_weights,
+    format_weights,
+    loss_terms,
+    resolve_weights,
+    weighted_loss,
+)
+from ikbench.methods.base import Method, Solution, check_choice, check_positive, option
 
 DTYPES = ("float32", "float64")
 STOPS = ("paper", "none")
@@ -46,36 +54,60 @@ STOPS = ("paper", "none")
 LOGIT_EPS = 1e-6
 
 
+INITS = ("random", "interpolation")
+
+
 @dataclass
 class AdamSettings:
-    """Settings of the paper's optimiser.
+    """Settings of the paper's optimiser (CLI options from the fields made with ``option``).
 
     Attributes:
         lr: Adam learning rate.
         max_iterations: iteration cap.
         dtype: ``"float32"`` (paper) or ``"float64"``.
-        weights: loss weights c0..c6 keyed L0..L6.
+        weights: loss weights: a complete dict keyed L0..L6, or changes such as
+            ``"c1=20,c6=5"`` on top of the task's (else the paper's) weights; None: none.
         stop_below: the stopping rule's loss threshold.
         median_window: the stopping rule's number of previous losses.
         history_seed: the loss history's initial value.
         progress_every: report progress every this many iterations.
+        init: initial logits, ``"random"`` or ``"interpolation"``.
+        seed: seed of the random initialisation.
         stop: ``"paper"`` (the stopping rule) or ``"none"`` (all ``max_iterations``).
     """
 
-    lr: float = 0.1
-    max_iterations: int = 15000
-    dtype: str = "float32"
-    weights: dict = field(default_factory=lambda: dict(PAPER_WEIGHTS))
+    lr: float = option(0.1, help="Adam learning rate")
+    max_iterations: int = option(15000, help="iteration cap")
+    dtype: str = option("float32", choices=DTYPES,
+                        help="floating-point type of the optimisation")
+    weights: dict | str | None = option(
+        None, type=str, show_default=PAPER_WEIGHTS_TEXT,
+        help="loss weights to change, e.g. c1=20,c6=5 (letters start from their own)")
     stop_below: float = 10.0
     median_window: int = 10
     history_seed: float = 1000.0
     progress_every: int = 250
-    init: str = "random"
-    seed: int = 0
-    stop: str = "paper"
+    init: str = option("random", choices=INITS,
+                       help="initial logits: random (the authors' code, reproduces Table 1) "
+                       "or interpolation (the paper's text)")
+    seed: int = option(0, help="seed of the random initialisation, in [0, 2^63)")
+    stop: str = option("paper", choices=STOPS,
+                       help="paper (the stopping rule: loss < 10 and above the median of the "
+                       "last 10) or none (run all --max-iterations, keep the lowest loss; the "
+                       "paper's letter setting)")
+
+    def __post_init__(self):
+        check_choice(self, "dtype", DTYPES)
+        check_choice(self, "init", INITS)
+        check_choice(self, "stop", STOPS)
+        check_positive(self, "lr")
+        check_positive(self, "max_iterations", integer=True)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) \
+                or not 0 <= self.seed < 2**63:
+            raise InputError(f"--seed: {self.seed!r} must be an integer in [0, 2^63)")
+        check_weights(self.weights)
 
 
-INITS = ("random", "interpolation")
 
 
 def initial_logits(robot, task, dtype, init: str = "random", seed: int = 0):
@@ -119,6 +151,7 @@ def optimise(robot, task, settings: AdamSettings, progress=None, logits=None) ->
     """
     import torch
 
+    settings = replace(settings, weights=resolve_weights(settings.weights, task))
     dtype = {"float32": torch.float32, "float64": torch.float64}[settings.dtype]
     fk = robot.torch_fk(dtype)
     lo = torch.as_tensor(robot.lower_motor_deg, dtype=dtype)
@@ -169,71 +202,23 @@ def optimise(robot, task, settings: AdamSettings, progress=None, logits=None) ->
     )
 
 
-def format_weights(weights: dict) -> str:
-    """``{"L0": 1.0, ...}`` -> ``"c0=1,c1=50,..."`` (the --weights syntax)."""
-    return ",".join(f"c{name[1:]}={weights.get(name, 0.0):g}" for name in TERMS)
-
-
-@register
 class Ours(Method):
     """The paper's method: sigmoid logits + Adam through differentiable FK."""
 
     name = "ours"
     description = "the paper's method: whole trajectory by Adam through pytorch-kinematics FK"
-    options = {"dtype": "dtype", "lr": "lr", "max_iterations": "max_iterations",
-               "weights": "weights", "init": "init", "seed": "seed", "stop": "stop"}
-
-    def __init__(self, dtype: str = "float32", lr: float = 0.1, max_iterations: int = 15000,
-                 weights: dict | str | None = None, init: str = "random", seed: int = 0,
-                 stop: str = "paper"):
-        if dtype not in DTYPES:
-            raise InputError(f"--dtype: {dtype!r} is not one of {', '.join(DTYPES)}")
-        if init not in INITS:
-            raise InputError(f"--init: {init!r} is not one of {', '.join(INITS)}")
-        if not (lr > 0 and math.isfinite(lr)):
-            raise InputError(f"--lr: {lr!r} must be a positive number")
-        if max_iterations < 1:
-            raise InputError(f"--max-iterations: {max_iterations!r} must be >= 1")
-        if stop not in STOPS:
-            raise InputError(f"--stop: {stop!r} is not one of {', '.join(STOPS)}")
-        if not 0 <= seed < 2**63:
-            raise InputError(f"--seed: {seed!r} must be an integer in [0, 2^63)")
-        # Changes (a --weights string) go on top of a task's own default weights; a dict is
-        # the complete set and is used for every task.
-        self._explicit_weights = isinstance(weights, dict)
-        self._weight_changes = None if self._explicit_weights else weights
-        if not self._explicit_weights:
-            weights = parse_weights(weights)
-        self.settings = AdamSettings(lr=lr, max_iterations=max_iterations, dtype=dtype,
-                                     weights=weights, init=init, seed=seed, stop=stop)
-
-    @classmethod
-    def add_arguments(cls, group) -> None:
-        group.add_argument("--dtype", choices=DTYPES, default=None,
-                           help="ours: floating-point type of the optimisation (default float32)")
-        group.add_argument("--lr", type=float, default=None,
-                           help="ours: Adam learning rate (default 0.1)")
-        group.add_argument("--max-iterations", type=int, default=None,
-                           help="ours: iteration cap (default 15000)")
-        group.add_argument("--weights", default=None,
-                           help="loss weights to change, e.g. c1=20,c6=5 (default: the "
-                           "paper's c0=1,c1=50,c2=5,c3=100,c4=10,c5=200,c6=1)")
-        group.add_argument("--init", choices=INITS, default=None,
-                           help="ours: initial logits - random (the authors' code, reproduces "
-                           "Table 1; default) or interpolation (the paper's text)")
-        group.add_argument("--seed", type=int, default=None,
-                           help="ours: seed of the random initialisation (default 0)")
-        group.add_argument("--stop", choices=STOPS, default=None,
-                           help="ours: paper (the stopping rule: loss < 10 and above the median "
-                           "of the last 10; default) or none (run all --max-iterations, keep the "
-                           "lowest loss; the paper's letter setting)")
+    library = "torch"
+    Settings = AdamSettings
+    bench_rounds = 3  # tens of seconds per round on the paper's seven targets
 
     def settings_for(self, task) -> AdamSettings:
-        """The settings for one task: its default weights, if any, under the user's changes."""
-        if task.default_weights is None or self._explicit_weights:
-            return self.settings
-        return replace(self.settings, weights=parse_weights(self._weight_changes,
-                                                            task.default_weights))
+        """The settings for one task, with its complete weights (see :func:`resolve_weights`)."""
+        return replace(self.settings, weights=resolve_weights(self.settings.weights, task))
+
+    def prepare(self, robot) -> None:
+        import torch
+
+        robot.torch_fk({"float32": torch.float32, "float64": torch.float64}[self.settings.dtype])
 
     def solve(self, robot, task, progress=None) -> Solution:
         return optimise(robot, task, self.settings_for(task), progress)

@@ -1,0 +1,68 @@
+"""``ikbench batch``: many random reachable touch poses solved at once by ours-lm."""
+
+from __future__ import annotations
+
+HELP = "sample random reachable touch poses, solve them in one batch (ours-lm)"
+
+
+def register(subparsers) -> None:
+    from ikbench.studies.batch import DEFAULT_WEIGHTS, END_TOLERANCE_MM, LINE_TOLERANCE_MM
+
+    parser = subparsers.add_parser(
+        "batch", help=HELP,
+        description=(
+            "Draw N touch poses uniformly within the motor ranges (seeded), keep those in the "
+            "front workspace (fingertip x <= -250 mm, z >= 0 mm, at least 100 mm below the "
+            "start point, finger within 20 deg of the line direction), solve one line task per "
+            "pose from the start pose with ours-lm in one batched call per weight setting, and "
+            "report trajectories per second and the share within tolerance (mean line "
+            "distance and end point error). Writes OUTPUT/batch.csv, batch_trajectories.csv, "
+            "touch_poses.csv, batch.json and batch.md."
+        ),
+    )
+    parser.add_argument("--count", type=int, default=1000,
+                        help="number of touch poses N (default 1000)")
+    parser.add_argument("--seed", type=int, default=0,
+                        help="sampling seed, an integer in [0, 2^63) (default 0)")
+    parser.add_argument("--steps", type=int, default=50,
+                        help="number of segments n per trajectory (default 50)")
+    parser.add_argument("--weights", action="append", metavar="SETTING",
+                        help="a weight setting: 'paper' or changes such as c0=100,c1=500; "
+                        f"repeat for several (default: {' and '.join(DEFAULT_WEIGHTS)})")
+    from ikbench.cli.options import add_robot_arguments
+
+    add_robot_arguments(parser)
+    parser.add_argument("--targets", default=None,
+                        help="targets JSON file whose start pose is used (default: the "
+                        "paper's)")
+    parser.add_argument("--line-tolerance-mm", type=float, default=LINE_TOLERANCE_MM,
+                        help=f"tolerance on the mean line distance (default {LINE_TOLERANCE_MM})")
+    parser.add_argument("--end-tolerance-mm", type=float, default=END_TOLERANCE_MM,
+                        help=f"tolerance on the end point error (default {END_TOLERANCE_MM})")
+    parser.add_argument("--output", default="runs/batch",
+                        help="output directory (default: runs/batch, which git ignores)")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from ikbench.cli.options import robot_from_args
+    from ikbench.core.io import check_writable
+    from ikbench.studies.batch import DEFAULT_WEIGHTS, check_seed, run_batch, write
+
+    check_seed(args.seed)
+    robot = robot_from_args(args)
+    check_writable(Path(args.output) / "batch.csv")  # before sampling and solving
+    report = run_batch(args.count, seed=args.seed, steps=args.steps, robot=robot,
+                       weights=args.weights or DEFAULT_WEIGHTS, targets=args.targets,
+                       line_tolerance_mm=args.line_tolerance_mm,
+                       end_tolerance_mm=args.end_tolerance_mm, progress=not args.quiet)
+    path = write(report, args.output)
+    cols = ["setting", "trajectories", "solve_wall_s", "trajectories_per_s",
+            "share_line_within_tol", "share_end_within_tol", "share_within_tol",
+            "line_distance_mean_mm_median", "pointing_deviation_mean_deg_median"]
+    print(report.summary[cols].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    print(f"written to {path} (and batch.md, batch_trajectories.csv, touch_poses.csv)")
+    return 0

@@ -1,0 +1,62 @@
+"""``ikbench letters``: draw letters in the air (the paper's second experiment)."""
+
+from __future__ import annotations
+
+HELP = "draw letters A-Z in the air with the end point (the paper's letter experiment)"
+DEFAULT_OUTPUT = "runs/letters"
+
+
+def register(subparsers) -> None:
+    from ikbench.cli.commands.run import add_run_arguments, add_start_pose_argument
+    from ikbench.cli.options import add_robot_arguments
+    from ikbench.core.letters import DEFAULT_STEPS, PAPER_ITERATIONS, PAPER_START_POSE_DEG
+    from ikbench.methods.registry import available_methods
+
+    # sequential methods start at a touch pose, which a letter does not have
+    methods = {n: c for n, c in available_methods().items() if not c.requires_touch_pose}
+    pose = ",".join(f"{v:g}" for v in PAPER_START_POSE_DEG)
+    parser = subparsers.add_parser(
+        "letters", help=HELP,
+        description=(
+            "Draw each letter on the robot's letter plane through the end point at the start "
+            "pose (NICO: the frontal plane, read by a viewer facing the robot, the finger "
+            "pointing along its normal (-1, 0, 0)); no start/end pose or point terms. "
+            "Same as `ikbench run --shape letter:LETTERS` with the paper's letter setting as "
+            f"defaults: start pose from the robot config (NICO: {pose}), letters 300 mm high, "
+            f"n = {DEFAULT_STEPS}, weights c0=1, c1=50, c6=1, others 0, to which --weights "
+            f"changes apply, and for ours --stop none --max-iterations {PAPER_ITERATIONS} "
+            "(best loss kept). --method ours-lm solves a letter in a fraction of a second, "
+            "starting with every pose at the start pose. Writes "
+            "OUTPUT/<method>/trajectory_<letter>.csv, table.csv, details.csv, run.json, "
+            "shapes.png and report.md."),
+    )
+    parser.add_argument("letters", help="letters A-Z, comma-separated, e.g. P or P,A,S "
+                        "(lower case is drawn upper case)")
+    add_robot_arguments(parser)
+    parser.add_argument("--size", type=float, default=None,
+                        help="letter height [mm] (default 300)")
+    parser.add_argument("--direction", default=None,
+                        help="goal pointing directions: normal (default), tangent or x,y,z")
+    add_start_pose_argument(parser, f"the robot's letter pose; NICO: the paper's {pose}")
+    parser.add_argument("--steps", type=int, default=None,
+                        help=f"number of segments n per letter (default {DEFAULT_STEPS})")
+    add_run_arguments(parser, methods, DEFAULT_OUTPUT)
+    parser.set_defaults(func=run, targets=None, only=None)
+
+
+def run(args) -> int:
+    from ikbench.cli.commands.run import run as run_command
+    from ikbench.cli.options import robot_from_args
+    from ikbench.core.letters import PAPER_ITERATIONS
+    from ikbench.core.task import letter_start_pose
+
+    if args.start_pose is None:
+        robot = robot_from_args(args)
+        args.start_pose = ",".join(f"{v:.17g}" for v in letter_start_pose(robot))
+    fixed = {}
+    if args.method == "ours":  # the paper's letter script: a fixed number of iterations
+        if getattr(args, "opt_stop", None) is None:
+            fixed["stop"] = "none"
+        if getattr(args, "opt_max_iterations", None) is None:
+            fixed["max_iterations"] = PAPER_ITERATIONS
+    return run_command(args, shape=f"letter:{args.letters}", fixed=fixed)

@@ -1,0 +1,33 @@
+"""``ikbench report DIR``: compare the methods run into DIR and check the paper's claims."""
+
+from __future__ import annotations
+
+HELP = "compare the runs in DIR (ours vs each sequential-ik run); write DIR/report.md"
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "report", help=HELP,
+        description=(
+            "Read every run folder that `ikbench run --output DIR [--name NAME]` wrote (the "
+            "folder ours and at least one sequential-ik run, e.g. sequential-ik/, "
+            "sequential-ik-pointing/, sequential-ik-position/; same targets and n; the folders "
+            "ablation/, sweep/, batch/ and letters/ of other commands are skipped), recompute "
+            "all figures from the trajectory CSVs, and write DIR/report.md (all runs side by "
+            "side per trajectory; the paper's claims about its baseline checked with numbers "
+            "once per sequential-ik run, labelled with its --orientation mode; the modes in one "
+            "table; Table 2 beside the paper's, from the frame-mode run) and "
+            "DIR/pointing_deviation_per_step.png."
+        ),
+    )
+    parser.add_argument("dir", metavar="DIR",
+                        help="the --output directory of the runs (e.g. results)")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ikbench.paper.comparison import write_comparison_report
+
+    path = write_comparison_report(args.dir)
+    print(f"written {path}")
+    return 0

@@ -1,0 +1,33 @@
+"""``ikbench robots``: the shipped robots (dof, end frame, source)."""
+
+from __future__ import annotations
+
+HELP = "list the shipped robots with their joints, end frame, units and source"
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "robots", help=HELP,
+        description=(
+            "List the robots that ship with ikbench (a URDF plus a small config each, in "
+            "urdf/). Any other robot is --robot CONFIG.toml or --robot FILE.urdf --end-frame "
+            "LINK on every command that uses a robot."),
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import json
+
+    from ikbench.core.robot import load_robot, shipped_robots
+
+    robots = [load_robot(name).describe() for name in shipped_robots()]
+    if args.json:
+        print(json.dumps({"robots": robots}))
+        return 0
+    for r in robots:
+        print(f"{r['name']}: {r['dof']} joints ({', '.join(r['joints'])}), {r['base_link']} "
+              f"-> {r['end_frame']}, poses in {r['pose_unit']}")
+        print(f"    {r['description']}; source: {r['source']}")
+    return 0

@@ -1,0 +1,160 @@
+"""``ikbench run``: generate trajectories with a method and write tables, figures, report."""
+
+from __future__ import annotations
+
+HELP = "generate trajectories with a method; write CSVs, table, figures and report"
+LINE_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "line_distance_mean_mm",
+                "pointing_deviation_mean_deg", "end_point_error_mm"]
+SHAPE_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "curve_distance_mean_mm",
+                 "curve_distance_max_mm", "point_error_mean_mm", "pointing_deviation_mean_deg"]
+DEFAULT_METHOD = "ours"
+DEFAULT_OUTPUT = "runs"
+
+
+def register(subparsers) -> None:
+    from ikbench.methods.registry import available_methods
+
+    methods = available_methods()
+    parser = subparsers.add_parser(
+        "run", help=HELP,
+        description=(
+            "Generate one trajectory per touch pose (or per letter, or one along a polyline or "
+            "spline) with a method and write, under OUTPUT/NAME/ (NAME: --name, default the "
+            "method's name), trajectory_<id>.csv (poses in the robot's units), table.csv "
+            "(line distance [mm], pointing deviation [deg], start/end errors; for other shapes "
+            "the distance from the target curve), details.csv, run.json (robot, settings, "
+            "versions), figures and report.md. The folder is replaced whole: files an earlier "
+            "run wrote there and this one does not are removed, other files are kept. A "
+            "failed solve is reported as a row (exit code 1); Ctrl-C keeps the trajectories "
+            "solved so far. Methods: " + "; ".join(f"{name}: {cls.description}"
+                                                   for name, cls in methods.items())
+            + " (ikbench methods lists them all, with those not installed)."),
+    )
+    add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3",
+                       start_pose_default="the targets file's")
+    add_run_arguments(parser, methods, DEFAULT_OUTPUT)
+    parser.add_argument("--name", default=None,
+                        help="folder under OUTPUT for this run (default: the method's name), "
+                        "e.g. sequential-ik-position; letters, digits, '_', '-', '.'")
+    parser.set_defaults(func=run)
+
+
+def add_task_arguments(parser, only_help: str, start_pose_default: str) -> None:
+    """--robot, --end-frame, --targets, --only, --shape, --size, --direction, --start-pose,
+    --steps (run, sweep)."""
+    from ikbench.cli.options import add_robot_arguments
+
+    add_robot_arguments(parser)
+    parser.add_argument("--targets", default=None,
+                        help="targets JSON file (default: the robot's own; NICO: the paper's "
+                        "seven touch poses)")
+    parser.add_argument("--only", default=None, help=only_help)
+    parser.add_argument("--shape", default="line",
+                        help="line (default: one per touch pose), polyline:FILE or spline:FILE "
+                        "(CSV of x,y,z control points [mm], base frame), or letter:X[,Y...] "
+                        "(letters A-Z, lower case drawn as upper case, on the robot's letter "
+                        "plane through the end point at the start pose, one trajectory each)")
+    parser.add_argument("--size", type=float, default=None,
+                        help="letter height [mm] (default 300)")
+    parser.add_argument("--direction", default=None,
+                        help="goal pointing directions: tangent (default for line, polyline, "
+                        "spline), normal (of the drawing plane; default for letters) or a "
+                        "vector x,y,z")
+    add_start_pose_argument(parser, start_pose_default)
+    parser.add_argument("--steps", type=int, default=None,
+                        help="number of segments n, 2..5000 (default: the targets file's, 50, "
+                        "for lines; 100 for other shapes)")
+
+
+def add_start_pose_argument(parser, default: str) -> None:
+    parser.add_argument("--start-pose", default=None,
+                        help=f"start pose, comma-separated values in the robot's units "
+                        f"(default: {default}); write --start-pose=-24,... for a leading minus")
+
+
+def add_run_arguments(parser, methods: dict, default_output: str) -> None:
+    """--method, output options and every method's own options (shared with ``letters``)."""
+    from ikbench.cli.options import add_method_options
+
+    parser.add_argument("--method", default=DEFAULT_METHOD,
+                        help=f"one of: {', '.join(methods)} (default: {DEFAULT_METHOD})")
+    parser.add_argument("--output", default=default_output,
+                        help=f"output directory (default: {default_output}, which git ignores; "
+                        "ikbench reproduce writes results/)")
+    parser.add_argument("--duration", type=float, default=2.0,
+                        help="movement duration T [s] for the time_s column (default 2)")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    parser.add_argument("--threads", type=int, default=1,
+                        help="torch threads (default 1: the tensors are tiny, and on a busy "
+                        "2-core machine 2 threads ran ours 15x slower than 1)")
+    add_method_options(parser, methods)
+
+
+def lowercase_letters_note(shape: str) -> str | None:
+    """A note when a letter shape names lower-case letters (they are drawn upper case)."""
+    kind, _, arg = str(shape).partition(":")
+    if kind.strip().lower() == "letter" and any(c.islower() for c in arg):
+        return f"note: {shape}: letters are drawn upper case ({arg.upper()})"
+    return None
+
+
+def run(args, shape: str | None = None, fixed: dict | None = None) -> int:
+    """Validate everything, then solve and write; ``fixed``: method settings on top."""
+    import sys
+
+    from ikbench.cli.options import check_threads, method_from_args, robot_from_args, set_threads
+    from ikbench.core.targets import parse_pose
+    from ikbench.methods.registry import available_methods, get_method
+    from ikbench.studies.harness import Interrupted
+    from ikbench.studies.run import check_name, prepare, solve_and_write
+
+    check_threads(args.threads)
+    robot = robot_from_args(args)
+    start_pose = None if args.start_pose is None else parse_pose(args.start_pose, robot,
+                                                                 "--start-pose")
+    name = getattr(args, "name", None)
+    if name is not None:
+        check_name(name)
+    if not args.duration > 0:
+        from ikbench.core.errors import InputError
+
+        raise InputError(f"--duration: {args.duration!r} must be a positive number of seconds")
+    shape = shape or args.shape
+    cls = get_method(args.method)
+    solver = method_from_args(args, cls, available_methods(), **(fixed or {}))
+    solver, robot, targets, tasks = prepare(
+        solver, robot=robot, targets=args.targets, only=getattr(args, "only", None),
+        steps=args.steps, shape=shape, size_mm=args.size, start_pose=start_pose,
+        direction=args.direction)
+    from pathlib import Path
+
+    from ikbench.core.io import check_folder_writable
+
+    folder = Path(args.output) / (name or solver.name)
+    check_folder_writable(folder)
+    note = lowercase_letters_note(shape)
+    if note:
+        print(note, file=sys.stderr)
+    set_threads(args.threads)
+    record = {"shape": shape, "direction": args.direction, "duration_s": args.duration,
+              "name": name}
+    try:
+        table = solve_and_write(solver, robot, targets, tasks, folder, record,
+                                progress=not args.quiet)
+    except Interrupted as stop:
+        if stop.outcomes:
+            print(f"ikbench: interrupted: {folder}/ holds the {len(stop.outcomes)} "
+                  "trajectories solved before Ctrl-C", file=sys.stderr)
+        else:
+            print(f"ikbench: interrupted before any trajectory was solved; {folder}/ is "
+                  "unchanged", file=sys.stderr)
+        return 130
+    columns = LINE_COLUMNS if "line_distance_mean_mm" in table else SHAPE_COLUMNS
+    print(table[columns].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    print(f"written to {folder}/")
+    failed = table["trajectory"][table[columns[4]].isna()].tolist()
+    if failed:
+        print(f"ikbench: {len(failed)} of {len(table)} solves failed ({', '.join(failed)}); "
+              f"details.csv gives each failure", file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,62 @@
+"""``ikbench sweep``: the paper's objective with a grid of other loss weights."""
+
+from __future__ import annotations
+
+HELP = ("solve the targets or a shape for a grid of loss weights (ours-lm); CSV, Pareto "
+        "figure")
+
+
+def register(subparsers) -> None:
+    from ikbench.cli.commands.run import add_task_arguments
+    from ikbench.core.letters import PAPER_START_POSE_DEG
+
+    pose = ",".join(f"{v:g}" for v in PAPER_START_POSE_DEG)  # NICO's, from the paper
+    parser = subparsers.add_parser(
+        "sweep", help=HELP,
+        description=(
+            "Minimise the paper's objective with ours-lm for every combination of the given "
+            "weights (other terms keep the reference weights: the paper's for lines, "
+            "polylines and splines, the paper's letter setting c0=1, c1=50, c6=1, others 0, "
+            "for letters; the reference setting is always included) on the targets or a "
+            "shape, in one batched solve. Writes OUTPUT/sweep.csv (one row per setting: mean "
+            "line distance [mm] for lines, point error and distance from the curve [mm] for "
+            "other shapes, pointing deviation [deg], smoothness, worst errors, Pareto flag), "
+            "sweep_trajectories.csv, pareto.png (accuracy vs pointing deviation, smoothness "
+            "as colour), sweep.json and sweep.md."
+        ),
+    )
+    parser.add_argument("--weight", action="append", metavar="TERM=V1,V2,...",
+                        help="a term of the grid and its values, e.g. --weight c0=1,10,100,1000 "
+                        "(repeat for a grid over several terms: --weight c1=5,50)")
+    add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3 (line only)",
+                       start_pose_default=f"the targets file's; for letters the robot's "
+                       f"letter pose, NICO: the paper's {pose}")
+    parser.add_argument("--output", default="runs/sweep",
+                        help="output directory (default: runs/sweep, which git ignores)")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from ikbench.cli.options import robot_from_args
+    from ikbench.core.io import check_writable
+    from ikbench.core.targets import parse_pose
+    from ikbench.studies.sweep import measures_of, parse_grid, sweep, write
+
+    grid = parse_grid(args.weight)
+    robot = robot_from_args(args)
+    start_pose = None if args.start_pose is None else parse_pose(args.start_pose, robot,
+                                                                 "--start-pose")
+    check_writable(Path(args.output) / "sweep.csv")  # before the solve, not after it
+    result = sweep(grid, targets=args.targets, only=args.only, steps=args.steps,
+                   shape=args.shape, size_mm=args.size, start_pose=start_pose,
+                   direction=args.direction, progress=not args.quiet, robot=robot)
+    path = write(result, args.output)
+    m = measures_of(result.settings)
+    cols = [c for c in m.table_columns if c not in ("loss", "paper_loss", "converged")]
+    table = result.settings.sort_values(m.accuracy)[cols]
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    print(f"written to {path} (and sweep.md, pareto.png, sweep_trajectories.csv)")
+    return 0

@@ -1,0 +1,118 @@
+"""Options shared by the subcommands: ``--robot``, the methods' generated options, checks.
+
+Method options are generated from each method's settings dataclass
+(:func:`ikbench.methods.base.option`); an option name shared by several methods is added
+once, its help naming each method. Values are checked by the settings themselves when the
+chosen method is built (:func:`method_from_args`), so bad input fails before any solve.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from ikbench.core.errors import InputError
+
+DEFAULT_ROBOT = "nico_right_arm"
+
+
+def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--robot NAME|PATH`` and ``--end-frame LINK``."""
+    parser.add_argument("--robot", default=DEFAULT_ROBOT, metavar="NAME|PATH",
+                        help="a shipped robot (ikbench robots lists them), a robot config "
+                        "(*.toml) or a URDF with --end-frame; poses are in its units (motor "
+                        f"degrees for NICO, else joint degrees, mm for prismatic joints) "
+                        f"(default {DEFAULT_ROBOT})")
+    parser.add_argument("--end-frame", default=None, metavar="LINK",
+                        help="end link of the chain (required with a URDF; the chain runs from "
+                        "its root to this link, whose z-axis points)")
+
+
+def robot_from_args(args):
+    """The robot of ``--robot`` / ``--end-frame`` (validated; no heavy imports)."""
+    from ikbench.core.robot import load_robot
+
+    return load_robot(args.robot, args.end_frame)
+
+
+def add_method_options(parser: argparse.ArgumentParser, methods: dict[str, type]) -> None:
+    """One argument group with every option of ``methods`` (shared names merged).
+
+    Every option defaults to None, so an unset option keeps the method's own default.
+    """
+    by_flag: dict[str, list] = {}
+    for name, cls in methods.items():
+        for opt in cls.options():
+            by_flag.setdefault(opt.flag, []).append((name, opt))
+    if not by_flag:
+        return
+    group = parser.add_argument_group(
+        "method options", "options of the methods (each applies to the methods it names)")
+    for flag, users in by_flag.items():
+        types = {opt.value_type() for _, opt in users}
+        value_type = types.pop() if len(types) == 1 else str
+        if len(users) == 1:
+            name, opt = users[0]
+            text = f"{name}: {opt.help_text()}"
+        elif len({opt.help_text() for _, opt in users}) == 1:
+            text = f"{', '.join(n for n, _ in users)}: {users[0][1].help_text()}"
+        else:
+            text = "; ".join(f"{name}: {opt.help_text()}" for name, opt in users)
+        metavar = ("|".join(map(str, users[0][1].spec.choices)) if len(users) == 1
+                   and users[0][1].spec.choices else flag.upper().replace("-", "_"))
+        group.add_argument(f"--{flag}", dest=f"opt_{flag.replace('-', '_')}", default=None,
+                           type=value_type, metavar=metavar, help=text.replace("%", "%%"))
+
+
+def _given(args) -> dict[str, object]:
+    """flag -> value of every method option given on the command line."""
+    return {key[4:].replace("_", "-"): value for key, value in vars(args).items()
+            if key.startswith("opt_") and value is not None}
+
+
+def reject_foreign_options(args, cls, methods: dict[str, type] | None = None) -> None:
+    """InputError if an option of another method was given (it would be silently ignored)."""
+    own = {opt.flag for opt in cls.options()}
+    for flag in _given(args):
+        if flag not in own:
+            owners = [n for n, c in (methods or {}).items()
+                      if any(o.flag == flag for o in c.options())]
+            by = f"--method {', '.join(owners)}" if owners else "another method"
+            raise InputError(f"--{flag} is an option of {by}, not of --method {cls.name}")
+
+
+def method_from_args(args, cls, methods: dict[str, type] | None = None, **fixed):
+    """Build ``cls`` from the options given (each converted by the method's own settings);
+    ``fixed`` settings go on top. InputError for options of other methods."""
+    reject_foreign_options(args, cls, methods)
+    values = {opt.field: _convert(opt, value) for opt in cls.options()
+              if (value := _given(args).get(opt.flag)) is not None}
+    return cls(**{**values, **fixed})
+
+
+def _convert(opt, value):
+    if isinstance(value, str) and opt.value_type() is not str:
+        try:
+            return opt.value_type()(value)
+        except ValueError:
+            raise InputError(f"--{opt.flag}: {value!r} is not a valid "
+                             f"{opt.value_type().__name__}") from None
+    return value
+
+
+def method_names_help(methods: dict[str, type]) -> str:
+    """``ours, ours-lm, sequential-ik`` (the available methods)."""
+    return ", ".join(methods)
+
+
+def check_threads(threads: int) -> int:
+    """InputError unless ``--threads`` is an integer >= 1."""
+    if threads < 1:
+        raise InputError(f"--threads: {threads} must be an integer >= 1")
+    return threads
+
+
+def set_threads(threads: int) -> None:
+    """torch on ``threads`` threads (imports torch: call after validating the input)."""
+    import torch
+
+    torch.set_num_threads(threads)

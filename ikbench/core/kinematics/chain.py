@@ -1,0 +1,136 @@
+"""Vectorised FK and analytic Jacobians of a serial chain in numpy (many poses at once).
+
+Built from the robot's Pinocchio model (joint placements, axes, end frame), then pure numpy:
+one pass over the joints for all M poses. For a revolute joint with world axis w through o,
+dP/dq = w x (P - o) and dv/dq = w x v; for a prismatic joint dP/dq = w and dv/dq = 0; times
+dq/dp, the URDF units per pose unit (motor map scale x pi/180, or 1/1000 m per mm).
+``pinocchio_kinematics`` is the per-pose reference it is tested against.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ikbench.core.errors import SolverError
+
+_REVOLUTE = {"JointModelRX": (1.0, 0.0, 0.0), "JointModelRY": (0.0, 1.0, 0.0),
+             "JointModelRZ": (0.0, 0.0, 1.0)}
+_PRISMATIC = {"JointModelPX": (1.0, 0.0, 0.0), "JointModelPY": (0.0, 1.0, 0.0),
+              "JointModelPZ": (0.0, 0.0, 1.0)}
+
+
+def joint_axis(joint, name: str) -> tuple[np.ndarray, bool]:
+    """(unit axis (3,) in the joint frame, prismatic?) of a Pinocchio joint model."""
+    short = joint.shortname()
+    if short in _REVOLUTE:
+        return np.array(_REVOLUTE[short]), False
+    if short in _PRISMATIC:
+        return np.array(_PRISMATIC[short]), True
+    if short in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
+        axis = np.array(joint.extract().axis, dtype=float)
+        return axis / np.linalg.norm(axis), short == "JointModelPrismaticUnaligned"
+    raise SolverError(f"the chain kinematics handles revolute and prismatic joints; {name} "
+                      f"is {short}")
+
+
+def axis_rotation(axis: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
+    """Rotations (M, 3, 3) about a unit axis by angles (M,) (Rodrigues)."""
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
+                  [-axis[1], axis[0], 0.0]])
+    s, c = np.sin(angle_rad)[:, None, None], np.cos(angle_rad)[:, None, None]
+    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
+
+
+class ChainKinematics:
+    """Vectorised FK and analytic Jacobians of the robot's chain.
+
+    Call with poses (M, dof) [pose units]; returns the end point [m] (M, 3), the pointing
+    direction (M, 3) and their Jacobians d/d(pose unit) (M, 3, dof); :meth:`transforms` gives
+    the full end-frame rotation too.
+    """
+
+    def __init__(self, robot):
+        pfk = robot.pinocchio_fk()
+        model = pfk.model
+        self.dof = robot.dof
+        self.rotations, self.translations, self.axes, self.prismatic = [], [], [], []
+        for j in range(1, model.njoints):
+            if model.parents[j] != j - 1:
+                raise SolverError(f"a serial chain is needed; joint {model.names[j]} hangs off "
+                                  f"joint {model.names[model.parents[j]]}")
+            axis, prismatic = joint_axis(model.joints[j], model.names[j])
+            self.axes.append(axis)
+            self.prismatic.append(prismatic)
+            self.rotations.append(np.array(model.jointPlacements[j].rotation))
+            self.translations.append(np.array(model.jointPlacements[j].translation))
+        frame = model.frames[pfk.frame_id]
+        if frame.parentJoint != model.njoints - 1:
+            raise SolverError(f"end frame {robot.end_frame} is not on the last joint")
+        self.tip_rotation = np.array(frame.placement.rotation)
+        self.tip_translation = np.array(frame.placement.translation)
+        self.tip_axis = self.tip_rotation @ robot.pointing_axis
+        self.prismatic = np.array(self.prismatic)
+        #: URDF units [rad or m] per pose unit, per joint
+        self.urdf_per_unit = robot.to_urdf(np.ones(self.dof)) - robot.to_urdf(np.zeros(self.dof))
+        self.robot = robot
+
+    def transforms(self, poses):
+        """(position_m (M, 3), rotation (M, 3, 3), axes_world (M, dof, 3),
+        origins_m (M, dof, 3)) of the end frame and the joints, for poses (M, dof)."""
+        q = self.robot.to_urdf(np.asarray(poses, dtype=float))
+        m = len(q)
+        rot = np.broadcast_to(np.eye(3), (m, 3, 3))
+        pos = np.zeros((m, 3))
+        axes_world, origins = [], []
+        for j in range(self.dof):
+            pos = pos + rot @ self.translations[j]
+            rot = rot @ self.rotations[j]
+            axis = self.axes[j]
+            if self.prismatic[j]:
+                pos = pos + (rot @ axis) * q[:, j, None]
+            else:
+                rot = rot @ axis_rotation(axis, q[:, j])
+            axes_world.append(rot @ axis)
+            origins.append(pos)
+        point = pos + rot @ self.tip_translation
+        return point, rot @ self.tip_rotation, np.stack(axes_world, 1), np.stack(origins, 1)
+
+    def __call__(self, poses, jacobian: bool = True):
+        """FK (and Jacobians) of poses (M, dof) [pose units].
+
+        Returns:
+            (point_m (M, 3), direction (M, 3), J_point (M, 3, dof) [m / pose unit] or None,
+            J_direction (M, 3, dof) [1 / pose unit] or None).
+        """
+        point, rotation, w, o = self.transforms(poses)
+        direction = rotation @ self.robot.pointing_axis
+        if not jacobian:
+            return point, direction, None, None
+        scale = self.urdf_per_unit[None, :, None]
+        revolute = ~self.prismatic[None, :, None]
+        j_point = np.where(revolute, np.cross(w, point[:, None, :] - o), w) * scale
+        j_dir = np.where(revolute, np.cross(w, direction[:, None, :]), 0.0) * scale
+        return point, direction, j_point.transpose(0, 2, 1), j_dir.transpose(0, 2, 1)
+
+
+def pinocchio_kinematics(robot, poses, jacobian: bool = True):
+    """The reference of :class:`ChainKinematics`: Pinocchio per pose (LOCAL_WORLD_ALIGNED)."""
+    import pinocchio as pin
+
+    pfk = robot.pinocchio_fk()
+    model, data, fid = pfk.model, pfk.data, pfk.frame_id
+    q_urdf = robot.to_urdf(np.atleast_2d(np.asarray(poses, dtype=float)))
+    m, dof = q_urdf.shape
+    point, direction = np.empty((m, 3)), np.empty((m, 3))
+    j_point, j_dir = np.empty((m, 3, dof)), np.empty((m, 3, dof))
+    scale = robot.to_urdf(np.ones(dof)) - robot.to_urdf(np.zeros(dof))
+    for i, q in enumerate(q_urdf):
+        jac = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)
+        placement = data.oMf[fid]
+        point[i] = placement.translation
+        direction[i] = placement.rotation @ robot.pointing_axis
+        j_point[i] = jac[:3] * scale
+        j_dir[i] = np.cross(jac[3:].T, direction[i]).T * scale
+    if not jacobian:
+        return point, direction, None, None
+    return point, direction, j_point, j_dir

@@ -1,0 +1,89 @@
+"""FK through Pinocchio (float64, numpy), and the robot's Pinocchio model for IK and Jacobians.
+
+The model holds only the robot's chain: every other movable joint of the URDF is locked at 0
+(``pinocchio.buildReducedModel``), continuous joints are read as revolute joints with
+unbounded limits (one coordinate each, so nq = nv = dof), and the chain's base link is the
+model's world frame (positions and world-aligned Jacobians are in the base frame).
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+
+import numpy as np
+
+#: Limit [rad] given to continuous joints in the model (Pinocchio needs finite numbers).
+CONTINUOUS_LIMIT_RAD = 1e6
+
+
+def chain_urdf_xml(robot) -> str:
+    """The robot's URDF text with its continuous joints made revolute with wide limits."""
+    tree = ET.parse(robot.urdf_path)
+    for joint in tree.getroot().iter("joint"):
+        if joint.get("type") == "continuous":
+            joint.set("type", "revolute")
+            limit = joint.find("limit")
+            if limit is None:
+                limit = ET.SubElement(joint, "limit", effort="0", velocity="0")
+            limit.set("lower", repr(-CONTINUOUS_LIMIT_RAD))
+            limit.set("upper", repr(CONTINUOUS_LIMIT_RAD))
+    return ET.tostring(tree.getroot(), encoding="unicode")
+
+
+def build_chain_model(robot):
+    """The Pinocchio model of ``robot``'s chain (see the module docstring)."""
+    import pinocchio as pin
+
+    full = pin.buildModelFromXML(chain_urdf_xml(robot))
+    keep = set(robot.joint_names)
+    lock = [j for j in range(1, full.njoints) if full.names[j] not in keep]
+    model = pin.buildReducedModel(full, lock, pin.neutral(full)) if lock else full
+    names = tuple(model.names[1:])
+    if names != robot.joint_names:
+        raise ValueError(f"URDF joint order {names} differs from {robot.joint_names}")
+    if not model.existFrame(robot.root_link):
+        raise ValueError(f"base link {robot.root_link} is not a frame of the model")
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, pin.neutral(model))
+    T_world_base = data.oMf[model.getFrameId(robot.root_link)].copy()
+    if not T_world_base.isIdentity():
+        # the chain's base becomes the world frame: its first joint hangs off the universe
+        first = 1
+        model.jointPlacements[first] = T_world_base.actInv(model.jointPlacements[first])
+    return model
+
+
+class PinocchioFK:
+    """FK through Pinocchio (float64, numpy), plus its model for IK and Jacobians.
+
+    Attributes:
+        model: the chain's ``pinocchio.Model`` (world = the robot's base link).
+        data: scratch data of ``model``.
+        frame_id: the end frame's id.
+    """
+
+    def __init__(self, robot):
+        self.robot = robot
+        self.model = build_chain_model(robot)
+        self.data = self.model.createData()
+        self.frame_id = self.model.getFrameId(robot.end_frame)
+
+    def placement(self, q_rad: np.ndarray):
+        """The end frame's ``pin.SE3`` in the base frame for one configuration (dof,)."""
+        import pinocchio as pin
+
+        pin.framesForwardKinematics(self.model, self.data, q_rad)
+        return self.data.oMf[self.frame_id]
+
+    def transforms(self, q_pose) -> np.ndarray:
+        """End-frame transforms (B, 4, 4) [m] for poses (B, dof) [pose units]."""
+        q_urdf = self.robot.to_urdf(np.atleast_2d(np.asarray(q_pose, dtype=float)))
+        out = np.empty((len(q_urdf), 4, 4))
+        for i, q in enumerate(q_urdf):
+            out[i] = self.placement(q).homogeneous
+        return out
+
+    def __call__(self, q_pose):
+        """Return ``(point_m, direction)`` arrays (B, 3) for poses (B, dof) [pose units]."""
+        T_base_tip = self.transforms(q_pose)
+        return T_base_tip[:, :3, 3], T_base_tip[:, :3, :3] @ self.robot.pointing_axis

@@ -1,0 +1,75 @@
+"""Batched, differentiable FK through pytorch-kinematics (torch), float32 or float64."""
+
+from __future__ import annotations
+
+
+def _float64_transform(origin):
+    """URDF origin -> float64 Transform3d (pytorch-kinematics rounds rpy to float32)."""
+    import pytorch_kinematics.transforms as tf
+    import torch
+
+    if origin is None:
+        return tf.Transform3d(dtype=torch.float64)
+    rpy = torch.tensor(origin.rpy, dtype=torch.float64)
+    pos = torch.tensor(origin.xyz, dtype=torch.float64)
+    return tf.Transform3d(rot=tf.quaternion_from_euler(rpy, "sxyz"), pos=pos, dtype=torch.float64)
+
+
+def build_chain_float64(urdf_bytes: bytes, end_frame: str, root_frame: str = ""):
+    """``pk.build_serial_chain_from_urdf`` with its constant transforms exact in float64.
+
+    pytorch-kinematics (0.10) converts every URDF ``rpy`` through a float32 tensor, which moves
+    the NICO fingertip by ~4e-8 m. After the normal build, each joint offset is recomputed in
+    float64 from the URDF origin and the serial chain (``root_frame`` -> ``end_frame``; "" is
+    the URDF's root) is built in float64; ``TorchFK`` then casts it to the dtype asked for.
+    """
+    import pytorch_kinematics as pk
+    import pytorch_kinematics.urdf as pk_urdf
+    import torch
+
+    tree = pk.build_chain_from_urdf(urdf_bytes)
+    origins = {j.name: j.origin for j in pk_urdf.URDF.from_xml_string(urdf_bytes).joints}
+    stack = [tree._root]
+    while stack:
+        frame = stack.pop()
+        if frame.joint.name in origins and frame.joint.offset is not None:
+            frame.joint.offset = _float64_transform(origins[frame.joint.name])
+        if frame.link.offset is not None:
+            frame.link.offset = frame.link.offset.to(device="cpu", dtype=torch.float64)
+        stack.extend(frame.children)
+    return pk.SerialChain(tree, end_frame, root_frame, dtype=torch.float64)
+
+
+class TorchFK:
+    """Batched, differentiable FK of the robot's chain through pytorch-kinematics.
+
+    Args:
+        robot: the :class:`ikbench.core.robot.Robot`.
+        dtype: torch dtype (float32 or float64).
+        device: torch device.
+    """
+
+    def __init__(self, robot, dtype=None, device: str = "cpu"):
+        import torch
+
+        self.robot = robot
+        self.dtype = dtype or torch.float32
+        self.device = device
+        chain = build_chain_float64(robot.urdf_path.read_bytes(), robot.end_frame,
+                                    robot.root_link)
+        names = tuple(chain.get_joint_parameter_names())
+        if names != robot.joint_names:
+            raise ValueError(f"URDF joint order {names} differs from {robot.joint_names}")
+        self.chain = chain.to(dtype=self.dtype, device=device)
+        self.pointing_axis = torch.as_tensor(robot.pointing_axis, dtype=self.dtype,
+                                             device=device)
+
+    def transform(self, q_pose):
+        """End-frame homogeneous transforms (B, 4, 4) [m] for poses (B, dof) [pose units]."""
+        q_urdf = self.robot.to_urdf(q_pose)
+        return self.chain.forward_kinematics(q_urdf).get_matrix()
+
+    def __call__(self, q_pose):
+        """Return ``(point_m, direction)`` tensors (B, 3) for poses (B, dof) [pose units]."""
+        T_base_tip = self.transform(q_pose)
+        return T_base_tip[:, :3, 3], T_base_tip[:, :3, :3] @ self.pointing_axis

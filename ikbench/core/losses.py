@@ -1,0 +1,158 @@
+"""The paper's loss L = sum_k c_k L_k as named, individually droppable terms (torch).
+
+Units are the paper's: points in **centimetres**, poses in **motor degrees**, so that the
+loss values and the stopping rule (loss < 10) reproduce. With P_i the fingertip points,
+v_i the unit pointing directions, p_i the poses, P^g_i / v^g_i the goals:
+
+- L0 = mean over all (n+1) x 3 coordinates of (P_i - P^g_i)^2          line points
+- L1 = mean over i of (1 - v_i . v^g_i)                                pointing
+- L2 = sum (p_0 - p^s)^2,  L3 = sum (p_n - p^e)^2                      start/end poses
+- L4 = sum (P_0 - P^s)^2,  L5 = sum (P_n - P^e)^2                      start/end points
+- L6 = mean over n x dof of (p_{i+1} - p_i)^2                          smoothness
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ikbench.core.errors import InputError
+
+TERMS = ("L0", "L1", "L2", "L3", "L4", "L5", "L6")
+#: The paper's weights c0..c6.
+PAPER_WEIGHTS = {"L0": 1.0, "L1": 50.0, "L2": 5.0, "L3": 100.0, "L4": 10.0, "L5": 200.0,
+                 "L6": 1.0}
+PAPER_WEIGHTS_TEXT = "the paper's c0=1,c1=50,c2=5,c3=100,c4=10,c5=200,c6=1"
+TERM_DESCRIPTIONS = {
+    "L0": "line points", "L1": "pointing direction", "L2": "start pose", "L3": "end pose",
+    "L4": "start point", "L5": "end point", "L6": "smoothness",
+}
+MM_PER_CM = 10.0
+
+
+def parse_terms(text: str) -> list[str]:
+    """Parse ``"L1"`` or ``"L2,L3"`` into term names; unknown names raise InputError."""
+    names = [t.strip().upper() for t in str(text).split(",") if t.strip()]
+    bad = [n for n in names if n not in TERMS]
+    if bad or not names:
+        raise InputError(
+            f"unknown loss term(s) {', '.join(map(repr, bad)) or repr(text)}; "
+            f"valid: {', '.join(TERMS)}"
+        )
+    return list(dict.fromkeys(names))
+
+
+def parse_weights(text: str | None, base: dict | None = None) -> dict[str, float]:
+    """Parse ``"c0=1,c1=50"`` (or ``L0=1``) into weights on top of ``base`` (paper's)."""
+    weights = dict(base or PAPER_WEIGHTS)
+    if not text:
+        return weights
+    for item in str(text).split(","):
+        key, sep, value = item.partition("=")
+        key = key.strip().upper().replace("C", "L", 1) if key.strip() else key
+        try:
+            number = float(value)
+        except ValueError:
+            number = float("nan")
+        if not sep or key not in TERMS or not np.isfinite(number) or number < 0:
+            raise InputError(
+                f"--weights: {item.strip()!r} is not term=value with term in c0..c6 (or "
+                "L0..L6) and a finite value >= 0"
+            )
+        weights[key] = number
+    if not any(weights.values()):
+        raise InputError(f"--weights: {text!r} sets every term to 0; the loss would be empty")
+    return weights
+
+
+def format_weights(weights: dict) -> str:
+    """``{"L0": 1.0, ...}`` -> ``"c0=1,c1=50,..."`` (the --weights syntax)."""
+    return ",".join(f"c{name[1:]}={weights.get(name, 0.0):g}" for name in TERMS)
+
+
+def check_weights(weights) -> None:
+    """InputError when ``weights`` is neither a dict, None nor valid ``--weights`` changes."""
+    if not isinstance(weights, dict):
+        parse_weights(weights)
+
+
+def resolve_weights(weights, task) -> dict[str, float]:
+    """The complete weights for ``task``: a dict as given, or changes (a ``--weights`` string;
+    None for none) on top of the task's own default weights, else the paper's."""
+    if isinstance(weights, dict):
+        return weights
+    return parse_weights(weights, task.default_weights)
+
+
+@dataclass
+class LossGoals:
+    """Goals of one task as torch tensors, in the loss units (cm, motor degrees)."""
+
+    goal_points_cm: object      # (n+1, 3)
+    goal_directions: object     # (n+1, 3) unit
+    start_pose_deg: object      # (dof,) or None
+    end_pose_deg: object        # (dof,) or None
+
+    @classmethod
+    def from_task(cls, task, dtype, device="cpu") -> LossGoals:
+        import torch
+
+        def tensor(x):
+            return None if x is None else torch.as_tensor(x, dtype=dtype, device=device)
+
+        return cls(tensor(task.goal_points_mm / MM_PER_CM), tensor(task.goal_directions),
+                   tensor(task.start_pose_deg), tensor(task.end_pose_deg))
+
+
+def loss_terms(points_cm, directions, poses_deg, goals: LossGoals) -> dict:
+    """The seven terms (scalar tensors) for one trajectory.
+
+    Args:
+        points_cm: (n+1, 3) fingertip points [cm].
+        directions: (n+1, 3) unit pointing directions.
+        poses_deg: (n+1, dof) poses [motor deg].
+        goals: the task's goals. L2/L3 are 0 when the task fixes no start/end pose.
+    """
+    zero = poses_deg.new_zeros(())
+    return {
+        "L0": ((points_cm - goals.goal_points_cm) ** 2).mean(),
+        "L1": (1.0 - (directions * goals.goal_directions).sum(-1)).mean(),
+        "L2": zero if goals.start_pose_deg is None
+        else ((poses_deg[0] - goals.start_pose_deg) ** 2).sum(),
+        "L3": zero if goals.end_pose_deg is None
+        else ((poses_deg[-1] - goals.end_pose_deg) ** 2).sum(),
+        "L4": ((points_cm[0] - goals.goal_points_cm[0]) ** 2).sum(),
+        "L5": ((points_cm[-1] - goals.goal_points_cm[-1]) ** 2).sum(),
+        "L6": (poses_deg.diff(dim=0) ** 2).mean(),
+    }
+
+
+def weighted_loss(terms: dict, weights: dict):
+    """L = sum_k c_k L_k over the terms whose weight is non-zero."""
+    total = None
+    for name in TERMS:
+        c = weights.get(name, 0.0)
+        if c:
+            total = terms[name] * c if total is None else total + terms[name] * c
+    return total if total is not None else next(iter(terms.values())) * 0.0
+
+
+def objective(robot, task, poses_deg, weights: dict | None = None) -> tuple[float, dict]:
+    """Evaluate the loss of given poses (n+1, dof) [motor deg] in float64.
+
+    The one reference evaluation every method's final loss is compared with.
+
+    Returns:
+        (L, {term name: L_k}) as floats.
+    """
+    import torch
+
+    weights = PAPER_WEIGHTS if weights is None else weights
+    poses = torch.as_tensor(np.asarray(poses_deg, dtype=float), dtype=torch.float64)
+    with torch.no_grad():
+        point_m, direction = robot.torch_fk(torch.float64)(poses)
+        terms = loss_terms(point_m * 100.0, direction, poses,
+                           LossGoals.from_task(task, torch.float64))
+        total = weighted_loss(terms, weights)
+    return float(total), {k: float(v) for k, v in terms.items()}

@@ -1,0 +1,509 @@
+"""The robot model: a URDF chain from a base link to an end frame, its pose units and limits.
+
+A robot is a URDF plus a small config (``urdf/<name>.toml``, see :func:`load_robot`). Its
+joints are the movable joints on the path from ``base_link`` to ``end_frame``; every other
+movable joint of the URDF is locked at 0. Positions are expressed in the base link's frame.
+
+Poses at every interface are in **pose units**, in the order of ``Robot.joint_names``:
+
+- with a motor map (NICO): **motor degrees**, what the robot reports; the affine map
+  ``joint_deg = scale * motor_deg + offset_deg`` per joint lives in a data file next to the
+  URDF (``*.motors.json``);
+- without one (Panda, Fetch, a user's URDF): **joint degrees** for revolute and continuous
+  joints and **millimetres** for prismatic ones.
+
+The URDF speaks SI (radians, metres): :meth:`Robot.to_urdf` / :meth:`Robot.from_urdf` map
+between (``motor_to_joint_rad`` / ``joint_rad_to_motor_deg`` are their older names).
+Continuous joints have no limits (-inf, +inf).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import math
+import tomllib
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ikbench.core.errors import InputError
+
+DEFAULT_ROBOT = "nico_right_arm"
+DEG2RAD = math.pi / 180.0
+MM_PER_M = 1000.0
+#: Tolerance [pose units] when checking that a pose lies within the limits.
+RANGE_TOLERANCE_DEG = 1e-6
+#: URDF joint types a chain may hold (fixed joints are constant transforms).
+MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
+#: Keys a robot config may hold (a typo would otherwise be ignored silently).
+CONFIG_KEYS = ("name", "description", "source", "urdf", "base_link", "end_frame",
+               "pointing_axis", "joints", "motor_map", "hardware", "targets", "frame",
+               "letters", "batch")
+
+
+def robots_dir() -> Path:
+    """Where the shipped robot models live: ``ikbench/robots`` in an installed wheel, the
+    checkout's top-level ``urdf/`` folder in an editable install."""
+    here = Path(__file__).resolve().parents[1]
+    shipped = here / "robots"
+    return shipped if shipped.is_dir() else here.parent / "urdf"
+
+
+class FKResult(NamedTuple):
+    """End-frame point [mm] and unit pointing direction (the pointing axis), both (B, 3)."""
+
+    point_mm: np.ndarray
+    direction: np.ndarray
+
+
+class ChainJoint(NamedTuple):
+    """A movable joint of the chain as the URDF gives it (SI units)."""
+
+    name: str
+    type: str
+    lower: float
+    upper: float
+
+
+@dataclass(frozen=True, eq=False)
+class Robot:
+    """A serial chain of a URDF, with its pose units, limits and conventions.
+
+    Attributes:
+        name: robot name (``nico_right_arm``, or the URDF's stem).
+        urdf_path: path of the URDF (SI units).
+        end_frame: the link whose origin is the end point and whose ``pointing_axis`` points.
+        root_link: the chain's base link; positions are in its frame.
+        joint_names: the chain's movable joints, base to end, in pose order.
+        scale: (dof,) joint value = scale * pose + offset (1 and 0 without a motor map).
+        offset_deg: (dof,) see ``scale`` (deg for rotational joints, mm for prismatic).
+        lower_motor_deg: (dof,) lower limits [pose units] (-inf for continuous joints).
+        upper_motor_deg: (dof,) upper limits [pose units] (+inf for continuous joints).
+        joint_types: (dof,) ``revolute``, ``continuous`` or ``prismatic``.
+        pointing_axis: (3,) unit axis of the end frame that "points" (default z).
+        has_motor_map: True when poses are motor degrees (a ``*.motors.json`` map).
+        config: the robot config (description, source, targets, frame, letters, batch ...).
+    """
+
+    name: str
+    urdf_path: Path
+    end_frame: str
+    root_link: str
+    joint_names: tuple[str, ...]
+    scale: np.ndarray
+    offset_deg: np.ndarray
+    lower_motor_deg: np.ndarray
+    upper_motor_deg: np.ndarray
+    joint_types: tuple[str, ...] = ()
+    pointing_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    has_motor_map: bool = True
+    config: dict = field(default_factory=dict)
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def __repr__(self) -> str:
+        return (f"Robot({self.name!r}: {self.dof} joints, {self.root_link} -> {self.end_frame}, "
+                f"poses in {self.pose_unit})")
+
+    def __post_init__(self):
+        if not self.joint_types:
+            object.__setattr__(self, "joint_types", ("revolute",) * len(self.joint_names))
+        # SI units per pose unit: rad per deg, or m per mm for prismatic joints
+        si = np.array([1.0 / MM_PER_M if t == "prismatic" else DEG2RAD
+                       for t in self.joint_types])
+        object.__setattr__(self, "_si_per_unit", si)
+
+    @property
+    def dof(self) -> int:
+        """Number of movable joints of the chain."""
+        return len(self.joint_names)
+
+    @property
+    def lower(self) -> np.ndarray:
+        """(dof,) lower limits [pose units]; the same array as ``lower_motor_deg``."""
+        return self.lower_motor_deg
+
+    @property
+    def upper(self) -> np.ndarray:
+        """(dof,) upper limits [pose units]; the same array as ``upper_motor_deg``."""
+        return self.upper_motor_deg
+
+    @property
+    def prismatic(self) -> np.ndarray:
+        """(dof,) True for prismatic joints (pose unit mm)."""
+        return np.array([t == "prismatic" for t in self.joint_types])
+
+    @property
+    def pose_unit(self) -> str:
+        """How poses are given: ``motor deg`` or ``joint deg`` (mm for prismatic joints)."""
+        if self.has_motor_map:
+            return "motor deg"
+        return "joint deg, mm for prismatic" if self.prismatic.any() else "joint deg"
+
+    def unit(self, joint: int) -> str:
+        """The unit of one joint's pose value: ``motor deg``, ``deg`` or ``mm``."""
+        if self.has_motor_map:
+            return "motor deg"
+        return "mm" if self.joint_types[joint] == "prismatic" else "deg"
+
+    @property
+    def urdf_sha256(self) -> str:
+        """SHA-256 of the URDF file (recorded with results)."""
+        if "sha256" not in self._cache:
+            self._cache["sha256"] = hashlib.sha256(self.urdf_path.read_bytes()).hexdigest()
+        return self._cache["sha256"]
+
+    @property
+    def sample_lower(self) -> np.ndarray:
+        """Lower limits with continuous joints at -180 deg (for sampling poses)."""
+        return np.where(np.isfinite(self.lower), self.lower, -180.0)
+
+    @property
+    def sample_upper(self) -> np.ndarray:
+        """Upper limits with continuous joints at +180 deg (for sampling poses)."""
+        return np.where(np.isfinite(self.upper), self.upper, 180.0)
+
+    def describe(self) -> dict:
+        """Name, dof, end frame, source and URDF hash (``ikbench robots``, run.json)."""
+        return {"name": self.name, "dof": self.dof, "base_link": self.root_link,
+                "end_frame": self.end_frame, "joints": list(self.joint_names),
+                "pose_unit": self.pose_unit, "urdf": self.urdf_path.name,
+                "urdf_sha256": self.urdf_sha256,
+                "description": self.config.get("description", ""),
+                "source": self.config.get("source", "")}
+
+    # ----- pose units <-> URDF units ---------------------------------------------------------
+    def to_urdf(self, q):
+        """Poses [pose units] -> URDF joint values [rad, m]; numpy arrays or tensors (..., dof)."""
+        scale, offset, si = self._map_constants(q)
+        return (q * scale + offset) * si
+
+    def from_urdf(self, q_urdf):
+        """Inverse of :meth:`to_urdf`."""
+        scale, offset, si = self._map_constants(q_urdf)
+        return (q_urdf / si - offset) / scale
+
+    def motor_to_joint_rad(self, q_motor_deg):
+        """Poses [pose units] -> URDF joint values (the older name of :meth:`to_urdf`)."""
+        return self.to_urdf(q_motor_deg)
+
+    def joint_rad_to_motor_deg(self, q_rad):
+        """URDF joint values -> poses (the older name of :meth:`from_urdf`)."""
+        return self.from_urdf(q_rad)
+
+    def _map_constants(self, like):
+        constants = (self.scale, self.offset_deg, self._si_per_unit)
+        if isinstance(like, np.ndarray) or np.isscalar(like) or isinstance(like, list):
+            return constants
+        import torch
+
+        key = ("map", like.dtype, like.device)
+        if key not in self._cache:
+            self._cache[key] = tuple(torch.as_tensor(c, dtype=like.dtype, device=like.device)
+                                     for c in constants)
+        return self._cache[key]
+
+    # ----- validation -------------------------------------------------------------------------
+    def check_pose(self, pose_motor_deg, what: str = "pose") -> np.ndarray:
+        """Validate one pose (length, finite, within the limits); return it as float64.
+
+        Raises:
+            InputError: naming the bad entry and the allowed values.
+        """
+        try:
+            pose = np.asarray(pose_motor_deg, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(
+                f"{what}: {pose_motor_deg!r} is not a list of {self.dof} numbers "
+                f"({self.pose_unit}, order {', '.join(self.joint_names)})"
+            ) from None
+        if pose.shape != (self.dof,):
+            kind = "values" if self.prismatic.any() else "angles"
+            raise InputError(
+                f"{what}: expected {self.dof} {kind} ({', '.join(self.joint_names)}; "
+                f"{self.pose_unit}), got {pose.size}"
+            )
+        for j, (name, value, lo, hi) in enumerate(zip(
+                self.joint_names, pose, self.lower_motor_deg, self.upper_motor_deg)):
+            if not math.isfinite(value):
+                raise InputError(f"{what}: {name} = {value} is not a finite number")
+            if value < lo - RANGE_TOLERANCE_DEG or value > hi + RANGE_TOLERANCE_DEG:
+                raise InputError(f"{what}: {name} = {value:g} {self.unit(j)} is outside its "
+                                 f"range [{lo:g}, {hi:g}]")
+        return pose
+
+    def check_poses(self, poses, what: str = "poses") -> np.ndarray:
+        """Validate poses (B, dof) or (dof,); InputError naming the shape expected."""
+        array = np.asarray(poses, dtype=float)
+        if array.ndim not in (1, 2) or array.shape[-1] != self.dof:
+            raise InputError(f"{what}: shape {array.shape} is not (B, {self.dof}) or "
+                             f"({self.dof},): {self.dof} values per pose "
+                             f"({', '.join(self.joint_names)}; {self.pose_unit})")
+        return array
+
+    def within_limits(self, poses_motor_deg, tol_deg: float = RANGE_TOLERANCE_DEG) -> bool:
+        """True when every pose in (..., dof) lies within the limits (+- ``tol_deg``)."""
+        poses = np.asarray(poses_motor_deg, dtype=float)
+        return bool(
+            np.all(poses >= self.lower_motor_deg - tol_deg)
+            and np.all(poses <= self.upper_motor_deg + tol_deg)
+        )
+
+    # ----- kinematics -------------------------------------------------------------------------
+    def torch_fk(self, dtype=None, device: str = "cpu"):
+        """The pytorch-kinematics FK backend (cached per dtype/device); see ``TorchFK``."""
+        import torch
+
+        from ikbench.core.kinematics.torch_fk import TorchFK
+
+        dtype = dtype or torch.float32
+        key = ("torch_fk", dtype, str(device))
+        if key not in self._cache:
+            self._cache[key] = TorchFK(self, dtype=dtype, device=device)
+        return self._cache[key]
+
+    def pinocchio_fk(self):
+        """The Pinocchio FK backend (cached); see ``PinocchioFK``."""
+        from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
+
+        if "pin_fk" not in self._cache:
+            self._cache["pin_fk"] = PinocchioFK(self)
+        return self._cache["pin_fk"]
+
+    def chain_kinematics(self):
+        """The vectorised numpy chain (cached); see ``ChainKinematics``."""
+        from ikbench.core.kinematics.chain import ChainKinematics
+
+        if "chain" not in self._cache:
+            self._cache["chain"] = ChainKinematics(self)
+        return self._cache["chain"]
+
+    def fk(self, q_motor_deg, backend: str = "pinocchio") -> FKResult:
+        """End point [mm] and pointing direction for poses (dof,) or (B, dof) [pose units].
+
+        Args:
+            q_motor_deg: pose(s) in pose units.
+            backend: ``"pinocchio"`` or ``"torch"`` (pytorch-kinematics, float64).
+
+        Returns:
+            FKResult with arrays of shape (B, 3) (B = 1 for a single pose).
+        """
+        q = np.atleast_2d(self.check_poses(q_motor_deg, "fk"))
+        T_base_tip = self.fk_transform(q, backend)
+        return FKResult(T_base_tip[:, :3, 3] * MM_PER_M, T_base_tip[:, :3, :3]
+                        @ self.pointing_axis)
+
+    def fk_transform(self, q_motor_deg, backend: str = "pinocchio") -> np.ndarray:
+        """End-frame transforms (B, 4, 4) in the base frame [m] for poses (B, dof)."""
+        q = np.atleast_2d(self.check_poses(q_motor_deg, "fk"))
+        if backend == "pinocchio":
+            return self.pinocchio_fk().transforms(q)
+        if backend == "torch":
+            import torch
+
+            fk = self.torch_fk(dtype=torch.float64)
+            with torch.no_grad():
+                return fk.transform(torch.as_tensor(q, dtype=torch.float64)).numpy()
+        raise InputError(f"backend {backend!r} is unknown; choose one of: pinocchio, torch")
+
+
+# ----- loading ------------------------------------------------------------------------------
+def chain_joints(urdf_path: Path, base_link: str, end_frame: str) -> list[ChainJoint]:
+    """The movable joints on the path base_link -> end_frame of a URDF, base first.
+
+    Reads only the joints' names, types, parent/child links and limits; the kinematics
+    libraries parse the rest.
+
+    Raises:
+        InputError: unreadable URDF, unknown link, or end_frame not below base_link.
+    """
+    try:
+        root = ET.parse(urdf_path).getroot()
+    except (OSError, ET.ParseError) as exc:
+        raise InputError(f"cannot read URDF {str(urdf_path)!r}: {exc}") from None
+    links = [link.get("name") for link in root.iter("link")]
+    for what, name in (("--end-frame", end_frame), ("base link", base_link)):
+        if name not in links:
+            raise InputError(f"{what}: {name!r} is not a link of {urdf_path.name}; links: "
+                             f"{', '.join(links)}")
+    by_child = {j.find("child").get("link"): j for j in root.iter("joint")}
+    path, link = [], end_frame
+    while link != base_link:
+        joint = by_child.get(link)
+        if joint is None:
+            raise InputError(f"--end-frame: {end_frame!r} is not below the base link "
+                             f"{base_link!r} in {urdf_path.name}")
+        path.append(joint)
+        link = joint.find("parent").get("link")
+    joints = []
+    for joint in reversed(path):
+        kind = joint.get("type")
+        if kind == "fixed":
+            continue
+        if kind not in MOVABLE_TYPES:
+            raise InputError(f"{urdf_path.name}: joint {joint.get('name')!r} is {kind!r}; a "
+                             f"chain may hold {', '.join(MOVABLE_TYPES)} and fixed joints")
+        limit = joint.find("limit")
+        if kind == "continuous" or limit is None:
+            lower, upper = -math.inf, math.inf
+        else:
+            lower, upper = float(limit.get("lower", 0.0)), float(limit.get("upper", 0.0))
+        joints.append(ChainJoint(joint.get("name"), kind, lower, upper))
+    if not joints:
+        raise InputError(f"{urdf_path.name}: no movable joint between {base_link!r} and "
+                         f"{end_frame!r}")
+    return joints
+
+
+def urdf_root_link(urdf_path: Path) -> str:
+    """The URDF's root link (the one no joint has as child)."""
+    root = ET.parse(urdf_path).getroot()
+    children = {j.find("child").get("link") for j in root.iter("joint")}
+    roots = [link.get("name") for link in root.iter("link") if link.get("name") not in children]
+    return roots[0]
+
+
+def shipped_robots() -> dict[str, Path]:
+    """name -> config path of every robot shipped in :func:`robots_dir`."""
+    return {p.stem: p for p in sorted(robots_dir().glob("*.toml"))}
+
+
+def _unit_axis(values, what: str) -> np.ndarray:
+    axis = np.asarray(values, dtype=float)
+    if axis.shape != (3,) or not np.all(np.isfinite(axis)) or not np.any(axis):
+        raise InputError(f"{what}: {values!r} must be three finite numbers, not all zero")
+    return axis / np.linalg.norm(axis)
+
+
+def _read_config(path: Path) -> dict:
+    try:
+        if path.suffix == ".toml":
+            config = tomllib.loads(path.read_text(encoding="utf-8"))
+        else:  # the older form: a *.motors.json map that names its URDF
+            spec = json.loads(path.read_text(encoding="utf-8"))
+            config = {"name": path.name.removesuffix(".motors.json"), "urdf": spec["urdf"],
+                      "base_link": spec["root_link"], "end_frame": spec["end_frame"],
+                      "motor_map": path.name}
+    except (OSError, UnicodeDecodeError, ValueError, KeyError) as exc:
+        raise InputError(f"robot config {str(path)!r} cannot be read: {exc}") from None
+    unknown = [k for k in config if k not in CONFIG_KEYS]
+    if unknown:
+        raise InputError(f"robot config {str(path)!r}: unknown key(s) "
+                         f"{', '.join(map(repr, unknown))}; allowed: {', '.join(CONFIG_KEYS)}")
+    missing = [k for k in ("urdf", "end_frame") if k not in config]
+    if missing:
+        raise InputError(f"robot config {str(path)!r}: missing key(s) {', '.join(missing)}")
+    return config
+
+
+def _motor_map(path: Path, joints: list[ChainJoint]):
+    """scale, offset, lower, upper (dof,) from a ``*.motors.json`` map in the chain's order."""
+    try:
+        spec = json.loads(path.read_text(encoding="utf-8"))
+        entries = {j["name"]: j for j in spec["joints"]}
+        rows = [entries[j.name] for j in joints]
+        scale = np.array([r["scale"] for r in rows], dtype=float)
+        offset = np.array([r["offset_deg"] for r in rows], dtype=float)
+        lower = np.array([r["lower_motor_deg"] for r in rows], dtype=float)
+        upper = np.array([r["upper_motor_deg"] for r in rows], dtype=float)
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"motor map {str(path)!r} cannot be used: {exc!r} (it needs name, "
+                         "scale, offset_deg, lower_motor_deg, upper_motor_deg for every joint "
+                         "of the chain)") from None
+    return scale, offset, lower, upper
+
+
+def robot_from_config(path: Path, end_frame: str | None = None) -> Robot:
+    """Build a :class:`Robot` from a config file (``*.toml`` or an older ``*.motors.json``)."""
+    config = _read_config(path)
+    urdf_path = (path.parent / config["urdf"]).resolve()
+    if not urdf_path.is_file():
+        raise InputError(f"robot config {str(path)!r}: URDF {str(urdf_path)!r} not found")
+    end = end_frame or config["end_frame"]
+    base = config.get("base_link") or urdf_root_link(urdf_path)
+    joints = chain_joints(urdf_path, base, end)
+    names = tuple(j.name for j in joints)
+    if "joints" in config and tuple(config["joints"]) != names:
+        raise InputError(f"robot config {str(path)!r}: joints {config['joints']} differ from "
+                         f"the URDF chain {base} -> {end}: {list(names)}")
+    types = tuple(j.type for j in joints)
+    if config.get("motor_map"):
+        scale, offset, lower, upper = _motor_map(path.parent / config["motor_map"], joints)
+        has_map = True
+    else:
+        scale, offset = np.ones(len(joints)), np.zeros(len(joints))
+        per_unit = np.array([MM_PER_M if t == "prismatic" else 1.0 / DEG2RAD for t in types])
+        lower = np.array([j.lower for j in joints]) * per_unit
+        upper = np.array([j.upper for j in joints]) * per_unit
+        has_map = False
+    return Robot(name=str(config.get("name") or urdf_path.stem), urdf_path=urdf_path,
+                 end_frame=end, root_link=base, joint_names=names, scale=scale,
+                 offset_deg=offset, lower_motor_deg=lower, upper_motor_deg=upper,
+                 joint_types=types,
+                 pointing_axis=_unit_axis(config.get("pointing_axis", (0, 0, 1)),
+                                          f"{path.name}: pointing_axis"),
+                 has_motor_map=has_map, config={**config, "config_path": str(path)})
+
+
+def robot_from_urdf(urdf_path: Path, end_frame: str, base_link: str | None = None) -> Robot:
+    """A robot from a bare URDF: the chain from its root (or ``base_link``) to ``end_frame``;
+    poses in joint degrees (mm for prismatic joints), the end frame's z-axis points."""
+    base = base_link or urdf_root_link(urdf_path)
+    joints = chain_joints(urdf_path, base, end_frame)
+    types = tuple(j.type for j in joints)
+    per_unit = np.array([MM_PER_M if t == "prismatic" else 1.0 / DEG2RAD for t in types])
+    return Robot(name=urdf_path.stem, urdf_path=urdf_path.resolve(), end_frame=end_frame,
+                 root_link=base, joint_names=tuple(j.name for j in joints),
+                 scale=np.ones(len(joints)), offset_deg=np.zeros(len(joints)),
+                 lower_motor_deg=np.array([j.lower for j in joints]) * per_unit,
+                 upper_motor_deg=np.array([j.upper for j in joints]) * per_unit,
+                 joint_types=types, has_motor_map=False,
+                 config={"description": f"{urdf_path.name}, chain {base} -> {end_frame}",
+                         "source": str(urdf_path)})
+
+
+@functools.lru_cache(maxsize=16)
+def _load(name_or_path: str, end_frame: str | None) -> Robot:
+    shipped = shipped_robots()
+    if name_or_path in shipped:
+        return robot_from_config(shipped[name_or_path], end_frame)
+    path = Path(name_or_path)
+    if path.suffix.lower() == ".urdf":
+        if not path.is_file():
+            raise InputError(f"--robot: URDF {name_or_path!r} not found")
+        if not end_frame:
+            raise InputError(f"--robot {name_or_path}: a bare URDF needs --end-frame LINK "
+                             "(the chain runs from the URDF's root to that link)")
+        return robot_from_urdf(path, end_frame)
+    if path.suffix.lower() in (".toml", ".json") and path.is_file():
+        return robot_from_config(path, end_frame)
+    if path.name.endswith(".motors.json") or path.suffix.lower() in (".toml", ".json"):
+        raise InputError(f"--robot: robot config {name_or_path!r} not found")
+    raise InputError(f"--robot: {name_or_path!r} is not a shipped robot ("
+                     f"{', '.join(shipped) or 'none'}), a robot config (*.toml) or a URDF "
+                     "(*.urdf, with --end-frame)")
+
+
+def load_robot(name_or_path: str | Path = DEFAULT_ROBOT, end_frame: str | None = None) -> Robot:
+    """Load a robot by name, config file or bare URDF.
+
+    Args:
+        name_or_path: a shipped robot's name (``"nico_right_arm"``; ``ikbench robots`` lists
+            them), a robot config (``*.toml``, or an older ``*.motors.json``), or a URDF.
+        end_frame: the end link; required with a bare URDF, optional otherwise (it replaces
+            the config's).
+
+    Raises:
+        InputError: naming the bad value and what is allowed.
+    """
+    return _load(str(name_or_path), end_frame or None)
+
+
+def robot_config_value(robot: Robot, section: str, key: str, default: Any = None) -> Any:
+    """A value of a config section (``letters``, ``batch``, ``frame``), or ``default``."""
+    value = robot.config.get(section, {})
+    return value.get(key, default) if isinstance(value, dict) else default

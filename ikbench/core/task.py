@@ -1,0 +1,262 @@
+"""Tasks: the goal points and goal directions a trajectory must follow.
+
+A :class:`Task` holds n+1 goal points P^g_i [mm] and unit goal directions v^g_i, plus the
+start and end poses [motor deg] that the start/end loss terms pin. The paper's task is the
+straight line of Eq. 1 from FK(start pose) to FK(touch pose), pointing along it.
+
+:func:`build_tasks` makes the tasks of any shape (``--shape``):
+
+- ``line``: one line per touch pose of the targets file (the paper's task).
+- ``polyline:FILE`` / ``spline:FILE``: control points [mm, torso frame] from a CSV file
+  (:func:`ikbench.core.shapes.read_points_csv`), joined by straight lines or a centripetal
+  Catmull-Rom spline; one task named after the file's stem. No pose is pinned.
+- ``letter:P`` or ``letter:P,A,B``: one task per letter, named after it, drawn on the frontal
+  plane through the fingertip at the start pose (:mod:`ikbench.core.letters`). No pose is pinned
+  and the task asks for the paper's letter weights (no start/end pose or point terms).
+
+Curves are resampled to n+1 goal points evenly by arc length. Goal directions default to the
+path tangent (line, polyline, spline) or the drawing plane's normal (letters).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ikbench.core import letters
+from ikbench.core.errors import InputError
+from ikbench.core.robot import Robot
+from ikbench.core.shapes import Curve, catmull_rom, read_points_csv
+from ikbench.core.targets import Targets
+
+#: Below this distance [mm] start and touch points coincide and a line has no direction.
+MIN_LINE_LENGTH_MM = 1e-6
+
+
+@dataclass(frozen=True, eq=False)
+class Task:
+    """What a method must achieve for one trajectory.
+
+    Attributes:
+        name: trajectory id (e.g. ``"1"``).
+        goal_points_mm: (n+1, 3) goal points P^g_i in the robot root frame [mm].
+        goal_directions: (n+1, 3) unit goal pointing directions v^g_i.
+        start_pose_deg: (dof,) start pose p^s [motor deg], or None when not constrained.
+        end_pose_deg: (dof,) end (touch) pose p^e [motor deg], or None.
+        shape: the shape's name (``"line"``, ...).
+        pen_down: (n+1,) True where the point belongs to the drawn shape (metrics skip the
+            others, e.g. pen-up moves between strokes).
+        curve: the target curve the goal points were sampled from; None for a line (the
+            segment from P^s to P^e).
+        default_weights: loss weights c0..c6 (keys L0..L6) this task is meant for, under any
+            the user sets; None: the method's own defaults (the paper's).
+        reference_pose_deg: (dof,) the pose the shape was placed from (a letter's start pose);
+            pinned by no loss term, a starting guess for methods that need one.
+    """
+
+    name: str
+    goal_points_mm: np.ndarray
+    goal_directions: np.ndarray
+    start_pose_deg: np.ndarray | None
+    end_pose_deg: np.ndarray | None
+    shape: str = "line"
+    pen_down: np.ndarray = field(default=None)
+    curve: Curve | None = None
+    default_weights: dict | None = None
+    reference_pose_deg: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.pen_down is None:
+            object.__setattr__(self, "pen_down", np.ones(len(self.goal_points_mm), dtype=bool))
+
+    @property
+    def steps(self) -> int:
+        """Number of segments n."""
+        return len(self.goal_points_mm) - 1
+
+    @property
+    def start_point_mm(self) -> np.ndarray:
+        """P^s = P^g_0 [mm]."""
+        return self.goal_points_mm[0]
+
+    @property
+    def end_point_mm(self) -> np.ndarray:
+        """P^e = P^g_n [mm]."""
+        return self.goal_points_mm[-1]
+
+
+def line_task(robot: Robot, start_pose_deg, end_pose_deg, steps: int, name: str = "") -> Task:
+    """The paper's straight-line task (Eq. 1) from FK(start pose) to FK(end pose).
+
+    Args:
+        robot: the robot.
+        start_pose_deg: (dof,) start pose [motor deg].
+        end_pose_deg: (dof,) touch pose [motor deg].
+        steps: number of segments n (n+1 goal points).
+        name: trajectory id.
+    """
+    start = np.asarray(start_pose_deg, dtype=float)
+    end = np.asarray(end_pose_deg, dtype=float)
+    fk = robot.fk(np.stack([start, end]))
+    p_start_mm, p_end_mm = fk.point_mm
+    length_mm = float(np.linalg.norm(p_end_mm - p_start_mm))
+    if length_mm < MIN_LINE_LENGTH_MM:
+        raise InputError(
+            f"trajectory {name!r}: start and touch points coincide ({length_mm:g} mm apart); "
+            "a line task needs two distinct points"
+        )
+    direction = (p_end_mm - p_start_mm) / length_mm
+    t = np.linspace(0.0, 1.0, steps + 1)[:, None]
+    points_mm = p_start_mm + t * (p_end_mm - p_start_mm)
+    directions = np.repeat(direction[None], steps + 1, axis=0)
+    return Task(name, points_mm, directions, start, end, shape="line")
+
+
+def line_tasks(robot: Robot, targets: Targets) -> list[Task]:
+    """One line task per touch pose of ``targets`` (start pose shared)."""
+    return [
+        line_task(robot, targets.start_pose_deg, pose, targets.steps, name)
+        for name, pose in targets.touch_poses_deg.items()
+    ]
+
+
+# ----- general shapes ------------------------------------------------------------------------
+SHAPE_KINDS = ("line", "polyline", "spline", "letter")
+DIRECTION_CHOICES = "tangent, normal or x,y,z"
+
+
+def parse_shape(spec: str) -> tuple[str, str]:
+    """``"spline:path.csv"`` -> ``("spline", "path.csv")``; ``"line"`` -> ``("line", "")``."""
+    kind, sep, arg = str(spec).partition(":")
+    kind = kind.strip().lower()
+    if kind not in SHAPE_KINDS or (kind == "line") == bool(sep):
+        raise InputError(f"--shape: {spec!r} is not one of line, polyline:FILE, spline:FILE, "
+                         "letter:X (e.g. letter:P or letter:P,A,B)")
+    if kind != "line" and not arg.strip():
+        raise InputError(f"--shape: {spec!r} names no {'letter' if kind == 'letter' else 'file'}")
+    return kind, arg.strip()
+
+
+def curve_task(curve: Curve, steps: int, name: str, shape: str, direction="tangent",
+               **fields) -> Task:
+    """A task following ``curve`` with n+1 = ``steps`` + 1 goal points evenly by arc length.
+
+    Args:
+        curve: the target curve [mm].
+        steps: number of segments n.
+        name: trajectory id.
+        shape: the shape's name, e.g. ``"spline"``.
+        direction: ``"tangent"`` (along the path), ``"normal"`` (the curve's drawing plane
+            normal) or a vector (3,).
+        **fields: further :class:`Task` fields (start/end poses default to None).
+    """
+    samples = curve.resample(steps)
+    fields = {"start_pose_deg": None, "end_pose_deg": None, **fields}
+    return Task(name, samples.points_mm, goal_directions(curve, samples.tangents, direction),
+                shape=shape, pen_down=samples.pen_down, curve=curve, **fields)
+
+
+def goal_directions(curve: Curve | None, tangents: np.ndarray, direction) -> np.ndarray:
+    """(n+1, 3) unit goal directions: the tangents, the plane normal or a fixed vector."""
+    if isinstance(direction, str) and direction == "tangent":
+        return tangents
+    if isinstance(direction, str) and direction == "normal":
+        if curve is None:
+            raise InputError("--direction normal: a line has no drawing plane; give a vector "
+                             "x,y,z")
+        vector = curve.drawing_plane().normal
+    else:
+        vector = parse_direction(direction)
+    return np.repeat(vector[None] / np.linalg.norm(vector), len(tangents), axis=0)
+
+
+def parse_direction(value) -> np.ndarray:
+    """A fixed direction from ``"x,y,z"`` or a sequence; non-zero and finite."""
+    text = ",".join(map(str, value)) if not isinstance(value, str) else value
+    try:
+        vector = np.array([float(v) for v in text.split(",")], dtype=float)
+    except ValueError:
+        vector = np.array([])
+    if vector.shape != (3,) or not np.all(np.isfinite(vector)) or not np.any(vector):
+        raise InputError(f"--direction: {text!r} is not one of {DIRECTION_CHOICES} (a non-zero "
+                         "finite vector)")
+    return vector
+
+
+def letter_plane(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+    """The robot's letter plane axes (u: the viewer's right, v: up) from its config's
+    ``[letters]`` (default NICO's frontal plane: u = -y, v = +z)."""
+    section = robot.config.get("letters") or {}
+    return (np.asarray(section.get("plane_u", letters.FRONTAL_U), dtype=float),
+            np.asarray(section.get("plane_v", letters.FRONTAL_V), dtype=float))
+
+
+def letter_start_pose(robot: Robot, targets: Targets | None = None) -> np.ndarray:
+    """The start pose letters are drawn from: the robot config's ``[letters] start_pose``
+    (NICO: the paper's), else the targets' start pose."""
+    pose = (robot.config.get("letters") or {}).get("start_pose")
+    if pose is not None:
+        return robot.check_pose(pose, f"robot {robot.name}: letters start_pose")
+    if targets is None:
+        from ikbench.core.targets import load_targets
+
+        targets = load_targets(None, robot)
+    return targets.start_pose_deg
+
+
+def letter_task(robot: Robot, letter: str, start_pose_deg, steps: int = letters.DEFAULT_STEPS,
+                size_mm: float = letters.DEFAULT_SIZE_MM, direction="normal") -> Task:
+    """The paper's letter in the air: ``letter`` on the robot's letter plane through the end
+    point at the start pose (NICO: the frontal plane x = FK(start pose).x).
+
+    The letter's box is centred on the fingertip at the start pose, ``size_mm`` high, read
+    by a viewer facing the robot (see :mod:`ikbench.core.letters`); goal direction the plane
+    normal (NICO: (-1, 0, 0)); no pose pinned, default weights
+    :data:`ikbench.core.letters.LETTER_WEIGHTS`.
+    """
+    start = np.asarray(start_pose_deg, dtype=float)
+    tip_mm = robot.fk(start).point_mm[0]
+    curve = letters.letter_curve(letter, size_mm, tip_mm, *letter_plane(robot))
+    return curve_task(curve, steps, letter, "letter", direction,
+                      default_weights=dict(letters.LETTER_WEIGHTS), reference_pose_deg=start)
+
+
+def file_task(kind: str, path: str | Path, steps: int, direction="tangent",
+              reference_pose_deg=None) -> Task:
+    """A polyline or spline task through the control points [mm] of a CSV file."""
+    points = read_points_csv(path)
+    curve = Curve((points if kind == "polyline" else catmull_rom(points),))
+    return curve_task(curve, steps, Path(path).stem, kind, direction,
+                      reference_pose_deg=reference_pose_deg)
+
+
+def build_tasks(robot: Robot, targets: Targets, shape: str = "line", steps: int | None = None,
+                size_mm: float | None = None, direction=None) -> list[Task]:
+    """The tasks of a shape (see the module docstring).
+
+    Args:
+        robot: the robot.
+        targets: start pose (and, for lines, the touch poses and default n).
+        shape: ``line``, ``polyline:FILE``, ``spline:FILE`` or ``letter:X[,Y...]``.
+        steps: number of segments n (default: the targets file's for a line,
+            :data:`ikbench.core.letters.DEFAULT_STEPS` for other shapes).
+        size_mm: letter height [mm] (letters only; default 300).
+        direction: ``"tangent"``, ``"normal"`` or a vector; None: the shape's default.
+    """
+    kind, arg = parse_shape(shape)
+    if size_mm is not None and kind != "letter":
+        raise InputError(f"--size: only letters are scaled; shape {shape!r} is in mm as given")
+    if kind == "line":
+        tasks = line_tasks(robot, targets.with_steps(steps))
+        if direction is None:
+            return tasks
+        return [replace(t, goal_directions=goal_directions(None, t.goal_directions, direction))
+                for t in tasks]
+    steps = letters.DEFAULT_STEPS if steps is None else targets.with_steps(steps).steps
+    if kind == "letter":
+        size = letters.DEFAULT_SIZE_MM if size_mm is None else size_mm
+        return [letter_task(robot, ch, targets.start_pose_deg, steps, size, direction or "normal")
+                for ch in dict.fromkeys(letters.parse_letters(arg))]
+    return [file_task(kind, arg, steps, direction or "tangent", targets.start_pose_deg)]

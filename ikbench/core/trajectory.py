@@ -1,0 +1,94 @@
+"""Trajectory CSV files: one row per pose, joints in motor degrees, fingertip in mm.
+
+Columns, exactly::
+
+    step,time_s,<joint names...>,x_mm,y_mm,z_mm,dir_x,dir_y,dir_z
+
+``time_s`` = step * T / n for a movement of duration T [s] split into n segments.
+The fingertip columns are FK of the pose (Pinocchio, float64), written for convenience;
+readers take the poses and recompute anything they need.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ikbench.core.errors import InputError
+from ikbench.core.io import atomic_write_csv
+from ikbench.core.robot import Robot, load_robot
+
+DEFAULT_DURATION_S = 2.0
+POINT_COLUMNS = ["x_mm", "y_mm", "z_mm"]
+DIRECTION_COLUMNS = ["dir_x", "dir_y", "dir_z"]
+
+
+def trajectory_columns(robot: Robot) -> list[str]:
+    """The exact column list of a trajectory CSV for ``robot``."""
+    return ["step", "time_s", *robot.joint_names, *POINT_COLUMNS, *DIRECTION_COLUMNS]
+
+
+def trajectory_frame(robot: Robot, poses_motor_deg, duration_s: float = DEFAULT_DURATION_S):
+    """Build the trajectory table for poses (n+1, dof) [motor deg]; returns a DataFrame."""
+    poses = np.asarray(poses_motor_deg, dtype=float)
+    n = len(poses) - 1
+    if n < 1:
+        raise InputError(f"a trajectory needs at least 2 poses, got {len(poses)}")
+    fk = robot.fk(poses)
+    frame = pd.DataFrame(poses, columns=list(robot.joint_names))
+    frame.insert(0, "time_s", np.arange(n + 1) * duration_s / n)
+    frame.insert(0, "step", np.arange(n + 1))
+    frame[POINT_COLUMNS] = fk.point_mm
+    frame[DIRECTION_COLUMNS] = fk.direction
+    return frame
+
+
+def write_trajectory_csv(path, robot: Robot, poses_motor_deg,
+                         duration_s: float = DEFAULT_DURATION_S) -> Path:
+    """Write a trajectory CSV atomically; return its path."""
+    return atomic_write_csv(path, trajectory_frame(robot, poses_motor_deg, duration_s),
+                            float_format="%.10g")
+
+
+def read_trajectory_csv(path, robot: Robot | None = None) -> pd.DataFrame:
+    """Read and validate a trajectory CSV; return the whole table.
+
+    Raises:
+        InputError: unreadable file, missing columns, non-numeric or non-finite joint values,
+            fewer than 2 rows, or a pose outside the motor ranges.
+    """
+    robot = robot or load_robot()
+    try:
+        frame = pd.read_csv(path)
+    except FileNotFoundError:
+        raise InputError(f"trajectory file {str(path)!r} not found") from None
+    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        raise InputError(f"cannot read trajectory file {str(path)!r}: {exc}") from None
+    missing = [c for c in robot.joint_names if c not in frame.columns]
+    if missing:
+        raise InputError(
+            f"{path}: missing joint column(s) {', '.join(missing)}; a trajectory CSV needs "
+            f"{', '.join(robot.joint_names)} (motor degrees)"
+        )
+    if len(frame) < 2:
+        raise InputError(f"{path}: a trajectory needs at least 2 rows, got {len(frame)}")
+    joints = frame[list(robot.joint_names)].apply(pd.to_numeric, errors="coerce")
+    bad = ~np.isfinite(joints.to_numpy(dtype=float))
+    if bad.any():
+        row, col = np.argwhere(bad)[0]
+        raise InputError(
+            f"{path}: row {row} column {robot.joint_names[col]} = "
+            f"{frame.iloc[row][robot.joint_names[col]]!r} is not a finite number"
+        )
+    for row, pose in enumerate(joints.to_numpy(dtype=float)):
+        robot.check_pose(pose, f"{path}: row {row}")
+    frame[list(robot.joint_names)] = joints
+    return frame
+
+
+def read_trajectory_poses(path, robot: Robot | None = None) -> np.ndarray:
+    """Poses (n+1, dof) [motor deg] of a trajectory CSV (validated)."""
+    robot = robot or load_robot()
+    return read_trajectory_csv(path, robot)[list(robot.joint_names)].to_numpy(dtype=float)

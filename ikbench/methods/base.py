@@ -1,0 +1,248 @@
+"""What every method is: a settings dataclass, ``solve(robot, task) -> Solution``.
+
+A method's options live in one place, its settings dataclass: each field declared with
+:func:`option` carries its default, type, help and unit, and the CLI options are generated
+from these fields (:func:`method_options`). Two methods may share an option name (``--weights``
+for ``ours`` and ``ours-lm``); the CLI then shows one option whose help names both.
+
+A method class sets ``name``, ``description``, ``Settings`` and ``solve``; optionally
+``solve_many`` (batched methods), ``check_tasks`` (refuse before any solve) and ``prepare``
+(untimed set-up, e.g. building kinematics). Methods that come from another library say so
+in ``library`` (its PyPI distribution, whose version is recorded with results).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ikbench.core.errors import InputError
+
+#: Metadata key of the option description in a settings field.
+OPTION = "ikbench_option"
+
+
+@dataclass(frozen=True)
+class OptionSpec:
+    """How a settings field appears on the command line.
+
+    Attributes:
+        help: one line (without the default; it is appended).
+        unit: the value's unit (shown in the help), e.g. ``"m, rad"``.
+        flag: the option name without dashes (default: the field name with ``-`` for ``_``).
+        choices: allowed values (shown in the help and checked by :func:`check_choice`).
+        type: the CLI value's type (default: the type of the field's default).
+        show_default: how the default is shown in the help (default: the value).
+    """
+
+    help: str
+    unit: str | None = None
+    flag: str | None = None
+    choices: tuple | None = None
+    type: Callable | None = None
+    show_default: str | None = None
+
+
+def option(default: Any, *, help: str, unit: str | None = None, flag: str | None = None,
+           choices: Sequence | None = None, type: Callable | None = None,
+           show_default: str | None = None) -> Any:
+    """A settings field that is also a CLI option (see :class:`OptionSpec`).
+
+    Mutable defaults (dicts, lists) are copied for every instance.
+    """
+    spec = OptionSpec(help, unit, flag, tuple(choices) if choices else None, type, show_default)
+    metadata = {OPTION: spec}
+    if isinstance(default, (dict, list, set)):
+        return field(default_factory=lambda: copy.copy(default), metadata=metadata)
+    return field(default=default, metadata=metadata)
+
+
+@dataclass(frozen=True)
+class MethodOption:
+    """One CLI option of one method: the flag, the settings field it sets, how."""
+
+    flag: str
+    field: str
+    spec: OptionSpec
+    default: Any
+
+    @property
+    def dest(self) -> str:
+        """The argparse ``dest`` of the flag."""
+        return self.flag.replace("-", "_")
+
+    def help_text(self) -> str:
+        unit = f" [{self.spec.unit}]" if self.spec.unit else ""
+        shown = self.spec.show_default if self.spec.show_default is not None else self.default
+        return f"{self.spec.help}{unit} (default {shown})"
+
+    def value_type(self) -> Callable:
+        if self.spec.type is not None:
+            return self.spec.type
+        if isinstance(self.default, bool) or self.default is None:
+            return str
+        if isinstance(self.default, (int, float)):
+            return type(self.default)
+        return str
+
+
+def method_options(settings_class) -> list[MethodOption]:
+    """The CLI options declared by a settings dataclass, in field order."""
+    out = []
+    for f in dataclasses.fields(settings_class):
+        spec = f.metadata.get(OPTION)
+        if spec is None:
+            continue
+        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+        out.append(MethodOption(spec.flag or f.name.replace("_", "-"), f.name, spec, default))
+    return out
+
+
+def flag_of(settings, field_name: str) -> str:
+    """``--lm-max-iterations`` for the field ``max_iterations`` of ``settings``."""
+    for opt in method_options(type(settings)):
+        if opt.field == field_name:
+            return f"--{opt.flag}"
+    return field_name
+
+
+def check_choice(settings, field_name: str, allowed) -> None:
+    """InputError naming the flag when ``settings.<field_name>`` is not in ``allowed``."""
+    value = getattr(settings, field_name)
+    if value not in allowed:
+        raise InputError(f"{flag_of(settings, field_name)}: {value!r} is not one of "
+                         f"{', '.join(map(str, allowed))}")
+
+
+def check_positive(settings, *field_names: str, integer: bool = False) -> None:
+    """InputError naming the flag when a field is not a positive (integer) number."""
+    for name in field_names:
+        value = getattr(settings, name)
+        number = isinstance(value, (int, float)) and not isinstance(value, bool)
+        ok = number and math.isfinite(value) and value > 0
+        if integer:
+            ok = ok and float(value).is_integer()
+        if not ok:
+            kind = "an integer >= 1" if integer else "a positive number"
+            raise InputError(f"{flag_of(settings, name)}: {value!r} must be {kind}")
+
+
+@dataclass
+class Solution:
+    """A method's result for one task.
+
+    Attributes:
+        poses_deg: (n+1, dof) poses [pose units: motor deg for NICO].
+        iterations: optimiser iterations (total IK iterations for sequential methods).
+        duration_s: wall time of the solve as the method measured it [s] (the study harness
+            measures its own, the same way for every method).
+        loss: final loss in the paper's units (cm, motor deg), or None if the method has none.
+        converged: whether the method's own stopping criterion was met (not the cap).
+        info: extra method-specific figures (written to details.csv).
+    """
+
+    poses_deg: np.ndarray
+    iterations: int
+    duration_s: float
+    loss: float | None
+    converged: bool = True
+    info: dict = field(default_factory=dict)
+
+
+@dataclass
+class NoSettings:
+    """Settings of a method without options."""
+
+
+class Method:
+    """Base class of every method (see the module docstring).
+
+    Class attributes:
+        name: the registry name (``ours-lm``).
+        description: one line, shown by ``ikbench methods`` and in ``--help``.
+        Settings: the settings dataclass (fields made with :func:`option` are CLI options).
+        library: the PyPI distribution the method is built on (its version is recorded).
+        requires_touch_pose: True for methods that start at the task's touch pose (they
+            cannot draw letters or curves, which pin no pose).
+        batched: True when ``solve_many`` solves all tasks in one call (timed as one).
+        bench_rounds: timed rounds ``ikbench bench`` gives the method by default.
+    """
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    Settings: ClassVar[type] = NoSettings
+    library: ClassVar[str] = "ikbench"
+    requires_touch_pose: ClassVar[bool] = False
+    batched: ClassVar[bool] = False
+    bench_rounds: ClassVar[int] = 5
+
+    def __init__(self, settings=None, **options):
+        """Build from a settings object or from its fields as keywords."""
+        if settings is not None and options:
+            raise TypeError("give settings or keyword options, not both")
+        try:
+            self.settings = settings if settings is not None else self.Settings(**options)
+        except TypeError as exc:
+            known = ", ".join(f.name for f in dataclasses.fields(self.Settings))
+            raise InputError(f"method {self.name}: {exc}; its settings are: {known}") from None
+
+    @classmethod
+    def options(cls) -> list[MethodOption]:
+        """The method's CLI options (from its settings dataclass)."""
+        return method_options(cls.Settings)
+
+    @classmethod
+    def takes_weights(cls) -> bool:
+        """True when the method minimises the paper's loss with settable weights."""
+        return any(f.name == "weights" for f in dataclasses.fields(cls.Settings))
+
+    @classmethod
+    def from_values(cls, values: dict) -> Method:
+        """Build from CLI values keyed by flag (``{"lm-max-iterations": 50}``); None = unset."""
+        kwargs = {}
+        for opt in cls.options():
+            value = values.get(opt.flag)
+            if value is not None:
+                kwargs[opt.field] = value
+        return cls(**kwargs)
+
+    def settings_for(self, task):
+        """The settings used for one task (default: the method's own)."""
+        return self.settings
+
+    def prepare(self, robot) -> None:
+        """Untimed set-up before the first solve (e.g. build the kinematics)."""
+
+    def check_tasks(self, robot, tasks) -> None:
+        """Raise InputError before any solve if a task cannot be solved by this method."""
+        if self.requires_touch_pose:
+            for task in tasks:
+                if task.end_pose_deg is None:
+                    from ikbench.methods.registry import available_methods
+
+                    planners = [f"--method {name}" for name, cls in available_methods().items()
+                                if not cls.requires_touch_pose]
+                    raise InputError(
+                        f"trajectory {task.name!r}: {self.name} starts at the touch pose; the "
+                        "task has no end pose (for letters, polylines and splines use "
+                        f"{' or '.join(planners) or 'a method that plans the whole path'})")
+
+    def solve(self, robot, task, progress=None) -> Solution:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def solve_many(self, robot, tasks, progress=None) -> list[Solution]:
+        """Solve every task; batched methods override this."""
+        solutions = []
+        for k, task in enumerate(tasks):
+            if progress:
+                progress.start(task, k, len(tasks))
+            solutions.append(self.solve(robot, task, progress))
+            if progress:
+                progress.done(task, solutions[-1])
+        return solutions

@@ -1,0 +1,77 @@
+"""Fast second-order solver ("ours-lm"): the paper's objective by Levenberg-Marquardt.
+
+Minimises exactly the loss of ``ours`` (:mod:`ikbench.core.losses`, cm and motor degrees,
+weights c0..c6) over the poses p (n+1, dof) within the joint limits, written as a sum of
+squared residuals (:mod:`.problem`), with analytic Jacobians from the vectorised chain
+kinematics (:mod:`ikbench.core.kinematics.chain`), a banded solve of the block-tridiagonal
+normal equations (:mod:`.linalg`) and a projected LM loop batched over trajectories
+(:mod:`.solver`).
+
+Weights: as in ``ours``, a task may name the weights it is meant for
+(``Task.default_weights``, e.g. a letter's c0=1, c1=50, c6=1, others 0); ``--weights`` changes
+then apply on top of those instead of the paper's, per task in one batch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from ikbench.core.losses import TERMS, format_weights, resolve_weights
+from ikbench.methods.base import Method, Solution
+from ikbench.methods.ours_lm.problem import Evaluation, Problem, evaluate
+from ikbench.methods.ours_lm.solver import (
+    KINEMATICS,
+    LINEAR_SOLVERS,
+    BatchResult,
+    LMSettings,
+    initial_poses,
+    solve_batch,
+)
+
+__all__ = ["KINEMATICS", "LINEAR_SOLVERS", "BatchResult", "Evaluation", "LMSettings", "OursLM",
+           "Problem", "evaluate", "initial_poses", "solve_batch"]
+
+
+class OursLM(Method):
+    """The paper's objective minimised by Levenberg-Marquardt (block-tridiagonal, batched)."""
+
+    name = "ours-lm"
+    description = ("the paper's objective (same L0..L6, units, weights) by batched "
+                   "Levenberg-Marquardt with analytic Jacobians and joint-limit boxes")
+    Settings = LMSettings
+    batched = True
+
+    def settings_for(self, task) -> LMSettings:
+        """The settings for one task, with its complete weights."""
+        return replace(self.settings, weights=resolve_weights(self.settings.weights, task))
+
+    def prepare(self, robot) -> None:
+        if self.settings.kinematics == "numpy":
+            robot.chain_kinematics()
+        else:
+            robot.pinocchio_fk()
+
+    def solve(self, robot, task, progress=None) -> Solution:
+        return self.solve_many(robot, [task])[0]
+
+    def solve_many(self, robot, tasks, progress=None) -> list[Solution]:
+        """One batched solve of every task (each with :meth:`settings_for`'s weights); each
+        Solution's duration_s is its share of the batch's wall time."""
+        weights = [self.settings_for(task).weights for task in tasks]
+        if progress:
+            for k, task in enumerate(tasks):
+                progress.start(task, k, len(tasks))
+        result = solve_batch(robot, tasks, self.settings, weights=weights)
+        share = result.duration_s / len(tasks)
+        solutions = []
+        for k, task in enumerate(tasks):
+            solutions.append(Solution(
+                poses_deg=result.poses_deg[k], iterations=int(result.iterations[k]),
+                duration_s=share, loss=float(result.loss[k]),
+                converged=bool(result.converged[k]),
+                info={"batch_size": len(tasks), "batch_wall_time_s": result.duration_s,
+                      "weights": format_weights(weights[k]),
+                      **{f"{t}": float(v) for t, v in zip(TERMS, result.terms[k])}}))
+            if progress:
+                progress.done(task, solutions[-1])
+        return solutions

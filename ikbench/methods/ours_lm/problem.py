@@ -1,0 +1,140 @@
+"""The least-squares form of the paper's objective, for B trajectories at once.
+
+``L = |r|^2`` with residuals (N = n+1 poses, P in cm, v unit directions, d goal directions):
+
+- L0: sqrt(c0 / (3N)) (P_i - P^g_i)             - L1: sqrt(c1 / (2N)) (v_i - d_i)
+- L2: sqrt(c2) (p_0 - p^s)                      - L3: sqrt(c3) (p_n - p^e)
+- L4: sqrt(c4) (P_0 - P^g_0)                    - L5: sqrt(c5) (P_n - P^g_n)
+- L6: sqrt(c6 / (n dof)) (p_{i+1} - p_i)
+
+(for unit vectors 1 - v.d = |v - d|^2 / 2, so the L1 residual is exact). Only L6 couples
+neighbouring poses, with a multiple of the identity, so J^T J is block-tridiagonal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ikbench.core.errors import InputError
+from ikbench.core.losses import MM_PER_CM, TERMS
+
+CM_PER_M = 100.0
+
+
+@dataclass
+class Problem:
+    """B trajectories of N poses in the loss units, with per-trajectory weights.
+
+    Attributes:
+        goal_points_cm: (B, N, 3).  goal_directions: (B, N, 3).
+        start_pose_deg / end_pose_deg: (B, dof) (zeros where a task fixes none).
+        weights: (B, 7) c0..c6 per trajectory (c2/c3 set to 0 where a pose is not fixed).
+        lower_deg / upper_deg: (dof,) motor ranges.
+    """
+
+    goal_points_cm: np.ndarray
+    goal_directions: np.ndarray
+    start_pose_deg: np.ndarray
+    end_pose_deg: np.ndarray
+    weights: np.ndarray
+    lower_deg: np.ndarray
+    upper_deg: np.ndarray
+
+    @classmethod
+    def from_tasks(cls, robot, tasks, weights) -> Problem:
+        """Stack tasks of equal length; ``weights`` is one dict or one dict per task."""
+        sizes = {t.steps for t in tasks}
+        if len(sizes) != 1:
+            raise InputError(f"ours-lm batches tasks of one length; got n = {sorted(sizes)}")
+        per_task = weights if isinstance(weights, (list, tuple)) else [weights] * len(tasks)
+        w = np.array([[float(ws.get(k, 0.0)) for k in TERMS] for ws in per_task])
+        zero = np.zeros(robot.dof)
+        start = np.stack([zero if t.start_pose_deg is None else t.start_pose_deg for t in tasks])
+        end = np.stack([zero if t.end_pose_deg is None else t.end_pose_deg for t in tasks])
+        w[:, 2] *= [t.start_pose_deg is not None for t in tasks]
+        w[:, 3] *= [t.end_pose_deg is not None for t in tasks]
+        return cls(np.stack([t.goal_points_mm for t in tasks]) / MM_PER_CM,
+                   np.stack([t.goal_directions for t in tasks]), start, end, w,
+                   robot.lower_motor_deg, robot.upper_motor_deg)
+
+    def take(self, index) -> Problem:
+        """The sub-problem of trajectories ``index``."""
+        return Problem(self.goal_points_cm[index], self.goal_directions[index],
+                       self.start_pose_deg[index], self.end_pose_deg[index],
+                       self.weights[index], self.lower_deg, self.upper_deg)
+
+    def residual_weights(self):
+        """Squared residual scales (B,) each: a0^2 .. a6^2 (see the module docstring)."""
+        n_poses = self.goal_points_cm.shape[1]
+        dof = len(self.lower_deg)
+        c = self.weights.T
+        return (c[0] / (3 * n_poses), c[1] / (2 * n_poses), c[2], c[3], c[4], c[5],
+                c[6] / ((n_poses - 1) * dof))
+
+
+@dataclass
+class Evaluation:
+    """Loss, gradient and Gauss-Newton blocks of B trajectories at poses (B, N, dof).
+
+    ``loss`` (B,) equals :func:`ikbench.core.losses.objective`; ``terms`` (B, 7) the L_k;
+    ``gradient`` (B, N, dof) = J^T r (half the loss gradient); ``diagonal`` (B, N, dof, dof)
+    and ``coupling`` (B,) the blocks of J^T J (off-diagonal blocks = -coupling * I).
+    """
+
+    loss: np.ndarray
+    terms: np.ndarray
+    gradient: np.ndarray | None = None
+    diagonal: np.ndarray | None = None
+    coupling: np.ndarray | None = None
+
+
+def evaluate(kinematics, problem: Problem, poses, derivatives: bool = True) -> Evaluation:
+    """Residuals of ``problem`` at ``poses`` (B, N, dof) [motor deg]; see :class:`Evaluation`."""
+    b, n_poses, dof = poses.shape
+    point, direction, j_point, j_dir = kinematics(poses.reshape(-1, dof), derivatives)
+    point = point * CM_PER_M  # the loss is in cm
+    if derivatives:
+        j_point = j_point * CM_PER_M
+    point = point.reshape(b, n_poses, 3)
+    direction = direction.reshape(b, n_poses, 3)
+    e_point = point - problem.goal_points_cm
+    e_dir = direction - problem.goal_directions
+    e_start = poses[:, 0] - problem.start_pose_deg
+    e_end = poses[:, -1] - problem.end_pose_deg
+    steps = np.diff(poses, axis=1)
+    terms = np.stack([
+        np.mean(e_point**2, axis=(1, 2)),
+        np.mean(1.0 - np.sum(direction * problem.goal_directions, axis=-1), axis=1),
+        np.sum(e_start**2, axis=1), np.sum(e_end**2, axis=1),
+        np.sum(e_point[:, 0] ** 2, axis=1), np.sum(e_point[:, -1] ** 2, axis=1),
+        np.mean(steps**2, axis=(1, 2)),
+    ], axis=1)
+    loss = np.sum(terms * problem.weights, axis=1)
+    if not derivatives:
+        return Evaluation(loss, terms)
+    a0, a1, a2, a3, a4, a5, a6 = problem.residual_weights()
+    w_point = np.repeat(a0[:, None], n_poses, axis=1)
+    w_point[:, 0] += a4
+    w_point[:, -1] += a5
+    j_point = j_point.reshape(b, n_poses, 3, dof)
+    j_dir = j_dir.reshape(b, n_poses, 3, dof)
+    j_point_t, j_dir_t = j_point.swapaxes(-1, -2), j_dir.swapaxes(-1, -2)
+    diagonal = (w_point[..., None, None] * (j_point_t @ j_point)
+                + a1[:, None, None, None] * (j_dir_t @ j_dir))
+    gradient = (w_point[..., None] * (j_point_t @ e_point[..., None])[..., 0]
+                + a1[:, None, None] * (j_dir_t @ e_dir[..., None])[..., 0])
+    gradient[:, 0] += a2[:, None] * e_start
+    gradient[:, -1] += a3[:, None] * e_end
+    gradient[:, :-1] -= a6[:, None, None] * steps
+    gradient[:, 1:] += a6[:, None, None] * steps
+    degree = np.full(n_poses, 2.0)
+    degree[[0, -1]] = 1.0
+    idx = np.arange(dof)
+    diagonal[:, :, idx, idx] += a6[:, None, None] * degree[None, :, None]
+    diagonal[:, 0, idx, idx] += a2[:, None]
+    diagonal[:, -1, idx, idx] += a3[:, None]
+    return Evaluation(loss, terms, gradient, diagonal, a6)
+
+

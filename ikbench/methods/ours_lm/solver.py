@@ -1,0 +1,209 @@
+"""Projected Levenberg-Marquardt on the paper's objective, batched over trajectories.
+
+Joint limits are box constraints: projected LM with an active set (a variable at a bound whose
+gradient points outwards is held), steps clipped to the box, Marquardt damping diag(J^T J)
+with Nielsen's update. Initial poses: the joint interpolation from start to touch pose, or,
+for a task that pins neither (a letter, polyline or spline), every pose at the task's reference
+pose. Many trajectories are solved at once, vectorised over trajectories and poses.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ikbench.core.errors import InputError
+from ikbench.core.kinematics.chain import pinocchio_kinematics
+from ikbench.core.losses import PAPER_WEIGHTS_TEXT, check_weights, resolve_weights
+from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.ours_lm.linalg import block_matvec, solve_normal_equations
+from ikbench.methods.ours_lm.problem import Evaluation, Problem, evaluate
+
+KINEMATICS = ("numpy", "pinocchio")
+LINEAR_SOLVERS = ("banded", "thomas")
+#: A variable within this distance [motor deg] of a bound counts as on the bound.
+BOUND_EPS_DEG = 1e-9
+#: Steps whose gain ratio (actual / predicted reduction) is below this are rejected.
+MIN_GAIN_RATIO = 1e-4
+#: Give up on a trajectory when the damping exceeds this (no descent step exists).
+MAX_DAMPING = 1e12
+
+
+@dataclass
+class LMSettings:
+    """Settings of the Levenberg-Marquardt solver (CLI options from the ``option`` fields).
+
+    Attributes:
+        weights: loss weights: a complete dict keyed L0..L6, or changes such as ``"c0=100"``
+            on top of each task's (else the paper's) weights; None: none.
+        max_iterations: iteration cap per trajectory.
+        tolerance: stop when an accepted step lowers the loss by less than
+            ``tolerance * loss`` (relative), or moves no pose by more than ``tolerance`` deg.
+        damping: initial Marquardt damping factor lambda (times diag(J^T J)).
+        kinematics: ``"numpy"`` (vectorised chain FK from the Pinocchio model) or
+            ``"pinocchio"`` (``computeFrameJacobian`` per pose; the reference, slower).
+        linear_solver: ``"banded"`` (LAPACK banded Cholesky) or ``"thomas"`` (numpy).
+    """
+
+    weights: dict | str | None = option(
+        None, type=str, show_default=PAPER_WEIGHTS_TEXT,
+        help="loss weights to change, e.g. c1=20,c6=5 (letters start from their own)")
+    max_iterations: int = option(200, flag="lm-max-iterations",
+                                 help="iteration cap per trajectory")
+    tolerance: float = option(1e-9, flag="lm-tolerance",
+                              help="stop when a step lowers the loss by less than this "
+                              "fraction or moves no joint by more than this many degrees")
+    damping: float = option(1e-3, flag="lm-damping", help="initial Marquardt damping")
+    kinematics: str = option("numpy", flag="lm-kinematics", choices=KINEMATICS,
+                             help="vectorised numpy chain, or Pinocchio "
+                             "computeFrameJacobian per pose (reference, slower)")
+    linear_solver: str = option("banded", flag="lm-linear-solver", choices=LINEAR_SOLVERS,
+                                help="banded Cholesky via LAPACK, or numpy block Thomas")
+
+    def __post_init__(self):
+        check_positive(self, "max_iterations", integer=True)
+        check_positive(self, "tolerance", "damping")
+        check_choice(self, "kinematics", KINEMATICS)
+        check_choice(self, "linear_solver", LINEAR_SOLVERS)
+        check_weights(self.weights)
+        self.max_iterations = int(self.max_iterations)
+
+
+@dataclass
+class BatchResult:
+    """Result of :func:`solve_batch`: arrays over the B trajectories."""
+
+    poses_deg: np.ndarray        # (B, N, dof)
+    loss: np.ndarray             # (B,)
+    terms: np.ndarray            # (B, 7) L0..L6
+    iterations: np.ndarray       # (B,) LM iterations (accepted + rejected steps)
+    converged: np.ndarray        # (B,) bool: the tolerance was met before the cap
+    duration_s: float            # wall time of the whole batch [s]
+
+
+def initial_poses(robot, tasks) -> np.ndarray:
+    """Initial poses (B, N, dof) [motor deg], clipped to the motor ranges.
+
+    The joint interpolation from start to touch pose; a task that pins neither (a letter,
+    polyline or spline) starts with every pose at its reference pose.
+
+    Raises:
+        InputError: a task has neither a start and an end pose nor a reference pose.
+    """
+    out = []
+    for task in tasks:
+        t = np.linspace(0.0, 1.0, task.steps + 1)[:, None]
+        if task.start_pose_deg is not None and task.end_pose_deg is not None:
+            out.append(task.start_pose_deg + t * (task.end_pose_deg - task.start_pose_deg))
+        elif task.reference_pose_deg is not None:
+            out.append(np.asarray(task.reference_pose_deg, dtype=float) + 0.0 * t)
+        else:
+            raise InputError(f"trajectory {task.name!r}: ours-lm needs a start and an end pose "
+                             "or a reference pose to start from")
+    return np.clip(np.stack(out), robot.lower_motor_deg, robot.upper_motor_deg)
+
+
+def _free_variables(problem: Problem, poses, gradient):
+    """False for variables on a bound whose descent direction (-gradient) leaves the box."""
+    at_lower = poses <= problem.lower_deg + BOUND_EPS_DEG
+    at_upper = poses >= problem.upper_deg - BOUND_EPS_DEG
+    return ~((at_lower & (gradient > 0)) | (at_upper & (gradient < 0)))
+
+
+def solve_batch(robot, tasks, settings: LMSettings | None = None, weights=None,
+                initial=None, progress=None) -> BatchResult:
+    """Minimise the paper's objective for many tasks at once.
+
+    Args:
+        robot: the robot.
+        tasks: tasks of equal length n.
+        settings: solver settings (default :class:`LMSettings`).
+        weights: one weights dict for all tasks or one per task (default ``settings.weights``).
+        initial: initial poses (B, N, dof) [motor deg] (default :func:`initial_poses`).
+        progress: optional callable ``(iteration, n_active, losses)`` called every iteration.
+
+    Returns:
+        A :class:`BatchResult`; every pose lies within the motor ranges.
+    """
+    settings = settings or LMSettings()
+    start = time.perf_counter()
+    kin = _kinematics(robot, settings.kinematics)
+    if weights is None:
+        weights = [resolve_weights(settings.weights, task) for task in tasks]
+    problem = Problem.from_tasks(robot, tasks, weights)
+    poses = initial_poses(robot, tasks) if initial is None else np.array(initial, dtype=float)
+    poses = np.clip(poses, problem.lower_deg, problem.upper_deg)
+    b = len(tasks)
+    current = evaluate(kin, problem, poses)
+    damping = np.full(b, settings.damping)
+    nu = np.full(b, 2.0)
+    iterations = np.zeros(b, dtype=int)
+    converged = np.zeros(b, dtype=bool)
+    active = np.arange(b)
+    while active.size:
+        sub = problem.take(active)
+        ev = _take(current, active)
+        x = poses[active]
+        free = _free_variables(sub, x, ev.gradient)
+        scale = np.maximum(np.diagonal(ev.diagonal, axis1=-2, axis2=-1), 1e-12)
+        damped = ev.diagonal.copy()
+        idx = np.arange(x.shape[-1])
+        damped[..., idx, idx] += damping[active, None, None] * scale
+        step, ok = solve_normal_equations(damped, ev.coupling, -ev.gradient, free,
+                                          settings.linear_solver)
+        trial = np.clip(x + step, sub.lower_deg, sub.upper_deg)
+        step = trial - x
+        predicted = -(2.0 * np.sum(ev.gradient * step, axis=(1, 2))
+                      + np.sum(step * block_matvec(ev, step), axis=(1, 2)))
+        new = evaluate(kin, sub, trial)
+        gain = (ev.loss - new.loss) / np.where(predicted > 0, predicted, np.inf)
+        accept = ok & (predicted > 0) & (gain > MIN_GAIN_RATIO)
+        iterations[active] += 1
+
+        acc = active[accept]
+        poses[acc] = trial[accept]
+        _put(current, acc, _take(new, np.flatnonzero(accept)))
+        g = gain[accept]
+        damping[acc] *= np.maximum(1.0 / 3.0, 1.0 - (2.0 * g - 1.0) ** 3)
+        nu[acc] = 2.0
+        rej = active[~accept]
+        damping[rej] *= nu[rej]
+        nu[rej] *= 2.0
+
+        decrease = ev.loss - new.loss
+        small = accept & ((decrease <= settings.tolerance * new.loss)
+                          | (np.max(np.abs(step), axis=(1, 2)) <= settings.tolerance))
+        converged[active[small]] = True
+        stuck = damping[active] > MAX_DAMPING
+        converged[active[stuck & ~small]] = _stationary(ev, x, sub)[stuck & ~small]
+        done = small | stuck | (iterations[active] >= settings.max_iterations)
+        if progress:
+            progress(int(iterations.max()), int(active.size), current.loss)
+        active = active[~done]
+    return BatchResult(poses, current.loss, current.terms, iterations, converged,
+                       time.perf_counter() - start)
+
+
+def _stationary(ev: Evaluation, poses, problem: Problem, rtol: float = 1e-6):
+    """True where the projected gradient is negligible (no descent direction is left)."""
+    g = np.where(_free_variables(problem, poses, ev.gradient), ev.gradient, 0.0)
+    return np.max(np.abs(g), axis=(1, 2)) <= rtol * np.maximum(ev.loss, 1.0)
+
+
+def _take(ev: Evaluation, index) -> Evaluation:
+    return Evaluation(*(None if v is None else v[index] for v in
+                        (ev.loss, ev.terms, ev.gradient, ev.diagonal, ev.coupling)))
+
+
+def _put(ev: Evaluation, index, new: Evaluation) -> None:
+    for name in ("loss", "terms", "gradient", "diagonal", "coupling"):
+        getattr(ev, name)[index] = getattr(new, name)
+
+
+def _kinematics(robot, name: str):
+    """The FK + Jacobian function of ``settings.kinematics`` (point in m, per pose unit)."""
+    if name == "pinocchio":
+        return lambda poses, jacobian=True: pinocchio_kinematics(robot, poses, jacobian)
+    return robot.chain_kinematics()

@@ -1,0 +1,40 @@
+"""What the paper adds to a method's report.md: its Table 1 or Table 2 beside the measured.
+
+Only on the paper's task: its targets and start pose, a straight line, pointing along it.
+"""
+
+from __future__ import annotations
+
+from ikbench.paper.values import PAPER_STEPS, table1_comparison
+from ikbench.studies.report import markdown_table
+
+#: The methods whose runs the paper's tables describe.
+TABLE1_METHOD = "ours"
+TABLE2_METHODS = ("sequential-ik",)
+
+
+def paper_task(record: dict, targets) -> bool:
+    """True when a run solved the paper's own task (targets, start pose, line, pointing)."""
+    return (targets.is_paper and record.get("shape", "line") == "line"
+            and record.get("direction") is None)
+
+
+def run_section(method: str, table, record: dict, targets) -> list[str]:
+    """Table 1 beside ``ours``, Table 2 beside a baseline, on the paper's task; else none."""
+    if not paper_task(record, targets) or table["line_distance_mean_mm"].isna().any():
+        return []
+    if method == TABLE1_METHOD:
+        lines = ["## Beside the paper's Table 1", "",
+                 "Columns named *paper* are copied from the paper. Its \"distance from the "
+                 "line [mm]\" values are in centimetres (its unit label is off by a factor of "
+                 "ten, see shared/reference/README.md), so they are shown here x 10, in mm.", ""]
+        if record["steps"] != PAPER_STEPS:
+            lines += [f"The paper used n = {PAPER_STEPS} segments; this run used "
+                      f"n = {record['steps']}.", ""]
+        return lines + [markdown_table(table1_comparison(table),
+                                       {"loss": 2, "duration [s]": 2}), ""]
+    if method in TABLE2_METHODS:
+        from ikbench.paper.comparison import table2_section
+
+        return table2_section(table, record["steps"])
+    return []

@@ -1,0 +1,136 @@
+"""The study harness: every method solved and timed the same way, failures kept as rows.
+
+:func:`solve_tasks` calls ``method.prepare`` (untimed), checks the tasks
+(``method.check_tasks``: bad input fails before any solve), then times each solve itself with
+``time.perf_counter`` around the method's call - the same clock for every method. A batched
+method (``Method.batched``) is timed once for the whole batch and each task gets its share.
+An exception in one solve becomes a failed :class:`Outcome` with its message instead of
+aborting the study; Ctrl-C stops solving and returns what was solved so far
+(:class:`Interrupted`), so the caller can keep it and say so.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+
+from ikbench.methods.base import Solution
+
+
+@dataclass
+class Outcome:
+    """One task's result as the harness saw it.
+
+    Attributes:
+        task: the task.
+        solution: the method's solution, or None when the solve failed.
+        wall_s: wall time of the solve measured by the harness [s] (for a batched method its
+            share of the batch).
+        failure: ``"ExceptionType: message"`` when the solve raised, else None.
+    """
+
+    task: object
+    solution: Solution | None
+    wall_s: float
+    failure: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.solution is not None
+
+
+class Interrupted(Exception):
+    """Ctrl-C while solving; ``outcomes`` holds the tasks solved before it."""
+
+    def __init__(self, outcomes: list[Outcome]):
+        super().__init__(f"interrupted after {len(outcomes)} solved trajectories")
+        self.outcomes = outcomes
+
+
+class Progress:
+    """Progress lines on stderr: one per trajectory start/end, one per progress update."""
+
+    def __init__(self, label: str, stream=None, enabled: bool = True):
+        self.label = label
+        self.stream = stream or sys.stderr
+        self.enabled = enabled
+
+    def say(self, text: str) -> None:
+        """One line ``[label] text`` (if enabled)."""
+        if self.enabled:
+            print(f"[{self.label}] {text}", file=self.stream, flush=True)
+
+    def start(self, task, index: int, total: int) -> None:
+        self.say(f"trajectory {task.name} ({index + 1}/{total}): solving, n = {task.steps}")
+
+    def update(self, task, iteration: int, loss: float) -> None:
+        self.say(f"trajectory {task.name}: iteration {iteration}, loss {loss:.4f}")
+
+    def done(self, task, solution) -> None:
+        loss = "" if solution.loss is None else f", loss {solution.loss:.4f}"
+        flag = "" if solution.converged else " (did not meet its stopping criterion)"
+        self.say(f"trajectory {task.name}: done in {solution.iterations} iterations, "
+                 f"{solution.duration_s:.2f} s{loss}{flag}")
+
+    def failed(self, task, failure: str) -> None:
+        self.say(f"trajectory {task.name}: FAILED: {failure}")
+
+
+def describe(exc: BaseException) -> str:
+    """``"SolverError: message"`` on one line."""
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def solve_tasks(method, robot, tasks, progress: Progress | None = None) -> list[Outcome]:
+    """Solve ``tasks`` with ``method``, timed by the harness (see the module docstring).
+
+    Raises:
+        IkbenchError: from ``check_tasks`` (before any solve).
+        Interrupted: on Ctrl-C, with the outcomes so far.
+    """
+    method.check_tasks(robot, tasks)
+    method.prepare(robot)
+    if method.batched:
+        return _solve_batched(method, robot, tasks, progress)
+    outcomes: list[Outcome] = []
+    for k, task in enumerate(tasks):
+        if progress:
+            progress.start(task, k, len(tasks))
+        outcomes.append(_solve_one(method, robot, task, progress, outcomes))
+    return outcomes
+
+
+def _solve_one(method, robot, task, progress, done: list[Outcome]) -> Outcome:
+    started = time.perf_counter()
+    try:
+        solution = method.solve(robot, task, progress)
+    except KeyboardInterrupt:
+        raise Interrupted(done) from None
+    except Exception as exc:  # one failed solve is a row, not the end of the study
+        outcome = Outcome(task, None, time.perf_counter() - started, describe(exc))
+        if progress:
+            progress.failed(task, outcome.failure)
+        return outcome
+    outcome = Outcome(task, solution, time.perf_counter() - started)
+    if progress:
+        progress.done(task, solution)
+    return outcome
+
+
+def _solve_batched(method, robot, tasks, progress) -> list[Outcome]:
+    started = time.perf_counter()
+    try:
+        solutions = method.solve_many(robot, tasks, progress)
+    except KeyboardInterrupt:
+        raise Interrupted([]) from None
+    except Exception:  # find the failing task(s): solve one at a time
+        if len(tasks) == 1:
+            return [_solve_one(method, robot, tasks[0], progress, [])]
+        outcomes: list[Outcome] = []
+        for task in tasks:
+            outcomes.append(_solve_one(method, robot, task, progress, outcomes))
+        return outcomes
+    share = (time.perf_counter() - started) / len(tasks)
+    return [Outcome(task, solution, share) for task, solution in zip(tasks, solutions)]

@@ -1,0 +1,375 @@
+"""Run a method on a robot's tasks and write trajectories, tables, figures and a report.
+
+``run(method, ...)`` is what ``ikbench run`` calls; it returns the table as a DataFrame.
+Output layout under ``output/<name>/`` (``name`` defaults to the method's name, e.g. ``ours``):
+``trajectory_<id>.csv``, ``table.csv`` (the Table 1/2 columns), ``details.csv`` (smoothness,
+solver figures, failures), ``run.json`` (method, robot, settings, versions, the files
+written), ``trajectories_3d.png``, ``pointing_error.png`` and ``report.md``.
+
+The folder is replaced whole or not at all (:func:`ikbench.core.io.staged_folder`): files
+an earlier run wrote there and this one does not are gone, files it did not write (notes,
+``ikbench plan``'s ``*.plan.csv``) are kept. The study harness times every solve and keeps a
+failed solve as a row (NaN figures, the failure in details.csv); Ctrl-C while solving writes
+the trajectories solved so far (run.json says ``"interrupted": true``) or nothing.
+
+Shapes other than the paper's line (``shape=``, see :func:`ikbench.core.task.build_tasks`)
+use no touch poses: a letter shape gives one trajectory per letter (``trajectory_P.csv``), a
+file shape one named after the file. Their table has the general-shape columns and their
+figure is ``shapes.png``.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ikbench.core.errors import InputError
+from ikbench.core.io import (
+    atomic_savefig,
+    atomic_write_csv,
+    atomic_write_text,
+    check_folder_writable,
+    staged_folder,
+)
+from ikbench.core.metrics import shape_metrics, trajectory_metrics
+from ikbench.core.provenance import provenance
+from ikbench.core.robot import Robot, load_robot
+from ikbench.core.targets import ID_PATTERN, Targets, load_targets
+from ikbench.core.task import build_tasks, parse_shape
+from ikbench.core.trajectory import (
+    DEFAULT_DURATION_S,
+    read_trajectory_poses,
+    write_trajectory_csv,
+)
+from ikbench.methods.base import Method
+from ikbench.methods.registry import get_method
+from ikbench.studies.harness import Interrupted, Outcome, Progress, solve_tasks
+from ikbench.studies.report import (
+    SHAPE_TABLE_COLUMNS,
+    TABLE_COLUMNS,
+    markdown_table,
+    plot_pointing_error,
+    plot_shapes,
+    plot_trajectories_3d,
+    report_sections,
+)
+
+#: Where ad-hoc runs go by default (git ignores it); ``ikbench reproduce`` writes results/.
+DEFAULT_OUTPUT = "runs"
+#: Folders other commands write into an output directory; no method run may take them.
+RESERVED_NAMES = ("ablation", "sweep", "batch", "letters", "compare", "cartesian", "dataset")
+#: A trajectory CSV that a run writes (``trajectory_<id>.csv``).
+TRAJECTORY_FILE = re.compile(r"trajectory_(.+)\.csv")
+#: The files every run folder holds besides its trajectories and figures.
+RUN_FILES = ("table.csv", "details.csv", "run.json", "report.md")
+#: Figures a run may write (older runs' too).
+RUN_FIGURES = ("trajectories_3d.png", "pointing_error.png", "shapes.png")
+
+
+def check_name(name: str) -> str:
+    """``name`` if it can name a run's folder; InputError naming what is allowed otherwise.
+
+    Args:
+        name: folder name under the output directory (``sequential-ik-position``).
+    """
+    if not isinstance(name, str) or not ID_PATTERN.fullmatch(name):
+        raise InputError(f"--name: {name!r} is not allowed; a name is letters, digits, '_', "
+                         "'-' and '.' (not first), as it names a folder")
+    if name in RESERVED_NAMES:
+        raise InputError(f"--name: {name!r} is the folder of another command; reserved: "
+                         f"{', '.join(RESERVED_NAMES)}")
+    return name
+
+
+def files_written_by(folder: Path) -> set[str]:
+    """The files (relative names) the run in ``folder`` wrote, from its run.json: the
+    ``files`` list, or for older runs the standard files and its trajectories' CSVs."""
+    try:
+        record = json.loads((Path(folder) / "run.json").read_text())
+    except (OSError, ValueError):
+        return set()
+    if not isinstance(record, dict):
+        return set()
+    if isinstance(record.get("files"), list):
+        return {str(f) for f in record["files"]}
+    ids = record.get("trajectories") or []
+    return {*RUN_FILES, *RUN_FIGURES, *(f"trajectory_{i}.csv" for i in ids)}
+
+
+def evaluate(robot: Robot, outcomes, method_dir: Path, method_name: str):
+    """Metrics of the written trajectories: returns (table, details, points_by_id).
+
+    Line tasks get :func:`ikbench.core.metrics.trajectory_metrics` and the Table 1/2 columns;
+    tasks with a target curve :func:`ikbench.core.metrics.shape_metrics` and
+    :data:`ikbench.studies.report.SHAPE_TABLE_COLUMNS`. A failed solve gets a row of NaN and
+    its failure in details.
+    """
+    shaped = any(o.task.curve is not None for o in outcomes)
+    columns = SHAPE_TABLE_COLUMNS if shaped else TABLE_COLUMNS
+    measure = shape_metrics if shaped else trajectory_metrics
+    rows, details, points_by_id = [], [], {}
+    for outcome in outcomes:
+        task, solution = outcome.task, outcome.solution
+        if solution is None:
+            rows.append({"trajectory": task.name, "method": method_name,
+                         "duration_s": outcome.wall_s})
+            details.append({"trajectory": task.name, "method": method_name,
+                            "converged": False, "within_limits": np.nan,
+                            "failure": outcome.failure})
+            continue
+        poses = read_trajectory_poses(method_dir / f"trajectory_{task.name}.csv", robot)
+        metrics = measure(robot, task, poses)
+        points_by_id[task.name] = robot.fk(poses).point_mm
+        rows.append({
+            "trajectory": task.name, "method": method_name,
+            "iterations": solution.iterations, "duration_s": outcome.wall_s,
+            "loss": np.nan if solution.loss is None else solution.loss,
+            **{k: metrics[k] for k in columns[5:]},
+        })
+        extra = {k: v for k, v in metrics.items() if k not in columns}
+        details.append({"trajectory": task.name, "method": method_name,
+                        "converged": solution.converged,
+                        "within_limits": robot.within_limits(poses),
+                        **extra, "method_duration_s": solution.duration_s,
+                        **solution.info, "failure": ""})
+    return pd.DataFrame(rows, columns=columns), pd.DataFrame(details), points_by_id
+
+
+def robot_record(robot: Robot) -> dict:
+    """How run.json names the robot: enough to load it again (:func:`robot_from_record`)."""
+    shipped = robot.config.get("config_path")
+    spec = shipped if shipped else str(robot.urdf_path)
+    return {**robot.describe(), "spec": spec}
+
+
+def robot_from_record(record: dict) -> Robot:
+    """The robot a run.json names (NICO for runs written before robots were recorded).
+
+    Raises:
+        InputError: the robot cannot be loaded, or its URDF changed since the run.
+    """
+    entry = record.get("robot")
+    if not isinstance(entry, dict):
+        return load_robot()
+    from ikbench.core.robot import shipped_robots
+
+    name, spec = entry.get("name"), entry.get("spec")
+    if name in shipped_robots():
+        spec = name
+    robot = load_robot(spec, entry.get("end_frame"))
+    if entry.get("urdf_sha256") and entry["urdf_sha256"] != robot.urdf_sha256:
+        raise InputError(f"the URDF of robot {name!r} ({robot.urdf_path}) changed since this "
+                         "run was written (sha256 differs); rerun it")
+    return robot
+
+
+def prepare(method: str | Method, *, robot: Robot | str | None = None,
+            targets: str | Path | Targets | None = None, only: str | None = None,
+            steps: int | None = None, options: dict | None = None, shape: str = "line",
+            size_mm: float | None = None, start_pose=None, direction=None):
+    """Validate everything a run needs and build its tasks, before any solve.
+
+    Returns:
+        (solver, robot, targets, tasks).
+    """
+    if isinstance(robot, str) or robot is None:
+        robot = load_robot(robot or "nico_right_arm")
+    if not isinstance(targets, Targets):
+        targets = load_targets(targets, robot)
+    if start_pose is not None:
+        targets = replace(targets, start_pose_deg=robot.check_pose(start_pose, "--start-pose"))
+    kind, _ = parse_shape(shape)
+    if only and kind != "line":
+        raise InputError(f"--only selects touch poses of the line shape; shape {shape!r} has "
+                         "none (name the letters in the shape instead, e.g. letter:P,A)")
+    targets = targets.select(only)
+    if kind == "line":
+        targets = targets.with_steps(steps)  # so targets.is_paper sees a changed n
+    solver = method if isinstance(method, Method) else get_method(method)(**(options or {}))
+    tasks = build_tasks(robot, targets, shape, steps, size_mm, direction)
+    solver.check_tasks(robot, tasks)
+    return solver, robot, targets, tasks
+
+
+def run(method: str | Method, *, robot: Robot | str | None = None,
+        targets: str | Path | Targets | None = None, only: str | None = None,
+        steps: int | None = None, output: str | Path | None = DEFAULT_OUTPUT,
+        duration_s: float = DEFAULT_DURATION_S, options: dict | None = None,
+        progress: bool = True, shape: str = "line", size_mm: float | None = None,
+        start_pose=None, direction=None, name: str | None = None) -> pd.DataFrame:
+    """Solve every selected target with ``method`` and write the results.
+
+    Args:
+        method: a method name (``"ours-lm"``, ...) or a configured :class:`Method`.
+        robot: a :class:`Robot`, a robot name/config/URDF path, or None for NICO's right arm.
+        targets: a targets file, a loaded :class:`Targets`, or None for the robot's own.
+        only: comma-separated trajectory ids to keep (``"1,3"``).
+        steps: number of segments n (default: the targets file's).
+        output: output directory (the run writes to ``output/<name>/``); None writes
+            nothing and returns the table computed in a temporary directory.
+        duration_s: movement duration T [s] for the ``time_s`` column.
+        options: the method's settings as keywords (when ``method`` is a name).
+        progress: print progress to stderr.
+        shape: ``line`` (one trajectory per touch pose), ``polyline:FILE``, ``spline:FILE``
+            or ``letter:X[,Y...]``; see :func:`ikbench.core.task.build_tasks`.
+        size_mm: letter height [mm] (default 300).
+        start_pose: (dof,) start pose [pose units] replacing the targets file's.
+        direction: goal directions ``"tangent"``, ``"normal"`` or a vector (default: the
+            shape's own, see :func:`ikbench.core.task.build_tasks`).
+        name: the run's folder under ``output`` (default: the method's name); letters,
+            digits, ``_``, ``-``, ``.``, not one of :data:`RESERVED_NAMES`.
+
+    Returns:
+        The table (one row per trajectory, columns :data:`ikbench.studies.report.TABLE_COLUMNS`,
+        or :data:`ikbench.studies.report.SHAPE_TABLE_COLUMNS` for shapes other than the line).
+
+    Raises:
+        Interrupted: Ctrl-C while solving (after writing what was solved, if anything).
+    """
+    if not (duration_s > 0 and np.isfinite(duration_s)):
+        raise InputError(f"--duration: {duration_s!r} must be a positive number of seconds")
+    if name is not None:
+        check_name(name)
+    solver, robot, targets, tasks = prepare(
+        method, robot=robot, targets=targets, only=only, steps=steps, options=options,
+        shape=shape, size_mm=size_mm, start_pose=start_pose, direction=direction)
+    record = {"shape": shape, "direction": direction, "duration_s": duration_s}
+    if output is None:
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as tmp:
+            return solve_and_write(solver, robot, targets, tasks, Path(tmp) / "run",
+                                   record, progress)
+    folder = Path(output) / (name or solver.name)
+    check_folder_writable(folder)  # before the solve, not after minutes of it
+    return solve_and_write(solver, robot, targets, tasks, folder, {**record, "name": name},
+                           progress)
+
+
+def solve_and_write(solver: Method, robot: Robot, targets: Targets, tasks, folder: Path,
+                    record: dict, progress: bool = True) -> pd.DataFrame:
+    """Solve ``tasks`` through the harness and write the run folder (see the module doc)."""
+    import time
+
+    started = time.perf_counter()
+    interrupted = False
+    try:
+        outcomes = solve_tasks(solver, robot, tasks, Progress(folder.name, enabled=progress))
+    except Interrupted as stop:
+        if not stop.outcomes:
+            raise
+        outcomes, interrupted = stop.outcomes, True
+    table = write_run(solver, robot, targets, outcomes, folder, {
+        **record, "name": folder.name, "interrupted": interrupted,
+        "total_wall_time_s": time.perf_counter() - started})
+    if interrupted:
+        raise Interrupted(outcomes)
+    return table
+
+
+def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Outcome],
+              folder: Path, record: dict) -> pd.DataFrame:
+    """Write a run folder whole (trajectories, tables, run.json, figures, report)."""
+    tasks = [o.task for o in outcomes]
+    duration_s = record.get("duration_s", DEFAULT_DURATION_S)
+    previous = files_written_by(folder)
+    with staged_folder(folder, keep=lambda rel: str(rel) not in previous) as tmp:
+        written = []
+        for outcome in outcomes:
+            if outcome.ok:
+                file = f"trajectory_{outcome.task.name}.csv"
+                write_trajectory_csv(tmp / file, robot, outcome.solution.poses_deg, duration_s)
+                written.append(file)
+        table, details, points = evaluate(robot, outcomes, tmp, solver.name)
+        atomic_write_csv(tmp / "table.csv", table, float_format="%.10g")
+        atomic_write_csv(tmp / "details.csv", details, float_format="%.10g")
+        settings = {"settings": solver.settings_for(tasks[0])}
+        solved = [o.task for o in outcomes if o.ok]
+        title = f"{solver.name}: {solver.description}"
+        figures = []
+        if solved and solved[0].curve is None:
+            figures = [("trajectories", "trajectories_3d.png",
+                        plot_trajectories_3d(solved, points, title, robot)),
+                       ("criterion 2", "pointing_error.png",
+                        plot_pointing_error(solved, points, title))]
+        elif solved:
+            figures = [("shapes", "shapes.png", plot_shapes(solved, points, title))]
+        for _, file, figure in figures:
+            atomic_savefig(tmp / file, figure)
+        files = sorted([*written, *RUN_FILES, *(file for _, file, _ in figures)])
+        full = {"method": solver.name, "name": record.get("name") or solver.name,
+                "library": solver.library, "robot": robot_record(robot),
+                "targets": targets.source, "trajectories": [t.name for t in tasks],
+                "failed": [o.task.name for o in outcomes if not o.ok],
+                "steps": tasks[0].steps, "shape": record.get("shape", "line"),
+                "direction": record.get("direction"),
+                "start_pose_deg": targets.start_pose_deg.tolist(),
+                # weights a task asks for (letters); ours applies --weights changes on top
+                # and details.csv names the weights each trajectory was solved with
+                "task_default_weights": tasks[0].default_weights,
+                "duration_s": duration_s, "interrupted": bool(record.get("interrupted")),
+                "settings": json.loads(json.dumps(settings, default=_jsonable)),
+                "total_wall_time_s": record.get("total_wall_time_s"),
+                "files": files, **provenance(extra=(solver.library,))}
+        atomic_write_text(tmp / "run.json", json.dumps(full, indent=2) + "\n")
+        atomic_write_text(tmp / "report.md", method_report(
+            solver, table, details, targets, full,
+            {caption: file for caption, file, _ in figures}))
+    return table
+
+
+def _jsonable(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if hasattr(value, "__dict__"):
+        return vars(value)
+    return str(value)
+
+
+def method_report(solver, table: pd.DataFrame, details: pd.DataFrame, targets: Targets,
+                  record: dict, figures: dict | None = None) -> str:
+    """report.md of one method's run; ``figures`` maps captions to the PNG names written."""
+    figures = {"trajectories": "trajectories_3d.png",
+               "criterion 2": "pointing_error.png"} if figures is None else figures
+    shape = record.get("shape", "line")
+    where = (f"Targets: {targets.source}" if shape == "line" else
+             f"Shape: {shape}, start pose {record['start_pose_deg']}")
+    name = record.get("name") or solver.name
+    heading = solver.name if name == solver.name else f"{name} ({solver.name})"
+    robot = record.get("robot") or {}
+    lines = [f"# {heading}: {solver.description}", "",
+             f"Robot: {robot.get('name', 'nico_right_arm')}. {where}; trajectories "
+             f"{', '.join(record['trajectories'])}; n = {record['steps']} segments. Produced "
+             f"by ikbench (git {record.get('git_revision')}) on {record['cpu']} "
+             f"({record['cpu_count']} cores), torch {record['packages']['torch']}.", ""]
+    if record.get("interrupted"):
+        lines += ["**Interrupted (Ctrl-C)**: this folder holds only the trajectories solved "
+                  "before the interruption.", ""]
+    if record.get("failed"):
+        lines += [f"**Failed solves**: {', '.join(record['failed'])} (their rows are empty; "
+                  "details.csv gives each failure).", ""]
+    lines += ["## Measured", "",
+              "Computed by `ikbench.core.metrics` from the trajectory CSVs in this folder. "
+              "Distances in mm, angles in degrees, loss in the paper's units (cm, motor "
+              "degrees); duration_s is the wall time of the solve measured by the harness.",
+              "", markdown_table(table.drop(columns=["method"]),
+                                 {"loss": 3, "duration_s": 4, "iterations": 0}), ""]
+    if shape != "line":
+        lines += ["curve_distance: distance of each fingertip point from the target curve "
+                  "(its nearest point); point_error: from the point's own goal point; "
+                  "pointing deviation: from the goal direction (letters: the drawing plane's "
+                  "normal). Points on pen-up moves are skipped.", ""]
+    lines += report_sections("run", method=solver.name, table=table, record=record,
+                             targets=targets)
+    if figures:
+        lines += ["## Figures", ""]
+        for caption, file in figures.items():
+            lines += [f"![{caption}]({file})", ""]
+    lines += ["## Solver details", "",
+              markdown_table(details.drop(columns=["method"]), {"iterations_per_s": 0}), ""]
+    return "\n".join(lines)

@@ -1,0 +1,415 @@
+"""Weight sweep: the paper's objective with other weights, solved by ours-lm, on any shape.
+
+:func:`sweep` takes a grid of loss weights (``{"L0": [1, 10, 100], "L1": [5, 50]}``), solves
+every setting on every task in one batched ``ours-lm`` call and measures each trajectory with
+:mod:`ikbench.core.metrics`. Terms not in the grid keep the *reference* weights: the paper's for the
+line (its targets) and for polylines and splines, the paper's letter setting (c0=1, c1=50,
+c6=1, others 0: ``Task.default_weights``) for letters. The reference setting is always one of
+the settings (column ``paper_weights`` True; ``paper_loss`` is the objective with the reference
+weights). Per setting, the figures are averaged over the tasks (errors: worst task). A setting
+whose weights are all 0 for the tasks is refused.
+
+The accuracy axis is the mean *line distance* for lines and the mean *point error* (distance
+of each fingertip point from its own goal point, pen-down points only) for other shapes; a
+setting is *Pareto-optimal* when no other setting has both a smaller accuracy figure and a
+smaller mean pointing deviation.
+
+Output (:func:`write`): ``sweep.csv`` (one row per setting), ``sweep_trajectories.csv`` (one
+row per setting and task), ``pareto.png`` (accuracy vs pointing deviation, smoothness as
+colour), ``sweep.json`` (settings, provenance) and ``sweep.md`` (findings).
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ikbench.core.errors import InputError
+from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text
+from ikbench.core.letters import DEFAULT_SIZE_MM
+from ikbench.core.losses import PAPER_WEIGHTS, TERMS, objective
+from ikbench.core.metrics import shape_metrics, trajectory_metrics
+from ikbench.core.provenance import provenance
+from ikbench.core.robot import Robot, load_robot
+from ikbench.core.targets import Targets, load_targets
+from ikbench.core.task import build_tasks, letter_start_pose, parse_shape
+from ikbench.studies.report import markdown_table
+
+#: Per-trajectory figures averaged (mean) or taken at the worst target (max) per setting.
+MEAN_COLUMNS = ("line_distance_mean_mm", "pointing_deviation_mean_deg",
+                "mean_sq_joint_step_deg2", "loss", "paper_loss", "iterations")
+MAX_COLUMNS = ("line_distance_std_mm", "start_point_error_mm", "end_point_error_mm",
+               "end_pose_error_deg", "max_joint_step_deg")
+#: The same for shapes other than the line (letters, polylines, splines).
+SHAPE_MEAN_COLUMNS = ("point_error_mean_mm", "curve_distance_mean_mm",
+                      "pointing_deviation_mean_deg", "mean_sq_joint_step_deg2", "loss",
+                      "paper_loss", "iterations")
+SHAPE_MAX_COLUMNS = ("point_error_max_mm", "curve_distance_max_mm", "pointing_deviation_max_deg",
+                     "max_joint_step_deg")
+
+
+@dataclass(frozen=True)
+class Measures:
+    """What a sweep summarises: line tasks or general shapes.
+
+    Attributes:
+        accuracy: the per-setting column of the Pareto front's accuracy axis [mm].
+        accuracy_name: its name in sentences and axis labels.
+        target: what the fingertip should follow (``"line"``, ``"shape"``).
+        mean_columns / max_columns: per-trajectory figures averaged / maximised per setting.
+        table_columns: the columns of sweep.md's tables.
+    """
+
+    accuracy: str
+    accuracy_name: str
+    target: str
+    mean_columns: tuple
+    max_columns: tuple
+    table_columns: tuple
+
+
+LINE_MEASURES = Measures(
+    "line_distance_mean_mm", "line distance", "line", MEAN_COLUMNS, MAX_COLUMNS,
+    ("setting", "line_distance_mean_mm", "pointing_deviation_mean_deg",
+     "mean_sq_joint_step_deg2", "max_joint_step_deg", "end_point_error_mm",
+     "end_pose_error_deg", "loss", "paper_loss", "converged", "pareto"))
+SHAPE_MEASURES = Measures(
+    "point_error_mean_mm", "point error", "shape", SHAPE_MEAN_COLUMNS, SHAPE_MAX_COLUMNS,
+    ("setting", "point_error_mean_mm", "point_error_max_mm", "curve_distance_mean_mm",
+     "curve_distance_max_mm", "pointing_deviation_mean_deg", "pointing_deviation_max_deg",
+     "mean_sq_joint_step_deg2", "max_joint_step_deg", "loss", "paper_loss", "converged",
+     "pareto"))
+
+
+def measures_of(frame: pd.DataFrame) -> Measures:
+    """:data:`SHAPE_MEASURES` for a frame of shape figures, else :data:`LINE_MEASURES`."""
+    return SHAPE_MEASURES if "point_error_mean_mm" in frame.columns else LINE_MEASURES
+
+
+def parse_grid(items: list[str] | str) -> dict[str, list[float]]:
+    """``["c0=1,10,100", "c1=5,50"]`` -> ``{"L0": [1, 10, 100], "L1": [5, 50]}``."""
+    items = [items] if isinstance(items, str) else list(items or [])
+    if not items:
+        raise InputError("--weight: give at least one term and its values, e.g. c0=1,10,100")
+    grid = {}
+    for item in items:
+        key, sep, values = str(item).partition("=")
+        term = key.strip().upper().replace("C", "L", 1)
+        try:
+            numbers = [float(v) for v in values.split(",")] if sep else []
+        except ValueError:
+            numbers = []
+        if term not in TERMS or not numbers or not all(np.isfinite(v) and v >= 0
+                                                        for v in numbers):
+            raise InputError(f"--weight: {item!r} is not term=v1,v2,... with term in c0..c6 "
+                             "(or L0..L6) and values finite numbers >= 0, e.g. c0=1,10,100")
+        if term in grid:
+            raise InputError(f"--weight: term {key.strip()!r} is given twice")
+        grid[term] = list(dict.fromkeys(numbers))
+    return grid
+
+
+def setting_label(weights: dict, grid_terms) -> str:
+    """``"c0=100,c1=50"`` for the grid's terms of a weights dict."""
+    return ",".join(f"c{t[1]}={weights[t]:g}" for t in grid_terms)
+
+
+def grid_settings(grid: dict[str, list[float]], base: dict | None = None) -> list[dict]:
+    """Every combination of the grid on top of ``base`` (default the paper's), ``base`` first.
+
+    Raises:
+        InputError: a combination sets every weight to 0 (its loss would be empty).
+    """
+    base = dict(base or PAPER_WEIGHTS)
+    out = [base]
+    for values in itertools.product(*grid.values()):
+        weights = {**base, **dict(zip(grid, values))}
+        if not any(weights.values()):
+            rest = sorted(set(TERMS) - set(grid))
+            others = (f" and the other terms ({', '.join(f'c{t[1]}' for t in rest)}) are 0"
+                      if rest else "")
+            raise InputError(f"--weight: the setting {setting_label(weights, grid)!r}{others}: "
+                             "every weight is 0 and the loss would be empty; give each "
+                             "setting at least one weight > 0")
+        if weights not in out:
+            out.append(weights)
+    return out
+
+
+def effective_weights(weights: dict, task) -> dict:
+    """``weights`` with c2 / c3 set to 0 where ``task`` pins no start / end pose."""
+    return {**weights, "L2": weights["L2"] if task.start_pose_deg is not None else 0.0,
+            "L3": weights["L3"] if task.end_pose_deg is not None else 0.0}
+
+
+@dataclass
+class SweepResult:
+    """Per-setting summary, per-trajectory rows, and the record (grid, provenance)."""
+
+    settings: pd.DataFrame
+    trajectories: pd.DataFrame
+    record: dict
+
+
+def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None = None,
+          only: str | None = None, steps: int | None = None, shape: str = "line",
+          size_mm: float | None = None, start_pose=None, direction=None, lm_settings=None,
+          progress: bool = True, robot: Robot | str | None = None) -> SweepResult:
+    """Solve the tasks of a shape for every weight setting of ``grid`` (module docstring).
+
+    Args:
+        grid: term (L0..L6) -> weights to try; other terms keep the reference weights.
+        targets: a targets file, :class:`Targets`, or None for the paper's (the line's touch
+            poses and the start pose).
+        only: trajectory ids to keep (``"1,3"``; the line only).
+        steps: number of segments n (default: the targets file's for the line, 100 for
+            other shapes).
+        shape: ``line``, ``polyline:FILE``, ``spline:FILE`` or ``letter:X[,Y...]``
+            (:func:`ikbench.core.task.build_tasks`).
+        size_mm: letter height [mm] (default 300).
+        start_pose: (dof,) start pose [pose units] replacing the targets file's (default for
+            letters: the robot's letter start pose, NICO's the paper's).
+        direction: goal directions ``"tangent"``, ``"normal"`` or a vector (default: the
+            shape's own).
+        lm_settings: ours-lm settings (their weights are replaced by the grid's).
+        progress: progress lines on stderr.
+        robot: the robot or its name/config/URDF (default NICO's right arm).
+
+    Raises:
+        InputError: bad shape, options or a setting whose weights are all 0 for the tasks.
+    """
+    from ikbench.methods.ours_lm import LMSettings, solve_batch
+
+    robot = robot if isinstance(robot, Robot) else load_robot(robot or "nico_right_arm")
+    if not isinstance(targets, Targets):
+        targets = load_targets(targets, robot)
+    kind, _ = parse_shape(shape)
+    if kind == "letter" and start_pose is None:
+        start_pose = letter_start_pose(robot, targets)
+    if start_pose is not None:
+        targets = replace(targets, start_pose_deg=robot.check_pose(start_pose, "--start-pose"))
+    if only and kind != "line":
+        raise InputError(f"--only selects touch poses of the line shape; shape {shape!r} has "
+                         "none (name the letters in the shape instead, e.g. letter:P,A)")
+    targets = targets.select(only)
+    if kind == "line":
+        targets = targets.with_steps(steps)
+    tasks = build_tasks(robot, targets, shape, steps, size_mm, direction)
+    defaults = {json.dumps(t.default_weights, sort_keys=True) for t in tasks}
+    if len(defaults) != 1:  # not for any shape ikbench makes today
+        raise InputError(f"--shape: {shape!r} makes tasks with different default weights; "
+                         "sweep one kind of shape at a time")
+    base = dict(tasks[0].default_weights or PAPER_WEIGHTS)
+    settings = grid_settings(grid, base)
+    for weights in settings:
+        if not any(any(effective_weights(weights, t).values()) for t in tasks):
+            raise InputError(f"--weight: the setting {setting_label(weights, grid)!r} weights "
+                             f"only the start/end pose terms c2, c3, which shape {shape!r} "
+                             "does not pin: the loss would be empty; give another term a "
+                             "weight > 0")
+    all_tasks = [task for _ in settings for task in tasks]
+    all_weights = [w for w in settings for _ in tasks]
+    if progress:
+        print(f"[sweep] {len(settings)} weight settings x {len(tasks)} tasks ({shape}): one "
+              f"batched ours-lm solve of {len(all_tasks)} trajectories", file=sys.stderr,
+              flush=True)
+    result = solve_batch(robot, all_tasks, lm_settings or LMSettings(), weights=all_weights)
+    if progress:
+        print(f"[sweep] solved in {result.duration_s:.2f} s; measuring", file=sys.stderr,
+              flush=True)
+    measure = trajectory_metrics if kind == "line" else shape_metrics
+    rows = []
+    for k, (task, weights) in enumerate(zip(all_tasks, all_weights)):
+        poses = result.poses_deg[k]
+        metrics = measure(robot, task, poses)
+        rows.append({"setting": setting_label(weights, grid), "paper_weights": weights == base,
+                     "trajectory": task.name,
+                     **{f"c{t[1]}": weights[t] for t in TERMS},
+                     "loss": float(result.loss[k]),
+                     "paper_loss": objective(robot, task, poses, base)[0],
+                     "iterations": int(result.iterations[k]),
+                     "converged": bool(result.converged[k]),
+                     "within_limits": robot.within_limits(poses), **metrics})
+    per_traj = pd.DataFrame(rows)
+    record = {"grid": {f"c{t[1]}": v for t, v in grid.items()}, "robot": robot.describe(),
+              "targets": targets.source,
+              "shape": shape, "size_mm": (size_mm or DEFAULT_SIZE_MM) if kind == "letter" else None,
+              "direction": direction, "start_pose_deg": targets.start_pose_deg.tolist(),
+              "reference_weights": {f"c{t[1]}": base[t] for t in TERMS},
+              "reference": reference_name(kind),
+              "trajectories": [t.name for t in tasks], "steps": tasks[0].steps,
+              "solve_wall_time_s": result.duration_s, "trajectories_solved": len(all_tasks),
+              **provenance()}
+    return SweepResult(summarise(per_traj), per_traj, record)
+
+
+def reference_name(kind: str) -> str:
+    """How sweep.md names the reference setting of a shape kind."""
+    return "the paper's letter setting" if kind == "letter" else "the paper's weights"
+
+
+def summarise(per_traj: pd.DataFrame) -> pd.DataFrame:
+    """One row per setting: means / worst values over the tasks, and the Pareto flag.
+
+    Line figures (``line_distance_mean_mm``, ...) or shape figures (``point_error_mean_mm``,
+    ...), whichever ``per_traj`` has (:func:`measures_of`).
+    """
+    m = measures_of(per_traj)
+    weight_cols = [f"c{t[1]}" for t in TERMS]
+    agg = {**{c: "first" for c in weight_cols + ["paper_weights"]},
+           **{c: "mean" for c in m.mean_columns}, **{c: "max" for c in m.max_columns},
+           "converged": "all", "within_limits": "all"}
+    table = per_traj.groupby("setting", sort=False).agg(agg).reset_index()
+    x = table[m.accuracy].to_numpy()
+    y = table["pointing_deviation_mean_deg"].to_numpy()
+    dominated = [bool(np.any((x <= x[i]) & (y <= y[i]) & ((x < x[i]) | (y < y[i]))))
+                 for i in range(len(table))]
+    table["pareto"] = ~np.array(dominated)
+    return table
+
+
+def plot_pareto(table: pd.DataFrame, title: str = "", reference: str = "the paper's weights"):
+    """Accuracy (line distance or point error) vs pointing deviation, smoothness as colour."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    m = measures_of(table)
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    smooth = table["mean_sq_joint_step_deg2"]
+    points = ax.scatter(table[m.accuracy], table["pointing_deviation_mean_deg"],
+                        c=smooth, cmap="viridis", s=36, zorder=3)
+    front = table[table["pareto"]].sort_values(m.accuracy)
+    ax.plot(front[m.accuracy], front["pointing_deviation_mean_deg"], "-",
+            color="0.5", lw=1, zorder=2, label="Pareto front")
+    for _, row in front.iterrows():
+        ax.annotate(row["setting"], (row[m.accuracy], row["pointing_deviation_mean_deg"]),
+                    fontsize=6, xytext=(4, 3), textcoords="offset points")
+    paper = table[table["paper_weights"]]
+    ax.scatter(paper[m.accuracy], paper["pointing_deviation_mean_deg"],
+               marker="*", s=260, facecolors="none", edgecolors="red", zorder=4,
+               label=reference)
+    ax.set_xscale("log")
+    ax.margins(x=0.25)
+    over = "targets" if m is LINE_MEASURES else "pen-down points and tasks"
+    ax.set_xlabel(f"{m.accuracy_name}, mean over {over} [mm] (log)")
+    ax.set_ylabel(f"pointing deviation, mean over {over} [deg]")
+    fig.colorbar(points, ax=ax, label="smoothness: mean squared joint step [deg$^2$]")
+    ax.grid(alpha=0.3, which="both")
+    # below the axes: inside, it can hide a setting
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2,
+              frameon=False)
+    ax.set_title(title or f"weight sweep (ours-lm): {m.accuracy_name} vs pointing")
+    return fig
+
+
+def _describe(row, m: Measures) -> str:
+    if m is LINE_MEASURES:
+        accuracy = (f"line distance {row['line_distance_mean_mm']:.3g} mm, pointing deviation "
+                    f"{row['pointing_deviation_mean_deg']:.2f} deg")
+        error = f"worst end point error {row['end_point_error_mm']:.3f} mm"
+    else:
+        accuracy = (f"point error {row['point_error_mean_mm']:.3g} mm mean / "
+                    f"{row['point_error_max_mm']:.3g} mm max, distance from the curve "
+                    f"{row['curve_distance_mean_mm']:.3g} mm mean, pointing deviation "
+                    f"{row['pointing_deviation_mean_deg']:.2f} deg")
+        error = f"largest joint step {row['max_joint_step_deg']:.2f} deg"
+    return (f"`{row['setting']}`: {accuracy}, mean squared joint step "
+            f"{row['mean_sq_joint_step_deg2']:.2f} deg^2, {error}")
+
+
+def findings(table: pd.DataFrame, reference: str = "the paper's weights") -> list[str]:
+    """Sentences saying what other weights achieve against the reference and at what cost."""
+    m = measures_of(table)
+    paper = table[table["paper_weights"]].iloc[0]
+    objective_name = ("the paper's objective" if reference == "the paper's weights"
+                      else f"the objective of {reference}")
+
+    def describe(row) -> str:
+        return _describe(row, m)
+
+    best_line = table.loc[table[m.accuracy].idxmin()]
+    best_point = table.loc[table["pointing_deviation_mean_deg"].idxmin()]
+    cost = best_line["pointing_deviation_mean_deg"] - paper["pointing_deviation_mean_deg"]
+    closer = paper[m.accuracy] / best_line[m.accuracy]
+    lines = [f"- {reference[0].upper() + reference[1:]} ({describe(paper)}). This is the "
+             f"optimum of {objective_name} itself, not an optimiser's shortfall.",
+             f"- Smallest {m.accuracy_name}: {describe(best_line)}: {closer:.0f}x closer to "
+             f"the {m.target}, at a cost of {cost:+.2f} deg in pointing.",
+             f"- Smallest pointing deviation: {describe(best_point)}."]
+    no_worse = table[table["pointing_deviation_mean_deg"]
+                     <= paper["pointing_deviation_mean_deg"] + 1e-9]
+    if len(no_worse):
+        best = no_worse.loc[no_worse[m.accuracy].idxmin()]
+        lines.append(f"- Best {m.accuracy_name} with pointing no worse than {reference}: "
+                     f"{describe(best)}.")
+    within_1 = table[table["pointing_deviation_mean_deg"]
+                     <= paper["pointing_deviation_mean_deg"] + 1.0]
+    best = within_1.loc[within_1[m.accuracy].idxmin()]
+    lines.append(f"- Best {m.accuracy_name} for at most 1 deg more pointing deviation: "
+                 f"{describe(best)}.")
+    return lines
+
+
+def write(result: SweepResult, output: str | Path) -> Path:
+    """Write sweep.csv, sweep_trajectories.csv, pareto.png, sweep.json and sweep.md."""
+    out = Path(output)
+    atomic_write_csv(out / "sweep.csv", result.settings, float_format="%.6g")
+    atomic_write_csv(out / "sweep_trajectories.csv", result.trajectories, float_format="%.6g")
+    atomic_write_text(out / "sweep.json", json.dumps(result.record, indent=2) + "\n")
+    atomic_savefig(out / "pareto.png", plot_pareto(
+        result.settings, reference=result.record.get("reference", "the paper's weights")))
+    atomic_write_text(out / "sweep.md", markdown(result))
+    return out / "sweep.csv"
+
+
+def markdown(result: SweepResult) -> str:
+    """sweep.md: the findings, the Pareto-optimal settings, and every setting."""
+    rec, table = result.record, result.settings
+    m = measures_of(table)
+    reference = rec.get("reference", "the paper's weights")
+    cols = list(m.table_columns)
+    digits = {"loss": 3, "paper_loss": 3, "end_point_error_mm": 3, "end_pose_error_deg": 3,
+              "line_distance_mean_mm": 3, "point_error_mean_mm": 3, "point_error_max_mm": 3,
+              "curve_distance_mean_mm": 3, "curve_distance_max_mm": 3}
+    grid = "; ".join(f"{k} = {', '.join(f'{v:g}' for v in vals)}"
+                     for k, vals in rec["grid"].items())
+    ref_weights = ", ".join(f"{k}={v:g}" for k, v in rec.get(
+        "reference_weights", {f"c{t[1]}": PAPER_WEIGHTS[t] for t in TERMS}).items())
+    shape = rec.get("shape", "line")
+    if shape == "line":
+        where = (f"on targets {rec['targets']} (trajectories {', '.join(rec['trajectories'])}, "
+                 f"n = {rec['steps']})")
+        figures = ("Figures are means over the targets (errors and max joint step: the worst "
+                   "target)")
+    else:
+        size = f", {rec['size_mm']:g} mm high" if rec.get("size_mm") else ""
+        direction = f", goal directions {rec['direction']}" if rec.get("direction") else ""
+        where = (f"on shape `{shape}` (trajectories {', '.join(rec['trajectories'])}{size}"
+                 f"{direction}, n = {rec['steps']}, start pose "
+                 f"{','.join(f'{v:g}' for v in rec['start_pose_deg'])} [motor deg])")
+        figures = ("Figures are over pen-down points, means over the tasks (max columns: the "
+                   "worst task); `point_error`: distance of each fingertip point from its own "
+                   "goal point, `curve_distance`: from the nearest point of the target curve")
+    ordered = table.sort_values(m.accuracy)
+    return "\n".join([
+        "# Weight sweep", "",
+        f"The paper's objective (L0..L6, cm and motor degrees) minimised by `ours-lm` for every "
+        f"combination of {grid} (other terms keep {reference}: {ref_weights}), {where}. "
+        f"{rec['trajectories_solved']} trajectories in one batched solve of "
+        f"{rec['solve_wall_time_s']:.2f} s. {figures}; `loss` is the setting's own objective, "
+        f"`paper_loss` the objective with {reference} of the same poses.", "",
+        "## Findings", "", *findings(table, reference), "",
+        "![Pareto](pareto.png)", "",
+        f"## Pareto-optimal settings ({m.accuracy_name} vs pointing deviation)", "",
+        markdown_table(ordered[ordered["pareto"]][cols], digits), "",
+        "## Every setting", "", markdown_table(ordered[cols], digits), "",
+        f"Produced by ikbench (git {rec['git_revision']}) on {rec['cpu']}, "
+        f"{rec['created_utc']}.", ""])
