@@ -129,7 +129,7 @@ def test_claims_not_tested_without_their_variant():
 def small_ablation(tmp_path_factory):
     """--drop L1 on trajectory 2 with n = 10 and a 40-iteration cap (loss stays above 10)."""
     out = tmp_path_factory.mktemp("ablation")
-    table = ablate(["L1"], only="2", steps=10, output=out, options={"max_iterations": 40},
+    table = ablate(["L1"], "ours", only="2", steps=10, output=out, options={"max_iterations": 40},
                    progress=False)
     return out / "ablation", table
 
@@ -218,14 +218,14 @@ def test_unwritable_output_fails_before_any_solve(tmp_path, monkeypatch, capsys)
 def test_a_smaller_ablation_removes_stale_variants_and_trajectories(tmp_path):
     common = {"steps": 4, "output": tmp_path, "options": {"max_iterations": 3},
               "progress": False}
-    ablate(["L1", "L2,L5"], only="1,2", **common)
+    ablate(["L1", "L2,L5"], "ours", only="1,2", **common)
     root = tmp_path / "ablation"
     (root / "no-L2-L5" / "notes.txt").write_text("mine")  # kept, and so is its folder
     (root / "no-L3").mkdir()  # a variant-named folder of an even older run: emptied, removed
     (root / "no-L3" / "trajectory_1.csv").write_text("old")
     (root / "plots").mkdir()  # not a variant name: untouched
     (root / "plots" / "trajectory_1.csv").write_text("mine")
-    ablate(["L1"], only="2", **common)
+    ablate(["L1"], "ours", only="2", **common)
     assert sorted(p.relative_to(root).as_posix() for p in root.rglob("trajectory_*.csv")) == [
         "full/trajectory_2.csv", "no-L1/trajectory_2.csv", "plots/trajectory_1.csv"]
     assert not (root / "no-L3").exists()

@@ -27,7 +27,7 @@ import tomllib
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -503,7 +503,7 @@ def load_robot(name_or_path: str | Path = DEFAULT_ROBOT, end_frame: str | None =
     return _load(str(name_or_path), end_frame or None)
 
 
-def robot_config_value(robot: Robot, section: str, key: str, default: Any = None) -> Any:
-    """A value of a config section (``letters``, ``batch``, ``frame``), or ``default``."""
-    value = robot.config.get(section, {})
-    return value.get(key, default) if isinstance(value, dict) else default
+def as_robot(robot: Robot | str | Path | None) -> Robot:
+    """``robot`` itself, or the robot a name/config/URDF path names (None: the default)."""
+    return robot if isinstance(robot, Robot) else load_robot(robot or DEFAULT_ROBOT)
+

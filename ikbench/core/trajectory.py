@@ -1,4 +1,4 @@
-"""Trajectory CSV files: one row per pose, joints in motor degrees, fingertip in mm.
+"""Trajectory CSV files: one row per pose, joints in pose units, the end point in mm.
 
 Columns, exactly::
 
@@ -78,12 +78,14 @@ def read_trajectory_csv(path, robot: Robot | None = None) -> pd.DataFrame:
     bad = ~np.isfinite(joints.to_numpy(dtype=float))
     if bad.any():
         row, col = np.argwhere(bad)[0]
+        value = frame.iloc[row][robot.joint_names[col]]
         raise InputError(
-            f"{path}: row {row} column {robot.joint_names[col]} = "
-            f"{frame.iloc[row][robot.joint_names[col]]!r} is not a finite number"
+            f"{path}: line {row + 2} (step {row}) column {robot.joint_names[col]} = "
+            f"{'empty' if pd.isna(value) and not isinstance(value, str) else value} is not "
+            "a finite number"
         )
     for row, pose in enumerate(joints.to_numpy(dtype=float)):
-        robot.check_pose(pose, f"{path}: row {row}")
+        robot.check_pose(pose, f"{path}: line {row + 2} (step {row})")
     frame[list(robot.joint_names)] = joints
     return frame
 

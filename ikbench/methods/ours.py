@@ -1,8 +1,9 @@
 """The paper's method ("ours"): the whole trajectory optimised at once with Adam.
 
-Variables are logits z (n+1, dof); poses p = lo + sigmoid(z) * (hi - lo) stay inside the motor
-ranges. FK runs through pytorch-kinematics on the URDF, batched over the n+1 poses, and the
-loss is :mod:`ikbench.core.losses` in the paper's units.
+Variables are logits z (n+1, dof); poses p = lo + sigmoid(z) * (hi - lo) stay inside the joint
+limits (motor ranges for NICO; continuous joints within +-180 deg). FK runs through
+pytorch-kinematics on the URDF, batched over the n+1 poses, and the loss is
+:mod:`ikbench.core.losses` in the paper's units.
 
 Initial logits (``init``):
 
@@ -126,7 +127,7 @@ def initial_logits(robot, task, dtype, init: str = "random", seed: int = 0):
 
     if init != "interpolation":
         raise InputError(f"--init: {init!r} is not one of {', '.join(INITS)}")
-    lo, hi = robot.lower_motor_deg, robot.upper_motor_deg
+    lo, hi = robot.sample_lower, robot.sample_upper  # continuous joints: +-180 deg
     t = np.linspace(0.0, 1.0, task.steps + 1)[:, None]
     if task.start_pose_deg is not None and task.end_pose_deg is not None:
         poses = task.start_pose_deg + t * (task.end_pose_deg - task.start_pose_deg)
@@ -154,8 +155,9 @@ def optimise(robot, task, settings: AdamSettings, progress=None, logits=None) ->
     settings = replace(settings, weights=resolve_weights(settings.weights, task))
     dtype = {"float32": torch.float32, "float64": torch.float64}[settings.dtype]
     fk = robot.torch_fk(dtype)
-    lo = torch.as_tensor(robot.lower_motor_deg, dtype=dtype)
-    span = torch.as_tensor(robot.upper_motor_deg - robot.lower_motor_deg, dtype=dtype)
+    # the sigmoid keeps poses within the limits (continuous joints: within +-180 deg)
+    lo = torch.as_tensor(robot.sample_lower, dtype=dtype)
+    span = torch.as_tensor(robot.sample_upper - robot.sample_lower, dtype=dtype)
     goals = LossGoals.from_task(task, dtype)
     if logits is None:
         logits = initial_logits(robot, task, dtype, settings.init, settings.seed)

@@ -1,6 +1,6 @@
 """Loss-term ablation: a method run with some of the paper's L0..L6 weights set to zero.
 
-``ablate(["L1"])`` solves the targets with the full loss and with L1 dropped, using the
+``ablate(["L1"], "ours")`` solves the targets with the full loss and with L1 dropped, using the
 registered method itself (any method whose constructor takes ``weights``; its optimiser and
 stopping rule are untouched). Output under ``output/ablation/``:
 
@@ -39,7 +39,7 @@ from ikbench.core.io import (
 )
 from ikbench.core.losses import PAPER_WEIGHTS, TERM_DESCRIPTIONS, TERMS, objective, parse_terms
 from ikbench.core.provenance import provenance
-from ikbench.core.robot import Robot, load_robot
+from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import line_tasks
 from ikbench.core.trajectory import (
@@ -193,7 +193,7 @@ def _say(text: str, enabled: bool) -> None:
         print(f"[ablation] {text}", file=sys.stderr, flush=True)
 
 
-def ablate(drops: str | list[str] = EACH, method: str = "ours", *,
+def ablate(drops: str | list[str], method: str, *,
            targets: str | Path | Targets | None = None, only: str | None = None,
            steps: int | None = None, output: str | Path = DEFAULT_OUTPUT,
            options: dict | None = None, base_weights: dict | None = None,
@@ -219,8 +219,7 @@ def ablate(drops: str | list[str] = EACH, method: str = "ours", *,
     """
     variants = parse_drops(drops)
     cls = check_method(method)
-    if robot is None or isinstance(robot, str):
-        robot = load_robot(robot or "nico_right_arm")
+    robot = as_robot(robot)
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
     targets = targets.select(only).with_steps(steps)

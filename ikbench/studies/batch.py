@@ -35,7 +35,7 @@ from ikbench.core.io import atomic_write_csv, atomic_write_text
 from ikbench.core.losses import PAPER_WEIGHTS, TERMS, parse_weights
 from ikbench.core.metrics import trajectory_metrics
 from ikbench.core.provenance import provenance
-from ikbench.core.robot import Robot, load_robot
+from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import line_task
 from ikbench.studies.report import markdown_table
@@ -193,7 +193,7 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
         raise InputError(f"--steps: {steps!r} must be an integer >= 2")
     check_seed(seed)
     settings = [weight_setting(w) for w in weights]
-    robot = robot if isinstance(robot, Robot) else load_robot(robot or "nico_right_arm")
+    robot = as_robot(robot)
     workspace = WorkspaceFilter.of(robot)
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)

@@ -29,7 +29,7 @@ from ikbench.core.io import atomic_write_csv, atomic_write_text
 from ikbench.core.losses import objective
 from ikbench.core.metrics import trajectory_metrics
 from ikbench.core.provenance import provenance
-from ikbench.core.robot import Robot, load_robot
+from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import line_tasks
 from ikbench.methods.registry import get_method
@@ -124,7 +124,7 @@ def benchmark(methods: list[str] | str, *, repeat: str | int | None = None,
     counts = parse_repeat(repeat, names)
     if isinstance(warmup, bool) or not isinstance(warmup, int) or warmup < 0:
         raise InputError(f"--warmup: {warmup!r} must be an integer >= 0")
-    robot = robot if isinstance(robot, Robot) else load_robot(robot or "nico_right_arm")
+    robot = as_robot(robot)
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
     targets = targets.select(only).with_steps(steps)

@@ -38,7 +38,7 @@ from ikbench.core.io import (
 )
 from ikbench.core.metrics import shape_metrics, trajectory_metrics
 from ikbench.core.provenance import provenance
-from ikbench.core.robot import Robot, load_robot
+from ikbench.core.robot import Robot, as_robot, load_robot
 from ikbench.core.targets import ID_PATTERN, Targets, load_targets
 from ikbench.core.task import build_tasks, parse_shape
 from ikbench.core.trajectory import (
@@ -177,8 +177,7 @@ def prepare(method: str | Method, *, robot: Robot | str | None = None,
     Returns:
         (solver, robot, targets, tasks).
     """
-    if isinstance(robot, str) or robot is None:
-        robot = load_robot(robot or "nico_right_arm")
+    robot = as_robot(robot)
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
     if start_pose is not None:

@@ -36,7 +36,7 @@ from ikbench.core.letters import DEFAULT_SIZE_MM
 from ikbench.core.losses import PAPER_WEIGHTS, TERMS, objective
 from ikbench.core.metrics import shape_metrics, trajectory_metrics
 from ikbench.core.provenance import provenance
-from ikbench.core.robot import Robot, load_robot
+from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import build_tasks, letter_start_pose, parse_shape
 from ikbench.studies.report import markdown_table
@@ -186,7 +186,7 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
     """
     from ikbench.methods.ours_lm import LMSettings, solve_batch
 
-    robot = robot if isinstance(robot, Robot) else load_robot(robot or "nico_right_arm")
+    robot = as_robot(robot)
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
     kind, _ = parse_shape(shape)

@@ -18,9 +18,10 @@ def _float64_transform(origin):
 def build_chain_float64(urdf_bytes: bytes, end_frame: str, root_frame: str = ""):
     """``pk.build_serial_chain_from_urdf`` with its constant transforms exact in float64.
 
-    pytorch-kinematics (0.10) converts every URDF ``rpy`` through a float32 tensor, which moves
-    the NICO fingertip by ~4e-8 m. After the normal build, each joint offset is recomputed in
-    float64 from the URDF origin and the serial chain (``root_frame`` -> ``end_frame``; "" is
+    pytorch-kinematics (0.10) converts every URDF ``rpy`` and joint axis through a float32
+    tensor, which moves the NICO fingertip by ~4e-8 m (an unaligned axis: ~3e-9 m more). After
+    the normal build, each joint offset and axis is recomputed in float64 from the URDF and the
+    serial chain (``root_frame`` -> ``end_frame``; "" is
     the URDF's root) is built in float64; ``TorchFK`` then casts it to the dtype asked for.
     """
     import pytorch_kinematics as pk
@@ -28,12 +29,16 @@ def build_chain_float64(urdf_bytes: bytes, end_frame: str, root_frame: str = "")
     import torch
 
     tree = pk.build_chain_from_urdf(urdf_bytes)
-    origins = {j.name: j.origin for j in pk_urdf.URDF.from_xml_string(urdf_bytes).joints}
+    joints = {j.name: j for j in pk_urdf.URDF.from_xml_string(urdf_bytes).joints}
     stack = [tree._root]
     while stack:
         frame = stack.pop()
-        if frame.joint.name in origins and frame.joint.offset is not None:
-            frame.joint.offset = _float64_transform(origins[frame.joint.name])
+        joint = joints.get(frame.joint.name)
+        if joint is not None and frame.joint.offset is not None:
+            frame.joint.offset = _float64_transform(joint.origin)
+        if joint is not None and joint.axis is not None:
+            axis = torch.tensor(joint.axis, dtype=torch.float64)
+            frame.joint.axis = axis / axis.norm()
         if frame.link.offset is not None:
             frame.link.offset = frame.link.offset.to(device="cpu", dtype=torch.float64)
         stack.extend(frame.children)

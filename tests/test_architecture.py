@@ -1,0 +1,148 @@
+"""The package's shape: layers, no method named in generic code, a registry that a missing
+library cannot break, and a wheel that lists every package."""
+
+from __future__ import annotations
+
+import ast
+import os
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+#: Layer of each top-level part; a module may import only its own layer or lower ones.
+LAYERS = {"core": 0, "methods": 1, "baselines": 1, "studies": 2, "hw": 2, "paper": 3,
+          "viewer": 3, "cli": 4}
+
+
+def _modules():
+    for path in sorted([*(REPO / "ikbench").rglob("*.py"), *(REPO / "baselines").rglob("*.py")]):
+        rel = path.relative_to(REPO).with_suffix("")
+        parts = rel.parts
+        if parts[0] == "baselines":
+            yield path, "baselines"
+        elif len(parts) > 2 or (len(parts) == 2 and parts[1] != "__init__"
+                                and parts[1] != "__main__"):
+            yield path, parts[1]
+
+
+def _imported(path: Path) -> set[str]:
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            names.add(node.module)
+            names.update(f"{node.module}.{a.name}" for a in node.names)
+        elif isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+    return names
+
+
+def _part(module: str) -> str | None:
+    parts = module.split(".")
+    if parts[0] == "baselines":
+        return "baselines"
+    if parts[0] == "ikbench" and len(parts) > 1 and parts[1] in LAYERS:
+        return parts[1]
+    return None
+
+
+def test_every_module_imports_only_its_layer_or_lower():
+    bad = []
+    for path, part in _modules():
+        if part not in LAYERS:
+            continue
+        for name in _imported(path):
+            other = _part(name)
+            if other is not None and LAYERS[other] > LAYERS[part]:
+                bad.append(f"{path.relative_to(REPO)} ({part}) imports {name} ({other})")
+    assert not bad, "\n".join(bad)
+
+
+def test_generic_code_names_no_method():
+    """core and studies work for every method: no "ours" or "sequential-ik" literal in them."""
+    bad = []
+    for path, part in _modules():
+        if part not in ("core", "studies"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Constant) and node.value in ("ours", "sequential-ik"):
+                bad.append(f"{path.relative_to(REPO)}:{node.lineno}: {node.value!r}")
+    assert not bad, "\n".join(bad)
+
+
+def test_pyproject_lists_every_package():
+    listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+                 ["packages"])
+    found = {str(p.parent.relative_to(REPO)).replace(os.sep, ".")
+             for p in [*(REPO / "ikbench").rglob("__init__.py"),
+                       *(REPO / "baselines").rglob("__init__.py")]}
+    assert found <= listed, f"not in pyproject.toml: {sorted(found - listed)}"
+
+
+@pytest.fixture
+def broken_plugins(tmp_path):
+    """An installed distribution (a dist-info on PYTHONPATH) whose entry points name a method
+    module that imports a missing library, one whose class does not exist, and a good one."""
+    (tmp_path / "plugin_methods.py").write_text(
+        "import not_a_real_kinematics_library  # noqa\n")
+    (tmp_path / "plugin_good.py").write_text(
+        "from ikbench.methods.ours_lm import OursLM\n\n"
+        "class Renamed(OursLM):\n    name = 'plugin-lm'\n    description = 'ours-lm again'\n")
+    info = tmp_path / "fake_plugin-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: fake-plugin\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(
+        "[ikbench.methods]\nbroken = plugin_methods:Broken\nmissing-class = plugin_good:Nope\n"
+        "plugin-lm = plugin_good:Renamed\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(REPO)])}
+    return env
+
+
+def _ikbench(env, *args):
+    return subprocess.run([sys.executable, "-m", "ikbench.cli", *args], capture_output=True,
+                          text=True, env=env, cwd=env["PYTHONPATH"].split(os.pathsep)[0])
+
+
+def test_a_method_whose_library_is_missing_breaks_nothing(broken_plugins):
+    listing = _ikbench(broken_plugins, "methods")
+    assert listing.returncode == 0, listing.stderr
+    lines = {line.split()[0]: line for line in listing.stdout.splitlines()}
+    assert "UNAVAILABLE" in lines["broken"]
+    assert "No module named 'not_a_real_kinematics_library'" in lines["broken"]
+    assert "UNAVAILABLE" in lines["missing-class"] and "Nope" in lines["missing-class"]
+    assert "available" in lines["plugin-lm"] and "ours-lm" in lines
+    fk = _ikbench(broken_plugins, "fk", "--json")
+    assert fk.returncode == 0 and fk.stderr == ""
+    run = _ikbench(broken_plugins, "run", "--method", "broken", "--quiet")
+    assert run.returncode == 2
+    assert run.stderr.startswith("ikbench: error: --method broken is not available here: "
+                                 "cannot be imported: ModuleNotFoundError")
+    good = _ikbench(broken_plugins, "run", "--method", "plugin-lm", "--only", "1",
+                    "--steps", "5", "--quiet", "--output", "out")
+    assert good.returncode == 0, good.stderr
+
+
+def test_a_built_in_method_with_its_library_missing_is_listed_with_the_extra(monkeypatch):
+    from ikbench.methods import registry
+
+    monkeypatch.setattr(registry, "BUILTIN", (
+        *registry.BUILTIN, registry.Entry("needs-lib", "baselines.nothing:X",
+                                          ("not_a_real_kinematics_library",))))
+    monkeypatch.setattr(registry, "_STATUS", None)
+    status = registry.method_status()["needs-lib"]
+    assert not status.available
+    assert status.reason == ("needs not_a_real_kinematics_library (pip install "
+                             "'ikbench[libs]')")
+    assert "ours-lm" in registry.available_methods()
+
+
+def test_fk_imports_no_method_and_no_torch():
+    code = ("import sys; from ikbench.cli import main; main(['fk', '--json']); "
+            "print(sorted(m for m in sys.modules if m.startswith(('ikbench.methods', "
+            "'baselines', 'torch'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=REPO).stdout.splitlines()
+    assert out[-1] == "[]"

@@ -1,0 +1,206 @@
+"""Robots other than NICO: a URDF ikbench has never seen, given as --robot FILE --end-frame.
+
+tests/data/unaligned_arm.urdf has revolute joints about unaligned axes, a prismatic and a
+continuous joint, fixed joints with rotations and a branch that is not part of the chain.
+Its FK is checked against Pinocchio loading the same URDF on its own (continuous joints as
+(cos, sin), the branch joint at 0), and every method must run on it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import ikbench
+from ikbench.cli import main
+from ikbench.core.errors import InputError
+from ikbench.core.robot import load_robot
+from ikbench.core.targets import load_targets
+from ikbench.core.trajectory import read_trajectory_poses
+
+DATA = Path(__file__).parent / "data"
+URDF = DATA / "unaligned_arm.urdf"
+TARGETS = DATA / "unaligned_arm.targets.json"
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return load_robot(URDF, "tool")
+
+
+def independent_fk_mm(poses):
+    """End point [mm] and tool z-axis by Pinocchio on the raw URDF (no ikbench code)."""
+    import pinocchio as pin
+
+    model = pin.buildModelFromUrdf(str(URDF))
+    data = model.createData()
+    frame = model.getFrameId("tool")
+    out_p, out_z = [], []
+    for pose in poses:
+        q = pin.neutral(model)
+        values = {"j1": math.radians(pose[0]), "slide": pose[1] / 1000.0,
+                  "j3": math.radians(pose[2]), "j4": math.radians(pose[3]),
+                  "roll": math.radians(pose[4]), "j6": math.radians(pose[5])}
+        for name, value in values.items():
+            j = model.getJointId(name)
+            i = model.idx_qs[j]
+            if model.nqs[j] == 2:  # continuous: (cos, sin)
+                q[i:i + 2] = [math.cos(value), math.sin(value)]
+            else:
+                q[i] = value
+        pin.framesForwardKinematics(model, data, q)
+        out_p.append(data.oMf[frame].translation * 1000.0)
+        out_z.append(data.oMf[frame].rotation[:, 2].copy())
+    return np.array(out_p), np.array(out_z)
+
+
+def random_poses(arm, count, seed=0):
+    return np.random.default_rng(seed).uniform(arm.sample_lower, arm.sample_upper,
+                                               (count, arm.dof))
+
+
+def test_chain_units_and_limits_come_from_the_urdf(arm):
+    assert arm.joint_names == ("j1", "slide", "j3", "j4", "roll", "j6")
+    assert arm.joint_types == ("revolute", "prismatic", "revolute", "revolute", "continuous",
+                               "revolute")
+    assert arm.pose_unit == "joint deg, mm for prismatic" and not arm.has_motor_map
+    assert arm.lower[1] == 0.0 and arm.upper[1] == pytest.approx(250.0)  # mm
+    assert arm.upper[0] == pytest.approx(math.degrees(2.5))
+    assert arm.lower[4] == -math.inf and arm.upper[4] == math.inf  # continuous: no limits
+    assert arm.root_link == "world_link"
+
+
+@pytest.mark.parametrize("backend", ["pinocchio", "torch"])
+def test_fk_agrees_with_pinocchio_on_the_raw_urdf(arm, backend):
+    poses = random_poses(arm, 200, seed=1)
+    point_mm, z = independent_fk_mm(poses)
+    fk = arm.fk(poses, backend=backend)
+    assert np.abs(fk.point_mm - point_mm).max() < 1e-6  # mm
+    assert np.abs(fk.direction - z).max() < 1e-9
+
+
+def test_chain_kinematics_and_jacobians_on_unaligned_and_prismatic_joints(arm):
+    from ikbench.core.kinematics.chain import pinocchio_kinematics
+
+    poses = random_poses(arm, 20, seed=2)
+    ours, reference = arm.chain_kinematics()(poses), pinocchio_kinematics(arm, poses)
+    for a, b in zip(ours, reference):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+    _, _, j_point, j_dir = ours
+    h = 1e-6
+    for j in range(arm.dof):
+        plus, minus = poses.copy(), poses.copy()
+        plus[:, j] += h
+        minus[:, j] -= h
+        (pp, dp, _, _) = arm.chain_kinematics()(plus, False)
+        (pm, dm, _, _) = arm.chain_kinematics()(minus, False)
+        np.testing.assert_allclose(j_point[:, :, j], (pp - pm) / (2 * h), atol=1e-9)
+        np.testing.assert_allclose(j_dir[:, :, j], (dp - dm) / (2 * h), atol=1e-8)
+
+
+def test_fk_cli_on_a_bare_urdf(capsys):
+    pose = "10,100,20,-30,170,5"
+    assert main(["fk", "--robot", str(URDF), "--end-frame", "tool", f"--pose={pose}",
+                 "--json"]) == 0
+    obj = json.loads(capsys.readouterr().out)
+    expected, _ = independent_fk_mm([[10, 100, 20, -30, 170, 5]])
+    assert obj["robot"] == "unaligned_arm" and obj["pose_unit"] == "joint deg, mm for prismatic"
+    assert np.abs(np.array(obj["point_mm"]) - expected[0]).max() < 1e-6
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--robot", str(URDF)], "a bare URDF needs --end-frame LINK"),
+    (["--robot", str(URDF), "--end-frame", "nope"], "--end-frame: 'nope' is not a link of "
+     "unaligned_arm.urdf; links: world_link, base"),
+    (["--robot", "no_such_robot"], "--robot: 'no_such_robot' is not a shipped robot "
+     "(nico_right_arm"),
+    (["--robot", "missing.urdf", "--end-frame", "tool"], "URDF 'missing.urdf' not found"),
+    (["--robot", str(URDF), "--end-frame", "tool", "--pose=1,2,3"],
+     "--pose: expected 6 values (j1, slide, j3, j4, roll, j6; joint deg, mm for prismatic)"),
+    (["--robot", str(URDF), "--end-frame", "tool", "--pose=0,300,0,0,0,0"],
+     "--pose: slide = 300 mm is outside its range [0, 250]"),
+])
+def test_bad_robot_input_one_line_exit_2(capsys, args, message):
+    assert main(["fk", *args]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err
+
+
+def test_a_robot_config_names_the_urdf_end_frame_and_pointing_axis(tmp_path):
+    config = tmp_path / "my_arm.toml"
+    config.write_text(f'name = "my_arm"\nurdf = "{URDF}"\nbase_link = "base"\n'
+                      'end_frame = "l6"\npointing_axis = [1.0, 0.0, 0.0]\n'
+                      f'[targets]\nfile = "{TARGETS}"\nname = "mine"\n')
+    robot = load_robot(config)
+    assert robot.name == "my_arm" and robot.root_link == "base" and robot.end_frame == "l6"
+    pose = np.array([10.0, 100.0, 20.0, -30.0, 170.0, 5.0])
+    T = robot.fk_transform(pose)[0]
+    np.testing.assert_allclose(robot.fk(pose).direction[0], T[:3, 0], atol=1e-15)
+    targets = load_targets(None, robot)
+    assert targets.source == "mine" and targets.is_default and targets.ids == ["a", "b"]
+    (tmp_path / "bad.toml").write_text(f'urdf = "{URDF}"\nend_frame = "tool"\nendframe = 1\n')
+    with pytest.raises(InputError, match="unknown key\\(s\\) 'endframe'"):
+        load_robot(tmp_path / "bad.toml")
+
+
+def _run(tmp_path, method, *extra):
+    args = ["run", "--robot", str(URDF), "--end-frame", "tool", "--targets", str(TARGETS),
+            "--method", method, "--output", str(tmp_path), "--quiet", *extra]
+    assert main(args) == 0
+    folder = tmp_path / (extra[extra.index("--name") + 1] if "--name" in extra else method)
+    return folder, pd.read_csv(folder / "table.csv", dtype={"trajectory": str})
+
+
+@pytest.mark.parametrize("method, extra", [
+    ("ours-lm", ()),
+    ("ours", ("--only", "a", "--steps", "8", "--max-iterations", "1500")),
+])
+def test_whole_path_methods_start_at_the_start_pose_and_end_at_the_touch_pose(
+        tmp_path, arm, method, extra):
+    folder, table = _run(tmp_path, method, *extra)
+    targets = load_targets(TARGETS, arm)
+    for _, row in table.iterrows():
+        poses = read_trajectory_poses(folder / f"trajectory_{row['trajectory']}.csv", arm)
+        assert np.abs(poses[0] - targets.start_pose_deg).max() < 0.5
+        assert np.abs(poses[-1] - targets.touch_poses_deg[row["trajectory"]]).max() < 0.5
+        assert row["start_point_error_mm"] < 0.5 and row["end_point_error_mm"] < 0.5
+        assert arm.within_limits(poses)
+    record = json.loads((folder / "run.json").read_text())
+    assert record["robot"]["name"] == "unaligned_arm"
+    assert record["robot"]["urdf_sha256"] == arm.urdf_sha256
+
+
+def test_sequential_ik_walks_from_the_touch_pose_to_the_start_point(tmp_path, arm):
+    folder, table = _run(tmp_path, "sequential-ik", "--orientation", "position")
+    targets = load_targets(TARGETS, arm)
+    for _, row in table.iterrows():
+        poses = read_trajectory_poses(folder / f"trajectory_{row['trajectory']}.csv", arm)
+        np.testing.assert_array_equal(poses[-1], targets.touch_poses_deg[row["trajectory"]])
+        assert row["start_point_error_mm"] < 1e-3 and row["line_distance_mean_mm"] < 1e-2
+        assert arm.within_limits(poses)
+
+
+def test_a_run_reloads_its_robot_and_refuses_a_changed_urdf(tmp_path, arm):
+    import shutil
+
+    from ikbench.studies.run import robot_from_record
+
+    urdf = tmp_path / "copy.urdf"
+    shutil.copy(URDF, urdf)
+    robot = load_robot(urdf, "tool")
+    table = ikbench.run("ours-lm", robot=robot, targets=TARGETS, output=tmp_path,
+                        progress=False)
+    assert len(table) == 2
+    record = json.loads((tmp_path / "ours-lm" / "run.json").read_text())
+    assert robot_from_record(record).joint_names == arm.joint_names
+    urdf.write_text(urdf.read_text().replace('xyz="0.2 0 0"', 'xyz="0.21 0 0"'))
+    from ikbench.core import robot as robot_module
+
+    robot_module._load.cache_clear()  # load the edited file again
+    with pytest.raises(InputError, match="changed since this run was written"):
+        robot_from_record(record)
