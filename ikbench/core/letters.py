@@ -49,7 +49,7 @@ def _ellipse(cu, cv, ru, rv, deg):
 # ("L", u, v) a line to (u, v); ("A", cu, cv, ru, rv, from_deg, to_deg) an elliptical arc
 # about (cu, cv), angles counter-clockwise from +u, that starts at the current point (or
 # starts the stroke).
-LETTERS = {
+LETTERS: dict[str, list[tuple]] = {
     "A": [("M", 0, 0), ("L", 0.3, 1), ("L", 0.6, 0), ("L", 0.495, 0.35), ("L", 0.105, 0.35)],
     "B": [("M", 0, 0), ("L", 0, 1), ("L", 0.3, 1), ("A", 0.3, 0.775, 0.225, 0.225, 90, -90),
           ("L", 0, 0.55), ("L", 0.33, 0.55), ("A", 0.33, 0.275, 0.275, 0.275, 90, -90),
@@ -107,7 +107,8 @@ def letter_strokes(letter: str) -> list[np.ndarray]:
     """The pen-down strokes (k_i, 2) of a letter in letter coordinates (u, v)."""
     if letter not in LETTERS:
         raise InputError(f"letter {letter!r} is not one of {AVAILABLE}")
-    strokes, current = [], []
+    strokes: list[np.ndarray] = []
+    current: list[tuple[float, float]] = []
     for op, *args in LETTERS[letter]:
         if op == "M":
             if len(current) > 1:

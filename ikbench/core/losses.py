@@ -14,6 +14,7 @@ v_i the unit pointing directions, p_i the poses, P^g_i / v^g_i the goals:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -89,10 +90,10 @@ def resolve_weights(weights, task) -> dict[str, float]:
 class LossGoals:
     """Goals of one task as torch tensors, in the loss units (cm, motor degrees)."""
 
-    goal_points_cm: object      # (n+1, 3)
-    goal_directions: object     # (n+1, 3) unit
-    start_pose_deg: object      # (dof,) or None
-    end_pose_deg: object        # (dof,) or None
+    goal_points_cm: Any         # (n+1, 3) tensor
+    goal_directions: Any        # (n+1, 3) unit
+    start_pose_deg: Any         # (dof,) or None
+    end_pose_deg: Any           # (dof,) or None
 
     @classmethod
     def from_task(cls, task, dtype, device="cpu") -> LossGoals:

@@ -312,6 +312,19 @@ class Robot:
 
 
 # ----- loading ------------------------------------------------------------------------------
+def _link_of(joint: ET.Element, tag: str) -> str:
+    """The ``link`` attribute of a joint's <parent> or <child> ("" when missing)."""
+    element = joint.find(tag)
+    return "" if element is None else element.get("link", "")
+
+
+def _read_urdf(urdf_path: Path) -> ET.Element:
+    try:
+        return ET.parse(urdf_path).getroot()
+    except (OSError, ET.ParseError) as exc:
+        raise InputError(f"cannot read URDF {str(urdf_path)!r}: {exc}") from None
+
+
 def chain_joints(urdf_path: Path, base_link: str, end_frame: str) -> list[ChainJoint]:
     """The movable joints on the path base_link -> end_frame of a URDF, base first.
 
@@ -321,16 +334,13 @@ def chain_joints(urdf_path: Path, base_link: str, end_frame: str) -> list[ChainJ
     Raises:
         InputError: unreadable URDF, unknown link, or end_frame not below base_link.
     """
-    try:
-        root = ET.parse(urdf_path).getroot()
-    except (OSError, ET.ParseError) as exc:
-        raise InputError(f"cannot read URDF {str(urdf_path)!r}: {exc}") from None
-    links = [link.get("name") for link in root.iter("link")]
+    root = _read_urdf(urdf_path)
+    links = [link.get("name", "") for link in root.iter("link")]
     for what, name in (("--end-frame", end_frame), ("base link", base_link)):
         if name not in links:
             raise InputError(f"{what}: {name!r} is not a link of {urdf_path.name}; links: "
                              f"{', '.join(links)}")
-    by_child = {j.find("child").get("link"): j for j in root.iter("joint")}
+    by_child = {_link_of(j, "child"): j for j in root.iter("joint")}
     path, link = [], end_frame
     while link != base_link:
         joint = by_child.get(link)
@@ -338,10 +348,10 @@ def chain_joints(urdf_path: Path, base_link: str, end_frame: str) -> list[ChainJ
             raise InputError(f"--end-frame: {end_frame!r} is not below the base link "
                              f"{base_link!r} in {urdf_path.name}")
         path.append(joint)
-        link = joint.find("parent").get("link")
+        link = _link_of(joint, "parent")
     joints = []
     for joint in reversed(path):
-        kind = joint.get("type")
+        kind = joint.get("type", "")
         if kind == "fixed":
             continue
         if kind not in MOVABLE_TYPES:
@@ -352,7 +362,7 @@ def chain_joints(urdf_path: Path, base_link: str, end_frame: str) -> list[ChainJ
             lower, upper = -math.inf, math.inf
         else:
             lower, upper = float(limit.get("lower", 0.0)), float(limit.get("upper", 0.0))
-        joints.append(ChainJoint(joint.get("name"), kind, lower, upper))
+        joints.append(ChainJoint(joint.get("name", ""), kind, lower, upper))
     if not joints:
         raise InputError(f"{urdf_path.name}: no movable joint between {base_link!r} and "
                          f"{end_frame!r}")
@@ -361,10 +371,10 @@ def chain_joints(urdf_path: Path, base_link: str, end_frame: str) -> list[ChainJ
 
 def urdf_root_link(urdf_path: Path) -> str:
     """The URDF's root link (the one no joint has as child)."""
-    root = ET.parse(urdf_path).getroot()
-    children = {j.find("child").get("link") for j in root.iter("joint")}
-    roots = [link.get("name") for link in root.iter("link") if link.get("name") not in children]
-    return roots[0]
+    root = _read_urdf(urdf_path)
+    children = {_link_of(j, "child") for j in root.iter("joint")}
+    return next(name for link in root.iter("link")
+                if (name := link.get("name", "")) not in children)
 
 
 def shipped_robots() -> dict[str, Path]:

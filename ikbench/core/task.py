@@ -20,8 +20,9 @@ path tangent (line, polyline, spline) or the drawing plane's normal (letters).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -62,7 +63,7 @@ class Task:
     start_pose_deg: np.ndarray | None
     end_pose_deg: np.ndarray | None
     shape: str = "line"
-    pen_down: np.ndarray = field(default=None)
+    pen_down: Any = None          # (n+1,) bool after __post_init__
     curve: Curve | None = None
     default_weights: dict | None = None
     reference_pose_deg: np.ndarray | None = None

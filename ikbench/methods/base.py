@@ -99,7 +99,12 @@ def method_options(settings_class) -> list[MethodOption]:
         spec = f.metadata.get(OPTION)
         if spec is None:
             continue
-        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+        if f.default is not dataclasses.MISSING:
+            default = f.default
+        elif f.default_factory is not dataclasses.MISSING:
+            default = f.default_factory()
+        else:
+            default = None
         out.append(MethodOption(spec.flag or f.name.replace("_", "-"), f.name, spec, default))
     return out
 

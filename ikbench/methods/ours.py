@@ -152,7 +152,8 @@ def optimise(robot, task, settings: AdamSettings, progress=None, logits=None) ->
     """
     import torch
 
-    settings = replace(settings, weights=resolve_weights(settings.weights, task))
+    weights = resolve_weights(settings.weights, task)
+    settings = replace(settings, weights=weights)
     dtype = {"float32": torch.float32, "float64": torch.float64}[settings.dtype]
     fk = robot.torch_fk(dtype)
     # the sigmoid keeps poses within the limits (continuous joints: within +-180 deg)
@@ -173,8 +174,7 @@ def optimise(robot, task, settings: AdamSettings, progress=None, logits=None) ->
         optimiser.zero_grad()
         poses = lo + torch.sigmoid(z) * span
         point_m, direction = fk(poses)
-        loss = weighted_loss(loss_terms(point_m * 100.0, direction, poses, goals),
-                             settings.weights)
+        loss = weighted_loss(loss_terms(point_m * 100.0, direction, poses, goals), weights)
         loss.backward()
         optimiser.step()
         iterations += 1
@@ -192,6 +192,7 @@ def optimise(robot, task, settings: AdamSettings, progress=None, logits=None) ->
             break
     duration = time.perf_counter() - start
     converged = converged or settings.stop == "none"
+    assert best_poses is not None  # at least one iteration ran
     return Solution(
         poses_deg=best_poses.to(torch.float64).numpy(),
         iterations=iterations,
@@ -200,7 +201,7 @@ def optimise(robot, task, settings: AdamSettings, progress=None, logits=None) ->
         converged=converged,
         info={"iterations_per_s": iterations / duration, "hit_cap": not converged,
               "dtype": settings.dtype, "init": settings.init, "seed": settings.seed,
-              "stop": settings.stop, "weights": format_weights(settings.weights)},
+              "stop": settings.stop, "weights": format_weights(weights)},
     )
 
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from importlib import metadata
 
 from ikbench.core.errors import InputError
+from ikbench.methods.base import Method
 
 ENTRY_POINT_GROUP = "ikbench.methods"
 LIBS_EXTRA = "pip install 'ikbench[libs]'"
@@ -55,7 +56,7 @@ class MethodStatus:
     """A registered method: its class when available, else why not."""
 
     name: str
-    cls: type | None
+    cls: type[Method] | None
     reason: str = ""
     source: str = "built-in"
 
@@ -101,16 +102,17 @@ def method_status() -> dict[str, MethodStatus]:
     return _STATUS
 
 
-def available_methods() -> dict[str, type]:
+def available_methods() -> dict[str, type[Method]]:
     """name -> method class, for every method that can run here (registry order)."""
     return {name: s.cls for name, s in method_status().items() if s.cls is not None}
 
 
-def get_method(name: str) -> type:
+def get_method(name: str) -> type[Method]:
     """The method class called ``name``; InputError naming the valid ones otherwise."""
     status = method_status()
-    if name in status and status[name].cls is not None:
-        return status[name].cls
+    cls = status[name].cls if name in status else None
+    if cls is not None:
+        return cls
     if name in status:
         raise InputError(f"--method {name} is not available here: {status[name].reason}")
     raise InputError(f"--method: unknown method {name!r}; available: "

@@ -57,7 +57,7 @@ class OursLM(Method):
     def solve_many(self, robot, tasks, progress=None) -> list[Solution]:
         """One batched solve of every task (each with :meth:`settings_for`'s weights); each
         Solution's duration_s is its share of the batch's wall time."""
-        weights = [self.settings_for(task).weights for task in tasks]
+        weights = [resolve_weights(self.settings.weights, task) for task in tasks]
         if progress:
             for k, task in enumerate(tasks):
                 progress.start(task, k, len(tasks))

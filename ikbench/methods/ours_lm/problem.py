@@ -14,6 +14,7 @@ neighbouring poses, with a multiple of the identity, so J^T J is block-tridiagon
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -85,9 +86,9 @@ class Evaluation:
 
     loss: np.ndarray
     terms: np.ndarray
-    gradient: np.ndarray | None = None
-    diagonal: np.ndarray | None = None
-    coupling: np.ndarray | None = None
+    gradient: Any = None        # np.ndarray when derivatives were asked for
+    diagonal: Any = None
+    coupling: Any = None
 
 
 def evaluate(kinematics, problem: Problem, poses, derivatives: bool = True) -> Evaluation:

@@ -193,8 +193,11 @@ def _stationary(ev: Evaluation, poses, problem: Problem, rtol: float = 1e-6):
 
 
 def _take(ev: Evaluation, index) -> Evaluation:
-    return Evaluation(*(None if v is None else v[index] for v in
-                        (ev.loss, ev.terms, ev.gradient, ev.diagonal, ev.coupling)))
+    def take(v):
+        return None if v is None else v[index]
+
+    return Evaluation(ev.loss[index], ev.terms[index], take(ev.gradient), take(ev.diagonal),
+                      take(ev.coupling))
 
 
 def _put(ev: Evaluation, index, new: Evaluation) -> None:
