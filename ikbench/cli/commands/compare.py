@@ -1,0 +1,73 @@
+"""``ikbench compare``: many methods and libraries on the same tasks, one table."""
+
+from __future__ import annotations
+
+HELP = "compare methods and libraries on the same robot and tasks: results.csv, leaderboard"
+DEFAULT_METHODS = "ours-lm,sequential-ik"
+DEFAULT_OUTPUT = "runs"
+
+
+def register(subparsers) -> None:
+    from ikbench.cli.options import add_robot_arguments
+
+    parser = subparsers.add_parser(
+        "compare", help=HELP,
+        description=(
+            "Run every method on every task of the robot's targets, --repeat times each, "
+            "timed by the same harness, and write OUTPUT/compare/: results.csv (one row per "
+            "method and trajectory: success against stated tolerances, line distance, "
+            "pointing deviation, start/end errors, smoothness, median/min/max solve time, "
+            "iterations, the failure if any), leaderboard.md (fastest, most accurate, "
+            "smoothest; ratios against the reference method measured in the same run), "
+            "pareto.png, run.json (library versions, machine) and one run folder per method "
+            "as `ikbench run` writes it. A method that is not installed or fails is a row "
+            "saying so. ikbench methods lists the methods."),
+    )
+    parser.add_argument("--methods", default=DEFAULT_METHODS,
+                        help=f"comma-separated methods (default {DEFAULT_METHODS}); 'all' for "
+                        "every registered method")
+    add_robot_arguments(parser)
+    parser.add_argument("--targets", default=None,
+                        help="targets JSON file (default: the robot's own; NICO: the paper's "
+                        "seven touch poses)")
+    parser.add_argument("--only", default=None, help="comma-separated trajectory ids, e.g. 1,3")
+    parser.add_argument("--steps", type=int, default=None,
+                        help="number of segments n (default: the targets file's)")
+    parser.add_argument("--repeat", type=int, default=5,
+                        help="solves per method and trajectory; times are medians (default 5)")
+    parser.add_argument("--reference", default=None,
+                        help="method the ratios are against (default ours-lm if compared, "
+                        "else the first)")
+    parser.add_argument("--output", default=DEFAULT_OUTPUT,
+                        help=f"results directory; writes OUTPUT/compare/ (default "
+                        f"{DEFAULT_OUTPUT}, which git ignores)")
+    parser.add_argument("--threads", type=int, default=1,
+                        help="torch threads (default 1)")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from ikbench.cli.options import check_threads, robot_from_args, set_threads
+    from ikbench.core.io import check_folder_writable
+    from ikbench.core.targets import load_targets
+    from ikbench.methods.registry import method_status
+    from ikbench.studies.compare import check_repeat, compare, parse_methods
+
+    check_threads(args.threads)
+    names = list(method_status()) if args.methods.strip() == "all" else \
+        parse_methods(args.methods)
+    check_repeat(args.repeat)
+    robot = robot_from_args(args)
+    targets = load_targets(args.targets, robot).select(args.only).with_steps(args.steps)
+    check_folder_writable(Path(args.output) / "compare")
+    set_threads(args.threads)
+    result = compare(names, robot=robot, targets=targets, repeat=args.repeat,
+                     output=args.output, reference=args.reference, progress=not args.quiet)
+    board = result.leaderboard.drop(columns=["note"])
+    print(board.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print(f"written to {Path(args.output) / 'compare'}/ (leaderboard.md, results.csv, "
+          "pareto.png)")
+    return 0
