@@ -204,3 +204,16 @@ def test_a_run_reloads_its_robot_and_refuses_a_changed_urdf(tmp_path, arm):
     robot_module._load.cache_clear()  # load the edited file again
     with pytest.raises(InputError, match="changed since this run was written"):
         robot_from_record(record)
+
+
+def test_fk_of_a_pose_of_the_wrong_length_names_the_joints(robot):
+    with pytest.raises(InputError, match=r"fk: shape \(6,\) is not \(B, 7\) or \(7,\): 7 values "
+                       r"per pose \(r_shoulder_z, .*; motor deg\)"):
+        robot.fk([1, 2, 3, 4, 5, 6])
+
+
+def test_a_lower_case_letter_is_drawn_upper_case_and_the_cli_says_so(tmp_path, capsys):
+    assert main(["letters", "p", "--method", "ours-lm", "--steps", "8", "--output",
+                 str(tmp_path), "--quiet"]) == 0
+    assert "note: letter:p: letters are drawn upper case (P)" in capsys.readouterr().err
+    assert (tmp_path / "ours-lm" / "trajectory_P.csv").exists()
