@@ -34,6 +34,25 @@ def robot_from_args(args):
     return load_robot(args.robot, args.end_frame)
 
 
+def add_line_task_arguments(parser: argparse.ArgumentParser) -> None:
+    """--robot, --end-frame, --targets, --only and --steps (the touch-pose line tasks)."""
+    add_robot_arguments(parser)
+    parser.add_argument("--targets", default=None,
+                        help="targets JSON file (default: the robot's own; NICO: the paper's "
+                        "seven touch poses)")
+    parser.add_argument("--only", default=None, help="comma-separated trajectory ids, e.g. 1,3")
+    parser.add_argument("--steps", type=int, default=None,
+                        help="number of segments n, 2..5000 (default: the targets file's; 50 "
+                        "for NICO's)")
+
+
+def targets_from_args(args, robot):
+    """The targets of --targets/--only/--steps for ``robot`` (validated)."""
+    from ikbench.core.targets import select_targets
+
+    return select_targets(args.targets, robot, args.only, args.steps)
+
+
 def add_method_options(parser: argparse.ArgumentParser, methods: dict[str, type]) -> None:
     """One argument group with every option of ``methods`` (shared names merged).
 

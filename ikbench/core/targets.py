@@ -209,6 +209,15 @@ def load_targets(path: str | Path | None = None, robot: Robot | None = None) -> 
     return replace(parse_targets(spec, robot, source), shipped=shipped)
 
 
+def select_targets(targets: str | Path | Targets | None, robot: Robot, only=None,
+                   steps: int | None = None) -> Targets:
+    """``targets`` (a file, :class:`Targets` or None for the robot's own) with the trajectory
+    ids ``only`` (``"1,3"``) and ``steps`` segments (None keeps the file's)."""
+    if not isinstance(targets, Targets):
+        targets = load_targets(targets, robot)
+    return targets.select(only).with_steps(steps)
+
+
 def pose_words(robot: Robot) -> str:
     """``motor angles`` (NICO) or ``joint values [joint deg, mm for prismatic]``."""
     return "motor angles" if robot.has_motor_map else f"joint values [{robot.pose_unit}]"

@@ -40,7 +40,7 @@ from ikbench.core.io import (
 from ikbench.core.losses import PAPER_WEIGHTS, TERM_DESCRIPTIONS, TERMS, objective, parse_terms
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
-from ikbench.core.targets import Targets, load_targets
+from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import line_tasks
 from ikbench.core.trajectory import (
     DEFAULT_DURATION_S,
@@ -220,9 +220,7 @@ def ablate(drops: str | list[str], method: str, *,
     variants = parse_drops(drops)
     cls = check_method(method)
     robot = as_robot(robot)
-    if not isinstance(targets, Targets):
-        targets = load_targets(targets, robot)
-    targets = targets.select(only).with_steps(steps)
+    targets = select_targets(targets, robot, only, steps)
     figure_trajectory = str(figure_trajectory or targets.ids[0])
     if figure_trajectory not in targets.ids:
         raise InputError(f"--figure-trajectory: {figure_trajectory!r} is not among the selected "

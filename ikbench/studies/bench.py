@@ -30,7 +30,7 @@ from ikbench.core.losses import objective
 from ikbench.core.metrics import trajectory_metrics
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
-from ikbench.core.targets import Targets, load_targets
+from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import line_tasks
 from ikbench.methods.registry import get_method
 from ikbench.studies.report import markdown_table
@@ -125,9 +125,7 @@ def benchmark(methods: list[str] | str, *, repeat: str | int | None = None,
     if isinstance(warmup, bool) or not isinstance(warmup, int) or warmup < 0:
         raise InputError(f"--warmup: {warmup!r} must be an integer >= 0")
     robot = as_robot(robot)
-    if not isinstance(targets, Targets):
-        targets = load_targets(targets, robot)
-    targets = targets.select(only).with_steps(steps)
+    targets = select_targets(targets, robot, only, steps)
     tasks = line_tasks(robot, targets)
     log = _Log(progress)
     runs, last = [], {}

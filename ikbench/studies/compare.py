@@ -31,7 +31,7 @@ from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text, staged_folder
 from ikbench.core.provenance import library_versions, provenance
 from ikbench.core.robot import Robot, as_robot
-from ikbench.core.targets import Targets, load_targets
+from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import line_tasks
 from ikbench.methods.base import Method
 from ikbench.methods.registry import method_status
@@ -115,9 +115,7 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
     names = parse_methods(methods)
     repeat = check_repeat(repeat)
     robot = as_robot(robot)
-    if not isinstance(targets, Targets):
-        targets = load_targets(targets, robot)
-    targets = targets.select(only).with_steps(steps)
+    targets = select_targets(targets, robot, only, steps)
     tasks = line_tasks(robot, targets)
     reference = reference or ("ours-lm" if "ours-lm" in names else names[0])
     if reference not in names:

@@ -7,7 +7,7 @@ HELP = ("loss-term ablation: run a method with terms of L0..L6 dropped, compare 
 
 
 def register(subparsers) -> None:
-    from ikbench.cli.options import add_method_options, add_robot_arguments
+    from ikbench.cli.options import add_line_task_arguments, add_method_options
     from ikbench.studies.ablation import weighted_methods
 
     methods = weighted_methods()
@@ -33,13 +33,7 @@ def register(subparsers) -> None:
         "each --drop L2,L3,L4,L5). The full loss always runs too (default: each)")
     parser.add_argument("--method", default="ours",
                         help=f"a method with loss weights: {', '.join(methods)} (default: ours)")
-    add_robot_arguments(parser)
-    parser.add_argument("--targets", default=None,
-                        help="targets JSON file (default: the robot's own; NICO: the paper's "
-                        "seven touch poses)")
-    parser.add_argument("--only", default=None, help="comma-separated trajectory ids, e.g. 1,3")
-    parser.add_argument("--steps", type=int, default=None,
-                        help="number of segments n (default: the targets file's, 50)")
+    add_line_task_arguments(parser)
     parser.add_argument("--output", default="runs",
                         help="results directory; writes OUTPUT/ablation/ (default: runs, which "
                         "git ignores; ikbench reproduce writes results/ablation/)")
@@ -61,10 +55,10 @@ def run(args) -> int:
         method_from_args,
         robot_from_args,
         set_threads,
+        targets_from_args,
     )
     from ikbench.core.io import check_folder_writable
     from ikbench.core.losses import parse_weights
-    from ikbench.core.targets import load_targets
     from ikbench.studies.ablation import ablate, check_method, parse_drops, weighted_methods
 
     check_threads(args.threads)
@@ -74,7 +68,7 @@ def run(args) -> int:
     solver = method_from_args(args, cls, weighted_methods())  # validates every option
     options = {k: v for k, v in asdict(solver.settings).items() if k != "weights"}
     robot = robot_from_args(args)
-    targets = load_targets(args.targets, robot).select(args.only).with_steps(args.steps)
+    targets = targets_from_args(args, robot)
     from pathlib import Path
 
     check_folder_writable(Path(args.output) / "ablation")

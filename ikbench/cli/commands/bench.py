@@ -7,7 +7,7 @@ DEFAULT_METHODS = "ours,ours-lm"
 
 
 def register(subparsers) -> None:
-    from ikbench.cli.options import add_robot_arguments
+    from ikbench.cli.options import add_line_task_arguments
 
     parser = subparsers.add_parser(
         "bench", help=HELP,
@@ -25,18 +25,13 @@ def register(subparsers) -> None:
     parser.add_argument("--methods", default=DEFAULT_METHODS,
                         help=f"comma-separated methods; the first is the baseline of the ratios "
                         f"(default: {DEFAULT_METHODS})")
-    add_robot_arguments(parser)
+    add_line_task_arguments(parser)
     parser.add_argument("--repeat", default=None,
                         help="timed rounds: N for every method, or N,method=M to give a "
                         "method of --methods its own count (default: each method's own, 5; "
                         "ours 3)")
     parser.add_argument("--warmup", type=int, default=1,
                         help="untimed rounds before timing (default 1)")
-    parser.add_argument("--targets", default=None,
-                        help="targets JSON file (default: the paper's seven touch poses)")
-    parser.add_argument("--only", default=None, help="comma-separated trajectory ids, e.g. 1,3")
-    parser.add_argument("--steps", type=int, default=None,
-                        help="number of segments n (default: the targets file's, 50)")
     parser.add_argument("--output", default="runs",
                         help="output directory (default: runs, which git ignores)")
     parser.add_argument("--threads", type=int, default=1,
@@ -49,9 +44,8 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import check_threads, robot_from_args, set_threads
+    from ikbench.cli.options import check_threads, robot_from_args, set_threads, targets_from_args
     from ikbench.core.io import check_writable
-    from ikbench.core.targets import load_targets
     from ikbench.studies.bench import (
         benchmark,
         headline,
@@ -65,7 +59,7 @@ def run(args) -> int:
     names = parse_methods(args.methods)
     parse_repeat(args.repeat, names)
     robot = robot_from_args(args)
-    targets = load_targets(args.targets, robot).select(args.only).with_steps(args.steps)
+    targets = targets_from_args(args, robot)
     check_writable(Path(args.output) / "benchmark.csv")  # before the timed rounds
     set_threads(args.threads)
     result = benchmark(names, repeat=args.repeat, warmup=args.warmup, targets=targets,

@@ -8,7 +8,7 @@ DEFAULT_OUTPUT = "runs"
 
 
 def register(subparsers) -> None:
-    from ikbench.cli.options import add_robot_arguments
+    from ikbench.cli.options import add_line_task_arguments
 
     parser = subparsers.add_parser(
         "compare", help=HELP,
@@ -26,13 +26,7 @@ def register(subparsers) -> None:
     parser.add_argument("--methods", default=DEFAULT_METHODS,
                         help=f"comma-separated methods (default {DEFAULT_METHODS}); 'all' for "
                         "every registered method")
-    add_robot_arguments(parser)
-    parser.add_argument("--targets", default=None,
-                        help="targets JSON file (default: the robot's own; NICO: the paper's "
-                        "seven touch poses)")
-    parser.add_argument("--only", default=None, help="comma-separated trajectory ids, e.g. 1,3")
-    parser.add_argument("--steps", type=int, default=None,
-                        help="number of segments n (default: the targets file's)")
+    add_line_task_arguments(parser)
     parser.add_argument("--repeat", type=int, default=5,
                         help="solves per method and trajectory; times are medians (default 5)")
     parser.add_argument("--reference", default=None,
@@ -50,9 +44,8 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import check_threads, robot_from_args, set_threads
+    from ikbench.cli.options import check_threads, robot_from_args, set_threads, targets_from_args
     from ikbench.core.io import check_folder_writable
-    from ikbench.core.targets import load_targets
     from ikbench.methods.registry import method_status
     from ikbench.studies.compare import check_repeat, compare, parse_methods
 
@@ -61,7 +54,7 @@ def run(args) -> int:
         parse_methods(args.methods)
     check_repeat(args.repeat)
     robot = robot_from_args(args)
-    targets = load_targets(args.targets, robot).select(args.only).with_steps(args.steps)
+    targets = targets_from_args(args, robot)
     check_folder_writable(Path(args.output) / "compare")
     set_threads(args.threads)
     result = compare(names, robot=robot, targets=targets, repeat=args.repeat,
