@@ -123,6 +123,14 @@ def method_names_help(methods: dict[str, type]) -> str:
     return ", ".join(methods)
 
 
+def add_threads_and_quiet(parser: argparse.ArgumentParser) -> None:
+    """--threads (torch threads, default 1) and --quiet."""
+    parser.add_argument("--threads", type=int, default=1,
+                        help="torch threads (default 1: the tensors are tiny, and on a busy "
+                        "2-core machine 2 threads ran ours 15x slower than 1)")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+
+
 def check_threads(threads: int) -> int:
     """InputError unless ``--threads`` is an integer >= 1."""
     if threads < 1:

@@ -7,7 +7,11 @@ HELP = ("loss-term ablation: run a method with terms of L0..L6 dropped, compare 
 
 
 def register(subparsers) -> None:
-    from ikbench.cli.options import add_line_task_arguments, add_method_options
+    from ikbench.cli.options import (
+        add_line_task_arguments,
+        add_method_options,
+        add_threads_and_quiet,
+    )
     from ikbench.studies.ablation import weighted_methods
 
     methods = weighted_methods()
@@ -39,10 +43,7 @@ def register(subparsers) -> None:
                         "git ignores; ikbench reproduce writes results/ablation/)")
     parser.add_argument("--figure-trajectory", default=None, metavar="ID",
                         help="trajectory drawn per variant in the figures (default: the first)")
-    parser.add_argument("--threads", type=int, default=1,
-                        help="torch threads (default 1: the tensors are tiny, and on a busy "
-                        "2-core machine 2 threads ran ours 15x slower than 1)")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_threads_and_quiet(parser)
     add_method_options(parser, methods)
     parser.set_defaults(func=run)
 

@@ -7,7 +7,7 @@ DEFAULT_METHODS = "ours,ours-lm"
 
 
 def register(subparsers) -> None:
-    from ikbench.cli.options import add_line_task_arguments
+    from ikbench.cli.options import add_line_task_arguments, add_threads_and_quiet
 
     parser = subparsers.add_parser(
         "bench", help=HELP,
@@ -34,10 +34,7 @@ def register(subparsers) -> None:
                         help="untimed rounds before timing (default 1)")
     parser.add_argument("--output", default="runs",
                         help="output directory (default: runs, which git ignores)")
-    parser.add_argument("--threads", type=int, default=1,
-                        help="torch threads (default 1, as ikbench reproduce: the tensors are "
-                        "tiny, and on a busy 2-core machine 2 threads ran ours much slower)")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_threads_and_quiet(parser)
     parser.set_defaults(func=run)
 
 

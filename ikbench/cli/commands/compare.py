@@ -8,7 +8,7 @@ DEFAULT_OUTPUT = "runs"
 
 
 def register(subparsers) -> None:
-    from ikbench.cli.options import add_line_task_arguments
+    from ikbench.cli.options import add_line_task_arguments, add_threads_and_quiet
 
     parser = subparsers.add_parser(
         "compare", help=HELP,
@@ -35,9 +35,7 @@ def register(subparsers) -> None:
     parser.add_argument("--output", default=DEFAULT_OUTPUT,
                         help=f"results directory; writes OUTPUT/compare/ (default "
                         f"{DEFAULT_OUTPUT}, which git ignores)")
-    parser.add_argument("--threads", type=int, default=1,
-                        help="torch threads (default 1)")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_threads_and_quiet(parser)
     parser.set_defaults(func=run)
 
 

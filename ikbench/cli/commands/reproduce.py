@@ -7,6 +7,8 @@ HELP = ("regenerate Tables 1 and 2, the comparison, the ablation, all figures an
 
 
 def register(subparsers) -> None:
+    from ikbench.cli.options import add_threads_and_quiet
+
     parser = subparsers.add_parser(
         "reproduce", help=HELP,
         description=(
@@ -29,10 +31,7 @@ def register(subparsers) -> None:
     parser.add_argument("--quick", action="store_true",
                         help="pipeline check on a reduced configuration: trajectory 1, n = 10, "
                         "at most 100 iterations (seconds, not the paper's numbers)")
-    parser.add_argument("--threads", type=int, default=1,
-                        help="torch threads (default 1: the tensors are tiny, and on a busy "
-                        "2-core machine 2 threads ran ours 15x slower than 1)")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_threads_and_quiet(parser)
     parser.set_defaults(func=run)
 
 

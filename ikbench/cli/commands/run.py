@@ -74,7 +74,7 @@ def add_start_pose_argument(parser, default: str) -> None:
 
 def add_run_arguments(parser, methods: dict, default_output: str) -> None:
     """--method, output options and every method's own options (shared with ``letters``)."""
-    from ikbench.cli.options import add_method_options
+    from ikbench.cli.options import add_method_options, add_threads_and_quiet
 
     parser.add_argument("--method", default=DEFAULT_METHOD,
                         help=f"one of: {', '.join(methods)} (default: {DEFAULT_METHOD})")
@@ -83,10 +83,7 @@ def add_run_arguments(parser, methods: dict, default_output: str) -> None:
                         "ikbench reproduce writes results/)")
     parser.add_argument("--duration", type=float, default=2.0,
                         help="movement duration T [s] for the time_s column (default 2)")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    parser.add_argument("--threads", type=int, default=1,
-                        help="torch threads (default 1: the tensors are tiny, and on a busy "
-                        "2-core machine 2 threads ran ours 15x slower than 1)")
+    add_threads_and_quiet(parser)
     add_method_options(parser, methods)
 
 
