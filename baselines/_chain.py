@@ -187,7 +187,7 @@ def element_path(urdf_text: str, base_link: str, end_frame: str) -> list[tuple[s
     while link != base_link:
         joint = by_child[link]
         path.append((joint.get("name", ""), joint.get("type", ""), link))
-        link = joint.find("parent").get("link")  # type: ignore[union-attr]
+        link = joint.find("parent").get("link", "")  # type: ignore[union-attr]
     return path[::-1]
 
 

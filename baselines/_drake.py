@@ -17,6 +17,7 @@ from __future__ import annotations
 import weakref
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -37,14 +38,14 @@ class DrakeChain:
         base_frame, end_frame: the plant's frames of the base link and the end frame.
     """
 
-    plant: object
+    plant: Any
     index: np.ndarray
-    base_frame: object
-    end_frame: object
+    base_frame: Any
+    end_frame: Any
 
     def positions(self, q_chain) -> np.ndarray:
         """The plant's position vector for chain joint values (dof,)."""
-        q = np.zeros(self.plant.num_positions())  # type: ignore[attr-defined]
+        q = np.zeros(self.plant.num_positions())
         q[self.index] = q_chain
         return q
 
@@ -53,7 +54,8 @@ def urdf_root(urdf_text: str) -> str:
     """The URDF's root link (the one that is no joint's child)."""
     root = ET.fromstring(urdf_text)
     children = {j.find("child").get("link") for j in root.iter("joint")}  # type: ignore
-    return next(name for link in root.iter("link") if (name := link.get("name")) not in children)
+    return next(str(name) for link in root.iter("link")
+                if (name := link.get("name")) not in children)
 
 
 def drake_chain(chain: Chain) -> DrakeChain:

@@ -99,6 +99,16 @@ class DrakeTrajoptSettings:
         self.control_points, self.spline_order = int(self.control_points), int(self.spline_order)
 
 
+def control_point_count(settings: DrakeTrajoptSettings, n_points: int) -> int:
+    """The B-spline's control points for ``n_points`` goal points; InputError if fewer than
+    the spline order."""
+    count = settings.control_points or n_points
+    if count < settings.spline_order:
+        raise InputError(f"--drake-control-points: {count} control points are fewer than the "
+                         f"spline order {settings.spline_order}; give more, or more --steps")
+    return count
+
+
 def _path_point(trajopt, prog, s: float, cache: dict):
     """Variables q_i (nq,) tied to r(s) by a linear equality (created once per s)."""
     if s not in cache:
@@ -160,12 +170,9 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings) -> C
     from pydrake.planning import KinematicTrajectoryOptimization
 
     drake = drake_chain(chain)
-    plant, context = drake.plant, drake.plant.CreateDefaultContext()  # type: ignore
+    plant, context = drake.plant, drake.plant.CreateDefaultContext()
     n_points, nq = len(goals), plant.num_positions()
-    count = settings.control_points or n_points
-    if count < settings.spline_order:
-        raise InputError(f"--drake-control-points: {count} control points are fewer than the "
-                         f"spline order {settings.spline_order}; give more, or more --steps")
+    count = control_point_count(settings, n_points)
     s = np.linspace(0.0, 1.0, n_points)
     trajopt = KinematicTrajectoryOptimization(nq, count, settings.spline_order, 1.0)
     prog = trajopt.get_mutable_prog()
@@ -234,6 +241,12 @@ class DrakeTrajopt(LibraryMethod):
     Settings = DrakeTrajoptSettings
     supports_frames = True
     whole_path = True
+
+    def check_tasks(self, robot, tasks) -> None:
+        """Also: enough control points for the spline order (:func:`control_point_count`)."""
+        super().check_tasks(robot, tasks)
+        for task in tasks:
+            control_point_count(self.settings, len(task.goal_points_mm))
 
     def check_robot(self, robot) -> None:
         make_solver(self.settings.solver)

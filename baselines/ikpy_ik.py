@@ -93,8 +93,8 @@ def ikpy_chain(chain: Chain):
         names = [link.name for link in full.links]
         links = full.links[:names.index(path[-1][0]) + 1]  # nothing below the end frame
         mask = [link.name in chain.joint_names for link in links]
-        for link, active in zip(links, mask):
-            if active:
+        for link, is_active in zip(links, mask):
+            if is_active:
                 k = chain.joint_names.index(link.name)
                 link.bounds = (float(chain.lower[k]), float(chain.upper[k]))
         ik_chain = ikpy.chain.Chain(links, active_links_mask=mask, name=chain.end_frame)

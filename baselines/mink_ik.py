@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import weakref
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -86,7 +87,7 @@ class MinkModel:
         R_wb, p_wb: (3, 3), (3,) the base body in MuJoCo's world frame [m].
     """
 
-    model: object
+    model: Any
     qpos: np.ndarray
     R_EP: np.ndarray
     R_wb: np.ndarray
@@ -137,7 +138,7 @@ def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings) -> ChainResu
     frame_task = mink.FrameTask(SITE, "site", position_cost=settings.position_cost,
                                 orientation_cost=0.0 if axis_align else
                                 orientation_costs(goals, settings.orientation_cost))
-    tasks = [frame_task]
+    tasks: list[Any] = [frame_task]
     if axis_align:
         align = mink.AxisAlignTask(SITE, "site", axis=(0.0, 0.0, 1.0),
                                    cost=settings.orientation_cost)
@@ -166,8 +167,11 @@ def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings) -> ChainResu
             q[m.qpos] = chain.clip(q[m.qpos])
             configuration.update(q)
 
-        steps, ok = converge(lambda: errors(world, i, *frame(), m.R_EP), step,
-                             settings.tolerance, settings.max_steps)
+        def measure():
+            p_P, R_P = frame()
+            return errors(world, i, p_P, R_P, m.R_EP)
+
+        steps, ok = converge(measure, step, settings.tolerance, settings.max_steps)
         return PointResult(configuration.q[m.qpos].copy(), steps, ok)
 
     walk = walk_back(solve_point, chain, goals)

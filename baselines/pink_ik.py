@@ -130,8 +130,11 @@ def solve_chain(robot, chain: Chain, goals: Goals, settings: PinkSettings) -> Ch
                               damping=settings.damping, limits=limits)
             configuration.update(np.clip(configuration.integrate(v, settings.dt), lower, upper))
 
-        steps, ok = converge(lambda: errors(goals, i, *frame(), R_EP), step, settings.tolerance,
-                             settings.max_steps)
+        def measure():
+            p_P, R_P = frame()
+            return errors(goals, i, p_P, R_P, R_EP)
+
+        steps, ok = converge(measure, step, settings.tolerance, settings.max_steps)
         return PointResult(configuration.q.copy(), steps, ok)
 
     walk = walk_back(solve_point, chain, goals)

@@ -92,6 +92,19 @@ def _setup_jax():
     return jax
 
 
+def with_velocity_limits(urdf_text: str) -> str:
+    """``urdf_text`` with a ``<limit>`` (velocity only) on continuous joints that have none:
+    PyRoki's parser refuses joints without a velocity limit. The velocity is not used here, and
+    the position limits of continuous joints stay open (-pi..pi is PyRoki's default guess)."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(urdf_text)
+    for joint in root.iter("joint"):
+        if joint.get("type") == "continuous" and joint.find("limit") is None:
+            ET.SubElement(joint, "limit", effort="0", velocity=repr(UNBOUNDED))
+    return ET.tostring(root, encoding="unicode")
+
+
 def pyroki_robot(chain: Chain):
     """(pyroki.Robot, order, end link index, base link index) of the chain (cached):
     ``order`` maps PyRoki's actuated joints to the chain's (q_pyroki = q_chain[order])."""
@@ -101,7 +114,8 @@ def pyroki_robot(chain: Chain):
     import pyroki
     import yourdfpy
 
-    urdf = yourdfpy.URDF.load(io.BytesIO(chain.urdf_text.encode()), load_meshes=False,
+    urdf = yourdfpy.URDF.load(io.BytesIO(with_velocity_limits(chain.urdf_text).encode()),
+                              load_meshes=False,
                               build_collision_scene_graph=False)
     robot = pyroki.Robot.from_urdf(urdf)
     names = list(robot.joints.actuated_names)
