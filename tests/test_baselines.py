@@ -189,6 +189,10 @@ def test_cli_run_on_the_papers_targets(tmp_path, robot, name):
     table = _run_and_check(tmp_path, robot, name, targets, targets.touch_poses_deg,
                            "--only", "1,7")
     assert (table["line_distance_mean_mm"] < 1e-2).all()
+    if name == "ikpy":  # the paper's own baseline: its run report sits beside Table 2
+        report = (tmp_path / name / "report.md").read_text()
+        assert "## Beside the paper's Table 2" in report
+        assert "their library (ikpy) and their call" in report
 
 
 @pytest.mark.parametrize("name", [n for n in LIBRARIES if n != "pyroki"] + [
