@@ -1,8 +1,9 @@
 """PyRoki (PyPI ``almond-pyroki``, module ``pyroki``; JAX + jaxls): the whole path as one
 least-squares problem over the n+1 poses.
 
-``almond-pyroki`` is a fork of PyRoki (chungmin99/pyroki, which is not on PyPI) packaged with
-its solver ``almond-jaxls`` (module ``jaxls``); same modules and API as upstream.
+``almond-pyroki`` is Almond Bot's fork of PyRoki (chungmin99/pyroki, which has no PyPI
+release), pinned to a revision of upstream and depending on ``almond-jaxls`` (their fork of
+brentyi/jaxls, module ``jaxls``); same module names and API as upstream.
 
 Robot: ``pyroki.Robot.from_urdf(yourdfpy.URDF.load(chain URDF))`` (the chain's URDF text:
 joints off the chain fixed, axes unit). Variables: ``robot.joint_var_cls(arange(n+1))``, one
