@@ -215,6 +215,47 @@ def test_every_run_folder_side_by_side_and_claims_per_baseline_mode(mode_runs, c
         assert f"| 1 | {name} |" in text  # side by side per trajectory
 
 
+@pytest.fixture(scope="module")
+def ikpy_runs(small_runs, tmp_path_factory):
+    """ours, sequential-ik and the authors' ikpy call (needs ikpy: the [libs] extra)."""
+    import shutil
+
+    from ikbench.methods.registry import method_status
+
+    status = method_status()["ikpy"]
+    if not status.available:
+        pytest.skip(f"ikpy: {status.reason}")
+    out = tmp_path_factory.mktemp("ikpy")
+    for name in (OURS, BASELINE):
+        shutil.copytree(small_runs / name, out / name)
+    assert main(["run", "--method", "ikpy", "--only", "1", "--steps", "10", "--output",
+                 str(out), "--quiet"]) == 0
+    return out
+
+
+def test_ikpy_runs_are_baseline_runs_with_their_own_table2(ikpy_runs, tmp_path):
+    import shutil
+
+    assert main(["report", str(ikpy_runs)]) == 0
+    text = (ikpy_runs / "report.md").read_text()
+    claims = text.split("## The paper's claims")[1].split("\n## ")[0]
+    assert [line for line in claims.splitlines() if line.startswith("### ")] == [
+        "### `sequential-ik` (--orientation frame) against `ours`",
+        "### `ikpy` (--ikpy-orientation position) against `ours`"]
+    assert "`ikpy`, the authors' own library, solves" in claims
+    assert "## Beside the paper's Table 2: sequential-ik (--orientation frame)" in text
+    assert "## Beside the paper's Table 2: ikpy (--ikpy-orientation position), the authors' " \
+        "call" in text
+    rows = compare(ikpy_runs).modes_table().set_index("run")
+    assert rows.loc["ikpy", "orientation"] == "position"
+    assert rows.loc["ikpy", "points missing the IK tolerance (of 10, per trajectory)"] == "-"
+    # ours and ikpy alone are a comparison too: ikpy is the baseline
+    alone = tmp_path / "alone"
+    for name in (OURS, "ikpy"):
+        shutil.copytree(ikpy_runs / name, alone / name)
+    assert compare(alone).baselines == ["ikpy"]
+
+
 def test_modes_table_figures_come_from_the_runs(mode_runs):
     result = compare(mode_runs)
     table = result.modes_table().set_index("run")

@@ -15,6 +15,11 @@ import pytest
 import ikbench.paper.reproduce as reproduce_module
 from ikbench.cli import main
 from ikbench.core.errors import InputError
+from ikbench.methods.registry import method_status
+
+#: Table 2 as the authors ran it (ikpy) is a stage when ikpy is installed ([libs]).
+IKPY = method_status()["ikpy"].available
+STAGES = 9 if IKPY else 8
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +39,7 @@ def quick(tmp_path_factory):
 
 def test_quick_pipeline_end_to_end(quick):
     out, stdout, stderr = quick
-    assert "stage 8/8" in stderr and "total time" in stderr
+    assert f"stage {STAGES}/{STAGES}" in stderr and "total time" in stderr
     assert stdout.splitlines()[-1].startswith("total")
     for name in ["ours/table.csv", "sequential-ik/table.csv", "ablation/table.csv",
                  "sequential-ik-pointing/table.csv", "sequential-ik-position/table.csv",
@@ -47,6 +52,10 @@ def test_quick_pipeline_end_to_end(quick):
         assert record["settings"]["settings"]["orientation"] == mode and record["name"] == name
     assert json.loads((out / "ours-init-interpolation" / "run.json").read_text())[
         "settings"]["settings"]["init"] == "interpolation"
+    if IKPY:  # the authors' call: ikpy, position only
+        record = json.loads((out / "ikpy" / "run.json").read_text())
+        assert record["method"] == "ikpy" and record["settings"]["settings"] == {
+            "orientation": "position"}
     ablation = pd.read_csv(out / "ablation/table.csv")
     assert list(ablation["variant"]) == ["full", "no-L0", "no-L1", "no-L2", "no-L3", "no-L4",
                                          "no-L5", "no-L6", "no-L2-L3-L4-L5"]
@@ -69,7 +78,8 @@ def test_readme_says_which_command_wrote_what(quick):
     assert "Everything in this folder" not in readme
     assert ("`ikbench reproduce --quick` wrote `README.md`, `report.md`, "
             "`pointing_deviation_per_step.png`, `ours/`, `sequential-ik/`, "
-            "`sequential-ik-pointing/`, `sequential-ik-position/`, `ours-init-interpolation/`, "
+            "`sequential-ik-pointing/`, `sequential-ik-position/`, "
+            + ("`ikpy/`, " if IKPY else "") + "`ours-init-interpolation/`, "
             "`ablation/`.") in readme
     assert "`benchmark.md`, `benchmark_runs.csv` by `ikbench bench --output results`" in readme
     assert "`sweep/` by `ikbench sweep --output results/sweep`" in readme
@@ -108,7 +118,7 @@ def test_readme_text_is_measured_and_self_contained(quick):
     # stage times: sub-second stages are not "0 s"
     stages = readme.split("| stage | wall time |")[1].split("\n\n")[0]
     times = [line.split(" | ")[1].rstrip(" |") for line in stages.splitlines()[2:]]
-    assert len(times) == 8 and all(re.fullmatch(r"\d+\.\d s|\d+ min \d\d s", t)
+    assert len(times) == STAGES and all(re.fullmatch(r"\d+\.\d s|\d+ min \d\d s", t)
                                    for t in times), times
 
 
@@ -171,3 +181,27 @@ def test_missing_comparison_is_a_clear_error(tmp_path, monkeypatch, capsys):
     assert "the comparison report needs ikbench.paper.comparison.write_comparison_report" in (
         capsys.readouterr().err)
     assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.skipif(not IKPY, reason=f"ikpy: {method_status()['ikpy'].reason}")
+def test_readme_shows_table2_as_the_authors_ran_it(quick):
+    out, _, _ = quick
+    readme = (out / "README.md").read_text()
+    section = readme.split("### Table 2 as the authors ran it (`ikpy`, their call)")[1]
+    section = section.split("\n### ")[0]
+    table = pd.read_csv(out / "ikpy" / "table.csv")
+    assert f"| {table['line_distance_mean_mm'].iloc[0]:.2f} |" in section
+    assert "their library (ikpy) and their call" in section
+    assert "### `ikpy` (--ikpy-orientation position) against `ours`" in readme
+    assert "The authors' own call on this robot (`ikpy`" in readme
+    report = (out / "report.md").read_text()
+    assert "## Beside the paper's Table 2: ikpy (--ikpy-orientation position), the authors' " \
+        "call" in report
+
+
+def test_a_skipped_authors_stage_is_explained(monkeypatch, tmp_path):
+    monkeypatch.setattr(reproduce_module, "_authors_method",
+                        lambda: (None, "needs ikpy (pip install 'ikbench[libs]')"))
+    lines = reproduce_module._authors_section(tmp_path, {"Table 2: sequential-ik": 1.0})
+    assert lines[2] == ("Not run: needs ikpy (pip install 'ikbench[libs]'). `ikbench "
+                        "reproduce` runs it when ikpy is installed.")

@@ -48,6 +48,14 @@ BUILTIN = (
     Entry("ours", "ikbench.methods.ours:Ours", ("torch", "pytorch_kinematics")),
     Entry("ours-lm", "ikbench.methods.ours_lm:OursLM", ("scipy", "pinocchio")),
     Entry("sequential-ik", "baselines.sequential_ik:SequentialIK", ("pinocchio",)),
+    # other kinematics libraries (baselines/, installed with the [libs] extra)
+    Entry("ikpy", "baselines.ikpy_ik:IkpyIK", ("ikpy",)),
+    Entry("pink", "baselines.pink_ik:PinkIK", ("pink", "qpsolvers", "daqp")),
+    Entry("trac-ik", "baselines.trac_ik:TracIK", ("pytracik",)),
+    Entry("mink", "baselines.mink_ik:MinkIK", ("mink", "mujoco", "qpsolvers", "daqp")),
+    Entry("drake-ik", "baselines.drake_ik:DrakeIK", ("pydrake",)),
+    Entry("drake-trajopt", "baselines.drake_trajopt:DrakeTrajopt", ("pydrake",)),
+    Entry("pyroki", "baselines.pyroki_trajopt:PyrokiTrajopt", ("pyroki", "jax", "jaxls")),
 )
 
 

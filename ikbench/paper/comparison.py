@@ -12,8 +12,9 @@ The paper (Section "Results") says of its traditional baseline: generation is mu
 the pointing vector is much worse, the start pose varies significantly (constant with ours),
 and the fluency is comparable. :func:`check_claims` turns each into a measured ratio and a
 stated threshold (:data:`FASTER_FACTOR`, ...), with a verdict *holds* / *does not hold*, for
-every baseline run (every folder whose run.json names the method ``sequential-ik``, e.g. one
-per ``--orientation`` mode) against the folder ``ours``.
+every baseline run against the folder ``ours``. Baseline runs are the folders whose run.json
+names the method ``sequential-ik`` (e.g. one per ``--orientation`` mode) or ``ikpy``, the
+authors' own library (``--ikpy-orientation position`` is the call they made for Table 2).
 """
 
 from __future__ import annotations
@@ -33,6 +34,8 @@ from ikbench.studies.report import markdown_table
 from ikbench.studies.run import RESERVED_NAMES, robot_from_record
 
 OURS, BASELINE = "ours", "sequential-ik"
+#: The paper authors' own baseline library; its runs are baseline runs too.
+IKPY = "ikpy"
 REPORT_NAME = "report.md"
 FIGURE_NAME = "pointing_deviation_per_step.png"
 #: "much faster": the median duration of ours is at least this many times the baseline's.
@@ -52,13 +55,30 @@ ORIENTATION_MODES = {
     "pointing": "goal point and pointing direction, roll free",
     "position": "goal point only (what the authors' ikpy call solved)",
 }
+#: ikpy's modes (``--ikpy-orientation``), in report order.
+IKPY_MODES = {
+    "position": "goal point only, by the authors' own call (ikpy's inverse_kinematics_frame "
+                "without orientation_mode: Table 2 as they ran it)",
+    "pointing": "goal point and pointing axis (ikpy's orientation_mode), roll free",
+}
+#: The baseline methods in report order: the option naming their mode, and their modes.
+BASELINE_METHODS = {BASELINE: ("--orientation", ORIENTATION_MODES),
+                    IKPY: ("--ikpy-orientation", IKPY_MODES)}
 PAPER_BASELINE_NOTE = (
     "The paper's baseline is not this one: the authors solved it with ikpy on a *different* "
     "NICO URDF (other joint conventions; shared/reference/README.md), so only its qualitative "
     "claims are expected to carry over, not its numbers. Their script (andylucny/nico2, "
     "`generate-ikpy/generate-ikpy.py`) passes a target frame to ikpy's "
     "`inverse_kinematics_frame` without `orientation_mode`, and ikpy then fits the position "
-    "only; `ikbench run --method sequential-ik --orientation position` solves that problem.")
+    "only. `ikbench run --method ikpy` makes their call on the paper's robot (Table 2 as they "
+    "ran it); `ikbench run --method sequential-ik --orientation position` solves the same "
+    "problem by damped least squares.")
+IKPY_TABLE2_NOTE = (
+    "This is the paper's baseline as the authors ran it: their library (ikpy) and their call "
+    "(`inverse_kinematics_frame` with a target frame and no `orientation_mode`, so the position "
+    "only), walked back from the touch pose, here on ikbench's URDF of the paper's robot rather "
+    "than theirs (other joint conventions; shared/reference/README.md). Their script also "
+    "re-solved the touch point itself; here pose n is the touch pose as given.")
 TABLE2_UNITS_NOTE = (
     "Columns named *paper* are copied from the paper's Table 2. Its \"distance from the line "
     "[mm]\" and \"start point variation [mm]\" values are in centimetres (the unit label is off "
@@ -99,11 +119,16 @@ class MethodRun:
         return str(mode) if mode is not None else None
 
     @property
+    def mode_flag(self) -> str:
+        """The option naming the run's mode: ``--orientation`` or ``--ikpy-orientation``."""
+        return BASELINE_METHODS.get(self.method, ("--orientation",))[0]
+
+    @property
     def label(self) -> str:
         """``sequential-ik-position (sequential-ik, --orientation position)`` or the name."""
         parts = [] if self.method == self.name else [self.method]
         if self.orientation:
-            parts.append(f"--orientation {self.orientation}")
+            parts.append(f"{self.mode_flag} {self.orientation}")
         return f"{self.name} ({', '.join(parts)})" if parts else self.name
 
 
@@ -156,22 +181,35 @@ def load_method_run(folder: Path, robot) -> MethodRun:
 
 
 def baseline_names(runs: dict) -> list[str]:
-    """The baseline runs (method ``sequential-ik``) in report order: by orientation mode
-    (:data:`ORIENTATION_MODES`), the folder ``sequential-ik`` first within a mode."""
-    modes = list(ORIENTATION_MODES)
+    """The baseline runs (methods :data:`BASELINE_METHODS`) in report order: by method, then
+    by mode (:data:`ORIENTATION_MODES`, :data:`IKPY_MODES`), the folder named after the method
+    first within a mode."""
+    methods = list(BASELINE_METHODS)
 
     def key(name):
-        mode = runs[name].orientation
-        return (modes.index(mode) if mode in modes else len(modes), name != BASELINE, name)
+        run = runs[name]
+        modes = list(BASELINE_METHODS[run.method][1])
+        mode = run.orientation
+        return (methods.index(run.method), modes.index(mode) if mode in modes else len(modes),
+                name != run.method, name)
 
-    return sorted((n for n, r in runs.items() if r.method == BASELINE), key=key)
+    return sorted((n for n, r in runs.items() if r.method in BASELINE_METHODS), key=key)
 
 
 def table2_run(runs: dict) -> str:
-    """The baseline run set beside the paper's Table 2: the first ``frame`` run (the folder
-    ``sequential-ik`` when it is one), else the first baseline run."""
+    """The baseline run set beside the paper's Table 2: the first ``sequential-ik`` run in
+    ``frame`` mode (the folder ``sequential-ik`` when it is one), else the first baseline
+    run."""
     names = baseline_names(runs)
-    return next((n for n in names if runs[n].orientation == "frame"), names[0])
+    return next((n for n in names if runs[n].method == BASELINE
+                 and runs[n].orientation == "frame"), names[0])
+
+
+def ikpy_table2_run(runs: dict) -> str | None:
+    """The run of the authors' call beside the paper's Table 2: the first ``ikpy`` run in
+    ``position`` mode, or None."""
+    return next((n for n in baseline_names(runs) if runs[n].method == IKPY
+                 and runs[n].orientation == "position"), None)
 
 
 def load_runs(output_dir) -> tuple[dict, list, object]:
@@ -191,8 +229,8 @@ def load_runs(output_dir) -> tuple[dict, list, object]:
     folders = _method_folders(output_dir)
     names = [f.name for f in folders]
     methods = {f.name: _read_record(f).get("method") for f in folders}
-    missing = [m for m, ok in ((OURS, OURS in names),
-                               (BASELINE, BASELINE in methods.values())) if not ok]
+    baselines = set(methods.values()) & set(BASELINE_METHODS)
+    missing = [m for m, ok in ((OURS, OURS in names), (BASELINE, bool(baselines))) if not ok]
     if missing:
         raise InputError(
             f"report: {str(output_dir)!r} has no {' or '.join(missing)} results (method folders "
@@ -412,15 +450,22 @@ def claims_lines(summary: pd.DataFrame, runs: dict, frame: pd.DataFrame | None =
         frame: :func:`evaluate_runs` output, for the missed points per trajectory.
         level: heading level of each baseline's subsection.
     """
+    names = baseline_names(runs)
     lines = ["The paper's baseline is compared with `ours` once per baseline run; the run's "
-             "`--orientation` mode (from its run.json) decides the pointing claim. Per point "
-             "the baseline solves, in mode "
+             "mode (from its run.json) decides the pointing claim. Per point "
+             f"`{BASELINE}` solves, in mode (`--orientation`) "
              + "; ".join(f"`{mode}`: {text}" for mode, text in ORIENTATION_MODES.items())
-             + ".", ""]
-    for name in baseline_names(runs):
+             + "."]
+    if any(runs[n].method == IKPY for n in names):
+        lines[-1] += (f" `{IKPY}`, the authors' own library, solves, in mode "
+                      "(`--ikpy-orientation`) "
+                      + "; ".join(f"`{mode}`: {text}" for mode, text in IKPY_MODES.items())
+                      + ".")
+    lines.append("")
+    for name in names:
         run = runs[name]
         mode = run.orientation
-        lines += [f"{'#' * level} `{name}` (--orientation {mode or 'unknown'}) against "
+        lines += [f"{'#' * level} `{name}` ({run.mode_flag} {mode or 'unknown'}) against "
                   f"`{OURS}`", "", escaped_table(check_claims(summary, name)), ""]
         note = pointing_tradeoff_note(summary, name)
         if note:
@@ -492,7 +537,8 @@ MODES_NOTE = (
     "run's own solver wall time (one run, not a benchmark; compare only runs made on the same "
     "machine under similar load). Points missing the IK tolerance: points whose damped least "
     "squares stopped (stalled or at --max-ik-iterations) above --tolerance, from "
-    "details.csv. Start point variation: |P_0 - P_s|.")
+    "details.csv (- where the library reports no success per point, as ikpy). Start point "
+    "variation: |P_0 - P_s|.")
 
 
 def table2_comparison(table: pd.DataFrame) -> pd.DataFrame:
@@ -519,16 +565,18 @@ def table2_comparison(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def table2_section(table: pd.DataFrame, steps: int | None = None,
-                   run: str | None = None) -> list[str]:
+                   run: str | None = None, method: str = BASELINE) -> list[str]:
     """Markdown lines: the measured Table 2 beside the paper's, with the unit and ikpy notes.
 
     Args:
         table: the baseline run's rows (see :func:`table2_comparison`).
         steps: the run's n (a note when it is not the paper's).
         run: the run's label for the heading (``sequential-ik (--orientation frame)``).
+        method: the run's method (``ikpy``: the note on the authors' own call).
     """
     heading = "## Beside the paper's Table 2" + (f": {run}" if run else "")
-    lines = [heading, "", TABLE2_UNITS_NOTE, "", PAPER_BASELINE_NOTE, ""]
+    note = IKPY_TABLE2_NOTE if method == IKPY else PAPER_BASELINE_NOTE
+    lines = [heading, "", TABLE2_UNITS_NOTE, "", note, ""]
     if steps is not None and steps != PAPER_STEPS:
         lines += [f"The paper used n = {PAPER_STEPS} segments; this run used n = {steps}.", ""]
     return lines + [markdown_table(table2_comparison(table)), ""]
@@ -704,7 +752,11 @@ def write_comparison_report(output_dir) -> Path:
     ]
     if targets.is_paper:
         lines += table2_section(frame[frame["method"] == table2], targets.steps,
-                                runs[table2].label)
+                                runs[table2].label, runs[table2].method)
+        authors = ikpy_table2_run(runs)
+        if authors is not None and authors != table2:
+            lines += table2_section(frame[frame["method"] == authors], targets.steps,
+                                    f"{runs[authors].label}, the authors' call", IKPY)
     else:
         lines += ["## The paper's baseline", "", PAPER_BASELINE_NOTE, ""]
     path = output_dir / REPORT_NAME

@@ -6,14 +6,17 @@
 2. Table 2: the ``sequential-ik`` baseline in its default ``frame`` mode -> ``sequential-ik/``;
 3. the baseline's other orientation modes -> ``sequential-ik-pointing/`` and
    ``sequential-ik-position/`` (``--orientation pointing`` / ``position``);
-4. ``ours`` with ``--init interpolation`` (the paper's text) -> ``ours-init-interpolation/``,
+4. Table 2 as the authors ran it: ``ikpy`` with their call -> ``ikpy/``, when ikpy is installed
+   (``pip install 'ikbench[libs]'``; otherwise skipped, and README.md says so);
+5. ``ours`` with ``--init interpolation`` (the paper's text) -> ``ours-init-interpolation/``,
    which measures how soon that initialisation stops;
-5. the comparison report of all these runs
+6. the comparison report of all these runs
    (:func:`ikbench.paper.comparison.write_comparison_report`);
-6. the loss-term ablation (:func:`ikbench.studies.ablation.ablate`, every single term and L2..L5
+7. the loss-term ablation (:func:`ikbench.studies.ablation.ablate`, every single term and L2..L5
    together) -> ``ablation/``;
-7. ``README.md``: each paper table beside the measured one, the baseline's three modes, the
-   figures, the deviations from the paper, the versions and machine used.
+8. ``README.md``: each paper table beside the measured one, the baseline's three modes and
+   the authors' ikpy call, the figures, the deviations from the paper, the versions and
+   machine used.
 
 ``quick=True`` runs the same pipeline on a reduced configuration (:data:`QUICK`) to check that
 it works end to end; its numbers are not the paper's.
@@ -32,7 +35,7 @@ import pandas as pd
 from ikbench.core.errors import IkbenchError, InputError
 from ikbench.core.io import atomic_write_text, check_writable
 from ikbench.core.provenance import provenance
-from ikbench.methods.registry import get_method
+from ikbench.methods.registry import get_method, method_status
 from ikbench.paper.ablation_claims import check_claims, claims_table
 from ikbench.paper.values import paper_values, table1_comparison
 from ikbench.studies.ablation import FULL, SUMMARY_METRICS, ablate
@@ -45,6 +48,9 @@ OURS = "ours"
 BASELINE = "sequential-ik"
 #: The baseline's other orientation modes: mode -> folder (Table 2 is ``frame``, the default).
 BASELINE_MODES = {"pointing": f"{BASELINE}-pointing", "position": f"{BASELINE}-position"}
+#: Table 2 as the authors ran it: their library and call (``ikpy``, position only) -> ``ikpy/``.
+AUTHORS_RUN = "ikpy"
+AUTHORS_STAGE = f"Table 2 as the authors ran it: {AUTHORS_RUN}"
 #: ``ours`` with the paper's text's initialisation (measures when it stops).
 INTERPOLATION_RUN = "ours-init-interpolation"
 #: The ablation variants: every single term, and L2..L5 together (the paper's last claim).
@@ -57,7 +63,7 @@ SUMMARY_COLUMNS = ["iterations", "line_distance_mean_mm", "pointing_deviation_me
 QUICK = {"only": "1", "steps": 10, "max_iterations": 100}
 #: What reproduce writes into the results directory (files and folders).
 WRITES = ("README.md", "report.md", "pointing_deviation_per_step.png", OURS, BASELINE,
-          *BASELINE_MODES.values(), INTERPOLATION_RUN, "ablation")
+          *BASELINE_MODES.values(), AUTHORS_RUN, INTERPOLATION_RUN, "ablation")
 #: Other commands that write into a results directory, by the first word of what they write.
 OTHER_COMMANDS = {"benchmark": "ikbench bench --output results",
                   "sweep": "ikbench sweep --output results/sweep",
@@ -79,6 +85,14 @@ def _baseline() -> type:
         raise ReproduceError(
             f"Table 2 needs the method {BASELINE!r} (baselines/sequential_ik.py), which this "
             f"checkout does not register ({exc})") from None
+
+
+def _authors_method():
+    """ikpy's method class, or (None, why not) when ikpy is not installed here."""
+    status = method_status().get(AUTHORS_RUN)
+    if status is None:
+        return None, f"the method {AUTHORS_RUN!r} is not registered"
+    return status.cls, status.reason
 
 
 def _comparison_writer():
@@ -140,12 +154,16 @@ def reproduce(output: str | Path | None = None, quick: bool = False,
                 lambda: run(baseline(orientation=mode), output=output, progress=progress,
                             name=name, **subset))
 
+    authors, _ = _authors_method()
     stages = [
         ("Table 1: ours", lambda: run(ours(**ours_options), output=output,
                                       progress=progress, **subset)),
         (f"Table 2: {BASELINE}", lambda: run(baseline(), output=output, progress=progress,
                                              **subset)),
         *[modes(mode, name) for mode, name in BASELINE_MODES.items()],
+        *([(AUTHORS_STAGE, lambda: run(authors(orientation="position"), output=output,
+                                       progress=progress, name=AUTHORS_RUN, **subset))]
+          if authors is not None else []),
         ("ours --init interpolation",
          lambda: run(ours(init="interpolation", **ours_options), output=output,
                      progress=progress, name=INTERPOLATION_RUN, **subset)),
@@ -232,8 +250,24 @@ def _initialisation_finding(ours: pd.DataFrame, interpolation: pd.DataFrame) -> 
         f"of {_span(interpolation['pointing_deviation_mean_deg'], 1)} deg.")
 
 
-def _baseline_finding(frame: pd.DataFrame) -> str:
-    """The Table 2 baseline deviation with the pointing deviation measured per mode."""
+def _authors_section(output: Path, times: dict) -> list[str]:
+    """README lines: Table 2 as the authors ran it (``ikpy/``), or why that stage was skipped."""
+    from ikbench.paper.comparison import IKPY_TABLE2_NOTE, table2_comparison
+
+    heading = f"### Table 2 as the authors ran it (`{AUTHORS_RUN}`, their call)"
+    if AUTHORS_STAGE not in times:
+        _, reason = _authors_method()
+        return [heading, "", f"Not run: {reason}. `ikbench reproduce` runs it when ikpy is "
+                "installed.", ""]
+    table = _read(output, f"{AUTHORS_RUN}/table.csv")
+    return [heading, "", markdown_table(table2_comparison(table)), "", IKPY_TABLE2_NOTE, "",
+            f"Details: [{AUTHORS_RUN}/report.md]({AUTHORS_RUN}/report.md).", "",
+            *_figures(AUTHORS_RUN, ["trajectories_3d.png", "pointing_error.png"])]
+
+
+def _baseline_finding(frame: pd.DataFrame, authors: bool = False) -> str:
+    """The Table 2 baseline deviation with the pointing deviation measured per mode (and by
+    the authors' own ikpy call when ``authors``)."""
     paper = paper_values()["table2"]
     ids = [t for t in dict.fromkeys(frame["trajectory"]) if t in paper]
     by_run = {name: frame[frame["method"] == name]
@@ -253,7 +287,13 @@ def _baseline_finding(frame: pd.DataFrame) -> str:
         f"(`{BASELINE}`, the default and Table 2 here) gives "
         f"{_span(by_run[BASELINE]['pointing_deviation_mean_deg'], 2)} deg at mean line "
         f"distances of {_span(by_run[BASELINE]['line_distance_mean_mm'], 2)} mm (`{OURS}`: "
-        f"{_span(by_run[OURS]['line_distance_mean_mm'], 2)} mm).")
+        f"{_span(by_run[OURS]['line_distance_mean_mm'], 2)} mm)." + (
+            "" if not authors else
+            f" The authors' own call on this robot (`{AUTHORS_RUN}`, "
+            f"[{AUTHORS_RUN}/]({AUTHORS_RUN}/report.md)) gives "
+            f"{_span(frame[frame['method'] == AUTHORS_RUN]['pointing_deviation_mean_deg'], 1)}"
+            " deg at mean line distances of "
+            f"{_span(frame[frame['method'] == AUTHORS_RUN]['line_distance_mean_mm'], 4)} mm."))
 
 
 DEVIATIONS = [
@@ -349,10 +389,12 @@ def write_results_readme(output: str | Path, times: dict[str, float], quick: boo
         markdown_table(table2_comparison(baseline)), "", TABLE2_UNITS_NOTE, "",
         PAPER_BASELINE_NOTE, "", f"Details: [{BASELINE}/report.md]({BASELINE}/report.md).", "",
         *_figures(BASELINE, ["trajectories_3d.png", "pointing_error.png"]),
+        *_authors_section(output, times),
         "### The baseline's three orientation modes", "",
         f"`{BASELINE}/` (frame, the default), "
         + ", ".join(f"`{name}/` (`--orientation {mode}`)" for mode, name in
                     BASELINE_MODES.items())
+        + (f", the authors' call `{AUTHORS_RUN}/`" if AUTHORS_STAGE in times else "")
         + f", beside `{OURS}` and the paper's Table 2:", "",
         escaped_table(measured.modes_table()), "", MODES_NOTE, "",
         "## Comparison with the baseline", "",
@@ -369,7 +411,8 @@ def write_results_readme(output: str | Path, times: dict[str, float], quick: boo
         "figures and the tests behind each verdict: [ablation/report.md](ablation/report.md).",
         "", *_figures("ablation", ["metrics.png", "trajectories_3d.png", "joints.png"]),
         "## Deviations from the paper", "", *DEVIATIONS,
-        _initialisation_finding(ours, interpolation), _baseline_finding(measured.frame),
+        _initialisation_finding(ours, interpolation),
+        _baseline_finding(measured.frame, AUTHORS_STAGE in times),
         *([] if quick else _table1_findings(ours)),
         *[f"- **Ablation: not confirmed.** {c['claim']} ({c['evidence']}; test: {c['test']})"
           for c in claims if c["verdict"] == "does not hold"], "",

@@ -1,0 +1,100 @@
+"""What the library methods share: checks before any solve, the conversion of a library's
+result to a :class:`~ikbench.methods.base.Solution` in pose units, the method's own timer.
+
+A library method implements :meth:`LibraryMethod.solve_chain` on the chain and goals in URDF
+units (:mod:`baselines._chain`) and returns a :class:`ChainResult`; everything else is here.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from baselines._chain import Chain, Goals, chain_of, goals_of, poses_from_urdf, refuse_locked
+from baselines._chain import require_touch_and_start as _require_both
+from baselines._walk import Walk
+from ikbench.core.errors import InputError
+from ikbench.methods.base import Method, Solution
+
+
+@dataclass
+class ChainResult:
+    """A library's trajectory in URDF units.
+
+    Attributes:
+        q: (N, dof) joint values [rad, m], within the chain's limits.
+        iterations: the library's iterations (what they count: ``info["iterations_are"]``).
+        converged: the library's own success criterion held (every point, or the whole path).
+        info: flat figures for details.csv (numbers and strings).
+    """
+
+    q: np.ndarray
+    iterations: int
+    converged: bool
+    info: dict = field(default_factory=dict)
+
+    @classmethod
+    def from_walk(cls, walk: Walk, **info) -> ChainResult:
+        """The result of a sequential walk (:func:`baselines._walk.walk_back`)."""
+        return cls(walk.q, walk.iterations, not walk.failed, {**walk.info(), **info})
+
+
+class LibraryMethod(Method):
+    """Base class of the methods in ``baselines/`` that call another kinematics library.
+
+    Class attributes (besides :class:`~ikbench.methods.base.Method`'s):
+        supports_frames: True when the library takes full 6-D goal frames
+            (``task.goal_rotations``); otherwise such tasks are refused before any solve.
+        whole_path: True for trajectory optimisers (the start and touch poses are both
+            fixed; the result's rows are returned as solved, row n included); False for the
+            sequential walks (row n is the touch pose exactly).
+        loads_urdf: True when the library parses the URDF itself (robots whose config locks
+            chain joints are refused).
+    """
+
+    library: ClassVar[str] = ""
+    requires_touch_pose: ClassVar[bool] = True
+    supports_frames: ClassVar[bool] = False
+    whole_path: ClassVar[bool] = False
+    loads_urdf: ClassVar[bool] = True
+
+    def check_tasks(self, robot, tasks) -> None:
+        """Refuse, before any solve: tasks without the poses the method fixes, 6-D goal frames
+        the library cannot take, locked joints, robots the library cannot model
+        (:meth:`check_robot`)."""
+        for task in tasks:
+            if self.whole_path:
+                _require_both(task, self.name)
+            if getattr(task, "goal_rotations", None) is not None and not self.supports_frames:
+                raise InputError(f"trajectory {task.name!r}: --method {self.name} takes goal "
+                                 "points and pointing directions, not 6-D goal frames")
+        super().check_tasks(robot, tasks)
+        if self.loads_urdf:
+            refuse_locked(robot, self.name)
+        self.check_robot(robot)
+
+    def check_robot(self, robot) -> None:
+        """InputError when the library cannot model this robot (default: it can)."""
+
+    def prepare(self, robot) -> None:
+        """Untimed: build the chain in URDF units (parses the URDF once)."""
+        chain_of(robot)
+
+    def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:  # pragma: no cover
+        """Solve one task in URDF units (implemented by each library method); ``robot`` for
+        methods that work on the robot's own model (pink: its Pinocchio model)."""
+        raise NotImplementedError
+
+    def solve(self, robot, task, progress=None) -> Solution:
+        """Solve ``task`` with the library; poses in the robot's pose units."""
+        started = time.perf_counter()
+        result = self.solve_chain(robot, chain_of(robot), goals_of(robot, task))
+        poses = poses_from_urdf(robot, result.q)
+        if not self.whole_path:
+            poses[-1] = task.end_pose_deg  # the walk's start, exactly as given
+        return Solution(poses_deg=poses, iterations=int(result.iterations),
+                        duration_s=time.perf_counter() - started, loss=None,
+                        converged=bool(result.converged), info=dict(result.info))
