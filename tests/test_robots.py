@@ -103,6 +103,26 @@ def test_chain_kinematics_and_jacobians_on_unaligned_and_prismatic_joints(arm):
         np.testing.assert_allclose(j_dir[:, :, j], (dp - dm) / (2 * h), atol=1e-8)
 
 
+def test_skeleton_runs_through_the_link_frames_yourdfpy_computes(arm):
+    """The skeleton [mm] against yourdfpy (another URDF parser and FK) on the raw URDF."""
+    import yourdfpy
+
+    model = yourdfpy.URDF.load(str(URDF), build_scene_graph=True, load_meshes=False)
+    for joint in model.robot.joints:  # yourdfpy moves prismatic joints along the raw axis
+        if joint.type == "prismatic":
+            joint.axis = joint.axis / np.linalg.norm(joint.axis)
+    poses = random_poses(arm, 5, seed=3)
+    skeleton = arm.skeleton_mm(poses)
+    assert skeleton.shape == (5, arm.dof + 2, 3)
+    links = ["world_link", "l1", "l2", "l3", "l4", "l5", "l6", "tool"]
+    for pose, points in zip(poses, skeleton):
+        model.update_cfg({name: value for name, value in zip(arm.joint_names,
+                                                              arm.to_urdf(pose))})
+        expected = [model.get_transform(link, "world_link")[:3, 3] * 1000 for link in links]
+        np.testing.assert_allclose(points, expected, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(skeleton[:, -1], arm.fk(poses).point_mm, rtol=0, atol=1e-9)
+
+
 def test_fk_cli_on_a_bare_urdf(capsys):
     pose = "10,100,20,-30,170,5"
     assert main(["fk", "--robot", str(URDF), "--end-frame", "tool", f"--pose={pose}",
