@@ -291,9 +291,11 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
         solved = [o.task for o in outcomes if o.ok]
         title = f"{solver.name}: {solver.description}"
         figures = []
+        poses = {t.name: read_trajectory_poses(tmp / f"trajectory_{t.name}.csv", robot)
+                 for t in solved}
         if solved and solved[0].curve is None:
             figures = [("trajectories", "trajectories_3d.png",
-                        plot_trajectories_3d(solved, points, title, robot)),
+                        plot_trajectories_3d(solved, points, title, robot, poses)),
                        ("criterion 2", "pointing_error.png",
                         plot_pointing_error(solved, points, title))]
         elif solved:
