@@ -1,5 +1,5 @@
 """The run folder's animation.gif: frames at the trajectory's real speed, the arm drawn,
-linked from report.md, small, and skipped with --no-animation / animation=False."""
+small, linked from report.md, and skipped with --no-animation / animation=False."""
 
 from __future__ import annotations
 
@@ -12,16 +12,12 @@ from PIL import Image
 
 import ikbench
 from ikbench.cli import main
-from ikbench.studies.animation import frame_steps
+from ikbench.core.task import letter_task, line_tasks
+from ikbench.studies.animation import frame_steps, write_animation
 from tests.conftest import register_temporarily
 from tests.test_run_folder import Straight
 
 DATA = Path(__file__).parent / "data"
-
-
-@pytest.fixture
-def straight(monkeypatch):
-    register_temporarily(monkeypatch, Straight)
 
 
 @pytest.mark.parametrize("steps, max_frames, stride, shown", [
@@ -45,15 +41,17 @@ def _frames(path: Path) -> tuple[list[np.ndarray], list[int]]:
     return frames, durations
 
 
-def test_nico_run_folder_gets_one_small_animation_linked_from_the_report(tmp_path, straight):
-    ikbench.run("straight", output=tmp_path, progress=False)  # all seven targets, n = 50
-    folder = tmp_path / "straight"
-    gif = folder / "animation.gif"
+def _interpolated(robot, targets):
+    tasks = line_tasks(robot, targets)
+    return tasks, {t.name: np.linspace(t.start_pose_deg, t.end_pose_deg, t.steps + 1)
+                   for t in tasks}
+
+
+def test_nicos_seven_trajectories_play_at_real_speed_in_a_small_gif(tmp_path):
+    robot = ikbench.load_robot()
+    tasks, poses = _interpolated(robot, ikbench.load_targets(None, robot))  # n = 50
+    gif = write_animation(tmp_path / "a.gif", robot, tasks, poses, "seven", 2.0)
     assert gif.stat().st_size < 1.5e6
-    record = json.loads((folder / "run.json").read_text())
-    assert "animation.gif" in record["files"]
-    assert "![animation: the arm playing each trajectory](animation.gif)" in (
-        folder / "report.md").read_text()
     frames, durations = _frames(gif)
     assert len(frames) == 26  # every second step of 50
     assert durations[1:-1] == [80] * 24  # 2 steps of 2 s / 50: real speed
@@ -64,27 +62,33 @@ def test_nico_run_folder_gets_one_small_animation_linked_from_the_report(tmp_pat
     assert moved.sum() > 2000  # the arms moved, the fingertip paths were drawn
 
 
-def test_a_robot_without_config_and_a_letter_run_are_animated(tmp_path):
+def test_a_robot_without_config_and_a_letter_are_animated(tmp_path):
     arm = ikbench.load_robot(DATA / "unaligned_arm.urdf", "tool")
-    ikbench.run("ours-lm", robot=arm, targets=DATA / "unaligned_arm.targets.json",
-                output=tmp_path, progress=False)
-    frames, durations = _frames(tmp_path / "ours-lm" / "animation.gif")
+    tasks, poses = _interpolated(arm, ikbench.load_targets(DATA / "unaligned_arm.targets.json",
+                                                           arm))
+    frames, durations = _frames(write_animation(tmp_path / "a.gif", arm, tasks, poses, "", 2.0))
     assert len(frames) == 21 and durations[1] == 100  # n = 20, 2 s: 0.1 s per step
-    ikbench.run("ours-lm", shape="letter:L", steps=8, output=tmp_path, name="letter",
-                progress=False)
-    frames, _ = _frames(tmp_path / "letter" / "animation.gif")
+    robot = ikbench.load_robot()
+    start = np.array([0.0, 45.0, 0.0, 90.0, 180.0, 180.0, -145.0])
+    task = letter_task(robot, "L", start, steps=8)
+    frames, _ = _frames(write_animation(tmp_path / "l.gif", robot, [task],
+                                        {"L": np.repeat(start[None], 9, axis=0)}, "L", 1.0))
     assert len(frames) == 9
 
 
-def test_no_animation_on_the_command_line_and_in_the_api(tmp_path, straight):
+def test_the_run_folder_links_it_and_no_animation_skips_it(tmp_path, monkeypatch):
+    register_temporarily(monkeypatch, Straight)
+    ikbench.run("straight", only="1", steps=4, output=tmp_path, progress=False)
+    folder = tmp_path / "straight"
+    assert "animation.gif" in json.loads((folder / "run.json").read_text())["files"]
+    assert "![animation: the arm playing each trajectory](animation.gif)" in (
+        folder / "report.md").read_text()
+    assert len(_frames(folder / "animation.gif")[0]) == 5
     assert main(["run", "--method", "straight", "--only", "1", "--steps", "4", "--output",
                  str(tmp_path), "--quiet", "--no-animation"]) == 0
-    folder = tmp_path / "straight"
-    assert not (folder / "animation.gif").exists()
+    assert not (folder / "animation.gif").exists()  # the rerun removed what it did not write
     assert "animation" not in (folder / "report.md").read_text()
     assert "animation.gif" not in json.loads((folder / "run.json").read_text())["files"]
-    ikbench.run("straight", only="1", steps=4, output=tmp_path, progress=False)
-    assert (folder / "animation.gif").exists()
     ikbench.run("straight", only="1", steps=4, output=tmp_path, progress=False,
                 animation=False)
-    assert not (folder / "animation.gif").exists()  # the rerun removed what it did not write
+    assert not (folder / "animation.gif").exists()

@@ -170,7 +170,7 @@ def test_a_robot_config_names_the_urdf_end_frame_and_pointing_axis(tmp_path):
 
 def _run(tmp_path, method, *extra):
     args = ["run", "--robot", str(URDF), "--end-frame", "tool", "--targets", str(TARGETS),
-            "--method", method, "--output", str(tmp_path), "--quiet", *extra]
+            "--method", method, "--output", str(tmp_path), "--quiet", "--no-animation", *extra]
     assert main(args) == 0
     folder = tmp_path / (extra[extra.index("--name") + 1] if "--name" in extra else method)
     return folder, pd.read_csv(folder / "table.csv", dtype={"trajectory": str})
@@ -214,7 +214,7 @@ def test_a_run_reloads_its_robot_and_refuses_a_changed_urdf(tmp_path, arm):
     shutil.copy(URDF, urdf)
     robot = load_robot(urdf, "tool")
     table = ikbench.run("ours-lm", robot=robot, targets=TARGETS, output=tmp_path,
-                        progress=False)
+                        progress=False, animation=False)
     assert len(table) == 2
     record = json.loads((tmp_path / "ours-lm" / "run.json").read_text())
     assert robot_from_record(record).joint_names == arm.joint_names

@@ -58,6 +58,33 @@ def _pixels_of_hue(img: np.ndarray, rgb, tolerance_deg: float = 15.0) -> int:
     return int(((distance <= tolerance_deg) & (sat > 0.35)).sum())
 
 
+def _drawn(img: np.ndarray) -> float:
+    """Share of the 3-D view's pixels that differ from its background."""
+    view = img[:, :VIEW_COLUMNS]
+    background = np.median(view.reshape(-1, 3), axis=0)
+    return float((np.abs(view - background).max(axis=-1) > 40).mean())
+
+
+def _changed(a: np.ndarray, b: np.ndarray) -> int:
+    """Pixels of the 3-D view that differ between two captures."""
+    return int((np.abs(a - b).sum(axis=-1) > 30)[:, :VIEW_COLUMNS].sum())
+
+
+def _settled(page, path, unlike=None, timeout_s: float = 90.0) -> np.ndarray:
+    """Capture until the 3-D view is drawn (not blank, differs from ``unlike``) and two
+    captures in a row agree: software WebGL takes seconds to draw the first frames."""
+    previous, deadline = None, time.monotonic() + timeout_s
+    while True:
+        img = _rgb(page.capture(path))
+        ready = _drawn(img) > 0.01 and (unlike is None or _changed(img, unlike) > 3000)
+        if ready and previous is not None and _changed(img, previous) < 200:
+            return img
+        if time.monotonic() > deadline:
+            return img  # the assertions below say what is missing
+        previous = img if ready else None
+        time.sleep(0.5)
+
+
 def test_chromium_draws_the_arms_the_paths_and_the_gui(tmp_path):
     from ikbench.viewer.folders import load_runs
     from ikbench.viewer.scene import GOAL_COLOR
@@ -70,24 +97,18 @@ def test_chromium_draws_the_arms_the_paths_and_the_gui(tmp_path):
         with HeadlessPage(viewer.url, width=1280, height=800) as page:
             page.wait_for_text("sequential-ik")
             text = page.evaluate("document.body.innerText")
-            time.sleep(3.0)  # let software WebGL draw a few frames
-            full = _rgb(page.capture(tmp_path / "with_arms.png"))
+            full = _settled(page, tmp_path / "with_arms.png")
             for scene in viewer.scenes:
                 scene.arm.visible = False
-            changed, deadline = 0, time.monotonic() + 20.0
-            while changed <= 3000 and time.monotonic() < deadline:
-                time.sleep(1.0)
-                bare = _rgb(page.capture())
-                changed = int((np.abs(full - bare).sum(axis=-1) > 30)[:, :VIEW_COLUMNS].sum())
+            bare = _settled(page, tmp_path / "without_arms.png", unlike=full)
     finally:
         viewer.stop()
 
     for word in ("ikbench viewer", "trajectory", "Playback", "Play", "step 30 / 50", "ours",
                  "sequential-ik", "goal path", "goal: rebuilt from run.json"):
         assert word in text, f"{word!r} is not in the page"
-    view = full[:, :VIEW_COLUMNS]
-    background = np.median(view.reshape(-1, 3), axis=0)
-    assert (np.abs(view - background).max(axis=-1) > 40).mean() > 0.01, "a blank canvas"
+    assert _drawn(full) > 0.01, "a blank canvas"
+    changed = _changed(full, bare)
     assert changed > 3000, f"hiding the arms changed only {changed} pixels"
     for scene in viewer.scenes:  # ours blue, sequential-ik orange (its path and ghost arm)
         assert _pixels_of_hue(full, scene.color) > 300, f"no {scene.run.label} colour"
