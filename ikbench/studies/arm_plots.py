@@ -96,7 +96,8 @@ def plot_trajectories_3d(tasks, points_by_id: dict, title: str, robot=None,
     ax = fig.add_subplot(projection="3d")
     ax.computed_zorder = False  # draw in zorder: goal dashes over paths, arms beneath
     fig.subplots_adjust(left=0.0, right=0.76, bottom=0.05, top=0.93)
-    drawn, firsts = [], []
+    drawn: list[np.ndarray] = []
+    firsts: list[np.ndarray] = []
     for task, color in zip(tasks, task_colors(len(tasks))):
         points, goal = points_by_id[task.name], task.goal_points_mm
         if robot is not None and poses_by_id is not None:

@@ -193,7 +193,8 @@ def _add_run(server, robot: Robot, run: ViewRun, index: int, framing: list) -> R
     T_root_base = sc.base_transform(model, robot)
     frame = server.scene.add_frame(f"/run{index}", show_axes=False)
     arm = server.scene.add_frame(f"/run{index}/robot", show_axes=False)
-    override = None if index == 0 else (*(c / 255 for c in color), GHOST_OPACITY)
+    override = None if index == 0 else (color[0] / 255, color[1] / 255, color[2] / 255,
+                                        GHOST_OPACITY)
     urdf = ViserUrdf(server, model, root_node_name=f"/run{index}/robot",
                      mesh_color_override=override)
     cfg, tips, goals, tip_paths, faint, goal_paths = {}, {}, {}, {}, {}, {}
