@@ -172,11 +172,13 @@ def test_without_viser_one_line_names_the_extra(folders, capsys, monkeypatch):
 
 
 def test_command_line_prints_the_url_and_stops_cleanly_on_ctrl_c(folders):
+    """Also when started the way a non-interactive shell starts a background job: with
+    SIGINT ignored (the viewer installs its own handler)."""
     pytest.importorskip("viser")
     proc = subprocess.Popen(
         [sys.executable, "-m", "ikbench.cli", "view", *map(str, folders["nico"]), "--port",
          "0", "--no-browser"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        cwd=REPO)
+        cwd=REPO, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     try:
         line, deadline = "", time.monotonic() + 60
         while "ikbench viewer: http://127.0.0.1:" not in line:

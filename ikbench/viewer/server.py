@@ -344,22 +344,29 @@ def serve(robot: Robot, runs: list[ViewRun], *, port: int = 8080, host: str = "1
 
 
 def run_forever(robot: Robot, runs: list[ViewRun], **kwargs) -> None:
-    """Serve (keywords of :func:`serve`), print the URL and block until Ctrl-C, then stop
-    cleanly (no traceback; a second Ctrl-C during the stop is ignored)."""
+    """Serve (keywords of :func:`serve`), print the URL and block until Ctrl-C or SIGTERM,
+    then stop cleanly (no traceback; another Ctrl-C while stopping changes nothing).
+
+    The handlers are installed here, not inherited: a process started in the background by
+    a non-interactive shell ignores SIGINT, and Ctrl-C must stop the viewer anyway.
+    """
+    stop = threading.Event()
+    handlers = {}
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        try:
+            handlers[signum] = signal.signal(signum, lambda *_: stop.set())
+        except ValueError:  # not the main thread: Ctrl-C comes as KeyboardInterrupt
+            pass
     viewer = None
     try:
         viewer = serve(robot, runs, **kwargs)
         print(f"ikbench viewer: {viewer.url}  (Ctrl-C to stop)", flush=True)
-        while True:
-            time.sleep(0.5)
+        stop.wait()
     except KeyboardInterrupt:
-        print("\nstopping the viewer", flush=True)
+        pass
     finally:
-        main = threading.current_thread() is threading.main_thread()
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
-        try:
-            if viewer is not None:
-                viewer.stop()
-        finally:
-            if main:
-                signal.signal(signal.SIGINT, previous)
+        if viewer is not None:
+            print("\nstopping the viewer", flush=True)
+            viewer.stop()
+        for signum, handler in handlers.items():
+            signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
