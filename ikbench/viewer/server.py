@@ -32,8 +32,8 @@ from ikbench.core.robot import Robot
 from ikbench.studies.arm_plots import frame_labels
 from ikbench.viewer import scene as sc
 from ikbench.viewer.folders import ViewRun
+from ikbench.viewer.gui import SPEEDS, add_gui
 
-SPEEDS = {"0.25x": 0.25, "0.5x": 0.5, "1x": 1.0, "2x": 2.0}
 GHOST_OPACITY = 0.35
 TITLE = "ikbench viewer"
 
@@ -251,63 +251,6 @@ def _frame_scene(server, robot: Robot, framing: list) -> None:
     server.initial_camera.look_at = look_at
 
 
-def _legend(scenes: list[RunScene]) -> str:
-    def swatch(rgb, alpha=1.0):
-        return ('<span style="display:inline-block;width:12px;height:12px;margin-right:6px;'
-                f'background:rgba({rgb[0]},{rgb[1]},{rgb[2]},{alpha});border:1px solid #555">'
-                '</span>')
-
-    rows = [f"<div>{swatch(s.color)}<b>{s.run.label}</b>: fingertip, arm "
-            f"{'in URDF colours' if i == 0 else 'ghost'}</div>" for i, s in enumerate(scenes)]
-    rows.append(f"<div>{swatch(sc.GOAL_COLOR)}goal path</div>")
-    return '<div style="font-size:0.8em;line-height:1.6">' + "".join(rows) + "</div>"
-
-
-def _add_gui(server, viewer: Viewer, ids: list[str]) -> None:
-    gui, scenes = viewer.gui, viewer.scenes
-    with server.gui.add_folder("Trajectory"):
-        gui["trajectory"] = server.gui.add_dropdown("trajectory", ids, initial_value=ids[0])
-        server.gui.add_markdown("<br>".join(f"**{s.run.label}**: {s.run.goal_source}"
-                                            for s in scenes))
-    with server.gui.add_folder("Playback"):
-        gui["step"] = server.gui.add_slider("step", min=0, max=max(len(viewer.times) - 1, 1),
-                                            step=1, initial_value=0)
-        gui["time"] = server.gui.add_markdown("")
-        gui["play"] = server.gui.add_button("Play", icon=viser.Icon.PLAYER_PLAY)
-        gui["speed"] = server.gui.add_dropdown("speed", tuple(SPEEDS), initial_value="1x")
-        gui["loop"] = server.gui.add_checkbox("loop", False)
-    with server.gui.add_folder("Runs"):
-        server.gui.add_html(_legend(scenes))
-        gui["runs"] = [server.gui.add_checkbox(s.run.label, True) for s in scenes]
-        gui["goal"] = server.gui.add_checkbox("goal path", True)
-        gui["tip"] = server.gui.add_checkbox("fingertip path", True)
-        gui["others"] = server.gui.add_checkbox("other trajectories", True,
-                                                hint="the first run's, faint")
-
-    @gui["step"].on_update
-    def _(event) -> None:
-        if event.client is not None and viewer.playing:  # dragged while playing
-            viewer._anchor = (time.perf_counter(), int(gui["step"].value))
-        viewer.show(int(gui["step"].value))
-
-    @gui["play"].on_click
-    def _(_) -> None:
-        viewer.pause() if viewer.playing else viewer.play()
-
-    @gui["speed"].on_update
-    def _(_) -> None:
-        with viewer._lock:  # keep the step, change the rate from now on
-            viewer._anchor = (time.perf_counter(), int(gui["step"].value))
-
-    @gui["trajectory"].on_update
-    def _(_) -> None:
-        viewer.refresh_visibility()
-        viewer.show(int(gui["step"].value))
-
-    for box in [*gui["runs"], gui["goal"], gui["tip"], gui["others"]]:
-        box.on_update(lambda _: viewer.refresh_visibility())
-
-
 def serve(robot: Robot, runs: list[ViewRun], *, port: int = 8080, host: str = "127.0.0.1",
           open_browser: bool = True, trajectory: str | None = None) -> Viewer:
     """Start the viewer (non-blocking) and return its handle.
@@ -331,7 +274,7 @@ def serve(robot: Robot, runs: list[ViewRun], *, port: int = 8080, host: str = "1
     scenes = [_add_run(server, robot, run, i, framing) for i, run in enumerate(runs)]
     _frame_scene(server, robot, framing)
     viewer = Viewer(server, host, timeline(runs), scenes)
-    _add_gui(server, viewer, ids)
+    add_gui(server, viewer, ids)
     if trajectory is not None:
         viewer.select(trajectory)
     viewer.refresh_visibility()
