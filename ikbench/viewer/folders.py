@@ -117,6 +117,10 @@ def load_runs(folders) -> tuple[Robot, list[ViewRun]]:
                              f"{own.end_frame}); the runs shown together must share the robot")
         runs.append(_load_run(path, record, own))
     assert robot is not None
+    labels = [r.label for r in runs]
+    for run in runs:  # e.g. results/letters/ours and results/letters/c0-100/ours
+        if labels.count(run.label) > 1:
+            run.label = f"{run.folder.parent.name}/{run.label}"
     return robot, runs
 
 
@@ -160,7 +164,7 @@ def _add_goals(robot: Robot, record: dict, trajectories: dict) -> str:
         goal, down = task.goal_points_mm, np.asarray(task.pen_down, dtype=bool)
         keep = down[:-1] & down[1:]
         traj.goal_mm, traj.goal_segments_mm = goal, np.stack([goal[:-1], goal[1:]], 1)[keep]
-    size = "" if shape.split(":")[0] != "letter" or record.get("size_mm") else (
+    size = "" if shape.split(":")[0] != "letter" or "size_mm" in record else (
         "; letter size not recorded, the default 300 mm assumed")
     return f"goal: rebuilt from run.json (shape {shape}, targets {record.get('targets')}{size})"
 

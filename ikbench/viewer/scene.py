@@ -73,7 +73,7 @@ def camera_pose(points_m: np.ndarray, direction: np.ndarray,
     lo, hi = points_m.min(axis=0), points_m.max(axis=0)
     centre = (lo + hi) / 2
     radius = max(float(np.linalg.norm(points_m - centre, axis=1).max()), 0.05)
-    distance = 0.8 * radius / math.sin(fov_rad / 2)  # the bounding sphere is loose
+    distance = radius / math.sin(fov_rad / 2)  # the bounding sphere fits the view
     return centre + direction / np.linalg.norm(direction) * distance, centre
 
 
