@@ -164,6 +164,13 @@ def test_bad_input_one_line_exit_2(folders, capsys, args, message):
     assert message in err and err.count("\n") == 1
 
 
+def test_an_unknown_trajectory_is_one_line_naming_the_ids(folders, capsys):
+    pytest.importorskip("viser")
+    assert main(["view", *map(str, folders["nico"]), "--trajectory", "9", "--no-browser"]) == 2
+    assert capsys.readouterr().err == ("ikbench: error: --trajectory: '9' is not a trajectory "
+                                       "of these runs; available: 1, 3\n")
+
+
 def test_without_viser_one_line_names_the_extra(folders, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "viser", None)  # import viser now fails
     assert main(["view", str(folders["nico"][0]), "--no-browser"]) == 2
