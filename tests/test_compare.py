@@ -30,7 +30,8 @@ TOUCH_1 = [33, 39, 25, 134, 102, 77, -168]
 def small_runs(tmp_path_factory):
     """ours (capped at 300 iterations) and sequential-ik on trajectory 1, n = 10."""
     out = tmp_path_factory.mktemp("compare")
-    common = ["--only", "1", "--steps", "10", "--output", str(out), "--quiet"]
+    common = ["--only", "1", "--steps", "10", "--output", str(out), "--quiet",
+              "--no-animation"]
     assert main(["run", "--method", "ours", "--max-iterations", "300", *common]) == 0
     assert main(["run", "--method", "sequential-ik", *common]) == 0
     return out
@@ -45,7 +46,8 @@ def mode_runs(small_runs, tmp_path_factory):
     out = tmp_path_factory.mktemp("modes")
     for name in (OURS, BASELINE):
         shutil.copytree(small_runs / name, out / name)
-    common = ["--only", "1", "--steps", "10", "--output", str(out), "--quiet"]
+    common = ["--only", "1", "--steps", "10", "--output", str(out), "--quiet",
+              "--no-animation"]
     for mode in ("position", "pointing"):
         assert main(["run", "--method", "sequential-ik", "--orientation", mode, "--name",
                      f"sequential-ik-{mode}", *common]) == 0

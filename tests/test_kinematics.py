@@ -152,3 +152,17 @@ def test_motor_joint_map_round_trip(robot, random_poses):
     assert np.allclose(robot.joint_rad_to_motor_deg(q_rad), random_poses, atol=1e-10)
     t = torch.tensor(random_poses)
     assert torch.allclose(robot.motor_to_joint_rad(t), torch.tensor(q_rad))
+
+
+def test_skeleton_is_pinocchios_joint_placements(robot, random_poses):
+    """Base origin, every joint's origin (data.oMi) and the end point, in mm."""
+    import pinocchio as pin
+
+    fk = robot.pinocchio_fk()
+    skeleton = robot.skeleton_mm(random_poses[:10])
+    for pose, points in zip(random_poses[:10], skeleton):
+        pin.forwardKinematics(fk.model, fk.data, robot.to_urdf(pose))
+        joints = [fk.data.oMi[j].translation * 1000 for j in range(1, fk.model.njoints)]
+        np.testing.assert_allclose(points[1:-1], joints, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(skeleton[:, 0], 0.0, atol=0)
+    np.testing.assert_allclose(skeleton[:, -1], robot.fk(random_poses[:10]).point_mm, atol=1e-9)

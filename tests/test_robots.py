@@ -103,6 +103,26 @@ def test_chain_kinematics_and_jacobians_on_unaligned_and_prismatic_joints(arm):
         np.testing.assert_allclose(j_dir[:, :, j], (dp - dm) / (2 * h), atol=1e-8)
 
 
+def test_skeleton_runs_through_the_link_frames_yourdfpy_computes(arm):
+    """The skeleton [mm] against yourdfpy (another URDF parser and FK) on the raw URDF."""
+    import yourdfpy
+
+    model = yourdfpy.URDF.load(str(URDF), build_scene_graph=True, load_meshes=False)
+    for joint in model.robot.joints:  # yourdfpy moves prismatic joints along the raw axis
+        if joint.type == "prismatic":
+            joint.axis = joint.axis / np.linalg.norm(joint.axis)
+    poses = random_poses(arm, 5, seed=3)
+    skeleton = arm.skeleton_mm(poses)
+    assert skeleton.shape == (5, arm.dof + 2, 3)
+    links = ["world_link", "l1", "l2", "l3", "l4", "l5", "l6", "tool"]
+    for pose, points in zip(poses, skeleton):
+        model.update_cfg({name: value for name, value in zip(arm.joint_names,
+                                                              arm.to_urdf(pose))})
+        expected = [model.get_transform(link, "world_link")[:3, 3] * 1000 for link in links]
+        np.testing.assert_allclose(points, expected, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(skeleton[:, -1], arm.fk(poses).point_mm, rtol=0, atol=1e-9)
+
+
 def test_fk_cli_on_a_bare_urdf(capsys):
     pose = "10,100,20,-30,170,5"
     assert main(["fk", "--robot", str(URDF), "--end-frame", "tool", f"--pose={pose}",
@@ -150,7 +170,7 @@ def test_a_robot_config_names_the_urdf_end_frame_and_pointing_axis(tmp_path):
 
 def _run(tmp_path, method, *extra):
     args = ["run", "--robot", str(URDF), "--end-frame", "tool", "--targets", str(TARGETS),
-            "--method", method, "--output", str(tmp_path), "--quiet", *extra]
+            "--method", method, "--output", str(tmp_path), "--quiet", "--no-animation", *extra]
     assert main(args) == 0
     folder = tmp_path / (extra[extra.index("--name") + 1] if "--name" in extra else method)
     return folder, pd.read_csv(folder / "table.csv", dtype={"trajectory": str})
@@ -194,7 +214,7 @@ def test_a_run_reloads_its_robot_and_refuses_a_changed_urdf(tmp_path, arm):
     shutil.copy(URDF, urdf)
     robot = load_robot(urdf, "tool")
     table = ikbench.run("ours-lm", robot=robot, targets=TARGETS, output=tmp_path,
-                        progress=False)
+                        progress=False, animation=False)
     assert len(table) == 2
     record = json.loads((tmp_path / "ours-lm" / "run.json").read_text())
     assert robot_from_record(record).joint_names == arm.joint_names

@@ -44,7 +44,7 @@ def straight(monkeypatch):
 
 def _run(out, *args):
     return main(["run", "--method", "straight", "--steps", "4", "--output", str(out), "--quiet",
-                 *args])
+                 "--no-animation", *args])
 
 
 def test_rerun_removes_only_what_the_last_run_wrote(tmp_path, straight, capsys):

@@ -241,7 +241,8 @@ def test_cli_runs_both_orientation_modes_and_writes_table2(tmp_path, capsys):
     for orientation in ("frame", "pointing"):
         out = tmp_path / orientation
         code = main(["run", "--method", "sequential-ik", "--orientation", orientation,
-                     "--only", "1,7", "--steps", "10", "--output", str(out), "--quiet"])
+                     "--only", "1,7", "--steps", "10", "--output", str(out), "--quiet",
+                     "--no-animation"])
         assert code == 0
         folder = out / "sequential-ik"
         assert {p.name for p in folder.glob("trajectory_*.csv")} == {"trajectory_1.csv",
@@ -266,7 +267,7 @@ def test_cli_bad_option_is_one_line_exit_2(tmp_path, capsys):
 
 def test_a_smaller_run_removes_stale_trajectories_of_its_folder(tmp_path, capsys):
     common = ["run", "--method", "sequential-ik", "--steps", "4", "--output", str(tmp_path),
-              "--quiet"]
+              "--quiet", "--no-animation"]
     assert main([*common, "--only", "1,7"]) == 0
     folder = tmp_path / "sequential-ik"
     (folder / "notes.txt").write_text("mine")
@@ -283,7 +284,7 @@ def test_a_smaller_run_removes_stale_trajectories_of_its_folder(tmp_path, capsys
 def test_report_shows_durations_to_four_decimals(tmp_path, capsys):
     """A few-ms walk must not read 0.01 s (two decimals)."""
     assert main(["run", "--method", "sequential-ik", "--only", "7", "--steps", "4",
-                 "--output", str(tmp_path), "--quiet"]) == 0
+                 "--output", str(tmp_path), "--quiet", "--no-animation"]) == 0
     capsys.readouterr()
     folder = tmp_path / "sequential-ik"
     duration = pd.read_csv(folder / "table.csv")["duration_s"].iloc[0]

@@ -297,6 +297,20 @@ class Robot:
         return FKResult(T_base_tip[:, :3, 3] * MM_PER_M, T_base_tip[:, :3, :3]
                         @ self.pointing_axis)
 
+    def skeleton_mm(self, q_motor_deg) -> np.ndarray:
+        """The arm as a polyline: points (B, dof + 2, 3) [mm] in the base frame for poses
+        (dof,) or (B, dof) [pose units].
+
+        Point 0 is the base link's origin, points 1..dof the origins of the movable joints'
+        frames along the chain (Pinocchio's joint placements, which fold in the fixed joints
+        between them), the last the end frame. Drawing lines through them gives the arm's
+        links, base to end frame; it needs no visual shapes.
+        """
+        q = np.atleast_2d(self.check_poses(q_motor_deg, "skeleton"))
+        point_m, _, _, origins_m = self.chain_kinematics().transforms(q)
+        base = np.zeros((len(q), 1, 3))
+        return np.concatenate([base, origins_m, point_m[:, None]], axis=1) * MM_PER_M
+
     def fk_transform(self, q_motor_deg, backend: str = "pinocchio") -> np.ndarray:
         """End-frame transforms (B, 4, 4) in the base frame [m] for poses (B, dof)."""
         q = np.atleast_2d(self.check_poses(q_motor_deg, "fk"))

@@ -165,7 +165,8 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
         import tempfile
 
         with tempfile.TemporaryDirectory() as tmp:
-            results = _measure(results, built, robot, targets, outcomes_by_method, Path(tmp))
+            results = _measure(results, built, robot, targets, outcomes_by_method, Path(tmp),
+                               animation=False)
     else:
         root = Path(output) / "compare"
         with staged_folder(root) as tmp:
@@ -187,13 +188,15 @@ def _row(method, library, robot, targets, task, status, failure) -> dict:
             "status": status, "failure": failure, "repetitions": 0}
 
 
-def _measure(results, built, robot, targets, outcomes_by_method, folder: Path) -> pd.DataFrame:
-    """Write each method's run folder and add its metrics and success to ``results``."""
+def _measure(results, built, robot, targets, outcomes_by_method, folder: Path,
+             animation: bool = True) -> pd.DataFrame:
+    """Write each method's run folder (with its animation unless ``animation`` is False)
+    and add its metrics and success to ``results``."""
     results = results.copy()
     for name, outcomes in outcomes_by_method.items():
         solver = built[name]
         table = write_run(solver, robot, targets, outcomes, folder / name,
-                          {"shape": "line", "name": name})
+                          {"shape": "line", "name": name}, animation)
         details = pd.read_csv(folder / name / "details.csv", dtype={"trajectory": str})
         merged = table.merge(details, on=["trajectory", "method"], how="left",
                              suffixes=("", "_details"))

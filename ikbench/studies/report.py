@@ -10,6 +10,12 @@ import numpy as np
 import pandas as pd
 
 from ikbench.core.metrics import criterion2_mm
+from ikbench.studies.arm_plots import (  # noqa: F401  (plot_trajectories_3d: re-exported)
+    frame_labels,
+    matplotlib_pyplot,
+    plot_trajectories_3d,
+    style_axes_3d,
+)
 from ikbench.studies.sections import add_report_section, report_sections  # noqa: F401
 
 TABLE_COLUMNS = [
@@ -29,55 +35,7 @@ SHAPE_TABLE_COLUMNS = [
 
 
 def _matplotlib():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def frame_labels(robot=None) -> tuple[list[str], tuple[float, float]]:
-    """Axis labels and (elevation, azimuth) of 3-D figures from the robot config's
-    ``[frame]`` (NICO: torso frame seen from the front), else plain x/y/z [mm]."""
-    section = (robot.config.get("frame") if robot is not None else None) or {}
-    labels = section.get("axis_labels", ["x [mm]", "y [mm]", "z [mm]"])
-    view = section.get("view", (20.0, -60.0))
-    return list(labels), (float(view[0]), float(view[1]))
-
-
-def plot_trajectories_3d(tasks, points_by_id: dict, title: str, robot=None):
-    """The paper's Fig. 1: end-point paths in 3-D over the goal lines.
-
-    Args:
-        tasks: the tasks (goal points in mm).
-        points_by_id: trajectory id -> (n+1, 3) end points [mm].
-        title: figure title.
-        robot: the robot (axis labels and view from its config; default NICO's).
-    """
-    plt = _matplotlib()
-    fig = plt.figure(figsize=(7.5, 6.5))
-    ax = fig.add_subplot(projection="3d")
-    colors = plt.cm.tab10(np.linspace(0, 1, 10))
-    for k, task in enumerate(tasks):
-        color = colors[k % 10]
-        goal = task.goal_points_mm
-        ax.plot(goal[:, 0], goal[:, 1], goal[:, 2], "--", color=color, lw=1, alpha=0.6)
-        points = points_by_id[task.name]
-        ax.plot(points[:, 0], points[:, 1], points[:, 2], "-o", color=color, ms=2, lw=1.5,
-                label=f"trajectory {task.name}")
-        ax.scatter(*goal[-1], color=color, marker="x", s=40)
-    start = tasks[0].goal_points_mm[0]
-    ax.scatter(*start, color="k", s=30, label="start point")
-    labels, (elev, azim) = frame_labels(robot) if robot is not None else (
-        ["x [mm] (behind)", "y [mm] (right)", "z [mm] (up)"], (12.0, 180.0))
-    ax.set_xlabel(labels[0])
-    ax.set_ylabel(labels[1])
-    ax.set_zlabel(labels[2])
-    ax.view_init(elev=elev, azim=azim)
-    ax.set_title(f"{title}\nsolid: fingertip, dashed: goal line, x: touch point")
-    ax.legend(loc="upper left", fontsize=7)
-    return fig
+    return matplotlib_pyplot()
 
 
 def plot_shapes(tasks, points_by_id: dict, title: str):

@@ -4,7 +4,9 @@
 Output layout under ``output/<name>/`` (``name`` defaults to the method's name, e.g. ``ours``):
 ``trajectory_<id>.csv``, ``table.csv`` (the Table 1/2 columns), ``details.csv`` (smoothness,
 solver figures, failures), ``run.json`` (method, robot, settings, versions, the files
-written), ``trajectories_3d.png``, ``pointing_error.png`` and ``report.md``.
+written), ``trajectories_3d.png``, ``pointing_error.png``, ``animation.gif`` (the arm playing
+every trajectory, :mod:`ikbench.studies.animation`; ``animation=False`` skips it) and
+``report.md``.
 
 The folder is replaced whole or not at all (:func:`ikbench.core.io.staged_folder`): files
 an earlier run wrote there and this one does not are gone, files it did not write (notes,
@@ -48,6 +50,7 @@ from ikbench.core.trajectory import (
 )
 from ikbench.methods.base import Method
 from ikbench.methods.registry import get_method
+from ikbench.studies.animation import ANIMATION_FILE, write_animation
 from ikbench.studies.harness import Interrupted, Outcome, Progress, solve_tasks
 from ikbench.studies.report import (
     SHAPE_TABLE_COLUMNS,
@@ -68,7 +71,7 @@ TRAJECTORY_FILE = re.compile(r"trajectory_(.+)\.csv")
 #: The files every run folder holds besides its trajectories and figures.
 RUN_FILES = ("table.csv", "details.csv", "run.json", "report.md")
 #: Figures a run may write (older runs' too).
-RUN_FIGURES = ("trajectories_3d.png", "pointing_error.png", "shapes.png")
+RUN_FIGURES = ("trajectories_3d.png", "pointing_error.png", "shapes.png", ANIMATION_FILE)
 
 
 def check_name(name: str) -> str:
@@ -200,7 +203,8 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
         steps: int | None = None, output: str | Path | None = DEFAULT_OUTPUT,
         duration_s: float = DEFAULT_DURATION_S, options: dict | None = None,
         progress: bool = True, shape: str = "line", size_mm: float | None = None,
-        start_pose=None, direction=None, name: str | None = None) -> pd.DataFrame:
+        start_pose=None, direction=None, name: str | None = None,
+        animation: bool = True) -> pd.DataFrame:
     """Solve every selected target with ``method`` and write the results.
 
     Args:
@@ -222,6 +226,8 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
             shape's own, see :func:`ikbench.core.task.build_tasks`).
         name: the run's folder under ``output`` (default: the method's name); letters,
             digits, ``_``, ``-``, ``.``, not one of :data:`RESERVED_NAMES`.
+        animation: write ``animation.gif`` (the arm playing each trajectory; about 1-3 s
+            for NICO's seven trajectories).
 
     Returns:
         The table (one row per trajectory, columns :data:`ikbench.studies.report.TABLE_COLUMNS`,
@@ -237,21 +243,22 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
     solver, robot, targets, tasks = prepare(
         method, robot=robot, targets=targets, only=only, steps=steps, options=options,
         shape=shape, size_mm=size_mm, start_pose=start_pose, direction=direction)
-    record = {"shape": shape, "direction": direction, "duration_s": duration_s}
+    record = {"shape": shape, "direction": direction, "duration_s": duration_s,
+              "size_mm": size_mm}
     if output is None:
         import tempfile
 
         with tempfile.TemporaryDirectory() as tmp:
             return solve_and_write(solver, robot, targets, tasks, Path(tmp) / "run",
-                                   record, progress)
+                                   record, progress, animation=False)
     folder = Path(output) / (name or solver.name)
     check_folder_writable(folder)  # before the solve, not after minutes of it
     return solve_and_write(solver, robot, targets, tasks, folder, {**record, "name": name},
-                           progress)
+                           progress, animation)
 
 
 def solve_and_write(solver: Method, robot: Robot, targets: Targets, tasks, folder: Path,
-                    record: dict, progress: bool = True) -> pd.DataFrame:
+                    record: dict, progress: bool = True, animation: bool = True) -> pd.DataFrame:
     """Solve ``tasks`` through the harness and write the run folder (see the module doc)."""
     import time
 
@@ -265,15 +272,16 @@ def solve_and_write(solver: Method, robot: Robot, targets: Targets, tasks, folde
         outcomes, interrupted = stop.outcomes, True
     table = write_run(solver, robot, targets, outcomes, folder, {
         **record, "name": folder.name, "interrupted": interrupted,
-        "total_wall_time_s": time.perf_counter() - started})
+        "total_wall_time_s": time.perf_counter() - started}, animation)
     if interrupted:
         raise Interrupted(outcomes)
     return table
 
 
 def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Outcome],
-              folder: Path, record: dict) -> pd.DataFrame:
-    """Write a run folder whole (trajectories, tables, run.json, figures, report)."""
+              folder: Path, record: dict, animation: bool = True) -> pd.DataFrame:
+    """Write a run folder whole (trajectories, tables, run.json, figures, animation unless
+    ``animation`` is False, report)."""
     tasks = [o.task for o in outcomes]
     duration_s = record.get("duration_s", DEFAULT_DURATION_S)
     previous = files_written_by(folder)
@@ -291,22 +299,27 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
         solved = [o.task for o in outcomes if o.ok]
         title = f"{solver.name}: {solver.description}"
         figures = []
+        poses = {t.name: read_trajectory_poses(tmp / f"trajectory_{t.name}.csv", robot)
+                 for t in solved}
         if solved and solved[0].curve is None:
             figures = [("trajectories", "trajectories_3d.png",
-                        plot_trajectories_3d(solved, points, title, robot)),
+                        plot_trajectories_3d(solved, points, title, robot, poses)),
                        ("criterion 2", "pointing_error.png",
                         plot_pointing_error(solved, points, title))]
         elif solved:
             figures = [("shapes", "shapes.png", plot_shapes(solved, points, title))]
         for _, file, figure in figures:
             atomic_savefig(tmp / file, figure)
+        if animation and solved:
+            write_animation(tmp / ANIMATION_FILE, robot, solved, poses, title, duration_s)
+            figures.append(("animation: the arm playing each trajectory", ANIMATION_FILE, None))
         files = sorted([*written, *RUN_FILES, *(file for _, file, _ in figures)])
         full = {"method": solver.name, "name": record.get("name") or solver.name,
                 "library": solver.library, "robot": robot_record(robot),
                 "targets": targets.source, "trajectories": [t.name for t in tasks],
                 "failed": [o.task.name for o in outcomes if not o.ok],
                 "steps": tasks[0].steps, "shape": record.get("shape", "line"),
-                "direction": record.get("direction"),
+                "direction": record.get("direction"), "size_mm": record.get("size_mm"),
                 "start_pose_deg": targets.start_pose_deg.tolist(),
                 # weights a task asks for (letters); ours applies --weights changes on top
                 # and details.csv names the weights each trajectory was solved with

@@ -28,7 +28,7 @@ def register(subparsers) -> None:
             "(best loss kept). --method ours-lm solves a letter in a fraction of a second, "
             "starting with every pose at the start pose. Writes "
             "OUTPUT/<method>/trajectory_<letter>.csv, table.csv, details.csv, run.json, "
-            "shapes.png and report.md."),
+            "shapes.png, animation.gif (unless --no-animation) and report.md."),
     )
     parser.add_argument("letters", help="letters A-Z, comma-separated, e.g. P or P,A,S "
                         "(lower case is drawn upper case)")

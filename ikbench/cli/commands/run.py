@@ -23,8 +23,9 @@ def register(subparsers) -> None:
             "method's name), trajectory_<id>.csv (poses in the robot's units), table.csv "
             "(line distance [mm], pointing deviation [deg], start/end errors; for other shapes "
             "the distance from the target curve), details.csv, run.json (robot, settings, "
-            "versions), figures and report.md. The folder is replaced whole: files an earlier "
-            "run wrote there and this one does not are removed, other files are kept. A "
+            "versions), figures, animation.gif (the arm playing each trajectory; "
+            "--no-animation skips it) and report.md. The folder is replaced whole: files an "
+            "earlier run wrote there and this one does not are removed, other files are kept. A "
             "failed solve is reported as a row (exit code 1); Ctrl-C keeps the trajectories "
             "solved so far. Methods: " + "; ".join(f"{name}: {cls.description}"
                                                    for name, cls in methods.items())
@@ -83,6 +84,9 @@ def add_run_arguments(parser, methods: dict, default_output: str) -> None:
                         "ikbench reproduce writes results/)")
     parser.add_argument("--duration", type=float, default=2.0,
                         help="movement duration T [s] for the time_s column (default 2)")
+    parser.add_argument("--no-animation", action="store_true",
+                        help="do not write animation.gif (the arm playing each trajectory; "
+                        "1-3 s for seven trajectories)")
     add_threads_and_quiet(parser)
     add_method_options(parser, methods)
 
@@ -134,10 +138,10 @@ def run(args, shape: str | None = None, fixed: dict | None = None) -> int:
         print(note, file=sys.stderr)
     set_threads(args.threads)
     record = {"shape": shape, "direction": args.direction, "duration_s": args.duration,
-              "name": name}
+              "name": name, "size_mm": args.size}
     try:
         table = solve_and_write(solver, robot, targets, tasks, folder, record,
-                                progress=not args.quiet)
+                                progress=not args.quiet, animation=not args.no_animation)
     except Interrupted as stop:
         if stop.outcomes:
             print(f"ikbench: interrupted: {folder}/ holds the {len(stop.outcomes)} "

@@ -1,0 +1,51 @@
+"""``ikbench export``: a trajectory for ROS controllers and MoveIt, in URDF units."""
+
+from __future__ import annotations
+
+HELP = "write a trajectory as a ROS JointTrajectory (JSON/YAML) or a CSV in URDF radians"
+DEFAULT_DURATION_S = 2.0
+
+
+def register(subparsers) -> None:
+    from ikbench.viewer.export import FORMATS
+
+    parser = subparsers.add_parser(
+        "export", help=HELP,
+        description=(
+            "Convert a trajectory CSV (poses in the robot's units: motor degrees for NICO) to "
+            "URDF joint values through the robot's motor map (radians; metres for prismatic "
+            "joints) and write it as a trajectory_msgs/JointTrajectory (positions, velocities "
+            "by central differences with zero at both ends, time_from_start as sec/nanosec, "
+            "T/n apart) in JSON or YAML, or as a CSV step,time_s,<joints>. See "
+            "docs/viewer.md."),
+    )
+    parser.add_argument("trajectory", metavar="TRAJ.csv",
+                        help="trajectory CSV as ikbench writes it (trajectory_<id>.csv)")
+    parser.add_argument("--format", required=True, choices=list(FORMATS),
+                        help="; ".join(f"{k}: {v}" for k, v in FORMATS.items()))
+    parser.add_argument("--duration", type=float, default=DEFAULT_DURATION_S, metavar="T",
+                        help=f"duration of the whole movement in seconds (default "
+                        f"{DEFAULT_DURATION_S:g}, as ikbench plan and execute); a note says "
+                        "when the CSV's time_s column ends elsewhere")
+    parser.add_argument("--output", required=True, metavar="FILE",
+                        help="file to write (replaced atomically)")
+    from ikbench.cli.options import add_robot_arguments
+
+    add_robot_arguments(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import sys
+
+    from ikbench.cli.options import robot_from_args
+    from ikbench.viewer.export import export_trajectory
+
+    robot = robot_from_args(args)
+    path, note = export_trajectory(args.trajectory, args.format, args.output, robot,
+                                   args.duration)
+    if note:
+        print(note, file=sys.stderr)
+    print(f"{args.format} written to {path} ({robot.dof} joints: "
+          f"{', '.join(robot.joint_names)}; URDF units)")
+    return 0

@@ -1,0 +1,168 @@
+"""The arm playing a run's trajectories: one animated GIF per run folder (``animation.gif``).
+
+One small 3-D panel per trajectory, all on the same clock: the arm skeleton
+(:meth:`ikbench.core.robot.Robot.skeleton_mm`), the goal path (dashed black, whole), the
+fingertip's path so far (the trajectory's colour, as in ``trajectories_3d.png``) and the
+current goal point (hollow circle). Every panel has the same limits and the robot config's
+view. The GIF plays at the trajectory's real speed: frames are ``stride`` steps apart
+(at most ``max_frames`` frames), each shown ``stride * T / n`` seconds, GIF delays rounded to
+10 ms; the first frame is held 0.5 s and the last 1 s before it loops.
+
+Cheap by construction: the axes, panes, ticks and goal paths are drawn once; each frame
+restores that background and draws only the moving lines (matplotlib blitting on the Agg
+canvas), and Pillow writes the frames with one shared palette.
+"""
+
+from __future__ import annotations
+
+import math
+import textwrap
+from pathlib import Path
+
+import numpy as np
+
+from ikbench.core.io import atomic_path
+from ikbench.studies.arm_plots import (
+    GOAL_STYLE,
+    frame_labels,
+    matplotlib_pyplot,
+    style_axes_3d,
+    task_colors,
+)
+
+#: File name of a run folder's animation.
+ANIMATION_FILE = "animation.gif"
+#: The most frames of one GIF (a 50-step trajectory plays every second step).
+MAX_FRAMES = 26
+HOLD_FIRST_S, HOLD_LAST_S = 0.5, 1.0
+#: Colours in the GIF's shared palette.
+PALETTE_COLORS = 96
+
+
+def frame_steps(steps: int, max_frames: int = MAX_FRAMES) -> tuple[np.ndarray, int]:
+    """The steps shown (the first and last always) and the stride between them.
+
+    Args:
+        steps: number of segments n of the longest trajectory.
+        max_frames: the most frames.
+    """
+    stride = max(1, math.ceil(steps / max(max_frames - 1, 1)))
+    shown = np.arange(0, steps + 1, stride)
+    return (shown if shown[-1] == steps else np.append(shown, steps)), stride
+
+
+def _grid(count: int) -> tuple[int, int]:
+    cols = count if count <= 4 else math.ceil(count / 2) if count <= 8 else 4
+    return math.ceil(count / cols), cols
+
+
+def _goal_paths(task) -> list[np.ndarray]:
+    """The goal path as polylines [mm]: a curve's strokes (pen-up moves left out), else the
+    goal points."""
+    if task.curve is not None:
+        return list(task.curve.strokes_mm)
+    return [task.goal_points_mm]
+
+
+class _Panel:
+    """The moving artists of one trajectory's panel."""
+
+    def __init__(self, ax, task, poses, robot, color):
+        self.task, self.arms = task, robot.skeleton_mm(poses)  # (n+1, dof+2, 3)
+        self.tip = self.arms[:, -1]
+        (self.path,) = ax.plot([], [], [], "-", color=color, lw=2.4, zorder=2, animated=True)
+        self.goals = [ax.plot(*path.T, **GOAL_STYLE, zorder=2, animated=True)[0]
+                      for path in _goal_paths(task)]
+        (self.arm,) = ax.plot([], [], [], "-o", color="0.2", lw=2.6, ms=3, zorder=3,
+                              animated=True)
+        (self.goal,) = ax.plot([], [], [], "o", mfc="none", mec="k", ms=5, zorder=4,
+                               animated=True)
+        self.ax = ax
+
+    def draw(self, t_s: float, dt_s: float) -> None:
+        k = min(int(round(t_s / dt_s)), len(self.tip) - 1) if dt_s > 0 else 0
+        self.path.set_data_3d(*self.tip[:k + 1].T)
+        self.arm.set_data_3d(*self.arms[k].T)
+        goal = self.task.goal_points_mm[min(k, len(self.task.goal_points_mm) - 1)]
+        self.goal.set_data_3d([goal[0]], [goal[1]], [goal[2]])
+        for artist in (self.path, *self.goals, self.arm, self.goal):  # goal over the path
+            self.ax.draw_artist(artist)
+
+
+def render_frames(robot, tasks, poses_by_id: dict, title: str, duration_s: float,
+                  max_frames: int = MAX_FRAMES, dpi: int = 80):
+    """Frames (RGB uint8 arrays) and their durations [ms] of the run's animation.
+
+    Args:
+        robot: the robot (skeleton, labels, view).
+        tasks: the solved tasks, one panel each.
+        poses_by_id: trajectory id -> (n+1, dof) poses [pose units].
+        title: the run's title (first line of the figure).
+        duration_s: T [s] of every trajectory (poses T/n apart).
+        max_frames: the most frames.
+        dpi: pixels per inch of the frames.
+    """
+    plt = matplotlib_pyplot()
+    rows, cols = _grid(len(tasks))
+    panel_in = 2.7 if len(tasks) > 2 else 3.6
+    height_in = rows * (panel_in + 0.2) + 0.4
+    fig = plt.figure(figsize=(cols * panel_in, height_in), dpi=dpi)
+    fig.subplots_adjust(left=0.0, right=0.97, bottom=0.25 / height_in,
+                        top=1 - 0.45 / height_in, wspace=0.05, hspace=0.2)
+    panels = []
+    for k, (task, color) in enumerate(zip(tasks, task_colors(len(tasks)))):
+        ax = fig.add_subplot(rows, cols, k + 1, projection="3d")
+        ax.computed_zorder = False
+        panels.append(_Panel(ax, task, poses_by_id[task.name], robot, color))
+    fit = np.vstack([p.arms.reshape(-1, 3) for p in panels]
+                    + [g for t in tasks for g in _goal_paths(t)])
+    for panel in panels:
+        style_axes_3d(panel.ax, fit, robot, fontsize=6, nbins=3, zoom=1.0)
+        panel.ax.set(xlabel="", ylabel="", zlabel="")  # named once, in the caption
+        for axis in (panel.ax.xaxis, panel.ax.yaxis, panel.ax.zaxis):
+            axis.set_pane_color((1.0, 1.0, 1.0, 0.0))  # white: fewer colours, smaller GIF
+        panel.ax.set_title(f"trajectory {panel.task.name}", fontsize=8, pad=-6)
+    labels, _ = frame_labels(robot)
+    fig.suptitle(f"{textwrap.shorten(title, 70)}\n{', '.join(labels)}; dashed: goal path, "
+                 "o: current goal point", fontsize=7, x=0.01, ha="left", y=0.995)
+    clock = fig.text(0.99, 0.995, "", fontsize=8, ha="right", va="top", animated=True)
+    steps = max(len(p.tip) - 1 for p in panels)
+    shown, stride = frame_steps(steps, max_frames)
+    dt_s = duration_s / steps
+    fig.canvas.draw()
+    background = fig.canvas.copy_from_bbox(fig.bbox)
+    frames = []
+    for step in shown:
+        fig.canvas.restore_region(background)
+        for panel in panels:
+            panel.draw(step * dt_s, dt_s)
+        clock.set_text(f"t = {step * dt_s:.2f} s / {duration_s:g} s (step {step} / {steps})")
+        fig.draw_artist(clock)
+        frames.append(np.asarray(fig.canvas.buffer_rgba())[..., :3].copy())
+    plt.close(fig)
+    frame_ms = max(10, int(round(stride * dt_s * 100)) * 10)
+    durations = [frame_ms] * len(frames)
+    durations[0] += int(HOLD_FIRST_S * 1000)
+    durations[-1] += int(HOLD_LAST_S * 1000)
+    return frames, durations
+
+
+def save_gif(path, frames, durations) -> Path:
+    """Write frames (RGB arrays) as a looping GIF atomically, one palette for all frames."""
+    from PIL import Image
+
+    images = [Image.fromarray(f) for f in frames]
+    sample = np.vstack([frames[0], frames[len(frames) // 2], frames[-1]])
+    palette = Image.fromarray(sample).quantize(PALETTE_COLORS, method=Image.Quantize.FASTOCTREE)
+    quantized = [im.quantize(palette=palette, dither=Image.Dither.NONE) for im in images]
+    with atomic_path(path) as tmp:
+        quantized[0].save(tmp, format="GIF", save_all=True, append_images=quantized[1:],
+                          duration=durations, loop=0)
+    return Path(path)
+
+
+def write_animation(path, robot, tasks, poses_by_id: dict, title: str,
+                    duration_s: float) -> Path:
+    """Render the run's animation (see the module doc) and write it to ``path`` (GIF)."""
+    frames, durations = render_frames(robot, tasks, poses_by_id, title, duration_s)
+    return save_gif(path, frames, durations)

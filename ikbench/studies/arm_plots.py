@@ -1,0 +1,134 @@
+"""3-D figures of trajectories with the arm drawn: the run's overview and shared axes styling.
+
+The arm is its skeleton (:meth:`ikbench.core.robot.Robot.skeleton_mm`): lines from the base
+through every joint's origin to the end frame. Every 3-D figure here is drawn with one scale
+on all three axes, a few readable millimetre ticks and the robot config's view (``[frame]
+view``: elevation and azimuth, chosen to show depth), so a line that looks straight is.
+"""
+
+from __future__ import annotations
+
+import textwrap
+
+import numpy as np
+
+#: View (elevation, azimuth) [deg] of robots whose config names none: from the front-right,
+#: above, for a base frame with x forward, y left, z up (matplotlib's default azimuth).
+DEFAULT_VIEW = (22.0, -60.0)
+#: Axis labels of robots whose config names none.
+DEFAULT_LABELS = ("x [mm]", "y [mm]", "z [mm]")
+GOAL_STYLE = {"color": "k", "linestyle": (0, (4, 3)), "lw": 0.9}
+
+
+def matplotlib_pyplot():
+    """``matplotlib.pyplot`` on the Agg backend (no display needed)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def frame_labels(robot=None) -> tuple[list[str], tuple[float, float]]:
+    """Axis labels and (elevation, azimuth) [deg] of 3-D figures from the robot config's
+    ``[frame]`` (NICO: the torso frame seen from the front-right, above), else plain
+    x/y/z [mm] and :data:`DEFAULT_VIEW`."""
+    section = (robot.config.get("frame") if robot is not None else None) or {}
+    labels = section.get("axis_labels", list(DEFAULT_LABELS))
+    view = section.get("view", DEFAULT_VIEW)
+    return list(labels), (float(view[0]), float(view[1]))
+
+
+def task_colors(count: int) -> list:
+    """One tab10 colour per trajectory, in order (repeating after ten)."""
+    plt = matplotlib_pyplot()
+    return [plt.get_cmap("tab10")(k % 10) for k in range(count)]
+
+
+def style_axes_3d(ax, points_mm: np.ndarray, robot=None, *, fontsize: float = 8.0,
+                  nbins: int = 4, zoom: float = 1.0) -> None:
+    """Cube limits around ``points_mm`` (N, 3) (one scale on every axis), at most ``nbins``
+    ticks per axis in whole mm, the robot's axis labels and view.
+
+    Args:
+        ax: a matplotlib ``Axes3D``.
+        points_mm: everything drawn [mm], to fit.
+        robot: the robot (labels and view from its config; None: plain x/y/z).
+        fontsize: tick and label size [pt].
+        nbins: the most ticks per axis.
+        zoom: ``set_box_aspect`` zoom (1: matplotlib's).
+    """
+    from matplotlib.ticker import MaxNLocator
+
+    labels, (elev, azim) = frame_labels(robot)
+    lo, hi = points_mm.min(axis=0), points_mm.max(axis=0)
+    centre, half = (lo + hi) / 2, max(float(np.max(hi - lo)) / 2, 10.0) * 1.04
+    for k, axis in enumerate((ax.xaxis, ax.yaxis, ax.zaxis)):
+        getattr(ax, f"set_{'xyz'[k]}lim")(centre[k] - half, centre[k] + half)
+        axis.set_major_locator(MaxNLocator(nbins=nbins, steps=[1, 2, 2.5, 5, 10]))
+    ax.set_box_aspect((1, 1, 1), zoom=zoom)
+    ax.tick_params(labelsize=fontsize, pad=0)
+    for setter, label in zip((ax.set_xlabel, ax.set_ylabel, ax.set_zlabel), labels):
+        setter(label, fontsize=fontsize, labelpad=1)
+    ax.view_init(elev=elev, azim=azim)
+
+
+def plot_trajectories_3d(tasks, points_by_id: dict, title: str, robot=None,
+                         poses_by_id: dict | None = None):
+    """The paper's Fig. 1, readable: fingertip paths over their goal lines, with the arm.
+
+    Each trajectory has its colour: the fingertip path solid and thick, the goal line dashed
+    black on top of it (both show where they coincide), the touch point an X; the start
+    point is a black dot. With ``robot`` and ``poses_by_id`` the arm is drawn faintly at the
+    first pose (grey; once per distinct first pose) and at each last pose (the trajectory's
+    colour), and the base origin is marked.
+
+    Args:
+        tasks: the tasks (goal points [mm]).
+        points_by_id: trajectory id -> (n+1, 3) fingertip points [mm].
+        title: figure title.
+        robot: the robot (axis labels, view, skeleton); None: plain axes, no arm.
+        poses_by_id: trajectory id -> (n+1, dof) poses [pose units], for the arm.
+    """
+    plt = matplotlib_pyplot()
+    fig = plt.figure(figsize=(8.6, 6.4))
+    ax = fig.add_subplot(projection="3d")
+    ax.computed_zorder = False  # draw in zorder: goal dashes over paths, arms beneath
+    fig.subplots_adjust(left=0.0, right=0.76, bottom=0.05, top=0.93)
+    drawn: list[np.ndarray] = []
+    firsts: list[np.ndarray] = []
+    for task, color in zip(tasks, task_colors(len(tasks))):
+        points, goal = points_by_id[task.name], task.goal_points_mm
+        if robot is not None and poses_by_id is not None:
+            poses = poses_by_id[task.name]
+            arms = robot.skeleton_mm(poses[[0, -1]])
+            if not any(np.allclose(arms[0], seen, atol=1e-3) for seen in firsts):
+                ax.plot(*arms[0].T, "-o", color="0.4", lw=2.4, ms=3, alpha=0.35, zorder=1,
+                        label=None if firsts else "arm at the first pose")
+                firsts.append(arms[0])
+            ax.plot(*arms[1].T, "-o", color=color, lw=2.0, ms=2.5, alpha=0.3, zorder=1)
+            drawn.append(arms.reshape(-1, 3))
+        ax.plot(*points.T, "-", color=color, lw=2.6, zorder=2, label=f"trajectory {task.name}")
+        ax.plot(*goal.T, **GOAL_STYLE, zorder=3)
+        ax.scatter(*goal[-1], marker="X", s=60, color=color, edgecolors="k", linewidths=0.6,
+                   zorder=4, depthshade=False)
+        drawn += [points, goal]
+    ax.scatter(*tasks[0].goal_points_mm[0], marker="o", s=22, color="k", zorder=4,
+               depthshade=False, label="start point")
+    ax.plot([], [], **GOAL_STYLE, label="goal line")
+    ax.scatter([], [], marker="X", s=60, color="w", edgecolors="k", label="touch point")
+    if firsts:
+        ax.scatter(0, 0, 0, marker="s", s=20, color="0.3", zorder=4, depthshade=False,
+                   label=f"base origin ({robot.root_link})")
+        ax.plot([], [], "-o", color="0.5", lw=2.0, ms=2.5, alpha=0.35,
+                label="arm at the last pose")
+        drawn.append(np.zeros((1, 3)))
+    style_axes_3d(ax, np.vstack(drawn), robot, zoom=1.05)
+    fig.suptitle(textwrap.fill(title, 100), fontsize=10, x=0.02, ha="left")
+    fig.legend(*ax.get_legend_handles_labels(), loc="center left", bbox_to_anchor=(0.77, 0.5),
+               fontsize=8, frameon=False)
+    fig.text(0.01, 0.012, "solid: fingertip path; dashed: goal line; X: touch point; faint: "
+             "the arm (base, joint origins, end frame) at the first and last poses",
+             fontsize=7.5, color="0.25")
+    return fig

@@ -1,0 +1,191 @@
+"""Trajectories for other tools: ROS ``trajectory_msgs/JointTrajectory`` and CSV in URDF units.
+
+ROS controllers and MoveIt take joint values in the URDF's units, so positions are the
+robot's poses through :meth:`ikbench.core.robot.Robot.to_urdf` (the motor map for NICO):
+radians for revolute and continuous joints, metres for prismatic ones. The message, as a
+plain dict with ROS 2 field names (what ``ros2 topic pub`` takes as YAML)::
+
+    header: {stamp: {sec: 0, nanosec: 0}, frame_id: ""}
+    joint_names: [r_shoulder_z, ...]          # the robot's chain, base to end
+    points:
+      - positions: [...]                      # rad (m for prismatic joints)
+        velocities: [...]                     # rad/s (m/s)
+        accelerations: []
+        effort: []
+        time_from_start: {sec: 0, nanosec: 40000000}
+
+Point i is at ``i * T / n`` (T = ``duration_s``, n + 1 points), computed in whole
+nanoseconds (``round(i * T_ns / n)``) and split into ``sec`` and ``0 <= nanosec < 1e9``, so no
+float rounding leaks into them (4.35 s is ``{4, 350000000}``).
+
+**Velocities**: central differences ``(q[i+1] - q[i-1]) / (2 T/n)`` at the inner points and
+zero at the first and last point. Given positions and velocities, ROS's
+joint_trajectory_controller interpolates each segment with a cubic through both, so central
+differences make the segments join smoothly; the arm starts at rest and must stop at the
+touch, and since ROS 2 Jazzy the controller refuses a non-zero final velocity unless
+``allow_nonzero_velocity_at_trajectory_end`` is set. ``end_velocities="one-sided"`` gives the
+ends one-sided differences instead (for a piece of a longer motion).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from ikbench.core.errors import InputError
+from ikbench.core.io import atomic_write_text
+
+NS_PER_S = 1_000_000_000
+#: ``ikbench export --format`` -> what it writes.
+FORMATS = {"ros-json": "JointTrajectory as JSON", "ros-yaml": "JointTrajectory as YAML",
+           "csv-rad": "step,time_s,<joints> in URDF units (rad; m for prismatic joints)"}
+
+
+def sample_times_ns(count: int, duration_s: float) -> list[int]:
+    """Whole-nanosecond times of ``count`` points evenly spread over ``duration_s`` [s]."""
+    if not (np.isfinite(duration_s) and duration_s > 0):
+        raise InputError(f"--duration: {duration_s!r} must be a positive number of seconds")
+    total, n = int(round(duration_s * NS_PER_S)), count - 1
+    return [(2 * i * total + n) // (2 * n) for i in range(count)]  # round half up
+
+
+def split_ns(total_ns: int) -> dict[str, int]:
+    """``builtin_interfaces/Duration`` of whole nanoseconds: ``{"sec", "nanosec"}``."""
+    sec, nanosec = divmod(int(total_ns), NS_PER_S)
+    return {"sec": int(sec), "nanosec": int(nanosec)}
+
+
+def velocities(q: np.ndarray, dt_s: float,
+               end_velocities: Literal["zero", "one-sided"] = "zero") -> np.ndarray:
+    """(n+1, dof) velocities [unit of q / s]: central differences inside, ends per
+    ``end_velocities`` (see the module doc)."""
+    v = np.zeros_like(q)
+    v[1:-1] = (q[2:] - q[:-2]) / (2.0 * dt_s)
+    if end_velocities == "one-sided":
+        v[0], v[-1] = (q[1] - q[0]) / dt_s, (q[-1] - q[-2]) / dt_s
+    elif end_velocities != "zero":
+        raise InputError(f"end_velocities: {end_velocities!r} is not one of zero, one-sided")
+    return v
+
+
+def joint_trajectory(robot, poses, duration_s: float,
+                     end_velocities: Literal["zero", "one-sided"] = "zero") -> dict[str, Any]:
+    """The ``JointTrajectory`` (a dict, see the module doc) of poses (n+1, dof) [pose units]
+    played in ``duration_s`` [s]."""
+    poses = robot.check_poses(poses, "poses")
+    if poses.ndim != 2 or len(poses) < 2 or not np.all(np.isfinite(poses)):
+        raise InputError(f"a trajectory needs at least 2 poses of finite numbers, got an array "
+                         f"of shape {poses.shape}")
+    q_urdf = np.asarray(robot.to_urdf(poses), dtype=float)
+    times = sample_times_ns(len(q_urdf), duration_s)
+    v = velocities(q_urdf, duration_s / (len(q_urdf) - 1), end_velocities)
+    points = [{"positions": q.tolist(), "velocities": dq.tolist(), "accelerations": [],
+               "effort": [], "time_from_start": split_ns(t)}
+              for q, dq, t in zip(q_urdf, v, times)]
+    return {"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""},
+            "joint_names": list(robot.joint_names), "points": points}
+
+
+def from_joint_trajectory(message: dict) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """``(joint_names, q (n+1, dof) [URDF units], times_s (n+1,))`` of a JointTrajectory."""
+    try:
+        names = [str(n) for n in message["joint_names"]]
+        points = message["points"]
+        q = np.array([p["positions"] for p in points], dtype=float).reshape(-1, len(names))
+        times = np.array([p["time_from_start"]["sec"] + p["time_from_start"]["nanosec"]
+                          / NS_PER_S for p in points], dtype=float)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"not a JointTrajectory: {exc!r}") from None
+    return names, q, times
+
+
+def to_poses(robot, joint_names, q_urdf) -> np.ndarray:
+    """Joint values [URDF units] in any column order -> poses (n+1, dof) [pose units]."""
+    missing = [n for n in robot.joint_names if n not in joint_names]
+    if missing:
+        raise InputError(f"joints {', '.join(missing)} of robot {robot.name} are missing; "
+                         f"given: {', '.join(joint_names)}")
+    columns = [list(joint_names).index(n) for n in robot.joint_names]
+    return np.asarray(robot.from_urdf(np.asarray(q_urdf, dtype=float)[:, columns]))
+
+
+def json_text(message: dict) -> str:
+    """JSON of a message (floats in their shortest round-trip form)."""
+    return json.dumps(message, indent=1) + "\n"
+
+
+def yaml_text(message: dict) -> str:
+    """YAML of a message, what ``ros2 topic pub TOPIC trajectory_msgs/msg/JointTrajectory``
+    takes (PyYAML writes floats in their round-trip form)."""
+    import yaml
+
+    return yaml.safe_dump(message, sort_keys=False, default_flow_style=None, width=120)
+
+
+def csv_rad_text(robot, poses, duration_s: float) -> str:
+    """``step,time_s,<joint names>`` with the joints in URDF units (rad; m for prismatic)."""
+    message = joint_trajectory(robot, poses, duration_s)
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["step", "time_s", *robot.joint_names])
+    for i, point in enumerate(message["points"]):
+        t = point["time_from_start"]
+        writer.writerow([i, repr(t["sec"] + t["nanosec"] / NS_PER_S),
+                         *(repr(float(x)) for x in point["positions"])])
+    return out.getvalue()
+
+
+def read_export(path, fmt: str) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """``(joint_names, q [URDF units], times_s)`` of a file :func:`export_trajectory` wrote."""
+    text = Path(path).read_text(encoding="utf-8")
+    if fmt == "ros-json":
+        return from_joint_trajectory(json.loads(text))
+    if fmt == "ros-yaml":
+        import yaml
+
+        return from_joint_trajectory(yaml.safe_load(text))
+    rows = list(csv.reader(io.StringIO(text)))
+    if rows[0][:2] != ["step", "time_s"]:
+        raise InputError(f"{path}: expected a header step,time_s,<joints>, got {rows[0][:2]}")
+    values = np.array([[float(x) for x in row] for row in rows[1:]], dtype=float)
+    return rows[0][2:], values[:, 2:], values[:, 1]
+
+
+def export_trajectory(trajectory_csv, fmt: str, output, robot,
+                      duration_s: float) -> tuple[Path, str | None]:
+    """Write a trajectory CSV [pose units] as ``fmt`` (:data:`FORMATS`) to ``output``
+    atomically, played in ``duration_s`` [s].
+
+    Returns:
+        (output path, a note when the CSV's ``time_s`` column ends at another time than
+        ``duration_s``, else None), as ``ikbench plan`` notes it.
+    """
+    from ikbench.core.io import check_writable
+    from ikbench.core.trajectory import read_trajectory_csv
+
+    if fmt not in FORMATS:
+        raise InputError(f"--format: {fmt!r} is not one of {', '.join(FORMATS)}")
+    sample_times_ns(2, duration_s)  # checks the duration
+    frame = read_trajectory_csv(trajectory_csv, robot)
+    poses = frame[list(robot.joint_names)].to_numpy(dtype=float)
+    check_writable(output)
+    if fmt == "csv-rad":
+        text = csv_rad_text(robot, poses, duration_s)
+    else:
+        message = joint_trajectory(robot, poses, duration_s)
+        text = json_text(message) if fmt == "ros-json" else yaml_text(message)
+    path = atomic_write_text(output, text)
+    note = None
+    if "time_s" in frame:
+        import pandas as pd
+
+        end = float(pd.to_numeric(frame["time_s"], errors="coerce").iloc[-1])
+        if np.isfinite(end) and abs(end - duration_s) > 1e-6:
+            note = (f"note: the trajectory's time_s column ends at {end:g} s; exported over "
+                    f"{duration_s:g} s (--duration)")
+    return path, note

@@ -1,0 +1,189 @@
+"""Run folders read back for the viewer: robot, trajectories, fingertip and goal paths.
+
+A run folder is what ``ikbench run`` (or ``letters``, ``compare``) writes: ``run.json`` names
+the robot (:func:`ikbench.studies.run.robot_from_record`) and the trajectories;
+``trajectory_<id>.csv`` holds the poses and ``time_s``. Fingertip paths are recomputed from
+the poses (FK). Goal paths are rebuilt from run.json where it allows: line tasks from the
+recorded targets, start pose and n (as ``ikbench report`` does), other shapes from the
+recorded shape, start pose, n, direction and letter size; when that fails (e.g. the targets
+file is not found from here) a line run falls back to the straight line between each
+trajectory's first and last fingertip points, and another shape shows no goal.
+:attr:`ViewRun.goal_source` says which.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ikbench.core.errors import InputError
+from ikbench.core.robot import Robot
+
+
+@dataclass
+class ViewTrajectory:
+    """One trajectory of a run, ready to draw.
+
+    Attributes:
+        name: trajectory id (``"1"``, ``"P"``).
+        poses: (n+1, dof) poses [pose units].
+        duration_s: time of the last pose [s] (the CSV's ``time_s``); poses evenly apart.
+        tip_mm: (n+1, 3) fingertip points [mm], base frame.
+        goal_mm: (n+1, 3) goal points [mm] or None.
+        goal_segments_mm: (S, 2, 3) the goal path's drawn segments [mm] (pen-up moves left
+            out) or None.
+    """
+
+    name: str
+    poses: np.ndarray
+    duration_s: float
+    tip_mm: np.ndarray
+    goal_mm: np.ndarray | None = None
+    goal_segments_mm: np.ndarray | None = None
+
+    @property
+    def steps(self) -> int:
+        """Number of segments n."""
+        return len(self.poses) - 1
+
+    def index_at(self, t_s: float) -> int:
+        """The pose shown at time ``t_s`` [s]: the nearest, held after the end."""
+        if self.duration_s <= 0:
+            return 0
+        return int(min(round(t_s * self.steps / self.duration_s), self.steps))
+
+
+@dataclass
+class ViewRun:
+    """A run folder read back: its label (folder name, and the method when it differs),
+    trajectories by id (run.json's order) and where its goal paths come from."""
+
+    folder: Path
+    label: str
+    trajectories: dict[str, ViewTrajectory]
+    goal_source: str
+
+
+def check_folders(folders) -> list[Path]:
+    """The folders as Paths; InputError for one that is not a run folder (cheap, no imports)."""
+    paths = [Path(f) for f in folders]
+    if not paths:
+        raise InputError("view: give at least one run folder (e.g. results/ours)")
+    for path in paths:
+        if not (path / "run.json").is_file():
+            what = "does not exist" if not path.exists() else "has no run.json"
+            raise InputError(f"view: {str(path)!r} {what}; give folders written by ikbench "
+                             "run (OUTPUT/NAME/ with run.json and trajectory_<id>.csv)")
+    return paths
+
+
+def _record(folder: Path) -> dict:
+    try:
+        record = json.loads((folder / "run.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise InputError(f"view: cannot read {folder / 'run.json'}: {exc}") from None
+    if not isinstance(record, dict) or not isinstance(record.get("trajectories"), list):
+        raise InputError(f"view: {folder / 'run.json'} names no trajectories")
+    return record
+
+
+def _same_robot(a: Robot, b: Robot) -> bool:
+    return (a.urdf_sha256, a.joint_names, a.root_link, a.end_frame) == (
+        b.urdf_sha256, b.joint_names, b.root_link, b.end_frame)
+
+
+def load_runs(folders) -> tuple[Robot, list[ViewRun]]:
+    """The shared robot and every folder's run.
+
+    Raises:
+        InputError: a folder is not a run folder, holds no readable trajectory, or the runs
+            do not share the robot.
+    """
+    from ikbench.studies.run import robot_from_record
+
+    paths = check_folders(folders)
+    robot, runs = None, []
+    for path in paths:
+        record = _record(path)
+        own = robot_from_record(record)
+        if robot is None:
+            robot = own
+        elif not _same_robot(robot, own):
+            raise InputError(f"view: {paths[0]} is a run of robot {robot.name} but {path} of "
+                             f"{own.name} ({own.urdf_path.name}, {own.root_link} -> "
+                             f"{own.end_frame}); the runs shown together must share the robot")
+        runs.append(_load_run(path, record, own))
+    assert robot is not None
+    labels = [r.label for r in runs]
+    for run in runs:  # e.g. results/letters/ours and results/letters/c0-100/ours
+        if labels.count(run.label) > 1:
+            run.label = f"{run.folder.parent.name}/{run.label}"
+    return robot, runs
+
+
+def _load_run(folder: Path, record: dict, robot: Robot) -> ViewRun:
+    from ikbench.core.trajectory import read_trajectory_csv
+
+    trajectories = {}
+    for tid in map(str, record["trajectories"]):
+        file = folder / f"trajectory_{tid}.csv"
+        if not file.is_file():  # a failed solve writes no trajectory
+            continue
+        frame = read_trajectory_csv(file, robot)
+        poses = frame[list(robot.joint_names)].to_numpy(dtype=float)
+        duration = float(frame["time_s"].iloc[-1]) if "time_s" in frame else float(
+            record.get("duration_s") or 2.0)
+        trajectories[tid] = ViewTrajectory(tid, poses, duration, robot.fk(poses).point_mm)
+    if not trajectories:
+        raise InputError(f"view: {folder} holds no trajectory CSV of run.json's trajectories "
+                         f"({', '.join(map(str, record['trajectories'])) or 'none'})")
+    source = _add_goals(robot, record, trajectories)
+    method, name = str(record.get("method", folder.name)), folder.name
+    return ViewRun(folder, name if method == name else f"{name} ({method})", trajectories,
+                   source)
+
+
+def _add_goals(robot: Robot, record: dict, trajectories: dict) -> str:
+    """Set each trajectory's goal path; return where it came from."""
+    shape = str(record.get("shape") or "line")
+    try:
+        tasks = {t.name: t for t in _tasks(robot, record, list(trajectories))}
+    except (InputError, OSError, KeyError, TypeError, ValueError) as exc:
+        if shape != "line":
+            return f"no goal path: shape {shape} could not be rebuilt ({exc})"
+        for traj in trajectories.values():
+            goal = np.linspace(traj.tip_mm[0], traj.tip_mm[-1], traj.steps + 1)
+            traj.goal_mm, traj.goal_segments_mm = goal, np.stack([goal[:-1], goal[1:]], 1)
+        return ("goal: the straight line between each trajectory's first and last fingertip "
+                f"points (the tasks could not be rebuilt: {exc})")
+    for tid, traj in trajectories.items():
+        task = tasks[tid]
+        goal, down = task.goal_points_mm, np.asarray(task.pen_down, dtype=bool)
+        keep = down[:-1] & down[1:]
+        traj.goal_mm, traj.goal_segments_mm = goal, np.stack([goal[:-1], goal[1:]], 1)[keep]
+    size = "" if shape.split(":")[0] != "letter" or "size_mm" in record else (
+        "; letter size not recorded, the default 300 mm assumed")
+    return f"goal: rebuilt from run.json (shape {shape}, targets {record.get('targets')}{size})"
+
+
+def _tasks(robot: Robot, record: dict, ids: list[str]):
+    """The run's tasks, rebuilt from run.json (see the module doc)."""
+    from ikbench.core.targets import load_targets
+    from ikbench.core.task import build_tasks
+
+    shape = str(record.get("shape") or "line")
+    targets = load_targets(record.get("targets"), robot)
+    start = record.get("start_pose_deg")
+    if start:
+        targets = replace(targets, start_pose_deg=np.asarray(start, dtype=float))
+    if shape == "line":
+        targets = targets.select(ids)
+    tasks = build_tasks(robot, targets, shape, int(record["steps"]), record.get("size_mm"),
+                        record.get("direction"))
+    missing = [i for i in ids if i not in {t.name for t in tasks}]
+    if missing:
+        raise InputError(f"trajectories {', '.join(missing)} are not tasks of the targets")
+    return tasks

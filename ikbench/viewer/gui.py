@@ -1,0 +1,80 @@
+"""The viewer's panel: trajectory dropdown, playback controls, run legend and checkboxes.
+
+Assigning a handle's ``value`` on the server runs its ``on_update`` callbacks in the
+assigning thread, so the playback thread moves the slider and the slider poses the arms.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import viser
+
+from ikbench.viewer import scene as sc
+
+if TYPE_CHECKING:
+    from ikbench.viewer.server import Viewer
+
+#: Playback speeds (label -> factor of the real speed).
+SPEEDS = {"0.25x": 0.25, "0.5x": 0.5, "1x": 1.0, "2x": 2.0}
+
+
+def _legend(scenes) -> str:
+    def swatch(rgb, alpha=1.0):
+        return ('<span style="display:inline-block;width:12px;height:12px;margin-right:6px;'
+                f'background:rgba({rgb[0]},{rgb[1]},{rgb[2]},{alpha});border:1px solid #555">'
+                '</span>')
+
+    rows = [f"<div>{swatch(s.color)}<b>{s.run.label}</b>: fingertip, arm "
+            f"{'in URDF colours' if i == 0 else 'ghost'}</div>" for i, s in enumerate(scenes)]
+    rows.append(f"<div>{swatch(sc.GOAL_COLOR)}goal path</div>")
+    return '<div style="font-size:0.8em;line-height:1.6">' + "".join(rows) + "</div>"
+
+
+def add_gui(server, viewer: Viewer, ids: list[str]) -> None:
+    """Add the panel's controls to ``server`` and wire them to ``viewer``; the handles go
+    into ``viewer.gui`` (``trajectory``, ``step``, ``time``, ``play``, ``speed``, ``loop``,
+    ``runs``, ``goal``, ``tip``, ``others``)."""
+    gui, scenes = viewer.gui, viewer.scenes
+    with server.gui.add_folder("Trajectory"):
+        gui["trajectory"] = server.gui.add_dropdown("trajectory", ids, initial_value=ids[0])
+        server.gui.add_markdown("<br>".join(f"**{s.run.label}**: {s.run.goal_source}"
+                                            for s in scenes))
+    with server.gui.add_folder("Playback"):
+        gui["step"] = server.gui.add_slider("step", min=0, max=max(len(viewer.times) - 1, 1),
+                                            step=1, initial_value=0)
+        gui["time"] = server.gui.add_markdown("")
+        gui["play"] = server.gui.add_button("Play", icon=viser.Icon.PLAYER_PLAY)
+        gui["speed"] = server.gui.add_dropdown("speed", tuple(SPEEDS), initial_value="1x")
+        gui["loop"] = server.gui.add_checkbox("loop", False)
+    with server.gui.add_folder("Runs"):
+        server.gui.add_html(_legend(scenes))
+        gui["runs"] = [server.gui.add_checkbox(s.run.label, True) for s in scenes]
+        gui["goal"] = server.gui.add_checkbox("goal path", True)
+        gui["tip"] = server.gui.add_checkbox("fingertip path", True)
+        gui["others"] = server.gui.add_checkbox("other trajectories", True,
+                                                hint="the first run's, faint")
+
+    @gui["step"].on_update
+    def _(event) -> None:
+        if event.client is not None and viewer.playing:  # dragged while playing
+            viewer._anchor = (time.perf_counter(), int(gui["step"].value))
+        viewer.show(int(gui["step"].value))
+
+    @gui["play"].on_click
+    def _(_) -> None:
+        viewer.pause() if viewer.playing else viewer.play()
+
+    @gui["speed"].on_update
+    def _(_) -> None:
+        with viewer._lock:  # keep the step, change the rate from now on
+            viewer._anchor = (time.perf_counter(), int(gui["step"].value))
+
+    @gui["trajectory"].on_update
+    def _(_) -> None:
+        viewer.refresh_visibility()
+        viewer.show(int(gui["step"].value))
+
+    for box in [*gui["runs"], gui["goal"], gui["tip"], gui["others"]]:
+        box.on_update(lambda _: viewer.refresh_visibility())
