@@ -31,6 +31,11 @@ Orientation modes (``orientation``):
   their code passed a target frame to ikpy's ``inverse_kinematics_frame`` without an
   ``orientation_mode``, and ikpy then ignores the rotation.
 
+A 6-D pose path (a task with goal frames, e.g. a CppFlow problem) has no touch pose: it is
+walked forward instead, waypoint 0 solved from the home pose (at most
+:data:`FIRST_POINT_ITERATIONS` iterations), each next one from the previous solution, with the
+task's goal rotations in frame mode and the task's joint limits (CppFlow's bounds).
+
 ``Solution.loss`` is None (the task errors are not a loss in the paper's units); the largest
 position error [mm], the largest orientation error [deg] (frame: rotation angle; pointing and
 position: angle between z and d) over the solved points and the number of points that did not
@@ -41,7 +46,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -304,6 +309,39 @@ def walk_joint_rad(robot, task, settings: DLSSettings) -> Walk:
     return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, up)
 
 
+#: Iteration cap of the first waypoint of a pose path, solved from the home pose.
+FIRST_POINT_ITERATIONS = 1000
+
+
+def walk_path_rad(robot, task, settings: DLSSettings) -> Walk:
+    """A 6-D pose path walked forward: waypoint 0 by IK from the task's start pose (else its
+    reference, the robot's home pose), each next waypoint from the previous solution. In frame
+    mode the goal rotations are the task's; the joints stay within the task's limits."""
+    pin_fk = robot.pinocchio_fk()
+    data = pin_fk.model.createData()
+    low, high = task.limits(robot)
+    lower = np.maximum(pin_fk.model.lowerPositionLimit, robot.to_urdf(np.asarray(low, float)))
+    upper = np.minimum(pin_fk.model.upperPositionLimit, robot.to_urdf(np.asarray(high, float)))
+    home = task.start_pose_deg if task.start_pose_deg is not None else task.reference_pose_deg
+    q = robot.to_urdf(np.zeros(robot.dof) if home is None else np.asarray(home, dtype=float))
+    q_rad = np.empty((task.steps + 1, len(q)))
+    iterations, missed, worst_pos_mm, worst_angle_deg = 0, 0, 0.0, 0.0
+    first = replace(settings, max_ik_iterations=max(settings.max_ik_iterations,
+                                                    FIRST_POINT_ITERATIONS))
+    for i in range(task.steps + 1):
+        rotation = task.goal_rotations[i] if settings.orientation == "frame" else None
+        residual = Residual(pin_fk, data, settings.orientation, task.goal_points_mm[i] / 1000.0,
+                            rotation, task.goal_directions[i]
+                            if settings.orientation == "pointing" else None)
+        result = solve_point(residual, q, first if i == 0 else settings, lower, upper)
+        q = q_rad[i] = result.q_rad
+        iterations += result.iterations
+        missed += not result.converged
+        pos_mm, angle_deg = _point_errors(pin_fk, data, q, task, i, rotation)
+        worst_pos_mm, worst_angle_deg = max(worst_pos_mm, pos_mm), max(worst_angle_deg, angle_deg)
+    return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, None)
+
+
 def walk(robot, task, settings: DLSSettings) -> Solution:
     """The sequential walk as a :class:`Solution` in motor degrees (see the module doc).
 
@@ -312,10 +350,14 @@ def walk(robot, task, settings: DLSSettings) -> Solution:
     round-off); pose n is the touch pose as given (the walk's starting point, not solved).
     """
     started = time.perf_counter()
-    raw = walk_joint_rad(robot, task, settings)
-    poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), robot.lower_motor_deg,
-                        robot.upper_motor_deg)
-    poses_deg[-1] = task.end_pose_deg  # exactly the touch pose, no round trip through radians
+    if task.goal_rotations is not None:
+        raw = walk_path_rad(robot, task, settings)
+        poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), *task.limits(robot))
+    else:
+        raw = walk_joint_rad(robot, task, settings)
+        poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), robot.lower_motor_deg,
+                            robot.upper_motor_deg)
+        poses_deg[-1] = task.end_pose_deg  # exactly the touch pose, no round trip
     duration = time.perf_counter() - started
     missed = raw.points_not_converged
     return Solution(
@@ -334,6 +376,8 @@ def check_tasks(robot, tasks, settings: DLSSettings) -> None:
     that is not parallel to its line (InputError naming the trajectory)."""
     pin_fk = robot.pinocchio_fk()
     for task in tasks:
+        if task.goal_rotations is not None:  # a pose path: walked forward, its own rotations
+            continue
         if task.end_pose_deg is None:
             raise InputError(f"trajectory {task.name!r}: sequential-ik starts at the touch "
                              "pose; the task has no end pose (for letters, polylines and "
@@ -398,13 +442,14 @@ class SequentialIK(Method):
     library = "pin"
     Settings = DLSSettings
     requires_touch_pose = True
+    supports_frames = True
 
     def prepare(self, robot) -> None:
         robot.pinocchio_fk()
 
     def check_tasks(self, robot, tasks) -> None:
-        """Every task needs a touch pose, and in frame mode an up vector that is not parallel
-        to its line (:func:`check_tasks`)."""
+        """Every task needs a touch pose or goal frames, and in frame mode an up vector that
+        is not parallel to its line (:func:`check_tasks`)."""
         check_tasks(robot, tasks, self.settings)
 
     def solve(self, robot, task, progress=None) -> Solution:
