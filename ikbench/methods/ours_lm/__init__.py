@@ -46,7 +46,8 @@ class OursLM(Method):
 
     name = "ours-lm"
     description = ("the paper's objective (same L0..L6, units, weights) by batched "
-                   "Levenberg-Marquardt with analytic Jacobians and joint-limit boxes")
+                   "Levenberg-Marquardt with analytic Jacobians and joint-limit boxes; 6-D pose "
+                   "paths: seeded start search, then the same LM")
     Settings = OursLMSettings
     batched = True
     supports_frames = True

@@ -1,0 +1,86 @@
+"""Figures of 6-D pose paths: the target path and the reached ones in 3-D, per-waypoint errors.
+
+Everything is recomputed from the poses (:func:`ikbench.core.metrics.frame_errors`). Errors
+are drawn on a log scale with CppFlow's validity thresholds (0.1 mm, 0.1 deg) as lines.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ikbench.core.metrics import frame_errors
+from ikbench.core.validity import MAX_POSITION_ERROR_MM, MAX_ROTATION_ERROR_DEG
+from ikbench.studies.report import _equal_axes_3d, _matplotlib, frame_labels
+
+#: Errors below this are drawn at it (a log scale has no zero) [mm or deg].
+ERROR_FLOOR = 1e-7
+
+
+def reached(robot, task, poses_deg) -> dict:
+    """{points_mm (n+1, 3), position_mm (n+1,), rotation_deg (n+1,)} of poses on a task."""
+    position, rotation, points = frame_errors(robot, task, poses_deg)
+    return {"points_mm": points, "position_mm": position, "rotation_deg": rotation}
+
+
+def plot_pose_path(task, curves: dict, title: str, robot=None):
+    """One pose path: the target (grey) and every reached path in 3-D; errors per waypoint.
+
+    Args:
+        task: the task (goal points [mm], goal rotations).
+        curves: label -> :func:`reached` dict (e.g. one per method); may be empty.
+        title: the figure's title.
+        robot: the robot (axis labels and view from its config).
+    """
+    plt = _matplotlib()
+    fig = plt.figure(figsize=(12, 5.2))
+    grid = fig.add_gridspec(2, 2, width_ratios=[1.05, 1.0])
+    ax3 = fig.add_subplot(grid[:, 0], projection="3d")
+    goal = task.goal_points_mm
+    ax3.plot(goal[:, 0], goal[:, 1], goal[:, 2], "-", color="0.6", lw=5, alpha=0.5,
+             label="target path")
+    ax3.scatter(*goal[0], color="k", s=25, label="first waypoint")
+    colors = plt.cm.tab10(np.linspace(0, 1, 10))
+    everything = [goal]
+    for k, (label, curve) in enumerate(curves.items()):
+        points = curve["points_mm"]
+        ax3.plot(points[:, 0], points[:, 1], points[:, 2], "-", color=colors[k % 10], lw=1.2,
+                 label=label)
+        everything.append(points)
+    _frame_arrows(ax3, task)
+    labels, (elev, azim) = frame_labels(robot)
+    ax3.set_xlabel(labels[0], fontsize=8)
+    ax3.set_ylabel(labels[1], fontsize=8)
+    ax3.set_zlabel(labels[2], fontsize=8)
+    ax3.tick_params(labelsize=7)
+    _equal_axes_3d(ax3, np.vstack(everything))
+    ax3.view_init(elev=elev, azim=azim)
+    ax3.legend(loc="upper left", fontsize=7)
+    ax3.set_title("end frame: target and reached (arrows: goal approach axis)", fontsize=9)
+    for row, (key, unit, threshold) in enumerate((
+            ("position_mm", "position error [mm]", MAX_POSITION_ERROR_MM),
+            ("rotation_deg", "rotation error [deg]", MAX_ROTATION_ERROR_DEG))):
+        ax = fig.add_subplot(grid[row, 1])
+        for k, (label, curve) in enumerate(curves.items()):
+            ax.plot(np.maximum(curve[key], ERROR_FLOOR), "-", color=colors[k % 10], lw=1,
+                    label=label)
+        ax.axhline(threshold, color="r", ls="--", lw=1, label=f"valid below {threshold:g}")
+        ax.set_yscale("log")
+        ax.set_ylabel(unit, fontsize=8)
+        ax.grid(alpha=0.3, which="both")
+        ax.tick_params(labelsize=7)
+        if row == 1:
+            ax.set_xlabel("waypoint", fontsize=8)
+        else:
+            ax.legend(fontsize=7, ncol=2, loc="upper right")
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def _frame_arrows(ax, task, count: int = 12) -> None:
+    """Goal pointing axes at ``count`` waypoints along the path (length 8 % of its size)."""
+    goal = task.goal_points_mm
+    size = max(float(np.ptp(goal, axis=0).max()), 100.0)
+    index = np.linspace(0, len(goal) - 1, min(count, len(goal))).round().astype(int)
+    d = task.goal_directions[index] * 0.08 * size
+    ax.quiver(*goal[index].T, *d.T, color="0.3", lw=0.8, arrow_length_ratio=0.3)
