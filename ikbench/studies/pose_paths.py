@@ -8,8 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ikbench.core.metrics import frame_errors
-from ikbench.core.validity import MAX_POSITION_ERROR_MM, MAX_ROTATION_ERROR_DEG
+from ikbench.core.metrics import frame_errors, joint_changes
+from ikbench.core.validity import (
+    MAX_JOINT_CHANGE_DEG,
+    MAX_POSITION_ERROR_MM,
+    MAX_ROTATION_ERROR_DEG,
+)
 from ikbench.studies.report import _equal_axes_3d, _matplotlib, frame_labels
 
 #: Errors below this are drawn at it (a log scale has no zero) [mm or deg].
@@ -17,9 +21,13 @@ ERROR_FLOOR = 1e-7
 
 
 def reached(robot, task, poses_deg) -> dict:
-    """{points_mm (n+1, 3), position_mm (n+1,), rotation_deg (n+1,)} of poses on a task."""
+    """{points_mm (n+1, 3), position_mm (n+1,), rotation_deg (n+1,), step_deg (n,): the
+    largest revolute joint change into each waypoint (wrapped)} of poses on a task."""
     position, rotation, points = frame_errors(robot, task, poses_deg)
-    return {"points_mm": points, "position_mm": position, "rotation_deg": rotation}
+    revolute, _ = joint_changes(robot, poses_deg)
+    step = np.abs(revolute).max(axis=1) if revolute.size else np.zeros(len(points) - 1)
+    return {"points_mm": points, "position_mm": position, "rotation_deg": rotation,
+            "step_deg": step}
 
 
 def plot_pose_path(task, curves: dict, title: str, robot=None):
@@ -32,8 +40,8 @@ def plot_pose_path(task, curves: dict, title: str, robot=None):
         robot: the robot (axis labels and view from its config).
     """
     plt = _matplotlib()
-    fig = plt.figure(figsize=(12, 5.2))
-    grid = fig.add_gridspec(2, 2, width_ratios=[1.05, 1.0])
+    fig = plt.figure(figsize=(12, 6.4))
+    grid = fig.add_gridspec(3, 2, width_ratios=[1.05, 1.0])
     ax3 = fig.add_subplot(grid[:, 0], projection="3d")
     goal = task.goal_points_mm
     ax3.plot(goal[:, 0], goal[:, 1], goal[:, 2], "-", color="0.6", lw=5, alpha=0.5,
@@ -46,7 +54,7 @@ def plot_pose_path(task, curves: dict, title: str, robot=None):
         ax3.plot(points[:, 0], points[:, 1], points[:, 2], "-", color=colors[k % 10], lw=1.2,
                  label=label)
         everything.append(points)
-    _frame_arrows(ax3, task)
+    everything.append(_frame_arrows(ax3, task))
     labels, (elev, azim) = frame_labels(robot)
     ax3.set_xlabel(labels[0], fontsize=8)
     ax3.set_ylabel(labels[1], fontsize=8)
@@ -58,29 +66,40 @@ def plot_pose_path(task, curves: dict, title: str, robot=None):
     ax3.set_title("end frame: target and reached (arrows: goal approach axis)", fontsize=9)
     for row, (key, unit, threshold) in enumerate((
             ("position_mm", "position error [mm]", MAX_POSITION_ERROR_MM),
-            ("rotation_deg", "rotation error [deg]", MAX_ROTATION_ERROR_DEG))):
+            ("rotation_deg", "rotation error [deg]", MAX_ROTATION_ERROR_DEG),
+            ("step_deg", "largest joint change\ninto the waypoint [deg]",
+             MAX_JOINT_CHANGE_DEG))):
         ax = fig.add_subplot(grid[row, 1])
         for k, (label, curve) in enumerate(curves.items()):
-            ax.plot(np.maximum(curve[key], ERROR_FLOOR), "-", color=colors[k % 10], lw=1,
+            values = curve[key]
+            x = np.arange(len(values)) + (1 if key == "step_deg" else 0)
+            ax.plot(x, np.maximum(values, ERROR_FLOOR), "-", color=colors[k % 10], lw=1,
                     label=label)
-        ax.axhline(threshold, color="r", ls="--", lw=1, label=f"valid below {threshold:g}")
-        ax.set_yscale("log")
+        ax.axhline(threshold, color="r", ls="--", lw=1, label="valid below the red line")
+        if key == "step_deg":
+            top = max([threshold, *(float(np.max(c[key])) for c in curves.values()
+                                    if len(c[key]))])
+            ax.set_ylim(0, 1.1 * top)
+        else:
+            ax.set_yscale("log")
         ax.set_ylabel(unit, fontsize=8)
         ax.grid(alpha=0.3, which="both")
         ax.tick_params(labelsize=7)
-        if row == 1:
+        if row == 2:
             ax.set_xlabel("waypoint", fontsize=8)
-        else:
-            ax.legend(fontsize=7, ncol=2, loc="upper right")
+        elif row == 0:
+            ax.legend(fontsize=7, ncol=3, loc="lower right")
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 0.96))
     return fig
 
 
-def _frame_arrows(ax, task, count: int = 12) -> None:
-    """Goal pointing axes at ``count`` waypoints along the path (length 8 % of its size)."""
+def _frame_arrows(ax, task, count: int = 12) -> np.ndarray:
+    """Goal pointing axes at ``count`` waypoints along the path, 8 % of the path's size long
+    (at least 50 mm, so a pure rotation shows); returns the arrow tips (count, 3) [mm]."""
     goal = task.goal_points_mm
-    size = max(float(np.ptp(goal, axis=0).max()), 100.0)
+    length = max(0.08 * float(np.ptp(goal, axis=0).max()), 50.0)
     index = np.linspace(0, len(goal) - 1, min(count, len(goal))).round().astype(int)
-    d = task.goal_directions[index] * 0.08 * size
-    ax.quiver(*goal[index].T, *d.T, color="0.3", lw=0.8, arrow_length_ratio=0.3)
+    d = task.goal_directions[index] * length
+    ax.quiver(*goal[index].T, *d.T, color="0.3", lw=0.8, arrow_length_ratio=0.2)
+    return goal[index] + d

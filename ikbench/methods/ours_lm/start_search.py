@@ -327,3 +327,30 @@ def _problem_factory(robot, task, weights, frames):
     def make(count: int) -> FrameProblem:
         return FrameProblem.from_tasks(robot, [task] * count, [weights] * count, frames)
     return make
+
+
+#: IK seeds per waypoint of :func:`waypoint_reach`.
+REACH_SEEDS = 32
+
+
+def waypoint_reach(robot, task, count: int = REACH_SEEDS, seed: int = 0):
+    """How closely each waypoint can be reached on its own within the task's limits: IK of
+    every waypoint from ``count`` random poses (seeded), all at once.
+
+    Returns:
+        (position errors (n+1,) [mm], rotation errors (n+1,) [deg]) of each waypoint's best
+        solution (the one with the smallest larger of the two).
+    """
+    frames = robot.chain_kinematics().frames
+    lower, upper = (np.asarray(v, dtype=float) for v in task.limits(robot))
+    low = np.where(np.isfinite(lower), lower, robot.sample_lower)
+    high = np.where(np.isfinite(upper), upper, robot.sample_upper)
+    n = task.steps + 1
+    seeds = np.random.default_rng(seed).uniform(low, high, (n * count, robot.dof))
+    _, position, rotation, _ = first_waypoint_ik(
+        frames, np.repeat(task.goal_points_mm, count, axis=0),
+        np.repeat(task.goal_rotations, count, axis=0), seeds, lower, upper)
+    position, rotation = position.reshape(n, count), rotation.reshape(n, count)
+    best = np.argmin(np.maximum(position, rotation), axis=1)
+    rows = np.arange(n)
+    return position[rows, best], rotation[rows, best]
