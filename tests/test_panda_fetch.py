@@ -134,3 +134,22 @@ def test_bad_locked_or_validity_limits_are_refused(tmp_path, extra, message):
                       + ('locked = { torso_lift_joint = 0.0 }\n' if "validity" in extra else ""))
     with pytest.raises(InputError, match=message.replace("[", r"\[").replace("(", r"\(")):
         load_robot(config)
+
+
+def test_run_and_letters_work_out_of_the_box(tmp_path):
+    """The shipped targets and letter pose: run on the 8-joint Fetch (prismatic torso in mm),
+    a letter with the Panda."""
+    import pandas as pd
+
+    assert main(["run", "--robot", "fetch", "--method", "ours-lm", "--only", "lower,raise",
+                 "--steps", "20", "--output", str(tmp_path), "--quiet"]) == 0
+    table = pd.read_csv(tmp_path / "ours-lm" / "table.csv")
+    assert list(table["trajectory"]) == ["lower", "raise"]
+    assert (table["end_point_error_mm"] < 0.5).all() and (table["start_point_error_mm"] < 0.5).all()
+    trajectory = pd.read_csv(tmp_path / "ours-lm" / "trajectory_raise.csv")
+    assert trajectory["torso_lift_joint"].iloc[0] == pytest.approx(150.0, abs=1.0)   # mm
+    assert trajectory["torso_lift_joint"].iloc[-1] == pytest.approx(250.0, abs=1.0)
+    assert main(["letters", "P", "--robot", "panda", "--method", "ours-lm", "--output",
+                 str(tmp_path / "letters"), "--quiet"]) == 0
+    letter = pd.read_csv(tmp_path / "letters" / "ours-lm" / "table.csv").iloc[0]
+    assert letter["curve_distance_mean_mm"] < 10.0

@@ -200,7 +200,7 @@ def joint_changes(robot, poses_deg) -> tuple[np.ndarray, np.ndarray]:
     return revolute, steps[:, prismatic] * 1000.0
 
 
-def frame_metrics(robot, task, poses_deg) -> dict[str, float]:
+def frame_metrics(robot, task, poses_deg) -> dict:
     """Figures of a trajectory against a 6-D pose path, with CppFlow's validity.
 
     Returns:

@@ -147,9 +147,10 @@ def cartesian(problems=BENCHMARK, methods=None, seeds=DEFAULT_SEEDS, options=Non
                 method = build_method(name, seed, options.get(name))
                 outcome = solve_tasks(method, robot, [task])[0]
                 done += 1
-                row = _row(problem, robot, task, name, seed, outcome)
-                if outcome.ok:
+                if outcome.ok:  # the table describes the poses as written (10 digits)
+                    outcome.solution.poses_deg = as_written(outcome.solution.poses_deg)
                     poses[(problem, name, seed)] = outcome.solution.poses_deg
+                row = _row(problem, robot, task, name, seed, outcome)
                 rows.append(row)
                 verdict = "valid" if row["valid"] else f"not valid ({row['failed_criteria']})"
                 say(f"{done}/{total} {problem} {name} seed {seed}: {verdict}, "
@@ -158,6 +159,11 @@ def cartesian(problems=BENCHMARK, methods=None, seeds=DEFAULT_SEEDS, options=Non
                 for name in names}
     return CartesianResult(pd.DataFrame(rows, columns=COLUMNS), loaded, poses, names, settings,
                            seeds, time.perf_counter() - started, options)
+
+
+def as_written(poses) -> np.ndarray:
+    """Poses rounded to the 10 significant digits a trajectory CSV holds."""
+    return np.array([[float(f"{v:.10g}") for v in row] for row in np.asarray(poses)])
 
 
 def _row(problem, robot, task, method, seed, outcome) -> dict:

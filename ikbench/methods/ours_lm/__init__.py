@@ -71,19 +71,20 @@ class OursLM(Method):
         Solution's duration_s is its share of the batch's wall time. Tasks with goal frames
         are solved one at a time by :func:`.start_search.search`."""
         if any(t.goal_rotations is not None for t in tasks):
-            solutions: dict[int, Solution] = {}
-            paths = [k for k, t in enumerate(tasks) if t.goal_rotations is not None]
-            for k in paths:
+            by_index: dict[int, Solution] = {}
+            for k, task in enumerate(tasks):
+                if task.goal_rotations is None:
+                    continue
                 if progress:
-                    progress.start(tasks[k], k, len(tasks))
-                solutions[k] = self._solve_path(robot, tasks[k])
+                    progress.start(task, k, len(tasks))
+                by_index[k] = self._solve_path(robot, task)
                 if progress:
-                    progress.done(tasks[k], solutions[k])
-            rest = [k for k in range(len(tasks)) if k not in solutions]
+                    progress.done(task, by_index[k])
+            rest = [k for k in range(len(tasks)) if k not in by_index]
             if rest:
                 solved = self.solve_many(robot, [tasks[k] for k in rest], progress)
-                solutions.update(zip(rest, solved))
-            return [solutions[k] for k in range(len(tasks))]
+                by_index.update(zip(rest, solved))
+            return [by_index[k] for k in range(len(tasks))]
         weights = [resolve_weights(self.settings.weights, task) for task in tasks]
         if progress:
             for k, task in enumerate(tasks):

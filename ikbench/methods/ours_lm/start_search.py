@@ -223,9 +223,10 @@ def lost_waypoints(frames, task, paths) -> np.ndarray:
     """(K,) waypoints of carried paths (K, N, dof) whose error exceeds :data:`LOST_MM_DEG`
     (mm or deg): where a candidate lost track of the path (e.g. held by a joint limit)."""
     k, n, dof = paths.shape
-    e_point, e_rot, _, _ = errors_from_frames(
-        *frames(paths.reshape(-1, dof), False), np.tile(task.goal_points_mm, (k, 1)),
-        np.tile(task.goal_rotations, (k, 1, 1)))
+    point, rotation, _, _ = frames(paths.reshape(-1, dof), False)
+    e_point, e_rot, _, _ = errors_from_frames(point, rotation, None, None,
+                                              np.tile(task.goal_points_mm, (k, 1)),
+                                              np.tile(task.goal_rotations, (k, 1, 1)))
     size = np.maximum(np.abs(e_point).max(-1), np.abs(e_rot).max(-1)).reshape(k, n)
     return np.sum(size > LOST_MM_DEG, axis=1)
 
@@ -234,10 +235,10 @@ def check_paths(robot, task, paths, frames, margin: float = 1.0):
     """CppFlow's validity of paths (K, N, dof): (valid (K,), max position error [mm],
     max rotation error [deg], max revolute step [deg]) (see :mod:`ikbench.core.validity`);
     ``margin`` scales the position and rotation thresholds."""
-    e_point, e_rot, _, _ = errors_from_frames(
-        *frames(paths.reshape(-1, robot.dof), False), np.repeat(task.goal_points_mm[None],
-                                                                len(paths), 0).reshape(-1, 3),
-        np.repeat(task.goal_rotations[None], len(paths), 0).reshape(-1, 3, 3))
+    point, rotation, _, _ = frames(paths.reshape(-1, robot.dof), False)
+    e_point, e_rot, _, _ = errors_from_frames(point, rotation, None, None,
+                                              np.tile(task.goal_points_mm, (len(paths), 1)),
+                                              np.tile(task.goal_rotations, (len(paths), 1, 1)))
     position = np.linalg.norm(e_point, axis=1).reshape(len(paths), -1).max(1)
     rotation = np.linalg.norm(e_rot, axis=1).reshape(len(paths), -1).max(1)
     q = robot.to_urdf(paths)
