@@ -7,14 +7,15 @@ A 7-DoF arm reaches each pose in infinitely many ways; the path is solved by:
    with ``seed``), by damped least squares with an adaptive damping, all seeds at once;
    converged seeds that coincide (within 1 deg) are merged.
 2. **Carry**: each seed is carried along the path, waypoint by waypoint, each solve warm
-   started from the previous waypoint's (minimum-norm damped least-squares steps, at most
-   :data:`CARRY_ITERATIONS` per waypoint), all seeds at once. A candidate's score: waypoints it
-   missed (error above the validity thresholds), then its largest joint step, then its joint
-   path length.
+   started from the previous waypoint's (minimum-norm damped least-squares steps with
+   joint-limit avoidance in the null space, :func:`carry`), all seeds at once. Candidates are
+   ranked by the waypoints they lost, then by whether a step reaches CppFlow's 7 deg, then by
+   their joint path length.
 3. **Refine**: the ``refine`` best candidates are refined together by the LM solver on the
    6-D objective with the smoothness term (:mod:`.frames`, default weights
-   :data:`ikbench.core.losses.FRAME_WEIGHTS`); the valid one (CppFlow's criteria,
-   :mod:`ikbench.core.validity`) with the lowest loss is kept. When none is valid, the next
+   :data:`ikbench.core.losses.FRAME_WEIGHTS`) until one meets CppFlow's criteria
+   (:mod:`ikbench.core.validity`) with its pose errors below :data:`SEARCH_MARGIN` of the
+   thresholds; the valid one with the lowest loss is kept. When none gets there, the next
    ``refine`` candidates are tried, and so on; failing all, the lowest-loss one is returned.
 
 Everything is deterministic for a seed. Errors are in mm and degrees throughout.
@@ -318,10 +319,11 @@ def search(robot, task, settings: OursLMSettings, weights: dict) -> SearchResult
 
 
 def _rank(robot, paths, missed) -> np.ndarray:
-    """Candidate order: fewest missed waypoints, then smallest largest step, then shortest
-    joint path (pose units)."""
+    """Candidate order: fewest lost waypoints, then those whose steps all stay below CppFlow's
+    joint-change limit, then the shortest joint path (pose units)."""
     steps = np.abs(np.diff(paths, axis=1))
-    return np.lexsort((steps.sum(axis=(1, 2)), steps.max(axis=(1, 2)), missed))
+    jumps = steps.max(axis=(1, 2)) >= MAX_JOINT_CHANGE_DEG
+    return np.lexsort((steps.sum(axis=(1, 2)), jumps, missed))
 
 
 def _problem_factory(robot, task, weights, frames):
