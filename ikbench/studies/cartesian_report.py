@@ -157,6 +157,8 @@ def _cell(value, digits=3) -> str:
         return value
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return ""
+    if abs(value) >= 10 ** digits:
+        return f"{value:.0f}"
     return f"{value:.{digits}g}"
 
 
@@ -186,9 +188,11 @@ def report(result, summary, published, figures, reach, record) -> str:
         "" if math.isnan(m) else f"{m:.3g} ({lo:.3g}-{hi:.3g})" for m, lo, hi in
         zip(view["time_to_valid_median_s"], view["time_to_valid_min_s"],
             view["time_to_valid_max_s"])]
+    view["joint_path_length_median_rad"] = np.radians(view["joint_path_length_median_deg"])
     columns = ["problem", "method", "valid", "time to valid [s]", "position_error_max_mm",
                "rotation_error_max_deg", "max_joint_change_deg", "max_joint_change_mm",
-               "joint_path_length_median_deg", "failed_criteria"]
+               "joint_path_length_median_deg", "joint_path_length_median_rad",
+               "failed_criteria"]
     lines += [_markdown(view[columns]), ""]
     if reach:
         lines += ["## Problems without a valid run", ""]
@@ -202,7 +206,7 @@ def report(result, summary, published, figures, reach, record) -> str:
         "those cells say so rather than estimate. CppFlow's abstract states valid trajectories "
         "'up to 129x faster than current methods' (not attributed to a problem). TORM's joint "
         "path lengths come from the CppFlow repository ('what torm reports'); compare them with "
-        "the joint_path_length_median_deg above (1 rad = 57.3 deg, revolute joints only).", "",
+        "joint_path_length_median_rad above (revolute joints only).", "",
         _markdown(published), "",
         "## Figures", "",
     ]
