@@ -117,7 +117,8 @@ def test_other_methods_follow_a_short_path(tmp_path):
 def test_the_benchmark_command_writes_its_folder(tmp_path, capsys):
     path = write_problem(tmp_path, "panda")
     assert main(["cartesian", "--problems", str(path), "--methods", "ours-lm,sequential-ik",
-                 "--seeds", "4,7", "--output", str(tmp_path / "out"), "--quiet"]) == 0
+                 "--seeds", "4,7", "--output", str(tmp_path / "out"), "--quiet",
+                 "--trajectories", "all"]) == 0
     folder = tmp_path / "out" / "cartesian"
     table = pd.read_csv(folder / "table.csv")
     assert len(table) == 4 and set(table["seed"]) == {4, 7}
@@ -174,12 +175,20 @@ def test_bad_benchmark_input_one_line_exit_2(tmp_path, capsys, args, message):
     assert not (tmp_path / "out").exists()
 
 
-def test_the_study_is_a_plain_function():
-    from ikbench.studies.cartesian import cartesian
+def test_the_study_is_a_plain_function(tmp_path):
+    from ikbench.studies.cartesian import cartesian, write
 
-    result = cartesian("fetch__rot_yz2", ["sequential-ik"], [0], progress=False)
+    result = cartesian("fetch__rot_yz2", ["sequential-ik"], [0, 1], progress=False)
     row = result.table.iloc[0]
     assert row["problem"] == "fetch__rot_yz2" and row["waypoints"] == 249
     assert row["max_joint_change_mm"] >= 0            # fetch has the prismatic torso
     assert not row["valid"] and "joint_change" in row["failed_criteria"]
+    folder = write(result, tmp_path)                  # trajectories of the first seed only
+    table = pd.read_csv(folder / "table.csv", keep_default_na=False)
+    assert list(table["trajectory"]) == ["sequential-ik/trajectory_fetch__rot_yz2_seed0.csv", ""]
+    assert sorted(p.name for p in (folder / "sequential-ik").iterdir()) == [
+        "trajectory_fetch__rot_yz2_seed0.csv"]
+    # no valid run: the report says whether the waypoints can be reached at all
+    assert ("**fetch__rot_yz2**: every waypoint is reachable on its own within the limits"
+            in (folder / "report.md").read_text())
     assert matrix_to_quat_wxyz(np.eye(3)).tolist() == [1.0, 0.0, 0.0, 0.0]

@@ -203,8 +203,10 @@ def summarise(table: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def write(result: CartesianResult, output: str | Path, command: str = "") -> Path:
-    """Write ``OUTPUT/cartesian/`` whole (see :mod:`.cartesian_report`); return the folder."""
+def write(result: CartesianResult, output: str | Path, command: str = "",
+          trajectories: str = "first") -> Path:
+    """Write ``OUTPUT/cartesian/`` whole (see :mod:`.cartesian_report`); return the folder.
+    ``trajectories``: ``first`` (the first seed's trajectory CSVs) or ``all``."""
     from ikbench.studies.cartesian_report import write_folder
 
-    return write_folder(result, Path(output) / FOLDER, command)
+    return write_folder(result, Path(output) / FOLDER, command, trajectories)

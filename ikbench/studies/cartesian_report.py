@@ -3,7 +3,8 @@
 ``OUTPUT/cartesian/`` gets ``table.csv`` (one row per problem x method x seed),
 ``summary.csv`` (per problem x method), ``published.csv`` (the published figures of CppFlow and
 TORM beside ours, each column labelled with its source; "not found" where none was found),
-``<method>/trajectory_<problem>_seed<k>.csv``, ``pose_path_<problem>.png`` (target and
+``<method>/trajectory_<problem>_seed<k>.csv`` (the first seed's, or all),
+``pose_path_<problem>.png`` (target and
 reached paths of every method's first seed, per-waypoint errors), ``report.md`` and
 ``run.json``. The folder is replaced whole (:func:`ikbench.core.io.staged_folder`).
 """
@@ -61,16 +62,26 @@ def published_table(problems) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def write_folder(result, folder: Path, command: str = "") -> Path:
-    """Write the study's folder whole; return it."""
+TRAJECTORIES = ("first", "all")
+
+
+def write_folder(result, folder: Path, command: str = "", trajectories: str = "first") -> Path:
+    """Write the study's folder whole; return it. ``trajectories``: write the trajectory CSVs
+    of the first seed only (``first``; the table names the files written) or of every seed."""
     previous = files_written_by(folder)
-    table = result.table
+    table = result.table.copy()
+    keep = [(p, m, s) for (p, m, s) in result.poses
+            if trajectories == "all" or s == result.seeds[0]]
+    table["trajectory"] = [path if (p, m, s) in keep else "" for p, m, s, path in
+                           zip(table["problem"], table["method"], table["seed"],
+                               table["trajectory"])]
     summary = summarise(table)
     published = published_table(list(result.problems))
     reach = _reach_notes(result, table)
     with staged_folder(folder, keep=lambda rel: str(rel) not in previous) as tmp:
         files = []
-        for (problem, method, seed), poses in result.poses.items():
+        for problem, method, seed in keep:
+            poses = result.poses[(problem, method, seed)]
             robot, task, _ = result.problems[problem]
             rel = f"{method}/trajectory_{problem}_seed{seed}.csv"
             write_trajectory_csv(tmp / rel, robot, poses, quaternion=True)
@@ -215,7 +226,8 @@ def report(result, summary, published, figures, reach, record) -> str:
     lines += ["## Files", "",
               "`table.csv`: one row per problem x method x seed (errors in mm and deg, joint "
               "changes and path lengths in joint degrees and mm, valid, time_to_valid_s, the "
-              "failed criteria, a failure message if the solve raised, the trajectory file); "
+              "failed criteria, a failure message if the solve raised, the trajectory file if "
+              "written: the first seed's, or every seed's with --trajectories all); "
               "`summary.csv`: the summary above; `published.csv`: the published figures; "
               "`<method>/trajectory_<problem>_seed<k>.csv`: the poses (joint degrees, mm for "
               "the torso) with the end frame's position [mm] and quaternion (w, x, y, z); "

@@ -61,7 +61,7 @@ def plot_pose_path(task, curves: dict, title: str, robot=None):
     ax3.set_zlabel(labels[2], fontsize=8)
     ax3.tick_params(labelsize=7)
     _equal_axes_3d(ax3, np.vstack(everything))
-    ax3.view_init(elev=elev, azim=azim)
+    ax3.view_init(*(path_view(goal) or (elev, azim)))
     ax3.legend(loc="upper left", fontsize=7)
     ax3.set_title("end frame: target and reached (arrows: goal approach axis)", fontsize=9)
     for row, (key, unit, threshold) in enumerate((
@@ -92,6 +92,24 @@ def plot_pose_path(task, curves: dict, title: str, robot=None):
     fig.suptitle(title, fontsize=10)
     fig.tight_layout(rect=(0, 0, 1, 0.96))
     return fig
+
+
+def path_view(points_mm, tilt_deg: float = 20.0) -> tuple[float, float] | None:
+    """(elevation, azimuth) [deg] that show a flat path face on, from the side of the base
+    (as the robot sees it), tilted a little; None for a path that is not flat or is a point."""
+    centred = points_mm - points_mm.mean(axis=0)
+    _, sizes, axes = np.linalg.svd(centred, full_matrices=False)
+    if sizes[0] < 1.0 or sizes[2] > 0.1 * sizes[1]:
+        return None
+    normal, centre = axes[2], points_mm.mean(axis=0)
+    towards_base = float(np.dot(normal, -centre / max(np.linalg.norm(centre), 1e-9)))
+    if abs(towards_base) > 0.3:          # the plane faces the base: look from the base's side
+        normal = normal if towards_base > 0 else -normal
+    elif normal[2] < 0:                  # edge-on to the base: look from above
+        normal = -normal
+    elev = np.degrees(np.arcsin(np.clip(normal[2], -1, 1))) + tilt_deg
+    azim = np.degrees(np.arctan2(normal[1], normal[0])) + tilt_deg
+    return float(np.clip(elev, -30.0, 60.0)), float(azim)
 
 
 def _frame_arrows(ax, task, count: int = 12) -> np.ndarray:

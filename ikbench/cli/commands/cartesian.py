@@ -37,6 +37,9 @@ def register(subparsers) -> None:
     parser.add_argument("--output", default=DEFAULT_OUTPUT,
                         help=f"output directory; the study writes OUTPUT/cartesian/ (default "
                         f"{DEFAULT_OUTPUT})")
+    parser.add_argument("--trajectories", choices=["first", "all"], default="first",
+                        help="trajectory CSVs to write: the first seed's (default) or every "
+                        "seed's (a 553-waypoint path is about 100 kB)")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
     add_method_options(parser, methods)
@@ -77,6 +80,8 @@ def command_line(args, problems: str, seeds) -> str:
     if args.methods:
         words += ["--methods", args.methods]
     words += ["--seeds", ",".join(map(str, seeds)), "--output", args.output]
+    if args.trajectories != "first":
+        words += ["--trajectories", args.trajectories]
     for flag, value in _given(args).items():
         words += [f"--{flag}", str(value)]
     return " ".join(shlex.quote(w) for w in words)
@@ -101,7 +106,7 @@ def run(args) -> int:
     check_folder_writable(folder)
     set_threads(args.threads)
     result = cartesian(problems, names, seeds, options, progress=not args.quiet)
-    write(result, args.output, command_line(args, problems, seeds))
+    write(result, args.output, command_line(args, problems, seeds), args.trajectories)
     from ikbench.studies.cartesian import summarise
 
     summary = summarise(result.table)
