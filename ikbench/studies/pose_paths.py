@@ -76,12 +76,9 @@ def plot_pose_path(task, curves: dict, title: str, robot=None):
             ax.plot(x, np.maximum(values, ERROR_FLOOR), "-", color=colors[k % 10], lw=1,
                     label=label)
         ax.axhline(threshold, color="r", ls="--", lw=1, label="valid below the red line")
-        if key == "step_deg":
-            top = max([threshold, *(float(np.max(c[key])) for c in curves.values()
-                                    if len(c[key]))])
-            ax.set_ylim(0, 1.1 * top)
-        else:
-            ax.set_yscale("log")
+        ax.set_yscale("log")
+        if key == "step_deg":   # jumps of 180 deg and steps of 1 deg both stay readable
+            ax.set_ylim(bottom=0.1)
         ax.set_ylabel(unit, fontsize=8)
         ax.grid(alpha=0.3, which="both")
         ax.tick_params(labelsize=7)
