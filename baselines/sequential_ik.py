@@ -147,6 +147,16 @@ def rotation_from_z(direction, up) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
+def axis_frame(axis) -> np.ndarray:
+    """A fixed rotation M (3, 3) of the end frame whose z-axis is the pointing ``axis``
+    (identity for z): frame mode builds the goal of the frame R M, so R_goal = V M^T."""
+    a = np.asarray(axis, dtype=float)
+    if np.allclose(a, [0.0, 0.0, 1.0]):
+        return np.eye(3)
+    helper = np.eye(3)[np.argmin(np.abs(a))]
+    return rotation_from_z(a, helper)
+
+
 def orthonormal_complement(direction) -> np.ndarray:
     """Two unit vectors (2, 3) orthogonal to ``direction`` and to each other."""
     d = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
@@ -178,6 +188,7 @@ class Residual:
         self.goal = pin.SE3(rotation, self.point_m) if orientation == "frame" else None
         self.basis = None if direction is None else orthonormal_complement(direction)
         self.direction = direction
+        self.axis = pin_fk.robot.pointing_axis
 
     def error(self, q_rad) -> np.ndarray:
         """e (k,) at ``q_rad``; also leaves the placement in ``self.data``."""
@@ -190,7 +201,7 @@ class Residual:
         e_pos = self.point_m - T_base_tip.translation
         if self.orientation == "position":
             return e_pos
-        z = T_base_tip.rotation[:, 2]
+        z = T_base_tip.rotation @ self.axis                  # the pointing axis
         return np.concatenate([e_pos, -(self.basis @ z)])
 
     def jacobian(self, q_rad) -> np.ndarray:
@@ -207,7 +218,7 @@ class Residual:
                                      pin.LOCAL_WORLD_ALIGNED)  # (6, nv): linear, angular
         if self.orientation == "position":
             return J[:3]
-        z = self.data.oMf[self.frame_id].rotation[:, 2]
+        z = self.data.oMf[self.frame_id].rotation @ self.axis
         # d(b.z) = b.(w x z) = (z x b).w
         rows = np.cross(z, self.basis) @ J[3:]
         return np.vstack([J[:3], rows])
@@ -297,7 +308,8 @@ def walk_joint_rad(robot, task, settings: DLSSettings) -> Walk:
     iterations, missed, worst_pos_mm, worst_angle_deg = 0, 0, 0.0, 0.0
     for i in range(n - 1, -1, -1):
         d = task.goal_directions[i]
-        rotation = rotation_from_z(d, up) if settings.orientation == "frame" else None
+        rotation = (rotation_from_z(d, up) @ axis_frame(robot.pointing_axis).T
+                    if settings.orientation == "frame" else None)
         residual = Residual(pin_fk, data, settings.orientation, task.goal_points_mm[i] / 1000.0,
                             rotation, d if settings.orientation == "pointing" else None)
         result = solve_point(residual, q_rad[i + 1], settings, lower, upper)
@@ -396,7 +408,8 @@ def _up_vector(settings: DLSSettings, pin_fk, q_touch_rad) -> np.ndarray | None:
         return None
     setting = settings.up_vector
     if isinstance(setting, str) and setting == UP_FROM_TOUCH:
-        return pin_fk.placement(q_touch_rad).rotation[:, 1].copy()
+        rotation = pin_fk.placement(q_touch_rad).rotation @ axis_frame(pin_fk.robot.pointing_axis)
+        return rotation[:, 1].copy()
     return np.asarray(setting, dtype=float)
 
 
@@ -410,7 +423,7 @@ def _point_errors(pin_fk, data, q_rad, task, i, rotation) -> tuple[float, float]
     if rotation is not None:
         angle = np.linalg.norm(pin.log3(T_base_tip.rotation.T @ rotation))
     else:
-        z, d = T_base_tip.rotation[:, 2], task.goal_directions[i]
+        z, d = T_base_tip.rotation @ pin_fk.robot.pointing_axis, task.goal_directions[i]
         angle = math.atan2(np.linalg.norm(np.cross(z, d)), float(z @ d))
     return pos_mm, float(np.degrees(angle))
 
