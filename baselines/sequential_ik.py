@@ -31,6 +31,11 @@ Orientation modes (``orientation``):
   their code passed a target frame to ikpy's ``inverse_kinematics_frame`` without an
   ``orientation_mode``, and ikpy then ignores the rotation.
 
+A 6-D pose path (a task with goal frames, e.g. a CppFlow problem) has no touch pose: it is
+walked forward instead, waypoint 0 solved from the home pose (at most
+:data:`FIRST_POINT_ITERATIONS` iterations), each next one from the previous solution, with the
+task's goal rotations in frame mode and the task's joint limits (CppFlow's bounds).
+
 ``Solution.loss`` is None (the task errors are not a loss in the paper's units); the largest
 position error [mm], the largest orientation error [deg] (frame: rotation angle; pointing and
 position: angle between z and d) over the solved points and the number of points that did not
@@ -41,7 +46,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -142,6 +147,16 @@ def rotation_from_z(direction, up) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
+def axis_frame(axis) -> np.ndarray:
+    """A fixed rotation M (3, 3) of the end frame whose z-axis is the pointing ``axis``
+    (identity for z): frame mode builds the goal of the frame R M, so R_goal = V M^T."""
+    a = np.asarray(axis, dtype=float)
+    if np.allclose(a, [0.0, 0.0, 1.0]):
+        return np.eye(3)
+    helper = np.eye(3)[np.argmin(np.abs(a))]
+    return rotation_from_z(a, helper)
+
+
 def orthonormal_complement(direction) -> np.ndarray:
     """Two unit vectors (2, 3) orthogonal to ``direction`` and to each other."""
     d = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
@@ -173,6 +188,7 @@ class Residual:
         self.goal = pin.SE3(rotation, self.point_m) if orientation == "frame" else None
         self.basis = None if direction is None else orthonormal_complement(direction)
         self.direction = direction
+        self.axis = pin_fk.robot.pointing_axis
 
     def error(self, q_rad) -> np.ndarray:
         """e (k,) at ``q_rad``; also leaves the placement in ``self.data``."""
@@ -185,7 +201,7 @@ class Residual:
         e_pos = self.point_m - T_base_tip.translation
         if self.orientation == "position":
             return e_pos
-        z = T_base_tip.rotation[:, 2]
+        z = T_base_tip.rotation @ self.axis                  # the pointing axis
         return np.concatenate([e_pos, -(self.basis @ z)])
 
     def jacobian(self, q_rad) -> np.ndarray:
@@ -202,7 +218,7 @@ class Residual:
                                      pin.LOCAL_WORLD_ALIGNED)  # (6, nv): linear, angular
         if self.orientation == "position":
             return J[:3]
-        z = self.data.oMf[self.frame_id].rotation[:, 2]
+        z = self.data.oMf[self.frame_id].rotation @ self.axis
         # d(b.z) = b.(w x z) = (z x b).w
         rows = np.cross(z, self.basis) @ J[3:]
         return np.vstack([J[:3], rows])
@@ -292,7 +308,8 @@ def walk_joint_rad(robot, task, settings: DLSSettings) -> Walk:
     iterations, missed, worst_pos_mm, worst_angle_deg = 0, 0, 0.0, 0.0
     for i in range(n - 1, -1, -1):
         d = task.goal_directions[i]
-        rotation = rotation_from_z(d, up) if settings.orientation == "frame" else None
+        rotation = (rotation_from_z(d, up) @ axis_frame(robot.pointing_axis).T
+                    if settings.orientation == "frame" else None)
         residual = Residual(pin_fk, data, settings.orientation, task.goal_points_mm[i] / 1000.0,
                             rotation, d if settings.orientation == "pointing" else None)
         result = solve_point(residual, q_rad[i + 1], settings, lower, upper)
@@ -304,6 +321,39 @@ def walk_joint_rad(robot, task, settings: DLSSettings) -> Walk:
     return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, up)
 
 
+#: Iteration cap of the first waypoint of a pose path, solved from the home pose.
+FIRST_POINT_ITERATIONS = 1000
+
+
+def walk_path_rad(robot, task, settings: DLSSettings) -> Walk:
+    """A 6-D pose path walked forward: waypoint 0 by IK from the task's start pose (else its
+    reference, the robot's home pose), each next waypoint from the previous solution. In frame
+    mode the goal rotations are the task's; the joints stay within the task's limits."""
+    pin_fk = robot.pinocchio_fk()
+    data = pin_fk.model.createData()
+    low, high = task.limits(robot)
+    lower = np.maximum(pin_fk.model.lowerPositionLimit, robot.to_urdf(np.asarray(low, float)))
+    upper = np.minimum(pin_fk.model.upperPositionLimit, robot.to_urdf(np.asarray(high, float)))
+    home = task.start_pose_deg if task.start_pose_deg is not None else task.reference_pose_deg
+    q = robot.to_urdf(np.zeros(robot.dof) if home is None else np.asarray(home, dtype=float))
+    q_rad = np.empty((task.steps + 1, len(q)))
+    iterations, missed, worst_pos_mm, worst_angle_deg = 0, 0, 0.0, 0.0
+    first = replace(settings, max_ik_iterations=max(settings.max_ik_iterations,
+                                                    FIRST_POINT_ITERATIONS))
+    for i in range(task.steps + 1):
+        rotation = task.goal_rotations[i] if settings.orientation == "frame" else None
+        residual = Residual(pin_fk, data, settings.orientation, task.goal_points_mm[i] / 1000.0,
+                            rotation, task.goal_directions[i]
+                            if settings.orientation == "pointing" else None)
+        result = solve_point(residual, q, first if i == 0 else settings, lower, upper)
+        q = q_rad[i] = result.q_rad
+        iterations += result.iterations
+        missed += not result.converged
+        pos_mm, angle_deg = _point_errors(pin_fk, data, q, task, i, rotation)
+        worst_pos_mm, worst_angle_deg = max(worst_pos_mm, pos_mm), max(worst_angle_deg, angle_deg)
+    return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, None)
+
+
 def walk(robot, task, settings: DLSSettings) -> Solution:
     """The sequential walk as a :class:`Solution` in motor degrees (see the module doc).
 
@@ -312,10 +362,14 @@ def walk(robot, task, settings: DLSSettings) -> Solution:
     round-off); pose n is the touch pose as given (the walk's starting point, not solved).
     """
     started = time.perf_counter()
-    raw = walk_joint_rad(robot, task, settings)
-    poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), robot.lower_motor_deg,
-                        robot.upper_motor_deg)
-    poses_deg[-1] = task.end_pose_deg  # exactly the touch pose, no round trip through radians
+    if task.goal_rotations is not None:
+        raw = walk_path_rad(robot, task, settings)
+        poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), *task.limits(robot))
+    else:
+        raw = walk_joint_rad(robot, task, settings)
+        poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), robot.lower_motor_deg,
+                            robot.upper_motor_deg)
+        poses_deg[-1] = task.end_pose_deg  # exactly the touch pose, no round trip
     duration = time.perf_counter() - started
     missed = raw.points_not_converged
     return Solution(
@@ -334,6 +388,8 @@ def check_tasks(robot, tasks, settings: DLSSettings) -> None:
     that is not parallel to its line (InputError naming the trajectory)."""
     pin_fk = robot.pinocchio_fk()
     for task in tasks:
+        if task.goal_rotations is not None:  # a pose path: walked forward, its own rotations
+            continue
         if task.end_pose_deg is None:
             raise InputError(f"trajectory {task.name!r}: sequential-ik starts at the touch "
                              "pose; the task has no end pose (for letters, polylines and "
@@ -352,7 +408,8 @@ def _up_vector(settings: DLSSettings, pin_fk, q_touch_rad) -> np.ndarray | None:
         return None
     setting = settings.up_vector
     if isinstance(setting, str) and setting == UP_FROM_TOUCH:
-        return pin_fk.placement(q_touch_rad).rotation[:, 1].copy()
+        rotation = pin_fk.placement(q_touch_rad).rotation @ axis_frame(pin_fk.robot.pointing_axis)
+        return rotation[:, 1].copy()
     return np.asarray(setting, dtype=float)
 
 
@@ -366,7 +423,7 @@ def _point_errors(pin_fk, data, q_rad, task, i, rotation) -> tuple[float, float]
     if rotation is not None:
         angle = np.linalg.norm(pin.log3(T_base_tip.rotation.T @ rotation))
     else:
-        z, d = T_base_tip.rotation[:, 2], task.goal_directions[i]
+        z, d = T_base_tip.rotation @ pin_fk.robot.pointing_axis, task.goal_directions[i]
         angle = math.atan2(np.linalg.norm(np.cross(z, d)), float(z @ d))
     return pos_mm, float(np.degrees(angle))
 
@@ -398,13 +455,14 @@ class SequentialIK(Method):
     library = "pin"
     Settings = DLSSettings
     requires_touch_pose = True
+    supports_frames = True
 
     def prepare(self, robot) -> None:
         robot.pinocchio_fk()
 
     def check_tasks(self, robot, tasks) -> None:
-        """Every task needs a touch pose, and in frame mode an up vector that is not parallel
-        to its line (:func:`check_tasks`)."""
+        """Every task needs a touch pose or goal frames, and in frame mode an up vector that
+        is not parallel to its line (:func:`check_tasks`)."""
         check_tasks(robot, tasks, self.settings)
 
     def solve(self, robot, task, progress=None) -> Solution:

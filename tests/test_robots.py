@@ -138,7 +138,7 @@ def test_fk_cli_on_a_bare_urdf(capsys):
     (["--robot", str(URDF), "--end-frame", "nope"], "--end-frame: 'nope' is not a link of "
      "unaligned_arm.urdf; links: world_link, base"),
     (["--robot", "no_such_robot"], "--robot: 'no_such_robot' is not a shipped robot "
-     "(nico_right_arm"),
+     "(fetch, fetch_arm, nico_right_arm, panda)"),
     (["--robot", "missing.urdf", "--end-frame", "tool"], "URDF 'missing.urdf' not found"),
     (["--robot", str(URDF), "--end-frame", "tool", "--pose=1,2,3"],
      "--pose: expected 6 values (j1, slide, j3, j4, roll, j6; joint deg, mm for prismatic)"),

@@ -31,6 +31,17 @@ TERM_DESCRIPTIONS = {
 }
 MM_PER_CM = 10.0
 
+#: Weights of the 6-D pose-path objective (tasks with goal frames), in its own units: L0 =
+#: mean squared position error [mm^2], L1 = mean squared rotation error (SO(3) log map, the
+#: three components) [deg^2], L6 = mean squared joint step [deg^2, mm^2 for prismatic joints];
+#: the other terms do not apply. Equal position and rotation weights match CppFlow's equal
+#: thresholds (0.1 mm, 0.1 deg); the small smoothness weight picks the smooth solution among
+#: the arm's redundant ones while moving the pose errors by far less than the thresholds.
+FRAME_WEIGHTS = {"L0": 1.0, "L1": 1.0, "L2": 0.0, "L3": 0.0, "L4": 0.0, "L5": 0.0,
+                 "L6": 0.001}
+FRAME_TERM_DESCRIPTIONS = {"L0": "position [mm^2]", "L1": "rotation [deg^2]",
+                           "L6": "smoothness [deg^2]"}
+
 
 def parse_terms(text: str) -> list[str]:
     """Parse ``"L1"`` or ``"L2,L3"`` into term names; unknown names raise InputError."""

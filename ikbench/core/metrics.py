@@ -170,3 +170,71 @@ def shape_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
         "pointing_deviation_max_deg": float(deviations.max()),
         **_end_errors_and_smoothness(task, fk.point_mm, poses),
     }
+
+
+# ----- 6-D pose paths (tasks with goal frames) ------------------------------------------------
+def frame_errors(robot, task, poses_deg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-waypoint errors of poses (n+1, dof) against a task with goal frames.
+
+    Returns:
+        (position errors (n+1,) [mm], rotation errors (n+1,) [deg]: the SO(3) geodesic angle
+        |log(R_goal^T R)|, end points (n+1, 3) [mm]); FK by Pinocchio in float64.
+    """
+    from ikbench.core.rotations import geodesic_angle
+
+    T = robot.fk_transform(np.asarray(poses_deg, dtype=float))
+    points_mm = T[:, :3, 3] * 1000.0
+    position = np.linalg.norm(points_mm - task.goal_points_mm, axis=1)
+    rotation = np.degrees(geodesic_angle(task.goal_rotations, T[:, :3, :3]))
+    return position, rotation, points_mm
+
+
+def joint_changes(robot, poses_deg) -> tuple[np.ndarray, np.ndarray]:
+    """Joint changes between consecutive poses in joint units: (revolute (n, r) [deg], wrapped
+    to [-180, 180) as CppFlow does, so a continuous joint crossing +-180 moves a little;
+    prismatic (n, p) [mm])."""
+    q = robot.to_urdf(np.asarray(poses_deg, dtype=float))
+    steps = np.diff(q, axis=0)
+    prismatic = robot.prismatic
+    revolute = np.degrees(np.remainder(steps[:, ~prismatic] + np.pi, 2 * np.pi) - np.pi)
+    return revolute, steps[:, prismatic] * 1000.0
+
+
+def frame_metrics(robot, task, poses_deg) -> dict:
+    """Figures of a trajectory against a 6-D pose path, with CppFlow's validity.
+
+    Returns:
+        dict with ``position_error_{mean,max}_mm``, ``rotation_error_{mean,max}_deg``,
+        ``max_joint_change_deg`` (revolute and continuous joints, wrapped) and
+        ``max_joint_change_mm`` (prismatic joints; NaN without one), ``joint_path_length_deg``
+        (sum of the absolute wrapped revolute changes) and ``prismatic_path_length_mm``,
+        ``cartesian_path_length_mm`` (the end point's path) and ``target_path_length_mm``,
+        ``within_limits`` (the task's limits, e.g. CppFlow's bounds), ``valid`` (all of
+        :func:`ikbench.core.validity.validity_failures`) and ``failed_criteria`` (their
+        names, ``""`` when valid).
+    """
+    from ikbench.core.validity import validity_failures
+
+    poses = np.asarray(poses_deg, dtype=float)
+    position, rotation, points_mm = frame_errors(robot, task, poses)
+    revolute, prismatic = joint_changes(robot, poses)
+    lower, upper = task.limits(robot)
+    within = bool(np.all(poses >= lower - 1e-9) and np.all(poses <= upper + 1e-9))
+    out = {
+        "position_error_mean_mm": float(position.mean()),
+        "position_error_max_mm": float(position.max()),
+        "rotation_error_mean_deg": float(rotation.mean()),
+        "rotation_error_max_deg": float(rotation.max()),
+        "max_joint_change_deg": float(np.abs(revolute).max()) if revolute.size else 0.0,
+        "max_joint_change_mm": float(np.abs(prismatic).max()) if prismatic.size else np.nan,
+        "joint_path_length_deg": float(np.abs(revolute).sum()),
+        "prismatic_path_length_mm": float(np.abs(prismatic).sum()) if prismatic.size
+        else np.nan,
+        "cartesian_path_length_mm": float(np.linalg.norm(np.diff(points_mm, axis=0),
+                                                         axis=1).sum()),
+        "target_path_length_mm": float(np.linalg.norm(np.diff(task.goal_points_mm, axis=0),
+                                                      axis=1).sum()),
+        "within_limits": within,
+    }
+    failures = validity_failures(out)
+    return {**out, "valid": not failures, "failed_criteria": ",".join(failures)}

@@ -15,6 +15,12 @@ Poses at every interface are in **pose units**, in the order of ``Robot.joint_na
 The URDF speaks SI (radians, metres): :meth:`Robot.to_urdf` / :meth:`Robot.from_urdf` map
 between (``motor_to_joint_rad`` / ``joint_rad_to_motor_deg`` are their older names).
 Continuous joints have no limits (-inf, +inf).
+
+A config may lock joints of the chain (``locked = {torso_lift_joint = 0.0}``, pose units): they
+stay on the chain at that value but are not part of the pose (Fetch's arm with its torso held,
+as jstmn/jrl's ``fetch_arm``). It may also give ``validity_limits`` (pose units): the bounds a
+benchmark's validity check applies where they differ from the URDF's, e.g. the [-180, 180] deg
+that jrl/CppFlow give the continuous rolls of the Fetch arm.
 """
 
 from __future__ import annotations
@@ -43,7 +49,7 @@ MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
 #: Keys a robot config may hold (a typo would otherwise be ignored silently).
 CONFIG_KEYS = ("name", "description", "source", "urdf", "base_link", "end_frame",
                "pointing_axis", "joints", "motor_map", "hardware", "targets", "frame",
-               "letters", "batch")
+               "letters", "batch", "locked", "validity_limits")
 
 
 def robots_dir() -> Path:
@@ -88,6 +94,11 @@ class Robot:
         pointing_axis: (3,) unit axis of the end frame that "points" (default z).
         has_motor_map: True when poses are motor degrees (a ``*.motors.json`` map).
         config: the robot config (description, source, targets, frame, letters, batch ...).
+        locked_urdf: joints of the chain held fixed, name -> value [rad or m]; they are not in
+            ``joint_names`` (the config gives them in pose units, ``locked``).
+        validity_lower: (dof,) lower bounds [pose units] a benchmark's validity check uses
+            (the config's ``validity_limits``, else the limits; None: the limits).
+        validity_upper: (dof,) see ``validity_lower``.
     """
 
     name: str
@@ -103,6 +114,9 @@ class Robot:
     pointing_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
     has_motor_map: bool = True
     config: dict = field(default_factory=dict)
+    locked_urdf: dict = field(default_factory=dict)
+    validity_lower: np.ndarray | None = None
+    validity_upper: np.ndarray | None = None
     _cache: dict = field(default_factory=dict, repr=False)
 
     def __repr__(self) -> str:
@@ -116,6 +130,10 @@ class Robot:
         si = np.array([1.0 / MM_PER_M if t == "prismatic" else DEG2RAD
                        for t in self.joint_types])
         object.__setattr__(self, "_si_per_unit", si)
+        if self.validity_lower is None:
+            object.__setattr__(self, "validity_lower", self.lower_motor_deg)
+        if self.validity_upper is None:
+            object.__setattr__(self, "validity_upper", self.upper_motor_deg)
 
     @property
     def dof(self) -> int:
@@ -173,6 +191,7 @@ class Robot:
                 "end_frame": self.end_frame, "joints": list(self.joint_names),
                 "pose_unit": self.pose_unit, "urdf": self.urdf_path.name,
                 "urdf_sha256": self.urdf_sha256,
+                **({"locked_urdf": dict(self.locked_urdf)} if self.locked_urdf else {}),
                 "description": self.config.get("description", ""),
                 "source": self.config.get("source", "")}
 
@@ -449,7 +468,8 @@ def robot_from_config(path: Path, end_frame: str | None = None) -> Robot:
         raise InputError(f"robot config {str(path)!r}: URDF {str(urdf_path)!r} not found")
     end = end_frame or config["end_frame"]
     base = config.get("base_link") or urdf_root_link(urdf_path)
-    joints = chain_joints(urdf_path, base, end)
+    joints, locked = _split_locked(chain_joints(urdf_path, base, end), config.get("locked"),
+                                   path)
     names = tuple(j.name for j in joints)
     if "joints" in config and tuple(config["joints"]) != names:
         raise InputError(f"robot config {str(path)!r}: joints {config['joints']} differ from "
@@ -464,13 +484,70 @@ def robot_from_config(path: Path, end_frame: str | None = None) -> Robot:
         lower = np.array([j.lower for j in joints]) * per_unit
         upper = np.array([j.upper for j in joints]) * per_unit
         has_map = False
+    valid_lower, valid_upper = _validity_limits(config.get("validity_limits"), names, lower,
+                                                upper, path)
     return Robot(name=str(config.get("name") or urdf_path.stem), urdf_path=urdf_path,
                  end_frame=end, root_link=base, joint_names=names, scale=scale,
                  offset_deg=offset, lower_motor_deg=lower, upper_motor_deg=upper,
                  joint_types=types,
                  pointing_axis=_unit_axis(config.get("pointing_axis", (0, 0, 1)),
                                           f"{path.name}: pointing_axis"),
-                 has_motor_map=has_map, config={**config, "config_path": str(path)})
+                 has_motor_map=has_map, config={**config, "config_path": str(path)},
+                 locked_urdf=locked, validity_lower=valid_lower, validity_upper=valid_upper)
+
+
+def _number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) \
+        and math.isfinite(value)
+
+
+def _split_locked(joints: list[ChainJoint], spec, path: Path):
+    """(the chain's free joints, {locked name: value [rad or m]}) from a config's ``locked``
+    table (values in pose units: deg, mm for prismatic joints)."""
+    if not spec:
+        return joints, {}
+    where = f"robot config {str(path)!r}: locked"
+    by_name = {j.name: j for j in joints}
+    if not isinstance(spec, dict):
+        raise InputError(f"{where} must be a table of joint = value (deg, mm for prismatic)")
+    locked = {}
+    for name, value in spec.items():
+        joint = by_name.get(name)
+        if joint is None:
+            raise InputError(f"{where}: {name!r} is not a joint of the chain; joints: "
+                             f"{', '.join(by_name)}")
+        if not _number(value):
+            raise InputError(f"{where}: {name} = {value!r} is not a finite number")
+        si = value / MM_PER_M if joint.type == "prismatic" else value * DEG2RAD
+        if not joint.lower - 1e-12 <= si <= joint.upper + 1e-12:
+            raise InputError(f"{where}: {name} = {value:g} is outside its URDF limits")
+        locked[name] = float(si)
+    free = [j for j in joints if j.name not in locked]
+    if not free:
+        raise InputError(f"{where}: every joint of the chain is locked")
+    return free, locked
+
+
+def _validity_limits(spec, names, lower, upper, path: Path):
+    """(lower, upper) (dof,) [pose units]: the limits with a config's ``validity_limits``
+    table (joint = [lower, upper]) applied; (None, None) when the config has none."""
+    if not spec:
+        return None, None
+    where = f"robot config {str(path)!r}: validity_limits"
+    if not isinstance(spec, dict):
+        raise InputError(f"{where} must be a table of joint = [lower, upper]")
+    lo, hi = np.array(lower, dtype=float), np.array(upper, dtype=float)
+    for name, bounds in spec.items():
+        if name not in names:
+            raise InputError(f"{where}: {name!r} is not a joint of the pose; joints: "
+                             f"{', '.join(names)}")
+        if not (isinstance(bounds, list) and len(bounds) == 2 and all(map(_number, bounds))
+                and bounds[0] < bounds[1]):
+            raise InputError(f"{where}: {name} = {bounds!r} must be [lower, upper] with "
+                             "lower < upper (pose units)")
+        j = names.index(name)
+        lo[j], hi[j] = max(lo[j], bounds[0]), min(hi[j], bounds[1])
+    return lo, hi
 
 
 def robot_from_urdf(urdf_path: Path, end_frame: str, base_link: str | None = None) -> Robot:

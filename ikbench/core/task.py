@@ -28,6 +28,7 @@ import numpy as np
 
 from ikbench.core import letters
 from ikbench.core.errors import InputError
+from ikbench.core.losses import FRAME_WEIGHTS
 from ikbench.core.robot import Robot
 from ikbench.core.shapes import Curve, catmull_rom, read_points_csv
 from ikbench.core.targets import Targets
@@ -55,6 +56,12 @@ class Task:
             the user sets; None: the method's own defaults (the paper's).
         reference_pose_deg: (dof,) the pose the shape was placed from (a letter's start pose);
             pinned by no loss term, a starting guess for methods that need one.
+        goal_rotations: (n+1, 3, 3) goal frames' rotations (end frame in the base frame) of a
+            6-D pose path, or None. A task with goal frames asks for the full orientation;
+            its ``goal_directions`` are then the rotations' pointing axes.
+        joint_limits: (lower (dof,), upper (dof,)) [pose units] the poses must respect when
+            they differ from the robot's limits (a benchmark's bounds, e.g. CppFlow's
+            [-180, 180] deg for continuous joints), or None.
     """
 
     name: str
@@ -67,10 +74,23 @@ class Task:
     curve: Curve | None = None
     default_weights: dict | None = None
     reference_pose_deg: np.ndarray | None = None
+    goal_rotations: np.ndarray | None = None
+    joint_limits: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self):
         if self.pen_down is None:
             object.__setattr__(self, "pen_down", np.ones(len(self.goal_points_mm), dtype=bool))
+
+    @property
+    def has_frames(self) -> bool:
+        """True for a 6-D pose path (goal rotations given)."""
+        return self.goal_rotations is not None
+
+    def limits(self, robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) (dof,) [pose units]: the task's joint limits, else the robot's."""
+        if self.joint_limits is not None:
+            return self.joint_limits
+        return robot.lower_motor_deg, robot.upper_motor_deg
 
     @property
     def steps(self) -> int:
@@ -113,6 +133,33 @@ def line_task(robot: Robot, start_pose_deg, end_pose_deg, steps: int, name: str 
     points_mm = p_start_mm + t * (p_end_mm - p_start_mm)
     directions = np.repeat(direction[None], steps + 1, axis=0)
     return Task(name, points_mm, directions, start, end, shape="line")
+
+
+def frame_task(robot: Robot, name: str, points_mm, rotations, **fields) -> Task:
+    """A 6-D pose path: goal points (n+1, 3) [mm] and goal rotations (n+1, 3, 3) of the end
+    frame in the base frame; the goal directions are the rotations' pointing axes.
+
+    Args:
+        robot: the robot (its pointing axis).
+        name: trajectory id.
+        points_mm: (n+1, 3) goal points [mm].
+        rotations: (n+1, 3, 3) goal rotations.
+        **fields: further :class:`Task` fields (``reference_pose_deg``, ``joint_limits``...);
+            the default weights are the 6-D objective's
+            (:data:`ikbench.core.losses.FRAME_WEIGHTS`).
+    """
+    points = np.asarray(points_mm, dtype=float)
+    rotations = np.asarray(rotations, dtype=float)
+    if points.ndim != 2 or points.shape[1] != 3 or rotations.shape != (len(points), 3, 3):
+        raise InputError(f"trajectory {name!r}: goal points {points.shape} and rotations "
+                         f"{rotations.shape} must be (n+1, 3) and (n+1, 3, 3)")
+    if len(points) < 2:
+        raise InputError(f"trajectory {name!r}: a path needs at least 2 poses, got "
+                         f"{len(points)}")
+    fields = {"start_pose_deg": None, "end_pose_deg": None, "shape": "path",
+              "default_weights": dict(FRAME_WEIGHTS), **fields}
+    return Task(name, points, rotations @ robot.pointing_axis, goal_rotations=rotations,
+                **fields)
 
 
 def line_tasks(robot: Robot, targets: Targets) -> list[Task]:

@@ -6,7 +6,9 @@ Columns, exactly::
 
 ``time_s`` = step * T / n for a movement of duration T [s] split into n segments.
 The fingertip columns are FK of the pose (Pinocchio, float64), written for convenience;
-readers take the poses and recompute anything they need.
+readers take the poses and recompute anything they need. Trajectories of 6-D pose paths
+(tasks with goal frames) add the end frame's unit quaternion (w first, w >= 0) in the base
+frame after these columns: ``qw,qx,qy,qz``.
 """
 
 from __future__ import annotations
@@ -23,15 +25,20 @@ from ikbench.core.robot import Robot, load_robot
 DEFAULT_DURATION_S = 2.0
 POINT_COLUMNS = ["x_mm", "y_mm", "z_mm"]
 DIRECTION_COLUMNS = ["dir_x", "dir_y", "dir_z"]
+QUATERNION_COLUMNS = ["qw", "qx", "qy", "qz"]
 
 
-def trajectory_columns(robot: Robot) -> list[str]:
-    """The exact column list of a trajectory CSV for ``robot``."""
-    return ["step", "time_s", *robot.joint_names, *POINT_COLUMNS, *DIRECTION_COLUMNS]
+def trajectory_columns(robot: Robot, quaternion: bool = False) -> list[str]:
+    """The exact column list of a trajectory CSV for ``robot`` (``quaternion``: of a pose
+    path)."""
+    return ["step", "time_s", *robot.joint_names, *POINT_COLUMNS, *DIRECTION_COLUMNS,
+            *(QUATERNION_COLUMNS if quaternion else [])]
 
 
-def trajectory_frame(robot: Robot, poses_motor_deg, duration_s: float = DEFAULT_DURATION_S):
-    """Build the trajectory table for poses (n+1, dof) [motor deg]; returns a DataFrame."""
+def trajectory_frame(robot: Robot, poses_motor_deg, duration_s: float = DEFAULT_DURATION_S,
+                     quaternion: bool = False):
+    """Build the trajectory table for poses (n+1, dof) [motor deg]; returns a DataFrame
+    (``quaternion``: add the end frame's orientation, for pose paths)."""
     poses = np.asarray(poses_motor_deg, dtype=float)
     n = len(poses) - 1
     if n < 1:
@@ -42,14 +49,19 @@ def trajectory_frame(robot: Robot, poses_motor_deg, duration_s: float = DEFAULT_
     frame.insert(0, "step", np.arange(n + 1))
     frame[POINT_COLUMNS] = fk.point_mm
     frame[DIRECTION_COLUMNS] = fk.direction
+    if quaternion:
+        from ikbench.core.rotations import matrix_to_quat_wxyz
+
+        frame[QUATERNION_COLUMNS] = matrix_to_quat_wxyz(robot.fk_transform(poses)[:, :3, :3])
     return frame
 
 
 def write_trajectory_csv(path, robot: Robot, poses_motor_deg,
-                         duration_s: float = DEFAULT_DURATION_S) -> Path:
+                         duration_s: float = DEFAULT_DURATION_S,
+                         quaternion: bool = False) -> Path:
     """Write a trajectory CSV atomically; return its path."""
-    return atomic_write_csv(path, trajectory_frame(robot, poses_motor_deg, duration_s),
-                            float_format="%.10g")
+    return atomic_write_csv(path, trajectory_frame(robot, poses_motor_deg, duration_s,
+                                                   quaternion), float_format="%.10g")
 
 
 def read_trajectory_csv(path, robot: Robot | None = None) -> pd.DataFrame:

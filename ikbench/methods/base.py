@@ -175,6 +175,8 @@ class Method:
         library: the PyPI distribution the method is built on (its version is recorded).
         requires_touch_pose: True for methods that start at the task's touch pose (they
             cannot draw letters or curves, which pin no pose).
+        supports_frames: True for methods that follow goal frames (6-D pose paths, e.g. the
+            CppFlow problems); :meth:`check_tasks` refuses such tasks for the others.
         batched: True when ``solve_many`` solves all tasks in one call (timed as one).
         bench_rounds: timed rounds ``ikbench bench`` gives the method by default.
     """
@@ -184,6 +186,7 @@ class Method:
     Settings: ClassVar[type] = NoSettings
     library: ClassVar[str] = "ikbench"
     requires_touch_pose: ClassVar[bool] = False
+    supports_frames: ClassVar[bool] = False
     batched: ClassVar[bool] = False
     bench_rounds: ClassVar[int] = 5
 
@@ -226,9 +229,17 @@ class Method:
 
     def check_tasks(self, robot, tasks) -> None:
         """Raise InputError before any solve if a task cannot be solved by this method."""
+        for task in tasks:
+            if getattr(task, "goal_rotations", None) is not None and not self.supports_frames:
+                from ikbench.methods.registry import available_methods
+
+                able = [name for name, cls in available_methods().items() if cls.supports_frames]
+                raise InputError(
+                    f"trajectory {task.name!r}: --method {self.name} cannot follow goal frames "
+                    f"(a 6-D pose path); methods that can: {', '.join(able) or 'none'}")
         if self.requires_touch_pose:
             for task in tasks:
-                if task.end_pose_deg is None:
+                if task.end_pose_deg is None and getattr(task, "goal_rotations", None) is None:
                     from ikbench.methods.registry import available_methods
 
                     planners = [f"--method {name}" for name, cls in available_methods().items()

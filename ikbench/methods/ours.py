@@ -213,6 +213,7 @@ class Ours(Method):
     library = "torch"
     Settings = AdamSettings
     bench_rounds = 3  # tens of seconds per round on the paper's seven targets
+    supports_frames = True  # 6-D pose paths: ikbench.methods.ours_frames
 
     def settings_for(self, task) -> AdamSettings:
         """The settings for one task, with its complete weights (see :func:`resolve_weights`)."""
@@ -224,4 +225,8 @@ class Ours(Method):
         robot.torch_fk({"float32": torch.float32, "float64": torch.float64}[self.settings.dtype])
 
     def solve(self, robot, task, progress=None) -> Solution:
+        if task.goal_rotations is not None:
+            from ikbench.methods.ours_frames import optimise_frames
+
+            return optimise_frames(robot, task, self.settings_for(task), progress)
         return optimise(robot, task, self.settings_for(task), progress)

@@ -70,7 +70,8 @@ OTHER_COMMANDS = {"benchmark": "ikbench bench --output results",
                   "batch": "ikbench batch --output results/batch",
                   "letters": "ikbench letters --output results/letters",
                   "compare": "ikbench compare --output results",
-                  "cartesian": "ikbench compare --problems cppflow --output results",
+                  "cartesian": "ikbench cartesian --output results (speed.csv: python "
+                               "benchmarks/cartesian_speed.py)",
                   "ours_speed": "python benchmarks/ours_speed.py"}
 
 

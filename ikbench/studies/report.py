@@ -32,6 +32,17 @@ SHAPE_TABLE_COLUMNS = [
     "pointing_deviation_mean_deg", "pointing_deviation_std_deg", "pointing_deviation_max_deg",
     "mean_sq_joint_step_deg2", "max_joint_step_deg",
 ]
+#: The table of a 6-D pose path (a Cartesian path problem); see
+#: ikbench.core.metrics.frame_metrics. time_to_valid_s: duration_s of a valid solution, else
+#: empty (every method stops at its first valid solution or gives up).
+FRAME_TABLE_COLUMNS = [
+    "trajectory", "method", "iterations", "duration_s", "loss",
+    "position_error_mean_mm", "position_error_max_mm",
+    "rotation_error_mean_deg", "rotation_error_max_deg",
+    "max_joint_change_deg", "max_joint_change_mm",
+    "joint_path_length_deg", "prismatic_path_length_mm", "cartesian_path_length_mm",
+    "valid", "time_to_valid_s",
+]
 
 
 def _matplotlib():

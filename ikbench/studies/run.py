@@ -38,7 +38,7 @@ from ikbench.core.io import (
     check_folder_writable,
     staged_folder,
 )
-from ikbench.core.metrics import shape_metrics, trajectory_metrics
+from ikbench.core.metrics import frame_metrics, shape_metrics, trajectory_metrics
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot, load_robot
 from ikbench.core.targets import ID_PATTERN, Targets, load_targets
@@ -53,6 +53,7 @@ from ikbench.methods.registry import get_method
 from ikbench.studies.animation import ANIMATION_FILE, write_animation
 from ikbench.studies.harness import Interrupted, Outcome, Progress, solve_tasks
 from ikbench.studies.report import (
+    FRAME_TABLE_COLUMNS,
     SHAPE_TABLE_COLUMNS,
     TABLE_COLUMNS,
     markdown_table,
@@ -113,8 +114,10 @@ def evaluate(robot: Robot, outcomes, method_dir: Path, method_name: str):
     its failure in details.
     """
     shaped = any(o.task.curve is not None for o in outcomes)
-    columns = SHAPE_TABLE_COLUMNS if shaped else TABLE_COLUMNS
-    measure = shape_metrics if shaped else trajectory_metrics
+    framed = any(o.task.goal_rotations is not None for o in outcomes)
+    columns = FRAME_TABLE_COLUMNS if framed else SHAPE_TABLE_COLUMNS if shaped \
+        else TABLE_COLUMNS
+    measure = frame_metrics if framed else shape_metrics if shaped else trajectory_metrics
     rows, details, points_by_id = [], [], {}
     for outcome in outcomes:
         task, solution = outcome.task, outcome.solution
@@ -127,6 +130,8 @@ def evaluate(robot: Robot, outcomes, method_dir: Path, method_name: str):
             continue
         poses = read_trajectory_poses(method_dir / f"trajectory_{task.name}.csv", robot)
         metrics = measure(robot, task, poses)
+        if framed:
+            metrics["time_to_valid_s"] = outcome.wall_s if metrics["valid"] else np.nan
         points_by_id[task.name] = robot.fk(poses).point_mm
         rows.append({
             "trajectory": task.name, "method": method_name,
@@ -198,14 +203,58 @@ def prepare(method: str | Method, *, robot: Robot | str | None = None,
     return solver, robot, targets, tasks
 
 
+def prepare_problem(method: str | Method, problem, *, robot: Robot | str | None = None,
+                    options: dict | None = None):
+    """Validate a Cartesian path problem run and build its task, before any solve.
+
+    Args:
+        method: a method name or a configured :class:`Method`.
+        problem: a shipped problem's name or a problem file (CppFlow's YAML format, see
+            :mod:`ikbench.core.problems`).
+        robot: None, or the problem's own robot (another one is refused).
+        options: the method's settings as keywords (when ``method`` is a name).
+
+    Returns:
+        (solver, robot, targets, tasks, record): targets are the robot's own (recorded only),
+        record names the problem file.
+    """
+    from ikbench.core.problems import load_problem
+
+    problem_robot, task, parsed = load_problem(problem)
+    if robot is not None:
+        given = as_robot(robot)
+        if given.name != problem_robot.name:
+            raise InputError(f"--robot {given.name}: the problem {parsed.name} is for robot "
+                             f"{problem_robot.name!r} (leave --robot out)")
+    if isinstance(problem_robot.config.get("targets"), dict):
+        targets = load_targets(None, problem_robot)
+    else:
+        targets = Targets(problem_robot.joint_names, task.reference_pose_deg, {}, task.steps,
+                          "problem")
+    solver = method if isinstance(method, Method) else get_method(method)(**(options or {}))
+    solver.check_tasks(problem_robot, [task])
+    record = {"shape": "path", "problem": problem_label(parsed), "problem_name": parsed.name}
+    return solver, problem_robot, replace(targets, steps=task.steps), [task], record
+
+
+def problem_label(problem) -> str:
+    """How reports name a problem: ``NAME (shipped)`` or its file path."""
+    from ikbench.core.problems import shipped_problems
+
+    if shipped_problems().get(problem.name) == problem.source:
+        return f"{problem.name} (shipped, CppFlow/TORM)"
+    return str(problem.source)
+
+
 def run(method: str | Method, *, robot: Robot | str | None = None,
         targets: str | Path | Targets | None = None, only: str | None = None,
         steps: int | None = None, output: str | Path | None = DEFAULT_OUTPUT,
         duration_s: float = DEFAULT_DURATION_S, options: dict | None = None,
         progress: bool = True, shape: str = "line", size_mm: float | None = None,
         start_pose=None, direction=None, name: str | None = None,
-        animation: bool = True) -> pd.DataFrame:
-    """Solve every selected target with ``method`` and write the results.
+        animation: bool = True, problem: str | Path | None = None) -> pd.DataFrame:
+    """Solve every selected target (or a Cartesian path problem) with ``method`` and write
+    the results.
 
     Args:
         method: a method name (``"ours-lm"``, ...) or a configured :class:`Method`.
@@ -228,6 +277,9 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
             digits, ``_``, ``-``, ``.``, not one of :data:`RESERVED_NAMES`.
         animation: write ``animation.gif`` (the arm playing each trajectory; about 1-3 s
             for NICO's seven trajectories).
+        problem: a Cartesian path problem (a shipped name such as ``fetch_arm__hello`` or a
+            YAML file in CppFlow's format) instead of targets and shapes; the run writes
+            ``trajectory_<problem name>.csv`` and :data:`FRAME_TABLE_COLUMNS`.
 
     Returns:
         The table (one row per trajectory, columns :data:`ikbench.studies.report.TABLE_COLUMNS`,
@@ -240,11 +292,18 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
         raise InputError(f"--duration: {duration_s!r} must be a positive number of seconds")
     if name is not None:
         check_name(name)
-    solver, robot, targets, tasks = prepare(
-        method, robot=robot, targets=targets, only=only, steps=steps, options=options,
-        shape=shape, size_mm=size_mm, start_pose=start_pose, direction=direction)
-    record = {"shape": shape, "direction": direction, "duration_s": duration_s,
-              "size_mm": size_mm}
+    if problem is not None:
+        check_problem_options(targets=targets, only=only, steps=steps, shape=shape,
+                              size=size_mm, start_pose=start_pose, direction=direction)
+        solver, robot, targets, tasks, record = prepare_problem(method, problem, robot=robot,
+                                                                options=options)
+        record = {**record, "direction": None, "duration_s": duration_s}
+    else:
+        solver, robot, targets, tasks = prepare(
+            method, robot=robot, targets=targets, only=only, steps=steps, options=options,
+            shape=shape, size_mm=size_mm, start_pose=start_pose, direction=direction)
+        record = {"shape": shape, "direction": direction, "duration_s": duration_s,
+                  "size_mm": size_mm}
     if output is None:
         import tempfile
 
@@ -255,6 +314,17 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
     check_folder_writable(folder)  # before the solve, not after minutes of it
     return solve_and_write(solver, robot, targets, tasks, folder, {**record, "name": name},
                            progress, animation)
+
+
+def check_problem_options(**given) -> None:
+    """InputError naming the first task option given with a problem (the problem defines the
+    task: targets, shape, steps and start pose do not apply)."""
+    defaults = {"shape": "line"}
+    for key, value in given.items():
+        if value is not None and value != defaults.get(key):
+            flag = "--" + key.replace("_", "-")
+            raise InputError(f"{flag} does not apply to --problem (the problem file defines "
+                             "the path, its waypoints and the robot)")
 
 
 def solve_and_write(solver: Method, robot: Robot, targets: Targets, tasks, folder: Path,
@@ -290,7 +360,8 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
         for outcome in outcomes:
             if outcome.ok:
                 file = f"trajectory_{outcome.task.name}.csv"
-                write_trajectory_csv(tmp / file, robot, outcome.solution.poses_deg, duration_s)
+                write_trajectory_csv(tmp / file, robot, outcome.solution.poses_deg, duration_s,
+                                     quaternion=outcome.task.goal_rotations is not None)
                 written.append(file)
         table, details, points = evaluate(robot, outcomes, tmp, solver.name)
         atomic_write_csv(tmp / "table.csv", table, float_format="%.10g")
@@ -301,7 +372,17 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
         figures = []
         poses = {t.name: read_trajectory_poses(tmp / f"trajectory_{t.name}.csv", robot)
                  for t in solved}
-        if solved and solved[0].curve is None:
+        if solved and solved[0].goal_rotations is not None:
+            from ikbench.studies.pose_paths import plot_pose_path, reached
+
+            for outcome in outcomes:
+                if outcome.ok:
+                    task = outcome.task
+                    curve = reached(robot, task, outcome.solution.poses_deg)
+                    figures.append((f"pose path {task.name}", f"pose_path_{task.name}.png",
+                                    plot_pose_path(task, {solver.name: curve},
+                                                   f"{task.name}: {title}", robot)))
+        elif solved and solved[0].curve is None:
             figures = [("trajectories", "trajectories_3d.png",
                         plot_trajectories_3d(solved, points, title, robot, poses)),
                        ("criterion 2", "pointing_error.png",
@@ -327,7 +408,8 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
                 "duration_s": duration_s, "interrupted": bool(record.get("interrupted")),
                 "settings": json.loads(json.dumps(settings, default=_jsonable)),
                 "total_wall_time_s": record.get("total_wall_time_s"),
-                "files": files, **provenance(extra=(solver.library,))}
+                "files": files, **provenance(extra=(solver.library,)),
+                **{k: record[k] for k in ("problem", "problem_name") if k in record}}
         atomic_write_text(tmp / "run.json", json.dumps(full, indent=2) + "\n")
         atomic_write_text(tmp / "report.md", method_report(
             solver, table, details, targets, full,
@@ -351,6 +433,9 @@ def method_report(solver, table: pd.DataFrame, details: pd.DataFrame, targets: T
     shape = record.get("shape", "line")
     where = (f"Targets: {targets.source}" if shape == "line" else
              f"Shape: {shape}, start pose {record['start_pose_deg']}")
+    if record.get("problem"):
+        where = (f"Problem: {record['problem']}, a 6-D pose path in CppFlow's format (no "
+                 "start pose given)")
     name = record.get("name") or solver.name
     heading = solver.name if name == solver.name else f"{name} ({solver.name})"
     robot = record.get("robot") or {}
@@ -365,13 +450,27 @@ def method_report(solver, table: pd.DataFrame, details: pd.DataFrame, targets: T
     if record.get("failed"):
         lines += [f"**Failed solves**: {', '.join(record['failed'])} (their rows are empty; "
                   "details.csv gives each failure).", ""]
+    units = ("the 6-D objective's (mm, deg)" if record.get("problem") else
+             "the paper's units (cm, motor degrees)")
+    digits = {"loss": 3, "duration_s": 4, "iterations": 0, "time_to_valid_s": 4,
+              "max_joint_change_deg": 3, "max_joint_change_mm": 3,
+              **{c: 5 for c in table.columns if c.startswith(("position_error",
+                                                              "rotation_error"))}}
     lines += ["## Measured", "",
               "Computed by `ikbench.core.metrics` from the trajectory CSVs in this folder. "
-              "Distances in mm, angles in degrees, loss in the paper's units (cm, motor "
-              "degrees); duration_s is the wall time of the solve measured by the harness.",
-              "", markdown_table(table.drop(columns=["method"]),
-                                 {"loss": 3, "duration_s": 4, "iterations": 0}), ""]
-    if shape != "line":
+              f"Distances in mm, angles in degrees, loss in {units}; duration_s is the wall "
+              "time of the solve measured by the harness.",
+              "", markdown_table(table.drop(columns=["method"]), digits), ""]
+    if record.get("problem"):
+        from ikbench.core.validity import describe
+
+        lines += ["Position error: distance of the end frame from its goal [mm]; rotation "
+                  "error: the SO(3) geodesic angle |log(R_goal^T R)| [deg]; joint changes "
+                  "between waypoints (revolute wrapped, prismatic in mm); path lengths in joint "
+                  "space (sum of absolute changes) and of the end point. valid: CppFlow's "
+                  f"criteria: {describe()}. loss: the 6-D objective of the method (mm^2, "
+                  "deg^2).", ""]
+    elif shape != "line":
         lines += ["curve_distance: distance of each fingertip point from the target curve "
                   "(its nearest point); point_error: from the point's own goal point; "
                   "pointing deviation: from the goal direction (letters: the drawing plane's "

@@ -13,7 +13,8 @@ def register(subparsers) -> None:
             "kinematics library, installed with pip install 'ikbench[libs]') and those other "
             "packages add through the entry-point group ikbench.methods. A method whose "
             "library is missing is listed as unavailable with the reason; every other "
-            "command still works."),
+            "command still works. [goal frames]: the method follows 6-D pose paths "
+            "(run --problem, ikbench cartesian)."),
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(func=run)
@@ -34,6 +35,7 @@ def run(args) -> int:
                      "library": library, "version": version, "source": status.source,
                      "description": cls.description if cls else "",
                      "reason": status.reason,
+                     "goal_frames": bool(cls and cls.supports_frames),
                      "options": [f"--{o.flag}" for o in cls.options()] if cls else []})
     if args.json:
         print(json.dumps({"methods": rows}))
@@ -42,7 +44,8 @@ def run(args) -> int:
     for r in rows:
         if r["available"]:
             lib = f"{r['library']} {r['version'] or ''}".strip()
-            print(f"{r['method']:<{width}}  available    [{lib}] {r['description']}")
+            frames = " [goal frames]" if r["goal_frames"] else ""
+            print(f"{r['method']:<{width}}  available    [{lib}]{frames} {r['description']}")
         else:
             print(f"{r['method']:<{width}}  UNAVAILABLE  {r['reason']}")
     return 0

@@ -7,8 +7,11 @@ LINE_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "line_distance
                 "pointing_deviation_mean_deg", "end_point_error_mm"]
 SHAPE_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "curve_distance_mean_mm",
                  "curve_distance_max_mm", "point_error_mean_mm", "pointing_deviation_mean_deg"]
+PROBLEM_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "position_error_max_mm",
+                   "rotation_error_max_deg", "max_joint_change_deg", "valid"]
 DEFAULT_METHOD = "ours"
 DEFAULT_OUTPUT = "runs"
+DEFAULT_ROBOT = "nico_right_arm"
 
 
 def register(subparsers) -> None:
@@ -37,6 +40,13 @@ def register(subparsers) -> None:
     parser.add_argument("--name", default=None,
                         help="folder under OUTPUT for this run (default: the method's name), "
                         "e.g. sequential-ik-position; letters, digits, '_', '-', '.'")
+    parser.add_argument("--problem", default=None, metavar="FILE.yaml|NAME",
+                        help="a Cartesian path problem in CppFlow's format instead of targets "
+                        "and shapes: a YAML file (robot, path_name, path_offset_frame, "
+                        "path_xyz_offset, path_R_offset; path_name.csv next to it or shipped) "
+                        "or a shipped one (fetch_arm__hello, ...); writes "
+                        "trajectory_<problem>.csv with the end frame's quaternion, and a table "
+                        "of pose errors, joint changes, path lengths and CppFlow's validity")
     parser.set_defaults(func=run)
 
 
@@ -106,10 +116,11 @@ def run(args, shape: str | None = None, fixed: dict | None = None) -> int:
     from ikbench.cli.options import check_threads, method_from_args, robot_from_args, set_threads
     from ikbench.core.targets import parse_pose
     from ikbench.methods.registry import available_methods, get_method
-    from ikbench.studies.harness import Interrupted
-    from ikbench.studies.run import check_name, prepare, solve_and_write
+    from ikbench.studies.run import check_name, prepare
 
     check_threads(args.threads)
+    if getattr(args, "problem", None) is not None:
+        return run_problem(args, fixed)
     robot = robot_from_args(args)
     start_pose = None if args.start_pose is None else parse_pose(args.start_pose, robot,
                                                                  "--start-pose")
@@ -139,9 +150,21 @@ def run(args, shape: str | None = None, fixed: dict | None = None) -> int:
     set_threads(args.threads)
     record = {"shape": shape, "direction": args.direction, "duration_s": args.duration,
               "name": name, "size_mm": args.size}
+    return solve_write_report(solver, robot, targets, tasks, folder, record, args.quiet,
+                              animation=not args.no_animation)
+
+
+def solve_write_report(solver, robot, targets, tasks, folder, record, quiet: bool,
+                       animation: bool = True) -> int:
+    """Solve, write the run folder and print its table; 130 after Ctrl-C."""
+    import sys
+
+    from ikbench.studies.harness import Interrupted
+    from ikbench.studies.run import solve_and_write
+
     try:
         table = solve_and_write(solver, robot, targets, tasks, folder, record,
-                                progress=not args.quiet, animation=not args.no_animation)
+                                progress=not quiet, animation=animation)
     except Interrupted as stop:
         if stop.outcomes:
             print(f"ikbench: interrupted: {folder}/ holds the {len(stop.outcomes)} "
@@ -150,7 +173,46 @@ def run(args, shape: str | None = None, fixed: dict | None = None) -> int:
             print(f"ikbench: interrupted before any trajectory was solved; {folder}/ is "
                   "unchanged", file=sys.stderr)
         return 130
-    columns = LINE_COLUMNS if "line_distance_mean_mm" in table else SHAPE_COLUMNS
+    return report_table(table, folder)
+
+
+def run_problem(args, fixed: dict | None = None) -> int:
+    """``run --problem``: validate, solve the problem's pose path, write, print the table."""
+    from pathlib import Path
+
+    from ikbench.cli.options import method_from_args, set_threads
+    from ikbench.core.io import check_folder_writable
+    from ikbench.methods.registry import available_methods, get_method
+    from ikbench.studies.run import check_name, check_problem_options, prepare_problem
+
+    check_problem_options(targets=args.targets, only=args.only, steps=args.steps,
+                          shape=args.shape, size=args.size, start_pose=args.start_pose,
+                          direction=args.direction, end_frame=args.end_frame)
+    name = getattr(args, "name", None)
+    if name is not None:
+        check_name(name)
+    if not args.duration > 0:
+        from ikbench.core.errors import InputError
+
+        raise InputError(f"--duration: {args.duration!r} must be a positive number of seconds")
+    cls = get_method(args.method)
+    solver = method_from_args(args, cls, available_methods(), **(fixed or {}))
+    robot = None if args.robot == DEFAULT_ROBOT else args.robot
+    solver, robot, targets, tasks, record = prepare_problem(solver, args.problem, robot=robot)
+    folder = Path(args.output) / (name or solver.name)
+    check_folder_writable(folder)
+    set_threads(args.threads)
+    record = {**record, "direction": None, "duration_s": args.duration, "name": name}
+    return solve_write_report(solver, robot, targets, tasks, folder, record, args.quiet,
+                              animation=not args.no_animation)
+
+
+def report_table(table, folder) -> int:
+    """Print a run's table and where it went; exit code 1 when a solve failed."""
+    import sys
+
+    columns = (PROBLEM_COLUMNS if "position_error_max_mm" in table else
+               LINE_COLUMNS if "line_distance_mean_mm" in table else SHAPE_COLUMNS)
     print(table[columns].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     print(f"written to {folder}/")
     failed = table["trajectory"][table[columns[4]].isna()].tolist()

@@ -113,6 +113,79 @@ class ChainKinematics:
         return point, direction, j_point.transpose(0, 2, 1), j_dir.transpose(0, 2, 1)
 
 
+    def frames(self, poses, jacobian: bool = True):
+        """End-frame poses (and Jacobians) of poses (M, dof) [pose units].
+
+        A second formulation of the chain, built for few poses at a time (the start search of
+        pose paths calls it once per waypoint): every joint's local 4 x 4 transform is made
+        for all joints at once, leaving one product per joint.
+
+        Returns:
+            (point_m (M, 3), rotation (M, 3, 3), J_point (M, 3, dof) [m / pose unit] or None,
+            J_angular (M, 3, dof) [rad / pose unit], world-aligned, or None).
+        """
+        if not hasattr(self, "_placements"):
+            self._prepare_frames()
+        q = self.robot.to_urdf(np.asarray(poses, dtype=float))
+        revolute = ~self.prismatic
+        s, c = np.sin(q * revolute)[..., None, None], np.cos(q * revolute)[..., None, None]
+        local = np.zeros((len(q), self.dof, 4, 4))
+        local[..., :3, :3] = np.eye(3) + s * self._skew + (1.0 - c) * self._skew2
+        local[..., :3, 3] = (q * self.prismatic)[..., None] * self._axes
+        local[..., 3, 3] = 1.0
+        local = self._placements @ local
+        chain = np.empty_like(local)
+        chain[:, 0] = current = local[:, 0]
+        for j in range(1, self.dof):
+            chain[:, j] = current = current @ local[:, j]
+        end = current @ self._tip
+        point, rotation = end[:, :3, 3], end[:, :3, :3]
+        if not jacobian:
+            return point, rotation, None, None
+        w = np.einsum("mjab,jb->maj", chain[..., :3, :3], self._axes)       # (M, 3, dof)
+        d = point[:, :, None] - chain[..., :3, 3].transpose(0, 2, 1)       # P - o_j
+        cross = w[:, [1, 2, 0]] * d[:, [2, 0, 1]] - w[:, [2, 0, 1]] * d[:, [1, 2, 0]]
+        scale = self.urdf_per_unit
+        j_point = np.where(revolute, cross, w) * scale
+        return point, rotation, j_point, w * (revolute * scale)
+
+    def _prepare_frames(self):
+        """Constant 4 x 4 placements, axes and their cross-product matrices (for frames)."""
+        self._placements = np.zeros((self.dof, 4, 4))
+        self._placements[:, :3, :3] = self.rotations
+        self._placements[:, :3, 3] = self.translations
+        self._placements[:, 3, 3] = 1.0
+        self._axes = np.array(self.axes, dtype=float)
+        a = self._axes
+        self._skew = np.zeros((self.dof, 3, 3))
+        self._skew[:, 0, 1], self._skew[:, 0, 2], self._skew[:, 1, 2] = -a[:, 2], a[:, 1], -a[:, 0]
+        self._skew -= self._skew.transpose(0, 2, 1)
+        self._skew2 = self._skew @ self._skew
+        self._tip = np.eye(4)
+        self._tip[:3, :3], self._tip[:3, 3] = self.tip_rotation, self.tip_translation
+
+
+def pinocchio_frames(robot, poses, jacobian: bool = True):
+    """The reference of :meth:`ChainKinematics.frames`: Pinocchio per pose."""
+    import pinocchio as pin
+
+    pfk = robot.pinocchio_fk()
+    model, data, fid = pfk.model, pfk.data, pfk.frame_id
+    q_urdf = robot.to_urdf(np.atleast_2d(np.asarray(poses, dtype=float)))
+    m, dof = q_urdf.shape
+    point, rotation = np.empty((m, 3)), np.empty((m, 3, 3))
+    j_point, j_angular = np.empty((m, 3, dof)), np.empty((m, 3, dof))
+    scale = robot.to_urdf(np.ones(dof)) - robot.to_urdf(np.zeros(dof))
+    for i, q in enumerate(q_urdf):
+        jac = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)
+        point[i] = data.oMf[fid].translation
+        rotation[i] = data.oMf[fid].rotation
+        j_point[i], j_angular[i] = jac[:3] * scale, jac[3:] * scale
+    if not jacobian:
+        return point, rotation, None, None
+    return point, rotation, j_point, j_angular
+
+
 def pinocchio_kinematics(robot, poses, jacobian: bool = True):
     """The reference of :class:`ChainKinematics`: Pinocchio per pose (LOCAL_WORLD_ALIGNED)."""
     import pinocchio as pin

@@ -1,8 +1,9 @@
 """FK through Pinocchio (float64, numpy), and the robot's Pinocchio model for IK and Jacobians.
 
-The model holds only the robot's chain: every other movable joint of the URDF is locked at 0
-(``pinocchio.buildReducedModel``), continuous joints are read as revolute joints with
-unbounded limits (one coordinate each, so nq = nv = dof), and the chain's base link is the
+The model holds only the robot's chain: every other movable joint of the URDF is locked at 0,
+the config's locked joints at their values (``pinocchio.buildReducedModel``), continuous
+joints are read as revolute joints with unbounded limits (one coordinate each, so
+nq = nv = dof), and the chain's base link is the
 model's world frame (positions and world-aligned Jacobians are in the base frame).
 """
 
@@ -37,7 +38,10 @@ def build_chain_model(robot):
     full = pin.buildModelFromXML(chain_urdf_xml(robot))
     keep = set(robot.joint_names)
     lock = [j for j in range(1, full.njoints) if full.names[j] not in keep]
-    model = pin.buildReducedModel(full, lock, pin.neutral(full)) if lock else full
+    reference = pin.neutral(full)
+    for name, value in robot.locked_urdf.items():  # the config's locked joints, others at 0
+        reference[full.idx_qs[full.getJointId(name)]] = value
+    model = pin.buildReducedModel(full, lock, reference) if lock else full
     names = tuple(model.names[1:])
     if names != robot.joint_names:
         raise ValueError(f"URDF joint order {names} differs from {robot.joint_names}")

@@ -63,15 +63,25 @@ class TorchFK:
         chain = build_chain_float64(robot.urdf_path.read_bytes(), robot.end_frame,
                                     robot.root_link)
         names = tuple(chain.get_joint_parameter_names())
-        if names != robot.joint_names:
-            raise ValueError(f"URDF joint order {names} differs from {robot.joint_names}")
+        free = tuple(n for n in names if n not in robot.locked_urdf)
+        if free != robot.joint_names:
+            raise ValueError(f"URDF joint order {free} differs from {robot.joint_names}")
         self.chain = chain.to(dtype=self.dtype, device=device)
+        # locked joints: their value is inserted into the chain's joint vector
+        self._columns = [names.index(n) for n in robot.joint_names]
+        self._locked = (torch.tensor([robot.locked_urdf.get(n, 0.0) for n in names],
+                                     dtype=self.dtype, device=device)
+                        if robot.locked_urdf else None)
         self.pointing_axis = torch.as_tensor(robot.pointing_axis, dtype=self.dtype,
                                              device=device)
 
     def transform(self, q_pose):
         """End-frame homogeneous transforms (B, 4, 4) [m] for poses (B, dof) [pose units]."""
         q_urdf = self.robot.to_urdf(q_pose)
+        if self._locked is not None:
+            full = self._locked.expand(q_urdf.shape[0], -1).clone()
+            full[:, self._columns] = q_urdf
+            q_urdf = full
         return self.chain.forward_kinematics(q_urdf).get_matrix()
 
     def __call__(self, q_pose):

@@ -10,11 +10,19 @@ normal equations (:mod:`.linalg`) and a projected LM loop batched over trajector
 Weights: as in ``ours``, a task may name the weights it is meant for
 (``Task.default_weights``, e.g. a letter's c0=1, c1=50, c6=1, others 0); ``--weights`` changes
 then apply on top of those instead of the paper's, per task in one batch.
+
+6-D pose paths (tasks with goal frames, e.g. the CppFlow problems) are solved on their own
+objective (:mod:`.frames`: position [mm], rotation by the SO(3) log map [deg], smoothness)
+after a start search (:mod:`.start_search`: IK seeds for the first waypoint, each carried
+along the path, the best refined by this LM), one task at a time.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import replace
+
+import numpy as np
 
 from ikbench.core.losses import TERMS, format_weights, resolve_weights
 from ikbench.methods.base import Method, Solution
@@ -27,9 +35,10 @@ from ikbench.methods.ours_lm.solver import (
     initial_poses,
     solve_batch,
 )
+from ikbench.methods.ours_lm.start_search import OursLMSettings, search
 
 __all__ = ["KINEMATICS", "LINEAR_SOLVERS", "BatchResult", "Evaluation", "LMSettings", "OursLM",
-           "Problem", "evaluate", "initial_poses", "solve_batch"]
+           "OursLMSettings", "Problem", "evaluate", "initial_poses", "search", "solve_batch"]
 
 
 class OursLM(Method):
@@ -37,9 +46,11 @@ class OursLM(Method):
 
     name = "ours-lm"
     description = ("the paper's objective (same L0..L6, units, weights) by batched "
-                   "Levenberg-Marquardt with analytic Jacobians and joint-limit boxes")
-    Settings = LMSettings
+                   "Levenberg-Marquardt with analytic Jacobians and joint-limit boxes; 6-D pose "
+                   "paths: seeded start search, then the same LM")
+    Settings = OursLMSettings
     batched = True
+    supports_frames = True
 
     def settings_for(self, task) -> LMSettings:
         """The settings for one task, with its complete weights."""
@@ -47,16 +58,33 @@ class OursLM(Method):
 
     def prepare(self, robot) -> None:
         if self.settings.kinematics == "numpy":
-            robot.chain_kinematics()
+            robot.chain_kinematics().frames(np.zeros((1, robot.dof)))
         else:
             robot.pinocchio_fk()
+        import scipy.linalg.lapack  # noqa: F401  the banded solver's import is not timed
 
     def solve(self, robot, task, progress=None) -> Solution:
         return self.solve_many(robot, [task])[0]
 
     def solve_many(self, robot, tasks, progress=None) -> list[Solution]:
         """One batched solve of every task (each with :meth:`settings_for`'s weights); each
-        Solution's duration_s is its share of the batch's wall time."""
+        Solution's duration_s is its share of the batch's wall time. Tasks with goal frames
+        are solved one at a time by :func:`.start_search.search`."""
+        if any(t.goal_rotations is not None for t in tasks):
+            by_index: dict[int, Solution] = {}
+            for k, task in enumerate(tasks):
+                if task.goal_rotations is None:
+                    continue
+                if progress:
+                    progress.start(task, k, len(tasks))
+                by_index[k] = self._solve_path(robot, task)
+                if progress:
+                    progress.done(task, by_index[k])
+            rest = [k for k in range(len(tasks)) if k not in by_index]
+            if rest:
+                solved = self.solve_many(robot, [tasks[k] for k in rest], progress)
+                by_index.update(zip(rest, solved))
+            return [by_index[k] for k in range(len(tasks))]
         weights = [resolve_weights(self.settings.weights, task) for task in tasks]
         if progress:
             for k, task in enumerate(tasks):
@@ -75,3 +103,16 @@ class OursLM(Method):
             if progress:
                 progress.done(task, solutions[-1])
         return solutions
+
+    def _solve_path(self, robot, task) -> Solution:
+        """A 6-D pose path by the start search; ``converged``: a valid path was found."""
+        started = time.perf_counter()
+        weights = resolve_weights(self.settings.weights, task)
+        result = search(robot, task, self.settings, weights)
+        return Solution(
+            poses_deg=result.poses_deg, iterations=result.iterations,
+            duration_s=time.perf_counter() - started, loss=result.loss,
+            converged=result.valid,
+            info={"valid_by_search": result.valid, "lm_converged": result.converged,
+                  "weights": format_weights(weights), **result.info,
+                  **{t: float(v) for t, v in zip(TERMS, result.terms)}})

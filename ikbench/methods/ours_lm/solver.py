@@ -113,7 +113,8 @@ def _free_variables(problem: Problem, poses, gradient):
 
 
 def solve_batch(robot, tasks, settings: LMSettings | None = None, weights=None,
-                initial=None, progress=None) -> BatchResult:
+                initial=None, progress=None, problem=None, evaluator=evaluate,
+                until=None) -> BatchResult:
     """Minimise the paper's objective for many tasks at once.
 
     Args:
@@ -123,6 +124,13 @@ def solve_batch(robot, tasks, settings: LMSettings | None = None, weights=None,
         weights: one weights dict for all tasks or one per task (default ``settings.weights``).
         initial: initial poses (B, N, dof) [motor deg] (default :func:`initial_poses`).
         progress: optional callable ``(iteration, n_active, losses)`` called every iteration.
+        problem: the least-squares problem (default: the paper's objective,
+            :meth:`Problem.from_tasks`); e.g. a :class:`.frames.FrameProblem`.
+        evaluator: ``evaluator(kinematics, problem, poses, derivatives)`` -> Evaluation of
+            ``problem`` (default :func:`.problem.evaluate`).
+        until: optional ``until(poses (A, N, dof), indices (A,)) -> (A,) bool`` called after
+            every iteration with the active trajectories' poses; those it marks stop, counted
+            as converged (e.g. once a pose path meets its validity criteria).
 
     Returns:
         A :class:`BatchResult`; every pose lies within the motor ranges.
@@ -132,11 +140,12 @@ def solve_batch(robot, tasks, settings: LMSettings | None = None, weights=None,
     kin = _kinematics(robot, settings.kinematics)
     if weights is None:
         weights = [resolve_weights(settings.weights, task) for task in tasks]
-    problem = Problem.from_tasks(robot, tasks, weights)
+    if problem is None:
+        problem = Problem.from_tasks(robot, tasks, weights)
     poses = initial_poses(robot, tasks) if initial is None else np.array(initial, dtype=float)
     poses = np.clip(poses, problem.lower_deg, problem.upper_deg)
     b = len(tasks)
-    current = evaluate(kin, problem, poses)
+    current = evaluator(kin, problem, poses)
     damping = np.full(b, settings.damping)
     nu = np.full(b, 2.0)
     iterations = np.zeros(b, dtype=int)
@@ -157,7 +166,7 @@ def solve_batch(robot, tasks, settings: LMSettings | None = None, weights=None,
         step = trial - x
         predicted = -(2.0 * np.sum(ev.gradient * step, axis=(1, 2))
                       + np.sum(step * block_matvec(ev, step), axis=(1, 2)))
-        new = evaluate(kin, sub, trial)
+        new = evaluator(kin, sub, trial)
         gain = (ev.loss - new.loss) / np.where(predicted > 0, predicted, np.inf)
         accept = ok & (predicted > 0) & (gain > MIN_GAIN_RATIO)
         iterations[active] += 1
@@ -179,6 +188,10 @@ def solve_batch(robot, tasks, settings: LMSettings | None = None, weights=None,
         stuck = damping[active] > MAX_DAMPING
         converged[active[stuck & ~small]] = _stationary(ev, x, sub)[stuck & ~small]
         done = small | stuck | (iterations[active] >= settings.max_iterations)
+        if until is not None:
+            reached = np.asarray(until(poses[active], active), dtype=bool)
+            converged[active[reached]] = True
+            done |= reached
         if progress:
             progress(int(iterations.max()), int(active.size), current.loss)
         active = active[~done]

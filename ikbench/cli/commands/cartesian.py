@@ -1,0 +1,123 @@
+"""``ikbench cartesian``: the CppFlow/TORM Cartesian path benchmark."""
+
+from __future__ import annotations
+
+HELP = "Cartesian path benchmark: methods on the CppFlow/TORM 6-D pose paths, several seeds"
+DEFAULT_OUTPUT = "runs"
+
+
+def register(subparsers) -> None:
+    from ikbench.cli.options import add_method_options
+    from ikbench.core.problems import BENCHMARK, shipped_problems
+    from ikbench.studies.cartesian import DEFAULT_SEEDS, frame_methods
+
+    methods = frame_methods()
+    parser = subparsers.add_parser(
+        "cartesian", help=HELP,
+        description=(
+            "Solve Cartesian path problems (6-D pose paths in CppFlow's format: the shipped "
+            f"obstacle-free CppFlow/TORM problems, {', '.join(shipped_problems())}, or your own "
+            "YAML files) with every method that follows goal frames "
+            f"({', '.join(methods)}), once per seed, and write OUTPUT/cartesian/: table.csv "
+            "(one row per problem x method x seed: pose errors, joint changes, path lengths, "
+            "CppFlow's validity, time to a valid solution), summary.csv, published.csv "
+            "(CppFlow's and TORM's published figures with their sources, 'not found' where "
+            "none was found), the trajectories, a figure per problem, report.md and run.json. "
+            "Method options below apply to the methods that have them."),
+    )
+    parser.add_argument("--problems", action="append", default=None,
+                        metavar=f"{BENCHMARK}|NAME,...|FILE.yaml",
+                        help=f"{BENCHMARK} (default: every shipped problem), problem names or "
+                        "YAML files, comma-separated; may be repeated")
+    parser.add_argument("--methods", default=None,
+                        help=f"comma-separated methods (default: {', '.join(methods)})")
+    parser.add_argument("--seeds", default=",".join(map(str, DEFAULT_SEEDS)),
+                        help="comma-separated seeds, one solve per method and seed (default "
+                        f"{','.join(map(str, DEFAULT_SEEDS))})")
+    parser.add_argument("--output", default=DEFAULT_OUTPUT,
+                        help=f"output directory; the study writes OUTPUT/cartesian/ (default "
+                        f"{DEFAULT_OUTPUT})")
+    parser.add_argument("--trajectories", choices=["first", "all"], default="first",
+                        help="trajectory CSVs to write: the first seed's (default) or every "
+                        "seed's (a 553-waypoint path is about 100 kB)")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_method_options(parser, methods)
+    parser.set_defaults(func=run)
+
+
+def method_settings(args, names: list[str]) -> dict[str, dict]:
+    """method -> settings from the method options given (each applies to the methods that
+    have it); InputError for an option none of them has, and for --seed (use --seeds)."""
+    from ikbench.cli.options import _convert, _given
+    from ikbench.core.errors import InputError
+    from ikbench.methods.registry import get_method
+
+    given = _given(args)
+    if "seed" in given:
+        raise InputError("--seed: the benchmark runs every seed of --seeds; give --seeds")
+    out: dict[str, dict] = {name: {} for name in names}
+    used = set()
+    for name in names:
+        for opt in get_method(name).options():
+            if opt.flag in given:
+                out[name][opt.field] = _convert(opt, given[opt.flag])
+                used.add(opt.flag)
+    unused = [flag for flag in given if flag not in used]
+    if unused:
+        raise InputError(f"--{unused[0]} is not an option of the methods chosen "
+                         f"({', '.join(names)})")
+    return out
+
+
+def command_line(args, problems: str, seeds) -> str:
+    """The command as given (options in a fixed order), for the report."""
+    import shlex
+
+    from ikbench.cli.options import _given
+
+    words = ["ikbench", "cartesian", "--problems", problems]
+    if args.methods:
+        words += ["--methods", args.methods]
+    words += ["--seeds", ",".join(map(str, seeds)), "--output", args.output]
+    if args.trajectories != "first":
+        words += ["--trajectories", args.trajectories]
+    for flag, value in _given(args).items():
+        words += [f"--{flag}", str(value)]
+    return " ".join(shlex.quote(w) for w in words)
+
+
+def run(args) -> int:
+    import sys
+    from pathlib import Path
+
+    from ikbench.cli.options import check_threads, set_threads
+    from ikbench.core.io import check_folder_writable
+    from ikbench.core.problems import BENCHMARK, resolve_problems
+    from ikbench.studies.cartesian import FOLDER, cartesian, parse_methods, parse_seeds, write
+
+    check_threads(args.threads)
+    problems = ",".join(args.problems) if args.problems else BENCHMARK
+    resolve_problems(problems)
+    names = parse_methods(args.methods)
+    seeds = parse_seeds(args.seeds)
+    options = method_settings(args, names)
+    folder = Path(args.output) / FOLDER
+    check_folder_writable(folder)
+    set_threads(args.threads)
+    result = cartesian(problems, names, seeds, options, progress=not args.quiet)
+    write(result, args.output, command_line(args, problems, seeds), args.trajectories)
+    from ikbench.studies.cartesian import summarise
+
+    summary = summarise(result.table)
+    print(summary[["problem", "method", "valid_runs", "runs", "time_to_valid_median_s",
+                   "position_error_max_mm", "rotation_error_max_deg",
+                   "max_joint_change_deg"]].to_string(index=False, float_format=lambda v:
+                                                      f"{v:.3g}"))
+    print(f"written to {folder}/")
+    failed = result.table[result.table["failure"].fillna("") != ""]
+    if len(failed):
+        print(f"ikbench: {len(failed)} solves failed; table.csv gives each failure",
+              file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,359 @@
+"""Start search for 6-D pose paths: no start pose is given, so finding one is part of the task.
+
+A 7-DoF arm reaches each pose in infinitely many ways; the path is solved by:
+
+1. **Seeds**: IK for the first waypoint from the task's reference (home) pose and
+   ``ik_seeds - 1`` poses drawn uniformly within the task's limits (``numpy`` generator seeded
+   with ``seed``), by damped least squares with an adaptive damping, all seeds at once;
+   converged seeds that coincide (within 1 deg) are merged.
+2. **Carry**: each seed is carried along the path, waypoint by waypoint, each solve warm
+   started from the previous waypoint's (minimum-norm damped least-squares steps with
+   joint-limit avoidance in the null space, :func:`carry`), all seeds at once. Candidates are
+   ranked by the waypoints they lost, then by whether a step reaches CppFlow's 7 deg, then by
+   their joint path length.
+3. **Refine**: the ``refine`` best candidates are refined together by the LM solver on the
+   6-D objective with the smoothness term (:mod:`.frames`, default weights
+   :data:`ikbench.core.losses.FRAME_WEIGHTS`) until one meets CppFlow's criteria
+   (:mod:`ikbench.core.validity`) with its pose errors below :data:`SEARCH_MARGIN` of the
+   thresholds; the valid one with the lowest loss is kept. When none gets there, the next
+   ``refine`` candidates are tried, and so on; failing all, the lowest-loss one is returned.
+
+Everything is deterministic for a seed. Errors are in mm and degrees throughout.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ikbench.core.errors import InputError
+from ikbench.core.validity import (
+    MAX_JOINT_CHANGE_DEG,
+    MAX_JOINT_CHANGE_MM,
+    MAX_POSITION_ERROR_MM,
+    MAX_ROTATION_ERROR_DEG,
+)
+from ikbench.methods.base import check_positive, option
+from ikbench.methods.ours_lm.frames import FrameProblem, errors_from_frames, evaluate_frames
+from ikbench.methods.ours_lm.solver import LMSettings, solve_batch
+
+#: First-waypoint IK: iterations, and the tolerance on the errors [mm, deg].
+IK_ITERATIONS = 100
+IK_TOLERANCE = 1e-6
+#: A seed whose damping grew above this made no progress for many iterations (stuck).
+IK_STALLED = 1e6
+#: Largest joint step [pose units] of one first-waypoint IK iteration.
+IK_MAX_STEP = 20.0
+#: Seeds closer than this [pose units, max over joints] after IK count as one.
+DUPLICATE_DEG = 1.0
+#: Carrying: iterations per waypoint at most, and the error [mm or deg] before a step above
+#: which another one follows.
+CARRY_ITERATIONS = 3
+CARRY_RETRY = 1.0
+#: A candidate whose error before a waypoint's first step exceeds this [mm or deg] is not
+#: carried further.
+DROP_MM_DEG = 50.0
+#: A carried waypoint further than this from its goal [mm or deg] counts as lost.
+LOST_MM_DEG = 5.0
+#: The refinement stops once a candidate's position and rotation errors are below this
+#: fraction of CppFlow's thresholds (and its other criteria hold): a valid result with room
+#: to spare, e.g. for an evaluation in float32.
+SEARCH_MARGIN = 0.9
+#: Seeds whose first-waypoint error is below this [mm and deg] are carried.
+SEED_TOLERANCE = 1e-3
+#: Damping of the carrying steps [mm] (damped least squares, J^T (J J^T + d^2 I)^-1 e).
+CARRY_DAMPING = 1e-2
+#: Gain of the joint-limit avoidance in the null space while carrying (per waypoint).
+AVOIDANCE_GAIN = 0.005
+
+
+@dataclass
+class OursLMSettings(LMSettings):
+    """:class:`LMSettings` plus the start search of 6-D pose paths.
+
+    Attributes:
+        seed: seed of the random IK seeds, in [0, 2^63).
+        ik_seeds: IK seeds for the first waypoint (the home pose and random ones).
+        refine: carried candidates refined by LM at once.
+    """
+
+    seed: int = option(0, help="6-D pose paths: seed of the start search's random IK seeds, "
+                       "in [0, 2^63)")
+    ik_seeds: int = option(16, flag="lm-ik-seeds",
+                           help="6-D pose paths: IK seeds for the first waypoint (the home "
+                           "pose and random ones)")
+    refine: int = option(2, flag="lm-refine",
+                         help="6-D pose paths: carried candidates refined by LM together")
+
+    def __post_init__(self):
+        super().__post_init__()
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) \
+                or not 0 <= self.seed < 2**63:
+            raise InputError(f"--seed: {self.seed!r} must be an integer in [0, 2^63)")
+        check_positive(self, "ik_seeds", "refine", integer=True)
+        self.ik_seeds, self.refine = int(self.ik_seeds), int(self.refine)
+
+
+@dataclass
+class SearchResult:
+    """The start search's outcome for one task (poses in pose units)."""
+
+    poses_deg: np.ndarray          # (N, dof)
+    loss: float
+    terms: np.ndarray              # (7,) L0..L6 of the 6-D objective
+    valid: bool
+    iterations: int                # IK + carrying + LM iterations
+    converged: bool                # the LM stopping rule was met
+    info: dict
+
+
+def _stack(e_point, e_rot, j_point, j_rot):
+    """(e (K, 6), J (K, 6, dof)) from position and rotation errors [mm, deg]."""
+    return np.concatenate([e_point, e_rot], -1), np.concatenate([j_point, j_rot], -2)
+
+
+def _dls(e, J, damping):
+    """Minimum-norm damped least-squares steps (K, dof): -J^T (J J^T + d^2 I)^-1 e."""
+    d2 = np.asarray(damping, dtype=float).reshape(-1, 1, 1) ** 2
+    JJt = J @ J.swapaxes(-1, -2) + d2 * np.eye(J.shape[-2])
+    return -(J.swapaxes(-1, -2) @ np.linalg.solve(JJt, e[..., None]))[..., 0]
+
+
+def first_waypoint_ik(frames, goal_mm, goal_R, seeds, lower, upper):
+    """Damped least-squares IK of one pose from every seed (K, dof), with an adaptive damping.
+
+    Returns:
+        (poses (K, dof), position errors (K,) [mm], rotation errors (K,) [deg], iterations).
+    """
+    q = np.clip(seeds, lower, upper)
+    e, J = _stack(*errors_from_frames(*frames(q), goal_mm, goal_R))
+    damping = np.full(len(q), 1.0)
+    iterations = 0
+    while iterations < IK_ITERATIONS:
+        norm = np.linalg.norm(e, axis=1)
+        if np.all((norm < IK_TOLERANCE) | (damping > IK_STALLED)):   # converged or stuck
+            break
+        iterations += 1
+        step = _dls(e, J, damping)
+        step *= np.minimum(1.0, IK_MAX_STEP / np.maximum(np.abs(step).max(1), 1e-300))[:, None]
+        trial = np.clip(q + step, lower, upper)
+        e_new, J_new = _stack(*errors_from_frames(*frames(trial), goal_mm, goal_R))
+        better = np.linalg.norm(e_new, axis=1) < norm
+        q[better], e[better], J[better] = trial[better], e_new[better], J_new[better]
+        damping = np.where(better, np.maximum(damping / 3.0, 1e-6), damping * 4.0)
+    return q, np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(e[:, 3:], axis=1), iterations
+
+
+def distinct(poses, keep) -> np.ndarray:
+    """Indices of ``poses`` (K, dof) where ``keep``, dropping near-duplicates (first kept)."""
+    chosen: list[int] = []
+    for k in np.flatnonzero(keep):
+        if all(np.abs(poses[k] - poses[c]).max() > DUPLICATE_DEG for c in chosen):
+            chosen.append(int(k))
+    return np.array(chosen, dtype=int)
+
+
+def limit_avoidance(q, lower, upper) -> np.ndarray:
+    """Joint motion (K, dof) [pose units] away from the limits, for the null space: with
+    u = (q - middle) / half-range in [-1, 1], -:data:`AVOIDANCE_GAIN` half-range u^3 (small in
+    the middle of the range, strong near a limit)."""
+    middle, half = 0.5 * (upper + lower), 0.5 * (upper - lower)
+    u = (q - middle) / half
+    return -AVOIDANCE_GAIN * half * u**3
+
+
+def redundant_step(e, J, damping, q, lower, upper):
+    """A damped least-squares step (K, dof) towards the goal plus the limit-avoidance motion
+    projected into the Jacobian's null space; a joint that would pass a limit is held (its
+    column removed) and the step solved again, once."""
+    held = np.zeros(q.shape, dtype=bool)
+    for _ in range(2):
+        Jf = J * ~held[:, None, :]
+        JJt = Jf @ Jf.swapaxes(-1, -2) + damping**2 * np.eye(J.shape[-2])
+        pinv = Jf.swapaxes(-1, -2) @ np.linalg.inv(JJt)                  # (K, dof, 6)
+        z = limit_avoidance(q, lower, upper) * ~held
+        step = -(pinv @ e[..., None])[..., 0] + z - (pinv @ (Jf @ z[..., None]))[..., 0]
+        passing = ((q + step < lower) | (q + step > upper)) & ~held
+        if not passing.any():
+            break
+        held |= passing
+    return step
+
+
+def carry(frames, task, start, lower, upper):
+    """Carry start poses (K, dof) along the task's waypoints, each warm started from the last.
+
+    Waypoint i starts from the linear extrapolation 2 q_{i-1} - q_{i-2} (the previous pose at
+    i = 1) and takes one :func:`redundant_step` (damped least squares, limit avoidance in the
+    null space); another (at most :data:`CARRY_ITERATIONS` in all) when an error before the
+    step exceeded :data:`CARRY_RETRY` (mm or deg), e.g. at a corner of the path. The LM
+    refinement polishes what is left.
+
+    Returns:
+        (paths (K, N, dof), iterations).
+    """
+    goals_mm, goals_R = task.goal_points_mm, task.goal_rotations
+    k, dof = start.shape
+    paths = np.repeat(start[:, None], len(goals_mm), axis=1)
+    alive = np.arange(k)
+    iterations = 0
+    for i in range(1, len(goals_mm)):
+        q = paths[alive, i - 1] if i == 1 else np.clip(
+            2 * paths[alive, i - 1] - paths[alive, i - 2], lower, upper)
+        for attempt in range(CARRY_ITERATIONS):
+            e, J = _stack(*errors_from_frames(*frames(q), goals_mm[i], goals_R[i],
+                                              exact=False))
+            size = np.abs(e).max(1)
+            if attempt == 0 and np.any(size > DROP_MM_DEG):     # lost: carried no further
+                keep = size <= DROP_MM_DEG
+                paths[alive[~keep], i:] = paths[alive[~keep], i - 1, None]
+                alive, q, e, J, size = alive[keep], q[keep], e[keep], J[keep], size[keep]
+                if not alive.size:
+                    return paths, iterations
+            q = np.clip(q + redundant_step(e, J, CARRY_DAMPING, q, lower, upper), lower, upper)
+            iterations += 1
+            if size.max() <= CARRY_RETRY:
+                break
+        paths[alive, i] = q
+    return paths, iterations
+
+
+def lost_waypoints(frames, task, paths) -> np.ndarray:
+    """(K,) waypoints of carried paths (K, N, dof) whose error exceeds :data:`LOST_MM_DEG`
+    (mm or deg): where a candidate lost track of the path (e.g. held by a joint limit)."""
+    k, n, dof = paths.shape
+    point, rotation, _, _ = frames(paths.reshape(-1, dof), False)
+    e_point, e_rot, _, _ = errors_from_frames(point, rotation, None, None,
+                                              np.tile(task.goal_points_mm, (k, 1)),
+                                              np.tile(task.goal_rotations, (k, 1, 1)))
+    size = np.maximum(np.abs(e_point).max(-1), np.abs(e_rot).max(-1)).reshape(k, n)
+    return np.sum(size > LOST_MM_DEG, axis=1)
+
+
+def check_paths(robot, task, paths, frames, margin: float = 1.0):
+    """CppFlow's validity of paths (K, N, dof): (valid (K,), max position error [mm],
+    max rotation error [deg], max revolute step [deg]) (see :mod:`ikbench.core.validity`);
+    ``margin`` scales the position and rotation thresholds."""
+    point, rotation, _, _ = frames(paths.reshape(-1, robot.dof), False)
+    e_point, e_rot, _, _ = errors_from_frames(point, rotation, None, None,
+                                              np.tile(task.goal_points_mm, (len(paths), 1)),
+                                              np.tile(task.goal_rotations, (len(paths), 1, 1)))
+    position = np.linalg.norm(e_point, axis=1).reshape(len(paths), -1).max(1)
+    rotation = np.linalg.norm(e_rot, axis=1).reshape(len(paths), -1).max(1)
+    q = robot.to_urdf(paths)
+    steps = np.diff(q, axis=1)
+    prismatic = robot.prismatic
+    revolute = np.degrees(np.abs(np.remainder(steps[..., ~prismatic] + np.pi, 2 * np.pi)
+                                 - np.pi)).max(axis=(1, 2))
+    sliding = np.abs(steps[..., prismatic]).max(axis=(1, 2)) * 1000.0 if prismatic.any() \
+        else np.zeros(len(paths))
+    lower, upper = task.limits(robot)
+    within = np.all((paths >= lower - 1e-9) & (paths <= upper + 1e-9), axis=(1, 2))
+    valid = (position < margin * MAX_POSITION_ERROR_MM) \
+        & (rotation < margin * MAX_ROTATION_ERROR_DEG) \
+        & (revolute < MAX_JOINT_CHANGE_DEG) & (sliding < MAX_JOINT_CHANGE_MM) & within
+    return valid, position, rotation, revolute
+
+
+def search(robot, task, settings: OursLMSettings, weights: dict) -> SearchResult:
+    """Solve a 6-D pose path without a start pose (see the module docstring)."""
+    started = time.perf_counter()
+    frames = robot.chain_kinematics().frames
+    lower, upper = (np.asarray(v, dtype=float) for v in task.limits(robot))
+    low = np.where(np.isfinite(lower), lower, robot.sample_lower)
+    high = np.where(np.isfinite(upper), upper, robot.sample_upper)
+    rng = np.random.default_rng(settings.seed)
+    seeds = rng.uniform(low, high, (settings.ik_seeds, robot.dof))
+    if task.reference_pose_deg is not None:
+        seeds[0] = task.reference_pose_deg
+    q0, pos, rot, ik_iterations = first_waypoint_ik(
+        frames, task.goal_points_mm[0], task.goal_rotations[0], seeds, lower, upper)
+    found = distinct(q0, (pos < SEED_TOLERANCE) & (rot < SEED_TOLERANCE))
+    if not found.size:
+        raise InputError(f"trajectory {task.name!r}: the first waypoint was not reached from "
+                         f"any of {settings.ik_seeds} IK seeds (out of reach?); try more "
+                         "--lm-ik-seeds or another --seed")
+    t_seeds = time.perf_counter()
+    paths, carry_iterations = carry(frames, task, q0[found], lower, upper)
+    missed = lost_waypoints(frames, task, paths)
+    t_carry = time.perf_counter()
+    order = _rank(robot, paths, missed)
+    problem_of = _problem_factory(robot, task, weights, frames)
+    lm_settings = replace(settings, weights=weights)
+    refined, lm_iterations, best = 0, 0, None
+    for start in range(0, len(order), settings.refine):
+        chosen = order[start:start + settings.refine]
+        tasks = [task] * len(chosen)
+        result = solve_batch(robot, tasks, lm_settings, [weights] * len(chosen),
+                             initial=paths[chosen], problem=problem_of(len(chosen)),
+                             evaluator=evaluate_frames,
+                             until=lambda poses, _: np.full(len(poses), check_paths(
+                                 robot, task, poses, frames, SEARCH_MARGIN)[0].any()))
+        refined += len(chosen)
+        lm_iterations += int(result.iterations.max())
+        valid, position, rotation, step = check_paths(robot, task, result.poses_deg, frames,
+                                                      SEARCH_MARGIN)
+        k = int(np.argmin(np.where(valid, result.loss, np.inf) if valid.any()
+                          else result.loss))
+        if best is None or valid[k] or result.loss[k] < best[1].loss[best[2]]:
+            best = (bool(valid[k]), result, k, position[k], rotation[k], step[k])
+        if valid[k]:
+            break
+    assert best is not None
+    is_valid, result, k, position, rotation, step = best
+    t_end = time.perf_counter()
+    info = {"ik_seeds": settings.ik_seeds, "seeds_reaching_first_waypoint": int(found.size),
+            "carried_candidates_missing_waypoints": int(np.sum(missed > 0)),
+            "candidates_refined": refined, "lm_iterations": lm_iterations,
+            "seed": settings.seed,
+            "search_max_position_error_mm": float(position),
+            "search_max_rotation_error_deg": float(rotation),
+            "search_max_joint_step_deg": float(step),
+            "seeds_s": t_seeds - started, "carry_s": t_carry - t_seeds,
+            "refine_s": t_end - t_carry}
+    return SearchResult(result.poses_deg[k], float(result.loss[k]), result.terms[k],
+                        is_valid, ik_iterations + carry_iterations + lm_iterations,
+                        bool(result.converged[k]), info)
+
+
+def _rank(robot, paths, missed) -> np.ndarray:
+    """Candidate order: fewest lost waypoints, then those whose steps all stay below CppFlow's
+    joint-change limit, then the shortest joint path (pose units)."""
+    steps = np.abs(np.diff(paths, axis=1))
+    jumps = steps.max(axis=(1, 2)) >= MAX_JOINT_CHANGE_DEG
+    return np.lexsort((steps.sum(axis=(1, 2)), jumps, missed))
+
+
+def _problem_factory(robot, task, weights, frames):
+    def make(count: int) -> FrameProblem:
+        return FrameProblem.from_tasks(robot, [task] * count, [weights] * count, frames)
+    return make
+
+
+#: IK seeds per waypoint of :func:`waypoint_reach`.
+REACH_SEEDS = 32
+
+
+def waypoint_reach(robot, task, count: int = REACH_SEEDS, seed: int = 0):
+    """How closely each waypoint can be reached on its own within the task's limits: IK of
+    every waypoint from ``count`` random poses (seeded), all at once.
+
+    Returns:
+        (position errors (n+1,) [mm], rotation errors (n+1,) [deg]) of each waypoint's best
+        solution (the one with the smallest larger of the two).
+    """
+    frames = robot.chain_kinematics().frames
+    lower, upper = (np.asarray(v, dtype=float) for v in task.limits(robot))
+    low = np.where(np.isfinite(lower), lower, robot.sample_lower)
+    high = np.where(np.isfinite(upper), upper, robot.sample_upper)
+    n = task.steps + 1
+    seeds = np.random.default_rng(seed).uniform(low, high, (n * count, robot.dof))
+    _, position, rotation, _ = first_waypoint_ik(
+        frames, np.repeat(task.goal_points_mm, count, axis=0),
+        np.repeat(task.goal_rotations, count, axis=0), seeds, lower, upper)
+    position, rotation = position.reshape(n, count), rotation.reshape(n, count)
+    best = np.argmin(np.maximum(position, rotation), axis=1)
+    rows = np.arange(n)
+    return position[rows, best], rotation[rows, best]

@@ -1,0 +1,212 @@
+"""The Cartesian path benchmark: methods on 6-D pose-path problems, several seeds each.
+
+``cartesian(problems="cppflow")`` solves every problem (the shipped CppFlow/TORM problems, or
+names and files in CppFlow's format, :mod:`ikbench.core.problems`) with every method that
+follows goal frames (``Method.supports_frames``; a method added later joins by setting it), once
+per seed, through the study harness (each solve timed the same way, a failed solve kept as a
+row). It returns the long-form table, one row per problem x method x seed, with CppFlow's
+validity (:mod:`ikbench.core.validity`) and the time to a valid solution (every method stops at
+its first valid solution or gives up). :func:`write` puts it under ``OUTPUT/cartesian/``:
+``table.csv``, ``summary.csv``, the trajectories, a figure per problem, ``report.md`` and
+``run.json`` (:mod:`.cartesian_report`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ikbench.core.errors import InputError
+from ikbench.core.metrics import frame_metrics
+from ikbench.core.problems import BENCHMARK, load_problem, resolve_problems
+from ikbench.methods.registry import available_methods, get_method
+from ikbench.studies.harness import Progress, solve_tasks
+
+DEFAULT_SEEDS = (1, 2, 3)
+#: Seeds are integers in [0, 2^63) (numpy's and torch's generators).
+MAX_SEED = 2**63
+FOLDER = "cartesian"
+#: table.csv's columns, in order.
+COLUMNS = ["problem", "robot", "waypoints", "method", "seed", "valid", "time_to_valid_s",
+           "duration_s", "iterations", "position_error_mean_mm", "position_error_max_mm",
+           "rotation_error_mean_deg", "rotation_error_max_deg", "max_joint_change_deg",
+           "max_joint_change_mm", "joint_path_length_deg", "prismatic_path_length_mm",
+           "cartesian_path_length_mm", "target_path_length_mm", "failed_criteria", "failure",
+           "trajectory"]
+
+
+@dataclass
+class CartesianResult:
+    """What :func:`cartesian` produced: the table, the tasks and poses behind it.
+
+    Attributes:
+        table: one row per problem x method x seed (:data:`COLUMNS`).
+        problems: problem name -> (robot, task, parsed problem).
+        poses: (problem, method, seed) -> poses (n+1, dof) [pose units] of the solved runs.
+        methods: the methods' names, in order; settings: name -> the settings used (seed 0).
+        seeds: the seeds.
+        wall_s: the whole study's wall time [s].
+    """
+
+    table: pd.DataFrame
+    problems: dict
+    poses: dict
+    methods: list[str]
+    settings: dict
+    seeds: tuple[int, ...]
+    wall_s: float
+    options: dict = field(default_factory=dict)
+
+
+def frame_methods() -> dict[str, type]:
+    """name -> class of every available method that follows goal frames (registry order)."""
+    return {name: cls for name, cls in available_methods().items() if cls.supports_frames}
+
+
+def parse_seeds(text) -> tuple[int, ...]:
+    """``"1,2,3"`` (or a sequence) -> (1, 2, 3); InputError for anything but distinct
+    integers in [0, 2^63)."""
+    items = text if isinstance(text, (list, tuple)) else str(text).split(",")
+    try:
+        seeds = tuple(int(str(s).strip()) for s in items if str(s).strip())
+    except ValueError:
+        seeds = ()
+    if not seeds or any(not 0 <= s < MAX_SEED for s in seeds) or len(set(seeds)) != len(seeds):
+        raise InputError(f"--seeds: {text!r} must be distinct integers in [0, 2^63), "
+                         "comma-separated, e.g. 1,2,3")
+    return seeds
+
+
+def parse_methods(text) -> list[str]:
+    """Method names (comma-separated or a list); None: every method that follows goal frames.
+
+    Raises:
+        InputError: an unknown or unavailable method, or one that cannot follow goal frames.
+    """
+    able = frame_methods()
+    if text is None:
+        return list(able)
+    items = text if isinstance(text, (list, tuple)) else str(text).split(",")
+    names = list(dict.fromkeys(s.strip() for s in items if s.strip()))
+    if not names:
+        raise InputError(f"--methods: {text!r} names no method; available: {', '.join(able)}")
+    for name in names:
+        cls = get_method(name)
+        if not cls.supports_frames:
+            raise InputError(f"--methods: {name} cannot follow goal frames (6-D pose paths); "
+                             f"methods that can: {', '.join(able) or 'none'}")
+    return names
+
+
+def build_method(name: str, seed: int, options: dict | None = None):
+    """The method ``name`` with ``options`` (its settings' fields) and, when its settings
+    have a ``seed`` field, ``seed``."""
+    cls = get_method(name)
+    fields = {f.name for f in dataclasses.fields(cls.Settings)}
+    settings = dict(options or {})
+    if "seed" in fields:
+        settings["seed"] = seed
+    return cls(**settings)
+
+
+def cartesian(problems=BENCHMARK, methods=None, seeds=DEFAULT_SEEDS, options=None,
+              progress: bool = True) -> CartesianResult:
+    """Run the benchmark (see the module docstring); nothing is written.
+
+    Args:
+        problems: ``"cppflow"`` (the shipped problems), names and files (comma-separated or
+            a list).
+        methods: method names; None: every available method that follows goal frames.
+        seeds: seeds (each method with a ``seed`` setting gets each; the others run once per
+            seed too, as repetitions of the same solve).
+        options: method name -> settings (keywords) for that method.
+        progress: print a line per solve to stderr.
+
+    Returns:
+        A :class:`CartesianResult` (``table`` has :data:`COLUMNS`).
+    """
+    started = time.perf_counter()
+    files = resolve_problems(problems)
+    names = parse_methods(methods)
+    seeds = parse_seeds(seeds)
+    options = dict(options or {})
+    for name in names:  # settings errors before any solve
+        build_method(name, seeds[0], options.get(name))
+    loaded = {f.stem: load_problem(f) for f in files}
+    say = Progress(FOLDER, enabled=progress).say
+    rows, poses = [], {}
+    total, done = len(loaded) * len(names) * len(seeds), 0
+    for problem, (robot, task, _) in loaded.items():
+        for name in names:
+            for seed in seeds:
+                method = build_method(name, seed, options.get(name))
+                outcome = solve_tasks(method, robot, [task])[0]
+                done += 1
+                if outcome.ok:  # the table describes the poses as written (10 digits)
+                    outcome.solution.poses_deg = as_written(outcome.solution.poses_deg)
+                    poses[(problem, name, seed)] = outcome.solution.poses_deg
+                row = _row(problem, robot, task, name, seed, outcome)
+                rows.append(row)
+                verdict = "valid" if row["valid"] else f"not valid ({row['failed_criteria']})"
+                say(f"{done}/{total} {problem} {name} seed {seed}: {verdict}, "
+                    f"{row['duration_s']:.2f} s")
+    settings = {name: build_method(name, seeds[0], options.get(name)).settings
+                for name in names}
+    return CartesianResult(pd.DataFrame(rows, columns=COLUMNS), loaded, poses, names, settings,
+                           seeds, time.perf_counter() - started, options)
+
+
+def as_written(poses) -> np.ndarray:
+    """Poses rounded to the 10 significant digits a trajectory CSV holds."""
+    return np.array([[float(f"{v:.10g}") for v in row] for row in np.asarray(poses)])
+
+
+def _row(problem, robot, task, method, seed, outcome) -> dict:
+    base = {"problem": problem, "robot": robot.name, "waypoints": task.steps + 1,
+            "method": method, "seed": seed, "duration_s": outcome.wall_s,
+            "trajectory": f"{method}/trajectory_{problem}_seed{seed}.csv"}
+    if not outcome.ok:
+        return {**base, "valid": False, "failed_criteria": "failure",
+                "failure": outcome.failure, "trajectory": ""}
+    metrics = frame_metrics(robot, task, outcome.solution.poses_deg)
+    return {**base, **{k: v for k, v in metrics.items() if k in COLUMNS},
+            "iterations": outcome.solution.iterations, "failure": "",
+            "time_to_valid_s": outcome.wall_s if metrics["valid"] else np.nan}
+
+
+def summarise(table: pd.DataFrame) -> pd.DataFrame:
+    """One row per problem x method: runs, valid runs, the median (and range) time to a valid
+    solution over the valid runs, the worst errors and joint change, the median path length."""
+    rows = []
+    for (problem, method), group in table.groupby(["problem", "method"], sort=False):
+        valid = group[group["valid"].astype(bool)]
+        times = valid["time_to_valid_s"]
+        rows.append({
+            "problem": problem, "method": method, "runs": len(group), "valid_runs": len(valid),
+            "time_to_valid_median_s": times.median() if len(valid) else np.nan,
+            "time_to_valid_min_s": times.min() if len(valid) else np.nan,
+            "time_to_valid_max_s": times.max() if len(valid) else np.nan,
+            "position_error_max_mm": group["position_error_max_mm"].max(),
+            "rotation_error_max_deg": group["rotation_error_max_deg"].max(),
+            "max_joint_change_deg": group["max_joint_change_deg"].max(),
+            "max_joint_change_mm": group["max_joint_change_mm"].max(),
+            "joint_path_length_median_deg": group["joint_path_length_deg"].median(),
+            "failed_criteria": ", ".join(sorted({c for text in group["failed_criteria"]
+                                                 .fillna("") for c in str(text).split(",")
+                                                 if c})),
+        })
+    return pd.DataFrame(rows)
+
+
+def write(result: CartesianResult, output: str | Path, command: str = "",
+          trajectories: str = "first") -> Path:
+    """Write ``OUTPUT/cartesian/`` whole (see :mod:`.cartesian_report`); return the folder.
+    ``trajectories``: ``first`` (the first seed's trajectory CSVs) or ``all``."""
+    from ikbench.studies.cartesian_report import write_folder
+
+    return write_folder(result, Path(output) / FOLDER, command, trajectories)

@@ -1,0 +1,218 @@
+"""Cartesian path problems end to end: ``ikbench run --problem`` on problem files it has never
+seen, the trajectory file's quaternions, methods that cannot follow goal frames, and the
+``ikbench cartesian`` benchmark command."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from ikbench.cli import main
+from ikbench.core.problems import load_problem
+from ikbench.core.rotations import matrix_to_quat_wxyz, quat_wxyz_to_matrix
+from ikbench.core.trajectory import QUATERNION_COLUMNS, read_trajectory_poses
+from ikbench.methods.base import Method, Solution
+from tests.conftest import register_temporarily
+
+
+def _quat(axis: int, angle):
+    q = np.zeros((len(angle), 4))
+    q[:, 0], q[:, 1 + axis] = np.cos(angle / 2), np.sin(angle / 2)
+    return q
+
+
+def write_problem(folder: Path, kind: str) -> Path:
+    """A problem file and its path CSV, made up here (not one of CppFlow's)."""
+    if kind == "panda":   # a vertical circle, hand down, yawing +-20 deg
+        t = np.linspace(0, 2 * np.pi, 120)
+        rows = np.column_stack([t, 0 * t, 0.1 * np.cos(t), 0.1 * np.sin(t),
+                                _quat(2, np.radians(20) * np.sin(t))])
+        yaml = ('robot: "panda"\npath_name: "circle"\npath_offset_frame: "world"\n'
+                "path_xyz_offset: [0.5, 0.0, 0.45]\n"
+                "path_R_offset: [[1, 0, 0], [0, -1, 0], [0, 0, -1]]\n")
+        name = "circle"
+    else:                 # a sideways sweep in front of the Fetch, tilting +-15 deg
+        s = np.linspace(0, 1, 150)
+        rows = np.column_stack([s, 0 * s, -0.15 + 0.3 * s, 0.05 * np.sin(np.pi * s),
+                                _quat(1, np.radians(15) * np.sin(np.pi * s))])
+        yaml = ('robot: "fetch_arm"\npath_name: "tilt"\npath_offset_frame: "world"\n'
+                "path_xyz_offset: [0.8, 0.0, 0.75]\n"
+                "path_R_offset: [[1, 0, 0], [0, 1, 0], [0, 0, 1]]\n")
+        name = "tilt"
+    np.savetxt(folder / f"{name}.csv", rows, delimiter=",", fmt="%.9f", comments="",
+               header="time,x,y,z,qw,qx,qy,qz")
+    path = folder / f"{kind}__unseen.yaml"
+    path.write_text(yaml)
+    return path
+
+
+@pytest.mark.parametrize("kind", ["panda", "fetch_arm"])
+def test_an_unseen_problem_file_is_solved_validly(tmp_path, kind):
+    path = write_problem(tmp_path, kind)
+    assert main(["run", "--method", "ours-lm", "--problem", str(path), "--output",
+                 str(tmp_path / "out"), "--quiet"]) == 0
+    folder = tmp_path / "out" / "ours-lm"
+    table = pd.read_csv(folder / "table.csv")
+    row = table.iloc[0]
+    assert row["trajectory"] == f"{kind}__unseen" and bool(row["valid"])
+    assert row["position_error_max_mm"] < 0.1 and row["rotation_error_max_deg"] < 0.1
+    assert row["max_joint_change_deg"] < 7 and row["time_to_valid_s"] == row["duration_s"]
+    robot, task, _ = load_problem(path)
+    trajectory = pd.read_csv(folder / f"trajectory_{kind}__unseen.csv")
+    assert list(trajectory.columns[2:2 + robot.dof]) == list(robot.joint_names)
+    assert list(trajectory.columns[-4:]) == QUATERNION_COLUMNS
+    poses = read_trajectory_poses(folder / f"trajectory_{kind}__unseen.csv", robot)
+    T = robot.fk_transform(poses, "torch")  # the other backend than the one that wrote it
+    np.testing.assert_allclose(quat_wxyz_to_matrix(trajectory[QUATERNION_COLUMNS].to_numpy()),
+                               T[:, :3, :3], atol=1e-8)  # 10 significant digits written
+    np.testing.assert_allclose(trajectory[["x_mm", "y_mm", "z_mm"]], T[:, :3, 3] * 1000,
+                               atol=1e-6)
+    assert (trajectory["qw"] >= 0).all()
+    record = json.loads((folder / "run.json").read_text())
+    assert record["problem"] == str(path) and record["robot"]["name"] == kind
+    assert (folder / f"pose_path_{kind}__unseen.png").stat().st_size > 10_000
+
+
+class PointsOnly(Method):
+    name = "points-only"
+    description = "a method without goal frames"
+
+    def solve(self, robot, task, progress=None):  # pragma: no cover - never called
+        return Solution(np.zeros((task.steps + 1, robot.dof)), 0, 0.0, None)
+
+
+def test_methods_without_goal_frames_say_they_cannot(tmp_path, capsys, monkeypatch):
+    register_temporarily(monkeypatch, PointsOnly)
+    code = main(["run", "--method", "points-only", "--problem", "fetch_arm__rot_yz2",
+                 "--output", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert ("--method points-only cannot follow goal frames (a 6-D pose path); methods that "
+            "can: ours, ours-lm, sequential-ik") in err
+    code = main(["cartesian", "--methods", "ours-lm,points-only", "--output", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "--methods: points-only cannot follow goal frames" in err
+    assert not list(tmp_path.iterdir())
+
+
+def test_other_methods_follow_a_short_path(tmp_path):
+    """sequential-ik (walked forward from the home pose) and ours (Adam, stopping at the first
+    valid iterate) on a made-up sweep; both write the same columns."""
+    path = write_problem(tmp_path, "fetch_arm")
+    for method, extra in (("sequential-ik", []), ("ours", ["--max-iterations", "30"])):
+        assert main(["run", "--method", method, "--problem", str(path), "--output",
+                     str(tmp_path / "out"), "--quiet", *extra]) == 0
+    seq = pd.read_csv(tmp_path / "out" / "sequential-ik" / "table.csv").iloc[0]
+    adam = pd.read_csv(tmp_path / "out" / "ours" / "table.csv").iloc[0]
+    assert bool(seq["valid"]) and seq["position_error_max_mm"] < 1e-3
+    details = pd.read_csv(tmp_path / "out" / "ours" / "details.csv").iloc[0]
+    assert bool(adam["valid"]) == bool(details["converged"])        # stops only when valid
+    assert adam["iterations"] == (adam["iterations"] if adam["valid"] else 30)
+
+
+def test_the_benchmark_command_writes_its_folder(tmp_path, capsys):
+    path = write_problem(tmp_path, "panda")
+    assert main(["cartesian", "--problems", str(path), "--methods", "ours-lm,sequential-ik",
+                 "--seeds", "4,7", "--output", str(tmp_path / "out"), "--quiet",
+                 "--trajectories", "all"]) == 0
+    folder = tmp_path / "out" / "cartesian"
+    table = pd.read_csv(folder / "table.csv")
+    assert len(table) == 4 and set(table["seed"]) == {4, 7}
+    assert set(table["method"]) == {"ours-lm", "sequential-ik"} and table["valid"].all()
+    assert table["time_to_valid_s"].equals(table["duration_s"])
+    robot, task, _ = load_problem(path)
+    for _, row in table.iterrows():   # the table is the trajectories' own figures
+        poses = read_trajectory_poses(folder / row["trajectory"], robot)
+        from ikbench.core.metrics import frame_metrics
+
+        metrics = frame_metrics(robot, task, poses)
+        assert metrics["position_error_max_mm"] == pytest.approx(row["position_error_max_mm"],
+                                                                 rel=1e-6, abs=1e-12)
+    summary = pd.read_csv(folder / "summary.csv")
+    assert list(summary["valid_runs"]) == [2, 2]
+    published = pd.read_csv(folder / "published.csv")
+    assert published.iloc[0, -1] == "not a CppFlow problem"
+    report = (folder / "report.md").read_text()
+    assert "ikbench cartesian --problems" in report and "not found" in report
+    record = json.loads((folder / "run.json").read_text())
+    assert record["seeds"] == [4, 7] and "pose_path_panda__unseen.png" in record["files"]
+    seeds = {s: read_trajectory_poses(folder / f"ours-lm/trajectory_panda__unseen_seed{s}.csv",
+                                      robot) for s in (4, 7)}
+    assert not np.array_equal(seeds[4], seeds[7])    # the seed is passed on
+
+
+def test_published_figures_are_labelled_and_never_estimated():
+    from ikbench.studies.cartesian_report import published_table
+
+    table = published_table(["fetch_arm__hello", "fetch__hello", "panda__square"])
+    row = table.set_index("problem")
+    cppflow_time = [c for c in table.columns if c.startswith("CppFlow time to valid")][0]
+    torm_length = [c for c in table.columns if c.startswith("TORM joint path length")][0]
+    assert "Morgan et al., ICRA 2024" in cppflow_time and "TORM_TL_RESULTS" in torm_length
+    assert set(row[cppflow_time]) == {"not found"}
+    assert row.loc["fetch_arm__hello", torm_length] == "61.029"
+    assert row.loc["fetch__hello", torm_length] == "not found"
+    assert row.loc["panda__square"].iloc[-1] == "no"        # not in CppFlow's benchmark set
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--seeds", "1,x"], "--seeds: '1,x' must be distinct integers"),
+    (["--seeds", "2,2"], "must be distinct integers"),
+    (["--problems", "nope"], "--problem: 'nope' is neither a shipped problem"),
+    (["--methods", "nope"], "--method: unknown method 'nope'"),
+    (["--seed", "3"], "--seed: the benchmark runs every seed of --seeds"),
+    (["--methods", "sequential-ik", "--lr", "0.5"], "--lr is not an option of the methods "
+     "chosen (sequential-ik)"),
+])
+def test_bad_benchmark_input_one_line_exit_2(tmp_path, capsys, args, message):
+    assert main(["cartesian", *args, "--output", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_study_is_a_plain_function(tmp_path):
+    from ikbench.studies.cartesian import cartesian, write
+
+    result = cartesian("fetch__rot_yz2", ["sequential-ik"], [0, 1], progress=False)
+    row = result.table.iloc[0]
+    assert row["problem"] == "fetch__rot_yz2" and row["waypoints"] == 249
+    assert row["max_joint_change_mm"] >= 0            # fetch has the prismatic torso
+    assert not row["valid"] and "joint_change" in row["failed_criteria"]
+    folder = write(result, tmp_path)                  # trajectories of the first seed only
+    table = pd.read_csv(folder / "table.csv", keep_default_na=False)
+    assert list(table["trajectory"]) == ["sequential-ik/trajectory_fetch__rot_yz2_seed0.csv", ""]
+    assert sorted(p.name for p in (folder / "sequential-ik").iterdir()) == [
+        "trajectory_fetch__rot_yz2_seed0.csv"]
+    # no valid run: the report says whether the waypoints can be reached at all
+    assert ("**fetch__rot_yz2**: every waypoint is reachable on its own within the limits"
+            in (folder / "report.md").read_text())
+    assert matrix_to_quat_wxyz(np.eye(3)).tolist() == [1.0, 0.0, 0.0, 0.0]
+
+
+def test_the_committed_benchmark_is_reproduced_from_its_trajectories():
+    """results/cartesian/table.csv states what the current code measures on its CSVs."""
+    from ikbench.core.metrics import frame_metrics
+
+    folder = Path(__file__).resolve().parents[1] / "results" / "cartesian"
+    table = pd.read_csv(folder / "table.csv", keep_default_na=False, na_values=[""])
+    written = table[table["trajectory"].fillna("") != ""]
+    assert len(written) == 21 and set(table["seed"]) == {1, 2, 3, 4, 5}
+    loaded = {}
+    for _, row in written.iterrows():
+        if row["problem"] not in loaded:
+            loaded[row["problem"]] = load_problem(row["problem"])
+        robot, task, _ = loaded[row["problem"]]
+        metrics = frame_metrics(robot, task, read_trajectory_poses(folder / row["trajectory"],
+                                                                   robot))
+        for column in ("position_error_max_mm", "rotation_error_max_deg",
+                       "max_joint_change_deg", "joint_path_length_deg"):
+            assert metrics[column] == pytest.approx(row[column], rel=1e-6, abs=1e-9), (
+                row["problem"], row["method"], column)
+        assert metrics["valid"] == bool(row["valid"])
+    ours_lm = table[table["method"] == "ours-lm"]
+    assert ours_lm[ours_lm["robot"] != "panda"]["valid"].all()
