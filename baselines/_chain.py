@@ -80,6 +80,8 @@ class Goals:
         rotations: (N, 3, 3) goal rotations of the end frame, or None (pointing goals only).
         q_start: (dof,) start pose [rad, m], or None when the task fixes none.
         q_touch: (dof,) touch (end) pose [rad, m], or None.
+        q_home: (dof,) where a walk without a touch pose starts (a pose path: the task's
+            reference pose, the robot's home), or None.
     """
 
     points_m: np.ndarray
@@ -87,6 +89,7 @@ class Goals:
     rotations: np.ndarray | None
     q_start: np.ndarray | None
     q_touch: np.ndarray | None
+    q_home: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.points_m)
@@ -109,9 +112,13 @@ def chain_urdf_text(robot) -> str:
             for element in link.findall(tag):
                 link.remove(element)
     keep = set(robot.joint_names)
+    locked = dict(getattr(robot, "locked_urdf", {}) or {})
     for joint in root.iter("joint"):
         kind = joint.get("type")
         if kind in ("revolute", "continuous", "prismatic") and joint.get("name") not in keep:
+            value = float(locked.get(joint.get("name"), 0.0))
+            if value:
+                _fold_into_origin(joint, kind, value)
             joint.set("type", "fixed")
             for tag in ("axis", "limit", "mimic", "dynamics", "safety_controller"):
                 for element in joint.findall(tag):
@@ -123,6 +130,28 @@ def chain_urdf_text(robot) -> str:
             if norm > 0:
                 axis.set("xyz", " ".join(repr(float(v)) for v in values / norm))
     return ET.tostring(root, encoding="unicode")
+
+
+def _fold_into_origin(joint: ET.Element, kind: str, value: float) -> None:
+    """Turn a joint held at ``value`` [rad or m] into its constant transform: the motion
+    about/along its axis is folded into its ``<origin>`` (the joint becomes fixed after)."""
+    from scipy.spatial.transform import Rotation
+
+    origin = joint.find("origin")
+    if origin is None:
+        origin = ET.SubElement(joint, "origin")
+    xyz = np.array([float(v) for v in origin.get("xyz", "0 0 0").split()])
+    rotation = Rotation.from_euler("xyz", [float(v) for v in origin.get("rpy", "0 0 0").split()])
+    axis_element = joint.find("axis")
+    axis = np.array([float(v) for v in (axis_element.get("xyz", "1 0 0") if axis_element
+                                        is not None else "1 0 0").split()])
+    axis = axis / np.linalg.norm(axis)
+    if kind == "prismatic":
+        xyz = xyz + rotation.apply(axis * value)
+    else:
+        rotation = rotation * Rotation.from_rotvec(axis * value)
+    origin.set("xyz", " ".join(repr(float(v)) for v in xyz))
+    origin.set("rpy", " ".join(repr(float(v)) for v in rotation.as_euler("xyz")))
 
 
 def chain_of(robot) -> Chain:
@@ -147,7 +176,8 @@ def goals_of(robot, task) -> Goals:
 
     return Goals(np.asarray(task.goal_points_mm, dtype=float) / 1000.0, directions,
                  None if rotations is None else np.asarray(rotations, dtype=float),
-                 pose(task.start_pose_deg), pose(task.end_pose_deg))
+                 pose(task.start_pose_deg), pose(task.end_pose_deg),
+                 pose(task.reference_pose_deg))
 
 
 def poses_from_urdf(robot, q_urdf) -> np.ndarray:
@@ -167,16 +197,6 @@ def poses_from_urdf(robot, q_urdf) -> np.ndarray:
                           "the conversion from URDF units; the adapter should have kept it "
                           "within the limits")
     return clipped
-
-
-def refuse_locked(robot, method: str) -> None:
-    """InputError when the robot's config locks joints of its chain (``locked``): ``method``'s
-    library loads the URDF itself and would move them."""
-    if robot.config.get("locked"):
-        raise InputError(f"--method {method}: robot {robot.name} locks joints of its chain "
-                         f"({robot.config['locked']}); {method} cannot honour locked joints "
-                         "yet; use a method built on the robot's own model (ours-lm, "
-                         "sequential-ik, pink)")
 
 
 def element_path(urdf_text: str, base_link: str, end_frame: str) -> list[tuple[str, str, str]]:

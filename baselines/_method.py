@@ -13,7 +13,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from baselines._chain import Chain, Goals, chain_of, goals_of, poses_from_urdf, refuse_locked
+from baselines._chain import Chain, Goals, chain_of, goals_of, poses_from_urdf
 from baselines._chain import require_touch_and_start as _require_both
 from baselines._walk import Walk
 from ikbench.core.errors import InputError
@@ -51,8 +51,9 @@ class LibraryMethod(Method):
         whole_path: True for trajectory optimisers (the start and touch poses are both
             fixed; the result's rows are returned as solved, row n included); False for the
             sequential walks (row n is the touch pose exactly).
-        loads_urdf: True when the library parses the URDF itself (robots whose config locks
-            chain joints are refused).
+        loads_urdf: True when the library parses the URDF itself (the chain's URDF text
+            from :func:`baselines._chain.chain_urdf_text`, locked joints folded into fixed
+            ones).
     """
 
     library: ClassVar[str] = ""
@@ -72,8 +73,6 @@ class LibraryMethod(Method):
                 raise InputError(f"trajectory {task.name!r}: --method {self.name} takes goal "
                                  "points and pointing directions, not 6-D goal frames")
         super().check_tasks(robot, tasks)
-        if self.loads_urdf:
-            refuse_locked(robot, self.name)
         self.check_robot(robot)
 
     def check_robot(self, robot) -> None:
@@ -93,7 +92,7 @@ class LibraryMethod(Method):
         started = time.perf_counter()
         result = self.solve_chain(robot, chain_of(robot), goals_of(robot, task))
         poses = poses_from_urdf(robot, result.q)
-        if not self.whole_path:
+        if not self.whole_path and task.end_pose_deg is not None:
             poses[-1] = task.end_pose_deg  # the walk's start, exactly as given
         return Solution(poses_deg=poses, iterations=int(result.iterations),
                         duration_s=time.perf_counter() - started, loss=None,

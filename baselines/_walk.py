@@ -3,7 +3,9 @@
 The walk starts at the touch pose and solves the goal points n-1, ..., 0 one at a time, each
 warm-started at the pose solved before it (the previous point's, the touch pose for n-1), as
 the paper's authors walked their ikpy baseline. Row n *is* the touch pose, bit for bit.
-Nothing ties the walk to the start pose.
+Nothing ties the walk to the start pose. A pose path (a CppFlow problem) has no touch pose:
+it is walked forward instead, goal 0 solved from the home pose (``goals.q_home``), each next
+goal from the previous solution.
 """
 
 from __future__ import annotations
@@ -68,14 +70,20 @@ def walk_back(solve_point: PointSolver, chain: Chain, goals: Goals) -> Walk:
         chain: the chain (its limits clip what a library leaves outside them).
         goals: the task's goals; ``goals.q_touch`` must be set.
     """
-    if goals.q_touch is None:
-        raise ValueError("the sequential walk starts at the touch pose; the goals have none")
     n_points = len(goals)
     q = np.empty((n_points, chain.dof))
-    q[-1] = goals.q_touch
+    if goals.q_touch is not None:
+        q[-1] = goals.q_touch
+        order = [(i, i + 1) for i in range(n_points - 2, -1, -1)]
+    elif goals.q_home is not None:  # a pose path: forward from the home pose
+        order = [(i, i - 1) for i in range(n_points)]
+    else:
+        raise ValueError("the sequential walk starts at the touch pose or, for a pose path, "
+                         "at the home pose; the goals have neither")
     walk = Walk(q, 0)
-    for i in range(n_points - 2, -1, -1):
-        result = solve_point(i, q[i + 1].copy())
+    for i, previous in order:
+        warm = goals.q_home if previous < 0 else q[previous]
+        result = solve_point(i, np.array(warm, dtype=float))
         qi = np.asarray(result.q, dtype=float).reshape(chain.dof)
         ok = bool(result.ok)
         if not np.all(np.isfinite(qi)):

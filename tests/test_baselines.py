@@ -247,18 +247,6 @@ def test_ikpy_pointing_needs_a_coordinate_axis(robot):
     cls().check_tasks(tilted, [fk_task(robot, 1)])  # the authors' call does not point
 
 
-@pytest.mark.parametrize("name", list(LIBRARIES))
-def test_locked_joints_are_refused_where_the_library_loads_the_urdf(robot, name):
-    cls = method_class(name)
-    locked = dataclasses.replace(robot, config={**robot.config, "locked": ["r_wrist_z"]})
-    task = fk_task(robot, 1)
-    if cls.loads_urdf:
-        with pytest.raises(InputError, match=f"--method {name}: robot .* locks joints"):
-            cls().check_tasks(locked, [task])
-    else:
-        cls().check_tasks(locked, [task])
-
-
 def test_a_missing_library_makes_only_its_method_unavailable(monkeypatch):
     from ikbench.methods import registry
 
@@ -319,3 +307,31 @@ def test_quaternion_and_rotation_helpers():
         np.testing.assert_allclose(Q, R, atol=1e-12)
     np.testing.assert_allclose(rotation_between([0, 0, 1], [0, 0, -1]) @ [0, 0, 1], [0, 0, -1],
                                atol=1e-12)
+
+
+def test_locked_joints_are_folded_into_the_urdf_the_libraries_load(tmp_path):
+    """A chain joint the config locks at a non-zero value becomes a fixed joint whose origin
+    holds that motion: Pinocchio on the text agrees with the robot's own FK."""
+    import pinocchio as pin
+
+    from baselines._chain import chain_urdf_text
+    from ikbench.core.robot import load_robot
+
+    config = tmp_path / "locked.toml"
+    config.write_text(f'urdf = "{DATA / "unaligned_arm.urdf"}"\nend_frame = "tool"\n'
+                      "[locked]\nslide = 120.0\nj3 = 25.0\n")
+    robot = load_robot(config)
+    assert robot.joint_names == ("j1", "j4", "roll", "j6")
+    model = pin.buildModelFromXML(chain_urdf_text(robot))
+    data, frame = model.createData(), model.getFrameId("tool")
+    rng = np.random.default_rng(0)
+    for pose in rng.uniform(robot.sample_lower, robot.sample_upper, (20, robot.dof)):
+        q = pin.neutral(model)
+        for name, value in zip(robot.joint_names, robot.to_urdf(pose)):
+            j = model.getJointId(name)
+            i = model.idx_qs[j]
+            q[i:i + model.nqs[j]] = [np.cos(value), np.sin(value)] if model.nqs[j] == 2 \
+                else [value]
+        pin.framesForwardKinematics(model, data, q)
+        np.testing.assert_allclose(data.oMf[frame].translation * 1000.0,
+                                   robot.fk(pose).point_mm[0], atol=1e-9)

@@ -83,3 +83,14 @@ def test_compare_cli_bad_input_one_line_exit_2(tmp_path, capsys, args, message):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and message in err
     assert not (tmp_path / "compare").exists()
+
+
+def test_compare_with_problems_runs_the_cartesian_benchmark(tmp_path, capsys):
+    assert main(["compare", "--problems", "fetch_arm__rot_yz2", "--methods",
+                 "ours-lm,sequential-ik", "--seeds", "1", "--output", str(tmp_path),
+                 "--quiet"]) in (0, 1)
+    table = pd.read_csv(tmp_path / "cartesian" / "table.csv")
+    assert set(table["method"]) == {"ours-lm", "sequential-ik"}
+    assert table.set_index("method").loc["ours-lm", "valid"]
+    assert main(["compare", "--problems", "fetch_arm__rot_yz2", "--only", "1"]) == 2
+    assert "do not apply to --problems" in capsys.readouterr().err

@@ -21,11 +21,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ikbench.core.errors import InputError
+from ikbench.core.errors import IkbenchError, InputError
 from ikbench.core.metrics import frame_metrics
 from ikbench.core.problems import BENCHMARK, load_problem, resolve_problems
 from ikbench.methods.registry import available_methods, get_method
-from ikbench.studies.harness import Progress, solve_tasks
+from ikbench.studies.harness import Outcome, Progress, solve_tasks
 
 DEFAULT_SEEDS = (1, 2, 3)
 #: Seeds are integers in [0, 2^63) (numpy's and torch's generators).
@@ -145,7 +145,10 @@ def cartesian(problems=BENCHMARK, methods=None, seeds=DEFAULT_SEEDS, options=Non
         for name in names:
             for seed in seeds:
                 method = build_method(name, seed, options.get(name))
-                outcome = solve_tasks(method, robot, [task])[0]
+                try:
+                    outcome = solve_tasks(method, robot, [task])[0]
+                except IkbenchError as exc:  # refused before solving: a row saying why
+                    outcome = Outcome(task, None, 0.0, f"refused: {exc}")
                 done += 1
                 if outcome.ok:  # the table describes the poses as written (10 digits)
                     outcome.solution.poses_deg = as_written(outcome.solution.poses_deg)

@@ -23,9 +23,16 @@ def register(subparsers) -> None:
             "as `ikbench run` writes it. A method that is not installed or fails is a row "
             "saying so. ikbench methods lists the methods."),
     )
-    parser.add_argument("--methods", default=DEFAULT_METHODS,
-                        help=f"comma-separated methods (default {DEFAULT_METHODS}); 'all' for "
-                        "every registered method")
+    parser.add_argument("--methods", default=None,
+                        help=f"comma-separated methods (default {DEFAULT_METHODS}; with "
+                        "--problems every method that takes goal frames); 'all' for every "
+                        "registered method")
+    parser.add_argument("--problems", action="append", default=None,
+                        metavar="cppflow|NAME,...|FILE",
+                        help="compare on Cartesian pose-path problems instead of touch poses: "
+                        "the same as ikbench cartesian --problems (writes OUTPUT/cartesian/)")
+    parser.add_argument("--seeds", default=None,
+                        help="with --problems: seeds of the start search (default 1,2,3)")
     add_line_task_arguments(parser)
     parser.add_argument("--repeat", type=int, default=5,
                         help="solves per method and trajectory; times are medians (default 5)")
@@ -40,6 +47,12 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    if args.problems:
+        return run_problems(args)
+    if args.seeds is not None:
+        from ikbench.core.errors import InputError
+
+        raise InputError("--seeds applies to --problems only")
     from pathlib import Path
 
     from ikbench.cli.options import check_threads, robot_from_args, set_threads, targets_from_args
@@ -48,8 +61,8 @@ def run(args) -> int:
     from ikbench.studies.compare import check_repeat, compare, parse_methods
 
     check_threads(args.threads)
-    names = list(method_status()) if args.methods.strip() == "all" else \
-        parse_methods(args.methods)
+    methods = args.methods or DEFAULT_METHODS
+    names = list(method_status()) if methods.strip() == "all" else parse_methods(methods)
     check_repeat(args.repeat)
     robot = robot_from_args(args)
     targets = targets_from_args(args, robot)
@@ -62,3 +75,22 @@ def run(args) -> int:
     print(f"written to {Path(args.output) / 'compare'}/ (leaderboard.md, results.csv, "
           "pareto.png)")
     return 0
+
+
+def run_problems(args) -> int:
+    """``compare --problems``: the Cartesian benchmark (ikbench cartesian)."""
+    import argparse
+
+    from ikbench.cli.commands import cartesian
+    from ikbench.studies.cartesian import DEFAULT_SEEDS
+
+    if args.targets or args.only or args.steps is not None or args.reference:
+        from ikbench.core.errors import InputError
+
+        raise InputError("--targets, --only, --steps and --reference do not apply to "
+                         "--problems (the problem files define the paths)")
+    given = argparse.Namespace(
+        problems=args.problems, methods=None if args.methods == "all" else args.methods,
+        seeds=args.seeds or ",".join(map(str, DEFAULT_SEEDS)), output=args.output,
+        trajectories="first", threads=args.threads, quiet=args.quiet)
+    return cartesian.run(given)
