@@ -1,5 +1,5 @@
 """Executors: validation, order, and results on a local Ray equal to the local executor's
-(sweep, batch). One local Ray session for the module."""
+(sweep, batch, dataset). One local Ray session for the module."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ import pytest
 from ikbench.cli import main
 from ikbench.core.errors import InputError
 from ikbench.studies.batch import check_seed, run_batch
+from ikbench.studies.dataset import shard_path
 from ikbench.studies.executors import LocalExecutor, check_executor, get_executor, split
 
 
@@ -82,3 +83,14 @@ def test_batch_on_ray_gives_the_same_trajectories(ray_session):
     pd.testing.assert_frame_equal(distributed.trajectories, local.trajectories)
     assert distributed.record["executor"] == "ray" and distributed.record["workers"] == 2
 
+
+def test_dataset_on_ray_writes_the_same_files(ray_session, tmp_path):
+    pytest.importorskip("pyarrow")
+    args = ["dataset", "--count", "50", "--shard-size", "20", "--steps", "20", "--seed", "3",
+            "--quiet"]
+    assert main([*args, "--output", str(tmp_path / "local")]) == 0
+    assert main([*args, "--executor", "ray", "--output", str(tmp_path / "ray")]) == 0
+    for table in ("steps", "trajectories"):
+        for shard in range(3):
+            assert (shard_path(tmp_path / "ray", table, shard).read_bytes()
+                    == shard_path(tmp_path / "local", table, shard).read_bytes())
