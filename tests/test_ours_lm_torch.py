@@ -113,9 +113,11 @@ def test_evaluation_equals_numpy(robot, paper_tasks):
                                    atol=1e-12 * np.abs(expected).max())
 
 
-def test_block_solve_equals_numpy_and_flags_an_indefinite_system():
+@pytest.mark.parametrize("method", ["cyclic", "thomas"])
+@pytest.mark.parametrize("n_poses", [6, 7, 51])
+def test_block_solve_equals_numpy_and_flags_an_indefinite_system(method, n_poses):
     rng = np.random.default_rng(4)
-    b, n_poses, k = 4, 6, 7
+    b, k = 4, 7
     a = rng.normal(size=(b, n_poses, k, k))
     diagonal = a @ a.swapaxes(-1, -2) + 3 * np.eye(k)
     diagonal[3, 2] = -np.eye(k)                 # trajectory 3: not positive definite
@@ -124,7 +126,7 @@ def test_block_solve_equals_numpy_and_flags_an_indefinite_system():
     free = rng.random((b, n_poses, k)) > 0.2
     expected, expected_ok = solve_normal_equations(diagonal, coupling, rhs, free)
     x, ok = tb.solve_normal_equations(*(torch.as_tensor(v) for v in
-                                        (diagonal, coupling, rhs, free)))
+                                        (diagonal, coupling, rhs, free)), method=method)
     assert ok.tolist() == expected_ok.tolist() == [True, True, True, False]
     np.testing.assert_allclose(x.numpy(), expected, rtol=1e-9, atol=1e-10)
     assert not x[3].any()                       # no step where the solve failed

@@ -65,7 +65,8 @@ class LMSettings:
                              "computeFrameJacobian per pose (reference, slower)")
     linear_solver: str = option("banded", flag="lm-linear-solver", choices=LINEAR_SOLVERS,
                                 help="banded Cholesky via LAPACK, or numpy block Thomas "
-                                "(the numpy solver; the torch backend uses block Cholesky)")
+                                "(the torch backend: thomas forces its block Thomas; else it "
+                                "picks cyclic reduction or block Thomas by batch size)")
     device: str | None = option(None, type=str, show_default="none: the numpy solver",
                                 help="cpu, cuda or cuda:N: the torch backend on that device")
     dtype: str = option("float64", choices=DTYPES,
