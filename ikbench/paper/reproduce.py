@@ -65,7 +65,8 @@ OTHER_COMMANDS = {"benchmark": "ikbench bench --output results",
                   "letters": "ikbench letters --output results/letters",
                   "compare": "ikbench compare --output results",
                   "cartesian": "ikbench compare --problems cppflow --output results",
-                  "ours_speed": "python benchmarks/ours_speed.py"}
+                  "ours_speed": "python benchmarks/ours_speed.py",
+                  "scale": "ikbench bench --device cpu --output results/scale"}
 
 
 class ReproduceError(IkbenchError):
