@@ -3,9 +3,10 @@
 :func:`throughput` solves batches of B line trajectories (B = 7: the paper's seven targets,
 the latency case; larger B: touch poses from the batch sampler, seed 0) with the numpy solver
 (up to ``numpy_max_batch``) and with the torch backend on ``device`` in each dtype, all in
-one process: ``warmup`` untimed rounds, then ``repeat`` timed rounds per case. A round is one
-``solve_batch`` call, tasks in, poses and losses back in host memory (the torch backend's time
-on the device, synchronised, is reported too). Per case: median/min/max wall time,
+one process: ``warmup`` untimed rounds, then ``repeat`` timed rounds per case, the cases of a
+batch taking turns round by round (so a change in the machine's load hits them alike). A
+round is one ``solve_batch`` call, tasks in, poses and losses back in host memory (the torch
+backend's time on the device, synchronised, is reported too). Per case: median/min/max wall time,
 trajectories per second (B / median), the speed-up against numpy at the same B (ratio of
 medians), iterations, convergence, and how far the losses are from the numpy solver's
 (largest relative difference; from the torch float64 ones where numpy did not run).
@@ -105,14 +106,15 @@ def throughput(device: str, *, batches=DEFAULT_BATCHES, dtypes=DEFAULT_DTYPES,
     runs, losses = [], {}
     for b in batches:
         tasks = pool[b]
-        for backend, dtype, settings in cases:
-            if backend == NUMPY and b > numpy_max_batch:
-                continue
-            rounds, result = _time(robot, tasks, settings, warmup, repeat, log,
-                                   f"{backend} {dtype} B={b}")
-            runs.extend({"backend": backend, "dtype": dtype, "batch": b, "round": r + 1,
-                         **row} for r, row in enumerate(rounds))
-            losses[backend, dtype, b] = result
+        mine = [c for c in cases if c[0] != NUMPY or b <= numpy_max_batch]
+        for r in range(warmup + repeat):  # rounds interleaved: each case meets the same load
+            for backend, dtype, settings in mine:
+                row, result = _round(robot, tasks, settings, log,
+                                     f"{backend} {dtype} B={b}", r, warmup)
+                if row is not None:
+                    runs.append({"backend": backend, "dtype": dtype, "batch": b,
+                                 "round": r - warmup + 1, **row})
+                losses[backend, dtype, b] = result
     summary = summarise(pd.DataFrame(runs), losses)
     record = {"device": device, "device_name": device_name(device), "batches": list(batches),
               "dtypes": list(dtypes), "repeat": repeat, "warmup": warmup,
@@ -134,24 +136,23 @@ def _task_pool(robot, targets, batches) -> dict:
     return pool
 
 
-def _time(robot, tasks, settings, warmup, repeat, log, label):
+def _round(robot, tasks, settings, log, label, r, warmup):
+    """One round of one case: (the timed row, or None in a warm-up round; the result)."""
     from ikbench.methods.ours_lm import solve_batch
 
-    rounds, result = [], None
-    for r in range(warmup + repeat):
-        start = time.perf_counter()
-        result = solve_batch(robot, tasks, settings, weights=_paper_weights())
-        wall = time.perf_counter() - start
-        timed = r >= warmup
-        log(f"{label}: {'round ' + str(r - warmup + 1) if timed else 'warm-up'} "
-            f"{wall:.4f} s ({len(tasks) / wall:.0f} trajectories/s)")
-        if timed:
-            rounds.append({"wall_s": wall, "device_loop_s": getattr(result, "loop_s", np.nan),
-                           "iterations_median": float(np.median(result.iterations)),
-                           "iterations_max": int(result.iterations.max()),
-                           "converged_share": float(result.converged.mean()),
-                           "loss_sum": float(result.loss.sum())})
-    return rounds, result
+    start = time.perf_counter()
+    result = solve_batch(robot, tasks, settings, weights=_paper_weights())
+    wall = time.perf_counter() - start
+    timed = r >= warmup
+    log(f"{label}: {'round ' + str(r - warmup + 1) if timed else 'warm-up'} "
+        f"{wall:.4f} s ({len(tasks) / wall:.0f} trajectories/s)")
+    if not timed:
+        return None, result
+    return {"wall_s": wall, "device_loop_s": getattr(result, "loop_s", np.nan),
+            "iterations_median": float(np.median(result.iterations)),
+            "iterations_max": int(result.iterations.max()),
+            "converged_share": float(result.converged.mean()),
+            "loss_sum": float(result.loss.sum())}, result
 
 
 def _paper_weights():
@@ -221,7 +222,8 @@ def markdown(result: ThroughputResult) -> str:
         f"Torch device `{rec['device']}` ({rec['device_name']}); batch 7 is the paper's seven "
         f"targets (latency), larger batches are touch poses from the batch sampler (seed 0); "
         f"n = {rec['steps']}, the paper's weights, the same stopping rule. {rec['warmup']} "
-        f"untimed warm-up round(s), then {rec['repeat']} timed rounds per case in one process; "
+        f"untimed warm-up round(s), then {rec['repeat']} timed rounds per case in one process, "
+        "the cases of a batch taking turns round by round; "
         "a round is one `solve_batch` call, tasks in, results in host memory. Trajectories/s "
         "= batch / median wall time; speed-ups are ratios of medians against the numpy "
         "solver at the same batch, measured in this run; `loss_max_rel_diff` is the largest "
