@@ -212,10 +212,11 @@ def markdown(result: ThroughputResult) -> str:
     """throughput.md: the cases side by side, the machine and versions."""
     rec, s = result.record, result.summary.copy()
     s["wall_median_ms"] = 1000.0 * s["wall_median_s"]
+    s["loss_max_rel_diff"] = [f"{v:.1e}" for v in s["loss_max_rel_diff"]]
     cols = ["backend", "dtype", "batch", "rounds", "wall_median_ms", "trajectories_per_s",
             "speedup_vs_numpy", "iterations_median", "converged_share", "loss_max_rel_diff"]
     digits = {"wall_median_ms": 1, "trajectories_per_s": 0, "speedup_vs_numpy": 2,
-              "iterations_median": 0, "converged_share": 3, "loss_max_rel_diff": 2}
+              "iterations_median": 0, "converged_share": 3}
     packages = ", ".join(f"{k} {v}" for k, v in rec["packages"].items() if v)
     return "\n".join([
         "# ours-lm throughput: numpy solver vs torch backend", "",
