@@ -215,7 +215,7 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
     rows, summary = [], []
     for label, w in settings:
         lm = LMSettings(weights=w)
-        if executor is None or executor.workers == 1:
+        if executor is None or executor.name == "local":
             def report(iteration, active, _losses, label=label):
                 if iteration % 5 == 0:
                     log(f"{label}: iteration {iteration}, {active} of {count} trajectories "
