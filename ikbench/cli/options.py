@@ -143,3 +143,29 @@ def set_threads(threads: int) -> None:
     import torch
 
     torch.set_num_threads(threads)
+
+
+def add_executor_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--executor local|ray`` and ``--ray-address ADDR`` (sweep, batch, dataset)."""
+    parser.add_argument("--executor", default="local", choices=("local", "ray"),
+                        help="where the work runs: local (this process) or ray (tasks on a "
+                        "Ray cluster: a private local one, or --ray-address; needs "
+                        "pip install 'ikbench[scale]'); the results are the same "
+                        "(default local)")
+    parser.add_argument("--ray-address", default=None, metavar="ADDR",
+                        help="a running Ray cluster for --executor ray: HOST:PORT, "
+                        "ray://HOST:PORT or auto (default: start a local Ray)")
+
+
+def check_executor_args(args) -> None:
+    """Validate ``--executor`` / ``--ray-address`` (no heavy imports; Ray not started)."""
+    from ikbench.studies.executors import check_executor
+
+    check_executor(args.executor, args.ray_address)
+
+
+def executor_from_args(args):
+    """The executor of ``--executor`` / ``--ray-address`` (starts or joins Ray)."""
+    from ikbench.studies.executors import get_executor
+
+    return get_executor(args.executor, args.ray_address)

@@ -72,7 +72,8 @@ OTHER_COMMANDS = {"benchmark": "ikbench bench --output results",
                   "compare": "ikbench compare --output results",
                   "cartesian": "ikbench cartesian --output results (speed.csv: python "
                                "benchmarks/cartesian_speed.py)",
-                  "ours_speed": "python benchmarks/ours_speed.py"}
+                  "ours_speed": "python benchmarks/ours_speed.py",
+                  "scale": "ikbench bench --device cpu --output results/scale"}
 
 
 class ReproduceError(IkbenchError):

@@ -25,6 +25,7 @@ import json
 import sys
 import time
 from dataclasses import asdict, dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,8 @@ from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import line_task
+from ikbench.studies.executors import Executor, LocalExecutor
+from ikbench.studies.parallel import solve_parts
 from ikbench.studies.report import markdown_table
 
 #: Weight settings of the default batch: the paper's, and two from the weight sweep
@@ -169,7 +172,7 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
               weights=DEFAULT_WEIGHTS, targets: str | Path | Targets | None = None,
               line_tolerance_mm: float = LINE_TOLERANCE_MM,
               end_tolerance_mm: float = END_TOLERANCE_MM, progress: bool = True,
-              robot: Robot | str | None = None) -> BatchReport:
+              robot: Robot | str | None = None, executor: Executor | None = None) -> BatchReport:
     """Sample ``count`` touch poses, solve them per weight setting, measure (module docstring).
 
     Args:
@@ -182,6 +185,9 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
         line_tolerance_mm / end_tolerance_mm: the tolerance: mean line distance and end point
             error below these.
         progress: progress lines on stderr.
+        executor: where the solves and metrics run (:mod:`ikbench.studies.executors`;
+            default: one batched call per setting in this process); the per-trajectory
+            numbers do not depend on it.
     """
     from ikbench.methods.ours_lm import LMSettings, solve_batch
 
@@ -208,31 +214,28 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
              for k, pose in enumerate(touch)]
     rows, summary = [], []
     for label, w in settings:
-        def report(iteration, active, _losses, label=label):
-            if iteration % 5 == 0:
-                log(f"{label}: iteration {iteration}, {active} of {count} trajectories running")
-        result = solve_batch(robot, tasks, LMSettings(weights=w), progress=report)
-        log(f"{label}: solved {count} trajectories in {result.duration_s:.2f} s "
-            f"({count / result.duration_s:.0f} per s); measuring")
-        t1 = time.perf_counter()
-        mine = []
-        for k, task in enumerate(tasks):
-            m = trajectory_metrics(robot, task, result.poses_deg[k])
-            mine.append({"setting": label, "trajectory": k, "loss": float(result.loss[k]),
-                         "iterations": int(result.iterations[k]),
-                         "converged": bool(result.converged[k]),
-                         "within_limits": robot.within_limits(result.poses_deg[k]),
-                         "line_length_mm": float(np.linalg.norm(task.end_point_mm
-                                                                - task.start_point_mm)),
-                         **{key: m[key] for key in (
-                             "line_distance_mean_mm", "line_distance_std_mm",
-                             "pointing_deviation_mean_deg", "start_point_error_mm",
-                             "end_point_error_mm", "end_pose_error_deg",
-                             "mean_sq_joint_step_deg2", "max_joint_step_deg")}})
+        lm = LMSettings(weights=w)
+        if executor is None or executor.name == "local":
+            def report(iteration, active, _losses, label=label):
+                if iteration % 5 == 0:
+                    log(f"{label}: iteration {iteration}, {active} of {count} trajectories "
+                        "running")
+            result = solve_batch(robot, tasks, lm, progress=report)
+            log(f"{label}: solved {count} trajectories in {result.duration_s:.2f} s "
+                f"({count / result.duration_s:.0f} per s); measuring")
+            t1 = time.perf_counter()
+            mine = measure_batch(robot, tasks, [w] * count, result, label)
+            measure_s = time.perf_counter() - t1
+        else:  # solved and measured in parts on the executor's workers
+            result, mine = solve_parts(executor, robot, tasks, lm, [w] * count,
+                                       partial(measure_batch, label=label))
+            log(f"{label}: solved and measured {count} trajectories in "
+                f"{result.duration_s:.2f} s on {executor.workers} {executor.name} workers "
+                f"({count / result.duration_s:.0f} per s)")
+            measure_s = float("nan")  # within the solve's wall time
         frame = pd.DataFrame(mine)
         summary.append(_summarise(label, w, frame, result.duration_s, count,
-                                  line_tolerance_mm, end_tolerance_mm,
-                                  time.perf_counter() - t1))
+                                  line_tolerance_mm, end_tolerance_mm, measure_s))
         rows.extend(mine)
     poses = pd.DataFrame(touch, columns=list(robot.joint_names))
     poses.insert(0, "trajectory", np.arange(count))
@@ -241,8 +244,28 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
               "robot": robot.describe(), "workspace_filter": asdict(workspace),
               "workspace": workspace.describe(),
               "line_tolerance_mm": line_tolerance_mm, "end_tolerance_mm": end_tolerance_mm,
-              "settings": {label: w for label, w in settings}, **provenance()}
+              "settings": {label: w for label, w in settings},
+              **(executor or LocalExecutor()).describe(), **provenance()}
     return BatchReport(pd.DataFrame(summary), pd.DataFrame(rows), poses, record)
+
+
+def measure_batch(robot, tasks, weights, result, label: str) -> list[dict]:
+    """One row per trajectory of a solved batch: loss, convergence, the line metrics."""
+    rows = []
+    for k, task in enumerate(tasks):
+        m = trajectory_metrics(robot, task, result.poses_deg[k])
+        rows.append({"setting": label, "trajectory": int(task.name), "loss": float(result.loss[k]),
+                     "iterations": int(result.iterations[k]),
+                     "converged": bool(result.converged[k]),
+                     "within_limits": robot.within_limits(result.poses_deg[k]),
+                     "line_length_mm": float(np.linalg.norm(task.end_point_mm
+                                                            - task.start_point_mm)),
+                     **{key: m[key] for key in (
+                         "line_distance_mean_mm", "line_distance_std_mm",
+                         "pointing_deviation_mean_deg", "start_point_error_mm",
+                         "end_point_error_mm", "end_pose_error_deg",
+                         "mean_sq_joint_step_deg2", "max_joint_step_deg")}})
+    return rows
 
 
 def _summarise(label, weights, frame, solve_s, count, line_tol, end_tol, measure_s) -> dict:

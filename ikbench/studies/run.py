@@ -66,7 +66,8 @@ from ikbench.studies.report import (
 #: Where ad-hoc runs go by default (git ignores it); ``ikbench reproduce`` writes results/.
 DEFAULT_OUTPUT = "runs"
 #: Folders other commands write into an output directory; no method run may take them.
-RESERVED_NAMES = ("ablation", "sweep", "batch", "letters", "compare", "cartesian", "dataset")
+RESERVED_NAMES = ("ablation", "sweep", "batch", "letters", "compare", "cartesian", "dataset",
+                  "scale")
 #: A trajectory CSV that a run writes (``trajectory_<id>.csv``).
 TRAJECTORY_FILE = re.compile(r"trajectory_(.+)\.csv")
 #: The files every run folder holds besides its trajectories and figures.

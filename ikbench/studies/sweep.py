@@ -39,6 +39,8 @@ from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import build_tasks, letter_start_pose, parse_shape
+from ikbench.studies.executors import Executor, LocalExecutor
+from ikbench.studies.parallel import solve_parts
 from ikbench.studies.report import markdown_table
 
 #: Per-trajectory figures averaged (mean) or taken at the worst target (max) per setting.
@@ -160,7 +162,8 @@ class SweepResult:
 def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None = None,
           only: str | None = None, steps: int | None = None, shape: str = "line",
           size_mm: float | None = None, start_pose=None, direction=None, lm_settings=None,
-          progress: bool = True, robot: Robot | str | None = None) -> SweepResult:
+          progress: bool = True, robot: Robot | str | None = None,
+          executor: Executor | None = None) -> SweepResult:
     """Solve the tasks of a shape for every weight setting of ``grid`` (module docstring).
 
     Args:
@@ -180,11 +183,13 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
         lm_settings: ours-lm settings (their weights are replaced by the grid's).
         progress: progress lines on stderr.
         robot: the robot or its name/config/URDF (default NICO's right arm).
+        executor: where the solve runs (:mod:`ikbench.studies.executors`; default: one
+            batched call in this process); the numbers do not depend on it.
 
     Raises:
         InputError: bad shape, options or a setting whose weights are all 0 for the tasks.
     """
-    from ikbench.methods.ours_lm import LMSettings, solve_batch
+    from ikbench.methods.ours_lm import LMSettings
 
     robot = as_robot(robot)
     if not isinstance(targets, Targets):
@@ -219,7 +224,8 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
         print(f"[sweep] {len(settings)} weight settings x {len(tasks)} tasks ({shape}): one "
               f"batched ours-lm solve of {len(all_tasks)} trajectories", file=sys.stderr,
               flush=True)
-    result = solve_batch(robot, all_tasks, lm_settings or LMSettings(), weights=all_weights)
+    result, _ = solve_parts(executor, robot, all_tasks, lm_settings or LMSettings(),
+                            all_weights)
     if progress:
         print(f"[sweep] solved in {result.duration_s:.2f} s; measuring", file=sys.stderr,
               flush=True)
@@ -245,7 +251,7 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
               "reference": reference_name(kind),
               "trajectories": [t.name for t in tasks], "steps": tasks[0].steps,
               "solve_wall_time_s": result.duration_s, "trajectories_solved": len(all_tasks),
-              **provenance()}
+              **(executor or LocalExecutor()).describe(), **provenance()}
     return SweepResult(summarise(per_traj), per_traj, record)
 
 

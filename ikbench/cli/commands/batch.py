@@ -42,23 +42,28 @@ def register(subparsers) -> None:
     parser.add_argument("--output", default="runs/batch",
                         help="output directory (default: runs/batch, which git ignores)")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    from ikbench.cli.options import add_executor_arguments
+
+    add_executor_arguments(parser)
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import robot_from_args
+    from ikbench.cli.options import check_executor_args, executor_from_args, robot_from_args
     from ikbench.core.io import check_writable
     from ikbench.studies.batch import DEFAULT_WEIGHTS, check_seed, run_batch, write
 
     check_seed(args.seed)
+    check_executor_args(args)
     robot = robot_from_args(args)
     check_writable(Path(args.output) / "batch.csv")  # before sampling and solving
     report = run_batch(args.count, seed=args.seed, steps=args.steps, robot=robot,
                        weights=args.weights or DEFAULT_WEIGHTS, targets=args.targets,
                        line_tolerance_mm=args.line_tolerance_mm,
-                       end_tolerance_mm=args.end_tolerance_mm, progress=not args.quiet)
+                       end_tolerance_mm=args.end_tolerance_mm, progress=not args.quiet,
+                       executor=executor_from_args(args))
     path = write(report, args.output)
     cols = ["setting", "trajectories", "solve_wall_s", "trajectories_per_s",
             "share_line_within_tol", "share_end_within_tol", "share_within_tol",

@@ -22,9 +22,9 @@ def register(subparsers) -> None:
             "tens of seconds per round, so by default it runs 3 rounds and other methods 5."
         ),
     )
-    parser.add_argument("--methods", default=DEFAULT_METHODS,
+    parser.add_argument("--methods", default=None,
                         help=f"comma-separated methods; the first is the baseline of the ratios "
-                        f"(default: {DEFAULT_METHODS})")
+                        f"(default: {DEFAULT_METHODS}; not with --device)")
     add_line_task_arguments(parser)
     parser.add_argument("--repeat", default=None,
                         help="timed rounds: N for every method, or N,method=M to give a "
@@ -35,6 +35,21 @@ def register(subparsers) -> None:
     parser.add_argument("--output", default="runs",
                         help="output directory (default: runs, which git ignores)")
     add_threads_and_quiet(parser)
+    scale = parser.add_argument_group(
+        "throughput mode (--device)",
+        "ours-lm's numpy solver against its torch backend on a device, per batch size: "
+        "trajectories/s, latency of the paper's seven (batch 7), speed-ups, loss agreement; "
+        "writes OUTPUT/throughput.csv, throughput_runs.csv, throughput.json (device name, "
+        "versions), throughput.md")
+    scale.add_argument("--device", default=None, metavar="cpu|cuda|cuda:N",
+                       help="time the torch backend on this device")
+    scale.add_argument("--batches", default="7,1000,10000,100000",
+                       help="batch sizes; 7 is the paper's seven targets (default "
+                       "7,1000,10000,100000)")
+    scale.add_argument("--dtypes", default="float64,float32",
+                       help="torch precisions to time (default float64,float32)")
+    scale.add_argument("--numpy-max-batch", type=int, default=10_000,
+                       help="largest batch the numpy solver is timed on (default 10000)")
     parser.set_defaults(func=run)
 
 
@@ -53,7 +68,9 @@ def run(args) -> int:
     )
 
     check_threads(args.threads)
-    names = parse_methods(args.methods)
+    if args.device is not None:
+        return run_throughput(args)
+    names = parse_methods(args.methods or DEFAULT_METHODS)
     parse_repeat(args.repeat, names)
     robot = robot_from_args(args)
     targets = targets_from_args(args, robot)
@@ -71,4 +88,41 @@ def run(args) -> int:
         print(f"per trajectory, {method} vs {base}: {low:.1f}x (trajectory {t_low}) to "
               f"{high:.1f}x (trajectory {t_high})")
     print(f"written to {path} (and benchmark.md, benchmark_runs.csv, benchmark.json)")
+    return 0
+
+
+def run_throughput(args) -> int:
+    """``ikbench bench --device DEV``: numpy solver vs torch backend per batch size."""
+    from pathlib import Path
+
+    from ikbench.cli.options import robot_from_args, set_threads
+    from ikbench.core.errors import InputError
+    from ikbench.core.io import check_writable
+    from ikbench.methods.ours_lm.devices import check_device
+    from ikbench.studies.throughput import parse_batches, parse_dtypes, throughput, write
+
+    if args.methods is not None or args.only is not None:
+        flag = "--methods" if args.methods is not None else "--only"
+        raise InputError(f"{flag}: not with --device (the throughput mode times ours-lm on "
+                         "batches; batch 7 is the paper's seven)")
+    batches, dtypes = parse_batches(args.batches), parse_dtypes(args.dtypes)
+    try:
+        repeat = 3 if args.repeat is None else int(args.repeat)
+    except ValueError:
+        raise InputError(f"--repeat: {args.repeat!r} must be an integer >= 1 with "
+                         "--device") from None
+    device = check_device(args.device)
+    robot = robot_from_args(args)
+    check_writable(Path(args.output) / "throughput.csv")  # before the timed rounds
+    set_threads(args.threads)
+    result = throughput(device, batches=batches, dtypes=dtypes, repeat=repeat,
+                        warmup=args.warmup, numpy_max_batch=args.numpy_max_batch,
+                        steps=args.steps, targets=args.targets, robot=robot,
+                        progress=not args.quiet)
+    path = write(result, args.output)
+    cols = ["backend", "dtype", "batch", "wall_median_s", "trajectories_per_s",
+            "speedup_vs_numpy", "loss_max_rel_diff"]
+    print(result.summary[cols].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print(f"device: {result.record['device']} ({result.record['device_name']})")
+    print(f"written to {path} (and throughput.md, throughput_runs.csv, throughput.json)")
     return 0

@@ -34,17 +34,21 @@ def register(subparsers) -> None:
     parser.add_argument("--output", default="runs/sweep",
                         help="output directory (default: runs/sweep, which git ignores)")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    from ikbench.cli.options import add_executor_arguments
+
+    add_executor_arguments(parser)
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import robot_from_args
+    from ikbench.cli.options import check_executor_args, executor_from_args, robot_from_args
     from ikbench.core.io import check_writable
     from ikbench.core.targets import parse_pose
     from ikbench.studies.sweep import measures_of, parse_grid, sweep, write
 
+    check_executor_args(args)
     grid = parse_grid(args.weight)
     robot = robot_from_args(args)
     start_pose = None if args.start_pose is None else parse_pose(args.start_pose, robot,
@@ -52,7 +56,8 @@ def run(args) -> int:
     check_writable(Path(args.output) / "sweep.csv")  # before the solve, not after it
     result = sweep(grid, targets=args.targets, only=args.only, steps=args.steps,
                    shape=args.shape, size_mm=args.size, start_pose=start_pose,
-                   direction=args.direction, progress=not args.quiet, robot=robot)
+                   direction=args.direction, progress=not args.quiet, robot=robot,
+                   executor=executor_from_args(args))
     path = write(result, args.output)
     m = measures_of(result.settings)
     cols = [c for c in m.table_columns if c not in ("loss", "paper_loss", "converged")]

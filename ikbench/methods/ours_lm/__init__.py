@@ -57,7 +57,12 @@ class OursLM(Method):
         return replace(self.settings, weights=resolve_weights(self.settings.weights, task))
 
     def prepare(self, robot) -> None:
-        if self.settings.kinematics == "numpy":
+        if self.settings.device is not None:  # the torch backend's kinematics on its device
+            from ikbench.core.kinematics.chain_torch import torch_chain_kinematics
+            from ikbench.methods.ours_lm.devices import torch_dtype
+
+            torch_chain_kinematics(robot, torch_dtype(self.settings.dtype), self.settings.device)
+        elif self.settings.kinematics == "numpy":
             robot.chain_kinematics().frames(np.zeros((1, robot.dof)))
         else:
             robot.pinocchio_fk()

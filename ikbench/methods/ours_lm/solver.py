@@ -18,6 +18,7 @@ from ikbench.core.errors import InputError
 from ikbench.core.kinematics.chain import pinocchio_kinematics
 from ikbench.core.losses import PAPER_WEIGHTS_TEXT, check_weights, resolve_weights
 from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.ours_lm.devices import DTYPES, check_backend, check_device
 from ikbench.methods.ours_lm.linalg import block_matvec, solve_normal_equations
 from ikbench.methods.ours_lm.problem import Evaluation, Problem, evaluate
 
@@ -45,6 +46,9 @@ class LMSettings:
         kinematics: ``"numpy"`` (vectorised chain FK from the Pinocchio model) or
             ``"pinocchio"`` (``computeFrameJacobian`` per pose; the reference, slower).
         linear_solver: ``"banded"`` (LAPACK banded Cholesky) or ``"thomas"`` (numpy).
+        device: None for this numpy solver; ``"cpu"``, ``"cuda"`` or ``"cuda:N"`` for the
+            torch backend on that device (:mod:`.torch_backend`).
+        dtype: the torch backend's precision, ``"float64"`` or ``"float32"``.
     """
 
     weights: dict | str | None = option(
@@ -60,7 +64,13 @@ class LMSettings:
                              help="vectorised numpy chain, or Pinocchio "
                              "computeFrameJacobian per pose (reference, slower)")
     linear_solver: str = option("banded", flag="lm-linear-solver", choices=LINEAR_SOLVERS,
-                                help="banded Cholesky via LAPACK, or numpy block Thomas")
+                                help="banded Cholesky via LAPACK, or numpy block Thomas "
+                                "(the torch backend: thomas forces its block Thomas; else it "
+                                "picks cyclic reduction or block Thomas by batch size)")
+    device: str | None = option(None, type=str, show_default="none: the numpy solver",
+                                help="cpu, cuda or cuda:N: the torch backend on that device")
+    dtype: str = option("float64", choices=DTYPES,
+                        help="precision of the torch backend (--device)")
 
     def __post_init__(self):
         check_positive(self, "max_iterations", integer=True)
@@ -69,6 +79,8 @@ class LMSettings:
         check_choice(self, "linear_solver", LINEAR_SOLVERS)
         check_weights(self.weights)
         self.max_iterations = int(self.max_iterations)
+        self.device = check_device(self.device)
+        check_backend(self)
 
 
 @dataclass
@@ -136,6 +148,10 @@ def solve_batch(robot, tasks, settings: LMSettings | None = None, weights=None,
         A :class:`BatchResult`; every pose lies within the motor ranges.
     """
     settings = settings or LMSettings()
+    if settings.device is not None:  # the same algorithm in torch on a device
+        from ikbench.methods.ours_lm import torch_backend
+
+        return torch_backend.solve_batch(robot, tasks, settings, weights, initial, progress)
     start = time.perf_counter()
     kin = _kinematics(robot, settings.kinematics)
     if weights is None:

@@ -1,0 +1,83 @@
+"""Which solver ``ours-lm`` runs: the numpy solver, or the torch backend on a device.
+
+``--device`` None (the default) keeps the numpy solver (float64, LAPACK); ``cpu``, ``cuda`` or
+``cuda:N`` runs the torch backend (:mod:`.torch_backend`) there, in ``--dtype`` float64
+(default) or float32. Checked when the settings are made, so a bad device fails before any
+work with one line; torch is imported only when a device is named.
+"""
+
+from __future__ import annotations
+
+import re
+
+from ikbench.core.errors import InputError
+
+DTYPES = ("float64", "float32")
+_DEVICE = re.compile(r"^(cpu|cuda(:\d+)?)$")
+
+
+def check_device(device: str | None) -> str | None:
+    """``device`` if it names a usable torch device (None: the numpy solver).
+
+    Raises:
+        InputError: not ``cpu``, ``cuda`` or ``cuda:N``; CUDA asked for where torch has none;
+            a CUDA index beyond the devices present.
+    """
+    if device is None:
+        return None
+    text = str(device).strip().lower()
+    if not _DEVICE.match(text):
+        raise InputError(f"--device: {device!r} is not cpu, cuda or cuda:N (N a GPU index); "
+                         "leave it out for the numpy solver")
+    if text.startswith("cuda"):
+        import torch
+
+        if not torch.cuda.is_available():
+            raise InputError(f"--device {text}: CUDA is not available here (torch "
+                             f"{torch.__version__}, {_cuda_build(torch)}); use --device cpu, "
+                             "or leave --device out for the numpy solver")
+        index = int(text.partition(":")[2] or 0)
+        count = torch.cuda.device_count()
+        if index >= count:
+            raise InputError(f"--device {text}: this machine has {count} CUDA device(s), "
+                             f"cuda:0..cuda:{count - 1}")
+    return text
+
+
+def _cuda_build(torch) -> str:
+    cuda = getattr(torch.version, "cuda", None)
+    return f"built for CUDA {cuda}, no GPU found" if cuda else "a CPU-only build"
+
+
+def check_backend(settings) -> None:
+    """InputError for settings the chosen solver cannot honour (one line naming the flag)."""
+    if settings.dtype not in DTYPES:
+        raise InputError(f"--dtype: {settings.dtype!r} is not one of {', '.join(DTYPES)}")
+    if settings.device is None:
+        if settings.dtype != "float64":
+            raise InputError(f"--dtype {settings.dtype}: the numpy solver (no --device) "
+                             "computes in float64; add --device cpu or --device cuda for the "
+                             "torch backend")
+        return
+    if settings.kinematics != "numpy":
+        raise InputError(f"--lm-kinematics {settings.kinematics}: the torch backend (--device "
+                         f"{settings.device}) has its own chain kinematics; leave "
+                         "--lm-kinematics out")
+
+
+def torch_dtype(name: str):
+    """``"float32"`` -> ``torch.float32``."""
+    import torch
+
+    return {"float32": torch.float32, "float64": torch.float64}[name]
+
+
+def device_name(device: str) -> str:
+    """A readable name of a torch device: the GPU's model, or the CPU's."""
+    if device.startswith("cuda"):
+        import torch
+
+        return torch.cuda.get_device_name(torch.device(device))
+    from ikbench.core.provenance import cpu_model
+
+    return cpu_model()

@@ -1,0 +1,309 @@
+"""Datasets: N random reachable line trajectories solved by ours-lm, as Parquet shards.
+
+:func:`build_dataset` splits N trajectories into shards of ``shard_size`` (the last one
+smaller), builds each missing shard (:func:`ikbench.studies.dataset_shard.build_shard`: touch
+poses from the batch sampler seeded by (seed, shard), one batched solve, vectorised metrics) on
+an executor, and writes it as two Parquet files, each atomically:
+
+```
+OUTPUT/dataset.json                     manifest: options, schema with units, shards, totals
+OUTPUT/steps/part-000000.parquet        long form: one row per trajectory and step
+OUTPUT/trajectories/part-000000.parquet one row per trajectory (written second)
+```
+
+``pandas.read_parquet("OUTPUT/steps")`` reads all shards (hidden temporary files are
+skipped). A run that is stopped and started again with the same options keeps every complete
+shard (both files present, readable, with the right options and row counts) and builds only
+the others; since a shard depends only on its index, the result is the same as an
+uninterrupted run, with any executor. A larger ``--count`` later extends a dataset (the last,
+partial shard is rebuilt); anything else that changes the content is refused.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import json
+import math
+import sys
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ikbench.core.errors import InputError
+from ikbench.core.io import atomic_path, atomic_write_text
+from ikbench.core.losses import TERMS, parse_weights
+from ikbench.core.provenance import provenance
+from ikbench.core.robot import Robot, as_robot
+from ikbench.core.targets import Targets, load_targets
+from ikbench.studies.batch import WorkspaceFilter, check_seed
+from ikbench.studies.dataset_shard import (
+    FORMAT,
+    METADATA_KEY,
+    VERSION,
+    ShardSpec,
+    build_shard,
+)
+from ikbench.studies.executors import SCALE_EXTRA, Executor, LocalExecutor, portable_robot
+from ikbench.studies.parallel import gpus_for
+
+DEFAULT_SHARD_SIZE = 10_000
+MAX_STEPS = 5000
+MANIFEST = "dataset.json"
+TABLES = ("steps", "trajectories")     # written in this order: trajectories marks a shard done
+
+
+def shard_path(output: str | Path, table: str, shard: int) -> Path:
+    """``OUTPUT/<table>/part-<shard>.parquet``."""
+    return Path(output) / table / f"part-{shard:06d}.parquet"
+
+
+@dataclass
+class DatasetReport:
+    """What :func:`build_dataset` did: the manifest it wrote and this run's figures."""
+
+    manifest: dict
+    written: list[int]          # shards built by this run
+    kept: list[int]             # complete shards found and kept
+
+
+def check_options(count, seed, steps, shard_size) -> None:
+    """InputError naming the flag for a bad count, seed, steps or shard size, or when pyarrow
+    (the Parquet writer) is not installed."""
+    for flag, value, low in (("--count", count, 1), ("--steps", steps, 2),
+                             ("--shard-size", shard_size, 1)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise InputError(f"{flag}: {value!r} must be an integer >= {low}")
+    if steps > MAX_STEPS:
+        raise InputError(f"--steps: {steps} must be at most {MAX_STEPS}")
+    check_seed(seed)
+    if importlib.util.find_spec("pyarrow") is None:
+        raise InputError(f"ikbench dataset writes Parquet with pyarrow, which is not installed; "
+                         f"{SCALE_EXTRA}")
+
+
+def dataset_config(robot, start_pose_deg, steps, seed, shard_size, workspace, settings):
+    """Everything that determines the shards' content (hashed into each shard)."""
+    solver = {"max_iterations": settings.max_iterations, "tolerance": settings.tolerance,
+              "damping": settings.damping}
+    if settings.device is None:
+        solver.update(backend="numpy", kinematics=settings.kinematics,
+                      linear_solver=settings.linear_solver)
+    else:
+        solver.update(backend="torch", device_type=settings.device.split(":")[0],
+                      dtype=settings.dtype)
+    return {"format": FORMAT, "version": VERSION,
+            "robot": {"name": robot.name, "urdf_sha256": robot.urdf_sha256,
+                      "end_frame": robot.end_frame, "joints": list(robot.joint_names)},
+            "start_pose_deg": [float(v) for v in start_pose_deg], "steps": steps,
+            "seed": seed, "shard_size": shard_size, "workspace": asdict(workspace),
+            "weights": {f"c{t[1]}": settings.weights[t] for t in TERMS}, "solver": solver}
+
+
+def config_hash(config: dict) -> str:
+    """A short hash of a dataset config."""
+    return hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def plan(count, config, robot, start_pose_deg, settings, workspace) -> list[ShardSpec]:
+    """The shards of a dataset of ``count`` trajectories, in order."""
+    size, digest = config["shard_size"], config_hash(config)
+    portable = portable_robot(robot)
+    return [ShardSpec(portable, np.asarray(start_pose_deg, dtype=float), config["steps"],
+                      config["seed"], s, s * size, min(size, count - s * size), settings,
+                      workspace, digest)
+            for s in range(math.ceil(count / size))]
+
+
+def is_complete(output, spec: ShardSpec) -> bool:
+    """True when both files of the shard exist, are readable Parquet and describe it."""
+    import pyarrow.parquet as pq
+
+    for table in TABLES:
+        path = shard_path(output, table, spec.shard)
+        try:
+            rows = pq.ParquetFile(path).metadata.num_rows
+            stored = json.loads((pq.read_schema(path).metadata or {})[METADATA_KEY])
+        except (OSError, KeyError, ValueError, TypeError):
+            return False
+        expected = spec.count * (spec.steps + 1) if table == "steps" else spec.count
+        if stored != spec.metadata(table) or rows != expected:
+            return False
+    return True
+
+
+def check_manifest(output, config: dict, count: int) -> None:
+    """InputError when OUTPUT holds a dataset made with other options, or more trajectories."""
+    path = Path(output) / MANIFEST
+    if not path.is_file():
+        return
+    try:
+        old = json.loads(path.read_text(encoding="utf-8"))
+        old_config, old_count = old["config"], int(old["count"])
+    except (OSError, ValueError, KeyError, TypeError):
+        raise InputError(f"{path} is not an ikbench dataset manifest; use another "
+                         "--output") from None
+    if old_config != config:
+        keys = sorted(k for k in set(config) | set(old_config)
+                      if config.get(k) != old_config.get(k))
+        raise InputError(f"{output} holds a dataset made with other options (different: "
+                         f"{', '.join(keys)}); use the same options to resume it, or another "
+                         "--output")
+    if count < old_count:
+        raise InputError(f"{output} holds {old_count} trajectories; --count {count} would leave "
+                         "shards that do not belong; give --count >= that, or another --output")
+
+
+def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
+                  shard_size: int = DEFAULT_SHARD_SIZE, lm_settings=None,
+                  targets: str | Path | Targets | None = None,
+                  robot: Robot | str | None = None, output: str | Path = "runs/dataset",
+                  executor: Executor | None = None, progress: bool = True) -> DatasetReport:
+    """Build (or resume) a dataset of ``count`` trajectories (see the module docstring).
+
+    Args:
+        count: number of trajectories N.
+        seed: the dataset's seed, an integer in [0, 2^63).
+        steps: segments n per trajectory.
+        shard_size: trajectories per shard (and per batched solve).
+        lm_settings: ours-lm settings (weights: changes on the paper's; device, dtype).
+        targets: where the start pose comes from (default the robot's default targets).
+        robot: the robot or its name/config/URDF (default NICO's right arm).
+        output: the dataset folder.
+        executor: where shards are built (default: one after another in this process).
+        progress: progress lines on stderr.
+    """
+    from ikbench.methods.ours_lm import LMSettings
+
+    check_options(count, seed, steps, shard_size)
+    robot = as_robot(robot)
+    if not isinstance(targets, Targets):
+        targets = load_targets(targets, robot)
+    settings = lm_settings or LMSettings()
+    settings = replace(settings, weights=settings.weights if isinstance(settings.weights, dict)
+                       else parse_weights(settings.weights))
+    workspace = WorkspaceFilter.of(robot)
+    config = dataset_config(robot, targets.start_pose_deg, steps, seed, shard_size, workspace,
+                            settings)
+    check_manifest(output, config, count)
+    executor = executor or LocalExecutor()
+    specs = plan(count, config, robot, targets.start_pose_deg, settings, workspace)
+    _remove_temporary_files(output)
+    kept = [s.shard for s in specs if is_complete(output, s)]
+    missing = [s for s in specs if s.shard not in set(kept)]
+    log = _Log(progress)
+    log(f"{count} trajectories in {len(specs)} shard(s) of up to {shard_size}: "
+        f"{len(kept)} complete (kept), {len(missing)} to build on {executor.name} "
+        f"({executor.workers} worker(s)) with {_solver_name(settings)}")
+    manifest = _manifest(config, count, specs, output, executor, None)
+    atomic_write_text(Path(output) / MANIFEST, json.dumps(manifest, indent=2) + "\n")
+    began, written, done = time.perf_counter(), [], count - sum(s.count for s in missing)
+    draws = 0
+    for spec, result in zip(missing, executor.map(build_shard, missing, gpus=gpus_for(settings))):
+        _write_shard(output, spec, result)
+        written.append(spec.shard)
+        done += spec.count
+        draws += result.draws
+        elapsed = time.perf_counter() - began
+        rate = sum(s.count for s in missing if s.shard in written) / elapsed
+        log(f"shard {spec.shard + 1}/{len(specs)}: {spec.count} trajectories in "
+            f"{result.total_s:.1f} s (solve {result.solve_s:.1f} s); {done}/{count} done "
+            f"({100 * done / count:.0f} %), {rate:.0f} trajectories/s, "
+            f"ETA {_eta((count - done) / rate if rate else 0)}")
+    wall = time.perf_counter() - began
+    run = {"shards_built": len(written), "shards_kept": len(kept),
+           "trajectories_built": int(sum(s.count for s in missing)), "draws": draws,
+           "wall_s": wall, "trajectories_per_s": (sum(s.count for s in missing) / wall
+                                                  if wall > 0 and missing else None)}
+    manifest = _manifest(config, count, specs, output, executor, run)
+    atomic_write_text(Path(output) / MANIFEST, json.dumps(manifest, indent=2) + "\n")
+    log(f"done: {count} trajectories in {output}/ ({manifest['summary']['converged_share']:.1%} "
+        f"converged); this run built {len(written)} shard(s) in {wall:.1f} s")
+    return DatasetReport(manifest, written, kept)
+
+
+def _write_shard(output, spec: ShardSpec, result) -> None:
+    import pyarrow.parquet as pq
+
+    for table, data in zip(TABLES, (result.steps, result.trajectories)):
+        with atomic_path(shard_path(output, table, spec.shard)) as tmp:
+            pq.write_table(data, tmp, compression="zstd")
+
+
+def _manifest(config, count, specs, output, executor, run) -> dict:
+    manifest = {"format": FORMAT, "version": VERSION, "count": count, "config": config,
+                "config_hash": config_hash(config), "shards": len(specs),
+                "files": {t: f"{t}/part-NNNNNN.parquet" for t in TABLES},
+                "columns": columns(config["robot"]["joints"]), **executor.describe(),
+                "complete": run is not None}
+    if run is not None:
+        manifest["this_run"] = run
+        manifest["summary"] = summarise(output)
+    manifest.update(provenance())
+    return manifest
+
+
+def summarise(output) -> dict:
+    """Shares and medians over every trajectory of the dataset (read from its shards)."""
+    import pyarrow.dataset as ds
+
+    names = ["converged", "within_limits", "iterations", "loss", "line_distance_mean_mm",
+             "pointing_deviation_mean_deg", "end_point_error_mm"]
+    frame = ds.dataset(Path(output) / "trajectories", format="parquet").to_table(
+        columns=names).to_pandas()
+    return {"trajectories": len(frame), "converged_share": float(frame["converged"].mean()),
+            "within_limits_share": float(frame["within_limits"].mean()),
+            **{f"{c}_median": float(frame[c].median()) for c in names[2:]}}
+
+
+def columns(joints) -> dict:
+    """The tables' columns and their units (the manifest's schema)."""
+    pose = "pose units (motor deg for NICO; joint deg, mm for prismatic joints)"
+    steps = {"trajectory": "id", "step": "index 0..n", **{j: pose for j in joints},
+             **{f"{a}_mm": "mm, base frame" for a in "xyz"},
+             **{f"dir_{a}": "unit pointing direction" for a in "xyz"}}
+    metrics = {"line_distance_mean_mm": "mm", "line_distance_std_mm": "mm",
+               "pointing_deviation_mean_deg": "deg", "pointing_deviation_std_deg": "deg",
+               "start_point_error_mm": "mm", "end_point_error_mm": "mm",
+               "start_pose_error_deg": "pose units", "end_pose_error_deg": "pose units",
+               "mean_sq_joint_step_deg2": "pose units^2", "max_joint_step_deg": "pose units",
+               "mean_sq_jerk_deg2": "pose units^2", "velocity_sign_changes": "count"}
+    trajectories = {"trajectory": "id", "shard": "index",
+                    **{f"start_{j}": pose for j in joints},
+                    **{f"touch_{j}": pose for j in joints},
+                    **{f"start_{a}_mm": "mm, P^s" for a in "xyz"},
+                    **{f"touch_{a}_mm": "mm, P^e" for a in "xyz"},
+                    "line_length_mm": "mm", "loss": "the paper's objective (cm, motor deg)",
+                    **{t: "loss term" for t in TERMS}, "iterations": "LM iterations",
+                    "converged": "bool", "within_limits": "bool", **metrics}
+    return {"steps": steps, "trajectories": trajectories}
+
+
+def _remove_temporary_files(output) -> None:
+    """Temporary files of an earlier run that was killed (they are hidden, but take space)."""
+    for table in TABLES:
+        for path in (Path(output) / table).glob(".part-*.tmp"):
+            path.unlink(missing_ok=True)
+
+
+def _solver_name(settings) -> str:
+    if settings.device is None:
+        return "the numpy solver"
+    return f"the torch backend on {settings.device} ({settings.dtype})"
+
+
+def _eta(seconds: float) -> str:
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    return f"{seconds / 60:.0f} min" if seconds < 5400 else f"{seconds / 3600:.1f} h"
+
+
+class _Log:
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+
+    def __call__(self, text: str) -> None:
+        if self.enabled:
+            print(f"[dataset] {text}", file=sys.stderr, flush=True)

@@ -1,0 +1,184 @@
+"""One shard of a dataset: sample touch poses, solve their lines, measure, make the tables.
+
+A shard is a pure function of its :class:`ShardSpec`: the touch poses come from the batch
+sampler seeded by (dataset seed, shard index) (:func:`shard_seed`), so a shard's content does
+not depend on which other shards exist, on resumption or on the executor that ran it.
+
+Tables (Arrow, written as Parquet by :mod:`.dataset`):
+
+- steps, long form, one row per trajectory and step: ``trajectory``, ``step``, one column
+  per joint [pose units: motor deg for NICO], ``x_mm``, ``y_mm``, ``z_mm`` (fingertip, base
+  frame), ``dir_x``, ``dir_y``, ``dir_z`` (unit pointing direction);
+- trajectories, one row per trajectory: ids, start and touch poses and points, the loss and
+  its terms, iterations and convergence, and the line figures of
+  :func:`ikbench.core.metrics_batch.line_metrics` (those of ``trajectory_metrics``).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ikbench.core.losses import TERMS
+from ikbench.core.metrics_batch import line_metrics
+from ikbench.core.robot import MM_PER_M, RANGE_TOLERANCE_DEG
+from ikbench.core.task import Task
+from ikbench.studies.batch import sample_touch_poses
+
+#: Dataset format name and version, written into every shard and the manifest.
+FORMAT = "ikbench-dataset"
+VERSION = 1
+#: Key of the shard description in each Parquet file's metadata.
+METADATA_KEY = b"ikbench"
+
+
+@dataclass(frozen=True)
+class ShardSpec:
+    """What one shard holds (picklable; sent to the worker that builds it).
+
+    Attributes:
+        robot: the robot (without caches).
+        start_pose_deg: (dof,) the start pose of every line [pose units].
+        steps: segments n per trajectory.
+        seed: the dataset's seed.
+        shard: shard index.
+        first: global id of the shard's first trajectory.
+        count: trajectories in the shard.
+        settings: the ours-lm settings (complete weights dict).
+        workspace: the batch sampler's workspace filter.
+        config_hash: hash of everything that determines the content (the manifest's).
+    """
+
+    robot: Any
+    start_pose_deg: np.ndarray
+    steps: int
+    seed: int
+    shard: int
+    first: int
+    count: int
+    settings: Any
+    workspace: Any
+    config_hash: str
+
+    def metadata(self, table: str) -> dict:
+        """The description stored in the shard's Parquet files."""
+        return {"format": FORMAT, "version": VERSION, "config_hash": self.config_hash,
+                "table": table, "shard": self.shard, "first": self.first, "count": self.count,
+                "steps": self.steps}
+
+
+@dataclass
+class ShardResult:
+    """The two tables of a shard and how long it took (the times are not in the files)."""
+
+    steps: Any              # pyarrow.Table
+    trajectories: Any       # pyarrow.Table
+    draws: int              # poses drawn to find ``count`` in the workspace
+    solve_s: float          # wall time of the batched solve [s]
+    total_s: float          # wall time of the whole shard [s]
+
+
+def shard_seed(seed: int, shard: int) -> int:
+    """The sampler seed of a shard, in [0, 2^63), from (dataset seed, shard index)."""
+    state = np.random.SeedSequence([seed, shard]).generate_state(1, np.uint64)[0]
+    return int(state) >> 1
+
+
+def line_tasks(robot, start_pose_deg, touch_poses_deg, steps: int, first: int = 0):
+    """The paper's line tasks (as :func:`ikbench.core.task.line_task`) for many touch poses,
+    with one vectorised FK; task names are the global ids ``first``, ``first + 1``, ...
+
+    Returns:
+        (tasks, start_point_mm (3,), touch_points_mm (B, 3)).
+    """
+    kin = robot.chain_kinematics()
+    start = np.asarray(start_pose_deg, dtype=float)
+    point_m, _, _, _ = kin(np.vstack([start, touch_poses_deg]), jacobian=False)
+    start_mm, touch_mm = point_m[0] * MM_PER_M, point_m[1:] * MM_PER_M
+    t = np.linspace(0.0, 1.0, steps + 1)[:, None]
+    tasks = []
+    for k, (pose, end_mm) in enumerate(zip(touch_poses_deg, touch_mm)):
+        line = end_mm - start_mm
+        direction = line / np.linalg.norm(line)
+        tasks.append(Task(str(first + k), start_mm + t * line,
+                          np.repeat(direction[None], steps + 1, axis=0), start, pose))
+    return tasks, start_mm, touch_mm
+
+
+def build_shard(spec: ShardSpec) -> ShardResult:
+    """Sample, solve and measure one shard (runs in a worker); see the module docstring."""
+    from ikbench.methods.ours_lm import solve_batch
+
+    began = time.perf_counter()
+    robot = spec.robot
+    touch, draws = sample_touch_poses(robot, spec.start_pose_deg, spec.count,
+                                      shard_seed(spec.seed, spec.shard), spec.workspace)
+    tasks, start_mm, touch_mm = line_tasks(robot, spec.start_pose_deg, touch, spec.steps,
+                                           spec.first)
+    result = solve_batch(robot, tasks, spec.settings, weights=spec.settings.weights)
+    poses = result.poses_deg                                        # (B, N, dof)
+    b, n_poses, dof = poses.shape
+    point_m, direction, _, _ = robot.chain_kinematics()(poses.reshape(-1, dof), False)
+    points_mm = (point_m * MM_PER_M).reshape(b, n_poses, 3)
+    directions = direction.reshape(b, n_poses, 3)
+    start_pose = np.broadcast_to(spec.start_pose_deg, (b, dof))
+    metrics = line_metrics(points_mm, directions, poses, np.broadcast_to(start_mm, (b, 3)),
+                           touch_mm, start_pose, touch)
+    ids = np.arange(spec.first, spec.first + b, dtype=np.int64)
+    steps = _steps_table(spec, robot, ids, poses, points_mm, directions)
+    trajectories = _trajectories_table(spec, robot, ids, start_pose, touch, start_mm, touch_mm,
+                                       result, metrics)
+    return ShardResult(steps, trajectories, draws, result.duration_s,
+                       time.perf_counter() - began)
+
+
+def _table(columns: dict, metadata: dict):
+    import pyarrow as pa
+
+    table = pa.table(columns)
+    return table.replace_schema_metadata({METADATA_KEY: json.dumps(metadata, sort_keys=True)})
+
+
+def _steps_table(spec, robot, ids, poses, points_mm, directions):
+    b, n_poses, dof = poses.shape
+    columns: dict[str, np.ndarray] = {
+        "trajectory": np.repeat(ids, n_poses),
+        "step": np.tile(np.arange(n_poses, dtype=np.int32), b)}
+    for j, name in enumerate(robot.joint_names):
+        columns[name] = poses[..., j].ravel()
+    for k, axis in enumerate("xyz"):
+        columns[f"{axis}_mm"] = points_mm[..., k].ravel()
+    for k, axis in enumerate("xyz"):
+        columns[f"dir_{axis}"] = directions[..., k].ravel()
+    return _table(columns, spec.metadata("steps"))
+
+
+def _trajectories_table(spec, robot, ids, start_pose, touch, start_mm, touch_mm, result,
+                        metrics):
+    b = len(ids)
+    columns: dict[str, np.ndarray] = {
+        "trajectory": ids, "shard": np.full(b, spec.shard, dtype=np.int32)}
+    for j, name in enumerate(robot.joint_names):
+        columns[f"start_{name}"] = np.ascontiguousarray(start_pose[:, j])
+    for j, name in enumerate(robot.joint_names):
+        columns[f"touch_{name}"] = np.ascontiguousarray(touch[:, j])
+    for k, axis in enumerate("xyz"):
+        columns[f"start_{axis}_mm"] = np.full(b, start_mm[k])
+    for k, axis in enumerate("xyz"):
+        columns[f"touch_{axis}_mm"] = np.ascontiguousarray(touch_mm[:, k])
+    columns["line_length_mm"] = np.linalg.norm(touch_mm - start_mm, axis=1)
+    columns["loss"] = result.loss
+    for k, term in enumerate(TERMS):
+        columns[term] = np.ascontiguousarray(result.terms[:, k])
+    columns["iterations"] = result.iterations.astype(np.int32)
+    columns["converged"] = result.converged.astype(bool)
+    lower, upper = robot.lower_motor_deg, robot.upper_motor_deg
+    tol = RANGE_TOLERANCE_DEG  # as Robot.within_limits
+    columns["within_limits"] = np.all((result.poses_deg >= lower - tol)
+                                      & (result.poses_deg <= upper + tol), axis=(1, 2))
+    columns.update(metrics)
+    return _table(columns, spec.metadata("trajectories"))

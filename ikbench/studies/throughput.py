@@ -1,0 +1,239 @@
+"""Throughput of ours-lm: the numpy solver against the torch backend on a device, per batch.
+
+:func:`throughput` solves batches of B line trajectories (B = 7: the paper's seven targets,
+the latency case; larger B: touch poses from the batch sampler, seed 0) with the numpy solver
+(up to ``numpy_max_batch``) and with the torch backend on ``device`` in each dtype, all in
+one process: ``warmup`` untimed rounds, then ``repeat`` timed rounds per case, the cases of a
+batch taking turns round by round (so a change in the machine's load hits them alike). A
+round is one ``solve_batch`` call, tasks in, poses and losses back in host memory (the torch
+backend's time on the device, synchronised, is reported too). Per case: median/min/max wall time,
+trajectories per second (B / median), the speed-up against numpy at the same B (ratio of
+medians), iterations, convergence, and how far the losses are from the numpy solver's
+(largest relative difference; from the torch float64 ones where numpy did not run).
+
+Output (:func:`write`): ``throughput.csv`` (one row per case), ``throughput_runs.csv`` (every
+timed round), ``throughput.json`` (device, CPU, versions) and ``throughput.md``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ikbench.core.errors import InputError
+from ikbench.core.io import atomic_write_csv, atomic_write_text
+from ikbench.core.provenance import provenance
+from ikbench.core.robot import Robot, as_robot
+from ikbench.core.targets import Targets, load_targets
+from ikbench.core.task import line_tasks
+from ikbench.studies.batch import sample_touch_poses
+from ikbench.studies.dataset_shard import line_tasks as sampled_line_tasks
+from ikbench.studies.report import markdown_table
+
+DEFAULT_BATCHES = (7, 1000, 10_000, 100_000)
+DEFAULT_DTYPES = ("float64", "float32")
+NUMPY = "numpy"
+
+
+def parse_batches(text) -> list[int]:
+    """``"7,1000"`` -> [7, 1000] (each an integer >= 1)."""
+    try:
+        values = [int(v) for v in str(text).split(",") if v.strip()]
+    except ValueError:
+        values = []
+    if not values or min(values) < 1:
+        raise InputError(f"--batches: {text!r} is not a list of batch sizes >= 1, e.g. "
+                         "7,1000,10000")
+    return list(dict.fromkeys(values))
+
+
+def parse_dtypes(text) -> list[str]:
+    """``"float64,float32"`` -> the dtypes (each float64 or float32)."""
+    values = [v.strip() for v in str(text).split(",") if v.strip()]
+    if not values or any(v not in DEFAULT_DTYPES for v in values):
+        raise InputError(f"--dtypes: {text!r} is not a list of float64, float32")
+    return list(dict.fromkeys(values))
+
+
+@dataclass
+class ThroughputResult:
+    """One row per case (backend, dtype, batch), every timed round, and the record."""
+
+    summary: pd.DataFrame
+    runs: pd.DataFrame
+    record: dict
+
+
+def throughput(device: str, *, batches=DEFAULT_BATCHES, dtypes=DEFAULT_DTYPES,
+               repeat: int = 3, warmup: int = 1, numpy_max_batch: int = 10_000,
+               steps: int | None = None, targets: str | Path | Targets | None = None,
+               robot: Robot | str | None = None, progress: bool = True) -> ThroughputResult:
+    """Time the numpy solver and the torch backend on ``device`` (see the module docstring).
+
+    Args:
+        device: torch device of the backend (``cpu``, ``cuda``, ``cuda:N``).
+        batches: batch sizes B; 7 means the paper's seven targets.
+        dtypes: the torch backend's precisions to time.
+        repeat / warmup: timed and untimed rounds per case.
+        numpy_max_batch: the numpy solver runs only batches up to this size.
+        steps: segments n (default: the targets file's, 50).
+        targets: targets file (default the robot's); its start pose starts every line.
+        robot: the robot (default NICO's right arm).
+        progress: progress lines on stderr.
+    """
+    from ikbench.methods.ours_lm import LMSettings
+    from ikbench.methods.ours_lm.devices import check_device, device_name
+
+    device = check_device(device) or "cpu"
+    for flag, value, low in (("--repeat", repeat, 1), ("--warmup", warmup, 0)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise InputError(f"{flag}: {value!r} must be an integer >= {low}")
+    robot = as_robot(robot)
+    if not isinstance(targets, Targets):
+        targets = load_targets(targets, robot)
+    targets = targets.with_steps(steps)
+    log = (lambda text: print(f"[bench] {text}", file=sys.stderr, flush=True)) if progress \
+        else (lambda text: None)
+    pool = _task_pool(robot, targets, batches)
+    cases = [(NUMPY, "float64", LMSettings())] + [
+        ("torch", dtype, LMSettings(device=device, dtype=dtype)) for dtype in dtypes]
+    runs, losses = [], {}
+    for b in batches:
+        tasks = pool[b]
+        mine = [c for c in cases if c[0] != NUMPY or b <= numpy_max_batch]
+        for r in range(warmup + repeat):  # rounds interleaved: each case meets the same load
+            for backend, dtype, settings in mine:
+                row, result = _round(robot, tasks, settings, log,
+                                     f"{backend} {dtype} B={b}", r, warmup)
+                if row is not None:
+                    runs.append({"backend": backend, "dtype": dtype, "batch": b,
+                                 "round": r - warmup + 1, **row})
+                losses[backend, dtype, b] = result
+    summary = summarise(pd.DataFrame(runs), losses)
+    record = {"device": device, "device_name": device_name(device), "batches": list(batches),
+              "dtypes": list(dtypes), "repeat": repeat, "warmup": warmup,
+              "numpy_max_batch": numpy_max_batch, "steps": targets.steps,
+              "robot": robot.describe(), "targets": targets.source, **_versions(),
+              **provenance()}
+    return ThroughputResult(summary, pd.DataFrame(runs), record)
+
+
+def _task_pool(robot, targets, batches) -> dict:
+    """The tasks of each batch size: the paper's seven for 7, else sampled touch poses."""
+    largest = max([b for b in batches if b != len(targets.ids)] or [0])
+    pool: dict[int, list] = {}
+    if largest:
+        touch, _ = sample_touch_poses(robot, targets.start_pose_deg, largest, seed=0)
+        sampled, _, _ = sampled_line_tasks(robot, targets.start_pose_deg, touch, targets.steps)
+    for b in batches:
+        pool[b] = line_tasks(robot, targets) if b == len(targets.ids) else sampled[:b]
+    return pool
+
+
+def _round(robot, tasks, settings, log, label, r, warmup):
+    """One round of one case: (the timed row, or None in a warm-up round; the result)."""
+    from ikbench.methods.ours_lm import solve_batch
+
+    start = time.perf_counter()
+    result = solve_batch(robot, tasks, settings, weights=_paper_weights())
+    wall = time.perf_counter() - start
+    timed = r >= warmup
+    log(f"{label}: {'round ' + str(r - warmup + 1) if timed else 'warm-up'} "
+        f"{wall:.4f} s ({len(tasks) / wall:.0f} trajectories/s)")
+    if not timed:
+        return None, result
+    return {"wall_s": wall, "device_loop_s": getattr(result, "loop_s", np.nan),
+            "iterations_median": float(np.median(result.iterations)),
+            "iterations_max": int(result.iterations.max()),
+            "converged_share": float(result.converged.mean()),
+            "loss_sum": float(result.loss.sum())}, result
+
+
+def _paper_weights():
+    from ikbench.core.losses import PAPER_WEIGHTS
+
+    return dict(PAPER_WEIGHTS)
+
+
+def summarise(runs: pd.DataFrame, losses: dict) -> pd.DataFrame:
+    """One row per (backend, dtype, batch): medians, rates, speed-up and loss agreement."""
+    rows = []
+    for (backend, dtype, b), group in runs.groupby(["backend", "dtype", "batch"], sort=False):
+        wall = group["wall_s"].to_numpy()
+        reference = losses.get((NUMPY, "float64", b)) or losses.get(("torch", "float64", b))
+        result = losses[backend, dtype, b]
+        rel = (np.abs(result.loss - reference.loss) / np.abs(reference.loss)
+               if reference is not None else np.full(1, np.nan))
+        rows.append({"backend": backend, "dtype": dtype, "batch": b, "rounds": len(wall),
+                     "wall_median_s": float(np.median(wall)), "wall_min_s": float(wall.min()),
+                     "wall_max_s": float(wall.max()),
+                     "device_loop_median_s": float(np.median(group["device_loop_s"])),
+                     "trajectories_per_s": b / float(np.median(wall)),
+                     "iterations_median": float(group["iterations_median"].iloc[-1]),
+                     "iterations_max": int(group["iterations_max"].iloc[-1]),
+                     "converged_share": float(group["converged_share"].iloc[-1]),
+                     "loss_reference": NUMPY if (NUMPY, "float64", b) in losses
+                     else "torch float64",
+                     "loss_max_rel_diff": float(rel.max())})
+    table = pd.DataFrame(rows)
+    speedups = []
+    for _, row in table.iterrows():
+        base = table[(table["backend"] == NUMPY) & (table["batch"] == row["batch"])]
+        speedups.append(float(base["wall_median_s"].iloc[0] / row["wall_median_s"])
+                        if len(base) else np.nan)
+    table["speedup_vs_numpy"] = speedups
+    return table
+
+
+def _versions() -> dict:
+    import torch
+
+    return {"torch": torch.__version__, "cuda": torch.version.cuda,
+            "cuda_available": torch.cuda.is_available()}
+
+
+def write(result: ThroughputResult, output: str | Path) -> Path:
+    """Write throughput.csv, throughput_runs.csv, throughput.json and throughput.md."""
+    out = Path(output)
+    atomic_write_csv(out / "throughput.csv", result.summary, float_format="%.6g")
+    atomic_write_csv(out / "throughput_runs.csv", result.runs, float_format="%.6g")
+    atomic_write_text(out / "throughput.json", json.dumps(result.record, indent=2) + "\n")
+    atomic_write_text(out / "throughput.md", markdown(result))
+    return out / "throughput.csv"
+
+
+def markdown(result: ThroughputResult) -> str:
+    """throughput.md: the cases side by side, the machine and versions."""
+    rec, s = result.record, result.summary.copy()
+    s["wall_median_ms"] = 1000.0 * s["wall_median_s"]
+    s["loss_max_rel_diff"] = [f"{v:.1e}" for v in s["loss_max_rel_diff"]]
+    cols = ["backend", "dtype", "batch", "rounds", "wall_median_ms", "trajectories_per_s",
+            "speedup_vs_numpy", "iterations_median", "converged_share", "loss_max_rel_diff"]
+    digits = {"wall_median_ms": 1, "trajectories_per_s": 0, "speedup_vs_numpy": 2,
+              "iterations_median": 0, "converged_share": 3}
+    packages = ", ".join(f"{k} {v}" for k, v in rec["packages"].items() if v)
+    return "\n".join([
+        "# ours-lm throughput: numpy solver vs torch backend", "",
+        f"Torch device `{rec['device']}` ({rec['device_name']}); batch 7 is the paper's seven "
+        f"targets (latency), larger batches are touch poses from the batch sampler (seed 0); "
+        f"n = {rec['steps']}, the paper's weights, the same stopping rule. {rec['warmup']} "
+        f"untimed warm-up round(s), then {rec['repeat']} timed rounds per case in one process, "
+        "the cases of a batch taking turns round by round; "
+        "a round is one `solve_batch` call, tasks in, results in host memory. Trajectories/s "
+        "= batch / median wall time; speed-ups are ratios of medians against the numpy "
+        "solver at the same batch, measured in this run; `loss_max_rel_diff` is the largest "
+        "relative difference of a trajectory's final loss from the numpy solver's (from "
+        "torch float64 where numpy did not run).", "",
+        markdown_table(s[cols], digits), "",
+        "## Machine", "",
+        f"{rec['cpu']} ({rec['cpu_count']} cores, torch threads {rec['torch_threads']}); "
+        f"torch {rec['torch']}, CUDA {rec['cuda'] or 'none'}; Python {rec['python']}, "
+        f"{rec['platform']}; git {rec['git_revision']}; {packages}; {rec['created_utc']}.", "",
+        "Timings on a shared machine vary from run to run; compare the ratios measured "
+        "within one run.", ""])
