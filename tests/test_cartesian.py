@@ -165,6 +165,7 @@ def test_published_figures_are_labelled_and_never_estimated():
     (["--problems", "nope"], "--problem: 'nope' is neither a shipped problem"),
     (["--methods", "nope"], "--method: unknown method 'nope'"),
     (["--seed", "3"], "--seed: the benchmark runs every seed of --seeds"),
+    (["--lm-seed", "3"], "--lm-seed: the benchmark runs every seed of --seeds"),
     (["--methods", "sequential-ik", "--lr", "0.5"], "--lr is not an option of the methods "
      "chosen (sequential-ik)"),
 ])

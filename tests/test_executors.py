@@ -94,3 +94,14 @@ def test_dataset_on_ray_writes_the_same_files(ray_session, tmp_path):
         for shard in range(3):
             assert (shard_path(tmp_path / "ray", table, shard).read_bytes()
                     == shard_path(tmp_path / "local", table, shard).read_bytes())
+
+
+def test_compare_on_ray_gives_the_local_numbers(ray_session, tmp_path):
+    from ikbench.studies.compare import compare
+
+    common = {"only": "1,3", "steps": 6, "repeat": 1, "progress": False}
+    local = compare(["ours-lm", "sequential-ik"], output=tmp_path / "local", **common)
+    remote = compare(["ours-lm", "sequential-ik"], output=tmp_path / "ray",
+                     executor=ray_session, **common)
+    numbers = [c for c in local.results.columns if not c.startswith("time_")]
+    pd.testing.assert_frame_equal(local.results[numbers], remote.results[numbers])

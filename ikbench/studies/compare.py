@@ -35,6 +35,7 @@ from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import line_tasks
 from ikbench.methods.base import Method
 from ikbench.methods.registry import method_status
+from ikbench.studies.executors import LocalExecutor, portable_robot
 from ikbench.studies.harness import Progress, solve_tasks
 from ikbench.studies.report import markdown_table
 from ikbench.studies.run import write_run
@@ -90,7 +91,7 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
             steps: int | None = None, repeat: int = 5, warmup: int = 1,
             output: str | Path | None = "runs",
             reference: str | None = None, progress: bool = True,
-            solvers: dict[str, Method] | None = None) -> CompareResult:
+            solvers: dict[str, Method] | None = None, executor=None) -> CompareResult:
     """Run every method on every task ``repeat`` times; write ``output/compare/``.
 
     Args:
@@ -108,6 +109,10 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
             compared, else the first method).
         progress: progress lines on stderr.
         solvers: configured methods by name, replacing the defaults.
+        executor: where the methods run (:mod:`ikbench.studies.executors`; default this
+            process). On Ray each method is one task; the numbers are those of the local
+            executor, but methods that run at the same time share the machine, so compare
+            times only from runs with one method per machine at a time (local).
 
     Returns:
         A :class:`CompareResult`.
@@ -124,7 +129,7 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
     log = Progress("compare", enabled=progress)
     started = time.perf_counter()
     status = method_status()
-    rows, outcomes_by_method, built = [], {}, {}
+    rows, outcomes_by_method, built, jobs = [], {}, {}, []
     for k, name in enumerate(names):
         cls = status[name].cls
         if cls is None:
@@ -140,9 +145,12 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
                      for task in tasks]
             continue
         built[name] = solver
-        log.say(f"{name} ({k + 1}/{len(names)}): {repeat} x {len(tasks)} trajectories")
-        runs = [solve_tasks(solver, robot, tasks, Progress(name, enabled=False))
-                for _ in range(warmup + repeat)][warmup:]
+        jobs.append((name, solver))
+    executor = executor or LocalExecutor()
+    portable = robot if executor.workers == 1 else portable_robot(robot)
+    work = [(name, solver, portable, tasks, warmup, repeat) for name, solver in jobs]
+    for (name, solver), runs in zip(jobs, executor.map(solve_method, work)):
+        cls = type(solver)
         outcomes_by_method[name] = runs[-1]
         for j, task in enumerate(tasks):
             times = [run[j].wall_s for run in runs]
@@ -154,7 +162,8 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
                        iterations=last.solution.iterations if last.ok else np.nan)
             rows.append(row)
         median_s = np.median([r["time_median_s"] for r in rows[-len(tasks):]])
-        log.say(f"{name}: median {median_s:.4f} s per trajectory")
+        log.say(f"{name}: {repeat} x {len(tasks)} trajectories, median {median_s:.4f} s "
+                "per trajectory")
     results = pd.DataFrame(rows)
     record = {"methods": names, "reference": reference, "repeat": repeat, "warmup": warmup,
               "robot": robot.describe(), "targets": targets.source,
@@ -179,6 +188,15 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
             atomic_write_text(tmp / "run.json", json.dumps(record, indent=2) + "\n")
         log.say(f"written to {root}/ in {time.perf_counter() - started:.1f} s")
     return CompareResult(results, leaderboard(results, reference), record)
+
+
+def solve_method(job) -> list:
+    """``warmup + repeat`` harness runs of one method on every task (in a worker); returns
+    the ``repeat`` timed runs (each a list of outcomes)."""
+    name, solver, robot, tasks, warmup, repeat = job
+    runs = [solve_tasks(solver, robot, tasks, Progress(name, enabled=False))
+            for _ in range(warmup + repeat)]
+    return runs[warmup:]
 
 
 def _row(method, library, robot, targets, task, status, failure) -> dict:

@@ -48,14 +48,15 @@ def register(subparsers) -> None:
 
 def method_settings(args, names: list[str]) -> dict[str, dict]:
     """method -> settings from the method options given (each applies to the methods that
-    have it); InputError for an option none of them has, and for --seed (use --seeds)."""
+    have it); InputError for an option none of them has, and for --seed, --lm-seed (use --seeds)."""
     from ikbench.cli.options import _convert, _given
     from ikbench.core.errors import InputError
     from ikbench.methods.registry import get_method
 
     given = _given(args)
-    if "seed" in given:
-        raise InputError("--seed: the benchmark runs every seed of --seeds; give --seeds")
+    for flag in ("seed", "lm-seed"):
+        if flag in given:
+            raise InputError(f"--{flag}: the benchmark runs every seed of --seeds; give --seeds")
     out: dict[str, dict] = {name: {} for name in names}
     used = set()
     for name in names:

@@ -39,6 +39,9 @@ def register(subparsers) -> None:
     parser.add_argument("--reference", default=None,
                         help="method the ratios are against (default ours-lm if compared, "
                         "else the first)")
+    from ikbench.cli.options import add_executor_arguments
+
+    add_executor_arguments(parser)
     parser.add_argument("--output", default=DEFAULT_OUTPUT,
                         help=f"results directory; writes OUTPUT/compare/ (default "
                         f"{DEFAULT_OUTPUT}, which git ignores)")
@@ -55,12 +58,20 @@ def run(args) -> int:
         raise InputError("--seeds applies to --problems only")
     from pathlib import Path
 
-    from ikbench.cli.options import check_threads, robot_from_args, set_threads, targets_from_args
+    from ikbench.cli.options import (
+        check_executor_args,
+        check_threads,
+        executor_from_args,
+        robot_from_args,
+        set_threads,
+        targets_from_args,
+    )
     from ikbench.core.io import check_folder_writable
     from ikbench.methods.registry import method_status
     from ikbench.studies.compare import check_repeat, compare, parse_methods
 
     check_threads(args.threads)
+    check_executor_args(args)
     methods = args.methods or DEFAULT_METHODS
     names = list(method_status()) if methods.strip() == "all" else parse_methods(methods)
     check_repeat(args.repeat)
@@ -69,7 +80,8 @@ def run(args) -> int:
     check_folder_writable(Path(args.output) / "compare")
     set_threads(args.threads)
     result = compare(names, robot=robot, targets=targets, repeat=args.repeat,
-                     output=args.output, reference=args.reference, progress=not args.quiet)
+                     output=args.output, reference=args.reference, progress=not args.quiet,
+                     executor=executor_from_args(args))
     board = result.leaderboard.drop(columns=["note"])
     print(board.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     print(f"written to {Path(args.output) / 'compare'}/ (leaderboard.md, results.csv, "

@@ -79,7 +79,8 @@ class OursLMSettings(LMSettings):
         refine: carried candidates refined by LM at once.
     """
 
-    seed: int = option(0, help="6-D pose paths: seed of the start search's random IK seeds, "
+    seed: int = option(0, flag="lm-seed",
+                       help="6-D pose paths: seed of the start search's random IK seeds, "
                        "in [0, 2^63)")
     ik_seeds: int = option(16, flag="lm-ik-seeds",
                            help="6-D pose paths: IK seeds for the first waypoint (the home "
@@ -91,7 +92,7 @@ class OursLMSettings(LMSettings):
         super().__post_init__()
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) \
                 or not 0 <= self.seed < 2**63:
-            raise InputError(f"--seed: {self.seed!r} must be an integer in [0, 2^63)")
+            raise InputError(f"--lm-seed: {self.seed!r} must be an integer in [0, 2^63)")
         check_positive(self, "ik_seeds", "refine", integer=True)
         self.ik_seeds, self.refine = int(self.ik_seeds), int(self.refine)
 
@@ -274,7 +275,7 @@ def search(robot, task, settings: OursLMSettings, weights: dict) -> SearchResult
     if not found.size:
         raise InputError(f"trajectory {task.name!r}: the first waypoint was not reached from "
                          f"any of {settings.ik_seeds} IK seeds (out of reach?); try more "
-                         "--lm-ik-seeds or another --seed")
+                         "--lm-ik-seeds or another --lm-seed")
     t_seeds = time.perf_counter()
     paths, carry_iterations = carry(frames, task, q0[found], lower, upper)
     missed = lost_waypoints(frames, task, paths)
