@@ -21,7 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from baselines._chain import Chain
+from baselines._chain import Chain, chain_of
+from baselines._method import LibraryMethod
 from ikbench.core.errors import InputError
 
 SOLVERS = ("auto", "snopt", "ipopt", "nlopt")
@@ -121,3 +122,17 @@ def exit_code(result) -> int | None:
         if hasattr(details, attribute):
             return int(getattr(details, attribute))
     return None
+
+
+class DrakeMethod(LibraryMethod):
+    """A method on a Drake plant: checks its solver choice up front; builds the plant untimed.
+
+    Subclasses set ``settings.solver`` (one of :data:`SOLVERS`) and ``solve_chain``.
+    """
+
+    def check_robot(self, robot) -> None:
+        make_solver(self.settings.solver)
+
+    def prepare(self, robot) -> None:
+        """Untimed: Drake parses the URDF and finalises its plant."""
+        drake_chain(chain_of(robot))

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from baselines._chain import Chain, Goals
-from baselines._drake import SOLVERS, drake_chain, make_solver, set_tolerances, solve
-from baselines._method import ChainResult, LibraryMethod
+from baselines._drake import SOLVERS, DrakeMethod, drake_chain, make_solver, set_tolerances, solve
+from baselines._method import ChainResult
 from baselines._walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
@@ -99,7 +99,7 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings) -> ChainR
                                  iterations_are="solves (Drake reports no iteration count)")
 
 
-class DrakeIK(LibraryMethod):
+class DrakeIK(DrakeMethod):
     """Drake InverseKinematics per point, walked back from the touch pose."""
 
     name = "drake-ik"
@@ -109,15 +109,6 @@ class DrakeIK(LibraryMethod):
     library = "drake"
     Settings = DrakeIKSettings
     supports_frames = True
-
-    def check_robot(self, robot) -> None:
-        make_solver(self.settings.solver)
-
-    def prepare(self, robot) -> None:
-        """Untimed: Drake parses the URDF and finalises its plant."""
-        from baselines._chain import chain_of
-
-        drake_chain(chain_of(robot))
 
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
         return solve_chain(chain, goals, self.settings)

@@ -38,8 +38,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from baselines._chain import Chain, Goals
-from baselines._drake import SOLVERS, drake_chain, exit_code, make_solver, set_tolerances, solve
-from baselines._method import ChainResult, LibraryMethod
+from baselines._drake import (
+    SOLVERS,
+    DrakeMethod,
+    drake_chain,
+    exit_code,
+    make_solver,
+    set_tolerances,
+    solve,
+)
+from baselines._method import ChainResult
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
@@ -230,7 +238,7 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings) -> C
         "iterations_are": "program solves (Drake reports no SNOPT iteration count)"})
 
 
-class DrakeTrajopt(LibraryMethod):
+class DrakeTrajopt(DrakeMethod):
     """Drake KinematicTrajectoryOptimization of the whole path between start and touch pose."""
 
     name = "drake-trajopt"
@@ -247,15 +255,6 @@ class DrakeTrajopt(LibraryMethod):
         super().check_tasks(robot, tasks)
         for task in tasks:
             control_point_count(self.settings, len(task.goal_points_mm))
-
-    def check_robot(self, robot) -> None:
-        make_solver(self.settings.solver)
-
-    def prepare(self, robot) -> None:
-        """Untimed: Drake parses the URDF and finalises its plant."""
-        from baselines._chain import chain_of
-
-        drake_chain(chain_of(robot))
 
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
         return solve_chain(chain, goals, self.settings)
