@@ -52,3 +52,32 @@ def test_every_other_run_folder_is_reproduced_too(evaluated):
             for column in METRICS:
                 assert measured.loc[row["trajectory"], column] == pytest.approx(
                     row[column], rel=1e-6, abs=1e-9), (name, row["trajectory"], column)
+
+
+def test_committed_comparison_is_reproduced_from_its_trajectories():
+    """results/compare/results.csv states the metrics of the trajectory CSVs each method wrote,
+    and every method that solved ends at the touch pose (0.5 deg) within the motor ranges."""
+    import numpy as np
+
+    from ikbench.core.metrics import trajectory_metrics
+    from ikbench.core.robot import load_robot
+    from ikbench.core.targets import load_targets
+    from ikbench.core.task import line_tasks
+    from ikbench.core.trajectory import read_trajectory_poses
+    from ikbench.studies.compare import METRICS as COMPARE_METRICS
+
+    folder = RESULTS / "compare"
+    results = pd.read_csv(folder / "results.csv", dtype={"trajectory": str})
+    robot = load_robot("nico_right_arm")
+    tasks = {t.name: t for t in line_tasks(robot, load_targets(robot=robot))}
+    solved = results[results["status"] == "solved"]
+    assert len(set(solved["method"])) >= 3 and set(solved["trajectory"]) == set(tasks)
+    for _, row in solved.iterrows():
+        poses = read_trajectory_poses(folder / row["method"] / f"trajectory_{row['trajectory']}"
+                                      ".csv", robot)
+        measured = trajectory_metrics(robot, tasks[row["trajectory"]], poses)
+        for column in COMPARE_METRICS:
+            assert measured[column] == pytest.approx(row[column], rel=1e-6, abs=1e-9), (
+                    row["method"], row["trajectory"], column)
+        assert measured["end_pose_error_deg"] <= 0.5, (row["method"], row["trajectory"])
+        assert np.all(poses >= robot.lower - 1e-9) and np.all(poses <= robot.upper + 1e-9)
