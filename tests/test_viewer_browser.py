@@ -7,7 +7,8 @@ hides the arms on the server, captures again and compares:
 - the arms: thousands of pixels of the 3-D view change when they are hidden;
 - the paths: pixels of both runs' fingertip colours and of the goal colour are there, with
   and without the arms;
-- the GUI: the panel lists the controls and both runs.
+- the GUI: the panel lists the controls and both runs;
+- another robot: a Panda run of ours-lm draws its arm and fingertip path.
 
 Skipped when viser or Chromium is missing. ``IKBENCH_VIEWER_SCREENSHOT=docs/viewer.png``
 keeps the capture with the arms (how docs/viewer.png was made).
@@ -117,3 +118,29 @@ def test_chromium_draws_the_arms_the_paths_and_the_gui(tmp_path):
     keep = os.environ.get("IKBENCH_VIEWER_SCREENSHOT")
     if keep:
         shutil.copy(tmp_path / "with_arms.png", keep)
+
+
+def test_chromium_draws_a_panda_run(tmp_path):
+    """The same for another robot: a Panda run of ours-lm on its default targets."""
+    from ikbench.cli import main
+    from ikbench.viewer.folders import load_runs
+    from ikbench.viewer.server import serve
+
+    assert main(["run", "--method", "ours-lm", "--robot", "panda", "--only", "front", "--steps",
+                 "20", "--output", str(tmp_path), "--no-animation", "--quiet"]) == 0
+    robot, runs = load_runs([tmp_path / "ours-lm"])
+    assert robot.name == "panda"
+    viewer = serve(robot, runs, port=0, open_browser=False)
+    viewer.set_step(10)
+    try:
+        with HeadlessPage(viewer.url, width=1280, height=800) as page:
+            page.wait_for_text("ours-lm")
+            full = _settled(page, tmp_path / "with_arm.png")
+            viewer.scenes[0].arm.visible = False
+            bare = _settled(page, tmp_path / "without_arm.png", unlike=full)
+    finally:
+        viewer.stop()
+    assert _drawn(full) > 0.01, "a blank canvas"
+    changed = _changed(full, bare)
+    assert changed > 3000, f"hiding the Panda changed only {changed} pixels"
+    assert _pixels_of_hue(bare, viewer.scenes[0].color) > 50, "no fingertip path"
