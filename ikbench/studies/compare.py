@@ -129,7 +129,7 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
     log = Progress("compare", enabled=progress)
     started = time.perf_counter()
     status = method_status()
-    rows, outcomes_by_method, built, jobs = [], {}, {}, []
+    rows, outcomes_by_method, built = [], {}, {}
     for k, name in enumerate(names):
         cls = status[name].cls
         if cls is None:
@@ -145,17 +145,15 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
                      for task in tasks]
             continue
         built[name] = solver
-        jobs.append((name, solver))
     executor = executor or LocalExecutor()
     portable = robot if executor.workers == 1 else portable_robot(robot)
-    work = [(name, solver, portable, tasks, warmup, repeat) for name, solver in jobs]
-    for (name, solver), runs in zip(jobs, executor.map(solve_method, work)):
-        cls = type(solver)
+    work = [(name, solver, portable, tasks, warmup, repeat) for name, solver in built.items()]
+    for (name, solver), runs in zip(built.items(), executor.map(solve_method, work)):
         outcomes_by_method[name] = runs[-1]
         for j, task in enumerate(tasks):
             times = [run[j].wall_s for run in runs]
             last = runs[-1][j]
-            row = _row(name, cls.library, robot, targets, task,
+            row = _row(name, solver.library, robot, targets, task,
                        "solved" if last.ok else "failed", last.failure or "")
             row.update(time_median_s=float(np.median(times)), time_min_s=float(min(times)),
                        time_max_s=float(max(times)), repetitions=repeat,
@@ -176,6 +174,7 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
         with tempfile.TemporaryDirectory() as tmp:
             results = _measure(results, built, robot, targets, outcomes_by_method, Path(tmp),
                                animation=False)
+        board = leaderboard(results, reference)
     else:
         root = Path(output) / "compare"
         with staged_folder(root) as tmp:
@@ -187,7 +186,7 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
             atomic_savefig(tmp / "pareto.png", plot_pareto(results))
             atomic_write_text(tmp / "run.json", json.dumps(record, indent=2) + "\n")
         log.say(f"written to {root}/ in {time.perf_counter() - started:.1f} s")
-    return CompareResult(results, leaderboard(results, reference), record)
+    return CompareResult(results, board, record)
 
 
 def solve_method(job) -> list:
