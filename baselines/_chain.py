@@ -23,6 +23,7 @@ import weakref
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -82,6 +83,9 @@ class Goals:
         q_touch: (dof,) touch (end) pose [rad, m], or None.
         q_home: (dof,) where a walk without a touch pose starts (a pose path: the task's
             reference pose, the robot's home), or None.
+        track: the per-step targets of the tracking scheme
+            (:class:`baselines._track.TrackPlan`) when the method tracks from the start pose,
+            else None (the walk).
     """
 
     points_m: np.ndarray
@@ -90,6 +94,7 @@ class Goals:
     q_start: np.ndarray | None
     q_touch: np.ndarray | None
     q_home: np.ndarray | None = None
+    track: Any = None
 
     def __len__(self) -> int:
         return len(self.points_m)

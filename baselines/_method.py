@@ -13,8 +13,11 @@ from typing import ClassVar
 
 import numpy as np
 
+from dataclasses import replace
+
 from baselines._chain import Chain, Goals, chain_of, goals_of, poses_from_urdf
 from baselines._chain import require_touch_and_start as _require_both
+from baselines._track import plan_track, require_start_and_touch
 from baselines._walk import Walk
 from ikbench.core.errors import InputError
 from ikbench.methods.base import Method, Solution
@@ -62,6 +65,27 @@ class LibraryMethod(Method):
     whole_path: ClassVar[bool] = False
     loads_urdf: ClassVar[bool] = True
 
+    @property
+    def scheme(self) -> str:
+        """``track`` (from the start pose onto the touch pose, :mod:`baselines._track`),
+        ``walk`` (back from the touch pose, :mod:`baselines._walk`) or ``whole-path``
+        (trajectory optimisers)."""
+        if self.whole_path:
+            return "whole-path"
+        return str(getattr(self.settings, "scheme", "walk"))
+
+    def tracks(self, task) -> bool:
+        """True when ``task`` is solved by the tracking scheme (a pose path is always
+        walked forward from the home pose: it has no start pose to track from)."""
+        return self.scheme == "track" and getattr(task, "goal_rotations", None) is None
+
+    def fixed_poses(self) -> frozenset[str]:
+        """Both poses for trajectory optimisers and the tracking scheme; the walk keeps only
+        the touch pose (its start pose is wherever the walk ends up)."""
+        if self.scheme == "walk":
+            return frozenset({"touch_pose"})
+        return frozenset({"start_pose", "touch_pose"})
+
     def check_tasks(self, robot, tasks) -> None:
         """Refuse, before any solve: tasks without the poses the method fixes, 6-D goal frames
         the library cannot take, locked joints, robots the library cannot model
@@ -69,6 +93,8 @@ class LibraryMethod(Method):
         for task in tasks:
             if self.whole_path:
                 _require_both(task, self.name)
+            elif self.tracks(task):
+                require_start_and_touch(task, self.name)
             if getattr(task, "goal_rotations", None) is not None and not self.supports_frames:
                 raise InputError(f"trajectory {task.name!r}: --method {self.name} takes goal "
                                  "points and pointing directions, not 6-D goal frames")
@@ -90,10 +116,15 @@ class LibraryMethod(Method):
     def solve(self, robot, task, progress=None) -> Solution:
         """Solve ``task`` with the library; poses in the robot's pose units."""
         started = time.perf_counter()
-        result = self.solve_chain(robot, chain_of(robot), goals_of(robot, task))
+        goals = goals_of(robot, task)
+        if self.tracks(task):
+            goals = replace(goals, track=plan_track(robot, task, goals))
+        result = self.solve_chain(robot, chain_of(robot), goals)
         poses = poses_from_urdf(robot, result.q)
         if not self.whole_path and task.end_pose_deg is not None:
-            poses[-1] = task.end_pose_deg  # the walk's start, exactly as given
+            poses[-1] = task.end_pose_deg  # the walk's start / the track's end, as given
+        if self.tracks(task):
+            poses[0] = task.start_pose_deg  # the track's start, exactly as given
         return Solution(poses_deg=poses, iterations=int(result.iterations),
                         duration_s=time.perf_counter() - started, loss=None,
                         converged=bool(result.converged), info=dict(result.info))

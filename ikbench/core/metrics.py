@@ -238,3 +238,53 @@ def frame_metrics(robot, task, poses_deg) -> dict:
     }
     failures = validity_failures(out)
     return {**out, "valid": not failures, "failed_criteria": ",".join(failures)}
+
+
+# ----- the task contract (ikbench.core.contract) -----------------------------------------------
+def speed_limit_use(poses_deg, max_step) -> float:
+    """The largest joint change per segment over its allowed change (1.0: at the limit).
+
+    Args:
+        poses_deg: (n+1, dof) poses [pose units].
+        max_step: (dof,) allowed change per segment [pose units], or None (then NaN).
+    """
+    if max_step is None:
+        return float("nan")
+    steps = np.abs(np.diff(np.asarray(poses_deg, dtype=float), axis=0))
+    return float(np.max(steps / np.asarray(max_step, dtype=float), initial=0.0))
+
+
+def contract_metrics(robot, task, poses_motor_deg, contract) -> dict[str, float]:
+    """The figures a :class:`ikbench.core.contract.Contract` judges, with the Table 1/2 ones.
+
+    Returns:
+        :func:`trajectory_metrics`'s figures and ``line_distance_max_mm`` (the largest
+        distance of a pen-down point from the line), ``pointing_deviation_judged_mean_deg`` /
+        ``_max_deg`` (over the judged steps i >= ``contract.judged_from(n)``; NaN when the
+        contract does not judge pointing), ``speed_limit_use`` (:func:`speed_limit_use` at
+        the contract's duration; NaN without speed limits), ``max_step_limit_deg`` (the
+        smallest allowed change per segment over the joints) and ``within_limits`` (every
+        pose within the task's limits).
+    """
+    poses = np.asarray(poses_motor_deg, dtype=float)
+    out = trajectory_metrics(robot, task, poses)
+    fk = robot.fk(poses)
+    mask = np.asarray(task.pen_down, dtype=bool)
+    out["line_distance_max_mm"] = float(line_distances_mm(
+        fk.point_mm[mask], task.start_point_mm, task.end_point_mm).max())
+    judged = np.zeros(len(poses), dtype=bool)
+    judged[contract.judged_from(task.steps):] = True
+    judged &= mask
+    if contract.pointing and judged.any():
+        deviations = pointing_deviations_deg(fk.direction[judged], task.goal_directions[judged])
+        out["pointing_deviation_judged_mean_deg"] = float(deviations.mean())
+        out["pointing_deviation_judged_max_deg"] = float(deviations.max())
+    else:
+        out["pointing_deviation_judged_mean_deg"] = float("nan")
+        out["pointing_deviation_judged_max_deg"] = float("nan")
+    max_step = contract.max_step(task.steps)
+    out["speed_limit_use"] = speed_limit_use(poses, max_step)
+    out["max_step_limit_deg"] = float("nan") if max_step is None else float(np.min(max_step))
+    lower, upper = task.limits(robot)
+    out["within_limits"] = bool(np.all(poses >= lower - 1e-6) and np.all(poses <= upper + 1e-6))
+    return out

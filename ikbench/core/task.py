@@ -62,6 +62,10 @@ class Task:
         joint_limits: (lower (dof,), upper (dof,)) [pose units] the poses must respect when
             they differ from the robot's limits (a benchmark's bounds, e.g. CppFlow's
             [-180, 180] deg for continuous joints), or None.
+        contract: what the trajectory is judged against
+            (:class:`ikbench.core.contract.Contract`: fixed poses, pointing and its judged
+            part, speed limits, tolerances), or None (a plain run: the method's own scheme).
+            Methods read it to honour the task, e.g. where pointing is asked for.
     """
 
     name: str
@@ -76,6 +80,7 @@ class Task:
     reference_pose_deg: np.ndarray | None = None
     goal_rotations: np.ndarray | None = None
     joint_limits: tuple[np.ndarray, np.ndarray] | None = None
+    contract: Any = None
 
     def __post_init__(self):
         if self.pen_down is None:

@@ -227,6 +227,17 @@ class Method:
     def prepare(self, robot) -> None:
         """Untimed set-up before the first solve (e.g. build the kinematics)."""
 
+    def fixed_poses(self) -> frozenset[str]:
+        """The poses this method's scheme keeps fixed (``start_pose``, ``touch_pose``): a
+        task contract that fixes a pose the method does not keep is not honoured, and its rows
+        say so instead of counting as success. Default: both (ikbench's own methods pin them
+        in their objective; the study judges how close they come)."""
+        return frozenset({"start_pose", "touch_pose"})
+
+    def scheme_label(self) -> str:
+        """The method's scheme and mode in a few words (leaderboard rows)."""
+        return self.description.split(":", 1)[-1].strip().split(";")[0][:80]
+
     def check_tasks(self, robot, tasks) -> None:
         """Raise InputError before any solve if a task cannot be solved by this method."""
         for task in tasks:
