@@ -119,7 +119,7 @@ def test_a_method_whose_library_is_missing_breaks_nothing(broken_plugins):
     run = _ikbench(broken_plugins, "run", "--method", "broken", "--quiet")
     assert run.returncode == 2
     assert run.stderr.startswith("ikbench: error: --method broken is not available here: "
-                                 "cannot be imported: ModuleNotFoundError")
+                                 "failed to import: ModuleNotFoundError")
     good = _ikbench(broken_plugins, "run", "--method", "plugin-lm", "--only", "1",
                     "--steps", "5", "--quiet", "--output", "out")
     assert good.returncode == 0, good.stderr

@@ -50,10 +50,13 @@ FRAMES = [name for name in LIBRARIES if name != "pyroki"]
 
 
 def method_class(name: str):
-    """The method's class, or skip with the registry's reason (the library is missing)."""
+    """The method's class; skipped only when its library is not installed (the registry's
+    ``needs ...``); an adapter that fails to import for another reason fails the test."""
     status = method_status()[name]
     if not status.available:
-        pytest.skip(f"{name}: {status.reason}")
+        if status.reason.startswith("needs "):
+            pytest.skip(f"{name}: {status.reason}")
+        pytest.fail(f"{name}: {status.reason}")
     return status.cls
 
 

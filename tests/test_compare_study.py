@@ -2,64 +2,141 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from ikbench.cli import main
-from ikbench.core.metrics import trajectory_metrics
+from ikbench.core.contract import contract_for, judge
+from ikbench.core.metrics import contract_metrics
 from ikbench.core.task import line_tasks
 from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.methods import registry
-from ikbench.studies.compare import COLUMNS, TOLERANCES, compare
+from ikbench.methods.base import Solution, option
+from ikbench.studies.compare import COLUMNS, CONTRACT_METRICS, compare
+from ikbench.studies.compare_report import fmt
 from tests.conftest import register_temporarily
 from tests.test_run_folder import Straight
 
 
+class Walker(Straight):
+    """Starts anywhere (here: the touch pose held), like the authors' walk: keeps only the
+    touch pose fixed."""
+
+    name = "walker"
+    description = "touch pose held (tests)"
+
+    def fixed_poses(self):
+        return frozenset({"touch_pose"})
+
+    def solve(self, robot, task, progress=None) -> Solution:
+        poses = np.repeat(task.end_pose_deg[None], task.steps + 1, axis=0)
+        return Solution(poses, iterations=1, duration_s=0.0, loss=None)
+
+
+@dataclasses.dataclass
+class FailOn2Settings:
+    fail_on: str = option("2", help="trajectory id whose solve raises")
+    interrupt_on: str = option("", help="trajectory id whose solve is interrupted")
+
+
+class FailsOn2(Straight):
+    name = "fails-on-2"
+    Settings = FailOn2Settings
+
+
+@dataclasses.dataclass
+class InterruptSettings:
+    fail_on: str = option("", help="trajectory id whose solve raises")
+    interrupt_on: str = option("2", help="trajectory id whose solve is interrupted")
+
+
+class Interrupts(Straight):
+    name = "interrupts"
+    Settings = InterruptSettings
+
+
 @pytest.fixture
 def methods(monkeypatch):
-    register_temporarily(monkeypatch, Straight)
+    for cls in (Straight, Walker, FailsOn2, Interrupts):
+        register_temporarily(monkeypatch, cls)
     monkeypatch.setitem(registry.method_status(), "missing-lib", registry.MethodStatus(
         "missing-lib", None, "needs not_a_lib (pip install 'ikbench[libs]')"))
 
 
-def test_compare_writes_one_row_per_method_and_trajectory(tmp_path, robot, paper_targets,
-                                                          methods):
-    result = compare(["ours-lm", "straight", "missing-lib"], only="1,3", steps=6, repeat=2,
-                     output=tmp_path, progress=False)
+def test_compare_judges_every_method_by_the_contract_from_the_csvs(tmp_path, robot,
+                                                                    paper_targets, methods):
+    result = compare(["ours-lm", "straight", "walker", "missing-lib"], only="1,3", steps=6,
+                     repeat=2, output=tmp_path, progress=False)
     root = tmp_path / "compare"
     results = pd.read_csv(root / "results.csv", dtype={"trajectory": str})
     assert list(results.columns) == COLUMNS
-    assert len(results) == 6 and set(results["method"]) == {"ours-lm", "straight",
+    assert len(results) == 8 and set(results["method"]) == {"ours-lm", "straight", "walker",
                                                               "missing-lib"}
     missing = results[results["method"] == "missing-lib"]
     assert (missing["status"] == "unavailable").all() and not missing["success"].any()
     assert missing["failure"].str.contains("not_a_lib").all()
-    # every figure is the metrics module's, recomputed from the CSVs written
-    tasks = {t.name: t for t in line_tasks(robot, paper_targets.select("1,3").with_steps(6))}
-    for _, row in results[results["status"] == "solved"].iterrows():
+    contract = contract_for(robot)
+    touch = contract.with_track("touch")
+    tasks = {t.name: t for t in line_tasks(robot, paper_targets.select("1,3").with_steps(6),
+                                           contract)}
+    measured = results[results["status"] != "unavailable"]
+    assert len(measured) == 6
+    for _, row in measured.iterrows():
         poses = read_trajectory_poses(root / row["method"] / f"trajectory_{row['trajectory']}"
                                       ".csv", robot)
-        metrics = trajectory_metrics(robot, tasks[row["trajectory"]], poses)
-        assert row["line_distance_mean_mm"] == pytest.approx(metrics["line_distance_mean_mm"])
+        figures = contract_metrics(robot, tasks[row["trajectory"]], poses, contract)
+        for column in [*CONTRACT_METRICS, "line_distance_mean_mm", "start_pose_error_deg",
+                       "end_pose_error_deg", "max_joint_step_deg"]:
+            assert row[column] == pytest.approx(figures[column], nan_ok=True), column
         assert row["repetitions"] == 2
         assert row["time_min_s"] <= row["time_median_s"] <= row["time_max_s"]
-        expected = all(metrics[c] <= limit for c, limit in TOLERANCES.items())
+        # success, recomputed here: honours the fixed poses and every criterion holds
+        honours = row["method"] != "walker"
+        expected = honours and all(judge(contract, figures).values())
         assert bool(row["success"]) == expected
+        assert bool(row["success_touch"]) == all(judge(touch, figures).values())
+        assert (row["start_pose_error_deg"] <= 0.5 and row["end_pose_error_deg"] <= 0.5
+                and row["speed_limit_use"] <= 1) or not row["success"]
+    walker = results[results["method"] == "walker"]
+    assert (walker["status"] == "does not honour: start pose").all()
+    assert not walker["success"].any() and (walker["fixed_poses"] == "touch_pose").all()
     straight = results[results["method"] == "straight"]
-    assert (straight["line_distance_mean_mm"] > 5).all() and not straight["success"].any()
-    board = result.leaderboard.set_index("method")
-    assert board.loc["ours-lm", "time_vs_reference"] == pytest.approx(1.0)
-    assert board.loc["ours-lm", "success"] == results[results["method"] == "ours-lm"][
-        "success"].mean()
-    assert np.isnan(board.loc["missing-lib", "time_median_s"])
+    assert (straight["line_distance_max_mm"] > 5).all() and not straight["success"].any()
+    assert (straight["ok_line"] == False).all()  # noqa: E712 - a column per criterion
+    ours = results[results["method"] == "ours-lm"]
+    assert ours["time_batched_s"].notna().all() and straight["time_batched_s"].isna().all()
+    board = result.leaderboard.set_index(["track", "method"])
+    assert set(result.leaderboard["track"]) == {"paper", "touch"}
+    assert board.loc[("paper", "ours-lm"), "time_vs_reference"] == pytest.approx(1.0)
+    assert board.loc[("paper", "ours-lm"), "success_count"] == ours["success"].sum()
+    assert board.loc[("touch", "walker"), "success_count"] == walker["success_touch"].sum()
+    assert np.isnan(board.loc[("paper", "missing-lib"), "time_median_s"])
     text = (root / "leaderboard.md").read_text()
     assert "| missing-lib |" in text and "x ours-lm" in text
+    assert "Track `paper`" in text and "Track `touch`" in text
+    assert contract.describe(6, "motor deg") in text  # the contract above its table
+    assert "does not honour: start pose" in text
     record = json.loads((root / "run.json").read_text())
     assert record["repeat"] == 2 and record["libraries"] == {"ikbench": "0.2.0"}
+    assert record["contract"]["tolerances"] == contract.to_dict()["tolerances"]
     assert (root / "pareto.png").stat().st_size > 0
+    sweep = pd.read_csv(root / "pareto_sweep.csv")
+    assert len(sweep) >= 5 and sweep["line_distance_max_mm"].is_monotonic_decreasing
+
+
+def test_small_numbers_keep_their_digits():
+    assert fmt(5.6e-05) == "5.60e-05" and fmt(0.0) == "0" and fmt(146.6) == "147"
+    assert fmt(float("nan")) == "" and fmt(3.14159) == "3.14"
 
 
 def test_a_failing_method_is_a_row_not_a_crash(tmp_path, methods):
@@ -94,3 +171,52 @@ def test_compare_with_problems_runs_the_cartesian_benchmark(tmp_path, capsys):
     assert table.set_index("method").loc["ours-lm", "valid"]
     assert main(["compare", "--problems", "fetch_arm__rot_yz2", "--only", "1"]) == 2
     assert "do not apply to --problems" in capsys.readouterr().err
+
+
+def _cli(tmp_path, *args) -> int:
+    return main(["compare", "--only", "1,2", "--steps", "4", "--repeat", "1", "--output",
+                 str(tmp_path), "--quiet", *args])
+
+
+def test_compare_exits_1_when_a_solve_fails(tmp_path, methods, capsys):
+    assert _cli(tmp_path, "--methods", "straight") == 0
+    assert _cli(tmp_path, "--methods", "straight,fails-on-2") == 1
+    assert "fails-on-2" in capsys.readouterr().err
+    results = pd.read_csv(tmp_path / "compare" / "results.csv", dtype={"trajectory": str})
+    assert set(results.loc[results["method"] == "fails-on-2", "status"]) == {"solved", "failed"}
+
+
+def test_compare_exits_1_when_a_method_does_not_honour_the_contract(tmp_path, methods, capsys):
+    assert _cli(tmp_path, "--methods", "walker") == 1
+    assert "contract is not honoured" in capsys.readouterr().err
+
+
+def test_ctrl_c_is_one_line_exit_130_and_leaves_the_folder_unchanged(tmp_path, methods, capsys):
+    assert _cli(tmp_path, "--methods", "straight") == 0
+    before = (tmp_path / "compare" / "results.csv").read_bytes()
+    capsys.readouterr()
+    assert _cli(tmp_path, "--methods", "straight,interrupts") == 130
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "interrupted" in err and "Traceback" not in err
+    assert (tmp_path / "compare" / "results.csv").read_bytes() == before
+
+
+def test_sigint_through_the_cli_process(tmp_path):
+    """A real Ctrl-C (SIGINT) to ``ikbench compare`` while it solves: exit 130, one line."""
+    repo = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(repo), "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen([sys.executable, "-m", "ikbench.cli", "compare", "--methods",
+                             "ours-lm", "--repeat", "100000", "--output", str(tmp_path)],
+                            stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env,
+                            cwd=tmp_path)
+    deadline = time.monotonic() + 120
+    for line in proc.stderr:  # wait until it solves
+        if "solving" in line or time.monotonic() > deadline:
+            break
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    assert err.strip().splitlines() == [
+        f"ikbench: interrupted; {tmp_path / 'compare'}/ left unchanged"]
+    assert not (tmp_path / "compare").exists()

@@ -167,10 +167,20 @@ def frame_task(robot: Robot, name: str, points_mm, rotations, **fields) -> Task:
                 **fields)
 
 
-def line_tasks(robot: Robot, targets: Targets) -> list[Task]:
-    """One line task per touch pose of ``targets`` (start pose shared)."""
+def line_tasks(robot: Robot, targets: Targets, contract=None) -> list[Task]:
+    """One line task per touch pose of ``targets`` (start pose shared), each with the task
+    contract (:class:`ikbench.core.contract.Contract`; default
+    :func:`ikbench.core.contract.contract_for` the robot). Where the contract does not ask for
+    pointing (a robot whose config names no pointing axis), the tasks' default weights drop
+    the pointing term (c1 = 0; ``--weights`` can set it again)."""
+    from ikbench.core.contract import contract_for
+    from ikbench.core.losses import PAPER_WEIGHTS
+
+    contract = contract if contract is not None else contract_for(robot)
+    weights = None if contract.pointing else {**PAPER_WEIGHTS, "L1": 0.0}
     return [
-        line_task(robot, targets.start_pose_deg, pose, targets.steps, name)
+        replace(line_task(robot, targets.start_pose_deg, pose, targets.steps, name),
+                contract=contract, default_weights=weights)
         for name, pose in targets.touch_poses_deg.items()
     ]
 

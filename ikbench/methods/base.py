@@ -235,8 +235,19 @@ class Method:
         return frozenset({"start_pose", "touch_pose"})
 
     def scheme_label(self) -> str:
-        """The method's scheme and mode in a few words (leaderboard rows)."""
-        return self.description.split(":", 1)[-1].strip().split(";")[0][:80]
+        """The method's scheme and mode in a few words (leaderboard rows): ``track``,
+        ``walk`` or ``whole path``, then the settings that choose its mode (orientation,
+        solve type, pointing task, weights)."""
+        settings = self.settings
+        parts = [str(getattr(self, "scheme", None) or getattr(settings, "scheme", None)
+                     or "whole path")]
+        for key in ("orientation", "solve_type", "pointing_task"):
+            if hasattr(settings, key):
+                parts.append(f"{key.replace('_', ' ')} {getattr(settings, key)}")
+        if self.takes_weights():
+            weights = getattr(settings, "weights", None)
+            parts.append(f"weights {weights}" if weights else "the paper's weights")
+        return ", ".join(parts)
 
     def check_tasks(self, robot, tasks) -> None:
         """Raise InputError before any solve if a task cannot be solved by this method."""

@@ -3,7 +3,8 @@
 A method whose library is missing never breaks another: each entry names the Python modules
 it needs (``requires``); when one is not installed the method is listed as unavailable with
 the reason and the extra to install, and its module is not imported. A module that fails to
-import for another reason is listed as unavailable with the error. Nothing is imported until
+import for another reason (a bug, a broken install) is listed as ``failed to import: <error>``:
+the two are told apart, so tests skip only the first. Nothing is imported until
 a method is asked for (``ikbench fk`` imports no method at all).
 
 Third parties register methods in the entry-point group ``ikbench.methods``::
@@ -48,8 +49,10 @@ BUILTIN = (
     Entry("ours", "ikbench.methods.ours:Ours", ("torch", "pytorch_kinematics")),
     Entry("ours-lm", "ikbench.methods.ours_lm:OursLM", ("scipy", "pinocchio")),
     Entry("sequential-ik", "baselines.sequential_ik:SequentialIK", ("pinocchio",)),
+    Entry("sequential-ik-walk", "baselines.sequential_ik:SequentialIKWalk", ("pinocchio",)),
     # other kinematics libraries (baselines/, installed with the [libs] extra)
     Entry("ikpy", "baselines.ikpy_ik:IkpyIK", ("ikpy",)),
+    Entry("ikpy-walk", "baselines.ikpy_ik:IkpyWalk", ("ikpy",)),
     Entry("pink", "baselines.pink_ik:PinkIK", ("pink", "qpsolvers", "daqp")),
     Entry("trac-ik", "baselines.trac_ik:TracIK", ("pytracik",)),
     Entry("mink", "baselines.mink_ik:MinkIK", ("mink", "mujoco", "qpsolvers", "daqp")),
@@ -98,7 +101,7 @@ def _load(entry: Entry, source: str) -> MethodStatus:
         cls = getattr(importlib.import_module(module_name), class_name)
     except Exception as exc:  # a broken or incomplete module must not break the others
         return MethodStatus(entry.name, None,
-                            f"cannot be imported: {type(exc).__name__}: {exc}", source)
+                            f"failed to import: {type(exc).__name__}: {exc}", source)
     return MethodStatus(entry.name, cls, "", source)
 
 

@@ -1,20 +1,26 @@
-"""``ikbench compare``: every method on the same robot and tasks, timed the same way, one table.
+"""``ikbench compare``: every method on the same task contract, timed the same way, one table.
 
-:func:`compare` runs each method ``repeat`` times on every task through the study harness
-(:mod:`ikbench.studies.harness`: the harness's clock, failures kept as rows), writes each
-method's last repetition as a run folder (``DIR/compare/<method>/``, as ``ikbench run`` writes
-it, so every report and figure works on it) and measures every trajectory with
-:mod:`ikbench.core.metrics` from the CSVs written. A method that is not installed, or whose
-solves fail, is a row saying so.
+Every method receives the same line tasks with the same :class:`~ikbench.core.contract.
+Contract` (``Task.contract``): fixed start and touch poses, the line, pointing over its judged
+part, the speed limits, the tolerances. :func:`compare` solves each task alone ``repeat``
+times per method through the study harness (:mod:`ikbench.studies.harness`: its clock,
+failures kept as rows); a method that batches (ours-lm) also solves all tasks in one call per
+round, and that share is its own column. Each method's last repetition is written as a run
+folder (``DIR/compare/<method>/``, as ``ikbench run`` writes it), and every criterion is
+measured by :func:`ikbench.core.metrics.contract_metrics` from the trajectory CSVs written and
+judged by :func:`ikbench.core.contract.judge` - success is never what the method reports.
+
+Two tracks are judged from the same trajectories: ``paper`` (the contract as given: start and
+touch poses fixed) and ``touch`` (touch pose only). A method whose scheme does not keep a
+pose the paper's track fixes (``Method.fixed_poses``: the authors' walk from the touch pose)
+has status ``does not honour: start pose`` there, never success.
 
 Output ``DIR/compare/``: ``results.csv`` (long form: one row per method, robot, task and
-trajectory), ``leaderboard.md`` (the methods ranked, with ratios against the reference
-method measured in the same run), ``pareto.png`` (time vs accuracy, one colour per library),
-``run.json`` (settings, library versions, machine) and the per-method folders.
-
-Success is judged against stated tolerances (:data:`TOLERANCES`): the solve returned, the
-poses stay within the limits, the trajectory ends at the touch pose and starts at the start
-point, and the end point follows the line on average.
+trajectory, one ``ok_<criterion>`` column per criterion, ``success`` for the paper's track and
+``success_touch`` for the touch-pose-only track), ``leaderboard.md`` / ``leaderboard.csv``
+(one table per track, :mod:`ikbench.studies.compare_report`), ``pareto.png`` (with ours-lm's
+weight sweep, ``pareto_sweep.csv``), ``run.json`` (the contract, settings, library versions,
+machine) and the per-method folders.
 """
 
 from __future__ import annotations
@@ -27,42 +33,59 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ikbench.core.contract import CRITERIA, DEFAULT_TOLERANCES, Contract, contract_for, judge
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text, staged_folder
+from ikbench.core.metrics import contract_metrics
 from ikbench.core.provenance import library_versions, provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import line_tasks
+from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.methods.base import Method
 from ikbench.methods.registry import method_status
 from ikbench.studies.executors import LocalExecutor, portable_robot
 from ikbench.studies.harness import Progress, solve_tasks
-from ikbench.studies.report import markdown_table
 from ikbench.studies.run import write_run
 
-#: Success tolerances (all must hold): end pose [deg, max abs per joint], start point [mm],
-#: mean distance from the line [mm].
-TOLERANCES = {"end_pose_error_deg": 0.5, "start_point_error_mm": 1.0,
-              "line_distance_mean_mm": 5.0}
-#: Metric columns of results.csv, from ikbench.core.metrics.
+#: The default tolerances (kept under their old name; the contract states them).
+TOLERANCES = DEFAULT_TOLERANCES
+#: Metric columns of results.csv, from ikbench.core.metrics.contract_metrics.
 METRICS = ["line_distance_mean_mm", "line_distance_std_mm", "pointing_deviation_mean_deg",
            "pointing_deviation_std_deg", "start_point_error_mm", "end_point_error_mm",
            "start_pose_error_deg", "end_pose_error_deg", "max_joint_step_deg",
            "mean_sq_jerk_deg2", "mean_sq_joint_step_deg2"]
-#: The columns of results.csv, in order.
+#: Metric columns added with the task contract.
+CONTRACT_METRICS = ["line_distance_max_mm", "pointing_deviation_judged_mean_deg",
+                    "pointing_deviation_judged_max_deg", "speed_limit_use",
+                    "max_step_limit_deg"]
+#: One column per criterion: True/False, empty where the track does not judge it.
+OK_COLUMNS = ["ok_solved", "ok_honours", *(f"ok_{name}" for name in CRITERIA)]
+#: The columns of results.csv, in order (the first ones as before the contract).
 COLUMNS = ["method", "library", "library_version", "robot", "task", "trajectory", "status",
            "success", "failure", "time_median_s", "time_min_s", "time_max_s", "repetitions",
-           "iterations", "within_limits", *METRICS]
+           "iterations", "within_limits", *METRICS,
+           "track", "scheme", "fixed_poses", "success_touch", "time_batched_s",
+           *CONTRACT_METRICS, *OK_COLUMNS]
+#: Statuses that make ``ikbench compare`` exit with 1.
+FAILING = ("failed", "refused", "does not honour")
 
 
 @dataclass
 class CompareResult:
     """What :func:`compare` measured: ``results`` (results.csv), ``leaderboard`` (one row per
-    method) and the ``record`` written as run.json."""
+    method and track), the ``record`` written as run.json and the ``contract``."""
 
     results: pd.DataFrame
     leaderboard: pd.DataFrame
     record: dict
+    contract: Contract | None = None
+
+    @property
+    def failed(self) -> bool:
+        """True when a solve failed, a method refused the tasks or did not honour the
+        contract (``ikbench compare`` then exits with 1)."""
+        return bool(self.results["status"].astype(str).str.startswith(FAILING).any())
 
 
 def parse_methods(text: str | list[str]) -> list[str]:
@@ -91,7 +114,10 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
             steps: int | None = None, repeat: int = 5, warmup: int = 1,
             output: str | Path | None = "runs",
             reference: str | None = None, progress: bool = True,
-            solvers: dict[str, Method] | None = None, executor=None) -> CompareResult:
+            solvers: dict[str, Method] | None = None, executor=None,
+            contract: Contract | None = None, tolerances: str | dict | None = None,
+            pointing: str | bool = "auto", duration_s: float = 2.0,
+            sweep: bool = True) -> CompareResult:
     """Run every method on every task ``repeat`` times; write ``output/compare/``.
 
     Args:
@@ -101,35 +127,97 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
         targets: a targets file, :class:`Targets`, or None for the robot's own.
         only: trajectory ids to keep (``"1,3"``).
         steps: number of segments n (default the targets file's).
-        repeat: timed solves per method and task; times are the median, min and max over them.
-        warmup: untimed solves of every task before (caches, lazy imports, JIT).
+        repeat: timed solves of each task alone per method; times are the median, min, max.
+        warmup: untimed rounds before (caches, lazy imports, JIT).
         output: the results directory (``output/compare/`` is replaced whole); None writes
             nothing.
-        reference: the method the leaderboard's ratios are against (default ``ours-lm`` if
-            compared, else the first method).
+        reference: the method the time ratios are against (default ``ours-lm`` if compared,
+            else the first method).
         progress: progress lines on stderr.
         solvers: configured methods by name, replacing the defaults.
         executor: where the methods run (:mod:`ikbench.studies.executors`; default this
-            process). On Ray each method is one task; the numbers are those of the local
-            executor, but methods that run at the same time share the machine, so compare
-            times only from runs with one method per machine at a time (local).
+            process). Compare times only from runs with one method per machine at a time.
+        contract: the task contract (default :func:`ikbench.core.contract.contract_for` the
+            robot with ``tolerances``, ``pointing`` and ``duration_s``).
+        tolerances: overrides of the default tolerances (``"start_pose_deg=0.5,..."``).
+        pointing: ``auto`` (on for robots whose config names a pointing axis), ``on``, ``off``.
+        duration_s: the trajectories' duration T [s] the speed limits are judged at.
+        sweep: with ours-lm among the methods, solve its weight sweep for pareto.png.
 
     Returns:
         A :class:`CompareResult`.
+
+    Raises:
+        ikbench.studies.harness.Interrupted: Ctrl-C while solving (nothing written).
     """
     names = parse_methods(methods)
     repeat = check_repeat(repeat)
     robot = as_robot(robot)
     targets = select_targets(targets, robot, only, steps)
-    tasks = line_tasks(robot, targets)
+    contract = contract or contract_for(robot, tolerances=tolerances, pointing=pointing,
+                                        duration_s=duration_s)
+    tasks = line_tasks(robot, targets, contract)
     reference = reference or ("ours-lm" if "ours-lm" in names else names[0])
     if reference not in names:
         raise InputError(f"--reference: {reference!r} is not among --methods "
                          f"{', '.join(names)}")
     log = Progress("compare", enabled=progress)
     started = time.perf_counter()
+    rows, built = _build(names, robot, targets, tasks, solvers or {}, log)
+    executor = executor or LocalExecutor()
+    portable = robot if executor.workers == 1 else portable_robot(robot)
+    work = [(name, solver, portable, tasks, warmup, repeat) for name, solver in built.items()]
+    log.say(f"solving {len(tasks)} trajectories with {len(built)} method(s), each trajectory "
+            f"alone, {warmup} warm-up + {repeat} timed round(s) ({executor.name} executor)")
+    last = {}
+    for (name, solver), (single, batched) in zip(built.items(),
+                                                 executor.map(solve_method, work)):
+        last[name] = single[-1]
+        rows += _timed_rows(name, solver, robot, targets, contract, single, batched, repeat)
+        median_s = np.median([r["time_median_s"] for r in rows[-len(tasks):]])
+        log.say(f"{name}: {repeat} x {len(tasks)} trajectories solved alone, median "
+                f"{median_s:.4f} s per trajectory")
+    sweep_frame = (ours_lm_sweep(robot, tasks, contract, solvers or {})
+                   if sweep and "ours-lm" in built else None)
+    from ikbench.studies import compare_report as report
+
+    record = {"methods": names, "reference": reference, "repeat": repeat, "warmup": warmup,
+              "robot": robot.describe(), "targets": targets.source,
+              "trajectories": targets.ids, "steps": targets.steps,
+              "contract": contract.to_dict(), "tolerances": dict(contract.tolerances),
+              "schemes": {name: solver.scheme_label() for name, solver in built.items()},
+              "libraries": library_versions(sorted({r["library"] for r in rows if r["library"]})),
+              **provenance()}
+    results = pd.DataFrame(rows)
+    if output is None:
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as tmp:
+            results = measure(results, built, robot, targets, tasks, contract, last, Path(tmp),
+                              animation=False)
+        board = report.leaderboard(results, reference, contract)
+        return CompareResult(results, board, record, contract)
+    root = Path(output) / "compare"
+    with staged_folder(root) as tmp:
+        results = measure(results, built, robot, targets, tasks, contract, last, tmp)
+        board = report.leaderboard(results, reference, contract)
+        record["total_wall_time_s"] = time.perf_counter() - started
+        atomic_write_csv(tmp / "results.csv", results, float_format="%.10g")
+        atomic_write_csv(tmp / "leaderboard.csv", board, float_format="%.6g")
+        atomic_write_text(tmp / "leaderboard.md", report.leaderboard_markdown(board, record,
+                                                                              contract))
+        if sweep_frame is not None:
+            atomic_write_csv(tmp / "pareto_sweep.csv", sweep_frame, float_format="%.8g")
+        atomic_savefig(tmp / "pareto.png", report.plot_pareto(results, sweep_frame, contract))
+        atomic_write_text(tmp / "run.json", json.dumps(record, indent=2) + "\n")
+    log.say(f"written to {root}/ in {time.perf_counter() - started:.1f} s")
+    return CompareResult(results, board, record, contract)
+
+
+def _build(names, robot, targets, tasks, solvers, log) -> tuple[list[dict], dict]:
+    """Rows for the methods that cannot run (unavailable, refused) and the others built."""
     status = method_status()
-    rows, outcomes_by_method, built = [], {}, {}
+    rows, built = [], {}
     for k, name in enumerate(names):
         cls = status[name].cls
         if cls is None:
@@ -138,64 +226,49 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
                      for task in tasks]
             continue
         try:
-            solver = (solvers or {}).get(name) or cls()
+            solver = solvers.get(name) or cls()
             solver.check_tasks(robot, tasks)
         except Exception as exc:  # a method that cannot take these tasks is a row too
             rows += [_row(name, cls.library, robot, targets, task, "refused", str(exc))
                      for task in tasks]
             continue
         built[name] = solver
-    executor = executor or LocalExecutor()
-    portable = robot if executor.workers == 1 else portable_robot(robot)
-    work = [(name, solver, portable, tasks, warmup, repeat) for name, solver in built.items()]
-    for (name, solver), runs in zip(built.items(), executor.map(solve_method, work)):
-        outcomes_by_method[name] = runs[-1]
-        for j, task in enumerate(tasks):
-            times = [run[j].wall_s for run in runs]
-            last = runs[-1][j]
-            row = _row(name, solver.library, robot, targets, task,
-                       "solved" if last.ok else "failed", last.failure or "")
-            row.update(time_median_s=float(np.median(times)), time_min_s=float(min(times)),
-                       time_max_s=float(max(times)), repetitions=repeat,
-                       iterations=last.solution.iterations if last.ok else np.nan)
-            rows.append(row)
-        median_s = np.median([r["time_median_s"] for r in rows[-len(tasks):]])
-        log.say(f"{name}: {repeat} x {len(tasks)} trajectories, median {median_s:.4f} s "
-                "per trajectory")
-    results = pd.DataFrame(rows)
-    record = {"methods": names, "reference": reference, "repeat": repeat, "warmup": warmup,
-              "robot": robot.describe(), "targets": targets.source,
-              "trajectories": targets.ids, "steps": targets.steps, "tolerances": TOLERANCES,
-              "libraries": library_versions(sorted({r["library"] for r in rows if r["library"]})),
-              **provenance()}
-    if output is None:
-        import tempfile
-
-        with tempfile.TemporaryDirectory() as tmp:
-            results = _measure(results, built, robot, targets, outcomes_by_method, Path(tmp),
-                               animation=False)
-        board = leaderboard(results, reference)
-    else:
-        root = Path(output) / "compare"
-        with staged_folder(root) as tmp:
-            results = _measure(results, built, robot, targets, outcomes_by_method, tmp)
-            board = leaderboard(results, reference)
-            record["total_wall_time_s"] = time.perf_counter() - started
-            atomic_write_csv(tmp / "results.csv", results, float_format="%.10g")
-            atomic_write_text(tmp / "leaderboard.md", leaderboard_markdown(board, record))
-            atomic_savefig(tmp / "pareto.png", plot_pareto(results))
-            atomic_write_text(tmp / "run.json", json.dumps(record, indent=2) + "\n")
-        log.say(f"written to {root}/ in {time.perf_counter() - started:.1f} s")
-    return CompareResult(results, board, record)
+    return rows, built
 
 
-def solve_method(job) -> list:
-    """``warmup + repeat`` harness runs of one method on every task (in a worker); returns
-    the ``repeat`` timed runs (each a list of outcomes)."""
+def solve_method(job) -> tuple[list, list]:
+    """``warmup + repeat`` rounds of one method (in a worker): each task solved alone, and,
+    for a batched method, all tasks in one call too. Returns the timed rounds (single, each a
+    list of outcomes; batched, likewise, empty for methods that do not batch)."""
     name, solver, robot, tasks, warmup, repeat = job
-    runs = [solve_tasks(solver, robot, tasks, Progress(name, enabled=False))
-            for _ in range(warmup + repeat)]
-    return runs[warmup:]
+    quiet = Progress(name, enabled=False)
+    single, batched = [], []
+    for _ in range(warmup + repeat):
+        single.append([solve_tasks(solver, robot, [task], quiet)[0] for task in tasks])
+        if solver.batched and len(tasks) > 1:
+            batched.append(solve_tasks(solver, robot, tasks, quiet))
+    return single[warmup:], batched[warmup:]
+
+
+def _timed_rows(name, solver, robot, targets, contract, single, batched, repeat) -> list[dict]:
+    missing = [pose for pose in contract.fixed_poses if pose not in solver.fixed_poses()]
+    rows = []
+    for j, outcome in enumerate(single[-1]):
+        times = [run[j].wall_s for run in single]
+        status = "failed" if not outcome.ok else (
+            f"does not honour: {', '.join(p.replace('_', ' ') for p in missing)}"
+            if missing else "solved")
+        row = _row(name, solver.library, robot, targets, outcome.task, status,
+                   outcome.failure or "")
+        row.update(time_median_s=float(np.median(times)), time_min_s=float(min(times)),
+                   time_max_s=float(max(times)), repetitions=repeat,
+                   iterations=outcome.solution.iterations if outcome.ok else np.nan,
+                   scheme=solver.scheme_label(),
+                   fixed_poses=" ".join(sorted(solver.fixed_poses())),
+                   time_batched_s=float(np.median([run[j].wall_s for run in batched]))
+                   if batched else np.nan)
+        rows.append(row)
+    return rows
 
 
 def _row(method, library, robot, targets, task, status, failure) -> dict:
@@ -205,118 +278,78 @@ def _row(method, library, robot, targets, task, status, failure) -> dict:
             "status": status, "failure": failure, "repetitions": 0}
 
 
-def _measure(results, built, robot, targets, outcomes_by_method, folder: Path,
-             animation: bool = True) -> pd.DataFrame:
-    """Write each method's run folder (with its animation unless ``animation`` is False)
-    and add its metrics and success to ``results``."""
-    results = results.copy()
-    for name, outcomes in outcomes_by_method.items():
-        solver = built[name]
-        table = write_run(solver, robot, targets, outcomes, folder / name,
-                          {"shape": "line", "name": name}, animation)
-        details = pd.read_csv(folder / name / "details.csv", dtype={"trajectory": str})
-        merged = table.merge(details, on=["trajectory", "method"], how="left",
-                             suffixes=("", "_details"))
-        for _, row in merged.iterrows():
-            mask = (results["method"] == name) & (results["trajectory"] == row["trajectory"])
-            for column in METRICS:
-                if column in row:
-                    results.loc[mask, column] = row[column]
-            results.loc[mask, "within_limits"] = row.get("within_limits")
-    results = results.reindex(columns=COLUMNS)
-    ok = (results["status"] == "solved") & (results["within_limits"] == True)  # noqa: E712
-    for column, limit in TOLERANCES.items():
-        ok &= results[column].astype(float) <= limit
-    results["success"] = ok
-    return results
-
-
-def leaderboard(results: pd.DataFrame, reference: str) -> pd.DataFrame:
-    """One row per method: success share, median time per trajectory and its ratio against
-    ``reference``, median accuracy and smoothness figures."""
+def measure(results, built, robot, targets, tasks, contract, last, folder: Path,
+            animation: bool = True) -> pd.DataFrame:
+    """Write each method's run folder (its last repetition; the animation unless
+    ``animation`` is False), measure every trajectory from the CSV written and judge it on
+    both tracks."""
+    by_name = {t.name: t for t in tasks}
+    figures = {}
+    for name, outcomes in last.items():
+        write_run(built[name], robot, targets, outcomes, folder / name,
+                  {"shape": "line", "name": name, "duration_s": contract.duration_s},
+                  animation)
+        for outcome in outcomes:
+            if outcome.ok:
+                poses = read_trajectory_poses(
+                    folder / name / f"trajectory_{outcome.task.name}.csv", robot)
+                figures[name, outcome.task.name] = contract_metrics(
+                    robot, by_name[outcome.task.name], poses, contract)
+    columns = ("within_limits", *METRICS, *CONTRACT_METRICS)
     rows = []
-    ref = results[results["method"] == reference]["time_median_s"].median()
-    for name, group in results.groupby("method", sort=False):
-        solved = group[group["status"] == "solved"]
-        row = {"method": name, "library": group["library"].iloc[0],
-               "version": group["library_version"].iloc[0],
-               "status": "; ".join(sorted(set(group["status"]))),
-               "success": float(group["success"].mean()) if len(group) else 0.0,
-               "time_median_s": solved["time_median_s"].median() if len(solved) else np.nan}
-        row["time_vs_reference"] = row["time_median_s"] / ref if ref and ref > 0 else np.nan
-        for column in ("line_distance_mean_mm", "pointing_deviation_mean_deg",
-                       "end_pose_error_deg", "max_joint_step_deg", "mean_sq_jerk_deg2"):
-            row[column] = solved[column].median() if len(solved) else np.nan
-        row["note"] = "" if len(solved) else str(group["failure"].iloc[0])
-        rows.append(row)
+    for row in results.to_dict("records"):
+        measured = figures.get((row["method"], row["trajectory"]), {})
+        rows.append({**row, "track": contract.track,
+                     **{c: measured.get(c, np.nan) for c in columns}})
+    return judge_rows(pd.DataFrame(rows).reindex(columns=COLUMNS), contract,
+                      contract.with_track("touch"))
+
+
+def judge_rows(results: pd.DataFrame, contract: Contract, touch: Contract) -> pd.DataFrame:
+    """The ``ok_*`` columns, ``success`` (the contract's track) and ``success_touch``."""
+    status = results["status"].astype(str)
+    honours = ~status.str.startswith("does not honour")
+    solved = (status == "solved") | ~honours
+    rows = []
+    for row, ok in zip(results.to_dict("records"), solved):
+        verdict = judge(contract, row) if ok else {}
+        touch_verdict = judge(touch, row) if ok else {}
+        out = {**row, "ok_solved": bool(ok),
+               "ok_honours": (not str(row["status"]).startswith("does not honour"))
+               if ok else None}
+        for name in CRITERIA:
+            out[f"ok_{name}"] = verdict.get(name, touch_verdict.get(name))
+        out["success"] = bool(ok and out["ok_honours"] and all(verdict.values()))
+        out["success_touch"] = bool(ok and all(touch_verdict.values()))
+        rows.append(out)
+    return pd.DataFrame(rows).reindex(columns=COLUMNS)
+
+
+#: c0 values of ours-lm's weight sweep drawn in pareto.png (the paper's other weights).
+SWEEP_C0 = (0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0)
+
+
+def ours_lm_sweep(robot, tasks, contract, solvers) -> pd.DataFrame:
+    """ours-lm solved at each c0 of :data:`SWEEP_C0` (one batched call each): the medians over
+    the tasks of the line distance (max), pointing (judged mean) and the share meeting the
+    contract."""
+    from ikbench.methods.registry import get_method
+
+    base = solvers.get("ours-lm")
+    cls = type(base) if base is not None else get_method("ours-lm")
+    rows = []
+    for c0 in SWEEP_C0:
+        solver = cls(weights=f"c0={c0:g}")
+        outcomes = solve_tasks(solver, robot, tasks, Progress("sweep", enabled=False))
+        figures = [contract_metrics(robot, o.task, o.solution.poses_deg, contract)
+                   for o in outcomes if o.ok]
+        met = [all(judge(contract, f).values()) for f in figures]
+        rows.append({"c0": c0, "weights": f"c0={c0:g} (others the paper's)",
+                     "line_distance_max_mm": float(np.median(
+                         [f["line_distance_max_mm"] for f in figures])),
+                     "pointing_deviation_judged_mean_deg": float(np.median(
+                         [f["pointing_deviation_judged_mean_deg"] for f in figures])),
+                     "speed_limit_use": float(np.max([f["speed_limit_use"] for f in figures])),
+                     "success_share": float(np.mean(met)) if met else 0.0,
+                     "trajectories": len(figures)})
     return pd.DataFrame(rows)
-
-
-def leaderboard_markdown(board: pd.DataFrame, record: dict) -> str:
-    """leaderboard.md: the table, and who is fastest, most accurate, smoothest."""
-    solved = board.dropna(subset=["time_median_s"])
-    lines = [f"# Leaderboard: {record['robot']['name']}, targets {record['targets']}", "",
-             f"{len(record['trajectories'])} trajectories (n = {record['steps']}), each solved "
-             f"{record['repeat']} times per method; time = the harness's wall time of one "
-             "trajectory's solve (median over repetitions, then over trajectories; a batched "
-             "method's share of its batch); ratios against "
-             f"`{record['reference']}` measured in the same run. Figures are medians over the "
-             "trajectories, computed by `ikbench.core.metrics` from the CSVs written. Success: "
-             "the solve returned, within the limits, end pose within "
-             f"{TOLERANCES['end_pose_error_deg']} deg of the touch pose, start point within "
-             f"{TOLERANCES['start_point_error_mm']} mm, mean line distance at most "
-             f"{TOLERANCES['line_distance_mean_mm']} mm.", ""]
-    if len(solved):
-        def best(column, what):
-            row = solved.loc[solved[column].idxmin()]
-            return f"- {what}: **{row['method']}** ({_fmt(row[column])})"
-
-        lines += [best("time_median_s", "fastest [s per trajectory]"),
-                  best("line_distance_mean_mm", "closest to the line [mm]"),
-                  best("pointing_deviation_mean_deg", "best pointing [deg]"),
-                  best("mean_sq_jerk_deg2", "smoothest [mean squared jerk, deg^2]"), ""]
-    shown = board.rename(columns={
-        "time_median_s": "time/traj [s]", "time_vs_reference": f"x {record['reference']}",
-        "success": "success", "line_distance_mean_mm": "line dist. [mm]",
-        "pointing_deviation_mean_deg": "pointing [deg]", "end_pose_error_deg": "end pose [deg]",
-        "max_joint_step_deg": "max step [deg]", "mean_sq_jerk_deg2": "jerk [deg^2]"})
-    shown["success"] = [f"{100 * v:.0f} %" for v in board["success"]]
-    lines += [markdown_table(shown, {"time/traj [s]": 4, f"x {record['reference']}": 1,
-                                     "line dist. [mm]": 3, "jerk [deg^2]": 3}), "",
-              f"Machine: {record['cpu']} ({record['cpu_count']} cores); libraries: "
-              + ", ".join(f"{k} {v}" for k, v in record["libraries"].items())
-              + f"; ikbench git {record['git_revision']}.", ""]
-    return "\n".join(lines)
-
-
-def _fmt(value) -> str:
-    return f"{value:.3g}" if abs(value) < 1000 else f"{value:.0f}"
-
-
-def plot_pareto(results: pd.DataFrame):
-    """Time per trajectory vs mean line distance, one colour per library (log-log)."""
-    from ikbench.studies.report import _matplotlib
-
-    plt = _matplotlib()
-    fig, ax = plt.subplots(figsize=(7.5, 5))
-    solved = results[results["status"] == "solved"]
-    libraries = list(dict.fromkeys(solved["library"]))
-    colors = plt.cm.tab10(np.linspace(0, 1, 10))
-    markers = "osD^v<>pPX*h"
-    for k, (name, group) in enumerate(solved.groupby("method", sort=False)):
-        color = colors[libraries.index(group["library"].iloc[0]) % 10]
-        ax.scatter(group["time_median_s"], group["line_distance_mean_mm"].clip(lower=1e-6),
-                   color=color, marker=markers[k % len(markers)], s=25, alpha=0.5)
-        ax.scatter(group["time_median_s"].median(),
-                   max(group["line_distance_mean_mm"].median(), 1e-6), color=color,
-                   marker=markers[k % len(markers)], s=120, edgecolor="k",
-                   label=f"{name} ({group['library'].iloc[0]})")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("solve time per trajectory [s] (median over repetitions)")
-    ax.set_ylabel("mean distance from the line [mm]")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8)
-    ax.set_title("Time vs accuracy: small dots per trajectory, large the method's median\n"
-                 "(lower left is better; colour: library)")
-    return fig

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 HELP = "compare methods and libraries on the same robot and tasks: results.csv, leaderboard"
 DEFAULT_METHODS = "ours-lm,sequential-ik"
 DEFAULT_OUTPUT = "runs"
@@ -13,15 +15,21 @@ def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "compare", help=HELP,
         description=(
-            "Run every method on every task of the robot's targets, --repeat times each, "
-            "timed by the same harness, and write OUTPUT/compare/: results.csv (one row per "
-            "method and trajectory: success against stated tolerances, line distance, "
-            "pointing deviation, start/end errors, smoothness, median/min/max solve time, "
-            "iterations, the failure if any), leaderboard.md (fastest, most accurate, "
-            "smoothest; ratios against the reference method measured in the same run), "
-            "pareto.png, run.json (library versions, machine) and one run folder per method "
-            "as `ikbench run` writes it. A method that is not installed or fails is a row "
-            "saying so. ikbench methods lists the methods."),
+            "Run every method on every task of the robot's targets under one task contract "
+            "(start and touch poses fixed, the line, pointing over its judged part, the "
+            "joints' speed limits at --duration, the tolerances), each task solved alone "
+            "--repeat times, timed by the same harness, and write OUTPUT/compare/: "
+            "results.csv (one row per method and trajectory: every criterion measured from "
+            "the trajectory CSVs and judged, success on the paper's track and on the "
+            "touch-pose-only track, single and batched solve times, the failure if any), "
+            "leaderboard.md/.csv (one table per track, the contract above it, ratios against "
+            "the reference method measured in the same run), pareto.png (with ours-lm's "
+            "weight sweep), run.json (the contract, library versions, machine) and one run "
+            "folder per method as `ikbench run` writes it. A method that is not installed, "
+            "fails or does not honour the contract is a row saying so. Exit code 1 when a "
+            "solve failed or a method refused the tasks or does not honour the contract; "
+            "130 on Ctrl-C (OUTPUT/compare/ left unchanged). docs/comparison.md explains "
+            "the contract; ikbench methods lists the methods."),
     )
     parser.add_argument("--methods", default=None,
                         help=f"comma-separated methods (default {DEFAULT_METHODS}; with "
@@ -36,6 +44,19 @@ def register(subparsers) -> None:
     add_line_task_arguments(parser)
     parser.add_argument("--repeat", type=int, default=5,
                         help="solves per method and trajectory; times are medians (default 5)")
+    parser.add_argument("--tolerance", default=None, metavar="KEY=VALUE,...",
+                        help="change the contract's tolerances: start_pose_deg, end_pose_deg "
+                        "[pose units], line_distance_max_mm, pointing_judged_mean_deg, "
+                        "speed_limit_use (1 = at the limit) (default start_pose_deg=0.5,"
+                        "end_pose_deg=0.5,line_distance_max_mm=5,pointing_judged_mean_deg=15,"
+                        "speed_limit_use=1)")
+    parser.add_argument("--pointing", default="auto", choices=("auto", "on", "off"),
+                        help="judge (and ask for) pointing along the line: auto = on for "
+                        "robots whose config names a pointing axis, off for a bare URDF "
+                        "(default auto)")
+    parser.add_argument("--duration", type=float, default=2.0,
+                        help="trajectory duration T [s] the speed limits are judged at "
+                        "(segments of T/n; default 2, the paper's)")
     parser.add_argument("--reference", default=None,
                         help="method the ratios are against (default ours-lm if compared, "
                         "else the first)")
@@ -75,17 +96,40 @@ def run(args) -> int:
     methods = args.methods or DEFAULT_METHODS
     names = list(method_status()) if methods.strip() == "all" else parse_methods(methods)
     check_repeat(args.repeat)
+    from ikbench.core.contract import contract_for, parse_tolerances
+
+    parse_tolerances(args.tolerance)
     robot = robot_from_args(args)
+    contract = contract_for(robot, tolerances=args.tolerance, pointing=args.pointing,
+                            duration_s=args.duration)
     targets = targets_from_args(args, robot)
     check_folder_writable(Path(args.output) / "compare")
     set_threads(args.threads)
-    result = compare(names, robot=robot, targets=targets, repeat=args.repeat,
-                     output=args.output, reference=args.reference, progress=not args.quiet,
-                     executor=executor_from_args(args))
-    board = result.leaderboard.drop(columns=["note"])
+    from ikbench.studies.harness import Interrupted
+
+    try:
+        result = compare(names, robot=robot, targets=targets, repeat=args.repeat,
+                         output=args.output, reference=args.reference,
+                         progress=not args.quiet, executor=executor_from_args(args),
+                         contract=contract)
+    except (Interrupted, KeyboardInterrupt):
+        print(f"ikbench: interrupted; {Path(args.output) / 'compare'}/ left unchanged",
+              file=sys.stderr)
+        return 130
+    shown = ["track", "method", "status", "success_count", "trajectories", "time_median_s",
+             "time_vs_reference", "line_distance_max_mm", "pointing_deviation_judged_mean_deg",
+             "max_joint_step_deg"]
+    board = result.leaderboard[shown]
     print(board.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     print(f"written to {Path(args.output) / 'compare'}/ (leaderboard.md, results.csv, "
           "pareto.png)")
+    if result.failed:
+        bad = sorted(set(result.results.loc[result.results["status"].astype(str).str.startswith(
+            ("failed", "refused", "does not honour")), "method"]))
+        print(f"ikbench: {', '.join(bad)}: a solve failed, the tasks were refused or the "
+              "contract is not honoured (see the status column); exit code 1",
+              file=sys.stderr)
+        return 1
     return 0
 
 
