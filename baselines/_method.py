@@ -8,12 +8,10 @@ units (:mod:`baselines._chain`) and returns a :class:`ChainResult`; everything e
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
 import numpy as np
-
-from dataclasses import replace
 
 from baselines._chain import Chain, Goals, chain_of, goals_of, poses_from_urdf
 from baselines._chain import require_touch_and_start as _require_both

@@ -268,7 +268,7 @@ def judge(contract: Contract, figures: Mapping) -> dict[str, bool]:
             out[name] = bool(value is True or value == 1)
             continue
         try:
-            number = float(value)
+            number = float(value)  # type: ignore[arg-type]
         except (TypeError, ValueError):
             number = math.nan
         out[name] = bool(number <= contract.tolerances[key])

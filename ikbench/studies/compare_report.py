@@ -205,3 +205,33 @@ def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Con
     ax_p.legend(fontsize=7)
     fig.tight_layout()
     return fig
+
+
+#: Markers around the table in README.md that :func:`readme_table` writes (tested equal).
+README_MARKERS = ("<!-- compare-table:start -->", "<!-- compare-table:end -->")
+
+
+def readme_table(board: pd.DataFrame, reference: str = "ours-lm") -> str:
+    """The compact table README.md shows, from ``leaderboard.csv``'s rows of the paper's
+    track: success per criterion, time single and its ratio, line distance, pointing in the
+    judged part, largest step."""
+    rows = board[board["track"] == "paper"]
+    head = ["method", "scheme", "success", "start", "touch", "speed", "line", "pointing",
+            "time single [s]", f"x {reference}", "line max [mm]", "pointing judged [deg]",
+            "max step [deg]"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
+    for _, row in rows.iterrows():
+        n = int(row["trajectories"])
+
+        def count(criterion, row=row, n=n):
+            value = row.get(f"{criterion}_count")
+            return "" if pd.isna(value) else f"{int(value)}/{n}"
+
+        lines.append("| " + " | ".join([
+            str(row["method"]), str(row["scheme"]) if not pd.isna(row["scheme"]) else "",
+            f"**{int(row['success_count'])}/{n}**", count("start_pose"), count("end_pose"),
+            count("speed"), count("line"), count("pointing"), fmt(row["time_median_s"]),
+            fmt(row["time_vs_reference"]), fmt(row["line_distance_max_mm"]),
+            fmt(row["pointing_deviation_judged_mean_deg"]),
+            fmt(row["max_joint_step_deg"])]) + " |")
+    return "\n".join(lines)
