@@ -9,6 +9,14 @@ Per goal point, from the warm start, repeat until the position error is below ``
    the goal direction (so the roll error is 0 and the orientation cost ``[w, w, 0]`` on P's
    body twist frees the roll); for 6-D goals the goal rotation itself, cost ``[w, w, w]``;
 3. one QP: ``v = solve_ik(configuration, tasks, dt, damping, limits)``, q <- q + v dt.
+
+That is the walk's solve. The tracking scheme (:mod:`baselines._track`) shares the rest of this
+module: the frame task's target at step i (:func:`track_target_rotation`: the scheduled
+pointing direction, roll free, or none), the errors (:func:`track_errors`), the stop rule
+(:func:`settle`: position within the tolerance and the last QP step stalled, since the
+scheduled pointing may be out of reach), the posture task's per-joint weights
+(:func:`posture_weights`: every pose unit costs alike) and the speed limits as a QP box
+(:func:`segment_step`, :class:`SpeedBox`).
 """
 
 from __future__ import annotations
@@ -57,3 +65,138 @@ def converge(measure: Callable[[], tuple[float, float]], step: Callable[[], None
             return steps, False
         step()
         steps += 1
+
+
+# --- the tracking scheme (baselines._track): one solve per step from the start pose ---------
+
+
+def track_target_rotation(plan, i: int, R_P: np.ndarray) -> np.ndarray:
+    """The rotation (3, 3) the frame task asks of P at step ``i`` of a
+    :class:`baselines._track.TrackPlan`: the rotation nearest P's whose z-axis is the
+    scheduled direction (roll kept), or P's own rotation when the plan asks no pointing."""
+    if plan.directions is None:
+        return np.asarray(R_P, dtype=float)
+    return closest_rotation_with_axis(R_P, Z, plan.directions[i])
+
+
+def track_errors(plan, i: int, p_P, R_P) -> tuple[float, float]:
+    """(position error [m], pointing error [rad]) of P at step ``i`` of a plan; the pointing
+    error is 0 when the plan asks no pointing."""
+    position = float(np.linalg.norm(np.asarray(p_P) - plan.points_m[i]))
+    if plan.directions is None:
+        return position, 0.0
+    return position, angle_between_rad(np.asarray(R_P)[:, 2], plan.directions[i])
+
+
+def track_orientation_costs(plan, cost: float) -> list[float]:
+    """P's orientation cost on a tracking step: ``[w, w, 0]`` (roll free), all 0 when the plan
+    asks no pointing (position only)."""
+    return [0.0, 0.0, 0.0] if plan.directions is None else [cost, cost, 0.0]
+
+
+def settle(measure: Callable[[], tuple[float, float]], step: Callable[[], float],
+           tolerance: float, stall: float, max_steps: int) -> tuple[int, bool]:
+    """Take ``step()`` (one QP; it returns the largest joint change it made [rad, m]) until
+    the position error of ``measure()`` is below ``tolerance`` and either the pointing error
+    is below ``tolerance`` too or the last step moved no joint by more than ``stall`` (the
+    weighted optimum is reached: the scheduled pointing may be slightly out of reach), or
+    until the last step moved no joint more than ``stall`` and did not halve the position
+    error (stuck: a constraint holds the point off its goal), or ``max_steps`` steps; return
+    (steps taken, position error below ``tolerance``)."""
+    steps, moved, before = 0, np.inf, np.inf
+    while True:
+        position, angle = measure()
+        stalled = moved <= stall
+        if position < tolerance and (angle < tolerance or stalled):
+            return steps, True
+        if steps >= max_steps or (stalled and position > 0.5 * before):
+            return steps, position < tolerance
+        moved, before = float(step()), position
+        steps += 1
+
+
+def posture_weights(robot) -> np.ndarray:
+    """(dof,) per-joint factors of the posture cost so that one pose unit of every joint costs
+    the same as a URDF degree (or mm) of a joint mapped 1 : 1 (NICO: a motor degree; its wrist
+    and finger motors turn their joints only 0.5 and 0.22 URDF degrees per motor degree, and
+    the speed limits are per motor degree)."""
+    dof = len(robot.joint_names)
+    per_unit = np.abs(robot.to_urdf(np.ones(dof)) - robot.to_urdf(np.zeros(dof)))
+    unit = np.where(np.asarray(robot.prismatic, dtype=bool), 1e-3, np.pi / 180.0)
+    return unit / per_unit
+
+
+def segment_step(robot, task) -> np.ndarray | None:
+    """(dof,) the largest joint change per segment [rad, m]: the task's contract's
+    (``contract.max_step(n)``; a task without a contract: the robot's own speed limits at the
+    default duration) through the pose map; None when no speed limit is known."""
+    from ikbench.core.contract import DEFAULT_DURATION_S, speed_limits
+
+    n = len(task.goal_points_mm) - 1
+    contract = getattr(task, "contract", None)
+    if contract is not None:
+        step = contract.max_step(n)
+    else:
+        speed, _ = speed_limits(robot)
+        step = None if speed is None else np.asarray(speed) * DEFAULT_DURATION_S / n
+    if step is None:
+        return None
+    step = np.asarray(step, dtype=float)
+    return np.abs(robot.to_urdf(step) - robot.to_urdf(np.zeros_like(step)))
+
+
+class SpeedBox:
+    """The joint box a tracking step may move in: the speed limit as a QP constraint.
+
+    At step i every joint stays within ``step`` of the previous step's value and within
+    ``(n - i) step`` of the touch pose (so the touch pose stays reachable at that speed: the
+    arm lands on it without a jump); where the two do not meet (the previous step already
+    lies too far) the second wins. :meth:`inequalities` gives the box as ``G dq <= h`` on a
+    QP step dq from q, widened where it would ask more than a configuration limit of gain
+    ``gain`` lets one QP step do near a joint limit (the two stay compatible).
+
+    Args:
+        step: (dof,) the largest change per segment [rad, m] (the contract's times the
+            adapter's ``speed_fraction``).
+        q_touch: (dof,) the touch pose (row n).
+        n: the number of segments.
+        lower, upper: (dof,) the joint limits [rad, m].
+        gain: the configuration limit's gain.
+    """
+
+    def __init__(self, step, q_touch, n: int, lower, upper, gain: float):
+        self.step = np.asarray(step, dtype=float)
+        self.q_touch = np.asarray(q_touch, dtype=float)
+        self.n = int(n)
+        self.lower = np.asarray(lower, dtype=float)
+        self.upper = np.asarray(upper, dtype=float)
+        self.gain = float(gain)
+        self.lo = self.lower.copy()
+        self.hi = self.upper.copy()
+
+    def set_step(self, i: int, q_previous) -> None:
+        """Set the box of step ``i`` after the previous step's pose ``q_previous`` (dof,)."""
+        q_previous = np.asarray(q_previous, dtype=float)
+        reach = (self.n - i) * self.step
+        near_lo, near_hi = self.q_touch - reach, self.q_touch + reach
+        lo = np.maximum(q_previous - self.step, near_lo)
+        hi = np.minimum(q_previous + self.step, near_hi)
+        apart = lo > hi
+        land = np.clip(q_previous, near_lo, near_hi)
+        self.lo = np.clip(np.where(apart, land, lo), self.lower, self.upper)
+        self.hi = np.clip(np.where(apart, land, hi), self.lower, self.upper)
+
+    def clip(self, q) -> np.ndarray:
+        """``q`` (dof,) clipped into the current box."""
+        return np.clip(q, self.lo, self.hi)
+
+    def inequalities(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """(G (k, dof), h (k,)): ``lo - q <= dq <= hi - q`` as ``G dq <= h``, the rows with
+        an infinite bound (continuous joints) left out; k = 0 when no row is left."""
+        q = np.asarray(q, dtype=float)
+        lo = np.minimum(self.lo, q + self.gain * (self.upper - q))
+        hi = np.maximum(self.hi, q + self.gain * (self.lower - q))
+        eye = np.eye(len(q))
+        G, h = np.vstack([eye, -eye]), np.concatenate([hi - q, q - lo])
+        finite = np.isfinite(h)
+        return G[finite], h[finite]

@@ -93,7 +93,7 @@ def require_start_and_touch(task, method: str) -> None:
         missing = "no start pose" if task.start_pose_deg is None else "no touch pose"
         raise InputError(f"trajectory {task.name!r}: --method {method} (scheme track) starts at "
                          f"the start pose and lands on the touch pose; the task has {missing} "
-                         "(--scheme walk walks a pose path; letters and curves: --method "
+                         "(for letters, polylines and splines use --method ours or --method "
                          "ours-lm)")
 
 

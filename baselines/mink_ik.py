@@ -10,28 +10,61 @@ depend on it). A site on the end body, its z-axis on the pointing axis
 The chain's limits replace ``model.jnt_range`` (continuous joints stay unlimited); goals are
 turned from the base body's frame into MuJoCo's world frame.
 
-Per goal point the scheme of :mod:`baselines._diffik`, with these mink calls:
-``mink.Configuration(model, q)``, ``mink.FrameTask(site, "site", position_cost,
-orientation_cost=[w, w, 0])`` with ``set_target(mink.SE3.from_rotation_and_translation(...))``,
-``mink.solve_ik(configuration, tasks, dt, qp_solver, damping=..., limits=[mink.
-ConfigurationLimit(model, gain)])`` and ``configuration.integrate(v, dt)`` / ``update(q)``.
-``--mink-pointing-task axis-align`` points with ``mink.AxisAlignTask(site, "site", axis=z)``
-(rank 2, roll free) beside a position-only FrameTask instead. Defaults as pink's except the
-limit gain: mink's own default 0.95. ``iterations`` counts QP solves.
+Two schemes, as pink's (:mod:`baselines.pink_ik`): **track** (``--scheme track``, the
+default: from the start pose along the goal points onto the touch pose, :mod:`baselines._track`)
+and **walk** (``--scheme walk``: back from the touch pose, the start pose free; also every 6-D
+pose path). Both call ``mink.Configuration(model, q)``, ``mink.solve_ik(configuration, tasks,
+dt, qp_solver, damping=..., limits=limits)`` with ``mink.ConfigurationLimit(model, gain)`` among
+the limits, and ``configuration.integrate(v, dt)`` / ``update(q)``; the pointing is
+``mink.FrameTask(site, "site", position_cost, orientation_cost=[w, w, 0])`` with
+``set_target(mink.SE3.from_rotation_and_translation(...))`` or, with ``--mink-pointing-task
+axis-align``, ``mink.AxisAlignTask(site, "site", axis=z)`` (rank 2, roll free) beside a
+position-only FrameTask.
+
+Track, per step i (forward from the start pose, warm-started at the step before moved on by
+the last segment's motion): the FrameTask at the goal point (``track_position_cost``) and the
+scheduled pointing direction (the rotation nearest P's with that z-axis; orientation cost 0
+when the task asks no pointing), ``mink.PostureTask(model, cost=posture_cost * weights)`` with
+``set_target(posture[i])`` (the start-to-touch interpolation, every pose unit weighted alike:
+:func:`baselines._diffik.posture_weights`), and a speed box (a ``mink.Limit`` returning a
+``mink.Constraint``, :class:`baselines._diffik.SpeedBox`: every joint within
+``speed_fraction`` of the contract's largest change per segment from step i-1 and within
+(n - i) such changes of the touch pose); QP steps until the position error is below
+``tolerance`` and the last step moved no joint more than ``stall``, at most ``max_steps``. A
+step is converged when the site's position (MuJoCo's FK) is within ``tolerance``. Defaults
+as pink's (position cost 1000 /m, orientation cost 0.1 /rad, posture cost 0.01 /rad, speed
+fraction 0.95, stall 1e-4 rad; the reasons are given there).
+
+Walk, per goal point: the scheme of :mod:`baselines._diffik` (the FrameTask, all three
+orientation costs for 6-D goals, and the ConfigurationLimit only). Defaults as pink's except
+the limit gain: mink's own default 0.95 (both schemes). ``iterations`` counts QP solves.
 """
 
 from __future__ import annotations
 
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from baselines._chain import Chain, Goals
-from baselines._diffik import converge, errors, orientation_costs, target_rotation
+from baselines._diffik import (
+    SpeedBox,
+    converge,
+    errors,
+    orientation_costs,
+    posture_weights,
+    segment_step,
+    settle,
+    target_rotation,
+    track_errors,
+    track_orientation_costs,
+    track_target_rotation,
+)
 from baselines._geometry import frame_with_z_on
 from baselines._method import ChainResult, LibraryMethod
+from baselines._track import SCHEME_HELP, SCHEMES, track
 from baselines._walk import PointResult, walk_back
 from baselines.pink_ik import check_qp_solver
 from ikbench.core.errors import InputError
@@ -44,8 +77,9 @@ _MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 @dataclass
 class MinkSettings:
-    """Settings of the mink walk (see the module docstring)."""
+    """Settings of mink's track and walk (see the module docstring)."""
 
+    scheme: str = option("track", flag="scheme", choices=SCHEMES, help=SCHEME_HELP)
     pointing_task: str = option("frame", flag="mink-pointing-task", choices=POINTING_TASKS,
                                 help="frame (FrameTask, roll cost 0) or axis-align "
                                 "(AxisAlignTask beside a position-only FrameTask)")
@@ -64,14 +98,33 @@ class MinkSettings:
     tolerance: float = option(1e-6, flag="mink-tolerance", unit="m, rad",
                               help="stop a point when position and pointing errors are below")
     max_steps: int = option(100, flag="mink-max-steps", help="QP steps per goal point at most")
+    track_position_cost: float = option(
+        1000.0, flag="mink-track-position-cost", unit="1/m",
+        help="scheme track: FrameTask position cost (the goal point is the hard goal; the "
+        "pointing and posture costs are small against it)")
+    posture_cost: float = option(0.01, flag="mink-posture-cost", unit="1/rad",
+                                 help="scheme track: PostureTask cost towards the start-to-touch "
+                                 "posture (per pose unit: a motor degree for NICO)")
+    speed_fraction: float = option(
+        0.95, flag="mink-speed-fraction",
+        help="scheme track: each step moves every joint by at most this fraction of the "
+        "contract's speed-limit step and keeps the touch pose within reach at that speed (a "
+        "QP box constraint); 0: no box")
+    stall: float = option(1e-4, flag="mink-stall", unit="rad, m",
+                          help="scheme track: a step ends once the position is within the "
+                          "tolerance and the last QP step moved no joint more than this")
 
     def __post_init__(self):
+        check_choice(self, "scheme", SCHEMES)
         check_choice(self, "pointing_task", POINTING_TASKS)
-        check_positive(self, "dt", "position_cost", "limit_gain", "tolerance")
+        check_positive(self, "dt", "position_cost", "track_position_cost", "limit_gain",
+                       "tolerance", "stall")
         check_positive(self, "max_steps", integer=True)
-        if self.limit_gain > 1 or self.damping < 0 or self.orientation_cost < 0:
-            raise InputError("--mink-limit-gain must be in (0, 1], --mink-damping and "
-                             "--mink-orientation-cost >= 0")
+        if (self.limit_gain > 1 or self.damping < 0 or self.orientation_cost < 0
+                or self.posture_cost < 0 or not 0 <= self.speed_fraction <= 1):
+            raise InputError("--mink-limit-gain must be in (0, 1], --mink-speed-fraction in "
+                             "[0, 1], --mink-damping, --mink-orientation-cost and "
+                             "--mink-posture-cost >= 0")
         self.max_steps = int(self.max_steps)
         check_qp_solver(self, "qp_solver")
 
@@ -180,12 +233,112 @@ def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings) -> ChainResu
                                  iterations_are="QP solves (mink.solve_ik calls)")
 
 
+def solve_track(robot, chain: Chain, plan, settings: MinkSettings,
+                step: np.ndarray | None = None) -> ChainResult:
+    """mink's track from the start pose onto the touch pose (``plan``: a
+    :class:`baselines._track.TrackPlan`; ``step``: (dof,) the contract's largest joint change
+    per segment [rad, m], or None: no speed box). See the module docstring."""
+    import mink
+    from mink.exceptions import NoSolutionFound
+
+    m = mink_model(chain)
+    model, site = m.model, m.model.site(SITE).id
+    # the plan in MuJoCo's world frame
+    world = replace(plan, points_m=plan.points_m @ m.R_wb.T + m.p_wb,
+                    directions=None if plan.directions is None else plan.directions @ m.R_wb.T)
+    axis_align = settings.pointing_task == "axis-align" and world.directions is not None
+    frame_task = mink.FrameTask(SITE, "site", position_cost=settings.track_position_cost,
+                                orientation_cost=0.0 if axis_align else
+                                track_orientation_costs(world, settings.orientation_cost))
+    weights = np.zeros(model.nv)
+    weights[m.qpos] = posture_weights(robot)  # hinge / slide joints: dof address = qpos
+    posture_task = mink.PostureTask(model, cost=settings.posture_cost * weights)
+    tasks: list[Any] = [frame_task, posture_task]
+    if axis_align:
+        align = mink.AxisAlignTask(SITE, "site", axis=(0.0, 0.0, 1.0),
+                                   cost=settings.orientation_cost)
+        tasks.append(align)
+    limits: list[Any] = [mink.ConfigurationLimit(model, gain=settings.limit_gain)]
+    box = None
+    if step is not None and settings.speed_fraction > 0:
+        box = SpeedBox(settings.speed_fraction * step, plan.q_touch, len(plan) - 1, chain.lower,
+                       chain.upper, settings.limit_gain)
+
+        class SpeedLimit(mink.Limit):
+            """The speed box (:class:`baselines._diffik.SpeedBox`) as a mink limit."""
+
+            def compute_qp_inequalities(self, configuration, dt):
+                G, h = box.inequalities(configuration.q[m.qpos])
+                if not len(h):
+                    return mink.Constraint()
+                G_full = np.zeros((len(h), model.nv))
+                G_full[:, m.qpos] = G
+                return mink.Constraint(G=G_full, h=h)
+
+        limits.append(SpeedLimit())
+    previous = {"q": None}
+    q_full = np.zeros(model.nq)
+    configuration = mink.Configuration(model)
+
+    def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
+        q0 = q_warm
+        if box is not None:
+            box.set_step(i, q_warm)
+        if previous["q"] is not None:  # the last segment's motion again
+            q0 = q_warm + (q_warm - previous["q"])
+            q0 = chain.clip(box.clip(q0) if box is not None else q0)
+        previous["q"] = q_warm
+        q_full[m.qpos] = q0
+        configuration.update(q_full)
+        q_full[m.qpos] = plan.posture[i]
+        posture_task.set_target(q_full)
+        if axis_align:
+            align.set_target(world.directions[i])
+
+        def frame():
+            data = configuration.data
+            return data.site_xpos[site].copy(), data.site_xmat[site].reshape(3, 3).copy()
+
+        def step_once() -> float:
+            _, R_P = frame()
+            R = R_P if axis_align else track_target_rotation(world, i, R_P)
+            frame_task.set_target(mink.SE3.from_rotation_and_translation(
+                mink.SO3.from_matrix(R), world.points_m[i]))
+            v = mink.solve_ik(configuration, tasks, settings.dt, settings.qp_solver,
+                              damping=settings.damping, limits=limits)
+            q_before = configuration.q[m.qpos].copy()
+            q = configuration.integrate(v, settings.dt)
+            q[m.qpos] = chain.clip(q[m.qpos])
+            configuration.update(q)
+            return float(np.max(np.abs(q[m.qpos] - q_before)))
+
+        def measure():
+            p_P, R_P = frame()
+            return track_errors(world, i, p_P, R_P)
+
+        try:
+            steps, ok = settle(measure, step_once, settings.tolerance, settings.stall,
+                               settings.max_steps)
+        except NoSolutionFound:
+            steps, ok = 0, False
+        return PointResult(configuration.q[m.qpos].copy(), steps, ok)
+
+    walk = track(solve_point, chain, plan)
+    return ChainResult.from_walk(walk, qp_solver=settings.qp_solver, scheme="track",
+                                 pointing_task=settings.pointing_task,
+                                 speed_box=box is not None,
+                                 iterations_are="QP solves (mink.solve_ik calls)")
+
+
 class MinkIK(LibraryMethod):
-    """mink's QP differential IK on MuJoCo per point, walked back from the touch pose."""
+    """mink's QP differential IK on MuJoCo, tracking from the start pose onto the touch pose
+    (or walked back from the touch pose: ``--scheme walk``)."""
 
     name = "mink"
     description = ("library: mink QP differential IK on MuJoCo (the URDF loaded by MuJoCo) "
-                   "per point, walked back from the touch pose")
+                   "tracking the goal points from the start pose (frame task + posture task, "
+                   "joint limits and speed limits as QP constraints), landing on the touch "
+                   "pose (--scheme walk: walked back from the touch pose)")
     library = "mink"
     Settings = MinkSettings
     supports_frames = True
@@ -196,5 +349,14 @@ class MinkIK(LibraryMethod):
 
         mink_model(chain_of(robot))
 
+    def solve(self, robot, task, progress=None):
+        """The library's solve (:meth:`LibraryMethod.solve`); the track's speed box needs the
+        task's contract (its largest joint change per segment), noted here."""
+        self._segment_step = segment_step(robot, task) if self.tracks(task) else None
+        return super().solve(robot, task, progress)
+
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
+        if goals.track is not None:
+            return solve_track(robot, chain, goals.track, self.settings,
+                               getattr(self, "_segment_step", None))
         return solve_chain(chain, goals, self.settings)

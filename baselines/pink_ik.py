@@ -1,24 +1,56 @@
-"""pink (PyPI ``pin-pink``): QP differential IK on Pinocchio, walked back from the touch pose.
+"""pink (PyPI ``pin-pink``): QP differential IK on Pinocchio, tracking the goal points from the
+start pose onto the touch pose (``--scheme track``, the default) or walked back from the touch
+pose (``--scheme walk``, the authors' scheme).
 
 pink works on the robot's own Pinocchio model (:meth:`ikbench.core.robot.Robot.pinocchio_fk`:
 the chain only, the base link as world frame), copied once per robot with the chain's limits
 and an extra operational frame P on the end frame whose z-axis is the pointing axis
-(``model.addFrame(pinocchio.Frame(..., OP_FRAME))``). Per goal point the scheme of
-:mod:`baselines._diffik`, with these pink calls:
+(``model.addFrame(pinocchio.Frame(..., OP_FRAME))``). Both schemes call pink the same way:
+``pink.Configuration(model, data, q)``, ``pink.solve_ik(configuration, tasks, dt,
+solver=qp_solver, damping=damping, limits=limits)``, ``configuration.integrate(v, dt)`` and
+``configuration.update(q)``, with ``pink.limits.ConfigurationLimit(model, config_limit_gain)``
+among the limits: the joint limits are QP constraints ``q_min - q <= v dt <= q_max - q``
+(scaled by the gain), so no step leaves them. pink's frame error is P's body twist
+log(T_P^-1 T_target), so a zero orientation cost on P's z frees the roll.
 
-- ``pink.tasks.FrameTask(P, position_cost, orientation_cost=[w, w, 0])`` and
-  ``task.set_target(pinocchio.SE3(R, p))``;
-- ``pink.solve_ik(configuration, [task], dt, solver=qp_solver, damping=damping,
-  limits=[pink.limits.ConfigurationLimit(model, config_limit_gain)])``: the joint limits are QP
-  constraints ``q_min - q <= v dt <= q_max - q`` (scaled by the gain), so no step leaves them;
-- ``configuration.integrate(v, dt)`` and ``configuration.update(q)``.
+**Track** (:mod:`baselines._track`; tasks with a start and a touch pose and no 6-D goal
+frames). Row 0 is the start pose, row n the touch pose; steps 1 .. n-1 are solved forward, each
+from the step before moved on by the last segment's motion (a constant-speed warm start).
+Per step i, QP steps of
 
-pink's frame error is P's body twist log(T_P^-1 T_target), so the zero cost on P's z frees the
-roll. Defaults: dt 1 s with task gain 1 (a full damped Gauss-Newton step per QP), damping 1e-6
-(the 7-DoF arm is redundant: a positive-definite QP Hessian, minimum-norm steps), position
-cost 1 /m and orientation cost 0.1 /rad (they compete only where a goal is unreachable), limit
-gain 0.5 (pink's default), QP solver daqp (qpsolvers backend, deterministic), tolerance 1e-6
-m / rad, at most 100 steps per point. ``iterations`` counts QP solves.
+- ``pink.tasks.FrameTask(P, position_cost=track_position_cost, orientation_cost=[w, w, 0])``
+  with ``set_target(pinocchio.SE3(R, p_i))``: p_i the goal point, R the rotation nearest P's
+  whose z-axis is the scheduled pointing direction (orientation cost 0: position only, when
+  the task asks no pointing);
+- ``pink.tasks.PostureTask(cost=posture_cost * weights)`` with ``set_target(posture[i])``,
+  the start-to-touch interpolation; the weights make every pose unit cost alike (NICO: a motor
+  degree; its wrist and finger motors turn their joints only 0.5 and 0.22 URDF degree per
+  motor degree), :func:`baselines._diffik.posture_weights`;
+- a speed box (a ``pink.limits.Limit`` beside the ConfigurationLimit,
+  :class:`baselines._diffik.SpeedBox`): every joint moves at most ``speed_fraction`` of the
+  contract's largest change per segment from step i-1, and stays within (n - i) such changes
+  of the touch pose, so the arm lands on it without a jump,
+
+until the position error is below ``tolerance`` and the last QP step moved no joint more than
+``stall`` (the scheduled pointing may be slightly out of reach: the weighted optimum is
+taken), at most ``max_steps``. A step is reported converged when P's position, by pink's FK,
+is within ``tolerance``. Defaults and why: position cost 1000 /m against orientation cost
+0.1 /rad and posture cost 0.01 /rad (the goal point is the hard goal, kept to ~1e-9 m even
+where the pointing or the posture cannot be met; the posture only resolves the arm's
+redundancy, strong enough to keep the arm near the path onto the touch pose, weak enough to
+leave the pointing a few degrees from its schedule at most), speed fraction 0.95 (a margin
+to the contract's limit), stall 1e-4 rad (2-4 QP solves per step, ~40-70 ms per 50-step
+trajectory).
+
+**Walk** (:mod:`baselines._walk`; also every 6-D pose path). Per goal point the scheme of
+:mod:`baselines._diffik`: ``FrameTask(P, position_cost, orientation_cost=[w, w, 0])`` (all
+three for 6-D goals) and the ConfigurationLimit only. Defaults: dt 1 s with task gain 1 (a
+full damped Gauss-Newton step per QP), damping 1e-6 (the 7-DoF arm is redundant: a
+positive-definite QP Hessian, minimum-norm steps), position cost 1 /m and orientation cost
+0.1 /rad (they compete only where a goal is unreachable), limit gain 0.5 (pink's default), QP
+solver daqp (qpsolvers backend, deterministic), tolerance 1e-6 m / rad, at most 100 steps per
+point. Both schemes share dt, damping, orientation cost, limit gain, QP solver, tolerance and
+max steps. ``iterations`` counts QP solves.
 """
 
 from __future__ import annotations
@@ -29,12 +61,25 @@ from dataclasses import dataclass
 import numpy as np
 
 from baselines._chain import Chain, Goals
-from baselines._diffik import converge, errors, orientation_costs, target_rotation
+from baselines._diffik import (
+    SpeedBox,
+    converge,
+    errors,
+    orientation_costs,
+    posture_weights,
+    segment_step,
+    settle,
+    target_rotation,
+    track_errors,
+    track_orientation_costs,
+    track_target_rotation,
+)
 from baselines._geometry import frame_with_z_on
 from baselines._method import ChainResult, LibraryMethod
+from baselines._track import SCHEME_HELP, SCHEMES, track
 from baselines._walk import PointResult, walk_back
 from ikbench.core.errors import InputError
-from ikbench.methods.base import check_positive, option
+from ikbench.methods.base import check_choice, check_positive, option
 
 POINTING_FRAME = "ikbench_pointing_frame"
 _MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -54,8 +99,9 @@ def check_qp_solver(settings, field_name: str) -> None:
 
 @dataclass
 class PinkSettings:
-    """Settings of the pink walk (see the module docstring)."""
+    """Settings of pink's track and walk (see the module docstring)."""
 
+    scheme: str = option("track", flag="scheme", choices=SCHEMES, help=SCHEME_HELP)
     dt: float = option(1.0, flag="pink-dt", unit="s",
                        help="integration step of the QP velocity (1 with gain 1: a full "
                        "Gauss-Newton step)")
@@ -72,13 +118,32 @@ class PinkSettings:
     tolerance: float = option(1e-6, flag="pink-tolerance", unit="m, rad",
                               help="stop a point when position and pointing errors are below")
     max_steps: int = option(100, flag="pink-max-steps", help="QP steps per goal point at most")
+    track_position_cost: float = option(
+        1000.0, flag="pink-track-position-cost", unit="1/m",
+        help="scheme track: FrameTask position cost (the goal point is the hard goal; the "
+        "pointing and posture costs are small against it)")
+    posture_cost: float = option(0.01, flag="pink-posture-cost", unit="1/rad",
+                                 help="scheme track: PostureTask cost towards the start-to-touch "
+                                 "posture (per pose unit: a motor degree for NICO)")
+    speed_fraction: float = option(
+        0.95, flag="pink-speed-fraction",
+        help="scheme track: each step moves every joint by at most this fraction of the "
+        "contract's speed-limit step and keeps the touch pose within reach at that speed (a "
+        "QP box constraint); 0: no box")
+    stall: float = option(1e-4, flag="pink-stall", unit="rad, m",
+                          help="scheme track: a step ends once the position is within the "
+                          "tolerance and the last QP step moved no joint more than this")
 
     def __post_init__(self):
-        check_positive(self, "dt", "position_cost", "limit_gain", "tolerance")
+        check_choice(self, "scheme", SCHEMES)
+        check_positive(self, "dt", "position_cost", "track_position_cost", "limit_gain",
+                       "tolerance", "stall")
         check_positive(self, "max_steps", integer=True)
-        if self.limit_gain > 1 or self.damping < 0 or self.orientation_cost < 0:
-            raise InputError("--pink-limit-gain must be in (0, 1], --pink-damping and "
-                             "--pink-orientation-cost >= 0")
+        if (self.limit_gain > 1 or self.damping < 0 or self.orientation_cost < 0
+                or self.posture_cost < 0 or not 0 <= self.speed_fraction <= 1):
+            raise InputError("--pink-limit-gain must be in (0, 1], --pink-speed-fraction in "
+                             "[0, 1], --pink-damping, --pink-orientation-cost and "
+                             "--pink-posture-cost >= 0")
         self.max_steps = int(self.max_steps)
         check_qp_solver(self, "qp_solver")
 
@@ -142,13 +207,92 @@ def solve_chain(robot, chain: Chain, goals: Goals, settings: PinkSettings) -> Ch
                                  iterations_are="QP solves (pink.solve_ik calls)")
 
 
+def solve_track(robot, chain: Chain, plan, settings: PinkSettings,
+                step: np.ndarray | None = None) -> ChainResult:
+    """pink's track from the start pose onto the touch pose (``plan``: a
+    :class:`baselines._track.TrackPlan`; ``step``: (dof,) the contract's largest joint change
+    per segment [rad, m], or None: no speed box). See the module docstring."""
+    import pink
+    import pinocchio as pin
+    from pink.exceptions import NoSolutionFound
+    from pink.limits import ConfigurationLimit, Limit
+    from pink.tasks import FrameTask, PostureTask
+
+    model, _ = pink_model(robot, chain)
+    data = model.createData()
+    lower, upper = model.lowerPositionLimit, model.upperPositionLimit
+    frame_task = FrameTask(POINTING_FRAME, position_cost=settings.track_position_cost,
+                           orientation_cost=track_orientation_costs(plan,
+                                                                    settings.orientation_cost))
+    posture_task = PostureTask(cost=settings.posture_cost * posture_weights(robot))
+    tasks = [frame_task, posture_task]
+    limits: list = [ConfigurationLimit(model, config_limit_gain=settings.limit_gain)]
+    box = None
+    if step is not None and settings.speed_fraction > 0:
+        box = SpeedBox(settings.speed_fraction * step, plan.q_touch, len(plan) - 1, lower,
+                       upper, settings.limit_gain)
+
+        class SpeedLimit(Limit):
+            """The speed box (:class:`baselines._diffik.SpeedBox`) as a pink limit."""
+
+            def compute_qp_inequalities(self, configuration, dt):
+                G, h = box.inequalities(configuration.q)
+                return (G, h) if len(h) else None
+
+        limits.append(SpeedLimit())
+    previous = {"q": None}
+
+    def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
+        q0 = q_warm
+        if box is not None:
+            box.set_step(i, q_warm)
+        if previous["q"] is not None:  # the last segment's motion again
+            q0 = q_warm + (q_warm - previous["q"])
+            q0 = np.clip(box.clip(q0) if box is not None else q0, lower, upper)
+        previous["q"] = q_warm
+        configuration = pink.Configuration(model, data, q0)
+        posture_task.set_target(plan.posture[i])
+
+        def frame():
+            T = configuration.get_transform_frame_to_world(POINTING_FRAME)
+            return T.translation, T.rotation
+
+        def step_once() -> float:
+            _, R_P = frame()
+            frame_task.set_target(pin.SE3(track_target_rotation(plan, i, R_P),
+                                          plan.points_m[i]))
+            v = pink.solve_ik(configuration, tasks, settings.dt, solver=settings.qp_solver,
+                              damping=settings.damping, limits=limits)
+            q_before = configuration.q.copy()
+            configuration.update(np.clip(configuration.integrate(v, settings.dt), lower, upper))
+            return float(np.max(np.abs(configuration.q - q_before)))
+
+        def measure():
+            p_P, R_P = frame()
+            return track_errors(plan, i, p_P, R_P)
+
+        try:
+            steps, ok = settle(measure, step_once, settings.tolerance, settings.stall,
+                               settings.max_steps)
+        except NoSolutionFound:
+            steps, ok = 0, False
+        return PointResult(configuration.q.copy(), steps, ok)
+
+    walk = track(solve_point, chain, plan)
+    return ChainResult.from_walk(walk, qp_solver=settings.qp_solver, scheme="track",
+                                 speed_box=box is not None,
+                                 iterations_are="QP solves (pink.solve_ik calls)")
+
+
 class PinkIK(LibraryMethod):
-    """pink's QP differential IK per point, walked back from the touch pose."""
+    """pink's QP differential IK, tracking from the start pose onto the touch pose (or walked
+    back from the touch pose: ``--scheme walk``)."""
 
     name = "pink"
-    description = ("library: pink QP differential IK on Pinocchio per point (frame task with "
-                   "position and pointing costs, joint limits as QP constraints), walked back "
-                   "from the touch pose")
+    description = ("library: pink QP differential IK on Pinocchio tracking the goal points "
+                   "from the start pose (frame task + posture task, joint limits and speed "
+                   "limits as QP constraints), landing on the touch pose (--scheme walk: "
+                   "walked back from the touch pose)")
     library = "pin-pink"
     Settings = PinkSettings
     supports_frames = True
@@ -160,5 +304,14 @@ class PinkIK(LibraryMethod):
 
         pink_model(robot, chain_of(robot))
 
+    def solve(self, robot, task, progress=None):
+        """The library's solve (:meth:`LibraryMethod.solve`); the track's speed box needs the
+        task's contract (its largest joint change per segment), noted here."""
+        self._segment_step = segment_step(robot, task) if self.tracks(task) else None
+        return super().solve(robot, task, progress)
+
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
+        if goals.track is not None:
+            return solve_track(robot, chain, goals.track, self.settings,
+                               getattr(self, "_segment_step", None))
         return solve_chain(robot, chain, goals, self.settings)
