@@ -1,8 +1,9 @@
-"""Drake ``InverseKinematics`` (PyPI ``drake``): one nonlinear program per goal point, walked
-back from the touch pose.
+"""Drake ``InverseKinematics`` (PyPI ``drake``): one nonlinear program per goal point, from the
+start pose onto the touch pose (``--scheme track``, default) or walked back from the touch
+pose (``--scheme walk``, the authors' scheme).
 
-Per goal point i, warm start q_w (the previous solution), on the plant of
-:mod:`baselines._drake`::
+Walk (and any pose path): per goal point i, warm start q_w (the previous solution), on the
+plant of :mod:`baselines._drake`::
 
     ik = InverseKinematics(plant, with_joint_limits=False)       # the chain's limits below
     ik.AddPositionConstraint(end_frame, [0, 0, 0], base_frame, p_i - tol, p_i + tol)
@@ -19,6 +20,23 @@ feasibility 1e-9 (its default 1e-6 would be 1 um on the position box) and optima
 The warm-start cost pulls the pointing to the edge of its 0.01 deg cone. ``iterations`` counts
 solves (Drake reports no SNOPT iteration count); a point whose result is not a success counts
 as not converged.
+
+Track (:mod:`baselines._track`): steps 1..n-1 forward from the start pose (row 0), each
+warm-started at the step before; row n is the touch pose. Per step i the same program with
+the plan's goals: the position constraint at ``plan.points_m[i]``; the pointing constraint on
+the scheduled direction ``plan.directions[i]`` (none when the contract does not ask for
+pointing); the costs measured in the robot's pose units (weights (pose units per URDF unit)^2,
+:func:`pose_metric`: NICO's wrist_x and finger motors turn 4.5 motor deg per joint deg, so a
+joint-deg cost would spend their speed first): ``w_warm |q - q_w|^2 + w_posture |q -
+posture_i|^2`` (the start-to-touch posture, ``--drake-posture-weight``, default 10, so the
+arm keeps near it and lands); and, when the task's contract knows the joint speed limits, the
+box of the limits narrowed to what the speed allows: |q - q_w| <= 0.99 max_step (the
+contract's step in URDF units: the motor map is affine) and |q - q_touch| <= (n - i) 0.99
+max_step (the touch pose stays reachable in the steps left). Where that program is infeasible
+(SNOPT reports no success: the pointing cannot follow within the speed), the step is solved
+again with the pointing as ``AddAngleBetweenVectorsCost`` c (1 - cos angle)
+(``--drake-pointing-cost``, default 3000); ``pointing_relaxed_points`` counts those steps. A
+step is solved when Drake reports success and FK puts the end point within 1e-3 mm of its box.
 """
 
 from __future__ import annotations
@@ -30,15 +48,22 @@ import numpy as np
 from baselines._chain import Chain, Goals
 from baselines._drake import SOLVERS, DrakeMethod, drake_chain, make_solver, set_tolerances, solve
 from baselines._method import ChainResult
+from baselines._track import SCHEME_HELP, SCHEMES, track
 from baselines._walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
+#: A tracked step counts as solved when FK puts the end point within this [m] of its box.
+POSITION_CHECK_M = 1e-6
+#: The fraction of the contract's joint step a tracked step may take (round-off room).
+STEP_MARGIN = 0.99
+
 
 @dataclass
 class DrakeIKSettings:
-    """Settings of the Drake IK walk (see the module docstring)."""
+    """Settings of Drake IK (see the module docstring)."""
 
+    scheme: str = option("track", flag="scheme", choices=SCHEMES, help=SCHEME_HELP)
     position_tolerance: float = option(0.0, flag="drake-position-tolerance", unit="mm",
                                        help="half-width of the goal point's box (0: equality)")
     pointing_tolerance: float = option(0.01, flag="drake-pointing-tolerance", unit="deg",
@@ -46,6 +71,12 @@ class DrakeIKSettings:
                                        "direction (or from the goal rotation, 6-D goals)")
     warm_weight: float = option(1.0, flag="drake-warm-weight", unit="1/rad^2",
                                 help="weight of the cost |q - q_warm|^2")
+    posture_weight: float = option(10.0, flag="drake-posture-weight", unit="1/rad^2",
+                                   help="scheme track: weight of the cost |q - posture_i|^2 "
+                                   "(the start-to-touch posture; in the robot's pose units)")
+    pointing_cost: float = option(3000.0, flag="drake-pointing-cost",
+                                  help="scheme track: weight c of c (1 - cos angle) for a "
+                                  "step whose pointing constraint is infeasible")
     solver: str = option("auto", flag="drake-solver", choices=SOLVERS,
                          help="auto (Drake's choice: SNOPT) or a solver by name")
     feasibility_tolerance: float = option(1e-9, flag="drake-feasibility-tolerance",
@@ -55,15 +86,29 @@ class DrakeIKSettings:
                                          "xtol_rel")
 
     def __post_init__(self):
+        check_choice(self, "scheme", SCHEMES)
         check_choice(self, "solver", SOLVERS)
-        check_positive(self, "pointing_tolerance", "feasibility_tolerance",
+        check_positive(self, "pointing_tolerance", "pointing_cost", "feasibility_tolerance",
                        "optimality_tolerance")
-        if not (self.position_tolerance >= 0 and self.warm_weight >= 0):
-            raise InputError("--drake-position-tolerance and --drake-warm-weight must be >= 0")
+        if not (self.position_tolerance >= 0 and self.warm_weight >= 0
+                and self.posture_weight >= 0):
+            raise InputError("--drake-position-tolerance, --drake-warm-weight and "
+                             "--drake-posture-weight must be >= 0")
 
 
-def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings) -> ChainResult:
-    """The Drake IK walk in URDF units (see the module docstring)."""
+def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings,
+                metric: np.ndarray | None = None,
+                max_step: np.ndarray | None = None) -> ChainResult:
+    """Drake IK in URDF units: the tracking scheme when ``goals.track`` is set, else the walk
+    (see the module docstring).
+
+    Args:
+        chain, goals, settings: the chain, the task's goals (``goals.track``: the plan), the
+            settings.
+        metric: (dof,) weights of the track's costs (:func:`pose_metric`); None: all 1.
+        max_step: (dof,) the largest joint step per segment [rad, m] the track may take, or
+            None (no speed limit known; the walk ignores it).
+    """
     from pydrake.math import RotationMatrix
     from pydrake.multibody.inverse_kinematics import InverseKinematics
 
@@ -71,44 +116,134 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings) -> ChainR
     solver = make_solver(settings.solver)
     box = np.full(3, settings.position_tolerance / 1000.0)
     angle = np.radians(settings.pointing_tolerance)
-    used = set()
+    lower, upper = drake.positions(chain.lower), drake.positions(chain.upper)
+    plan = goals.track
+    tracking = plan is not None
+    weights = np.diag(drake.positions(np.ones(chain.dof) if metric is None or not tracking
+                                      else metric))
+    step = None if max_step is None or not tracking else drake.positions(max_step)
+    context = drake.plant.CreateDefaultContext()
+    used, relaxed = set(), []
 
-    def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
+    def program(q_warm, point, direction, rotation, bounds, pointing_cost):
+        """One goal's program: position, pointing (a constraint, or a cost when
+        ``pointing_cost``) or frame, limits (``bounds``), the warm-start cost."""
         ik = InverseKinematics(drake.plant, with_joint_limits=False)
         q, prog = ik.q(), ik.get_mutable_prog()
         ik.AddPositionConstraint(drake.end_frame, np.zeros(3), drake.base_frame,
-                                 goals.points_m[i] - box, goals.points_m[i] + box)
-        if goals.rotations is not None:
-            ik.AddOrientationConstraint(drake.base_frame, RotationMatrix(goals.rotations[i]),
+                                 point - box, point + box)
+        if rotation is not None:
+            ik.AddOrientationConstraint(drake.base_frame, RotationMatrix(rotation),
                                         drake.end_frame, RotationMatrix(), angle)
-        else:
-            ik.AddAngleBetweenVectorsConstraint(drake.base_frame, goals.directions[i],
-                                                drake.end_frame, chain.pointing_axis, 0.0,
-                                                angle)
-        prog.AddBoundingBoxConstraint(drake.positions(chain.lower), drake.positions(chain.upper),
-                                      q)
+        elif direction is not None and pointing_cost:
+            ik.AddAngleBetweenVectorsCost(drake.base_frame, direction, drake.end_frame,
+                                          chain.pointing_axis, settings.pointing_cost)
+        elif direction is not None:
+            ik.AddAngleBetweenVectorsConstraint(drake.base_frame, direction, drake.end_frame,
+                                                chain.pointing_axis, 0.0, angle)
+        prog.AddBoundingBoxConstraint(*bounds, q)
         warm = drake.positions(q_warm)
-        prog.AddQuadraticErrorCost(settings.warm_weight * np.eye(len(warm)), warm, q)
+        prog.AddQuadraticErrorCost(settings.warm_weight * weights, warm, q)
         set_tolerances(prog, settings.feasibility_tolerance, settings.optimality_tolerance)
+        return q, prog, warm
+
+    def walk_point(i: int, q_warm: np.ndarray) -> PointResult:
+        rotation = None if goals.rotations is None else goals.rotations[i]
+        q, prog, warm = program(q_warm, goals.points_m[i], goals.directions[i], rotation,
+                                (lower, upper), False)
         result = solve(prog, solver, warm)
         used.add(result.get_solver_id().name())
         return PointResult(result.GetSolution(q)[drake.index], 1, bool(result.is_success()))
 
-    walk = walk_back(solve_point, chain, goals)
-    return ChainResult.from_walk(walk, solver=",".join(sorted(used)),
+    def track_point(i: int, q_warm: np.ndarray) -> PointResult:
+        direction = None if plan.directions is None else plan.directions[i]
+        bounds = (lower, upper)
+        if step is not None:  # within the speed limit, and the touch pose still reachable
+            left, warm, touch = len(plan) - 1 - i, drake.positions(q_warm), \
+                drake.positions(plan.q_touch)
+            low = np.maximum.reduce([lower, warm - step, touch - left * step])
+            high = np.minimum.reduce([upper, warm + step, touch + left * step])
+            bounds = (low, np.maximum(high, low))
+        solves = 0
+        for pointing_cost in ((False, True) if direction is not None else (False,)):
+            q, prog, warm = program(q_warm, plan.points_m[i], direction, None, bounds,
+                                    pointing_cost)
+            if settings.posture_weight > 0:
+                prog.AddQuadraticErrorCost(settings.posture_weight * weights,
+                                           drake.positions(plan.posture[i]), q)
+            result = solve(prog, solver, warm)
+            used.add(result.get_solver_id().name())
+            solves += 1
+            if result.is_success():
+                break
+        if solves > 1:
+            relaxed.append(i)
+        solution = result.GetSolution(q)
+        drake.plant.SetPositions(context, solution)
+        reached = drake.plant.CalcRelativeTransform(context, drake.base_frame,
+                                                    drake.end_frame).translation()
+        off = float(np.max(np.abs(reached - plan.points_m[i]) - box, initial=0.0))
+        ok = bool(result.is_success()) and off <= POSITION_CHECK_M
+        return PointResult(solution[drake.index], solves, ok)
+
+    if not tracking:
+        walk = walk_back(walk_point, chain, goals)
+        return ChainResult.from_walk(walk, solver=",".join(sorted(used)), scheme="walk",
+                                     iterations_are="solves (Drake reports no iteration count)")
+    walk = track(track_point, chain, plan)
+    return ChainResult.from_walk(walk, solver=",".join(sorted(used)), scheme="track",
+                                 pointing_relaxed_points=len(relaxed),
+                                 speed_bounded=step is not None,
                                  iterations_are="solves (Drake reports no iteration count)")
 
 
+def urdf_step(robot, pose_step) -> np.ndarray:
+    """(dof,) a joint step [pose units] in URDF units [rad, m] (the motor map is affine)."""
+    return np.abs(robot.to_urdf(np.asarray(pose_step, dtype=float))
+                  - robot.to_urdf(np.zeros(robot.dof)))
+
+
+def contract_step(robot, contract, steps: int) -> np.ndarray | None:
+    """(dof,) :data:`STEP_MARGIN` of the contract's largest joint step per segment at n =
+    ``steps``, in URDF units [rad, m]; None without a contract or a known speed limit."""
+    pose_step = None if contract is None else contract.max_step(steps)
+    return None if pose_step is None else STEP_MARGIN * urdf_step(robot, pose_step)
+
+
+def pose_metric(robot) -> np.ndarray:
+    """(dof,) weights that measure a joint change in the robot's pose units: (pose units per
+    URDF unit)^2, normalised to 1 for a joint whose pose unit is its URDF unit (deg per rad,
+    mm per m). NICO: 1 / scale^2 (its wrist and finger motors turn 4.5 motor deg per joint
+    deg)."""
+    per_unit = urdf_step(robot, np.ones(robot.dof))
+    nominal = np.where(np.asarray(robot.prismatic), 1e-3, np.radians(1.0))
+    return (nominal / per_unit) ** 2
+
+
 class DrakeIK(DrakeMethod):
-    """Drake InverseKinematics per point, walked back from the touch pose."""
+    """Drake InverseKinematics per point, tracked from the start pose onto the touch pose
+    (``--scheme track``) or walked back from the touch pose (``--scheme walk``)."""
 
     name = "drake-ik"
     description = ("library: Drake InverseKinematics per point (position constraint, "
-                   "angle-between-vectors constraint on the pointing axis; SNOPT), walked "
-                   "back from the touch pose")
+                   "angle-between-vectors constraint on the pointing axis; SNOPT), tracked "
+                   "from the start pose onto the touch pose within the speed limits (--scheme "
+                   "walk: walked back from the touch pose)")
     library = "drake"
     Settings = DrakeIKSettings
     supports_frames = True
 
+    def solve(self, robot, task, progress=None):
+        """As :meth:`LibraryMethod.solve`; the task's contract gives the track its speed
+        limit."""
+        self._contract = getattr(task, "contract", None)
+        try:
+            return super().solve(robot, task, progress)
+        finally:
+            self._contract = None
+
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
-        return solve_chain(chain, goals, self.settings)
+        step = None
+        if goals.track is not None:
+            step = contract_step(robot, getattr(self, "_contract", None), len(goals) - 1)
+        return solve_chain(chain, goals, self.settings, pose_metric(robot), step)

@@ -8,14 +8,14 @@ program (pydrake.planning.KinematicTrajectoryOptimization and its ``get_mutable_
   ``AddPathPositionConstraint(q_touch, q_touch, 1)``;
 - goal points 1..n-1: ``AddPathPositionConstraint(PositionConstraint(plant, base, p_i, p_i,
   end, 0, context), s_i)`` (``--drake-position constraint``, default), or a ``PositionCost``;
-- pointing at 1..n-1: ``AngleBetweenVectorsCost(plant, base, d_i, end, axis, c, context)``,
-  c (1 - cos angle) (``--drake-pointing cost``, default), or an ``AngleBetweenVectorsConstraint``
-  within ``--drake-pointing-tolerance``; 6-D goal frames: an ``OrientationCost``. The ends are
-  not pointed: they are fixed poses, and the paper's start pose points 44-56 deg away from its
-  line. KinematicTrajectoryOptimization has path *constraints* at s but no path *cost*, so
-  each cost is bound to auxiliary variables q_i with the linear equality
-  q_i = sum_j M_j(s_i) P_j over the active control points
-  (``basis().EvaluateLinearInControlPoints``, ``ComputeActiveBasisFunctionIndices``);
+- pointing at 1..n-1 (with a contract: see below): ``AngleBetweenVectorsCost(plant, base,
+  d_i, end, axis, c, context)``, c (1 - cos angle) (``--drake-pointing cost``, default), or
+  an ``AngleBetweenVectorsConstraint`` within ``--drake-pointing-tolerance``; 6-D goal
+  frames: an ``OrientationCost``. The ends are not pointed: they are fixed poses, and the
+  paper's start pose points 44-56 deg away from its line. KinematicTrajectoryOptimization
+  has path *constraints* at s but no path *cost*, so each cost is bound to auxiliary
+  variables q_i with the linear equality q_i = sum_j M_j(s_i) P_j over the active control
+  points (``basis().EvaluateLinearInControlPoints``, ``ComputeActiveBasisFunctionIndices``);
 - ``AddPositionBounds(lower, upper)`` (on the control points, so by the convex-hull property
   the whole spline stays within the limits), ``AddVelocityBounds(-v, v)`` (the URDF's velocity
   limits unless ``--drake-velocity-limit``), ``AddDurationConstraint(0.1, 20)`` s, and, with
@@ -23,8 +23,19 @@ program (pydrake.planning.KinematicTrajectoryOptimization and its ``get_mutable_
   the paper's tasks they trade the pointing next to the fixed start pose for a shorter path
   and cost SNOPT 10-30x the time).
 
+The task's contract (``task.contract``; without one, as described above): pointing costs
+only on the steps the contract judges, i >= ``contract.judged_from(n)`` (none when the
+contract does not ask for pointing), so the arm may turn from the start pose's own pointing
+over the first steps instead of in one segment; and the speed limit as linear constraints on
+the control points: |r(s_i+1) - r(s_i)| <= 0.99 max_step per joint and segment, with
+r(s_i) = sum_j M_j(s_i) P_j (``basis().EvaluateLinearInControlPoints``), max_step the
+contract's largest step per segment at n (``contract.max_step(n)``, pose units) in URDF units
+(the motor map is affine: |scale| times it, deg to rad, mm to m). ``AddVelocityBounds`` stays:
+it bounds the spline's derivative at its free duration, not the steps between the samples.
+
 Initial guess (``--drake-init``): ``ik`` (default) fits the spline to the Drake IK walk
-(:mod:`baselines.drake_ik`) by least squares with the ends fixed; ``linear`` interpolates the
+(:mod:`baselines.drake_ik`, ``--scheme walk``: it ends away from the start pose, so the guess
+jumps in its first segment) by least squares with the ends fixed; ``linear`` interpolates the
 control points between the two poses. Solved by SNOPT (``Solve``'s choice) with feasibility
 1e-8, optimality 1e-6 and at most 1000 major iterations; the poses are
 ``ReconstructTrajectory(result)`` sampled at t_i = s_i T. Rows are returned as solved
@@ -48,6 +59,7 @@ from baselines._drake import (
     solve,
 )
 from baselines._method import ChainResult
+from baselines.drake_ik import contract_step
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
@@ -165,8 +177,17 @@ def _initial_guess(trajopt, chain, goals, drake, settings, s):
     return BsplineTrajectory(scaled, [control[:, [j]] for j in range(control.shape[1])]), duration
 
 
-def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings) -> ChainResult:
-    """The trajectory optimisation in URDF units (see the module docstring)."""
+def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings,
+                pointing_from: int | None = 1, max_step: np.ndarray | None = None) -> ChainResult:
+    """The trajectory optimisation in URDF units (see the module docstring).
+
+    Args:
+        chain, goals, settings: the chain, the task's goals and the settings.
+        pointing_from: the first goal point with a pointing cost (1: every inner point, as
+            without a contract; the contract's ``judged_from(n)``), or None: no pointing.
+        max_step: (dof,) the largest joint change per segment [rad, m] between the samples
+            s_i and s_i+1 (the contract's speed limit), or None: no such bound.
+    """
     from pydrake.math import RotationMatrix
     from pydrake.multibody.inverse_kinematics import (
         AngleBetweenVectorsConstraint,
@@ -196,6 +217,15 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings) -> C
         trajopt.AddDurationCost(settings.duration_weight)
     if settings.energy_weight > 0:
         trajopt.AddPathEnergyCost(settings.energy_weight)
+    if max_step is not None:
+        basis = trajopt.basis()
+        W = np.array([basis.EvaluateLinearInControlPoints(float(v)) for v in s])  # (N, K)
+        D = W[1:] - W[:-1]  # r(s_i+1) - r(s_i) = P D_i^T
+        bound = drake.positions(max_step)
+        points = trajopt.control_points()  # (nq, K)
+        for j in range(nq):
+            prog.AddLinearConstraint(D, np.full(len(D), -bound[j]), np.full(len(D), bound[j]),
+                                     points[j])
     base, end, axis = drake.base_frame, drake.end_frame, chain.pointing_axis
     path: dict = {}
     for i in range(1, n_points - 1):
@@ -207,6 +237,8 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings) -> C
             prog.AddCost(PositionCost(plant, base, p, end, np.zeros(3),
                                       settings.position_weight * np.eye(3), context),
                          _path_point(trajopt, prog, s[i], path))
+        if goals.rotations is None and (pointing_from is None or i < pointing_from):
+            continue
         if goals.rotations is not None:
             prog.AddCost(OrientationCost(plant, base, RotationMatrix(goals.rotations[i]), end,
                                          RotationMatrix(), settings.pointing_weight, context),
@@ -234,6 +266,8 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings) -> C
         "solver": result.get_solver_id().name(), "exit_code": exit_code(result),
         "solution_result": str(result.get_solution_result()).split(".")[-1],
         "path_duration_s": float(length), "control_points": count,
+        "pointing_from": -1 if pointing_from is None else int(pointing_from),
+        "speed_bounded": max_step is not None,
         "clipped_rows": int(np.sum(np.any(inside != q, axis=1))),
         "iterations_are": "program solves (Drake reports no SNOPT iteration count)"})
 
@@ -244,7 +278,8 @@ class DrakeTrajopt(DrakeMethod):
     name = "drake-trajopt"
     description = ("library: Drake KinematicTrajectoryOptimization of the whole path (B-spline "
                    "with fixed start and touch poses, goal points as path constraints, "
-                   "pointing costs, velocity bounds; SNOPT)")
+                   "pointing costs where the contract judges them, velocity bounds, the "
+                   "contract's joint steps as linear constraints; SNOPT)")
     library = "drake"
     Settings = DrakeTrajoptSettings
     supports_frames = True
@@ -256,5 +291,20 @@ class DrakeTrajopt(DrakeMethod):
         for task in tasks:
             control_point_count(self.settings, len(task.goal_points_mm))
 
+    def solve(self, robot, task, progress=None):
+        """As :meth:`LibraryMethod.solve`; the task's contract says where to point and how
+        fast the joints may move."""
+        self._contract = getattr(task, "contract", None)
+        try:
+            return super().solve(robot, task, progress)
+        finally:
+            self._contract = None
+
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
-        return solve_chain(chain, goals, self.settings)
+        contract = getattr(self, "_contract", None)
+        if contract is None:  # no contract: as before it, every inner point pointed
+            return solve_chain(chain, goals, self.settings)
+        steps = len(goals) - 1
+        pointing_from = contract.judged_from(steps) if contract.pointing else None
+        return solve_chain(chain, goals, self.settings, pointing_from,
+                           contract_step(robot, contract, steps))

@@ -13,9 +13,17 @@ unless named; constraints are solved by jaxls' augmented Lagrangian):
 - goal points 1..n-1: ``p_i - p_goal_i`` as equality constraints (``--pyroki-position
   constraint``, default) or as a cost of weight ``--pyroki-position-weight``;
 - pointing at 1..n-1: ``w (R_i a - d_i)`` (a: the pointing axis; rank 2, roll free), a cost;
+  with a task contract only at i >= ``contract.judged_from(n)`` (weight 0 before; none when
+  the contract does not ask for pointing), so the arm may turn from the start pose's own
+  pointing over the first steps instead of in one segment;
 - smoothness: ``pyroki.costs.smoothness_cost`` between consecutive poses;
 - joint limits: ``lower - q <= 0``, ``q - upper <= 0`` with the chain's limits;
-- fixed ends: ``q_0 = q_start``, ``q_n = q_touch`` as equality constraints.
+- fixed ends: ``q_0 = q_start``, ``q_n = q_touch`` as equality constraints;
+- with a task contract that knows the joint speed limits: ``q_i+1 - q_i - m <= 0`` and
+  ``q_i - q_i+1 - m <= 0`` per segment, inequality constraints (``constraint_leq_zero``, as
+  ``pyroki.costs.limit_velocity_constraint``, whose limit is the URDF's velocity instead), m
+  = 0.99 of the contract's largest step per segment at n (``contract.max_step(n)``, pose
+  units) in URDF units (the motor map is affine: |scale| times it, deg to rad, mm to m).
 
 Solved by ``LeastSquaresProblem(costs, variables).analyze().solve(initial_vals,
 linear_solver="conjugate_gradient", termination=TerminationConfig(max_iterations=300),
@@ -26,10 +34,12 @@ LM steps.
 JAX: float64 is switched on (``jax_enable_x64``, process-wide): in float32 PyRoki's limits
 round past the true ones (pi -> 3.1415927). With float64, jaxls' ``dense_cholesky`` fails
 (int64 / int32 dtype mix), hence conjugate gradient. The problem is built inside one
-``jax.jit``-ed function, compiled once per process and number of points: the XLA compile
-takes 20-40 s on 2 cores and happens in :meth:`PyrokiTrajopt.prepare` (untimed; the time is in
-details.csv as ``compile_s``); a solve then takes tens of ms. jaxls' default tolerances leave
-the goal points ~1e-3 mm off (tighter ones made it worse). 6-D goal frames are not wired in.
+``jax.jit``-ed function, compiled once per process, number of points and with or without the
+speed constraint: the XLA compile takes 20-40 s on 2 cores and happens in
+:meth:`PyrokiTrajopt.prepare` (untimed; the time is in details.csv as ``compile_s``); a solve
+then takes tens of ms (with the speed constraint 0.05-2 s: more augmented-Lagrangian rounds).
+jaxls' default tolerances leave the goal points ~1e-3 mm off (tighter ones made it worse).
+6-D goal frames are not wired in.
 """
 
 from __future__ import annotations
@@ -48,6 +58,9 @@ from ikbench.methods.base import check_choice, check_positive, option
 
 #: Stand-in [rad, m] for the infinite limits of continuous joints in the limit constraint.
 UNBOUNDED = 1e6
+#: The fraction of the contract's joint step a segment may take (room for jaxls' constraint
+#: tolerance and round-off).
+STEP_MARGIN = 0.99
 _ROBOTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _SOLVERS: dict = {}
 
@@ -162,13 +175,21 @@ def _cost_factories():
         q = vals[var]
         return jnp.concatenate([lower - q, q - upper])
 
-    _SOLVERS["costs"] = (goal_point, goal_point_cost, pointing, fixed_pose, limits)
+    @jaxls.Cost.factory(kind="constraint_leq_zero", name="ikbench_step_limit")
+    def step_limit(vals, var, previous, max_step):
+        import jax.numpy as jnp
+
+        step = vals[var] - vals[previous]
+        return jnp.concatenate([step - max_step, -step - max_step])
+
+    _SOLVERS["costs"] = (goal_point, goal_point_cost, pointing, fixed_pose, limits, step_limit)
     return _SOLVERS["costs"]
 
 
-def _solver(position: str, max_iterations: int):
-    """The jitted solve for a position mode and iteration cap (see the module docstring)."""
-    key = (position, max_iterations)
+def _solver(position: str, max_iterations: int, speed: bool = False):
+    """The jitted solve for a position mode, iteration cap and whether the joint steps are
+    bounded (see the module docstring)."""
+    key = (position, max_iterations, speed)
     if key in _SOLVERS:
         return _SOLVERS[key]
     jax = _setup_jax()
@@ -177,11 +198,11 @@ def _solver(position: str, max_iterations: int):
     import jaxls
     import pyroki
 
-    goal_point, goal_point_cost, pointing, fixed_pose, limits = _cost_factories()
+    goal_point, goal_point_cost, pointing, fixed_pose, limits, step_limit = _cost_factories()
 
     @jax.jit
     def run(robot, link, T_base_root, axis, points, directions, ends, init, lower, upper,
-            position_weight, pointing_weight, smoothness_weight):
+            position_weight, pointing_weights, smoothness_weight, max_step):
         n_points = points.shape[0]
         inner = jnp.arange(1, n_points - 1)
         k = n_points - 2
@@ -194,13 +215,16 @@ def _solver(position: str, max_iterations: int):
             else goal_point_cost(batched, var(inner), links, T, points[1:-1],
                                  jnp.full((k, 1), position_weight)),
             pointing(batched, var(inner), links, T, jnp.broadcast_to(axis, (k, 3)),
-                     directions[1:-1], jnp.full((k, 1), pointing_weight)),
+                     directions[1:-1], pointing_weights[1:-1, None]),
             pyroki.costs.smoothness_cost(var(jnp.arange(1, n_points)),
                                          var(jnp.arange(n_points - 1)),
                                          jnp.reshape(smoothness_weight, (1, 1))),
             limits(var(jnp.arange(n_points)), lower[None], upper[None]),
             fixed_pose(var(jnp.array([0, n_points - 1])), ends),
         ]
+        if speed:
+            costs.append(step_limit(var(jnp.arange(1, n_points)), var(jnp.arange(n_points - 1)),
+                                    max_step[None]))
         path = var(jnp.arange(n_points))
         problem = jaxls.LeastSquaresProblem(costs=costs, variables=[path]).analyze()
         solution, summary = problem.solve(
@@ -214,7 +238,8 @@ def _solver(position: str, max_iterations: int):
     return run
 
 
-def _inputs(chain: Chain, goals: Goals, settings: PyrokiSettings):
+def _inputs(chain: Chain, goals: Goals, settings: PyrokiSettings, pointing_from: int | None,
+            max_step: np.ndarray | None):
     """The jitted function's arguments for ``goals`` (PyRoki's joint order)."""
     import jax.numpy as jnp
     import jaxlie
@@ -230,20 +255,43 @@ def _inputs(chain: Chain, goals: Goals, settings: PyrokiSettings):
             jnp.asarray(goals.directions), jnp.asarray(np.stack([q_start, q_touch])),
             jnp.asarray((1 - w) * q_start + w * q_touch), jnp.asarray(lower),
             jnp.asarray(upper), jnp.asarray(settings.position_weight),
-            jnp.asarray(settings.pointing_weight), jnp.asarray(settings.smoothness_weight))
+            jnp.asarray(pointing_weights(len(goals), settings.pointing_weight, pointing_from)),
+            jnp.asarray(settings.smoothness_weight),
+            jnp.asarray(np.zeros(chain.dof) if max_step is None else max_step[order]))
 
 
-def solve_chain(chain: Chain, goals: Goals, settings: PyrokiSettings) -> ChainResult:
-    """The PyRoki trajectory optimisation in URDF units (see the module docstring)."""
+def pointing_weights(n_points: int, weight: float, pointing_from: int | None) -> np.ndarray:
+    """(N,) the pointing residual's weight per goal point: ``weight`` from ``pointing_from``
+    on (1: every inner point), 0 before it; all 0 when ``pointing_from`` is None."""
+    out = np.zeros(n_points)
+    if pointing_from is not None:
+        out[max(1, int(pointing_from)):] = weight
+    return out
+
+
+def solve_chain(chain: Chain, goals: Goals, settings: PyrokiSettings,
+                pointing_from: int | None = 1,
+                max_step: np.ndarray | None = None) -> ChainResult:
+    """The PyRoki trajectory optimisation in URDF units (see the module docstring).
+
+    Args:
+        chain, goals, settings: the chain, the task's goals and the settings.
+        pointing_from: the first goal point with a pointing residual (1: every inner point,
+            as without a contract; the contract's ``judged_from(n)``), or None: no pointing.
+        max_step: (dof,) the largest joint change per segment [rad, m] (the contract's speed
+            limit, chain order), or None: no such constraint.
+    """
     _, order, _, _ = pyroki_robot(chain)
-    run = _solver(settings.position, settings.max_iterations)
-    q_pyroki, iterations = run(*_inputs(chain, goals, settings))
+    run = _solver(settings.position, settings.max_iterations, max_step is not None)
+    q_pyroki, iterations = run(*_inputs(chain, goals, settings, pointing_from, max_step))
     q = np.empty((len(goals), chain.dof))
     q[:, order] = np.asarray(q_pyroki, dtype=float)
     inside = chain.clip(q)
     return ChainResult(inside, int(iterations), int(iterations) < settings.max_iterations, {
         "clipped_rows": int(np.sum(np.any(inside != q, axis=1))),
         "max_limit_violation": float(np.max(np.abs(inside - q), initial=0.0)),
+        "pointing_from": -1 if pointing_from is None else int(pointing_from),
+        "speed_bounded": max_step is not None,
         "iterations_are": "jaxls Levenberg-Marquardt steps"})
 
 
@@ -252,8 +300,9 @@ class PyrokiTrajopt(LibraryMethod):
 
     name = "pyroki"
     description = ("library: PyRoki (almond-pyroki) trajectory optimisation of the whole path "
-                   "(jaxls least squares: goal-point constraints, pointing and smoothness "
-                   "costs, fixed start and touch poses); JAX compiles once per n (untimed)")
+                   "(jaxls least squares: goal-point constraints, pointing costs where the "
+                   "contract judges them, smoothness cost, fixed start and touch poses, the "
+                   "contract's joint steps as constraints); JAX compiles once per n (untimed)")
     library = "almond-pyroki"
     Settings = PyrokiSettings
     whole_path = True
@@ -261,25 +310,62 @@ class PyrokiTrajopt(LibraryMethod):
 
     def check_tasks(self, robot, tasks) -> None:
         super().check_tasks(robot, tasks)
-        self._sizes = sorted({len(task.goal_points_mm) for task in tasks})
+        self._sizes = sorted({(len(task.goal_points_mm), _speed_limited(task))
+                              for task in tasks})
 
     def prepare(self, robot) -> None:
-        """Untimed: parse the URDF, and JIT-compile the solve for every task size seen by
-        :meth:`check_tasks` (one solve of a placeholder task each)."""
+        """Untimed: parse the URDF, and JIT-compile the solve for every task size (and with or
+        without the speed constraint) seen by :meth:`check_tasks` (one solve of a placeholder
+        task each)."""
         from baselines._chain import chain_of
 
         chain = chain_of(robot)
         pyroki_robot(chain)
         started = time.perf_counter()
-        for size in getattr(self, "_sizes", []):
+        for size, speed in getattr(self, "_sizes", []):
             q = np.clip(np.zeros(chain.dof), np.nan_to_num(chain.lower),
                         np.nan_to_num(chain.upper))
             line = np.linspace([0.0, 0.0, 0.0], [0.1, 0.0, 0.0], size)
             placeholder = Goals(line, np.tile([0.0, 0.0, 1.0], (size, 1)), None, q, q)
-            solve_chain(chain, placeholder, self.settings)
+            solve_chain(chain, placeholder, self.settings,
+                        max_step=np.ones(chain.dof) if speed else None)
         self._compile_s = time.perf_counter() - started
 
+    def solve(self, robot, task, progress=None):
+        """As :meth:`LibraryMethod.solve`; the task's contract says where to point and how
+        fast the joints may move."""
+        self._contract = getattr(task, "contract", None)
+        try:
+            return super().solve(robot, task, progress)
+        finally:
+            self._contract = None
+
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
-        result = solve_chain(chain, goals, self.settings)
+        contract = getattr(self, "_contract", None)
+        if contract is None:  # no contract: as before it, every inner point pointed
+            result = solve_chain(chain, goals, self.settings)
+        else:
+            steps = len(goals) - 1
+            result = solve_chain(chain, goals, self.settings,
+                                 contract.judged_from(steps) if contract.pointing else None,
+                                 contract_step(robot, contract, steps))
         result.info["compile_s"] = getattr(self, "_compile_s", float("nan"))
         return result
+
+
+def _speed_limited(task) -> bool:
+    """True when the task's contract bounds the joint steps (a speed limit is known)."""
+    contract = getattr(task, "contract", None)
+    return contract is not None and contract.max_step(len(task.goal_points_mm) - 1) is not None
+
+
+def contract_step(robot, contract, steps: int) -> np.ndarray | None:
+    """(dof,) :data:`STEP_MARGIN` of the contract's largest joint step per segment at n =
+    ``steps`` in URDF units [rad, m] (the motor map is affine: |scale| times the step, deg to
+    rad, mm to m); None when no speed limit is known."""
+    pose_step = contract.max_step(steps)
+    if pose_step is None:
+        return None
+    step = np.abs(robot.to_urdf(np.asarray(pose_step, dtype=float))
+                  - robot.to_urdf(np.zeros(robot.dof)))
+    return STEP_MARGIN * step

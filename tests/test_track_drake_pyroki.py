@@ -1,0 +1,146 @@
+"""Drake IK's tracking scheme and the two trajectory optimisers (Drake, PyRoki) under the task
+contract: the paper's track (start and touch poses fixed), the joint speed limit, pointing
+only where it is judged.
+
+The Drake and PyRoki tests are skipped only when ``pydrake`` / ``pyroki`` is not installed
+(``pip install -e '.[libs]'``).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from baselines import pyroki_trajopt
+from baselines.drake_ik import contract_step, pose_metric
+from baselines.pyroki_trajopt import pointing_weights
+from ikbench import load_robot, load_targets
+from ikbench.core.contract import contract_for, judge
+from ikbench.core.metrics import contract_metrics
+from ikbench.core.task import line_tasks
+from ikbench.methods.registry import get_method
+
+needs_drake = pytest.mark.skipif(importlib.util.find_spec("pydrake") is None,
+                                 reason="needs drake (pip install -e '.[libs]')")
+needs_pyroki = pytest.mark.skipif(importlib.util.find_spec("pyroki") is None,
+                                  reason="needs almond-pyroki (pip install -e '.[libs]')")
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot()
+
+
+def paper_tasks(robot, only: str, contract=None):
+    """The paper's line tasks (n = 50) for the touch poses ``only``, with the contract."""
+    return line_tasks(robot, load_targets(None, robot).select(only), contract)
+
+
+def solve_all(method, robot, tasks):
+    method.check_tasks(robot, tasks)
+    method.prepare(robot)
+    return [method.solve(robot, task) for task in tasks]
+
+
+def figures(robot, task, solution):
+    return contract_metrics(robot, task, solution.poses_deg, task.contract)
+
+
+# ----- the conversions (no library needed) ------------------------------------------------------
+def test_the_contracts_step_in_urdf_units(robot):
+    contract = contract_for(robot)
+    pose_step = contract.max_step(50)  # 10.8 motor deg for every NICO joint
+    step = pyroki_trajopt.contract_step(robot, contract, 50)
+    expected = 0.99 * np.radians(np.abs(np.asarray(robot.scale)) * pose_step)
+    np.testing.assert_allclose(step, expected, rtol=1e-12)
+    np.testing.assert_allclose(contract_step(robot, contract, 50), expected, rtol=1e-12)
+    assert contract_step(robot, None, 50) is None
+    assert contract_step(robot, replace(contract, max_speed=None), 50) is None
+    # the track's costs weigh a joint in motor deg: NICO's 0.222-scale motors 20.25x
+    np.testing.assert_allclose(pose_metric(robot), 1 / np.asarray(robot.scale) ** 2)
+
+
+def test_pointing_weights_start_where_pointing_is_judged():
+    np.testing.assert_array_equal(pointing_weights(6, 2.0, 1), [0, 2, 2, 2, 2, 2])
+    np.testing.assert_array_equal(pointing_weights(6, 2.0, 3), [0, 0, 0, 2, 2, 2])
+    np.testing.assert_array_equal(pointing_weights(6, 2.0, None), np.zeros(6))
+
+
+# ----- drake-ik: track and walk ----------------------------------------------------------------
+@needs_drake
+def test_drake_ik_tracks_from_the_start_pose_onto_the_touch_pose(robot):
+    tasks = paper_tasks(robot, "1,7")
+    method = get_method("drake-ik")()
+    assert method.settings.scheme == "track"
+    assert method.fixed_poses() == frozenset({"start_pose", "touch_pose"})
+    for task, solution in zip(tasks, solve_all(method, robot, tasks)):
+        np.testing.assert_array_equal(solution.poses_deg[0], task.start_pose_deg)
+        np.testing.assert_array_equal(solution.poses_deg[-1], task.end_pose_deg)
+        found = figures(robot, task, solution)
+        assert judge(task.contract, found) == dict.fromkeys(task.contract.criteria(), True), \
+            (task.name, found)
+        assert found["speed_limit_use"] <= 1.0
+        assert found["line_distance_max_mm"] < 1e-2
+        assert solution.converged and solution.info["scheme"] == "track"
+        assert solution.info["speed_bounded"]
+
+
+@needs_drake
+def test_drake_ik_walk_keeps_the_authors_scheme(robot):
+    tasks = paper_tasks(robot, "1")
+    method = get_method("drake-ik")(scheme="walk")
+    assert method.fixed_poses() == frozenset({"touch_pose"})
+    (solution,) = solve_all(method, robot, tasks)
+    found = figures(robot, tasks[0], solution)
+    assert found["start_pose_error_deg"] > 1.0  # the walk ends wherever it ends
+    np.testing.assert_array_equal(solution.poses_deg[-1], tasks[0].end_pose_deg)
+    assert solution.info["scheme"] == "walk"
+
+
+# ----- the trajectory optimisers under the contract ---------------------------------------------
+@needs_drake
+def test_drake_trajopt_meets_the_contract(robot):
+    tasks = paper_tasks(robot, "1")
+    method = get_method("drake-trajopt")()
+    (solution,) = solve_all(method, robot, tasks)
+    found = figures(robot, tasks[0], solution)
+    assert found["speed_limit_use"] <= 1.0
+    assert judge(tasks[0].contract, found) == dict.fromkeys(tasks[0].contract.criteria(), True), \
+        found
+    assert solution.info["speed_bounded"]
+    assert solution.info["pointing_from"] == tasks[0].contract.judged_from(50)
+
+
+@needs_drake
+def test_drake_trajopt_without_pointing_in_the_contract(robot):
+    contract = contract_for(robot, pointing="off")
+    tasks = paper_tasks(robot, "7", contract)
+    (solution,) = solve_all(get_method("drake-trajopt")(), robot, tasks)
+    found = figures(robot, tasks[0], solution)
+    assert "pointing" not in contract.criteria()
+    assert judge(contract, found) == dict.fromkeys(contract.criteria(), True), found
+    assert solution.info["pointing_from"] == -1
+
+
+@needs_drake
+def test_drake_trajopt_without_a_contract_is_unchanged(robot):
+    (task,) = paper_tasks(robot, "1")
+    plain = replace(task, contract=None)
+    method = get_method("drake-trajopt")()
+    (solution,) = solve_all(method, robot, [plain])
+    assert solution.info["pointing_from"] == 1 and not solution.info["speed_bounded"]
+
+
+@needs_pyroki
+def test_pyroki_meets_the_contract(robot):
+    tasks = paper_tasks(robot, "1")
+    (solution,) = solve_all(get_method("pyroki")(), robot, tasks)
+    found = figures(robot, tasks[0], solution)
+    assert found["speed_limit_use"] <= 1.0
+    assert judge(tasks[0].contract, found) == dict.fromkeys(tasks[0].contract.criteria(), True), \
+        found
+    assert solution.info["speed_bounded"]
+    assert solution.info["pointing_from"] == tasks[0].contract.judged_from(50)
