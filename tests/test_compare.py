@@ -11,6 +11,7 @@ import pytest
 from ikbench.cli import main
 from ikbench.paper.comparison import (
     BASELINE,
+    BASELINE_WALK,
     OURS,
     check_claims,
     compare,
@@ -24,16 +25,20 @@ from ikbench.paper.values import paper_values
 from tests.conftest import PAPER_START
 
 TOUCH_1 = [33, 39, 25, 134, 102, 77, -168]
+#: The task each scheme solved, as the report labels its runs.
+WALK = "walk from the touch pose: touch-pose-only task"
+TRACK = "track from the start pose: the paper's task"
 
 
 @pytest.fixture(scope="module")
 def small_runs(tmp_path_factory):
-    """ours (capped at 300 iterations) and sequential-ik on trajectory 1, n = 10."""
+    """ours (capped at 300 iterations) and the paper's baseline, sequential-ik-walk, on
+    trajectory 1, n = 10, into sequential-ik/ (as ``ikbench reproduce`` names it)."""
     out = tmp_path_factory.mktemp("compare")
     common = ["--only", "1", "--steps", "10", "--output", str(out), "--quiet",
               "--no-animation"]
     assert main(["run", "--method", "ours", "--max-iterations", "300", *common]) == 0
-    assert main(["run", "--method", "sequential-ik", *common]) == 0
+    assert main(["run", "--method", BASELINE_WALK, "--name", BASELINE, *common]) == 0
     return out
 
 
@@ -49,7 +54,7 @@ def mode_runs(small_runs, tmp_path_factory):
     common = ["--only", "1", "--steps", "10", "--output", str(out), "--quiet",
               "--no-animation"]
     for mode in ("position", "pointing"):
-        assert main(["run", "--method", "sequential-ik", "--orientation", mode, "--name",
+        assert main(["run", "--method", BASELINE_WALK, "--orientation", mode, "--name",
                      f"sequential-ik-{mode}", *common]) == 0
     for decoy in ("ablation", "batch", "sweep"):  # another command's folder, not a run
         shutil.copytree(out / "sequential-ik-position", out / decoy)
@@ -199,7 +204,8 @@ def test_every_run_folder_side_by_side_and_claims_per_baseline_mode(mode_runs, c
         assert f"| {decoy} |" not in text and f"`{decoy}`" not in text
     claims = text.split("## The paper's claims")[1].split("\n## ")[0]
     headings = [line for line in claims.splitlines() if line.startswith("### ")]
-    assert headings == [f"### `{name}` (--orientation {mode}) against `ours`" for name, mode in
+    assert headings == [f"### `{name}` (sequential-ik-walk, --orientation {mode}; {WALK}) "
+                        "against `ours`" for name, mode in
                         [("sequential-ik", "frame"), ("sequential-ik-pointing", "pointing"),
                          ("sequential-ik-position", "position")]]
     tables = claims.split("### ")[1:]
@@ -207,31 +213,41 @@ def test_every_run_folder_side_by_side_and_claims_per_baseline_mode(mode_runs, c
                                     "sequential-ik-position"]):
         assert table.count("| holds |") + table.count("| does not hold |") == 4
         assert f"ratio ours / {name} = " in table and table.startswith(f"`{name}` ")
+        assert "Task solved: walk from the touch pose (touch-pose-only task: the start pose " \
+            "is free)." in table
     modes = text.split("## The baseline's orientation modes")[1].split("\n## ")[0]
     rows = [line for line in modes.splitlines() if line.startswith("| ")][1:]
-    assert [row.split(" | ")[0:2] for row in rows] == [
-        ["| ours", ""], ["| sequential-ik", "frame"], ["| sequential-ik-pointing", "pointing"],
-        ["| sequential-ik-position", "position"], ["| paper (ikpy, other URDF)", ""]]
-    assert "## Beside the paper's Table 2: sequential-ik (--orientation frame)" in text
+    assert [row.split(" | ")[0:4] for row in rows] == [
+        ["| ours", "ours", "", "the paper's task (whole trajectory; start and touch poses in "
+         "its loss)"],
+        *[[f"| {name}", BASELINE_WALK, mode, "touch-pose-only (walk from the touch pose; the "
+           "start pose is free)"] for name, mode in
+          [("sequential-ik", "frame"), ("sequential-ik-pointing", "pointing"),
+           ("sequential-ik-position", "position")]],
+        ["| paper (ikpy, other URDF)", "", "", "touch-pose-only (the authors' walk from the "
+         "touch pose)"]]
+    assert f"## Beside the paper's Table 2: sequential-ik (sequential-ik-walk, --orientation " \
+        f"frame; {WALK})" in text
     for name in ("sequential-ik-pointing", "sequential-ik-position"):
         assert f"| 1 | {name} |" in text  # side by side per trajectory
 
 
 @pytest.fixture(scope="module")
 def ikpy_runs(small_runs, tmp_path_factory):
-    """ours, sequential-ik and the authors' ikpy call (needs ikpy: the [libs] extra)."""
+    """ours, sequential-ik-walk and the authors' ikpy call (ikpy-walk into ikpy/, as
+    ``ikbench reproduce`` names it; needs ikpy: the [libs] extra)."""
     import shutil
 
     from ikbench.methods.registry import method_status
 
-    status = method_status()["ikpy"]
+    status = method_status()["ikpy-walk"]
     if not status.available:
-        pytest.skip(f"ikpy: {status.reason}")
+        pytest.skip(f"ikpy-walk: {status.reason}")
     out = tmp_path_factory.mktemp("ikpy")
     for name in (OURS, BASELINE):
         shutil.copytree(small_runs / name, out / name)
-    assert main(["run", "--method", "ikpy", "--only", "1", "--steps", "10", "--output",
-                 str(out), "--quiet"]) == 0
+    assert main(["run", "--method", "ikpy-walk", "--name", "ikpy", "--only", "1", "--steps",
+                 "10", "--output", str(out), "--quiet", "--no-animation"]) == 0
     return out
 
 
@@ -242,15 +258,21 @@ def test_ikpy_runs_are_baseline_runs_with_their_own_table2(ikpy_runs, tmp_path):
     text = (ikpy_runs / "report.md").read_text()
     claims = text.split("## The paper's claims")[1].split("\n## ")[0]
     assert [line for line in claims.splitlines() if line.startswith("### ")] == [
-        "### `sequential-ik` (--orientation frame) against `ours`",
-        "### `ikpy` (--ikpy-orientation position) against `ours`"]
+        f"### `sequential-ik` (sequential-ik-walk, --orientation frame; {WALK}) against `ours`",
+        f"### `ikpy` (ikpy-walk, --ikpy-orientation position; {WALK}) against `ours`"]
     assert "`ikpy`, the authors' own library, solves" in claims
-    assert "## Beside the paper's Table 2: sequential-ik (--orientation frame)" in text
-    assert "## Beside the paper's Table 2: ikpy (--ikpy-orientation position), the authors' " \
-        "call" in text
+    assert f"## Beside the paper's Table 2: sequential-ik (sequential-ik-walk, --orientation " \
+        f"frame; {WALK})" in text
+    assert f"## Beside the paper's Table 2: ikpy (ikpy-walk, --ikpy-orientation position; " \
+        f"{WALK}), the authors' call" in text
+    assert "their library (ikpy) and their call" in text.split("the authors' call")[1]
     rows = compare(ikpy_runs).modes_table().set_index("run")
     assert rows.loc["ikpy", "orientation"] == "position"
-    assert rows.loc["ikpy", "points missing the IK tolerance (of 10, per trajectory)"] == "-"
+    assert rows.loc["ikpy", "method"] == "ikpy-walk"
+    details = pd.read_csv(ikpy_runs / "ikpy" / "details.csv")
+    missed = int(details["points_not_converged"].iloc[0])  # its answers checked by FK
+    assert rows.loc["ikpy", "points missing the IK tolerance (of 10, per trajectory)"] == \
+        ("none" if missed == 0 else str(missed))
     # ours and ikpy alone are a comparison too: ikpy is the baseline
     alone = tmp_path / "alone"
     for name in (OURS, "ikpy"):
@@ -331,3 +353,102 @@ def test_run_name_sets_the_folder_and_run_json(tmp_path):
     assert list(table["method"]) == ["sequential-ik"]
     assert (folder / "report.md").read_text().startswith(
         "# position-mode (sequential-ik): ")
+
+
+@pytest.fixture(scope="module")
+def scheme_runs(small_runs, tmp_path_factory):
+    """ours, the paper's baseline walk (sequential-ik-walk) and a sequential-ik track run
+    (its default scheme: the paper's task) into the folder named sequential-ik."""
+    import shutil
+
+    from ikbench.studies.run import run
+
+    out = tmp_path_factory.mktemp("schemes")
+    shutil.copytree(small_runs / OURS, out / OURS)
+    for method in (BASELINE_WALK, BASELINE):  # the track takes the folder sequential-ik
+        run(method, only="1", steps=10, output=out, progress=False, animation=False)
+    return out
+
+
+def test_report_states_the_task_each_baseline_run_solved(scheme_runs):
+    from ikbench.paper.comparison import ikpy_table2_run, table2_run
+
+    result = compare(scheme_runs)
+    runs = result.runs
+    assert json.loads((scheme_runs / BASELINE / "run.json").read_text())["settings"][
+        "settings"]["scheme"] == "track"
+    assert (runs[BASELINE].scheme, runs[BASELINE_WALK].scheme) == ("track", "walk")
+    assert result.baselines == [BASELINE_WALK, BASELINE]  # the walk (Table 2's scheme) first
+    assert table2_run(runs) == BASELINE_WALK and ikpy_table2_run(runs) is None
+    path = write_comparison_report(scheme_runs)
+    text = path.read_text()
+    claims = text.split("## The paper's claims")[1].split("\n## ")[0]
+    assert [line for line in claims.splitlines() if line.startswith("### ")] == [
+        f"### `{BASELINE_WALK}` (--orientation frame; {WALK}) against `ours`",
+        f"### `{BASELINE}` (--orientation pointing; {TRACK}) against `ours`"]
+    walk, track = claims.split("\n### ")[1:]
+    assert "Task solved: walk from the touch pose (touch-pose-only task: the start pose is " \
+        "free)." in walk
+    assert "Task solved: track from the start pose (the paper's task: start and touch poses " \
+        "fixed)." in track
+    # the start-pose claim: checked with numbers on both, and says what it is about
+    walk_row = next(line for line in walk.splitlines() if "start pose varies" in line)
+    track_row = next(line for line in track.splitlines() if "start pose varies" in line)
+    assert "a property of the walk" in walk_row and walk_row.endswith("| holds |")
+    assert "by construction" in track_row and track_row.endswith("| does not hold |")
+    start = result.summary.set_index("method").loc[BASELINE, "median |p_0 - p^s| [deg]"]
+    assert f"{BASELINE} median {start:.2f}" in track_row
+    note = next(line for line in track.splitlines()
+                if line.startswith("The start-pose claim is about the walk"))
+    assert "the walks from the touch pose (touch-pose-only task" in note
+    assert "the tracks from the start pose (the paper's task" in note
+    # the modes table: a column for the task solved
+    rows = result.modes_table().set_index("run")["task solved"]
+    assert rows[BASELINE_WALK].startswith("touch-pose-only")
+    assert rows[BASELINE].startswith("the paper's task")
+    # Table 2 is the walk, and says so
+    assert (f"## Beside the paper's Table 2: {BASELINE_WALK} (--orientation frame; {WALK})"
+            in text)
+    assert "the task the paper's baseline solved for its Table 2" in text
+    # the track run's own report says which task it solved beside Table 2
+    own = (scheme_runs / BASELINE / "report.md").read_text()
+    assert "Task solved: track from the start pose (the paper's task" in own
+    assert "not comparable with the paper's column" in own
+
+
+def test_scheme_of_a_run_and_old_folders_are_walks():
+    from ikbench.paper.comparison import MethodRun, baseline_names, ikpy_table2_run, table2_run
+
+    def made(name, method, **settings):
+        return MethodRun(name, {"method": method, "settings": {"settings": settings}}, {}, {})
+
+    runs = {r.name: r for r in [
+        made("ours", "ours", init="random"),
+        made("ikpy", "ikpy", orientation="position"),  # before the schemes: a walk
+        made("ikpy-track", "ikpy", scheme="track", orientation="position"),
+        made("ikpy-pointing", "ikpy-walk", scheme="walk", orientation="pointing"),
+        made("sequential-ik", "sequential-ik", orientation="frame"),  # old: a walk
+        made("seq-track", "sequential-ik", scheme="track", orientation="frame"),
+    ]}
+    assert runs["ours"].scheme is None and runs["ours"].label == "ours"
+    assert runs["ikpy"].scheme == "walk" and runs["seq-track"].scheme == "track"
+    assert runs["ikpy-pointing"].family == "ikpy" and runs["ikpy-pointing"].is_baseline
+    assert runs["sequential-ik"].label == f"sequential-ik (--orientation frame; {WALK})"
+    assert runs["ikpy-track"].label == (f"ikpy-track (ikpy, --ikpy-orientation position; "
+                                        f"{TRACK})")
+    assert baseline_names(runs) == ["sequential-ik", "seq-track", "ikpy", "ikpy-pointing",
+                                    "ikpy-track"]
+    assert table2_run(runs) == "sequential-ik" and ikpy_table2_run(runs) == "ikpy"
+    del runs["sequential-ik"], runs["ikpy"]
+    assert table2_run(runs) == "ikpy-pointing"  # a walk before any track
+    assert ikpy_table2_run(runs) is None  # the authors' call is a walk in position mode
+
+
+def test_start_pose_claim_names_the_scheme():
+    walk = check_claims(_summary({}, {}), scheme="walk")["paper's claim"].iloc[2]
+    track = check_claims(_summary({}, {}), scheme="track")["paper's claim"].iloc[2]
+    assert walk.startswith("its start pose varies, while ours is constant (a property of "
+                           "the walk") and "touch-pose-only" in walk
+    assert "the paper's task" in track and "by construction" in track
+    assert check_claims(_summary({}, {}))["paper's claim"].iloc[2] == \
+        "its start pose varies, while ours is constant"

@@ -17,9 +17,11 @@ from ikbench.cli import main
 from ikbench.core.errors import InputError
 from ikbench.methods.registry import method_status
 
-#: Table 2 as the authors ran it (ikpy) is a stage when ikpy is installed ([libs]).
-IKPY = method_status()["ikpy"].available
+#: Table 2 as the authors ran it (ikpy-walk) is a stage when ikpy is installed ([libs]).
+IKPY = method_status()["ikpy-walk"].available
 STAGES = 9 if IKPY else 8
+#: How the report labels the walks reproduce runs (the paper's baseline's task).
+WALK = "walk from the touch pose: touch-pose-only task"
 
 
 @pytest.fixture(scope="module")
@@ -50,12 +52,16 @@ def test_quick_pipeline_end_to_end(quick):
                        ("sequential-ik-position", "position")]:
         record = json.loads((out / name / "run.json").read_text())
         assert record["settings"]["settings"]["orientation"] == mode and record["name"] == name
+        # the authors' walk, as Table 2 was made (sequential-ik itself tracks)
+        assert record["method"] == "sequential-ik-walk"
+        assert record["settings"]["settings"]["scheme"] == "walk"
     assert json.loads((out / "ours-init-interpolation" / "run.json").read_text())[
         "settings"]["settings"]["init"] == "interpolation"
-    if IKPY:  # the authors' call: ikpy, position only
+    if IKPY:  # the authors' call: ikpy walked back from the touch pose, position only
         record = json.loads((out / "ikpy" / "run.json").read_text())
-        assert record["method"] == "ikpy" and record["settings"]["settings"] == {
-            "orientation": "position"}
+        settings = record["settings"]["settings"]
+        assert record["method"] == "ikpy-walk" and record["name"] == "ikpy"
+        assert settings["orientation"] == "position" and settings["scheme"] == "walk"
     ablation = pd.read_csv(out / "ablation/table.csv")
     assert list(ablation["variant"]) == ["full", "no-L0", "no-L1", "no-L2", "no-L3", "no-L4",
                                          "no-L5", "no-L6", "no-L2-L3-L4-L5"]
@@ -106,11 +112,19 @@ def test_readme_text_is_measured_and_self_contained(quick):
     position = pd.read_csv(out / "sequential-ik-position" / "table.csv")
     assert (f"mean pointing deviations of {position['pointing_deviation_mean_deg'].iloc[0]:.1f}"
             " deg per trajectory against the paper's 65 deg") in readme
+    # the task the baseline runs solved: the authors' walk (touch pose only)
+    assert "Task solved: the authors' walk back from the touch pose (touch-pose-only task: " \
+        "the start pose is free), as the paper's Table 2 was made" in readme
+    assert "| task solved |" in modes
+    assert "all walks from the touch pose (touch-pose-only task)" in modes
     # one claims table per mode, each with the line distance in the pointing claim
     for name, mode in [("sequential-ik", "frame"), ("sequential-ik-pointing", "pointing"),
                        ("sequential-ik-position", "position")]:
-        assert f"### `{name}` (--orientation {mode}) against `ours`" in readme
-        claims = readme.split(f"### `{name}` (--orientation {mode})")[1].split("\n### ")[0]
+        heading = f"### `{name}` (sequential-ik-walk, --orientation {mode}; {WALK})"
+        assert f"{heading} against `ours`" in readme
+        claims = readme.split(heading)[1].split("\n### ")[0]
+        assert "Task solved: walk from the touch pose (touch-pose-only task" in claims
+        assert "a property of the walk" in claims
         pointing = next(line for line in claims.splitlines()
                         if line.startswith("| its pointing deviation is much worse"))
         assert "meanwhile mean line distance: ours " in pointing and f", {name} " in pointing
@@ -163,14 +177,14 @@ def test_missing_baseline_is_a_clear_error_before_any_work(tmp_path, monkeypatch
     real = reproduce_module.get_method
 
     def no_baseline(name):
-        if name == "sequential-ik":
+        if name == "sequential-ik-walk":
             raise InputError(f"--method: unknown method {name!r}; available: ours")
         return real(name)
 
     monkeypatch.setattr(reproduce_module, "get_method", no_baseline)
     assert main(["reproduce", "--quick", "--output", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("ikbench: error: Table 2 needs the method 'sequential-ik' "
+    assert err.startswith("ikbench: error: Table 2 needs the method 'sequential-ik-walk' "
                           "(baselines/sequential_ik.py)")
     assert not (tmp_path / "r").exists()
 
@@ -183,20 +197,22 @@ def test_missing_comparison_is_a_clear_error(tmp_path, monkeypatch, capsys):
     assert not (tmp_path / "r").exists()
 
 
-@pytest.mark.skipif(not IKPY, reason=f"ikpy: {method_status()['ikpy'].reason}")
+@pytest.mark.skipif(not IKPY, reason=f"ikpy-walk: {method_status()['ikpy-walk'].reason}")
 def test_readme_shows_table2_as_the_authors_ran_it(quick):
     out, _, _ = quick
     readme = (out / "README.md").read_text()
-    section = readme.split("### Table 2 as the authors ran it (`ikpy`, their call)")[1]
+    section = readme.split("### Table 2 as the authors ran it (`ikpy-walk`, their call)")[1]
     section = section.split("\n### ")[0]
     table = pd.read_csv(out / "ikpy" / "table.csv")
     assert f"| {table['line_distance_mean_mm'].iloc[0]:.2f} |" in section
     assert "their library (ikpy) and their call" in section
-    assert "### `ikpy` (--ikpy-orientation position) against `ours`" in readme
-    assert "The authors' own call on this robot (`ikpy`" in readme
+    assert "Task solved: the authors' walk back from the touch pose" in section
+    assert f"### `ikpy` (ikpy-walk, --ikpy-orientation position; {WALK}) against `ours`" \
+        in readme
+    assert "The authors' own call on this robot (`ikpy-walk`" in readme
     report = (out / "report.md").read_text()
-    assert "## Beside the paper's Table 2: ikpy (--ikpy-orientation position), the authors' " \
-        "call" in report
+    assert f"## Beside the paper's Table 2: ikpy (ikpy-walk, --ikpy-orientation position; " \
+        f"{WALK}), the authors' call" in report
 
 
 def test_a_skipped_authors_stage_is_explained(monkeypatch, tmp_path):

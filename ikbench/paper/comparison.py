@@ -13,8 +13,18 @@ the pointing vector is much worse, the start pose varies significantly (constant
 and the fluency is comparable. :func:`check_claims` turns each into a measured ratio and a
 stated threshold (:data:`FASTER_FACTOR`, ...), with a verdict *holds* / *does not hold*, for
 every baseline run against the folder ``ours``. Baseline runs are the folders whose run.json
-names the method ``sequential-ik`` (e.g. one per ``--orientation`` mode) or ``ikpy``, the
-authors' own library (``--ikpy-orientation position`` is the call they made for Table 2).
+names a method of the families :data:`METHOD_FAMILIES`: ``sequential-ik`` /
+``sequential-ik-walk`` (e.g. one per ``--orientation`` mode) and ``ikpy`` / ``ikpy-walk``,
+the authors' own library (``ikpy-walk --ikpy-orientation position`` is the call they made for
+Table 2).
+
+Every baseline run states the task it solved, from its scheme (run.json's settings
+``scheme``; folders written before the schemes existed have none and are walks):
+:data:`SCHEME_TASKS`. The paper's baseline walked back from the touch pose (the start pose is
+wherever the walk ends: a touch-pose-only task); a ``track`` run starts at the recorded start
+pose and lands on the touch pose (the paper's own task, Sec. 3). The paper's claim that the
+baseline's start pose varies is a property of the walk; the report checks it on every run and
+says what it shows for each scheme.
 """
 
 from __future__ import annotations
@@ -36,6 +46,20 @@ from ikbench.studies.run import RESERVED_NAMES, robot_from_record
 OURS, BASELINE = "ours", "sequential-ik"
 #: The paper authors' own baseline library; its runs are baseline runs too.
 IKPY = "ikpy"
+#: The walk variants of the baselines (the paper's Table 2 scheme: back from the touch pose).
+BASELINE_WALK, IKPY_WALK = "sequential-ik-walk", "ikpy-walk"
+#: Baseline method -> its family (the registered methods that share options and modes).
+METHOD_FAMILIES = {BASELINE: BASELINE, BASELINE_WALK: BASELINE, IKPY: IKPY, IKPY_WALK: IKPY}
+#: The scheme of a baseline run whose run.json records none (written before the schemes:
+#: every such sequential-ik and ikpy run walked back from the touch pose).
+DEFAULT_SCHEME = "walk"
+#: Scheme -> (how the run solved it, the task it solved) in words.
+SCHEME_TASKS = {
+    "walk": ("walk from the touch pose", "touch-pose-only task: the start pose is free"),
+    "track": ("track from the start pose", "the paper's task: start and touch poses fixed"),
+}
+#: The schemes in report order (the paper's Table 2 scheme first).
+SCHEME_ORDER = ("walk", "track")
 REPORT_NAME = "report.md"
 FIGURE_NAME = "pointing_deviation_per_step.png"
 #: "much faster": the median duration of ours is at least this many times the baseline's.
@@ -51,17 +75,17 @@ COMPARABLE_FACTOR = 2.0
 #: The baseline's orientation modes, in report order, and what each solves per point.
 ORIENTATION_MODES = {
     "frame": "goal point, line direction and a fixed roll, the full frame (the paper's text; "
-             "the default, and Table 2)",
+             f"the default of `{BASELINE_WALK}`, and Table 2)",
     "pointing": "goal point and pointing direction, roll free",
     "position": "goal point only (what the authors' ikpy call solved)",
 }
 #: ikpy's modes (``--ikpy-orientation``), in report order.
 IKPY_MODES = {
     "position": "goal point only, by the authors' own call (ikpy's inverse_kinematics_frame "
-                "without orientation_mode: Table 2 as they ran it)",
+                f"without orientation_mode; walked, `{IKPY_WALK}`: Table 2 as they ran it)",
     "pointing": "goal point and pointing axis (ikpy's orientation_mode), roll free",
 }
-#: The baseline methods in report order: the option naming their mode, and their modes.
+#: The baseline method families in report order: the option naming their mode, and their modes.
 BASELINE_METHODS = {BASELINE: ("--orientation", ORIENTATION_MODES),
                     IKPY: ("--ikpy-orientation", IKPY_MODES)}
 PAPER_BASELINE_NOTE = (
@@ -70,9 +94,11 @@ PAPER_BASELINE_NOTE = (
     "claims are expected to carry over, not its numbers. Their script (andylucny/nico2, "
     "`generate-ikpy/generate-ikpy.py`) passes a target frame to ikpy's "
     "`inverse_kinematics_frame` without `orientation_mode`, and ikpy then fits the position "
-    "only. `ikbench run --method ikpy` makes their call on the paper's robot (Table 2 as they "
-    "ran it); `ikbench run --method sequential-ik --orientation position` solves the same "
-    "problem by damped least squares.")
+    "only, walking back from the touch pose (the start pose is free: a touch-pose-only task). "
+    f"`ikbench run --method {IKPY_WALK}` makes their call on the paper's robot (Table 2 as "
+    f"they ran it); `ikbench run --method {BASELINE_WALK} --orientation position` solves the "
+    f"same problem by damped least squares. `{BASELINE}` and `{IKPY}` (scheme track) solve "
+    "the paper's own task instead: from the recorded start pose onto the touch pose.")
 IKPY_TABLE2_NOTE = (
     "This is the paper's baseline as the authors ran it: their library (ikpy) and their call "
     "(`inverse_kinematics_frame` with a target frame and no `orientation_mode`, so the position "
@@ -111,25 +137,86 @@ class MethodRun:
         return str(self.record.get("method") or self.name)
 
     @property
+    def family(self) -> str:
+        """The baseline family of the method (``sequential-ik`` for ``sequential-ik-walk``,
+        ``ikpy`` for ``ikpy-walk``), else the method itself."""
+        return METHOD_FAMILIES.get(self.method, self.method)
+
+    @property
+    def is_baseline(self) -> bool:
+        """Whether the run is one of the paper's baseline families (:data:`BASELINE_METHODS`)."""
+        return self.family in BASELINE_METHODS
+
+    @property
     def orientation(self) -> str | None:
         """The baseline's ``--orientation`` mode from run.json (None for other methods)."""
-        settings = self.record.get("settings") or {}
-        settings = settings.get("settings", settings) if isinstance(settings, dict) else {}
-        mode = settings.get("orientation") if isinstance(settings, dict) else None
+        mode = run_settings(self.record).get("orientation")
         return str(mode) if mode is not None else None
+
+    @property
+    def scheme(self) -> str | None:
+        """``walk`` or ``track``: run.json's settings ``scheme``; a baseline run that records
+        none is a walk (:data:`DEFAULT_SCHEME`); None for other methods without one."""
+        return scheme_of(self.method, self.record)
+
+    @property
+    def task(self) -> str:
+        """The task the run solved, in words: ``walk from the touch pose (touch-pose-only
+        task: the start pose is free)`` or ``track from the start pose (the paper's task:
+        start and touch poses fixed)``; "" when the run has no scheme."""
+        return task_text(self.scheme)
 
     @property
     def mode_flag(self) -> str:
         """The option naming the run's mode: ``--orientation`` or ``--ikpy-orientation``."""
-        return BASELINE_METHODS.get(self.method, ("--orientation",))[0]
+        return BASELINE_METHODS.get(self.family, ("--orientation",))[0]
 
     @property
-    def label(self) -> str:
-        """``sequential-ik-position (sequential-ik, --orientation position)`` or the name."""
+    def description(self) -> str:
+        """``sequential-ik-walk, --orientation position; walk from the touch pose:
+        touch-pose-only task``: the method (when not the folder's name), the mode and the
+        task solved; "" when none applies."""
         parts = [] if self.method == self.name else [self.method]
         if self.orientation:
             parts.append(f"{self.mode_flag} {self.orientation}")
-        return f"{self.name} ({', '.join(parts)})" if parts else self.name
+        text = ", ".join(parts)
+        if self.scheme:
+            text += ("; " if text else "") + task_text(self.scheme, short=True)
+        return text
+
+    @property
+    def label(self) -> str:
+        """``sequential-ik-position (sequential-ik-walk, --orientation position; walk from the
+        touch pose: touch-pose-only task)`` or the name (:attr:`description`)."""
+        return f"{self.name} ({self.description})" if self.description else self.name
+
+
+def run_settings(record: dict) -> dict:
+    """The method's settings from a run.json (``{"settings": {...}}`` or flat), or {}."""
+    settings = record.get("settings") or {}
+    settings = settings.get("settings", settings) if isinstance(settings, dict) else {}
+    return settings if isinstance(settings, dict) else {}
+
+
+def scheme_of(method: str, record: dict) -> str | None:
+    """A run's scheme from its run.json: the settings' ``scheme``, else ``walk`` for the
+    baseline families (runs written before the schemes all walked), else None."""
+    scheme = run_settings(record).get("scheme")
+    if scheme is not None:
+        return str(scheme)
+    return DEFAULT_SCHEME if METHOD_FAMILIES.get(method, method) in BASELINE_METHODS else None
+
+
+def task_text(scheme: str | None, short: bool = False) -> str:
+    """The task a scheme solves, in words (:data:`SCHEME_TASKS`): ``walk from the touch pose
+    (touch-pose-only task: the start pose is free)``; with ``short`` ``walk from the touch
+    pose: touch-pose-only task``; "" for None, the scheme itself when unknown."""
+    if scheme is None:
+        return ""
+    if scheme not in SCHEME_TASKS:
+        return f"scheme {scheme}"
+    how, task = SCHEME_TASKS[scheme]
+    return f"{how}: {task.split(':')[0]}" if short else f"{how} ({task})"
 
 
 def _read_record(folder: Path) -> dict:
@@ -181,35 +268,38 @@ def load_method_run(folder: Path, robot) -> MethodRun:
 
 
 def baseline_names(runs: dict) -> list[str]:
-    """The baseline runs (methods :data:`BASELINE_METHODS`) in report order: by method, then
-    by mode (:data:`ORIENTATION_MODES`, :data:`IKPY_MODES`), the folder named after the method
-    first within a mode."""
-    methods = list(BASELINE_METHODS)
+    """The baseline runs (method families :data:`BASELINE_METHODS`) in report order: by
+    family, then by scheme (the walk, the paper's Table 2, first), then by mode
+    (:data:`ORIENTATION_MODES`, :data:`IKPY_MODES`), the folder named after the family first
+    within a mode."""
+    families = list(BASELINE_METHODS)
 
     def key(name):
         run = runs[name]
-        modes = list(BASELINE_METHODS[run.method][1])
-        mode = run.orientation
-        return (methods.index(run.method), modes.index(mode) if mode in modes else len(modes),
-                name != run.method, name)
+        modes = list(BASELINE_METHODS[run.family][1])
+        mode, scheme = run.orientation, run.scheme
+        return (families.index(run.family),
+                SCHEME_ORDER.index(scheme) if scheme in SCHEME_ORDER else len(SCHEME_ORDER),
+                modes.index(mode) if mode in modes else len(modes), name != run.family, name)
 
-    return sorted((n for n, r in runs.items() if r.method in BASELINE_METHODS), key=key)
+    return sorted((n for n, r in runs.items() if r.is_baseline), key=key)
 
 
 def table2_run(runs: dict) -> str:
-    """The baseline run set beside the paper's Table 2: the first ``sequential-ik`` run in
-    ``frame`` mode (the folder ``sequential-ik`` when it is one), else the first baseline
-    run."""
+    """The baseline run set beside the paper's Table 2: the first walk of the
+    ``sequential-ik`` family in ``frame`` mode (the folder ``sequential-ik`` when it is
+    one), else the first baseline walk, else the first baseline run."""
     names = baseline_names(runs)
-    return next((n for n in names if runs[n].method == BASELINE
-                 and runs[n].orientation == "frame"), names[0])
+    return next((n for n in names if runs[n].family == BASELINE and runs[n].scheme == "walk"
+                 and runs[n].orientation == "frame"),
+                next((n for n in names if runs[n].scheme == "walk"), names[0]))
 
 
 def ikpy_table2_run(runs: dict) -> str | None:
-    """The run of the authors' call beside the paper's Table 2: the first ``ikpy`` run in
-    ``position`` mode, or None."""
-    return next((n for n in baseline_names(runs) if runs[n].method == IKPY
-                 and runs[n].orientation == "position"), None)
+    """The run of the authors' call beside the paper's Table 2: the first walk of the
+    ``ikpy`` family in ``position`` mode, or None."""
+    return next((n for n in baseline_names(runs) if runs[n].family == IKPY
+                 and runs[n].scheme == "walk" and runs[n].orientation == "position"), None)
 
 
 def load_runs(output_dir) -> tuple[dict, list, object]:
@@ -229,7 +319,7 @@ def load_runs(output_dir) -> tuple[dict, list, object]:
     folders = _method_folders(output_dir)
     names = [f.name for f in folders]
     methods = {f.name: _read_record(f).get("method") for f in folders}
-    baselines = set(methods.values()) & set(BASELINE_METHODS)
+    baselines = set(methods.values()) & set(METHOD_FAMILIES)
     missing = [m for m, ok in ((OURS, OURS in names), (BASELINE, bool(baselines))) if not ok]
     if missing:
         raise InputError(
@@ -345,13 +435,16 @@ def _missing_text(row, name: str) -> str:
 
 
 def check_claims(summary: pd.DataFrame, baseline: str = BASELINE,
-                 reference: str = OURS) -> pd.DataFrame:
+                 reference: str = OURS, scheme: str | None = None) -> pd.DataFrame:
     """The paper's four claims about its baseline, each with numbers and a verdict.
 
     Args:
         summary: :func:`summarise` output (one row per run, column ``method``).
         baseline: the baseline run's name (folder) in ``summary``.
         reference: the run of the paper's method (``ours``).
+        scheme: the baseline run's scheme (``walk`` / ``track``, :attr:`MethodRun.scheme`):
+            the start-pose claim says what it shows for it (a property of the walk; a track
+            starts at the recorded start pose by construction). None: not stated.
     """
     ours = summary.set_index("method").loc[reference]
     base = summary.set_index("method").loc[baseline]
@@ -385,7 +478,7 @@ def check_claims(summary: pd.DataFrame, baseline: str = BASELINE,
          f"{b} {base['mean pointing deviation [deg]']:.2f} deg; ratio {b} / {o} = "
          f"{pointing:.2f}{line}" + (f"; {missing}" if missing else ""),
          f"ratio >= {WORSE_FACTOR:g}", pointing >= WORSE_FACTOR),
-        ("its start pose varies, while ours is constant",
+        ("its start pose varies, while ours is constant" + START_CLAIM_NOTES.get(scheme, ""),
          f"|p_0 - p^s| [motor deg]: {o} max {ours['max |p_0 - p^s| [deg]']:.3f}, "
          f"{b} median {base['median |p_0 - p^s| [deg]']:.2f} (ratio {start:.0f}); "
          f"spread of start poses over the trajectories: {o} "
@@ -410,6 +503,53 @@ def check_claims(summary: pd.DataFrame, baseline: str = BASELINE,
     return pd.DataFrame(
         [{"paper's claim": c, "measured": m, "criterion": k,
           "verdict": "holds" if ok else "does not hold"} for c, m, k, ok in claims])
+
+
+#: What the start-pose claim is about for each scheme (appended to the claim).
+START_CLAIM_NOTES = {
+    "walk": " (a property of the walk: this run walked from the touch pose, a touch-pose-only "
+            "task, so its start pose is wherever the walk ends)",
+    "track": " (this run tracked from the start pose, the paper's task: it starts at the "
+             "recorded start pose by construction, so the claim cannot hold here: it describes "
+             "the walk, not point-by-point IK as such)",
+}
+
+
+def start_pose_note(summary: pd.DataFrame, runs: dict) -> str:
+    """A sentence on the start-pose claim over every baseline run: how far the walks' start
+    poses are from p^s, against the track runs' (medians of |p_0 - p^s|, motor deg), and
+    what that means; "" without baseline runs."""
+    rows = summary.set_index("method")
+    names = [n for n in baseline_names(runs) if n in rows.index]
+    by_scheme = {scheme: [n for n in names if runs[n].scheme == scheme]
+                 for scheme in SCHEME_ORDER}
+    if not names:
+        return ""
+
+    def figures(group):
+        return ", ".join(f"`{n}` {rows.loc[n, 'median |p_0 - p^s| [deg]']:.2f}" for n in group)
+
+    parts = []
+    if by_scheme["walk"]:
+        parts.append(f"the walks from the touch pose ({SCHEME_TASKS['walk'][1]}) start "
+                     f"{figures(by_scheme['walk'])} motor deg from p^s (median |p_0 - p^s|)")
+    if by_scheme["track"]:
+        parts.append(f"the tracks from the start pose ({SCHEME_TASKS['track'][1]}) start "
+                     f"{figures(by_scheme['track'])} motor deg from it")
+    text = "The start-pose claim is about the walk the paper's baseline made: " + \
+        "; ".join(parts) + "."
+    if by_scheme["walk"] and by_scheme["track"]:
+        text += (" The start pose varies because the walk leaves it free, not because the "
+                 "IK is solved point by point: tracked from the start pose, the same "
+                 "point-by-point IK starts at the recorded start pose, by construction.")
+    elif by_scheme["walk"]:
+        text += (" A track run (`sequential-ik` or `ikpy`, scheme track: the paper's task) "
+                 "starts at the recorded start pose by construction.")
+    else:
+        text += (" No walk is in this folder: the paper's baseline walked back from the "
+                 "touch pose (`sequential-ik-walk`, `ikpy-walk`), where the start pose is "
+                 "free.")
+    return text
 
 
 def pointing_tradeoff_note(summary: pd.DataFrame, baseline: str = BASELINE,
@@ -452,11 +592,16 @@ def claims_lines(summary: pd.DataFrame, runs: dict, frame: pd.DataFrame | None =
     """
     names = baseline_names(runs)
     lines = ["The paper's baseline is compared with `ours` once per baseline run; the run's "
-             "mode (from its run.json) decides the pointing claim. Per point "
-             f"`{BASELINE}` solves, in mode (`--orientation`) "
+             "scheme and mode (from its run.json) say which task it solved and decide the "
+             "pointing claim. Scheme: "
+             + "; ".join(f"`{scheme}`: {task_text(scheme)}" for scheme in SCHEME_ORDER)
+             + f". The paper's baseline walked (`{BASELINE_WALK}`, `{IKPY_WALK}`; runs written "
+             "before the schemes existed are walks too); "
+             f"`{BASELINE}` and `{IKPY}` track by default. Per point the "
+             f"`{BASELINE}` family solves, in mode (`--orientation`) "
              + "; ".join(f"`{mode}`: {text}" for mode, text in ORIENTATION_MODES.items())
              + "."]
-    if any(runs[n].method == IKPY for n in names):
+    if any(runs[n].family == IKPY for n in names):
         lines[-1] += (f" `{IKPY}`, the authors' own library, solves, in mode "
                       "(`--ikpy-orientation`) "
                       + "; ".join(f"`{mode}`: {text}" for mode, text in IKPY_MODES.items())
@@ -464,9 +609,11 @@ def claims_lines(summary: pd.DataFrame, runs: dict, frame: pd.DataFrame | None =
     lines.append("")
     for name in names:
         run = runs[name]
-        mode = run.orientation
-        lines += [f"{'#' * level} `{name}` ({run.mode_flag} {mode or 'unknown'}) against "
-                  f"`{OURS}`", "", escaped_table(check_claims(summary, name)), ""]
+        description = (run.description if run.orientation
+                       else f"{run.mode_flag} unknown; {run.description}")
+        lines += [f"{'#' * level} `{name}` ({description}) against `{OURS}`", "",
+                  f"Task solved: {run.task}.", "",
+                  escaped_table(check_claims(summary, name, scheme=run.scheme)), ""]
         note = pointing_tradeoff_note(summary, name)
         if note:
             lines += [note, ""]
@@ -477,7 +624,8 @@ def claims_lines(summary: pd.DataFrame, runs: dict, frame: pd.DataFrame | None =
                          f"{r['points_solved']:.0f}" for _, r in sub.iterrows()]
                 lines += ["Points that did not reach the IK tolerance, per trajectory: "
                           + ", ".join(parts) + ".", ""]
-    return lines
+    note = start_pose_note(summary, runs)
+    return lines + ([note, ""] if note else [])
 
 
 def _range(values, digits: int = 2) -> str:
@@ -489,8 +637,9 @@ def _range(values, digits: int = 2) -> str:
 
 def modes_table(frame: pd.DataFrame, runs: dict, steps: int, paper: bool = False) -> pd.DataFrame:
     """The baseline runs (one per orientation mode) beside ``ours`` and, with ``paper``, the
-    paper's Table 2 values: time per trajectory, points that missed the IK tolerance, line
-    distance, pointing deviation and start point variation (ranges over the trajectories).
+    paper's Table 2 values: the method, its mode, the task it solved (:data:`TASK_CELLS`),
+    time per trajectory, points that missed the IK tolerance, line distance, pointing
+    deviation and start point variation (ranges over the trajectories).
 
     Args:
         frame: :func:`evaluate_runs` output.
@@ -506,8 +655,11 @@ def modes_table(frame: pd.DataFrame, runs: dict, steps: int, paper: bool = False
         missed = sub["points_not_converged"]
         missing = ("-" if missed.isna().any() else "none" if (missed == 0).all()
                    else ", ".join(f"{v:.0f}" for v in missed))
+        run = runs[name]
         rows.append({
-            "run": name, "orientation": runs[name].orientation or "",
+            "run": name, "method": run.method, "orientation": run.orientation or "",
+            "task solved": TASK_CELLS.get(run.scheme, task_text(run.scheme)) if run.is_baseline
+            else TASK_CELLS[OURS] if run.method == OURS else task_text(run.scheme),
             "time per trajectory [ms]": f"{ms[0]:.1f}" if len(ms) == 1 else
             f"median {np.median(ms):.1f} ({ms.min():.1f}-{ms.max():.1f})",
             missing_column: missing,
@@ -521,7 +673,8 @@ def modes_table(frame: pd.DataFrame, runs: dict, steps: int, paper: bool = False
         scale = values["table1_cm_to_mm"]
         p = [values["table2"][t] for t in ids]
         rows.append({
-            "run": "paper (ikpy, other URDF)", "orientation": "",
+            "run": "paper (ikpy, other URDF)", "method": "", "orientation": "",
+            "task solved": TASK_CELLS["paper"],
             "time per trajectory [ms]": "", missing_column: "",
             "line distance, mean [mm]": _range([r["line_distance_mean_printed"] * scale
                                                 for r in p], 1),
@@ -532,13 +685,25 @@ def modes_table(frame: pd.DataFrame, runs: dict, steps: int, paper: bool = False
     return pd.DataFrame(rows)
 
 
+#: The modes table's "task solved" cells: per scheme, for ``ours`` and the paper's row.
+TASK_CELLS = {
+    "walk": "touch-pose-only (walk from the touch pose; the start pose is free)",
+    "track": "the paper's task (track from the start pose; start and touch poses fixed)",
+    OURS: "the paper's task (whole trajectory; start and touch poses in its loss)",
+    "paper": "touch-pose-only (the authors' walk from the touch pose)",
+}
 MODES_NOTE = (
+    "Task solved: the paper's task fixes both the recorded start pose and the touch pose "
+    "(its Sec. 3); the touch-pose-only task fixes the touch pose only, as the authors' walk "
+    "back from it did for their Table 2 (its start pose is wherever the walk ends, so its "
+    "start point variation is part of its result, not an error against the same task). "
     "Ranges are min-max over the trajectories, with the mean; time per trajectory is each "
     "run's own solver wall time (one run, not a benchmark; compare only runs made on the same "
-    "machine under similar load). Points missing the IK tolerance: points whose damped least "
-    "squares stopped (stalled or at --max-ik-iterations) above --tolerance, from "
-    "details.csv (- where the library reports no success per point, as ikpy). Start point "
-    "variation: |P_0 - P_s|.")
+    "machine under similar load). Points missing the IK tolerance: points whose solve ended "
+    "above its tolerance (damped least squares: stalled or at --max-ik-iterations above "
+    "--tolerance; ikpy: its answer checked by FK against --ikpy-position-tolerance and, where "
+    "pointing is asked, --ikpy-pointing-tolerance), from details.csv (- where a run records "
+    "none, as ikpy runs written before that check). Start point variation: |P_0 - P_s|.")
 
 
 def table2_comparison(table: pd.DataFrame) -> pd.DataFrame:
@@ -565,21 +730,41 @@ def table2_comparison(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def table2_section(table: pd.DataFrame, steps: int | None = None,
-                   run: str | None = None, method: str = BASELINE) -> list[str]:
-    """Markdown lines: the measured Table 2 beside the paper's, with the unit and ikpy notes.
+                   run: str | None = None, method: str = BASELINE,
+                   scheme: str | None = DEFAULT_SCHEME,
+                   orientation: str | None = None) -> list[str]:
+    """Markdown lines: the measured Table 2 beside the paper's, with the unit and ikpy notes
+    and the task the run solved.
 
     Args:
         table: the baseline run's rows (see :func:`table2_comparison`).
         steps: the run's n (a note when it is not the paper's).
-        run: the run's label for the heading (``sequential-ik (--orientation frame)``).
-        method: the run's method (``ikpy``: the note on the authors' own call).
+        run: the run's label for the heading (:attr:`MethodRun.label`).
+        method: the run's method (a walk of the ``ikpy`` family in position mode: the note
+            on the authors' own call).
+        scheme: the run's scheme (``walk``, the paper's baseline's, or ``track``).
+        orientation: the run's mode (None: its method's default).
     """
     heading = "## Beside the paper's Table 2" + (f": {run}" if run else "")
-    note = IKPY_TABLE2_NOTE if method == IKPY else PAPER_BASELINE_NOTE
-    lines = [heading, "", TABLE2_UNITS_NOTE, "", note, ""]
+    authors = (METHOD_FAMILIES.get(method) == IKPY and scheme == "walk"
+               and orientation in (None, "position"))
+    note = IKPY_TABLE2_NOTE if authors else PAPER_BASELINE_NOTE
+    lines = [heading, "", TABLE2_UNITS_NOTE, "", note, "", table2_task_line(scheme), ""]
     if steps is not None and steps != PAPER_STEPS:
         lines += [f"The paper used n = {PAPER_STEPS} segments; this run used n = {steps}.", ""]
     return lines + [markdown_table(table2_comparison(table)), ""]
+
+
+def table2_task_line(scheme: str | None) -> str:
+    """The sentence under a Table 2 section saying which task the run solved."""
+    if scheme == "walk":
+        return (f"Task solved: {task_text('walk')}, the task the paper's baseline solved for "
+                "its Table 2; its start point variation measures where the walk ended.")
+    if scheme == "track":
+        return (f"Task solved: {task_text('track')}, not the paper's baseline's touch-pose-only "
+                "walk: this run starts at the recorded start pose by construction, so its start "
+                "point variation is not comparable with the paper's column.")
+    return f"Task solved: {task_text(scheme) or 'not recorded'}."
 
 
 def plot_pointing_per_step(deviations: dict, tasks, methods: list[str]):
@@ -693,13 +878,22 @@ def compare(output_dir) -> Comparison:
     return Comparison(runs, tasks, targets, frame, summarise(frame, runs))
 
 
+def _run_table2(frame: pd.DataFrame, runs: dict, name: str, steps: int,
+                suffix: str = "") -> list[str]:
+    """:func:`table2_section` of the run ``name``."""
+    run = runs[name]
+    return table2_section(frame[frame["method"] == name], steps, run.label + suffix,
+                          run.method, run.scheme, run.orientation)
+
+
 def write_comparison_report(output_dir) -> Path:
     """Write ``output_dir/report.md`` and its figure comparing every run folder there.
 
     Args:
         output_dir: the ``--output`` directory of ``ikbench run`` runs; it must hold at least
-            ``ours/`` and one ``sequential-ik`` run (any folder name, e.g. one per
-            orientation mode) on the same targets and n.
+            ``ours/`` and one baseline run (``sequential-ik``, ``sequential-ik-walk``,
+            ``ikpy`` or ``ikpy-walk``; any folder name, e.g. one per orientation mode) on
+            the same targets and n.
 
     Returns:
         The path of report.md.
@@ -729,6 +923,7 @@ def write_comparison_report(output_dir) -> Path:
         "## The paper's claims about its traditional baseline, checked", "",
         *result.claims_lines(level=3),
         "## The baseline's orientation modes", "",
+        "Each baseline run with the task it solved (its scheme), beside `ours`:", "",
         escaped_table(result.modes_table()), "", MODES_NOTE, "",
         "## Summary over the trajectories", "",
         escaped_table(result.summary, {"median duration [s]": 4, "median iterations": 0,
@@ -751,12 +946,10 @@ def write_comparison_report(output_dir) -> Path:
         "",
     ]
     if targets.is_paper:
-        lines += table2_section(frame[frame["method"] == table2], targets.steps,
-                                runs[table2].label, runs[table2].method)
+        lines += _run_table2(frame, runs, table2, targets.steps)
         authors = ikpy_table2_run(runs)
         if authors is not None and authors != table2:
-            lines += table2_section(frame[frame["method"] == authors], targets.steps,
-                                    f"{runs[authors].label}, the authors' call", IKPY)
+            lines += _run_table2(frame, runs, authors, targets.steps, ", the authors' call")
     else:
         lines += ["## The paper's baseline", "", PAPER_BASELINE_NOTE, ""]
     path = output_dir / REPORT_NAME

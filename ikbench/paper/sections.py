@@ -9,9 +9,11 @@ from ikbench.paper.values import PAPER_STEPS, table1_comparison
 from ikbench.studies.report import markdown_table
 
 #: The methods whose runs the paper's tables describe: Table 2's baseline as the paper's text
-#: describes it (sequential-ik) and as the authors ran it (ikpy, their library and call).
+#: describes it (the sequential-ik family) and as the authors ran it (the ikpy family, their
+#: library; ikpy-walk, their call). Each Table 2 section says which task the run solved (the
+#: walk's touch-pose-only task, as the paper's baseline, or the track's: the paper's task).
 TABLE1_METHOD = "ours"
-TABLE2_METHODS = ("sequential-ik", "ikpy")
+TABLE2_METHODS = ("sequential-ik", "sequential-ik-walk", "ikpy", "ikpy-walk")
 
 
 def paper_task(record: dict, targets) -> bool:
@@ -35,7 +37,10 @@ def run_section(method: str, table, record: dict, targets) -> list[str]:
         return lines + [markdown_table(table1_comparison(table),
                                        {"loss": 2, "duration [s]": 2}), ""]
     if method in TABLE2_METHODS:
-        from ikbench.paper.comparison import table2_section
+        from ikbench.paper.comparison import run_settings, scheme_of, table2_section
 
-        return table2_section(table, record["steps"], method=method)
+        orientation = run_settings(record).get("orientation")
+        return table2_section(table, record["steps"], method=method,
+                              scheme=scheme_of(method, record),
+                              orientation=None if orientation is None else str(orientation))
     return []
