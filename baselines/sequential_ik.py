@@ -1,9 +1,29 @@
 """Sequential damped-least-squares IK on Pinocchio: the paper's "traditional" baseline.
 
-The walk starts at the touch pose and solves one IK problem per goal point, from P_{n-1} back
-to P_0, each initialised with the previous solution; the poses are then reversed so the
-trajectory runs start -> touch. Pose n *is* the touch pose (bit for bit). Nothing couples the
-points except the initialisation, so the start pose is wherever the walk ends up.
+Two schemes (``scheme``):
+
+- ``"track"`` (default, ``sequential-ik``; the paper's task, :mod:`baselines._track`): pose 0
+  *is* the start pose and pose n the touch pose (both exactly as given); points 1..n-1 are
+  solved forward, each from the pose before, towards the plan's goal point and scheduled
+  pointing direction (position only when the task asks no pointing). Three additions make
+  the poses playable:
+
+  * a posture term in the null space of the task, ``dq += (I - J^+ J) k (q_posture - q)``
+    per iteration (k = ``posture_gain``, J^+ the exact pseudo-inverse, q_posture on the line
+    from the start to the touch pose), which resolves the redundancy without disturbing the
+    task;
+  * speed bounds: each step's joints stay within ``max_speed_use`` of the joints' speed limit
+    per segment around the pose before, and close enough to the touch pose to land on it in
+    the steps left (|q_i - q_touch| <= (n - i) max step). The DLS treats these bounds like the
+    joint limits (active set); a step they keep from its goals stops short, "not converged";
+  * the orientation rows of the task error weighted by ``orientation_weight`` [m/rad], so a
+    step that cannot meet both goals within its bounds gives up pointing before position.
+
+- ``"walk"`` (``sequential-ik-walk``, the paper's Table 2 scheme, frame mode): starts at the
+  touch pose and solves one IK problem per goal point, from P_{n-1} back to P_0, each
+  initialised with the previous solution; the poses are then reversed so the trajectory runs
+  start -> touch. Pose n *is* the touch pose (bit for bit). Nothing couples the points except
+  the initialisation, so the start pose is wherever the walk ends up.
 
 Each point is solved in the URDF's joint space (radians) by damped least squares on the
 frame Jacobian, as in Pinocchio's CLIK example::
@@ -18,28 +38,33 @@ out of reach), or at ``max_ik_iterations``; the last two count as "tolerance not
 
 Orientation modes (``orientation``):
 
-- ``"frame"`` (default; the paper's text): the full 6-D frame. Position = goal point; rotation
-  with z-axis = goal direction d and x-axis = up x d (normalised), i.e. the roll fixed by a
-  constant reference "up" vector. The error is Pinocchio's ``log6`` of the current-to-goal
-  transform in the end frame; its Jacobian is ``-Jlog6 . J_local``. The default up vector
-  (``"touch"``) is the y-axis of the touch pose's end frame, so the target roll is the touch
-  pose's roll; world-fixed up vectors make the target unreachable along most of the line.
-- ``"pointing"``: 5-D, position plus pointing axis, roll free. Residual: position (3) and the
-  pointing axis z projected on two unit vectors b1, b2 orthogonal to d (zero when z = d),
-  with Jacobian rows (z x b_k)^T J_angular.
+- ``"frame"`` (the paper's text; default of ``sequential-ik-walk``): the full 6-D frame.
+  Position = goal point; rotation with z-axis = goal direction d and x-axis = up x d
+  (normalised), i.e. the roll fixed by a constant reference "up" vector. The error is
+  Pinocchio's ``log6`` of the current-to-goal transform in the end frame; its Jacobian is
+  ``-Jlog6 . J_local``. The default up vector (``"touch"``) is the y-axis of the touch pose's
+  end frame, so the target roll is the touch pose's roll; world-fixed up vectors make the
+  target unreachable along most of the line.
+- ``"pointing"`` (default of ``sequential-ik``): 5-D, position plus pointing axis, roll
+  free. Residual: position (3) and the pointing axis z projected on two unit vectors b1, b2
+  orthogonal to d (zero when z = d), with Jacobian rows (z x b_k)^T J_angular.
 - ``"position"``: 3-D, position only. This is what the authors' ikpy baseline actually solved:
   their code passed a target frame to ikpy's ``inverse_kinematics_frame`` without an
   ``orientation_mode``, and ikpy then ignores the rotation.
 
+On the track, frame mode builds its goal rotation from the scheduled direction.
+
 A 6-D pose path (a task with goal frames, e.g. a CppFlow problem) has no touch pose: it is
-walked forward instead, waypoint 0 solved from the home pose (at most
+walked forward instead (in either scheme; in frame mode on the track, whatever
+``orientation`` says), waypoint 0 solved from the home pose (at most
 :data:`FIRST_POINT_ITERATIONS` iterations), each next one from the previous solution, with the
 task's goal rotations in frame mode and the task's joint limits (CppFlow's bounds).
 
 ``Solution.loss`` is None (the task errors are not a loss in the paper's units); the largest
 position error [mm], the largest orientation error [deg] (frame: rotation angle; pointing and
 position: angle between z and d) over the solved points and the number of points that did not
-reach the tolerance go to ``Solution.info`` (and so to details.csv). The walk is deterministic.
+reach the tolerance go to ``Solution.info`` (and so to details.csv). Both schemes are
+deterministic.
 """
 
 from __future__ import annotations
@@ -51,6 +76,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from baselines._track import SCHEME_HELP, SCHEMES, plan_track, require_start_and_touch
 from ikbench.core.errors import InputError
 from ikbench.methods.base import Method, Solution, check_choice, check_positive, option
 
@@ -61,6 +87,13 @@ UP_FROM_TOUCH = "touch"
 STALL_STEP_RAD = 1e-10
 #: Joints closer than this to a limit [rad] count as sitting on it.
 LIMIT_EPS_RAD = 1e-12
+#: Singular values of J below this times the largest span no task direction (the null-space
+#: projector of the posture term).
+NULL_SPACE_RCOND = 1e-9
+
+
+ORIENTATION_HELP = ("frame (6-D, the paper's text), pointing (position + pointing axis, roll "
+                    "free) or position (what the authors' ikpy call solved)")
 
 
 @dataclass
@@ -68,18 +101,20 @@ class DLSSettings:
     """Settings of the damped-least-squares solve of one point (CLI options from ``option``).
 
     Attributes:
+        scheme: ``"track"`` (forward from the start pose onto the touch pose, the paper's
+            task) or ``"walk"`` (the authors' walk back from the touch pose).
         orientation: ``"frame"``, ``"pointing"`` or ``"position"`` (see the module doc).
         damping: lambda in dq = J^T (J J^T + lambda^2 I)^-1 e [units of e: m, rad].
         ik_step: fraction of dq applied per iteration (1 = full Gauss-Newton step).
         tolerance: stop when ||e|| < tolerance; e in metres and radians (1e-6: 1 um, 0.06 mdeg).
         max_ik_iterations: iteration cap per point.
         up_vector: ``"touch"`` or a (3,) vector fixing the roll in ``frame`` mode.
+        posture_gain: scheme track: gain k of the null-space posture term
+            dq += (I - J^+ J) k (q_posture - q) per iteration (0: none).
     """
 
-    orientation: str = option("frame", choices=ORIENTATIONS,
-                              help="frame (6-D, the paper's text), pointing (position + "
-                              "pointing axis, roll free) or position (what the authors' ikpy "
-                              "call solved)")
+    scheme: str = option("track", flag="scheme", choices=SCHEMES, help=SCHEME_HELP)
+    orientation: str = option("pointing", choices=ORIENTATIONS, help=ORIENTATION_HELP)
     damping: float = option(1e-3, unit="m, rad", help="DLS damping lambda")
     ik_step: float = option(1.0, help="fraction of the DLS step applied, in (0, 1]")
     tolerance: float = option(1e-6, unit="m, rad",
@@ -88,15 +123,42 @@ class DLSSettings:
     up_vector: str | tuple = option(UP_FROM_TOUCH, type=str,
                                     help="frame mode: reference up vector x,y,z fixing the roll "
                                     "(x-axis = up x d); 'touch' takes the touch pose's roll")
+    max_speed_use: float = option(0.95, unit="of the limit",
+                                  help="scheme track: every joint's change per step is kept "
+                                  "within this fraction of its speed limit per segment, and "
+                                  "close enough to the touch pose to land on it in time (0: no "
+                                  "bound)")
+    orientation_weight: float = option(0.02, unit="m/rad",
+                                       help="scheme track: weight of the orientation rows of "
+                                       "the task error against the position rows (a step that "
+                                       "cannot meet both gives up the orientation first)")
+    posture_gain: float = option(0.1, help="scheme track: gain k of the null-space posture "
+                                 "term (I - J^+ J) k (q_posture - q) added to every DLS step, "
+                                 "q_posture on the line from the start to the touch pose "
+                                 "(0: none)")
 
     def __post_init__(self):
+        check_choice(self, "scheme", SCHEMES)
         check_choice(self, "orientation", ORIENTATIONS)
-        check_positive(self, "damping", "ik_step", "tolerance")
+        check_positive(self, "damping", "ik_step", "tolerance", "orientation_weight")
         if self.ik_step > 1:
             raise InputError(f"--ik-step: {self.ik_step!r} must be in (0, 1]")
         check_positive(self, "max_ik_iterations", integer=True)
         self.max_ik_iterations = int(self.max_ik_iterations)
         self.up_vector = parse_up_vector(self.up_vector)
+        if not (math.isfinite(self.max_speed_use) and 0 <= self.max_speed_use <= 1):
+            raise InputError(f"--max-speed-use: {self.max_speed_use!r} must be in [0, 1]")
+        if not (math.isfinite(self.posture_gain) and 0 <= self.posture_gain <= 1):
+            raise InputError(f"--posture-gain: {self.posture_gain!r} must be in [0, 1]")
+
+
+@dataclass
+class WalkDLSSettings(DLSSettings):
+    """:class:`DLSSettings` with the paper's Table 2 defaults: the walk back from the touch
+    pose, 6-D frame targets (``sequential-ik-walk``)."""
+
+    scheme: str = option("walk", flag="scheme", choices=SCHEMES, help=SCHEME_HELP)
+    orientation: str = option("frame", choices=ORIENTATIONS, help=ORIENTATION_HELP)
 
 
 class PointResult(NamedTuple):
@@ -224,7 +286,30 @@ class Residual:
         return np.vstack([J[:3], rows])
 
 
-def dls_step(J, e, damping, q_rad, lower, upper) -> np.ndarray:
+class WeightedResidual:
+    """A :class:`Residual` with its orientation rows (after the 3 position rows) scaled by
+    ``weight`` [m per rad]: when a step cannot meet both goals (the tracking scheme's speed
+    bounds), the DLS then gives up orientation before position."""
+
+    def __init__(self, residual: Residual, weight: float):
+        self.residual = residual
+        self.scale = None if weight == 1.0 else weight
+
+    def _scaled(self, rows: np.ndarray) -> np.ndarray:
+        if self.scale is None or len(rows) <= 3:
+            return rows
+        rows = rows.copy()
+        rows[3:] *= self.scale
+        return rows
+
+    def error(self, q_rad) -> np.ndarray:
+        return self._scaled(self.residual.error(q_rad))
+
+    def jacobian(self, q_rad) -> np.ndarray:
+        return self._scaled(self.residual.jacobian(q_rad))
+
+
+def dls_step(J, e, damping, q_rad, lower, upper, posture=None) -> np.ndarray:
     """Damped-least-squares step dq (nv,) with joints pushed past a limit left out.
 
     Args:
@@ -232,12 +317,21 @@ def dls_step(J, e, damping, q_rad, lower, upper) -> np.ndarray:
         e: (k,) task error.
         damping: lambda.
         q_rad, lower, upper: (nv,) joint angles and URDF limits [rad].
+        posture: (nv,) a secondary joint step v, projected onto the null space of J,
+            (I - J^+ J) v with the exact pseudo-inverse (singular values of J below
+            :data:`NULL_SPACE_RCOND` times the largest count as zero): it cannot disturb the
+            task; or None (none).
     """
     free = np.ones(len(q_rad), dtype=bool)
     regulariser = damping**2 * np.eye(len(e))
     for _ in range(len(q_rad)):
         J_free = J * free
         dq = J_free.T @ np.linalg.solve(J_free @ J_free.T + regulariser, e)
+        if posture is not None:
+            _, sigma, Vt = np.linalg.svd(J_free, full_matrices=False)
+            rows = Vt[sigma > NULL_SPACE_RCOND * max(sigma[0], 1e-300)]
+            v = posture * free
+            dq = dq + v - rows.T @ (rows @ v)
         blocked = free & (((q_rad <= lower + LIMIT_EPS_RAD) & (dq < 0))
                           | ((q_rad >= upper - LIMIT_EPS_RAD) & (dq > 0)))
         if not blocked.any():
@@ -246,9 +340,15 @@ def dls_step(J, e, damping, q_rad, lower, upper) -> np.ndarray:
     return dq
 
 
-def solve_point(residual: Residual, q0_rad, settings: DLSSettings, lower, upper) -> PointResult:
-    """Solve one point by DLS from ``q0_rad`` (nv,) [rad]; returns the last iterate."""
+def solve_point(residual: Residual, q0_rad, settings: DLSSettings, lower, upper,
+                posture_rad=None) -> PointResult:
+    """Solve one point by DLS from ``q0_rad`` (nv,) [rad]; returns the last iterate.
+
+    ``posture_rad`` (nv,): a pose the redundancy is pulled toward in the task's null space,
+    ``settings.posture_gain`` (q_posture - q) per iteration (the tracking scheme), or None.
+    """
     q = np.clip(np.asarray(q0_rad, dtype=float), lower, upper)
+    use_posture = posture_rad is not None and settings.posture_gain > 0
     iterations = 0
     while True:
         e = residual.error(q)
@@ -257,7 +357,8 @@ def solve_point(residual: Residual, q0_rad, settings: DLSSettings, lower, upper)
             return PointResult(q, iterations, norm, True)
         if iterations >= settings.max_ik_iterations:
             return PointResult(q, iterations, norm, False)
-        dq = dls_step(residual.jacobian(q), e, settings.damping, q, lower, upper)
+        posture = settings.posture_gain * (posture_rad - q) if use_posture else None
+        dq = dls_step(residual.jacobian(q), e, settings.damping, q, lower, upper, posture)
         q_next = np.clip(q + settings.ik_step * dq, lower, upper)
         iterations += 1
         if np.max(np.abs(q_next - q)) < STALL_STEP_RAD:
@@ -331,9 +432,10 @@ def walk_path_rad(robot, task, settings: DLSSettings) -> Walk:
     mode the goal rotations are the task's; the joints stay within the task's limits."""
     pin_fk = robot.pinocchio_fk()
     data = pin_fk.model.createData()
-    low, high = task.limits(robot)
-    lower = np.maximum(pin_fk.model.lowerPositionLimit, robot.to_urdf(np.asarray(low, float)))
-    upper = np.minimum(pin_fk.model.upperPositionLimit, robot.to_urdf(np.asarray(high, float)))
+    low, high = (robot.to_urdf(np.asarray(v, dtype=float)) for v in task.limits(robot))
+    # a negative motor scale (NICO) swaps the mapped limits: min / max of the two
+    lower = np.maximum(pin_fk.model.lowerPositionLimit, np.minimum(low, high))
+    upper = np.minimum(pin_fk.model.upperPositionLimit, np.maximum(low, high))
     home = task.start_pose_deg if task.start_pose_deg is not None else task.reference_pose_deg
     q = robot.to_urdf(np.zeros(robot.dof) if home is None else np.asarray(home, dtype=float))
     q_rad = np.empty((task.steps + 1, len(q)))
@@ -354,8 +456,75 @@ def walk_path_rad(robot, task, settings: DLSSettings) -> Walk:
     return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, None)
 
 
+def track_joint_rad(robot, task, settings: DLSSettings) -> Walk:
+    """The tracking scheme in the URDF's joint space (see the module doc): row 0 the start
+    pose, rows 1..n-1 solved forward, each from the row before, row n the touch pose.
+
+    Raises:
+        InputError: the task lacks the start or the touch pose.
+    """
+    from baselines._chain import goals_of
+
+    require_start_and_touch(task, "sequential-ik")
+    pin_fk = robot.pinocchio_fk()
+    data = pin_fk.model.createData()
+    lower, upper = pin_fk.model.lowerPositionLimit, pin_fk.model.upperPositionLimit
+    plan = plan_track(robot, task, goals_of(robot, task))
+    n = task.steps
+    q_rad = np.empty((n + 1, len(plan.q_start)))
+    q_rad[0], q_rad[n] = plan.q_start, plan.q_touch
+    up = None if plan.directions is None else _up_vector(settings, pin_fk, plan.q_touch)
+    step = max_step_urdf(robot, task) if settings.max_speed_use > 0 else None
+    iterations, missed, worst_pos_mm, worst_angle_deg = 0, 0, 0.0, 0.0
+    for i in range(1, n):
+        direction = None if plan.directions is None else plan.directions[i]
+        mode = "position" if direction is None else settings.orientation
+        rotation = (rotation_from_z(direction, up) @ axis_frame(robot.pointing_axis).T
+                    if mode == "frame" else None)
+        residual = WeightedResidual(Residual(pin_fk, data, mode, plan.points_m[i], rotation,
+                                             direction if mode == "pointing" else None),
+                                    settings.orientation_weight)
+        low, high = lower, upper
+        if step is not None:  # within the speed limits of the pose before and of the landing
+            reach = settings.max_speed_use * step
+            low = np.maximum.reduce([lower, q_rad[i - 1] - reach, plan.q_touch - (n - i) * reach])
+            high = np.minimum.reduce([upper, q_rad[i - 1] + reach, plan.q_touch + (n - i) * reach])
+            low = np.minimum(low, high)  # an empty box (a start too far away): the landing
+        result = solve_point(residual, q_rad[i - 1], settings, low, high, plan.posture[i])
+        q_rad[i] = result.q_rad
+        iterations += result.iterations
+        missed += not result.converged
+        pos_mm, angle_deg = _point_errors(pin_fk, data, result.q_rad, task, i, rotation,
+                                          direction)
+        worst_pos_mm, worst_angle_deg = max(worst_pos_mm, pos_mm), max(worst_angle_deg, angle_deg)
+    return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, up)
+
+
+def max_step_urdf(robot, task) -> np.ndarray | None:
+    """(nv,) each joint's largest change per segment [rad, m]: the speed limits of the task's
+    contract (:meth:`~ikbench.core.contract.Contract.max_step`; a task without one: the
+    robot's own limits at the default T), through the pose map; None when no limit is known."""
+    from ikbench.core.contract import DEFAULT_DURATION_S, speed_limits
+
+    contract = getattr(task, "contract", None)
+    if contract is not None:
+        step = contract.max_step(task.steps)
+    else:
+        speed, _ = speed_limits(robot)
+        step = None if speed is None else speed * DEFAULT_DURATION_S / task.steps
+    if step is None:
+        return None
+    return np.asarray(step, dtype=float) * _urdf_per_pose_unit(robot)
+
+
+def _urdf_per_pose_unit(robot) -> np.ndarray:
+    """(nv,) URDF units [rad, m] per pose unit of each joint (the pose map is affine)."""
+    return np.abs(robot.to_urdf(np.ones(robot.dof)) - robot.to_urdf(np.zeros(robot.dof)))
+
+
 def walk(robot, task, settings: DLSSettings) -> Solution:
-    """The sequential walk as a :class:`Solution` in motor degrees (see the module doc).
+    """The sequential walk as a :class:`Solution` in motor degrees (see the module doc),
+    whatever ``settings.scheme`` says (:func:`solve_task` picks the scheme).
 
     Poses 0..n-1 are the IK's joint angles converted to motor degrees (and clipped to the
     motor ranges, which the URDF limits the IK respects map onto: the clip only removes
@@ -370,35 +539,76 @@ def walk(robot, task, settings: DLSSettings) -> Solution:
         poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), robot.lower_motor_deg,
                             robot.upper_motor_deg)
         poses_deg[-1] = task.end_pose_deg  # exactly the touch pose, no round trip
+    return _solution(raw, poses_deg, settings, started, "walk")
+
+
+def track(robot, task, settings: DLSSettings) -> Solution:
+    """The tracking scheme as a :class:`Solution` in motor degrees: pose 0 the start pose and
+    pose n the touch pose, exactly as given; poses 1..n-1 the IK's (clipped like
+    :func:`walk`'s)."""
+    started = time.perf_counter()
+    raw = track_joint_rad(robot, task, settings)
+    poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), robot.lower_motor_deg,
+                        robot.upper_motor_deg)
+    poses_deg[0] = task.start_pose_deg
+    poses_deg[-1] = task.end_pose_deg
+    return _solution(raw, poses_deg, settings, started, "track")
+
+
+def solve_task(robot, task, settings: DLSSettings) -> Solution:
+    """One task by ``settings.scheme``: :func:`track` or :func:`walk`. A pose path (goal
+    frames) is always walked forward (it has no start and touch pose to track between); in
+    the track scheme it follows its goal frames (frame mode), as the walk's default does."""
+    if settings.scheme != "track":
+        return walk(robot, task, settings)
+    if task.goal_rotations is not None:
+        return walk(robot, task, replace(settings, orientation="frame"))
+    return track(robot, task, settings)
+
+
+def _solution(raw: Walk, poses_deg, settings: DLSSettings, started: float,
+              scheme: str) -> Solution:
     duration = time.perf_counter() - started
     missed = raw.points_not_converged
-    return Solution(
-        poses_deg=poses_deg, iterations=raw.iterations, duration_s=duration, loss=None,
-        converged=missed == 0,
-        info={"points_not_converged": missed, "points_solved": task.steps,
-              "max_position_error_mm": raw.max_position_error_mm,
-              "max_orientation_error_deg": raw.max_orientation_error_deg,
-              "orientation": settings.orientation,
-              "up_vector": "" if raw.up is None else ",".join(f"{v:.6f}" for v in raw.up)},
-    )
+    info = {"points_not_converged": missed, "points_solved": len(poses_deg) - 1,
+            "max_position_error_mm": raw.max_position_error_mm,
+            "max_orientation_error_deg": raw.max_orientation_error_deg,
+            "orientation": settings.orientation,
+            "up_vector": "" if raw.up is None else ",".join(f"{v:.6f}" for v in raw.up)}
+    if scheme == "track":
+        info = {**info, "points_solved": len(poses_deg) - 2, "scheme": "track",
+                "posture_gain": settings.posture_gain}
+    return Solution(poses_deg=poses_deg, iterations=raw.iterations, duration_s=duration,
+                    loss=None, converged=missed == 0, info=info)
 
 
-def check_tasks(robot, tasks, settings: DLSSettings) -> None:
-    """Fail before any solve: every task needs a touch pose, and in frame mode an up vector
-    that is not parallel to its line (InputError naming the trajectory)."""
+def check_tasks(robot, tasks, settings: DLSSettings, method: str = "sequential-ik") -> None:
+    """Fail before any solve: the walk needs a touch pose, the track a start and a touch pose
+    (a pose path needs neither: it is walked forward), and frame mode an up vector that is not
+    parallel to any goal direction asked (InputError naming the trajectory)."""
+    from baselines._chain import goals_of
+
     pin_fk = robot.pinocchio_fk()
     for task in tasks:
         if task.goal_rotations is not None:  # a pose path: walked forward, its own rotations
             continue
-        if task.end_pose_deg is None:
-            raise InputError(f"trajectory {task.name!r}: sequential-ik starts at the touch "
+        tracked = settings.scheme == "track"
+        if tracked:
+            require_start_and_touch(task, method)
+        elif task.end_pose_deg is None:
+            raise InputError(f"trajectory {task.name!r}: {method} starts at the touch "
                              "pose; the task has no end pose (for letters, polylines and "
                              "splines use --method ours or --method ours-lm)")
         if settings.orientation != "frame":
             continue
+        directions = task.goal_directions
+        if tracked:
+            directions = plan_track(robot, task, goals_of(robot, task)).directions
+            if directions is None:  # nothing to point: position only
+                continue
         up = _up_vector(settings, pin_fk,
                         robot.motor_to_joint_rad(np.asarray(task.end_pose_deg, dtype=float)))
-        for d in np.unique(np.asarray(task.goal_directions, dtype=float), axis=0):
+        for d in np.unique(np.asarray(directions, dtype=float), axis=0):
             check_up_vector(up, d, f"trajectory {task.name}")
 
 
@@ -413,8 +623,9 @@ def _up_vector(settings: DLSSettings, pin_fk, q_touch_rad) -> np.ndarray | None:
     return np.asarray(setting, dtype=float)
 
 
-def _point_errors(pin_fk, data, q_rad, task, i, rotation) -> tuple[float, float]:
-    """Position error [mm] and orientation error [deg] of the solved point i."""
+def _point_errors(pin_fk, data, q_rad, task, i, rotation, direction=None) -> tuple[float, float]:
+    """Position error [mm] and orientation error [deg] of the solved point i (the angle to
+    ``direction`` when given, else to the task's goal direction i)."""
     import pinocchio as pin
 
     pin.framesForwardKinematics(pin_fk.model, data, q_rad)
@@ -423,7 +634,8 @@ def _point_errors(pin_fk, data, q_rad, task, i, rotation) -> tuple[float, float]
     if rotation is not None:
         angle = np.linalg.norm(pin.log3(T_base_tip.rotation.T @ rotation))
     else:
-        z, d = T_base_tip.rotation @ pin_fk.robot.pointing_axis, task.goal_directions[i]
+        z = T_base_tip.rotation @ pin_fk.robot.pointing_axis
+        d = task.goal_directions[i] if direction is None else direction
         angle = math.atan2(np.linalg.norm(np.cross(z, d)), float(z @ d))
     return pos_mm, float(np.degrees(angle))
 
@@ -447,11 +659,13 @@ def parse_up_vector(value) -> str | tuple:
 
 
 class SequentialIK(Method):
-    """Point-by-point damped-least-squares IK walked back from the touch pose."""
+    """Point-by-point damped-least-squares IK: tracked forward from the start pose onto the
+    touch pose (scheme track, the default) or walked back from the touch pose (walk)."""
 
     name = "sequential-ik"
-    description = ("baseline: point-by-point damped-least-squares IK on Pinocchio, walked "
-                   "back from the touch pose")
+    description = ("baseline: point-by-point damped-least-squares IK on Pinocchio, tracked "
+                   "from the start pose onto the touch pose, pointing mode, null-space posture "
+                   "(--scheme walk: back from the touch pose)")
     library = "pin"
     Settings = DLSSettings
     requires_touch_pose = True
@@ -460,10 +674,28 @@ class SequentialIK(Method):
     def prepare(self, robot) -> None:
         robot.pinocchio_fk()
 
+    def fixed_poses(self) -> frozenset[str]:
+        """Both poses for the track; the walk keeps only the touch pose (its start pose is
+        wherever the walk ends up)."""
+        if self.settings.scheme == "walk":
+            return frozenset({"touch_pose"})
+        return frozenset({"start_pose", "touch_pose"})
+
     def check_tasks(self, robot, tasks) -> None:
-        """Every task needs a touch pose or goal frames, and in frame mode an up vector that
-        is not parallel to its line (:func:`check_tasks`)."""
-        check_tasks(robot, tasks, self.settings)
+        """The walk needs a touch pose, the track a start and a touch pose (pose paths are
+        walked forward), frame mode an up vector not parallel to a line
+        (:func:`check_tasks`)."""
+        check_tasks(robot, tasks, self.settings, self.name)
 
     def solve(self, robot, task, progress=None) -> Solution:
-        return walk(robot, task, self.settings)
+        return solve_task(robot, task, self.settings)
+
+
+class SequentialIKWalk(SequentialIK):
+    """The paper's Table 2 scheme: walked back from the touch pose, 6-D frame targets."""
+
+    name = "sequential-ik-walk"
+    description = ("baseline: point-by-point damped-least-squares IK on Pinocchio, the "
+                   "authors' walk back from the touch pose (the start pose is free), 6-D frame "
+                   "targets")
+    Settings = WalkDLSSettings
