@@ -192,8 +192,10 @@ def test_cli_run_on_the_papers_targets(tmp_path, robot, name):
     table = _run_and_check(tmp_path, robot, name, targets, targets.touch_poses_deg,
                            "--only", "1,7")
     assert (table["line_distance_mean_mm"] < 1e-2).all()
-    if name == "ikpy":  # the paper's own baseline: its run report sits beside Table 2
-        report = (tmp_path / name / "report.md").read_text()
+    if name == "ikpy":  # the paper's own baseline (the authors' walk): beside Table 2
+        assert main(["run", "--method", "ikpy-walk", "--only", "1", "--steps", str(STEPS),
+                     "--output", str(tmp_path), "--quiet", "--no-animation"]) == 0
+        report = (tmp_path / "ikpy-walk" / "report.md").read_text()
         assert "## Beside the paper's Table 2" in report
         assert "their library (ikpy) and their call" in report
 
@@ -233,7 +235,10 @@ def test_cli_run_on_an_unseen_robot(tmp_path, arm, name):
      "drake-trajopt optimises the path between the fixed start and touch poses"),
     (["--method", "drake-trajopt", "--drake-control-points", "2"],
      "--drake-control-points: 2 control points are fewer than the spline order 4"),
-    (["--method", "mink", "--shape", "letter:P"], "mink starts at the touch pose"),
+    (["--method", "mink", "--shape", "letter:P"],
+     "mink (scheme track) starts at the start pose and lands on the touch pose"),
+    (["--method", "mink", "--scheme", "walk", "--shape", "letter:P"],
+     "mink starts at the touch pose"),
 ])
 def test_bad_input_is_one_line_exit_2(tmp_path, capsys, args, message):
     method_class(args[1])
@@ -247,7 +252,8 @@ def test_ikpy_pointing_needs_a_coordinate_axis(robot):
     tilted = dataclasses.replace(robot, pointing_axis=np.array([0.0, 0.6, 0.8]))
     with pytest.raises(InputError, match="ikpy points a coordinate axis"):
         cls(orientation="pointing").check_tasks(tilted, [fk_task(robot, 1)])
-    cls().check_tasks(tilted, [fk_task(robot, 1)])  # the authors' call does not point
+    cls(orientation="position").check_tasks(tilted, [fk_task(robot, 1)])  # does not point
+    method_class("ikpy-walk")().check_tasks(tilted, [fk_task(robot, 1)])  # the authors' call
 
 
 def test_a_missing_library_makes_only_its_method_unavailable(monkeypatch):

@@ -207,8 +207,14 @@ def test_sequential_ik_refuses_a_letter_and_names_the_methods_that_draw_it(tmp_p
     assert main(["letters", "P", "--method", "sequential-ik", "--steps", "6",
                  "--output", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "trajectory 'P': sequential-ik starts at the touch pose" in err
+    assert err.count("\n") == 1 and ("trajectory 'P': --method sequential-ik (scheme track) "
+                                      "starts at the start pose") in err
     assert "use --method ours or --method ours-lm" in err
+    assert not out.exists()
+    assert main(["letters", "P", "--method", "sequential-ik-walk", "--steps", "6",
+                 "--output", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "trajectory 'P': sequential-ik-walk starts at the touch pose" in err
     assert not out.exists()
 
 

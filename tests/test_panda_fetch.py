@@ -162,9 +162,9 @@ def test_sequential_ik_points_the_fetch_gripper_along_its_x_axis(tmp_path, orien
     ~600 mm on these targets)."""
     import pandas as pd
 
-    assert main(["run", "--robot", "fetch_arm", "--method", "sequential-ik", "--orientation",
-                 orientation, "--only", "front,left", "--steps", "20", "--output",
-                 str(tmp_path), "--quiet"]) == 0
-    table = pd.read_csv(tmp_path / "sequential-ik" / "table.csv")
+    assert main(["run", "--robot", "fetch_arm", "--method", "sequential-ik-walk",
+                 "--orientation", orientation, "--only", "front,left", "--steps", "20",
+                 "--output", str(tmp_path), "--quiet"]) == 0
+    table = pd.read_csv(tmp_path / "sequential-ik-walk" / "table.csv")
     assert (table["line_distance_mean_mm"] < 0.1).all()
     assert (table["pointing_deviation_mean_deg"] < 1.0).all()

@@ -122,7 +122,8 @@ def test_vectors_in_messages_are_plain_numbers():
 
 def test_up_vector_parallel_to_a_line_fails_before_any_solve(robot, paper_targets):
     task = line_tasks(robot, paper_targets.select("3"))[0]
-    settings = DLSSettings(up_vector=tuple(-task.goal_directions[0]))
+    settings = DLSSettings(scheme="walk", orientation="frame",
+                           up_vector=tuple(-task.goal_directions[0]))
     with pytest.raises(InputError, match=r"--up-vector: \(.*\) is parallel to the goal "
                        r"direction of trajectory 3 \(-?0\.\d+, "):
         check_tasks(robot, [task], settings)
@@ -134,7 +135,7 @@ def test_cli_parallel_up_vector_is_one_readable_line_and_creates_nothing(
         robot, paper_targets, tmp_path, capsys):
     d = line_tasks(robot, paper_targets.select("1"))[0].goal_directions[0]
     out = tmp_path / "out"
-    code = main(["run", "--method", "sequential-ik", "--only", "1", "--output", str(out),
+    code = main(["run", "--method", "sequential-ik-walk", "--only", "1", "--output", str(out),
                  f"--up-vector={','.join(repr(float(v)) for v in d)}", "--quiet"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1

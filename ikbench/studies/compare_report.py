@@ -235,3 +235,20 @@ def readme_table(board: pd.DataFrame, reference: str = "ours-lm") -> str:
             fmt(row["pointing_deviation_judged_mean_deg"]),
             fmt(row["max_joint_step_deg"])]) + " |")
     return "\n".join(lines)
+
+
+def write_readme_table(readme, leaderboard_csv) -> None:
+    """Replace the table between :data:`README_MARKERS` in ``readme`` by :func:`readme_table`
+    of ``leaderboard_csv`` (``python -c "from ikbench.studies.compare_report import
+    write_readme_table as w; w('README.md', 'results/compare/leaderboard.csv')"``)."""
+    from pathlib import Path
+
+    from ikbench.core.io import atomic_write_text
+
+    path = Path(readme)
+    text = path.read_text(encoding="utf-8")
+    start, end = README_MARKERS
+    head, rest = text.split(start, 1)
+    _, tail = rest.split(end, 1)
+    table = readme_table(pd.read_csv(leaderboard_csv))
+    atomic_write_text(path, f"{head}{start}\n{table}\n{end}{tail}")

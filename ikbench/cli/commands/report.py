@@ -15,7 +15,8 @@ def register(subparsers) -> None:
             "ablation/, sweep/, batch/ and letters/ of other commands are skipped), recompute "
             "all figures from the trajectory CSVs, and write DIR/report.md (all runs side by "
             "side per trajectory; the paper's claims about its baseline checked with numbers "
-            "once per sequential-ik run, labelled with its --orientation mode; the modes in one "
+            "once per sequential-ik / ikpy run, labelled with its --orientation mode and the task "
+            "it solved (walk: touch pose only; track: the paper's task); the modes in one "
             "table; Table 2 beside the paper's, from the frame-mode run) and "
             "DIR/pointing_deviation_per_step.png."
         ),

@@ -12,8 +12,9 @@ def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "reproduce", help=HELP,
         description=(
-            "Run the paper's method (Table 1: OUTPUT/ours/) and the sequential-ik baseline "
-            "(Table 2, --orientation frame: OUTPUT/sequential-ik/; also --orientation pointing "
+            "Run the paper's method (Table 1: OUTPUT/ours/) and the authors' baseline, the "
+            "walk from the touch pose (sequential-ik-walk; Table 2, --orientation frame: "
+            "OUTPUT/sequential-ik/; also --orientation pointing "
             "and position: OUTPUT/sequential-ik-pointing/, OUTPUT/sequential-ik-position/) on "
             "the paper's targets, ours with --init interpolation (OUTPUT/"
             "ours-init-interpolation/), write the comparison report (OUTPUT/report.md) and the "
