@@ -86,6 +86,9 @@ class Goals:
         track: the per-step targets of the tracking scheme
             (:class:`baselines._track.TrackPlan`) when the method tracks from the start pose,
             else None (the walk).
+        contract: the task's contract (:class:`ikbench.core.contract.Contract`), or None.
+        max_step: (dof,) the largest joint change per segment [rad, m]
+            (:func:`max_step_urdf`), or None when no speed limit is known.
     """
 
     points_m: np.ndarray
@@ -95,6 +98,8 @@ class Goals:
     q_touch: np.ndarray | None
     q_home: np.ndarray | None = None
     track: Any = None
+    contract: Any = None
+    max_step: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.points_m)
@@ -179,10 +184,41 @@ def goals_of(robot, task) -> Goals:
     def pose(value):
         return None if value is None else robot.to_urdf(np.asarray(value, dtype=float))
 
+    contract = getattr(task, "contract", None)
     return Goals(np.asarray(task.goal_points_mm, dtype=float) / 1000.0, directions,
                  None if rotations is None else np.asarray(rotations, dtype=float),
                  pose(task.start_pose_deg), pose(task.end_pose_deg),
-                 pose(task.reference_pose_deg))
+                 pose(task.reference_pose_deg), contract=contract,
+                 max_step=max_step_urdf(robot, contract, len(task.goal_points_mm) - 1))
+
+
+def urdf_step(robot, pose_step) -> np.ndarray:
+    """(dof,) a joint change [pose units] in URDF units [rad, m] (the pose map is affine:
+    |scale| times the change, deg to rad, mm to m)."""
+    return np.abs(robot.to_urdf(np.asarray(pose_step, dtype=float))
+                  - robot.to_urdf(np.zeros(robot.dof)))
+
+
+def contract_step(goals: Goals, margin: float = 1.0) -> np.ndarray | None:
+    """(dof,) ``margin`` times the contract's largest joint change per segment [rad, m]
+    (``goals.max_step``); None when the task has no contract or no speed limit is known."""
+    if goals.contract is None or goals.max_step is None:
+        return None
+    return margin * goals.max_step
+
+
+def max_step_urdf(robot, contract, steps: int) -> np.ndarray | None:
+    """(dof,) the largest joint change per segment [rad, m]: the contract's speed limits at
+    its duration (:meth:`~ikbench.core.contract.Contract.max_step`); without a contract the
+    robot's own limits at the default duration; None when no speed limit is known."""
+    from ikbench.core.contract import DEFAULT_DURATION_S, speed_limits
+
+    if contract is not None:
+        step = contract.max_step(steps)
+    else:
+        speed, _ = speed_limits(robot)
+        step = None if speed is None else np.asarray(speed) * DEFAULT_DURATION_S / steps
+    return None if step is None else urdf_step(robot, step)
 
 
 def poses_from_urdf(robot, q_urdf) -> np.ndarray:

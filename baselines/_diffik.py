@@ -16,7 +16,7 @@ pointing direction, roll free, or none), the errors (:func:`track_errors`), the 
 (:func:`settle`: position within the tolerance and the last QP step stalled, since the
 scheduled pointing may be out of reach), the posture task's per-joint weights
 (:func:`posture_weights`: every pose unit costs alike) and the speed limits as a QP box
-(:func:`segment_step`, :class:`SpeedBox`).
+(``Goals.max_step``, :class:`SpeedBox`).
 """
 
 from __future__ import annotations
@@ -124,25 +124,6 @@ def posture_weights(robot) -> np.ndarray:
     per_unit = np.abs(robot.to_urdf(np.ones(dof)) - robot.to_urdf(np.zeros(dof)))
     unit = np.where(np.asarray(robot.prismatic, dtype=bool), 1e-3, np.pi / 180.0)
     return unit / per_unit
-
-
-def segment_step(robot, task) -> np.ndarray | None:
-    """(dof,) the largest joint change per segment [rad, m]: the task's contract's
-    (``contract.max_step(n)``; a task without a contract: the robot's own speed limits at the
-    default duration) through the pose map; None when no speed limit is known."""
-    from ikbench.core.contract import DEFAULT_DURATION_S, speed_limits
-
-    n = len(task.goal_points_mm) - 1
-    contract = getattr(task, "contract", None)
-    if contract is not None:
-        step = contract.max_step(n)
-    else:
-        speed, _ = speed_limits(robot)
-        step = None if speed is None else np.asarray(speed) * DEFAULT_DURATION_S / n
-    if step is None:
-        return None
-    step = np.asarray(step, dtype=float)
-    return np.abs(robot.to_urdf(step) - robot.to_urdf(np.zeros_like(step)))
 
 
 class SpeedBox:

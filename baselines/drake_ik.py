@@ -45,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baselines._chain import Chain, Goals
+from baselines._chain import Chain, Goals, contract_step, urdf_step
 from baselines._drake import SOLVERS, DrakeMethod, drake_chain, make_solver, set_tolerances, solve
 from baselines._method import ChainResult
 from baselines._track import SCHEME_HELP, SCHEMES, track
@@ -197,19 +197,6 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings,
                                  iterations_are="solves (Drake reports no iteration count)")
 
 
-def urdf_step(robot, pose_step) -> np.ndarray:
-    """(dof,) a joint step [pose units] in URDF units [rad, m] (the motor map is affine)."""
-    return np.abs(robot.to_urdf(np.asarray(pose_step, dtype=float))
-                  - robot.to_urdf(np.zeros(robot.dof)))
-
-
-def contract_step(robot, contract, steps: int) -> np.ndarray | None:
-    """(dof,) :data:`STEP_MARGIN` of the contract's largest joint step per segment at n =
-    ``steps``, in URDF units [rad, m]; None without a contract or a known speed limit."""
-    pose_step = None if contract is None else contract.max_step(steps)
-    return None if pose_step is None else STEP_MARGIN * urdf_step(robot, pose_step)
-
-
 def pose_metric(robot) -> np.ndarray:
     """(dof,) weights that measure a joint change in the robot's pose units: (pose units per
     URDF unit)^2, normalised to 1 for a joint whose pose unit is its URDF unit (deg per rad,
@@ -233,17 +220,8 @@ class DrakeIK(DrakeMethod):
     Settings = DrakeIKSettings
     supports_frames = True
 
-    def solve(self, robot, task, progress=None):
-        """As :meth:`LibraryMethod.solve`; the task's contract gives the track its speed
-        limit."""
-        self._contract = getattr(task, "contract", None)
-        try:
-            return super().solve(robot, task, progress)
-        finally:
-            self._contract = None
-
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
         step = None
         if goals.track is not None:
-            step = contract_step(robot, getattr(self, "_contract", None), len(goals) - 1)
+            step = contract_step(goals, STEP_MARGIN)
         return solve_chain(chain, goals, self.settings, pose_metric(robot), step)

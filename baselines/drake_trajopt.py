@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baselines._chain import Chain, Goals
+from baselines._chain import Chain, Goals, contract_step
 from baselines._drake import (
     SOLVERS,
     DrakeMethod,
@@ -59,7 +59,7 @@ from baselines._drake import (
     solve,
 )
 from baselines._method import ChainResult
-from baselines.drake_ik import contract_step
+from baselines.drake_ik import STEP_MARGIN
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
@@ -291,20 +291,11 @@ class DrakeTrajopt(DrakeMethod):
         for task in tasks:
             control_point_count(self.settings, len(task.goal_points_mm))
 
-    def solve(self, robot, task, progress=None):
-        """As :meth:`LibraryMethod.solve`; the task's contract says where to point and how
-        fast the joints may move."""
-        self._contract = getattr(task, "contract", None)
-        try:
-            return super().solve(robot, task, progress)
-        finally:
-            self._contract = None
-
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
-        contract = getattr(self, "_contract", None)
+        contract = goals.contract
         if contract is None:  # no contract: as before it, every inner point pointed
             return solve_chain(chain, goals, self.settings)
         steps = len(goals) - 1
         pointing_from = contract.judged_from(steps) if contract.pointing else None
         return solve_chain(chain, goals, self.settings, pointing_from,
-                           contract_step(robot, contract, steps))
+                           contract_step(goals, STEP_MARGIN))

@@ -65,7 +65,6 @@ from baselines._geometry import angle_between_rad, rotation_angle_rad
 from baselines._method import ChainResult, LibraryMethod
 from baselines._track import SCHEME_HELP, SCHEMES, track
 from baselines._walk import PointResult, walk_back
-from baselines.sequential_ik import max_step_urdf
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
@@ -302,14 +301,9 @@ class IkpyIK(LibraryMethod):
 
         ikpy_chain(chain_of(robot))
 
-    def solve(self, robot, task, progress=None):
-        """The track's speed bound comes from the task's contract
-        (:func:`baselines.sequential_ik.max_step_urdf`)."""
-        self._max_step = max_step_urdf(robot, task) if self.tracks(task) else None
-        return super().solve(robot, task, progress)
-
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
-        return solve_chain(chain, goals, self.settings, getattr(self, "_max_step", None))
+        return solve_chain(chain, goals, self.settings,
+                           goals.max_step if goals.track is not None else None)
 
 
 class IkpyWalk(IkpyIK):

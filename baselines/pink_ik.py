@@ -67,7 +67,6 @@ from baselines._diffik import (
     errors,
     orientation_costs,
     posture_weights,
-    segment_step,
     settle,
     target_rotation,
     track_errors,
@@ -304,14 +303,8 @@ class PinkIK(LibraryMethod):
 
         pink_model(robot, chain_of(robot))
 
-    def solve(self, robot, task, progress=None):
-        """The library's solve (:meth:`LibraryMethod.solve`); the track's speed box needs the
-        task's contract (its largest joint change per segment), noted here."""
-        self._segment_step = segment_step(robot, task) if self.tracks(task) else None
-        return super().solve(robot, task, progress)
-
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
         if goals.track is not None:
             return solve_track(robot, chain, goals.track, self.settings,
-                               getattr(self, "_segment_step", None))
+                               goals.max_step)
         return solve_chain(robot, chain, goals, self.settings)

@@ -51,7 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baselines._chain import Chain, Goals
+from baselines._chain import Chain, Goals, contract_step
 from baselines._method import ChainResult, LibraryMethod
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
@@ -331,24 +331,15 @@ class PyrokiTrajopt(LibraryMethod):
                         max_step=np.ones(chain.dof) if speed else None)
         self._compile_s = time.perf_counter() - started
 
-    def solve(self, robot, task, progress=None):
-        """As :meth:`LibraryMethod.solve`; the task's contract says where to point and how
-        fast the joints may move."""
-        self._contract = getattr(task, "contract", None)
-        try:
-            return super().solve(robot, task, progress)
-        finally:
-            self._contract = None
-
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
-        contract = getattr(self, "_contract", None)
+        contract = goals.contract
         if contract is None:  # no contract: as before it, every inner point pointed
             result = solve_chain(chain, goals, self.settings)
         else:
             steps = len(goals) - 1
             result = solve_chain(chain, goals, self.settings,
                                  contract.judged_from(steps) if contract.pointing else None,
-                                 contract_step(robot, contract, steps))
+                                 contract_step(goals, STEP_MARGIN))
         result.info["compile_s"] = getattr(self, "_compile_s", float("nan"))
         return result
 
@@ -357,15 +348,3 @@ def _speed_limited(task) -> bool:
     """True when the task's contract bounds the joint steps (a speed limit is known)."""
     contract = getattr(task, "contract", None)
     return contract is not None and contract.max_step(len(task.goal_points_mm) - 1) is not None
-
-
-def contract_step(robot, contract, steps: int) -> np.ndarray | None:
-    """(dof,) :data:`STEP_MARGIN` of the contract's largest joint step per segment at n =
-    ``steps`` in URDF units [rad, m] (the motor map is affine: |scale| times the step, deg to
-    rad, mm to m); None when no speed limit is known."""
-    pose_step = contract.max_step(steps)
-    if pose_step is None:
-        return None
-    step = np.abs(robot.to_urdf(np.asarray(pose_step, dtype=float))
-                  - robot.to_urdf(np.zeros(robot.dof)))
-    return STEP_MARGIN * step

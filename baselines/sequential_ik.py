@@ -463,7 +463,7 @@ def track_joint_rad(robot, task, settings: DLSSettings) -> Walk:
     Raises:
         InputError: the task lacks the start or the touch pose.
     """
-    from baselines._chain import goals_of
+    from baselines._chain import goals_of, max_step_urdf
 
     require_start_and_touch(task, "sequential-ik")
     pin_fk = robot.pinocchio_fk()
@@ -474,7 +474,8 @@ def track_joint_rad(robot, task, settings: DLSSettings) -> Walk:
     q_rad = np.empty((n + 1, len(plan.q_start)))
     q_rad[0], q_rad[n] = plan.q_start, plan.q_touch
     up = None if plan.directions is None else _up_vector(settings, pin_fk, plan.q_touch)
-    step = max_step_urdf(robot, task) if settings.max_speed_use > 0 else None
+    step = (max_step_urdf(robot, getattr(task, "contract", None), task.steps)
+            if settings.max_speed_use > 0 else None)
     iterations, missed, worst_pos_mm, worst_angle_deg = 0, 0, 0.0, 0.0
     for i in range(1, n):
         direction = None if plan.directions is None else plan.directions[i]
@@ -498,28 +499,6 @@ def track_joint_rad(robot, task, settings: DLSSettings) -> Walk:
                                           direction)
         worst_pos_mm, worst_angle_deg = max(worst_pos_mm, pos_mm), max(worst_angle_deg, angle_deg)
     return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, up)
-
-
-def max_step_urdf(robot, task) -> np.ndarray | None:
-    """(nv,) each joint's largest change per segment [rad, m]: the speed limits of the task's
-    contract (:meth:`~ikbench.core.contract.Contract.max_step`; a task without one: the
-    robot's own limits at the default T), through the pose map; None when no limit is known."""
-    from ikbench.core.contract import DEFAULT_DURATION_S, speed_limits
-
-    contract = getattr(task, "contract", None)
-    if contract is not None:
-        step = contract.max_step(task.steps)
-    else:
-        speed, _ = speed_limits(robot)
-        step = None if speed is None else speed * DEFAULT_DURATION_S / task.steps
-    if step is None:
-        return None
-    return np.asarray(step, dtype=float) * _urdf_per_pose_unit(robot)
-
-
-def _urdf_per_pose_unit(robot) -> np.ndarray:
-    """(nv,) URDF units [rad, m] per pose unit of each joint (the pose map is affine)."""
-    return np.abs(robot.to_urdf(np.ones(robot.dof)) - robot.to_urdf(np.zeros(robot.dof)))
 
 
 def walk(robot, task, settings: DLSSettings) -> Solution:

@@ -15,12 +15,13 @@ import numpy as np
 import pytest
 
 from baselines import pyroki_trajopt
-from baselines.drake_ik import contract_step, pose_metric
+from baselines._chain import contract_step, goals_of
+from baselines.drake_ik import pose_metric
 from baselines.pyroki_trajopt import pointing_weights
 from ikbench import load_robot, load_targets
 from ikbench.core.contract import contract_for, judge
 from ikbench.core.metrics import contract_metrics
-from ikbench.core.task import line_tasks
+from ikbench.core.task import line_task, line_tasks
 from ikbench.methods.registry import get_method
 
 needs_drake = pytest.mark.skipif(importlib.util.find_spec("pydrake") is None,
@@ -53,12 +54,15 @@ def figures(robot, task, solution):
 def test_the_contracts_step_in_urdf_units(robot):
     contract = contract_for(robot)
     pose_step = contract.max_step(50)  # 10.8 motor deg for every NICO joint
-    step = pyroki_trajopt.contract_step(robot, contract, 50)
+    targets = load_targets(None, robot)
+    task = replace(line_task(robot, targets.start_pose_deg, targets.touch_poses_deg["1"], 50,
+                             "1"), contract=contract)
+    step = contract_step(goals_of(robot, task), pyroki_trajopt.STEP_MARGIN)
     expected = 0.99 * np.radians(np.abs(np.asarray(robot.scale)) * pose_step)
     np.testing.assert_allclose(step, expected, rtol=1e-12)
-    np.testing.assert_allclose(contract_step(robot, contract, 50), expected, rtol=1e-12)
-    assert contract_step(robot, None, 50) is None
-    assert contract_step(robot, replace(contract, max_speed=None), 50) is None
+    assert contract_step(goals_of(robot, replace(task, contract=None))) is None
+    assert contract_step(goals_of(robot, replace(
+        task, contract=replace(contract, max_speed=None)))) is None
     # the track's costs weigh a joint in motor deg: NICO's 0.222-scale motors 20.25x
     np.testing.assert_allclose(pose_metric(robot), 1 / np.asarray(robot.scale) ** 2)
 

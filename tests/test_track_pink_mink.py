@@ -13,7 +13,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from baselines._diffik import SpeedBox, posture_weights, segment_step
+from baselines._chain import goals_of
+from baselines._diffik import SpeedBox, posture_weights
 from ikbench.core.contract import contract_for, judge
 from ikbench.core.errors import InputError
 from ikbench.core.metrics import contract_metrics
@@ -148,5 +149,5 @@ def test_posture_weights_and_segment_step_are_per_pose_unit(robot, tasks, contra
     weights = posture_weights(robot)
     per_unit = np.abs(robot.to_urdf(np.ones(robot.dof)) - robot.to_urdf(np.zeros(robot.dof)))
     np.testing.assert_allclose(weights * per_unit, np.radians(1.0))
-    step = segment_step(robot, tasks[0])
+    step = goals_of(robot, tasks[0]).max_step
     np.testing.assert_allclose(step, contract.max_step(STEPS) * per_unit)
