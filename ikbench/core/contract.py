@@ -141,7 +141,7 @@ class Contract:
     def describe(self, steps: int, unit: str = "deg") -> str:
         """The contract in a few sentences (leaderboard headers)."""
         tol = self.tolerances
-        parts = [f"Track **{self.track}** ({TRACK_TITLES[self.track]})."]
+        parts = [f"Track **{self.track}**: {TRACK_TITLES[self.track]}."]
         poses = [f"touch pose within {tol['end_pose_deg']:g} {unit} (every joint)"]
         if "start_pose" in self.fixed_poses:
             poses.insert(0, f"start pose within {tol['start_pose_deg']:g} {unit}")

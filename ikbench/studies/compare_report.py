@@ -156,7 +156,7 @@ def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Con
     from ikbench.studies.report import _matplotlib
 
     plt = _matplotlib()
-    fig, (ax_t, ax_p) = plt.subplots(1, 2, figsize=(13, 5.2))
+    fig, (ax_t, ax_p) = plt.subplots(1, 2, figsize=(13, 7.0))
     solved = results[results["ok_solved"] == True]  # noqa: E712
     libraries = list(dict.fromkeys(solved["library"]))
     colors = plt.cm.tab10(np.linspace(0, 1, 10))
@@ -179,10 +179,13 @@ def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Con
         ax_p.plot(sweep["line_distance_max_mm"].clip(lower=floor),
                   sweep["pointing_deviation_judged_mean_deg"], "-o", color="0.3", ms=4,
                   label="ours-lm weight sweep (c0)")
-        for _, row in sweep.iterrows():
+        for k, (_, row) in enumerate(sweep.iterrows()):
+            if k % 2:  # every other label: they would overlap
+                continue
             ax_p.annotate(f"c0={row['c0']:g}", (max(row["line_distance_max_mm"], floor),
                                                 row["pointing_deviation_judged_mean_deg"]),
-                          fontsize=7, xytext=(3, 3), textcoords="offset points")
+                          fontsize=7, xytext=(0, -11), textcoords="offset points",
+                          ha="center")
     tol = contract.tolerances
     for ax in (ax_t, ax_p):
         ax.grid(alpha=0.3, which="both")
@@ -193,7 +196,8 @@ def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Con
     ax_t.set_xlabel("time to solve one trajectory alone [s] (median over repetitions)")
     ax_t.set_ylabel("largest distance from the line [mm]")
     ax_t.set_title("Time vs accuracy (small: per trajectory; large: median)", fontsize=10)
-    ax_t.legend(fontsize=7)
+    ax_t.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.14), ncol=2,
+                frameon=False)
     ax_p.set_xscale("log")
     ax_p.set_xlabel("largest distance from the line [mm] (median over trajectories)")
     ax_p.set_ylabel("pointing deviation, judged part [deg] (median)")
@@ -202,7 +206,8 @@ def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Con
         ax_p.axhline(tol["pointing_judged_mean_deg"], color="r", ls="--", lw=0.8)
     ax_p.set_title("Line vs pointing: the libraries and ours-lm's weight trade-off\n"
                    "(lower left is better; dashed: the tolerances)", fontsize=10)
-    ax_p.legend(fontsize=7)
+    ax_p.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.14), ncol=3,
+                frameon=False)
     fig.tight_layout()
     return fig
 
@@ -252,3 +257,31 @@ def write_readme_table(readme, leaderboard_csv) -> None:
     _, tail = rest.split(end, 1)
     table = readme_table(pd.read_csv(leaderboard_csv))
     atomic_write_text(path, f"{head}{start}\n{table}\n{end}{tail}")
+
+
+def render(folder) -> None:
+    """Write ``leaderboard.md``, ``leaderboard.csv`` and ``pareto.png`` of a compare folder
+    again from its ``results.csv``, ``pareto_sweep.csv`` and ``run.json`` (nothing is solved:
+    for a change of presentation only)."""
+    import json
+    from pathlib import Path
+
+    from ikbench.core.contract import Contract
+    from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text
+
+    folder = Path(folder)
+    record = json.loads((folder / "run.json").read_text(encoding="utf-8"))
+    spec = record["contract"]
+    contract = Contract(track=spec["track"], pointing=spec["pointing"],
+                        pointing_judged_from=spec["pointing_judged_from"],
+                        duration_s=spec["duration_s"],
+                        max_speed=None if spec["max_speed"] is None else
+                        np.asarray(spec["max_speed"]),
+                        speed_source=spec["speed_source"], tolerances=spec["tolerances"])
+    results = pd.read_csv(folder / "results.csv", dtype={"trajectory": str})
+    sweep_path = folder / "pareto_sweep.csv"
+    sweep = pd.read_csv(sweep_path) if sweep_path.exists() else None
+    board = leaderboard(results, record["reference"], contract)
+    atomic_write_csv(folder / "leaderboard.csv", board, float_format="%.6g")
+    atomic_write_text(folder / "leaderboard.md", leaderboard_markdown(board, record, contract))
+    atomic_savefig(folder / "pareto.png", plot_pareto(results, sweep, contract))
