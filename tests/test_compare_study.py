@@ -220,3 +220,20 @@ def test_sigint_through_the_cli_process(tmp_path):
     assert err.strip().splitlines() == [
         f"ikbench: interrupted; {tmp_path / 'compare'}/ left unchanged"]
     assert not (tmp_path / "compare").exists()
+
+
+class Broken(Straight):
+    """A method with a bug in check_tasks (not a refusal of the input)."""
+
+    name = "broken"
+
+    def check_tasks(self, robot, tasks) -> None:
+        raise RuntimeError("a bug")
+
+
+def test_a_bug_is_a_failed_row_not_refused_nor_unavailable(tmp_path, monkeypatch):
+    register_temporarily(monkeypatch, Broken)
+    result = compare(["broken"], only="1", steps=4, repeat=1, output=None, progress=False)
+    row = result.results.iloc[0]
+    assert row["status"] == "failed" and row["failure"] == "RuntimeError: a bug"
+    assert result.failed and not row["success"]

@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 
 from ikbench.core.contract import CRITERIA, DEFAULT_TOLERANCES, Contract, contract_for, judge
-from ikbench.core.errors import InputError
+from ikbench.core.errors import IkbenchError, InputError
 from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text, staged_folder
 from ikbench.core.metrics import contract_metrics
 from ikbench.core.provenance import library_versions, provenance
@@ -45,7 +45,7 @@ from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.methods.base import Method
 from ikbench.methods.registry import method_status
 from ikbench.studies.executors import LocalExecutor, portable_robot
-from ikbench.studies.harness import Progress, solve_tasks
+from ikbench.studies.harness import Progress, describe, solve_tasks
 from ikbench.studies.run import write_run
 
 #: The default tolerances (kept under their old name; the contract states them).
@@ -228,8 +228,12 @@ def _build(names, robot, targets, tasks, solvers, log) -> tuple[list[dict], dict
         try:
             solver = solvers.get(name) or cls()
             solver.check_tasks(robot, tasks)
-        except Exception as exc:  # a method that cannot take these tasks is a row too
+        except IkbenchError as exc:  # a method that cannot take these tasks is a row too
             rows += [_row(name, cls.library, robot, targets, task, "refused", str(exc))
+                     for task in tasks]
+            continue
+        except Exception as exc:  # a bug in the method: a failed row, not "refused"
+            rows += [_row(name, cls.library, robot, targets, task, "failed", describe(exc))
                      for task in tasks]
             continue
         built[name] = solver
