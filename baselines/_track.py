@@ -123,6 +123,17 @@ def plan_track(robot, task, goals: Goals) -> TrackPlan:
     return TrackPlan(goals.points_m, directions, posture, q_start, q_touch, judged_from)
 
 
+def speed_box(q_previous, q_touch, steps_left: int, step, lower, upper
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) (dof,) [rad, m]: the joint box of a tracking step under a speed limit:
+    within the limits, within ``step`` of the previous pose and within ``steps_left`` steps
+    of the touch pose (so it stays reachable). Where these do not meet, low > high: the
+    caller decides which wins."""
+    low = np.maximum.reduce([lower, q_previous - step, q_touch - steps_left * step])
+    high = np.minimum.reduce([upper, q_previous + step, q_touch + steps_left * step])
+    return low, high
+
+
 def track(solve_point: Callable[[int, np.ndarray], PointResult], chain: Chain,
           plan: TrackPlan) -> Walk:
     """Solve steps 1 .. n-1 forward from the start pose, each from the previous solution.
@@ -141,16 +152,6 @@ def track(solve_point: Callable[[int, np.ndarray], PointResult], chain: Chain,
     q[0], q[-1] = plan.q_start, plan.q_touch
     walk = Walk(q, 0)
     for i in range(1, n_points - 1):
-        result = solve_point(i, np.array(q[i - 1], dtype=float))
-        qi = np.asarray(result.q, dtype=float).reshape(chain.dof)
-        ok = bool(result.ok)
-        if not np.all(np.isfinite(qi)):
-            qi, ok = q[i - 1].copy(), False
-        clipped = chain.clip(qi)
-        if not np.array_equal(clipped, qi):
-            walk.clipped.append(i)
-        q[i] = clipped
-        walk.iterations += int(result.iterations)
-        if not ok:
-            walk.failed.append(i)
+        warm = np.array(q[i - 1], dtype=float)
+        walk.record(i, solve_point(i, warm.copy()), chain, warm)
     return walk

@@ -51,6 +51,21 @@ class Walk:
     failed: list[int] = field(default_factory=list)
     clipped: list[int] = field(default_factory=list)
 
+    def record(self, i: int, result: PointResult, chain: Chain, fallback: np.ndarray) -> None:
+        """Keep point ``i``'s solve as row i: non-finite values keep ``fallback`` (the warm
+        start) and count as failed, values outside the limits are clipped (and noted)."""
+        qi = np.asarray(result.q, dtype=float).reshape(chain.dof)
+        ok = bool(result.ok)
+        if not np.all(np.isfinite(qi)):
+            qi, ok = np.array(fallback, dtype=float), False
+        clipped = chain.clip(qi)
+        if not np.array_equal(clipped, qi):
+            self.clipped.append(i)
+        self.q[i] = clipped
+        self.iterations += int(result.iterations)
+        if not ok:
+            self.failed.append(i)
+
     def info(self) -> dict:
         """Flat figures for details.csv."""
         return {"points_solved": len(self.q) - 1, "points_not_converged": len(self.failed),
@@ -82,19 +97,8 @@ def walk_back(solve_point: PointSolver, chain: Chain, goals: Goals) -> Walk:
                          "at the home pose; the goals have neither")
     walk = Walk(q, 0)
     for i, previous in order:
-        warm = goals.q_home if previous < 0 else q[previous]
-        result = solve_point(i, np.array(warm, dtype=float))
-        qi = np.asarray(result.q, dtype=float).reshape(chain.dof)
-        ok = bool(result.ok)
-        if not np.all(np.isfinite(qi)):
-            qi, ok = q[i + 1].copy(), False
-        clipped = chain.clip(qi)
-        if not np.array_equal(clipped, qi):
-            walk.clipped.append(i)
-        q[i] = clipped
-        walk.iterations += int(result.iterations)
-        if not ok:
-            walk.failed.append(i)
+        warm = np.array(goals.q_home if previous < 0 else q[previous], dtype=float)
+        walk.record(i, solve_point(i, warm.copy()), chain, warm)
     walk.failed.sort()
     walk.clipped.sort()
     return walk

@@ -48,7 +48,7 @@ import numpy as np
 from baselines._chain import Chain, Goals, contract_step, urdf_step
 from baselines._drake import SOLVERS, DrakeMethod, drake_chain, make_solver, set_tolerances, solve
 from baselines._method import ChainResult
-from baselines._track import SCHEME_HELP, SCHEMES, track
+from baselines._track import SCHEME_HELP, SCHEMES, speed_box, track
 from baselines._walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
@@ -159,10 +159,8 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings,
         direction = None if plan.directions is None else plan.directions[i]
         bounds = (lower, upper)
         if step is not None:  # within the speed limit, and the touch pose still reachable
-            left, warm, touch = len(plan) - 1 - i, drake.positions(q_warm), \
-                drake.positions(plan.q_touch)
-            low = np.maximum.reduce([lower, warm - step, touch - left * step])
-            high = np.minimum.reduce([upper, warm + step, touch + left * step])
+            low, high = speed_box(drake.positions(q_warm), drake.positions(plan.q_touch),
+                                  len(plan) - 1 - i, step, lower, upper)
             bounds = (low, np.maximum(high, low))
         solves = 0
         for pointing_cost in ((False, True) if direction is not None else (False,)):

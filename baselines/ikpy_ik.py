@@ -63,7 +63,7 @@ import numpy as np
 from baselines._chain import Chain, Goals, element_path
 from baselines._geometry import angle_between_rad, rotation_angle_rad
 from baselines._method import ChainResult, LibraryMethod
-from baselines._track import SCHEME_HELP, SCHEMES, track
+from baselines._track import SCHEME_HELP, SCHEMES, speed_box, track
 from baselines._walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
@@ -251,12 +251,8 @@ def solve_chain(chain: Chain, goals: Goals, settings: IkpySettings,
     def track_point(i: int, q_warm: np.ndarray) -> PointResult:
         direction = None if plan.directions is None else plan.directions[i]
         if step is not None:  # ikpy's bounds: the speed limit and the landing, too
-            reach = settings.max_speed_use * step
-            n = len(plan) - 1
-            low = np.maximum.reduce([chain.lower, q_warm - reach,
-                                     plan.q_touch - (n - i) * reach])
-            high = np.minimum.reduce([chain.upper, q_warm + reach,
-                                      plan.q_touch + (n - i) * reach])
+            low, high = speed_box(q_warm, plan.q_touch, len(plan) - 1 - i,
+                                  settings.max_speed_use * step, chain.lower, chain.upper)
             low = np.minimum(low, high - MIN_WIDTH)  # least_squares wants low < high
             for link, a, b in zip(links, low, high):
                 link.bounds = (float(a), float(b))

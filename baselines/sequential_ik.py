@@ -76,7 +76,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from baselines._track import SCHEME_HELP, SCHEMES, plan_track, require_start_and_touch
+from baselines._track import (
+    SCHEME_HELP,
+    SCHEMES,
+    plan_track,
+    require_start_and_touch,
+    speed_box,
+)
 from ikbench.core.errors import InputError
 from ikbench.methods.base import Method, Solution, check_choice, check_positive, option
 
@@ -487,9 +493,8 @@ def track_joint_rad(robot, task, settings: DLSSettings) -> Walk:
                                     settings.orientation_weight)
         low, high = lower, upper
         if step is not None:  # within the speed limits of the pose before and of the landing
-            reach = settings.max_speed_use * step
-            low = np.maximum.reduce([lower, q_rad[i - 1] - reach, plan.q_touch - (n - i) * reach])
-            high = np.minimum.reduce([upper, q_rad[i - 1] + reach, plan.q_touch + (n - i) * reach])
+            low, high = speed_box(q_rad[i - 1], plan.q_touch, n - i,
+                                  settings.max_speed_use * step, lower, upper)
             low = np.minimum(low, high)  # an empty box (a start too far away): the landing
         result = solve_point(residual, q_rad[i - 1], settings, low, high, plan.posture[i])
         q_rad[i] = result.q_rad

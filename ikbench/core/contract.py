@@ -138,6 +138,16 @@ class Contract:
                 "speed_source": self.speed_source, "tolerances": dict(self.tolerances),
                 "criteria": self.criteria()}
 
+    @classmethod
+    def from_dict(cls, spec: Mapping) -> Contract:
+        """The contract :meth:`to_dict` wrote (run.json's ``contract``)."""
+        speed = spec.get("max_speed")
+        return cls(track=spec["track"], pointing=spec["pointing"],
+                   pointing_judged_from=spec["pointing_judged_from"],
+                   duration_s=spec["duration_s"],
+                   max_speed=None if speed is None else np.asarray(speed, dtype=float),
+                   speed_source=spec["speed_source"], tolerances=dict(spec["tolerances"]))
+
     def describe(self, steps: int, unit: str = "deg") -> str:
         """The contract in a few sentences (leaderboard headers)."""
         tol = self.tolerances
@@ -206,6 +216,17 @@ def speed_limits(robot) -> tuple[np.ndarray | None, str]:
     Dynamixel table), else the URDF's ``<limit velocity>`` of each chain joint (rad/s or m/s,
     turned into pose units), else None (no limit known, or one joint without one).
     """
+    cache = getattr(robot, "_cache", None)
+    if cache is not None and "speed_limits" in cache:
+        return cache["speed_limits"]
+    found = _read_speed_limits(robot)
+    if cache is not None:
+        cache["speed_limits"] = found
+    return found
+
+
+def _read_speed_limits(robot) -> tuple[np.ndarray | None, str]:
+    """:func:`speed_limits` read from the robot's files."""
     config = getattr(robot, "config", None) or {}
     hardware = config.get("hardware")
     if hardware and config.get("config_path"):

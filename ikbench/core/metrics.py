@@ -123,7 +123,11 @@ def trajectory_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
         when the task does not fix that pose), and the :func:`smoothness` figures.
     """
     poses = np.asarray(poses_motor_deg, dtype=float)
-    fk = robot.fk(poses)
+    return _line_metrics(task, poses, robot.fk(poses))
+
+
+def _line_metrics(task, poses, fk) -> dict[str, float]:
+    """:func:`trajectory_metrics` from the poses' FK (computed once by the caller)."""
     mask = task.pen_down
     distances = line_distances_mm(fk.point_mm[mask], task.start_point_mm, task.end_point_mm)
     deviations = pointing_deviations_deg(fk.direction[mask], task.goal_directions[mask])
@@ -267,8 +271,8 @@ def contract_metrics(robot, task, poses_motor_deg, contract) -> dict[str, float]
         pose within the task's limits).
     """
     poses = np.asarray(poses_motor_deg, dtype=float)
-    out = trajectory_metrics(robot, task, poses)
     fk = robot.fk(poses)
+    out = _line_metrics(task, poses, fk)
     mask = np.asarray(task.pen_down, dtype=bool)
     out["line_distance_max_mm"] = float(line_distances_mm(
         fk.point_mm[mask], task.start_point_mm, task.end_point_mm).max())

@@ -266,18 +266,11 @@ def render(folder) -> None:
     import json
     from pathlib import Path
 
-    from ikbench.core.contract import Contract
     from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text
 
     folder = Path(folder)
     record = json.loads((folder / "run.json").read_text(encoding="utf-8"))
-    spec = record["contract"]
-    contract = Contract(track=spec["track"], pointing=spec["pointing"],
-                        pointing_judged_from=spec["pointing_judged_from"],
-                        duration_s=spec["duration_s"],
-                        max_speed=None if spec["max_speed"] is None else
-                        np.asarray(spec["max_speed"]),
-                        speed_source=spec["speed_source"], tolerances=spec["tolerances"])
+    contract = Contract.from_dict(record["contract"])
     results = pd.read_csv(folder / "results.csv", dtype={"trajectory": str})
     sweep_path = folder / "pareto_sweep.csv"
     sweep = pd.read_csv(sweep_path) if sweep_path.exists() else None
