@@ -43,26 +43,17 @@ class Walker(Straight):
         return Solution(poses, iterations=1, duration_s=0.0, loss=None)
 
 
-@dataclasses.dataclass
-class FailOn2Settings:
-    fail_on: str = option("2", help="trajectory id whose solve raises")
-    interrupt_on: str = option("", help="trajectory id whose solve is interrupted")
+def straight_variant(name: str, fail_on: str = "", interrupt_on: str = "") -> type:
+    """A :class:`Straight` registered as ``name`` whose defaults fail or interrupt a
+    trajectory (compare takes no method options on its command line)."""
+    settings = dataclasses.make_dataclass(f"{name}Settings", [
+        ("fail_on", str, option(fail_on, help="trajectory id whose solve raises")),
+        ("interrupt_on", str, option(interrupt_on, help="trajectory id interrupted"))])
+    return type(name, (Straight,), {"name": name, "Settings": settings})
 
 
-class FailsOn2(Straight):
-    name = "fails-on-2"
-    Settings = FailOn2Settings
-
-
-@dataclasses.dataclass
-class InterruptSettings:
-    fail_on: str = option("", help="trajectory id whose solve raises")
-    interrupt_on: str = option("2", help="trajectory id whose solve is interrupted")
-
-
-class Interrupts(Straight):
-    name = "interrupts"
-    Settings = InterruptSettings
+FailsOn2 = straight_variant("fails-on-2", fail_on="2")
+Interrupts = straight_variant("interrupts", interrupt_on="2")
 
 
 @pytest.fixture

@@ -105,17 +105,22 @@ def test_drake_ik_walk_keeps_the_authors_scheme(robot):
 
 
 # ----- the trajectory optimisers under the contract ---------------------------------------------
-@needs_drake
-def test_drake_trajopt_meets_the_contract(robot):
+def assert_meets_the_contract(robot, name: str) -> None:
+    """``name`` on paper target 1: every criterion met, the steps bounded by the speed limit,
+    pointing asked from the first judged step."""
     tasks = paper_tasks(robot, "1")
-    method = get_method("drake-trajopt")()
-    (solution,) = solve_all(method, robot, tasks)
+    (solution,) = solve_all(get_method(name)(), robot, tasks)
     found = figures(robot, tasks[0], solution)
     assert found["speed_limit_use"] <= 1.0
     assert judge(tasks[0].contract, found) == dict.fromkeys(tasks[0].contract.criteria(), True), \
         found
     assert solution.info["speed_bounded"]
     assert solution.info["pointing_from"] == tasks[0].contract.judged_from(50)
+
+
+@needs_drake
+def test_drake_trajopt_meets_the_contract(robot):
+    assert_meets_the_contract(robot, "drake-trajopt")
 
 
 @needs_drake
@@ -140,11 +145,4 @@ def test_drake_trajopt_without_a_contract_is_unchanged(robot):
 
 @needs_pyroki
 def test_pyroki_meets_the_contract(robot):
-    tasks = paper_tasks(robot, "1")
-    (solution,) = solve_all(get_method("pyroki")(), robot, tasks)
-    found = figures(robot, tasks[0], solution)
-    assert found["speed_limit_use"] <= 1.0
-    assert judge(tasks[0].contract, found) == dict.fromkeys(tasks[0].contract.criteria(), True), \
-        found
-    assert solution.info["speed_bounded"]
-    assert solution.info["pointing_from"] == tasks[0].contract.judged_from(50)
+    assert_meets_the_contract(robot, "pyroki")
