@@ -48,6 +48,7 @@ class Entry:
 BUILTIN = (
     Entry("ours", "ikbench.methods.ours:Ours", ("torch", "pytorch_kinematics")),
     Entry("ours-lm", "ikbench.methods.ours_lm:OursLM", ("scipy", "pinocchio")),
+    Entry("ours-exact", "ikbench.methods.ours_exact:OursExact", ("scipy", "pinocchio")),
     Entry("sequential-ik", "baselines.sequential_ik:SequentialIK", ("pinocchio",)),
     Entry("sequential-ik-walk", "baselines.sequential_ik:SequentialIKWalk", ("pinocchio",)),
     # other kinematics libraries (baselines/, installed with the [libs] extra)

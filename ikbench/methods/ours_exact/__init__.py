@@ -1,0 +1,301 @@
+"""``ours-exact``: the whole trajectory with hard constraints, smoothness and pointing optimised.
+
+The paper's objective (and ours-lm, which minimises it) trades every requirement against the
+others by weights: the fingertip leaves the line by millimetres so that the motion stays smooth
+and the finger points. ``ours-exact`` makes the requirements that must hold exactly hard
+constraints and optimises only what is a matter of degree:
+
+- **constraints**: every fingertip point at its goal point (3-D tasks: lines, polylines,
+  splines, letters) or every end frame at its goal frame (6-D pose paths), the start and touch
+  poses exactly where the task fixes them, the joint limits as bounds;
+- **objective**: the paper's smoothness L6 (mean squared joint step), the paper's pointing L1
+  over the part of the path where pointing is judged (the task contract's, the last 80 % of a
+  line; the whole of a letter, along the drawing plane's normal), optionally the mean squared
+  jerk, and a penalty that keeps every joint step within ``--exact-max-step``.
+
+Solved by SQP (:mod:`.sqp`: Gauss-Newton model, banded KKT solve :mod:`.kkt`, l1 merit,
+bound active set), batched over trajectories, from the joint interpolation between the fixed
+poses, or (tasks without them) from ours-lm's solution. A trajectory whose constraints cannot
+all hold is returned as solved-but-infeasible (``converged=False``) with the constraint and
+place that failed in its ``info``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from ikbench.core.errors import InputError
+from ikbench.core.validity import MAX_JOINT_CHANGE_DEG, MAX_JOINT_CHANGE_MM
+from ikbench.methods.base import Method, Solution, check_choice, check_positive, option
+from ikbench.methods.ours_exact.problem import TERMS, ExactProblem
+from ikbench.methods.ours_exact.sqp import RESTORATIONS, SQPResult, solve
+
+__all__ = ["ExactProblem", "ExactSettings", "OursExact", "SQPResult", "build_problem", "solve"]
+
+INITS = ("auto", "interpolation", "ours-lm")
+#: Steps of a 6-D pose path are kept below this share of CppFlow's joint-change limits.
+PATH_STEP_SHARE = 0.95
+#: Below the task contract's speed limit by this share (a margin for the penalty's residue).
+CONTRACT_STEP_SHARE = 0.98
+
+
+@dataclass
+class ExactSettings:
+    """Settings of ``ours-exact`` (CLI options from the ``option`` fields).
+
+    Attributes:
+        pointing_weight: c1, the weight of the paper's pointing term L1 over the judged part.
+        smoothness_weight: c6, the weight of the paper's smoothness term L6.
+        jerk_weight: weight of the mean squared jerk (third differences) [1/deg^2].
+        max_step: largest joint step per segment the penalty allows [pose units]; the task
+            contract's speed limit lowers it where that is stricter.
+        step_penalty: weight of the squared step excess above ``max_step``.
+        max_iterations: SQP iteration cap.
+        tolerance: stop when a step changes the merit by less than this fraction or moves no
+            joint by more than this [pose units] (and the constraints hold).
+        feasibility_tolerance: the constraints hold when no point is further than this from
+            its goal [mm] (and no frame rotated further [deg]).
+        init: the initial trajectory: ``interpolation`` (joint interpolation between the
+            fixed poses), ``ours-lm`` (ours-lm's solution) or ``auto`` (the first where the
+            task fixes both poses, else the second).
+    """
+
+    pointing_weight: float = option(2000.0, flag="exact-pointing-weight",
+                                    help="c1: weight of pointing over the judged part")
+    smoothness_weight: float = option(1.0, flag="exact-smoothness-weight",
+                                      help="c6: weight of the mean squared joint step")
+    jerk_weight: float = option(0.0, flag="exact-jerk-weight",
+                                help="weight of the mean squared jerk (third differences)")
+    max_step: float = option(9.5, flag="exact-max-step", unit="pose units per segment",
+                             help="largest joint step the step penalty allows")
+    step_penalty: float = option(1e4, flag="exact-step-penalty",
+                                 help="weight of the squared step excess above the max step")
+    max_iterations: int = option(100, flag="exact-max-iterations", help="SQP iteration cap")
+    tolerance: float = option(1e-4, flag="exact-tolerance",
+                              help="stop when a step changes the merit by less than this "
+                              "fraction or moves no joint more than this")
+    feasibility_tolerance: float = option(1e-6, flag="exact-feasibility-tolerance",
+                                          unit="mm, deg",
+                                          help="largest constraint violation that counts as "
+                                          "holding")
+    init: str = option("auto", flag="exact-init", choices=INITS,
+                       help="initial trajectory: interpolation between the fixed poses, "
+                       "ours-lm's solution, or auto (the first when both poses are fixed)")
+
+    def __post_init__(self):
+        check_positive(self, "pointing_weight", "smoothness_weight", "max_step",
+                       "step_penalty", "tolerance", "feasibility_tolerance")
+        check_positive(self, "max_iterations", integer=True)
+        if not (isinstance(self.jerk_weight, (int, float)) and math.isfinite(self.jerk_weight)
+                and self.jerk_weight >= 0):
+            raise InputError(f"--exact-jerk-weight: {self.jerk_weight!r} must be a number >= 0")
+        check_choice(self, "init", INITS)
+        self.max_iterations = int(self.max_iterations)
+
+
+class OursExact(Method):
+    """Hard path and pose constraints, smoothness and pointing optimised (SQP, batched)."""
+
+    name = "ours-exact"
+    description = ("hard constraints (every point on the path, the start and touch poses, "
+                   "joint limits), the paper's smoothness and pointing optimised: batched SQP "
+                   "with a banded KKT solve")
+    Settings = ExactSettings
+    batched = True
+    supports_frames = True
+
+    def scheme_label(self) -> str:
+        s = self.settings
+        jerk = f", jerk {s.jerk_weight:g}" if s.jerk_weight else ""
+        return (f"whole path, exact constraints, c1 {s.pointing_weight:g}, "
+                f"c6 {s.smoothness_weight:g}{jerk}")
+
+    def _sqp(self, kinematics, problem, initial, init_info) -> SQPResult:
+        s = self.settings
+        from_lm = all(how == "ours-lm" for how in init_info)
+        return solve(kinematics, problem, initial,
+                     restorations=0 if from_lm else RESTORATIONS,
+                     max_iterations=s.max_iterations, tolerance=s.tolerance,
+                     feasibility_tolerance=s.feasibility_tolerance)
+
+    def prepare(self, robot) -> None:
+        robot.chain_kinematics().frames(np.zeros((1, robot.dof)))
+        import scipy.linalg.lapack  # noqa: F401  the banded solver's import is not timed
+
+    def solve(self, robot, task, progress=None) -> Solution:
+        return self.solve_many(robot, [task])[0]
+
+    def solve_many(self, robot, tasks, progress=None) -> list[Solution]:
+        """Solve tasks in batches of one length and kind; each Solution's duration_s is its
+        share of its batch's wall time (the initial solve included)."""
+        groups: dict[tuple, list[int]] = {}
+        for k, task in enumerate(tasks):
+            groups.setdefault((task.steps, task.has_frames, _limits_key(robot, task)),
+                              []).append(k)
+        out: dict[int, Solution] = {}
+        for members in groups.values():
+            batch = [tasks[k] for k in members]
+            if progress:
+                for k in members:
+                    progress.start(tasks[k], k, len(tasks))
+            for k, solution in zip(members, self._solve_batch(robot, batch)):
+                out[k] = solution
+                if progress:
+                    progress.done(tasks[k], solution)
+        return [out[k] for k in range(len(tasks))]
+
+    def _solve_batch(self, robot, tasks) -> list[Solution]:
+        started = time.perf_counter()
+        s = self.settings
+        kinematics = robot.chain_kinematics()
+        problem = build_problem(robot, tasks, s)
+        initial, init_info = initial_trajectories(robot, tasks, s)
+        result = self._sqp(kinematics, problem, initial, init_info)
+        # a start from the joint interpolation that ends in a poor local solution (a step
+        # above the limit, infeasible, not converged) is solved again from ours-lm's
+        retry = [k for k, how in enumerate(init_info) if how == "interpolation"
+                 and s.init == "auto" and not _good(result, k, s.feasibility_tolerance)]
+        if retry:
+            again = [tasks[k] for k in retry]
+            second_initial, _ = initial_trajectories(robot, again, replace(s, init="ours-lm"))
+            second = self._sqp(kinematics, problem.take(retry), second_initial,
+                               ["ours-lm"] * len(retry))
+            for j, k in enumerate(retry):
+                result.iterations[k] += second.iterations[j]
+                if _rank(second, j, s.feasibility_tolerance) > _rank(result, k,
+                                                                     s.feasibility_tolerance):
+                    for name in ("poses", "objective", "terms", "violation", "worst",
+                                 "converged"):
+                        getattr(result, name)[k] = getattr(second, name)[j]
+                    init_info[k] = "ours-lm (after the interpolation's)"
+        wall = time.perf_counter() - started
+        solutions = []
+        for k in range(len(tasks)):
+            feasible = bool(result.violation[k] <= s.feasibility_tolerance)
+            info = {"batch_size": len(tasks), "batch_wall_time_s": wall,
+                    "constraint_violation_max": float(result.violation[k]),
+                    "feasible": feasible, "sqp_converged": bool(result.converged[k]),
+                    "initial": init_info[k],
+                    **{f"objective_{t}": float(v) for t, v in zip(TERMS, result.terms[k])}}
+            if not feasible:
+                info["infeasible"] = describe_violation(problem, result, k)
+            solutions.append(Solution(
+                poses_deg=result.poses[k], iterations=int(result.iterations[k]),
+                duration_s=wall / len(tasks), loss=float(result.objective[k]),
+                converged=bool(result.converged[k]) and feasible, info=info))
+        return solutions
+
+
+def _good(result: SQPResult, k: int, feasibility_tolerance: float) -> bool:
+    """Converged, feasible and every step within the step limit."""
+    return bool(result.converged[k] and result.violation[k] <= feasibility_tolerance
+                and result.terms[k, TERMS.index("step_excess")] <= 0.0)
+
+
+def _rank(result: SQPResult, k: int, feasibility_tolerance: float) -> tuple:
+    """Sort key of a result: feasible, then within the step limit, then lower objective."""
+    return (bool(result.violation[k] <= feasibility_tolerance),
+            bool(result.terms[k, TERMS.index("step_excess")] <= 0.0),
+            -float(result.objective[k]))
+
+
+def _limits_key(robot, task) -> tuple:
+    lower, upper = task.limits(robot)
+    return tuple(np.round(np.concatenate([lower, upper]), 9))
+
+
+def describe_violation(problem: ExactProblem, result: SQPResult, k: int) -> str:
+    """Which constraint fails where, in words: ``point 23: 3.2 mm from its goal``."""
+    pose, row = (int(v) for v in result.worst[k])
+    what, unit = ("point", "mm") if row < 3 else ("frame rotation", "deg")
+    return (f"{what} {pose}: {result.violation[k]:.3g} {unit} from its goal (the largest "
+            "violation; the constraints cannot all hold from this start, e.g. a point out of "
+            "reach or a path that needs a jump)")
+
+
+def step_limits(robot, task, settings: ExactSettings) -> np.ndarray:
+    """(k,) the largest joint step per segment the penalty allows [pose units]: for a task
+    with a contract, ``--exact-max-step`` or the contract's speed limit (the stricter); for a
+    6-D pose path, CppFlow's joint-change limits; none (inf) for other tasks (a letter asks
+    for its points, not for a speed)."""
+    limit = np.full(robot.dof, np.inf)
+    if task.has_frames:  # CppFlow's joint-change criteria, with a margin
+        prismatic = robot.chain_kinematics().prismatic
+        limit = PATH_STEP_SHARE * np.where(prismatic, MAX_JOINT_CHANGE_MM, MAX_JOINT_CHANGE_DEG)
+    contract = task.contract
+    if contract is not None:
+        limit = np.minimum(limit, float(settings.max_step))
+        if contract.max_step(task.steps) is not None:
+            limit = np.minimum(limit, CONTRACT_STEP_SHARE * contract.max_step(task.steps))
+    return limit
+
+
+def pointing_scales(task, settings: ExactSettings) -> np.ndarray:
+    """(N,) squared residual scale of the pointing residual per pose: c1 / (2 N_judged) on
+    the judged poses (the contract's judged part, pen-down points; the whole path without a
+    contract), 0 elsewhere and for 6-D pose paths (their frames are constraints)."""
+    n_poses = task.steps + 1
+    judged = np.asarray(task.pen_down, dtype=bool).copy()
+    contract = task.contract
+    if task.has_frames or (contract is not None and not contract.pointing):
+        judged[:] = False
+    elif contract is not None:
+        judged[:contract.judged_from(task.steps)] = False
+    out = np.zeros(n_poses)
+    if judged.any():
+        out[judged] = settings.pointing_weight / (2.0 * judged.sum())
+    return out
+
+
+def build_problem(robot, tasks, settings: ExactSettings) -> ExactProblem:
+    """The :class:`ExactProblem` of tasks of one length, kind and joint limits."""
+    n = tasks[0].steps
+    dof = robot.dof
+    fixed = np.zeros((len(tasks), n + 1), dtype=bool)
+    fixed[:, 0] = [t.start_pose_deg is not None for t in tasks]
+    fixed[:, -1] = [t.end_pose_deg is not None for t in tasks]
+    frames = tasks[0].has_frames
+    lower, upper = (np.asarray(v, dtype=float) for v in tasks[0].limits(robot))
+    jerk = settings.jerk_weight / (max(n - 2, 1) * dof)
+    return ExactProblem(
+        goal_points_mm=np.stack([t.goal_points_mm for t in tasks]),
+        goal_directions=np.stack([t.goal_directions for t in tasks]),
+        goal_rotations=np.stack([t.goal_rotations for t in tasks]) if frames else None,
+        pointing=np.stack([pointing_scales(t, settings) for t in tasks]),
+        smooth=np.full(len(tasks), settings.smoothness_weight / (n * dof)),
+        jerk=np.full(len(tasks), jerk if n >= 3 else 0.0),
+        step_limit=np.stack([step_limits(robot, t, settings) for t in tasks]),
+        step_penalty=np.full(len(tasks), float(settings.step_penalty)),
+        fixed=fixed, constrained=~fixed, lower=lower, upper=upper)
+
+
+def initial_trajectories(robot, tasks, settings: ExactSettings):
+    """(poses (B, N, k) to start from, a word per task saying which)."""
+    both = [t.start_pose_deg is not None and t.end_pose_deg is not None for t in tasks]
+    use_lm = [settings.init == "ours-lm" or (settings.init == "auto" and not ok)
+              for ok in both]
+    for task, ok, lm in zip(tasks, both, use_lm):
+        if not lm and not ok:
+            raise InputError(f"trajectory {task.name!r}: --exact-init interpolation needs a "
+                             "start and a touch pose; use --exact-init ours-lm or auto")
+    from ikbench.methods.ours_lm import OursLM, initial_poses
+
+    out: Any = (initial_poses(robot, tasks) if not tasks[0].has_frames or not any(use_lm)
+                else None)
+    if any(use_lm):
+        chosen = [t for t, lm in zip(tasks, use_lm) if lm]
+        solved = OursLM().solve_many(robot, chosen)
+        poses = iter(s.poses_deg for s in solved)
+        stacked = [next(poses) if lm else out[k] for k, lm in enumerate(use_lm)]
+        out = np.stack(stacked)
+    for k, task in enumerate(tasks):  # the fixed poses exactly, whatever the start
+        if task.start_pose_deg is not None:
+            out[k, 0] = task.start_pose_deg
+        if task.end_pose_deg is not None:
+            out[k, -1] = task.end_pose_deg
+    return out, ["ours-lm" if lm else "interpolation" for lm in use_lm]
