@@ -92,7 +92,7 @@ def test_methods_without_goal_frames_say_they_cannot(tmp_path, capsys, monkeypat
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1
     assert ("--method points-only cannot follow goal frames (a 6-D pose path); methods that "
-            "can: ours, ours-lm, sequential-ik") in err
+            "can: ours, ours-lm, ours-exact, sequential-ik") in err
     code = main(["cartesian", "--methods", "ours-lm,points-only", "--output", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and "--methods: points-only cannot follow goal frames" in err

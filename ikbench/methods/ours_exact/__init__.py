@@ -63,6 +63,7 @@ class ExactSettings:
         init: the initial trajectory: ``interpolation`` (joint interpolation between the
             fixed poses), ``ours-lm`` (ours-lm's solution) or ``auto`` (the first where the
             task fixes both poses, else the second).
+        seed: 6-D pose paths: the seed of ours-lm's start search (the initial trajectory).
     """
 
     pointing_weight: float = option(2000.0, flag="exact-pointing-weight",
@@ -86,6 +87,9 @@ class ExactSettings:
     init: str = option("auto", flag="exact-init", choices=INITS,
                        help="initial trajectory: interpolation between the fixed poses, "
                        "ours-lm's solution, or auto (the first when both poses are fixed)")
+    seed: int = option(0, flag="lm-seed",
+                       help="6-D pose paths: seed of the start search's random IK seeds, "
+                       "in [0, 2^63)")
 
     def __post_init__(self):
         check_positive(self, "pointing_weight", "smoothness_weight", "max_step",
@@ -96,6 +100,9 @@ class ExactSettings:
             raise InputError(f"--exact-jerk-weight: {self.jerk_weight!r} must be a number >= 0")
         check_choice(self, "init", INITS)
         self.max_iterations = int(self.max_iterations)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) \
+                or not 0 <= self.seed < 2**63:
+            raise InputError(f"--lm-seed: {self.seed!r} must be an integer in [0, 2^63)")
 
 
 class OursExact(Method):
@@ -289,7 +296,7 @@ def initial_trajectories(robot, tasks, settings: ExactSettings):
                 else None)
     if any(use_lm):
         chosen = [t for t, lm in zip(tasks, use_lm) if lm]
-        solved = OursLM().solve_many(robot, chosen)
+        solved = OursLM(seed=settings.seed).solve_many(robot, chosen)
         poses = iter(s.poses_deg for s in solved)
         stacked = [next(poses) if lm else out[k] for k, lm in enumerate(use_lm)]
         out = np.stack(stacked)
