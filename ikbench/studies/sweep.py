@@ -66,6 +66,8 @@ class Measures:
         target: what the fingertip should follow (``"line"``, ``"shape"``).
         mean_columns / max_columns: per-trajectory figures averaged / maximised per setting.
         table_columns: the columns of sweep.md's tables.
+        unit / log: the accuracy axis' unit and scale.
+        colour / colour_name: the column shown as colour in pareto.png, and its label.
     """
 
     accuracy: str
@@ -74,6 +76,10 @@ class Measures:
     mean_columns: tuple
     max_columns: tuple
     table_columns: tuple
+    unit: str = "mm"
+    log: bool = True
+    colour: str = "mean_sq_joint_step_deg2"
+    colour_name: str = "smoothness: mean squared joint step [deg$^2$]"
 
 
 LINE_MEASURES = Measures(
@@ -89,9 +95,24 @@ SHAPE_MEASURES = Measures(
      "pareto"))
 
 
-def measures_of(frame: pd.DataFrame) -> Measures:
-    """:data:`SHAPE_MEASURES` for a frame of shape figures, else :data:`LINE_MEASURES`."""
-    return SHAPE_MEASURES if "point_error_mean_mm" in frame.columns else LINE_MEASURES
+#: ours-exact holds the path exactly: its trade-off is smoothness against pointing.
+EXACT_LINE_MEASURES = replace(
+    LINE_MEASURES, accuracy="mean_sq_joint_step_deg2",
+    accuracy_name="smoothness (mean squared joint step)", unit="deg^2", log=False,
+    colour="max_joint_step_deg", colour_name="largest joint step [deg]")
+EXACT_SHAPE_MEASURES = replace(
+    SHAPE_MEASURES, accuracy="mean_sq_joint_step_deg2",
+    accuracy_name="smoothness (mean squared joint step)", unit="deg^2", log=False,
+    colour="max_joint_step_deg", colour_name="largest joint step [deg]")
+
+
+def measures_of(frame: pd.DataFrame, method: str = "ours-lm") -> Measures:
+    """:data:`SHAPE_MEASURES` for a frame of shape figures, else :data:`LINE_MEASURES` (their
+    ``EXACT_`` forms for ``ours-exact``, whose path is exact)."""
+    shape = "point_error_mean_mm" in frame.columns
+    if method == "ours-exact":
+        return EXACT_SHAPE_MEASURES if shape else EXACT_LINE_MEASURES
+    return SHAPE_MEASURES if shape else LINE_MEASURES
 
 
 def parse_grid(items: list[str] | str) -> dict[str, list[float]]:
@@ -163,7 +184,7 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
           only: str | None = None, steps: int | None = None, shape: str = "line",
           size_mm: float | None = None, start_pose=None, direction=None, lm_settings=None,
           progress: bool = True, robot: Robot | str | None = None,
-          executor: Executor | None = None) -> SweepResult:
+          executor: Executor | None = None, method: str = "ours-lm") -> SweepResult:
     """Solve the tasks of a shape for every weight setting of ``grid`` (module docstring).
 
     Args:
@@ -185,12 +206,16 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
         robot: the robot or its name/config/URDF (default NICO's right arm).
         executor: where the solve runs (:mod:`ikbench.studies.executors`; default: one
             batched call in this process); the numbers do not depend on it.
+        method: ``ours-lm`` (the paper's objective) or ``ours-exact`` (the path and poses
+            exact; the grid may hold only c1, the pointing weight, and c6, the smoothness
+            weight; the reference is ours-exact's default c1 and c6; in this process only).
 
     Raises:
         InputError: bad shape, options or a setting whose weights are all 0 for the tasks.
     """
     from ikbench.methods.ours_lm import LMSettings
 
+    check_sweep_method(method, grid, executor)
     robot = as_robot(robot)
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
@@ -211,6 +236,8 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
         raise InputError(f"--shape: {shape!r} makes tasks with different default weights; "
                          "sweep one kind of shape at a time")
     base = dict(tasks[0].default_weights or PAPER_WEIGHTS)
+    if method == "ours-exact":
+        base = exact_reference_weights()
     settings = grid_settings(grid, base)
     for weights in settings:
         if not any(any(effective_weights(weights, t).values()) for t in tasks):
@@ -221,11 +248,15 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
     all_tasks = [task for _ in settings for task in tasks]
     all_weights = [w for w in settings for _ in tasks]
     if progress:
-        print(f"[sweep] {len(settings)} weight settings x {len(tasks)} tasks ({shape}): one "
-              f"batched ours-lm solve of {len(all_tasks)} trajectories", file=sys.stderr,
-              flush=True)
-    result, _ = solve_parts(executor, robot, all_tasks, lm_settings or LMSettings(),
-                            all_weights)
+        how = ("one batched ours-lm solve" if method == "ours-lm"
+               else f"{len(settings)} batched ours-exact solves")
+        print(f"[sweep] {len(settings)} weight settings x {len(tasks)} tasks ({shape}): "
+              f"{how} of {len(all_tasks)} trajectories", file=sys.stderr, flush=True)
+    if method == "ours-lm":
+        result, _ = solve_parts(executor, robot, all_tasks, lm_settings or LMSettings(),
+                                all_weights)
+    else:
+        result = _solve_exact(robot, tasks, settings)
     if progress:
         print(f"[sweep] solved in {result.duration_s:.2f} s; measuring", file=sys.stderr,
               flush=True)
@@ -248,11 +279,66 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
               "shape": shape, "size_mm": (size_mm or DEFAULT_SIZE_MM) if kind == "letter" else None,
               "direction": direction, "start_pose_deg": targets.start_pose_deg.tolist(),
               "reference_weights": {f"c{t[1]}": base[t] for t in TERMS},
-              "reference": reference_name(kind),
+              "reference": reference_name(kind) if method == "ours-lm"
+              else "ours-exact's default weights", "method": method,
               "trajectories": [t.name for t in tasks], "steps": tasks[0].steps,
               "solve_wall_time_s": result.duration_s, "trajectories_solved": len(all_tasks),
               **(executor or LocalExecutor()).describe(), **provenance()}
-    return SweepResult(summarise(per_traj), per_traj, record)
+    return SweepResult(summarise(per_traj, method), per_traj, record)
+
+
+#: Methods a sweep can run, and the terms of the grid each can take.
+SWEEP_METHODS = {"ours-lm": TERMS, "ours-exact": ("L1", "L6")}
+
+
+def check_sweep_method(method: str, grid: dict, executor) -> None:
+    """InputError for an unknown method, a grid term it has no weight for, or ours-exact on
+    another executor than this process."""
+    if method not in SWEEP_METHODS:
+        raise InputError(f"--method: {method!r} is not one of {', '.join(SWEEP_METHODS)}")
+    wrong = [t for t in grid if t not in SWEEP_METHODS[method]]
+    if wrong:
+        raise InputError(f"--weight c{wrong[0][1]}: ours-exact holds the path and the fixed "
+                         "poses exactly (constraints, no weights); its grid may hold c1 "
+                         "(pointing) and c6 (smoothness)")
+    if method == "ours-exact" and executor is not None and executor.workers != 1:
+        raise InputError("--executor: the ours-exact sweep runs in this process; use "
+                         "--executor local")
+
+
+def exact_reference_weights() -> dict:
+    """ours-exact's default c1 (pointing) and c6 (smoothness), the other terms 0."""
+    from ikbench.methods.ours_exact import ExactSettings
+
+    defaults = ExactSettings()
+    return {**{t: 0.0 for t in TERMS}, "L1": defaults.pointing_weight,
+            "L6": defaults.smoothness_weight}
+
+
+@dataclass
+class _ExactBatch:
+    """ours-exact's solutions in the shape of ours-lm's BatchResult (what sweep reads)."""
+
+    poses_deg: np.ndarray
+    loss: np.ndarray
+    iterations: np.ndarray
+    converged: np.ndarray
+    duration_s: float
+
+
+def _solve_exact(robot, tasks, settings) -> _ExactBatch:
+    """ours-exact solved for every weight setting (one batched call each), in order."""
+    from ikbench.methods.ours_exact import OursExact
+
+    solutions = []
+    for weights in settings:
+        method = OursExact(pointing_weight=weights["L1"], smoothness_weight=weights["L6"])
+        solutions += method.solve_many(robot, tasks)
+    return _ExactBatch(np.stack([s.poses_deg for s in solutions]),
+                       np.array([s.loss for s in solutions]),
+                       np.array([s.iterations for s in solutions]),
+                       np.array([s.converged for s in solutions]),
+                       float(sum(s.duration_s for s in solutions)))
 
 
 def reference_name(kind: str) -> str:
@@ -260,13 +346,13 @@ def reference_name(kind: str) -> str:
     return "the paper's letter setting" if kind == "letter" else "the paper's weights"
 
 
-def summarise(per_traj: pd.DataFrame) -> pd.DataFrame:
+def summarise(per_traj: pd.DataFrame, method: str = "ours-lm") -> pd.DataFrame:
     """One row per setting: means / worst values over the tasks, and the Pareto flag.
 
     Line figures (``line_distance_mean_mm``, ...) or shape figures (``point_error_mean_mm``,
     ...), whichever ``per_traj`` has (:func:`measures_of`).
     """
-    m = measures_of(per_traj)
+    m = measures_of(per_traj, method)
     weight_cols = [f"c{t[1]}" for t in TERMS]
     agg = {**{c: "first" for c in weight_cols + ["paper_weights"]},
            **{c: "mean" for c in m.mean_columns}, **{c: "max" for c in m.max_columns},
@@ -280,16 +366,17 @@ def summarise(per_traj: pd.DataFrame) -> pd.DataFrame:
     return table
 
 
-def plot_pareto(table: pd.DataFrame, title: str = "", reference: str = "the paper's weights"):
+def plot_pareto(table: pd.DataFrame, title: str = "", reference: str = "the paper's weights",
+                method: str = "ours-lm"):
     """Accuracy (line distance or point error) vs pointing deviation, smoothness as colour."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    m = measures_of(table)
+    m = measures_of(table, method)
     fig, ax = plt.subplots(figsize=(8, 5.5))
-    smooth = table["mean_sq_joint_step_deg2"]
+    smooth = table[m.colour]
     points = ax.scatter(table[m.accuracy], table["pointing_deviation_mean_deg"],
                         c=smooth, cmap="viridis", s=36, zorder=3)
     front = table[table["pareto"]].sort_values(m.accuracy)
@@ -302,22 +389,24 @@ def plot_pareto(table: pd.DataFrame, title: str = "", reference: str = "the pape
     ax.scatter(paper[m.accuracy], paper["pointing_deviation_mean_deg"],
                marker="*", s=260, facecolors="none", edgecolors="red", zorder=4,
                label=reference)
-    ax.set_xscale("log")
+    if m.log:
+        ax.set_xscale("log")
     ax.margins(x=0.25)
-    over = "targets" if m is LINE_MEASURES else "pen-down points and tasks"
-    ax.set_xlabel(f"{m.accuracy_name}, mean over {over} [mm] (log)")
+    over = "targets" if m.target == "line" else "pen-down points and tasks"
+    scale = " (log)" if m.log else ""
+    ax.set_xlabel(f"{m.accuracy_name}, mean over {over} [{m.unit}]{scale}")
     ax.set_ylabel(f"pointing deviation, mean over {over} [deg]")
-    fig.colorbar(points, ax=ax, label="smoothness: mean squared joint step [deg$^2$]")
+    fig.colorbar(points, ax=ax, label=m.colour_name)
     ax.grid(alpha=0.3, which="both")
     # below the axes: inside, it can hide a setting
     ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2,
               frameon=False)
-    ax.set_title(title or f"weight sweep (ours-lm): {m.accuracy_name} vs pointing")
+    ax.set_title(title or f"weight sweep ({method}): {m.accuracy_name} vs pointing")
     return fig
 
 
 def _describe(row, m: Measures) -> str:
-    if m is LINE_MEASURES:
+    if m.target == "line":
         accuracy = (f"line distance {row['line_distance_mean_mm']:.3g} mm, pointing deviation "
                     f"{row['pointing_deviation_mean_deg']:.2f} deg")
         error = f"worst end point error {row['end_point_error_mm']:.3f} mm"
@@ -331,10 +420,13 @@ def _describe(row, m: Measures) -> str:
             f"{row['mean_sq_joint_step_deg2']:.2f} deg^2, {error}")
 
 
-def findings(table: pd.DataFrame, reference: str = "the paper's weights") -> list[str]:
+def findings(table: pd.DataFrame, reference: str = "the paper's weights",
+             method: str = "ours-lm") -> list[str]:
     """Sentences saying what other weights achieve against the reference and at what cost."""
-    m = measures_of(table)
+    m = measures_of(table, method)
     paper = table[table["paper_weights"]].iloc[0]
+    if method == "ours-exact":
+        return _exact_findings(table, paper, m, reference)
     objective_name = ("the paper's objective" if reference == "the paper's weights"
                       else f"the objective of {reference}")
 
@@ -371,15 +463,30 @@ def write(result: SweepResult, output: str | Path) -> Path:
     atomic_write_csv(out / "sweep_trajectories.csv", result.trajectories, float_format="%.6g")
     atomic_write_text(out / "sweep.json", json.dumps(result.record, indent=2) + "\n")
     atomic_savefig(out / "pareto.png", plot_pareto(
-        result.settings, reference=result.record.get("reference", "the paper's weights")))
+        result.settings, reference=result.record.get("reference", "the paper's weights"),
+        method=result.record.get("method", "ours-lm")))
     atomic_write_text(out / "sweep.md", markdown(result))
     return out / "sweep.csv"
+
+
+def _exact_findings(table, reference_row, m: Measures, reference: str) -> list[str]:
+    """ours-exact's sweep: the path is exact in every setting; smoothness against pointing."""
+    error, name = (("line_distance_mean_mm", "mean line distance") if m.target == "line"
+                   else ("point_error_max_mm", "largest point error"))
+    smoothest = table.loc[table[m.accuracy].idxmin()]
+    best_point = table.loc[table["pointing_deviation_mean_deg"].idxmin()]
+    return [f"- Every setting keeps the path: the {name} is at most "
+            f"{table[error].max():.2g} mm over the settings.",
+            f"- {reference[0].upper() + reference[1:]}: {_describe(reference_row, m)}.",
+            f"- Smoothest: {_describe(smoothest, m)}.",
+            f"- Smallest pointing deviation: {_describe(best_point, m)}."]
 
 
 def markdown(result: SweepResult) -> str:
     """sweep.md: the findings, the Pareto-optimal settings, and every setting."""
     rec, table = result.record, result.settings
-    m = measures_of(table)
+    method = rec.get("method", "ours-lm")
+    m = measures_of(table, method)
     reference = rec.get("reference", "the paper's weights")
     cols = list(m.table_columns)
     digits = {"loss": 3, "paper_loss": 3, "end_point_error_mm": 3, "end_pose_error_deg": 3,
@@ -405,14 +512,21 @@ def markdown(result: SweepResult) -> str:
                    "worst task); `point_error`: distance of each fingertip point from its own "
                    "goal point, `curve_distance`: from the nearest point of the target curve")
     ordered = table.sort_values(m.accuracy)
+    if rec.get("method", "ours-lm") == "ours-lm":
+        what = "The paper's objective (L0..L6, cm and motor degrees) minimised by `ours-lm`"
+        solved = "in one batched solve of"
+    else:
+        what = ("`ours-exact` (the path and fixed poses as hard constraints, c1 pointing over "
+                "the judged part and c6 smoothness optimised)")
+        solved = "solved (one batched call per setting) in"
     return "\n".join([
         "# Weight sweep", "",
-        f"The paper's objective (L0..L6, cm and motor degrees) minimised by `ours-lm` for every "
+        f"{what} for every "
         f"combination of {grid} (other terms keep {reference}: {ref_weights}), {where}. "
-        f"{rec['trajectories_solved']} trajectories in one batched solve of "
+        f"{rec['trajectories_solved']} trajectories {solved} "
         f"{rec['solve_wall_time_s']:.2f} s. {figures}; `loss` is the setting's own objective, "
         f"`paper_loss` the objective with {reference} of the same poses.", "",
-        "## Findings", "", *findings(table, reference), "",
+        "## Findings", "", *findings(table, reference, method), "",
         "![Pareto](pareto.png)", "",
         f"## Pareto-optimal settings ({m.accuracy_name} vs pointing deviation)", "",
         markdown_table(ordered[ordered["pareto"]][cols], digits), "",

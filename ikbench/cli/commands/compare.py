@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 
 HELP = "compare methods and libraries on the same robot and tasks: results.csv, leaderboard"
-DEFAULT_METHODS = "ours-lm,sequential-ik"
+DEFAULT_METHODS = "ours-lm,ours-exact,sequential-ik"
 DEFAULT_OUTPUT = "runs"
 
 

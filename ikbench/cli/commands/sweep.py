@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-HELP = ("solve the targets or a shape for a grid of loss weights (ours-lm); CSV, Pareto "
-        "figure")
+HELP = ("solve the targets or a shape for a grid of loss weights (ours-lm or ours-exact); "
+        "CSV, Pareto figure")
 
 
 def register(subparsers) -> None:
@@ -22,9 +22,13 @@ def register(subparsers) -> None:
             "line distance [mm] for lines, point error and distance from the curve [mm] for "
             "other shapes, pointing deviation [deg], smoothness, worst errors, Pareto flag), "
             "sweep_trajectories.csv, pareto.png (accuracy vs pointing deviation, smoothness "
-            "as colour), sweep.json and sweep.md."
+            "as colour), sweep.json and sweep.md. With --method ours-exact the path and the "
+            "fixed poses are constraints: the grid may hold c1 (pointing) and c6 "
+            "(smoothness), around ours-exact's defaults."
         ),
     )
+    parser.add_argument("--method", default="ours-lm", choices=("ours-lm", "ours-exact"),
+                        help="the method swept (default ours-lm)")
     parser.add_argument("--weight", action="append", metavar="TERM=V1,V2,...",
                         help="a term of the grid and its values, e.g. --weight c0=1,10,100,1000 "
                         "(repeat for a grid over several terms: --weight c1=5,50)")
@@ -57,9 +61,9 @@ def run(args) -> int:
     result = sweep(grid, targets=args.targets, only=args.only, steps=args.steps,
                    shape=args.shape, size_mm=args.size, start_pose=start_pose,
                    direction=args.direction, progress=not args.quiet, robot=robot,
-                   executor=executor_from_args(args))
+                   executor=executor_from_args(args), method=args.method)
     path = write(result, args.output)
-    m = measures_of(result.settings)
+    m = measures_of(result.settings, args.method)
     cols = [c for c in m.table_columns if c not in ("loss", "paper_loss", "converged")]
     table = result.settings.sort_values(m.accuracy)[cols]
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))

@@ -31,7 +31,14 @@ import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.core.validity import MAX_JOINT_CHANGE_DEG, MAX_JOINT_CHANGE_MM
-from ikbench.methods.base import Method, Solution, check_choice, check_positive, option
+from ikbench.methods.base import (
+    Method,
+    Solution,
+    check_choice,
+    check_positive,
+    flag_of,
+    option,
+)
 from ikbench.methods.ours_exact.problem import TERMS, ExactProblem
 from ikbench.methods.ours_exact.sqp import RESTORATIONS, SQPResult, solve
 
@@ -40,6 +47,9 @@ __all__ = ["ExactProblem", "ExactSettings", "OursExact", "SQPResult", "build_pro
 INITS = ("auto", "interpolation", "ours-lm")
 #: Steps of a 6-D pose path are kept below this share of CppFlow's joint-change limits.
 PATH_STEP_SHARE = 0.95
+#: The poses keep this far inside the joint limits [pose units]: a joint held at its bound
+#: stays within it after the trajectory CSV's rounding (10 significant digits).
+BOUND_MARGIN = 1e-5
 #: Below the task contract's speed limit by this share (a margin for the penalty's residue).
 CONTRACT_STEP_SHARE = 0.98
 
@@ -92,12 +102,13 @@ class ExactSettings:
                        "in [0, 2^63)")
 
     def __post_init__(self):
-        check_positive(self, "pointing_weight", "smoothness_weight", "max_step",
-                       "step_penalty", "tolerance", "feasibility_tolerance")
+        check_positive(self, "smoothness_weight", "max_step", "step_penalty", "tolerance",
+                       "feasibility_tolerance")
         check_positive(self, "max_iterations", integer=True)
-        if not (isinstance(self.jerk_weight, (int, float)) and math.isfinite(self.jerk_weight)
-                and self.jerk_weight >= 0):
-            raise InputError(f"--exact-jerk-weight: {self.jerk_weight!r} must be a number >= 0")
+        for name in ("pointing_weight", "jerk_weight"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise InputError(f"{flag_of(self, name)}: {value!r} must be a number >= 0")
         check_choice(self, "init", INITS)
         self.max_iterations = int(self.max_iterations)
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) \
@@ -268,6 +279,7 @@ def build_problem(robot, tasks, settings: ExactSettings) -> ExactProblem:
     fixed[:, -1] = [t.end_pose_deg is not None for t in tasks]
     frames = tasks[0].has_frames
     lower, upper = (np.asarray(v, dtype=float) for v in tasks[0].limits(robot))
+    lower, upper = lower + BOUND_MARGIN, upper - BOUND_MARGIN
     jerk = settings.jerk_weight / (max(n - 2, 1) * dof)
     return ExactProblem(
         goal_points_mm=np.stack([t.goal_points_mm for t in tasks]),
