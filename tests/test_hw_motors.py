@@ -92,10 +92,12 @@ def test_speed_units_never_zero_and_clamped():
     # a misspelt key must not silently drop the calibration it was meant to give
     ({"r_elbow_y": {"orientaton": "indirect"}},
      "r_elbow_y: unknown key 'orientaton' (did you mean 'orientation'?); allowed: id, model, "
-     "offset_deg, orientation, angle_limit_deg, max_speed_deg_s, description"),
+     "offset_deg, orientation, angle_limit_deg, max_speed_deg_s, max_acceleration_deg_s2, "
+     "description"),
     ({"r_wrist_z": {"offset": 10.0}},
      "r_wrist_z: unknown key 'offset' (did you mean 'offset_deg'?); allowed: id, model, "
-     "offset_deg, orientation, angle_limit_deg, max_speed_deg_s, description"),
+     "offset_deg, orientation, angle_limit_deg, max_speed_deg_s, max_acceleration_deg_s2, "
+     "description"),
     ({"r_arm_x": {"limits": [0, 60]}}, "r_arm_x: unknown key 'limits'; allowed: id, model,"),
 ])
 def test_bad_config_names_value_through_cli(robot, tmp_path, capsys, changes, message):

@@ -152,8 +152,11 @@ class _Run:
                                                self.plan.n_segments, dry_run=dry_run)
         far = self._check_start(start, tolerance, approach, approach_speed)
         if dry_run:
-            self.log(f"dry run: would send {self.plan.n_segments} SYNC WRITEs, one every "
-                     f"{self.plan.segment_s * 1000:g} ms; nothing was written")
+            every = (f"one every {self.plan.segment_s * 1000:g} ms" if self.plan.timed is None
+                     else f"at the times of --timing {self.plan.timing} (T = "
+                     f"{self.plan.duration_s:.4g} s)")
+            self.log(f"dry run: would send {self.plan.n_segments} SYNC WRITEs, {every}; "
+                     "nothing was written")
             result.record = self._record()
             return result
         self._check_stop()
@@ -224,12 +227,17 @@ class _Run:
     def _play(self, result: ExecutionResult) -> None:
         plan, dof = self.plan, range(len(self.config.motors))
         segment_s = plan.segment_s
-        self.log(f"playing {plan.n_segments} segments of {segment_s * 1000:g} ms "
-                 f"(T = {plan.duration_s:g} s)")
+        times_s = plan.times_s  # constant timing: k * T/n
+        if plan.timed is None:
+            self.log(f"playing {plan.n_segments} segments of {segment_s * 1000:g} ms "
+                     f"(T = {plan.duration_s:g} s)")
+        else:
+            self.log(f"playing {plan.n_segments} segments of {segment_s * 1000:.3g} ms or more "
+                     f"(--timing {plan.timing}, T = {plan.duration_s:.4g} s)")
         self.moving = True
         self.t0 = time.monotonic()
         for k in range(plan.n_segments):
-            due = self.t0 + k * segment_s
+            due = self.t0 + times_s[k]
             if self.stop.wait(max(0.0, due - time.monotonic())):
                 raise ExecutionInterrupted("interrupted")
             result.max_late_s = max(result.max_late_s, time.monotonic() - due)
@@ -237,7 +245,7 @@ class _Run:
                                 {i: plan.speed_raw[k, i] for i in dof})
             result.segments_sent = k + 1
             if self.record_period:
-                self._sample_between_segments(self.t0 + (k + 1) * segment_s)
+                self._sample_between_segments(self.t0 + times_s[k + 1])
         if self.stop.wait(max(0.0, self.t0 + plan.duration_s - time.monotonic())):
             raise ExecutionInterrupted("interrupted")
 

@@ -5,7 +5,8 @@ A motor config file is JSON::
     {"baudrate": 1000000,
      "motors": {"r_shoulder_z": {"id": 21, "model": "MX", "offset_deg": 0.0,
                                  "orientation": "direct", "angle_limit_deg": [-30, 80],
-                                 "max_speed_deg_s": 270}, ...}}
+                                 "max_speed_deg_s": 270, "max_acceleration_deg_s2": 1000},
+                ...}}
 
 Every joint of the robot needs exactly one entry. Positions follow the MX series in Protocol
 1.0: 4096 steps per turn, raw 2048 = 0 deg, ``raw = round(2048 + sign*(deg + offset)*4096/360)``
@@ -59,7 +60,12 @@ MODELS = {
 #: silently drop the calibration it was meant to give.
 CONFIG_KEYS = ("description", "baudrate", "motors")
 MOTOR_KEYS = ("id", "model", "offset_deg", "orientation", "angle_limit_deg", "max_speed_deg_s",
-              "description")
+              "max_acceleration_deg_s2", "description")
+#: Acceleration limit [deg/s^2] a plan is timed within (``--timing topp``) when a motor gives
+#: none. An assumption, not a measurement: the MX series' own acceleration profile (Goal
+#: Acceleration, address 73, 8.583 deg/s^2 per unit) reaches 2180 deg/s^2 unloaded; about half
+#: of it leaves torque for the arm's load and reaches the 270 deg/s speed limit in 0.27 s.
+DEFAULT_MAX_ACCELERATION_DEG_S2 = 1000.0
 
 
 @dataclass(frozen=True)
@@ -74,6 +80,8 @@ class Motor:
         orientation: ``"direct"`` or ``"indirect"``.
         lower_deg, upper_deg: angle limits [motor deg]; no goal outside is ever sent.
         max_speed_deg_s: speed limit [deg/s] that plans are checked against.
+        max_acceleration_deg_s2: acceleration limit [deg/s^2] that ``--timing topp`` plans
+            within (see :data:`DEFAULT_MAX_ACCELERATION_DEG_S2`).
     """
 
     joint: str
@@ -84,6 +92,7 @@ class Motor:
     lower_deg: float
     upper_deg: float
     max_speed_deg_s: float
+    max_acceleration_deg_s2: float = DEFAULT_MAX_ACCELERATION_DEG_S2
 
     @property
     def sign(self) -> int:
@@ -149,6 +158,10 @@ class MotorConfig:
     @property
     def max_speed_deg_s(self) -> np.ndarray:
         return np.array([m.max_speed_deg_s for m in self.motors])
+
+    @property
+    def max_acceleration_deg_s2(self) -> np.ndarray:
+        return np.array([m.max_acceleration_deg_s2 for m in self.motors])
 
     def label(self, index: int) -> str:
         """``"id 5 (r_elbow_y)"`` for the motor at ``index``."""
@@ -299,8 +312,13 @@ def _parse_motor(name: str, entry, where: str) -> Motor:
     if not 0 < max_speed <= top:
         raise InputError(f"{where}.max_speed_deg_s = {max_speed:g}; allowed: (0, {top:.1f}] "
                          f"(the moving-speed register's range)")
+    max_acceleration = _number(entry, "max_acceleration_deg_s2", where,
+                               DEFAULT_MAX_ACCELERATION_DEG_S2)
+    if not max_acceleration > 0:
+        raise InputError(f"{where}.max_acceleration_deg_s2 = {max_acceleration:g}; give a "
+                         "positive number")
     motor = Motor(name, motor_id, model, _number(entry, "offset_deg", where, 0.0), orientation,
-                  lower, upper, max_speed)
+                  lower, upper, max_speed, max_acceleration)
     for limit in (lower, upper):
         raw = int(motor.deg_to_raw_unclipped(limit))
         if not 0 <= raw <= POSITION_STEPS:

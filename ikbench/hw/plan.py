@@ -1,8 +1,11 @@
 """Motion plan: per-segment goals and speeds for playing a trajectory in a duration T.
 
-Segment k runs from pose k to pose k+1 in T/n seconds; each joint's speed is
-``|delta| / (T/n)`` in motor deg/s. A segment is flagged when a joint would exceed its motor's
-speed limit or when either end pose leaves the motor's angle limits.
+Segment k runs from pose k to pose k+1 in T/n seconds (``--timing constant``, the paper's), or
+from the time the timing reaches pose k to the time it reaches pose k+1 (``min-jerk``,
+``topp``: :mod:`ikbench.core.timing`); each joint's speed is ``|delta| / duration`` in motor
+deg/s. The goals are always the solved poses (no resampling): between them each servo moves at
+its constant moving speed, as with the paper's timing. A segment is flagged when a joint would
+exceed its motor's speed limit or when either end pose leaves the motor's angle limits.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import pandas as pd
 
 from ikbench.core.errors import InputError
 from ikbench.core.robot import load_robot
+from ikbench.core.timing import TimedPath, retime
 from ikbench.core.trajectory import read_trajectory_csv
 from ikbench.hw.motors import MotorConfig, speed_to_raw
 
@@ -35,6 +39,7 @@ class MotionPlan:
         speed_raw: (n, dof) moving-speed register values (1..1023).
         over_speed: (n, dof) speed above the motor's ``max_speed_deg_s``.
         out_of_limits: (n, dof) pose k or k+1 outside the motor's angle limits.
+        timed: the timing (None: ``constant``, segments of T/n).
     """
 
     config: MotorConfig
@@ -45,15 +50,30 @@ class MotionPlan:
     speed_raw: np.ndarray
     over_speed: np.ndarray
     out_of_limits: np.ndarray
+    timed: TimedPath | None = None
 
     @property
     def n_segments(self) -> int:
         return len(self.speed_deg_s)
 
     @property
+    def timing(self) -> str:
+        """``constant``, ``min-jerk`` or ``topp``."""
+        return "constant" if self.timed is None else self.timed.timing
+
+    @property
     def segment_s(self) -> float:
-        """Duration of one segment [s]."""
-        return self.duration_s / self.n_segments
+        """Duration of one segment [s] (the shortest one for a retimed plan)."""
+        if self.timed is None:
+            return self.duration_s / self.n_segments
+        return float(self.timed.segment_s.min())
+
+    @property
+    def times_s(self) -> np.ndarray:
+        """(n+1,) the time each pose is reached [s]."""
+        if self.timed is None:
+            return np.arange(self.n_segments + 1) * self.segment_s
+        return self.timed.times_s
 
     @property
     def flagged(self) -> np.ndarray:
@@ -63,16 +83,21 @@ class MotionPlan:
     def table(self) -> pd.DataFrame:
         """The segment table: one row per segment, speeds in motor deg/s, flags as text."""
         n, names = self.n_segments, self.config.joint_names
+        times = self.times_s
         frame = pd.DataFrame({
             "segment": np.arange(n),
             "from_step": np.arange(n),
             "to_step": np.arange(1, n + 1),
-            "t_start_s": np.arange(n) * self.segment_s,
-            "t_end_s": np.arange(1, n + 1) * self.segment_s,
+            "t_start_s": times[:-1],
+            "t_end_s": times[1:],
         })
         for j, name in enumerate(names):
             frame[f"{name}_goal_deg"] = self.poses_motor_deg[1:, j]
             frame[f"{name}_speed_deg_s"] = self.speed_deg_s[:, j]
+            if self.timed is not None:  # the timing's own, at the goal pose
+                frame[f"{name}_velocity_deg_s"] = self.timed.velocity[1:, j]
+                if self.timed.acceleration is not None:
+                    frame[f"{name}_acceleration_deg_s2"] = self.timed.acceleration[1:, j]
         for j, name in enumerate(names):
             frame[f"{name}_goal_raw"] = self.goal_raw[:, j]
             frame[f"{name}_speed_raw"] = self.speed_raw[:, j]
@@ -110,13 +135,16 @@ class MotionPlan:
             )
 
 
-def make_plan(poses_motor_deg, config: MotorConfig, duration_s: float = 2.0) -> MotionPlan:
+def make_plan(poses_motor_deg, config: MotorConfig, duration_s: float = 2.0,
+              timed: TimedPath | None = None) -> MotionPlan:
     """Plan the segments of a trajectory.
 
     Args:
         poses_motor_deg: (n+1, dof) poses [motor deg] in the config's joint order.
         config: the motors.
-        duration_s: T [s], the duration of the whole movement.
+        duration_s: T [s], the duration of the whole movement (``constant`` timing).
+        timed: a ``min-jerk`` or ``topp`` timing of these poses (None or ``constant``: segments
+            of T/n).
     """
     poses = np.asarray(poses_motor_deg, dtype=float)
     if poses.ndim != 2 or poses.shape[1] != len(config.motors) or len(poses) < 2:
@@ -125,6 +153,8 @@ def make_plan(poses_motor_deg, config: MotorConfig, duration_s: float = 2.0) -> 
     if not np.isfinite(poses).all():
         raise InputError("a plan needs finite poses")
     n = len(poses) - 1
+    if timed is not None and timed.timing != "constant":
+        return _retimed_plan(poses, config, timed)
     if not (np.isfinite(duration_s) and duration_s / n >= MIN_SEGMENT_S):
         raise InputError(f"--duration {duration_s:g} s gives segments of "
                          f"{duration_s / n * 1000:g} ms; give at least "
@@ -144,8 +174,32 @@ def make_plan(poses_motor_deg, config: MotorConfig, duration_s: float = 2.0) -> 
     )
 
 
+def _retimed_plan(poses: np.ndarray, config: MotorConfig, timed: TimedPath) -> MotionPlan:
+    """The plan of a ``min-jerk`` or ``topp`` timing: goal k+1 at the time it is reached."""
+    segment_s = timed.segment_s
+    if not segment_s.min() >= MIN_SEGMENT_S:
+        k = int(segment_s.argmin())
+        raise InputError(f"--timing {timed.timing} gives segment {k} {segment_s[k] * 1000:.3g} "
+                         f"ms; the bus needs at least {MIN_SEGMENT_S * 1000:g} ms per segment; "
+                         "use a longer --duration or lower --max-velocity")
+    speed = np.abs(np.diff(poses, axis=0)) / segment_s[:, None]
+    outside = config.outside_limits(poses)
+    return MotionPlan(
+        config=config,
+        poses_motor_deg=poses,
+        duration_s=timed.duration_s,
+        speed_deg_s=speed,
+        goal_raw=config.poses_to_raw(poses[1:]),
+        speed_raw=speed_to_raw(speed),
+        over_speed=speed > config.max_speed_deg_s,
+        out_of_limits=outside[:-1] | outside[1:],
+        timed=timed,
+    )
+
+
 def plan_trajectory_file(path, config: MotorConfig, duration_s: float = 2.0,
-                         strict: bool = True, robot=None) -> tuple[MotionPlan, str | None]:
+                         strict: bool = True, robot=None, timing: str = "constant",
+                         limits=None) -> tuple[MotionPlan, str | None]:
     """Read a trajectory CSV and plan it; return the plan and a note when the file's own
     ``time_s`` column ends at another duration than ``duration_s`` (else None).
 
@@ -153,6 +207,9 @@ def plan_trajectory_file(path, config: MotorConfig, duration_s: float = 2.0,
         strict: reject poses outside the robot's motor ranges (as the executor must); with
             False they are let through so that the plan flags them.
         robot: the robot whose joints the CSV holds (default NICO's right arm).
+        timing: ``constant`` (segments of T/n), ``min-jerk`` or ``topp``
+            (:mod:`ikbench.core.timing`).
+        limits: the :class:`~ikbench.core.timing.Limits` for ``topp``.
     """
     robot = robot or load_robot()
     if not strict:
@@ -160,9 +217,13 @@ def plan_trajectory_file(path, config: MotorConfig, duration_s: float = 2.0,
         robot = dataclasses.replace(robot, lower_motor_deg=-unbounded, upper_motor_deg=unbounded,
                                     _cache={})
     frame = read_trajectory_csv(path, robot)
-    plan = make_plan(frame[list(config.joint_names)].to_numpy(dtype=float), config, duration_s)
+    poses = frame[list(config.joint_names)].to_numpy(dtype=float)  # the robot's order too
+    timed = None
+    if timing != "constant":
+        timed = retime(robot, poses, timing, duration_s=duration_s, limits=limits)
+    plan = make_plan(poses, config, duration_s, timed)
     note = None
-    if "time_s" in frame:
+    if "time_s" in frame and timing != "topp":
         file_end = float(pd.to_numeric(frame["time_s"], errors="coerce").iloc[-1])
         if np.isfinite(file_end) and abs(file_end - duration_s) > 1e-6:
             note = (f"note: the trajectory's time_s column ends at {file_end:g} s; playing it "

@@ -6,7 +6,9 @@ fingertip's path so far (the trajectory's colour, as in ``trajectories_3d.png``)
 current goal point (hollow circle). Every panel has the same limits and the robot config's
 view. The GIF plays at the trajectory's real speed: frames are ``stride`` steps apart
 (at most ``max_frames`` frames), each shown ``stride * T / n`` seconds, GIF delays rounded to
-10 ms; the first frame is held 0.5 s and the last 1 s before it loops.
+10 ms; the first frame is held 0.5 s and the last 1 s before it loops. Under ``timing``
+``min-jerk`` or ``topp`` (:mod:`ikbench.core.timing`) frames are evenly apart in time (at most
+``max_frames``) and each panel shows the solved pose nearest in time.
 
 Cheap by construction: the axes, panes, ticks and goal paths are drawn once; each frame
 restores that background and draws only the moving lines (matplotlib blitting on the Agg
@@ -79,8 +81,11 @@ class _Panel:
                                animated=True)
         self.ax = ax
 
-    def draw(self, t_s: float, dt_s: float) -> None:
-        k = min(int(round(t_s / dt_s)), len(self.tip) - 1) if dt_s > 0 else 0
+    def draw(self, t_s: float, dt_s: float, timed=None) -> None:
+        if timed is not None:
+            k = timed.index_at(t_s)
+        else:
+            k = min(int(round(t_s / dt_s)), len(self.tip) - 1) if dt_s > 0 else 0
         self.path.set_data_3d(*self.tip[:k + 1].T)
         self.arm.set_data_3d(*self.arms[k].T)
         goal = self.task.goal_points_mm[min(k, len(self.task.goal_points_mm) - 1)]
@@ -90,7 +95,8 @@ class _Panel:
 
 
 def render_frames(robot, tasks, poses_by_id: dict, title: str, duration_s: float,
-                  max_frames: int = MAX_FRAMES, dpi: int = 80):
+                  max_frames: int = MAX_FRAMES, dpi: int = 80, timing: str = "constant",
+                  limits=None):
     """Frames (RGB uint8 arrays) and their durations [ms] of the run's animation.
 
     Args:
@@ -98,10 +104,15 @@ def render_frames(robot, tasks, poses_by_id: dict, title: str, duration_s: float
         tasks: the solved tasks, one panel each.
         poses_by_id: trajectory id -> (n+1, dof) poses [pose units].
         title: the run's title (first line of the figure).
-        duration_s: T [s] of every trajectory (poses T/n apart).
+        duration_s: T [s] of every trajectory (poses T/n apart; ``min-jerk``: its T).
         max_frames: the most frames.
         dpi: pixels per inch of the frames.
+        timing: ``constant``, ``min-jerk`` or ``topp`` (see the module doc).
+        limits: the joint limits for ``topp``.
     """
+    from ikbench.core.timing import check_timing
+
+    check_timing(timing)
     plt = matplotlib_pyplot()
     rows, cols = _grid(len(tasks))
     panel_in = 2.7 if len(tasks) > 2 else 3.6
@@ -129,22 +140,41 @@ def render_frames(robot, tasks, poses_by_id: dict, title: str, duration_s: float
     steps = max(len(p.tip) - 1 for p in panels)
     shown, stride = frame_steps(steps, max_frames)
     dt_s = duration_s / steps
+    timed = _timings(robot, tasks, poses_by_id, timing, duration_s, limits)
     fig.canvas.draw()
     background = fig.canvas.copy_from_bbox(fig.bbox)
     frames = []
-    for step in shown:
+    if timed is None:
+        instants = [(step * dt_s, f"t = {step * dt_s:.2f} s / {duration_s:g} s (step {step} / "
+                     f"{steps})") for step in shown]
+    else:
+        total = max(t.duration_s for t in timed)
+        instants = [(t, f"t = {t:.2f} s / {total:.3g} s ({timing})")
+                    for t in np.linspace(0.0, total, max(2, max_frames))]
+    for t_s, text in instants:
         fig.canvas.restore_region(background)
-        for panel in panels:
-            panel.draw(step * dt_s, dt_s)
-        clock.set_text(f"t = {step * dt_s:.2f} s / {duration_s:g} s (step {step} / {steps})")
+        for k, panel in enumerate(panels):
+            panel.draw(t_s, dt_s, None if timed is None else timed[k])
+        clock.set_text(text)
         fig.draw_artist(clock)
         frames.append(np.asarray(fig.canvas.buffer_rgba())[..., :3].copy())
     plt.close(fig)
-    frame_ms = max(10, int(round(stride * dt_s * 100)) * 10)
+    frame_s = stride * dt_s if timed is None else instants[1][0] - instants[0][0]
+    frame_ms = max(10, int(round(frame_s * 100)) * 10)
     durations = [frame_ms] * len(frames)
     durations[0] += int(HOLD_FIRST_S * 1000)
     durations[-1] += int(HOLD_LAST_S * 1000)
     return frames, durations
+
+
+def _timings(robot, tasks, poses_by_id, timing, duration_s, limits):
+    """The TimedPath of every panel, or None for the paper's timing."""
+    if timing == "constant":
+        return None
+    from ikbench.core.timing import retime
+
+    return [retime(robot, poses_by_id[task.name], timing, duration_s=duration_s, limits=limits)
+            for task in tasks]
 
 
 def save_gif(path, frames, durations) -> Path:
@@ -162,7 +192,9 @@ def save_gif(path, frames, durations) -> Path:
 
 
 def write_animation(path, robot, tasks, poses_by_id: dict, title: str,
-                    duration_s: float) -> Path:
-    """Render the run's animation (see the module doc) and write it to ``path`` (GIF)."""
-    frames, durations = render_frames(robot, tasks, poses_by_id, title, duration_s)
+                    duration_s: float, timing: str = "constant", limits=None) -> Path:
+    """Render the run's animation (see the module doc) and write it to ``path`` (GIF);
+    ``timing`` and ``limits`` as :func:`render_frames` takes them."""
+    frames, durations = render_frames(robot, tasks, poses_by_id, title, duration_s,
+                                      timing=timing, limits=limits)
     return save_gif(path, frames, durations)

@@ -25,6 +25,15 @@ differences make the segments join smoothly; the arm starts at rest and must sto
 touch, and since ROS 2 Jazzy the controller refuses a non-zero final velocity unless
 ``allow_nonzero_velocity_at_trajectory_end`` is set. ``end_velocities="one-sided"`` gives the
 ends one-sided differences instead (for a piece of a longer motion).
+
+**Retimed** (``--timing min-jerk`` or ``topp``, :mod:`ikbench.core.timing`): the motion is
+sampled at a fixed rate (``rate_hz``, default :data:`DEFAULT_RATE_HZ`; points at whole
+nanoseconds ``round(k * 1e9 / rate)``, and one at the end) along the timing's cubic spline
+through the solved poses, and each point carries the timing's own velocities and
+accelerations (the derivatives of the spline and the time law), both at rest at the ends.
+``rate_hz=0`` gives one point per solved pose at its retimed time instead. The fingertip's
+deviation from the solved path that the spline causes is measured
+(:func:`ikbench.core.timing.fingertip_deviation_mm`) and reported in the export's note.
 """
 
 from __future__ import annotations
@@ -41,6 +50,8 @@ from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_text
 
 NS_PER_S = 1_000_000_000
+#: Points per second of a retimed export.
+DEFAULT_RATE_HZ = 250.0
 #: ``ikbench export --format`` -> what it writes.
 FORMATS = {"ros-json": "JointTrajectory as JSON", "ros-yaml": "JointTrajectory as YAML",
            "csv-rad": "step,time_s,<joints> in URDF units (rad; m for prismatic joints)"}
@@ -91,6 +102,39 @@ def joint_trajectory(robot, poses, duration_s: float,
             "joint_names": list(robot.joint_names), "points": points}
 
 
+def timed_points(robot, timed, rate_hz: float = DEFAULT_RATE_HZ):
+    """``(times_ns, q, qd, qdd)`` of a retimed export [URDF units]: the timing sampled at
+    ``rate_hz`` (0: at the solved poses), see the module doc."""
+    from ikbench.core.timing_limits import urdf_units_per_pose_unit
+
+    if rate_hz:
+        total_ns = int(round(timed.duration_s * NS_PER_S))
+        step_ns = NS_PER_S / rate_hz
+        times_ns = [int(round(k * step_ns)) for k in range(int(total_ns // step_ns) + 1)]
+        if total_ns - times_ns[-1] < step_ns / 2 and len(times_ns) > 1:
+            times_ns.pop()  # no sliver of a last interval
+        times_ns.append(total_ns)
+        q, qd, qdd = timed.sample(np.array(times_ns, dtype=float) / NS_PER_S)
+    else:
+        times_ns = [int(round(t * NS_PER_S)) for t in timed.times_s]
+        q, qd, qdd = timed.poses, timed.velocity, timed.acceleration
+        qdd = np.zeros_like(q) if qdd is None else qdd
+    qd, qdd = qd.copy(), qdd.copy()
+    qd[[0, -1]] = 0.0  # at rest (the timing is; this removes round-off)
+    factor = urdf_units_per_pose_unit(robot)
+    return times_ns, np.asarray(robot.to_urdf(q), dtype=float), qd * factor, qdd * factor
+
+
+def timed_joint_trajectory(robot, timed, rate_hz: float = DEFAULT_RATE_HZ) -> dict[str, Any]:
+    """The ``JointTrajectory`` of a retimed path (see the module doc)."""
+    times, q, qd, qdd = timed_points(robot, timed, rate_hz)
+    points = [{"positions": a.tolist(), "velocities": b.tolist(), "accelerations": c.tolist(),
+               "effort": [], "time_from_start": split_ns(t)}
+              for a, b, c, t in zip(q, qd, qdd, times)]
+    return {"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""},
+            "joint_names": list(robot.joint_names), "points": points}
+
+
 def from_joint_trajectory(message: dict) -> tuple[list[str], np.ndarray, np.ndarray]:
     """``(joint_names, q (n+1, dof) [URDF units], times_s (n+1,))`` of a JointTrajectory."""
     try:
@@ -127,9 +171,10 @@ def yaml_text(message: dict) -> str:
     return yaml.safe_dump(message, sort_keys=False, default_flow_style=None, width=120)
 
 
-def csv_rad_text(robot, poses, duration_s: float) -> str:
-    """``step,time_s,<joint names>`` with the joints in URDF units (rad; m for prismatic)."""
-    message = joint_trajectory(robot, poses, duration_s)
+def csv_rad_text(robot, poses, duration_s: float, message: dict | None = None) -> str:
+    """``step,time_s,<joint names>`` with the joints in URDF units (rad; m for prismatic), of
+    ``message`` (default: the constant timing of ``poses`` over ``duration_s``)."""
+    message = message or joint_trajectory(robot, poses, duration_s)
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(["step", "time_s", *robot.joint_names])
@@ -156,14 +201,17 @@ def read_export(path, fmt: str) -> tuple[list[str], np.ndarray, np.ndarray]:
     return rows[0][2:], values[:, 2:], values[:, 1]
 
 
-def export_trajectory(trajectory_csv, fmt: str, output, robot,
-                      duration_s: float) -> tuple[Path, str | None]:
+def export_trajectory(trajectory_csv, fmt: str, output, robot, duration_s: float,
+                      timing: str = "constant", limits=None,
+                      rate_hz: float = DEFAULT_RATE_HZ) -> tuple[Path, str | None]:
     """Write a trajectory CSV [pose units] as ``fmt`` (:data:`FORMATS`) to ``output``
-    atomically, played in ``duration_s`` [s].
+    atomically, played in ``duration_s`` [s] (or as ``timing`` times it, sampled at
+    ``rate_hz``; see the module doc).
 
     Returns:
         (output path, a note when the CSV's ``time_s`` column ends at another time than
-        ``duration_s``, else None), as ``ikbench plan`` notes it.
+        ``duration_s``, and for a retimed export the timing, its rate and the fingertip's
+        deviation from the solved path; else None).
     """
     from ikbench.core.io import check_writable
     from ikbench.core.trajectory import read_trajectory_csv
@@ -174,6 +222,12 @@ def export_trajectory(trajectory_csv, fmt: str, output, robot,
     frame = read_trajectory_csv(trajectory_csv, robot)
     poses = frame[list(robot.joint_names)].to_numpy(dtype=float)
     check_writable(output)
+    if timing != "constant":
+        if not (np.isfinite(rate_hz) and rate_hz >= 0):
+            raise InputError(f"--rate {rate_hz!r}; give a number of points per second >= 0 "
+                             "(0: one point per solved pose)")
+        return _export_retimed(robot, frame, poses, fmt, output, duration_s, timing, limits,
+                               rate_hz)
     if fmt == "csv-rad":
         text = csv_rad_text(robot, poses, duration_s)
     else:
@@ -188,4 +242,34 @@ def export_trajectory(trajectory_csv, fmt: str, output, robot,
         if np.isfinite(end) and abs(end - duration_s) > 1e-6:
             note = (f"note: the trajectory's time_s column ends at {end:g} s; exported over "
                     f"{duration_s:g} s (--duration)")
+    return path, note
+
+
+def _export_retimed(robot, frame, poses, fmt, output, duration_s, timing, limits, rate_hz):
+    """:func:`export_trajectory` for ``min-jerk`` and ``topp``."""
+    from ikbench.core.timing import fingertip_deviation_mm, retime
+
+    timed = retime(robot, poses, timing, duration_s=duration_s, limits=limits)
+    message = timed_joint_trajectory(robot, timed, rate_hz)
+    if fmt == "csv-rad":
+        text = csv_rad_text(robot, poses, duration_s, message)
+    else:
+        text = json_text(message) if fmt == "ros-json" else yaml_text(message)
+    path = atomic_write_text(output, text)
+    count = len(message["points"])
+    where = (f"{count} points at {rate_hz:g} Hz along the {timed.interpolation}"
+             if rate_hz else f"{count} points, one per solved pose")
+    note = f"note: --timing {timing}: T = {timed.duration_s:.4g} s, {where}"
+    if rate_hz:
+        dense = timed.sample(np.linspace(0.0, timed.duration_s, 4 * count))[0]
+        tip = robot.fk(poses).point_mm
+        deviation = fingertip_deviation_mm(robot, dense, tip)
+        linear = retime(robot, poses, "constant", duration_s=1.0)
+        baseline = fingertip_deviation_mm(robot, linear.sample(np.linspace(0, 1, 4 * count))[0],
+                                          tip)
+        note += (f"; the fingertip strays up to {deviation:.3g} mm from the solved path (the "
+                 f"polyline through the solved fingertip points; {baseline:.3g} mm when "
+                 "moving linearly in the joints between the same poses)")
+    if timed.limits is not None:
+        note += f"; limits: {timed.limits.source}"
     return path, note

@@ -35,6 +35,8 @@ class ViewTrajectory:
         goal_mm: (n+1, 3) goal points [mm] or None.
         goal_segments_mm: (S, 2, 3) the goal path's drawn segments [mm] (pen-up moves left
             out) or None.
+        times_s: (n+1,) when each pose is reached under ``--timing min-jerk`` or ``topp``
+            [s] (None: evenly apart, the paper's timing).
     """
 
     name: str
@@ -43,6 +45,7 @@ class ViewTrajectory:
     tip_mm: np.ndarray
     goal_mm: np.ndarray | None = None
     goal_segments_mm: np.ndarray | None = None
+    times_s: np.ndarray | None = None
 
     @property
     def steps(self) -> int:
@@ -51,9 +54,27 @@ class ViewTrajectory:
 
     def index_at(self, t_s: float) -> int:
         """The pose shown at time ``t_s`` [s]: the nearest, held after the end."""
+        if self.times_s is not None:
+            k = int(np.searchsorted(self.times_s, t_s))
+            if k <= 0 or k >= len(self.times_s):
+                return min(max(k, 0), self.steps)
+            return k if self.times_s[k] - t_s < t_s - self.times_s[k - 1] else k - 1
         if self.duration_s <= 0:
             return 0
         return int(min(round(t_s * self.steps / self.duration_s), self.steps))
+
+    def retime(self, robot, timing: str, limits=None, duration_s: float | None = None) -> None:
+        """Play under ``timing`` (``min-jerk`` over ``duration_s``, default this trajectory's
+        own; ``topp`` within ``limits``): sets ``times_s`` and ``duration_s``."""
+        from ikbench.core.timing import retime
+
+        if timing == "constant":
+            if duration_s is not None:
+                self.duration_s = float(duration_s)
+            return
+        timed = retime(robot, self.poses, timing, duration_s=duration_s or self.duration_s,
+                       limits=limits, tip_mm=self.tip_mm)
+        self.times_s, self.duration_s = timed.times_s, timed.duration_s
 
 
 @dataclass

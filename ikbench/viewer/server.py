@@ -7,7 +7,10 @@ trajectory (the target); for it, each run shows its fingertip path (run colour),
 path (green) and spheres at the current fingertip and goal points; the first run's other
 trajectories stay faint for context. A slider steps through time; Play plays at the
 trajectory's real speed (one step every T/n seconds, times the chosen speed; the step is
-taken from the wall clock, so playback does not drift), with loop and speed controls.
+taken from the wall clock, so playback does not drift), with loop and speed controls. Under
+``--timing min-jerk`` or ``topp`` each pose is shown from the time the timing reaches it
+(:meth:`ikbench.viewer.folders.ViewTrajectory.retime`); the slider then steps at the shortest
+segment (at most :data:`MAX_STEPS` steps).
 
 Needs the ``[viewer]`` extra (viser); :mod:`ikbench.viewer` imports it only here.
 """
@@ -35,6 +38,8 @@ from ikbench.viewer.folders import ViewRun
 from ikbench.viewer.gui import SPEEDS, add_gui
 
 GHOST_OPACITY = 0.35
+#: The most slider steps of a retimed timeline.
+MAX_STEPS = 5000
 TITLE = "ikbench viewer"
 
 
@@ -180,10 +185,13 @@ class Viewer:
 def timeline(runs: list[ViewRun]) -> np.ndarray:
     """The slider's times [s]: the finest pose spacing over the longest trajectory."""
     trajs = [t for r in runs for t in r.trajectories.values()]
-    dts = [t.duration_s / t.steps for t in trajs if t.duration_s > 0 and t.steps > 0]
+    dts = [t.duration_s / t.steps if t.times_s is None else float(np.diff(t.times_s).min())
+           for t in trajs if t.duration_s > 0 and t.steps > 0]
     if not dts:
         return np.zeros(1)
     dt, total = min(dts), max(t.duration_s for t in trajs)
+    if any(t.times_s is not None for t in trajs):
+        dt = max(dt, total / MAX_STEPS)
     return np.arange(int(round(total / dt)) + 1) * dt
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from ikbench.cli.commands.plan import add_plan_arguments
+from ikbench.cli.commands.plan import add_plan_arguments, check_timing_args, timing_from_args
 
 HELP = "play a trajectory on the arm's Dynamixel servos (Protocol 1.0) or an emulator"
 
@@ -20,7 +20,8 @@ def register(subparsers) -> None:
             "send one SYNC WRITE (goal position + moving speed for all motors) per segment, "
             "paced by a monotonic clock. Ctrl-C (also while settling after the last segment) "
             "or a failure on the bus stops the motion and holds the present position (exit "
-            "code 130 or 3). See docs/hardware.md."
+            "code 130 or 3). --timing min-jerk or topp sends the same goals at their retimed "
+            "times. See docs/hardware.md and docs/timing.md."
         ),
     )
     add_plan_arguments(parser)
@@ -67,11 +68,14 @@ def run(args) -> int:
     _check("--start-tolerance", args.start_tolerance, 0 <= args.start_tolerance <= 360,
            "[0, 360] deg")
     _check("--record-rate", args.record_rate, 0 <= args.record_rate <= 1000, "[0, 1000] Hz")
+    check_timing_args(args)
     from ikbench.cli.options import robot_from_args
 
     robot = robot_from_args(args)
     config = load_motor_config(args.motors, robot)
-    plan, note = plan_trajectory_file(args.trajectory, config, args.duration, robot=robot)
+    timing, limits = timing_from_args(args, robot, config)
+    plan, note = plan_trajectory_file(args.trajectory, config, args.duration, robot=robot,
+                                      timing=timing, limits=limits)
     if args.record:
         check_writable(args.record)  # before anything moves, not after the whole move
     if note:
@@ -117,9 +121,28 @@ def run(args) -> int:
         print(f"emulator: {len(emulator.sync_writes())} SYNC WRITEs received, "
               f"{len(emulator.violations)} limit violations"
               + ("" if result.dry_run else f"; servos off the final pose by <= {off:.2f} deg"))
+        if plan.timed is not None and not result.dry_run:
+            print(_goal_speeds(emulator, plan))
     if args.record and result.record is not None:
         _write_record(args.record, result.record)
     return 0
+
+
+def _goal_speeds(emulator, plan) -> str:
+    """The moving speeds the emulator received against the motors' limits, in words."""
+    import numpy as np
+
+    from ikbench.hw.motors import raw_to_speed
+
+    writes = emulator.sync_writes()[-plan.n_segments:]  # the segments (after any approach)
+    ids = plan.config.ids
+    speeds = np.array([[raw_to_speed(w.word(i, 2)) for i in ids] for w in writes])
+    use = speeds.max(axis=0) / plan.config.max_speed_deg_s
+    j = int(use.argmax())
+    motor = plan.config.motors[j]
+    return (f"emulator: goal speeds up to {speeds.max(axis=0)[j]:.1f} deg/s ({motor.joint}, "
+            f"{use[j]:.3f} of its {motor.max_speed_deg_s:g} deg/s limit; register units of "
+            f"{raw_to_speed(1):.3f} deg/s, rounded up)")
 
 
 def _report(result, plan) -> None:

@@ -16,8 +16,9 @@ def register(subparsers) -> None:
             "URDF joint values through the robot's motor map (radians; metres for prismatic "
             "joints) and write it as a trajectory_msgs/JointTrajectory (positions, velocities "
             "by central differences with zero at both ends, time_from_start as sec/nanosec, "
-            "T/n apart) in JSON or YAML, or as a CSV step,time_s,<joints>. See "
-            "docs/viewer.md."),
+            "T/n apart) in JSON or YAML, or as a CSV step,time_s,<joints>. --timing min-jerk "
+            "or topp samples the retimed motion at --rate with its velocities and "
+            "accelerations. See docs/viewer.md and docs/timing.md."),
     )
     parser.add_argument("trajectory", metavar="TRAJ.csv",
                         help="trajectory CSV as ikbench writes it (trajectory_<id>.csv)")
@@ -29,6 +30,13 @@ def register(subparsers) -> None:
                         "when the CSV's time_s column ends elsewhere")
     parser.add_argument("--output", required=True, metavar="FILE",
                         help="file to write (replaced atomically)")
+    from ikbench.cli.commands.plan import add_timing_arguments
+    from ikbench.viewer.export import DEFAULT_RATE_HZ
+
+    add_timing_arguments(parser)
+    parser.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, metavar="HZ",
+                        help=f"min-jerk, topp: points per second along the retimed motion "
+                        f"(default {DEFAULT_RATE_HZ:g}; 0: one point per solved pose)")
     from ikbench.cli.options import add_robot_arguments
 
     add_robot_arguments(parser)
@@ -38,12 +46,16 @@ def register(subparsers) -> None:
 def run(args) -> int:
     import sys
 
+    from ikbench.cli.commands.plan import check_timing_args, timing_from_args
     from ikbench.cli.options import robot_from_args
+
+    check_timing_args(args)
     from ikbench.viewer.export import export_trajectory
 
     robot = robot_from_args(args)
+    timing, limits = timing_from_args(args, robot)
     path, note = export_trajectory(args.trajectory, args.format, args.output, robot,
-                                   args.duration)
+                                   args.duration, timing, limits, args.rate)
     if note:
         print(note, file=sys.stderr)
     print(f"{args.format} written to {path} ({robot.dof} joints: "

@@ -30,15 +30,25 @@ def register(subparsers) -> None:
                         help="do not open a browser (e.g. on a server; open the URL printed)")
     parser.add_argument("--trajectory", default=None, metavar="ID",
                         help="trajectory shown first (default: the first)")
+    parser.add_argument("--duration", type=float, default=None, metavar="T",
+                        help="duration of each movement in seconds for --timing constant and "
+                        "min-jerk (default: each trajectory's own, its time_s column)")
+    from ikbench.cli.commands.plan import add_timing_arguments
+
+    add_timing_arguments(parser)
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from ikbench.cli.commands.plan import check_timing_args
     from ikbench.core.errors import InputError
     from ikbench.viewer.folders import check_folders, load_runs
 
     if not 0 <= args.port <= 65535:
         raise InputError(f"--port: {args.port} is not a port number (0-65535)")
+    check_timing_args(args)
+    if args.duration is not None and not (args.duration > 0 and args.duration < float("inf")):
+        raise InputError(f"--duration {args.duration:g}; give a positive number of seconds")
     check_folders(args.folders)
     try:
         import viser  # noqa: F401
@@ -47,6 +57,17 @@ def run(args) -> int:
     from ikbench.viewer.server import run_forever
 
     robot, runs = load_runs(args.folders)
+    retime_runs(robot, runs, args)
     run_forever(robot, runs, port=args.port, host=args.host, open_browser=not args.no_browser,
                 trajectory=args.trajectory)
     return 0
+
+
+def retime_runs(robot, runs, args) -> None:
+    """Apply --timing (and --duration) to every trajectory of ``runs``."""
+    from ikbench.cli.commands.plan import timing_from_args
+
+    timing, limits = timing_from_args(args, robot)
+    for run in runs:
+        for trajectory in run.trajectories.values():
+            trajectory.retime(robot, timing, limits, args.duration)
