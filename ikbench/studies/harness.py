@@ -70,6 +70,8 @@ class Progress:
     def done(self, task, solution) -> None:
         loss = "" if solution.loss is None else f", loss {solution.loss:.4f}"
         flag = "" if solution.converged else " (did not meet its stopping criterion)"
+        if solution.info.get("infeasible"):  # a method's best infeasible result, said so
+            flag = f" (INFEASIBLE: {solution.info['infeasible']})"
         self.say(f"trajectory {task.name}: done in {solution.iterations} iterations, "
                  f"{solution.duration_s:.2f} s{loss}{flag}")
 

@@ -50,6 +50,12 @@ PATH_STEP_SHARE = 0.95
 #: The poses keep this far inside the joint limits [pose units]: a joint held at its bound
 #: stays within it after the trajectory CSV's rounding (10 significant digits).
 BOUND_MARGIN = 1e-5
+#: A step this far above its limit [pose units] still counts as within it (the penalty
+#: leaves a residue of this order).
+STEP_SLACK = 0.01
+#: A solution from the joint interpolation pointing worse than this (RMS over the judged part
+#: [deg]) is solved again from ours-lm's solution, and the better of the two kept.
+RETRY_POINTING_DEG = 3.0
 #: Below the task contract's speed limit by this share (a margin for the penalty's residue).
 CONTRACT_STEP_SHARE = 0.98
 
@@ -175,18 +181,19 @@ class OursExact(Method):
         initial, init_info = initial_trajectories(robot, tasks, s)
         result = self._sqp(kinematics, problem, initial, init_info)
         # a start from the joint interpolation that ends in a poor local solution (a step
-        # above the limit, infeasible, not converged) is solved again from ours-lm's
+        # above the limit, poor pointing, infeasible, not converged) is solved again from
+        # ours-lm's
+        tol = s.feasibility_tolerance
         retry = [k for k, how in enumerate(init_info) if how == "interpolation"
-                 and s.init == "auto" and not _good(result, k, s.feasibility_tolerance)]
+                 and s.init == "auto" and not _good(problem, result, k, tol)]
         if retry:
             again = [tasks[k] for k in retry]
             second_initial, _ = initial_trajectories(robot, again, replace(s, init="ours-lm"))
-            second = self._sqp(kinematics, problem.take(retry), second_initial,
-                               ["ours-lm"] * len(retry))
+            part = problem.take(retry)
+            second = self._sqp(kinematics, part, second_initial, ["ours-lm"] * len(retry))
             for j, k in enumerate(retry):
                 result.iterations[k] += second.iterations[j]
-                if _rank(second, j, s.feasibility_tolerance) > _rank(result, k,
-                                                                     s.feasibility_tolerance):
+                if _rank(part, second, j, tol) > _rank(problem, result, k, tol):
                     for name in ("poses", "objective", "terms", "violation", "worst",
                                  "converged"):
                         getattr(result, name)[k] = getattr(second, name)[j]
@@ -209,17 +216,35 @@ class OursExact(Method):
         return solutions
 
 
-def _good(result: SQPResult, k: int, feasibility_tolerance: float) -> bool:
-    """Converged, feasible and every step within the step limit."""
-    return bool(result.converged[k] and result.violation[k] <= feasibility_tolerance
-                and result.terms[k, TERMS.index("step_excess")] <= 0.0)
+def _step_excess(problem: ExactProblem, result: SQPResult, k: int) -> float:
+    """The largest joint step above its limit in trajectory ``k`` [pose units] (0: none)."""
+    steps = np.abs(np.diff(result.poses[k], axis=0))
+    return float(np.max(steps - problem.step_limit[k], initial=0.0))
 
 
-def _rank(result: SQPResult, k: int, feasibility_tolerance: float) -> tuple:
-    """Sort key of a result: feasible, then within the step limit, then lower objective."""
-    return (bool(result.violation[k] <= feasibility_tolerance),
-            bool(result.terms[k, TERMS.index("step_excess")] <= 0.0),
-            -float(result.objective[k]))
+def _pointing_rms_deg(problem: ExactProblem, result: SQPResult, k: int) -> float:
+    """Root mean square pointing deviation over the judged poses [deg], from the pointing
+    term (c1 mean(1 - cos) and 1 - cos t ~ t^2 / 2); 0 where pointing is not optimised."""
+    weights = problem.pointing[k]
+    if not np.any(weights > 0):
+        return 0.0
+    c1 = 2.0 * np.sum(weights > 0) * float(np.max(weights))    # weights = c1 / (2 N_judged)
+    mean_one_minus_cos = result.terms[k, TERMS.index("pointing")] / c1
+    return float(np.degrees(np.sqrt(2.0 * max(mean_one_minus_cos, 0.0))))
+
+
+def _good(problem: ExactProblem, result: SQPResult, k: int, tolerance: float) -> bool:
+    """Converged, feasible, every step within its limit (to STEP_SLACK) and pointing within
+    RETRY_POINTING_DEG."""
+    return bool(result.converged[k] and result.violation[k] <= tolerance
+                and _step_excess(problem, result, k) <= STEP_SLACK
+                and _pointing_rms_deg(problem, result, k) <= RETRY_POINTING_DEG)
+
+
+def _rank(problem: ExactProblem, result: SQPResult, k: int, tolerance: float) -> tuple:
+    """Sort key of a result: feasible, then within the step limits, then lower objective."""
+    return (bool(result.violation[k] <= tolerance),
+            _step_excess(problem, result, k) <= STEP_SLACK, -float(result.objective[k]))
 
 
 def _limits_key(robot, task) -> tuple:

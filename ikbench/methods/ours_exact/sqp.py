@@ -40,6 +40,8 @@ MAX_DAMPING = 1e10
 CORRECTIONS = 1
 #: A correction may move a pose as far as the step did, plus this [pose units].
 CORRECTION_SLACK = 1e-3
+#: Polishing steps of the constraints after the loop.
+POLISH = 5
 #: Minimum-norm restoration steps of the initial trajectory.
 RESTORATIONS = 20
 #: The merit weight rho is kept at least this multiple of the largest multiplier.
@@ -106,14 +108,28 @@ def solve(kinematics, problem: ExactProblem, initial, *, max_iterations: int = 1
         largest = np.max(np.abs(lam) * sub.constrained[..., None], axis=(1, 2), initial=0.0)
         rho[active] = r = np.maximum(r, RHO_MARGIN * 2.0 * largest)
         predicted = predicted_decrease(model, step, r)
-        trial, at = restore_feasibility(
-            kinematics, sub, xa + step, CORRECTIONS, feasibility_tolerance, movable=free,
-            max_move=np.max(np.abs(step), axis=-1) + CORRECTION_SLACK)
-        new = evaluate(kinematics, sub, trial, at=at)
         before = model.objective + r * _l1(model.residual)
-        after = new.objective + r * _l1(new.residual)
-        gain = (before - after) / np.where(predicted > 0, predicted, np.inf)
+        trial = xa + step
+        at = kinematics_at(kinematics, sub, trial)
+        new = evaluate(kinematics, sub, trial, at=at)
+        gain = _gain(before, new, r, predicted)
         accept = ok & (predicted > 0) & (gain > MIN_GAIN_RATIO)
+        retry = np.flatnonzero(ok & (predicted > 0) & ~accept)
+        if retry.size:  # second-order correction of the rejected trials
+            part = sub.take(retry)
+            corrected, at_corrected = restore_feasibility(
+                kinematics, part, trial[retry], CORRECTIONS, feasibility_tolerance,
+                movable=free[retry], at=tuple(v[retry] for v in at),
+                max_move=np.max(np.abs(step[retry]), axis=-1) + CORRECTION_SLACK)
+            second = evaluate(kinematics, part, corrected, at=at_corrected)
+            second_gain = _gain(before[retry], second, r[retry], predicted[retry])
+            better = second_gain > MIN_GAIN_RATIO
+            fixed = retry[better]
+            trial[fixed] = corrected[better]
+            new.put(fixed, second.take(np.flatnonzero(better)))
+            gain[fixed] = second_gain[better]
+            accept[fixed] = True
+        after = new.objective + r * _l1(new.residual)
         if trace is not None:
             trace(active=active, accept=accept, gain=gain, predicted=predicted,
                   actual=before - after, damping=mu[active], step=step, model=model, new=new)
@@ -142,23 +158,34 @@ def solve(kinematics, problem: ExactProblem, initial, *, max_iterations: int = 1
             current.take(active[stuck & ~small]).violation() <= feasibility_tolerance)
         done = small | stuck | (iterations[active] >= max_iterations)
         active = active[~done]
+    # polish: the constraints to the tolerance, pose by pose (a step of the order of the
+    # remaining violation, where the loop stopped on the cap or on a slow objective)
+    loose = np.flatnonzero(current.violation() > feasibility_tolerance)
+    if loose.size:
+        part = problem.take(loose)
+        polished, at = restore_feasibility(kinematics, part, x[loose], POLISH,
+                                           feasibility_tolerance)
+        x[loose] = polished
+        current.put(loose, evaluate(kinematics, part, polished, at=at))
     worst = _worst(current)
     return SQPResult(x, current.objective, current.terms, current.violation(), worst,
                      iterations, converged, time.perf_counter() - started)
 
 
 def restore_feasibility(kinematics, problem: ExactProblem, poses, iterations: int = 20,
-                        tolerance: float = 1e-7, movable=None, max_move=None):
+                        tolerance: float = 1e-7, movable=None, max_move=None, at=None):
     """Move every constrained pose, independently, towards its goal by minimum-norm
     Gauss-Newton steps over its ``movable`` joints (default: all of the poses that are not
     fixed), clipped to the box; a correction that does not lower a pose's violation is
     dropped, and so is one that moves a pose further than ``max_move`` (B, N) [pose units]
-    when given. Used to start :func:`solve` on the constraints from a trajectory that leaves
-    them (the joint interpolation), and as its second-order correction of every trial."""
+    when given; ``at``: the poses' :func:`kinematics_at` when already computed. Used to
+    start :func:`solve` on the constraints from a trajectory that leaves them (the joint
+    interpolation), and as the second-order correction of a rejected trial."""
     x = np.clip(np.array(poses, dtype=float), problem.lower, problem.upper)
     if movable is None:
         movable = np.broadcast_to(~problem.fixed[..., None], x.shape)
-    at = kinematics_at(kinematics, problem, x)
+    if at is None:
+        at = kinematics_at(kinematics, problem, x)
     for _ in range(iterations):
         residual, jacobian = at[0], at[1]
         error = np.max(np.abs(residual), axis=-1)                          # (B, N)
@@ -234,6 +261,12 @@ def _bounded_step(problem: ExactProblem, model: Model, damped, poses, free, rho,
     alpha = np.clip(np.min(ratio, axis=(1, 2)), 0.0, 1.0)[:, None, None]
     shortened = np.clip(poses + alpha * first, problem.lower, problem.upper) - poses
     return np.where(descent[:, None, None], combined, shortened), lam, ok, descent
+
+
+def _gain(before, new: Model, rho, predicted):
+    """Actual over predicted merit decrease (-inf where nothing is predicted)."""
+    after = new.objective + rho * _l1(new.residual)
+    return (before - after) / np.where(predicted > 0, predicted, np.inf)
 
 
 def predicted_decrease(model: Model, step, rho) -> np.ndarray:
