@@ -9,8 +9,6 @@ import pytest
 from ikbench import load_robot, load_targets
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = REPO.parent / "shared"
-REFERENCE = SHARED / "reference"
 
 PAPER_START = [-24.92, 81.45, 46.55, 94.37, -59.03, 28.0, 45.67]
 

@@ -2,6 +2,8 @@
 
 What went over the bus is decoded here from the emulator's raw packet log (not through
 ikbench.hw), and the expected register values are computed here from the issue's formulas.
+Timing is checked on a :class:`FakeClock` shared by the executor and the emulator (time moves
+only when the executor waits), never against the wall clock of a possibly loaded machine.
 """
 
 from __future__ import annotations
@@ -23,9 +25,10 @@ import pytest
 
 from ikbench.cli import main
 from ikbench.core.trajectory import write_trajectory_csv
+from ikbench.hw import executor as executor_module
 from ikbench.hw.bus import Bus
 from ikbench.hw.emulator import Emulator, Fault
-from ikbench.hw.executor import ExecutionInterrupted, execute
+from ikbench.hw.executor import Clock, ExecutionInterrupted, execute
 from ikbench.hw.motors import default_config_path, load_motor_config
 from ikbench.hw.plan import make_plan
 from tests.conftest import blocked_output
@@ -45,6 +48,62 @@ def tolerant_status_timeout(monkeypatch):
     import dynamixel_sdk.port_handler
 
     monkeypatch.setattr(dynamixel_sdk.port_handler, "LATENCY_TIMER", 99)
+
+
+class FakeClock(Clock):
+    """Time [s] that moves only when the executor waits: a wait returns at once with its
+    timeout added to the time, once the emulator (:meth:`emulator`) has received every SYNC
+    WRITE sent so far, so that each is stamped and acted on at the time it was sent.
+    ``ctrl_c_at``: the time at which the stop event is set (a Ctrl-C at a known instant).
+    ``sends``: the time of every SYNC WRITE the executor sent (see the ``fake_clock``
+    fixture)."""
+
+    def __init__(self, start_s: float = 100.0):
+        self.t = start_s
+        self.ctrl_c_at: float | None = None
+        self.sends: list[float] = []
+        self._emulator: Emulator | None = None
+
+    def emulator(self, *args, **kwargs) -> Emulator:
+        """An :class:`Emulator` on this clock."""
+        self._emulator = Emulator(*args, clock=self.now, **kwargs)
+        return self._emulator
+
+    def now(self) -> float:
+        return self.t
+
+    def wait(self, event: threading.Event, timeout_s: float) -> bool:
+        self._caught_up()
+        if self.ctrl_c_at is not None and self.t + timeout_s >= self.ctrl_c_at:
+            self.t = max(self.t, self.ctrl_c_at)
+            event.set()
+        elif not event.is_set():
+            self.t += timeout_s
+        return event.is_set()
+
+    def _caught_up(self) -> None:
+        """Wait (really, at most 10 s) until the emulator received every SYNC WRITE sent."""
+        deadline = time.monotonic() + 10
+        while (self._emulator is not None and time.monotonic() < deadline
+               and len(self._emulator.sync_writes()) < len(self.sends)):
+            time.sleep(0.0002)
+
+
+@pytest.fixture()
+def fake_clock(monkeypatch):
+    """A :class:`FakeClock` that ``execute`` uses when given none (so also through the CLI),
+    recording the time of each SYNC WRITE sent."""
+    clock = FakeClock()
+    monkeypatch.setattr(executor_module, "DEFAULT_CLOCK", clock)
+    original = Bus.sync_write
+
+    def sync_write(bus, goals_raw, speeds_raw):
+        sent_at = clock.now()
+        original(bus, goals_raw, speeds_raw)
+        clock.sends.append(sent_at)
+
+    monkeypatch.setattr(Bus, "sync_write", sync_write)
+    return clock
 
 
 def line_poses(n: int = 50, fraction: float = 1.0) -> np.ndarray:
@@ -140,12 +199,11 @@ def short_traj(tmp_path, robot):
     return write_trajectory_csv(tmp_path / "short.csv", robot, line_poses(10, 0.2), 0.3)
 
 
-def test_end_to_end_two_seconds(traj, tmp_path, capsys):
+def test_end_to_end_two_seconds(traj, tmp_path, capsys, fake_clock):
     record = tmp_path / "rec.csv"
     poses = line_poses()
-    with Emulator(load_motor_config(), START) as emulator:
+    with fake_clock.emulator(load_motor_config(), START) as emulator:
         code = main(["execute", str(traj), "--port", emulator.port, "--record", str(record)])
-        t_done = time.monotonic()
         final = emulator.present_deg()
     out = capsys.readouterr().out
     assert code == 0, out
@@ -158,32 +216,36 @@ def test_end_to_end_two_seconds(traj, tmp_path, capsys):
         for motor_id, (goal, _) in goals.items():
             low, high = LIMITS_DEG[motor_id]
             assert goal_raw([low])[0] <= goal <= goal_raw([high])[0]
-    # no per-motor round trips while the segments go out
-    between = [e for e in emulator.log if writes[0][0] < e.t < writes[-1][0]]
-    assert {e.name for e in between} == {"SYNC_WRITE"}
+    # no per-motor round trips while the segments go out (the log's order, not its times)
+    names = [e.name for e in emulator.log if e.direction == "rx"]
+    first, last = names.index("SYNC_WRITE"), len(names) - names[::-1].index("SYNC_WRITE")
+    assert set(names[first:last]) == {"SYNC_WRITE"}
     assert not emulator.violations
     np.testing.assert_allclose(final, TOUCH_1, atol=STEP_DEG)
-    total = t_done - writes[0][0]
-    assert 2.0 <= total <= 3.0, total
-    assert 1.9 <= writes[-1][0] - writes[0][0] <= 2.5
-    assert "done: 50 SYNC WRITEs in 2." in out
+    # one segment every T/n = 40 ms from the first, on time, then settling (at most 0.5 s)
+    t0 = fake_clock.sends[0]
+    np.testing.assert_allclose(np.subtract(fake_clock.sends, t0), 0.04 * np.arange(50),
+                               atol=1e-9)
+    done = re.search(r"done: 50 SYNC WRITEs in ([\d.]+) s \(T = 2 s, worst send delay "
+                     r"0\.0 ms\)", out)
+    assert done, out
+    assert 2.0 <= float(done[1]) <= 2.0 + executor_module.SETTLE_S
     rows = pd.read_csv(record)
     assert rows["phase"].iloc[0] == "start" and rows["phase"].iloc[-1] == "settle"
     np.testing.assert_allclose(rows.iloc[-1][2:].to_numpy(float), TOUCH_1, atol=0.2)
 
 
-def test_record_rate_reads_between_segments(tmp_path, robot):
+def test_record_rate_reads_between_segments(tmp_path, robot, fake_clock):
     path = write_trajectory_csv(tmp_path / "t.csv", robot, line_poses(20, 0.3), 1.0)
     record = tmp_path / "rec.csv"
-    with Emulator(load_motor_config(), START) as emulator:
+    with fake_clock.emulator(load_motor_config(), START) as emulator:
         assert main(["execute", str(path), "--port", emulator.port, "--duration", "1",
                      "--record", str(record), "--record-rate", "20"]) == 0
     assert len(sync_writes(emulator)) == 20
     rows = pd.read_csv(record)
     moving = rows[rows["phase"] == "move"]
-    # about 20 Hz over 1 s; fewer when reads would delay a segment (a loaded machine)
-    assert 1 <= len(moving) <= 20
-    assert np.all(np.diff(moving["time_s"]) >= 0.05 - 0.0125 - 0.005)
+    # 20 Hz over 1 s: one read after each 50 ms segment (reads take no time on this clock)
+    np.testing.assert_allclose(moving["time_s"], 0.05 * np.arange(20), atol=1e-9)
     # the recorded finger moves steadily from the first towards the last pose
     finger = moving["r_indexfinger_x"].to_numpy()
     last = START[6] + 0.3 * (TOUCH_1[6] - START[6])
@@ -285,39 +347,35 @@ def test_fault_during_the_move_stops_and_holds(short_traj, tmp_path, capsys, kin
     assert pd.read_csv(record)["phase"].iloc[-1] == "move"
 
 
-def test_ctrl_c_stops_and_holds(short_traj):
+def test_ctrl_c_stops_and_holds(short_traj, fake_clock):
     config = load_motor_config()
     poses = line_poses(10, 0.2)
     plan = make_plan(poses, config, duration_s=0.6)
+    clock = fake_clock
+    clock.ctrl_c_at = clock.now() + 0.15  # between the 3rd and the 4th segment
     stop = threading.Event()
-    with Emulator(config, START) as emulator:
-
-        def press_ctrl_c_after_three_segments():
-            deadline = time.monotonic() + 10
-            while len(emulator.sync_writes()) < 3 and time.monotonic() < deadline:
-                time.sleep(0.001)
-            stop.set()
-
-        threading.Thread(target=press_ctrl_c_after_three_segments, daemon=True).start()
+    with clock.emulator(config, START) as emulator:
         with pytest.raises(ExecutionInterrupted) as info:
-            execute(plan, emulator.port, stop_event=stop, log=lambda line: None)
-        t_after = time.monotonic()
+            execute(plan, emulator.port, stop_event=stop, log=lambda line: None, clock=clock)
     writes = sync_writes(emulator)
     sent = info.value.result.segments_sent
-    assert 3 <= sent <= 5  # 60 ms segments: stopped before the 4th or 5th
-    assert str(info.value).startswith(f"interrupted; sent {sent} of 10 segments (last: "
-                                      f"segment {sent - 1}); holding present position")
+    assert sent == 3  # 60 ms segments sent at 0, 60 and 120 ms
+    assert str(info.value) == ("interrupted; sent 3 of 10 segments (last: segment 2); holding "
+                               "present position")
     assert info.value.exit_code == 130
     assert len(segments_sent(emulator)) == sent
     assert len(writes) == sent + 7  # the segments, then the hold, one motor at a time
     assert_is_a_hold(emulator)
-    assert t_after - writes[0][0] < 0.6
+    assert clock.now() == clock.ctrl_c_at  # it held at once: no wait after the Ctrl-C
+    assert np.subtract(clock.sends[:3], clock.sends[0]) == pytest.approx([0, 0.06, 0.12])
 
 
 def test_ctrl_c_from_the_terminal(traj):
     exe = Path(sys.executable).with_name("ikbench")
     with Emulator(load_motor_config(), START) as emulator:
-        proc = subprocess.Popen([str(exe), "execute", str(traj), "--port", emulator.port],
+        # T = 10 s (200 ms segments): the SIGINT after 5 segments comes long before the end
+        proc = subprocess.Popen([str(exe), "execute", str(traj), "--port", emulator.port,
+                                 "--duration", "10"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             deadline = time.monotonic() + 20
@@ -341,7 +399,7 @@ def test_port_emulator_shortcut(short_traj, capsys):
     assert main(["execute", str(short_traj), "--port", "emulator", "--duration", "0.3"]) == 0
     out = capsys.readouterr().out
     assert "emulator: 10 SYNC WRITEs received, 0 limit violations" in out
-    assert "done: 10 SYNC WRITEs in 0.3" in out
+    assert "done: 10 SYNC WRITEs in " in out and "(T = 0.3 s" in out
 
 
 def test_dry_run_writes_nothing(short_traj, tmp_path, capsys):

@@ -143,10 +143,13 @@ def test_elapsed_shows_tenths_below_a_minute():
 
 
 def test_empty_output_is_rejected(capsys):
-    assert main(["reproduce", "--quick", "--output", ""]) == 2
+    assert main(["reproduce", "--quick", "--output", ""]) == 2  # the CLI refuses it first
     err = capsys.readouterr().err
-    assert err == ("ikbench: error: --output: '' is empty; give a directory (default results, "
-                   "or results-quick with --quick)\n")
+    assert err == ("ikbench reproduce: error: argument --output: '' is empty; name a file or "
+                   "folder (e.g. --output runs/mine) (see ikbench reproduce --help)\n")
+    with pytest.raises(InputError, match=r"--output: '' is empty; give a directory \(default "
+                       r"results, or results-quick with --quick\)"):
+        reproduce_module._output_dir("", quick=True)  # and so does the library
 
 
 def test_unwritable_output_fails_before_any_solve(tmp_path, monkeypatch, capsys):

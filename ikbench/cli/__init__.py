@@ -11,17 +11,55 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+import re
 import sys
 
 from ikbench.cli import commands
 from ikbench.core.errors import IkbenchError
 
+#: Options that name a file or folder to write. An empty value would write into the working
+#: directory (``run --output ""`` wrote ./ours-lm/ into the checkout), so it is refused.
+OUTPUT_OPTIONS = ("output", "out", "record", "log")
+#: A word argparse takes for an option although it is a value: ``-24.9,81.5`` (a negative
+#: number followed by more values is not what argparse recognises as a negative number).
+_NEGATIVE_VALUE = re.compile(r"-\.?\d")
+
 
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (the usage is in ``--help``)."""
 
+    _words: list[str] = []  # the words this parser was given (for the hint in ``error``)
+
+    def parse_known_args(self, args=None, namespace=None):
+        self._words = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(args, namespace)
+
     def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        self.exit(2, f"{self.prog}: error: {message}{self._hint(message)} "
+                  f"(see {self.prog} --help)\n")
+
+    def _hint(self, message: str) -> str:
+        """``; write --pose=-24.9,...`` when an option's value starts with a minus sign:
+        argparse took the value for an option and says only "expected one argument"."""
+        found = re.fullmatch(r"argument (\S+): expected one argument", message)
+        if not found:
+            return ""
+        flags = found[1].split("/")
+        for word, value in zip(self._words, self._words[1:]):
+            if word in flags and _NEGATIVE_VALUE.match(value):
+                return (f"; a value that starts with '-' must be attached with '=': "
+                        f"write {word}={value}")
+        return ""
+
+
+def _empty_output(args) -> str | None:
+    """The error for an empty file or folder option (:data:`OUTPUT_OPTIONS`), else None."""
+    for dest in OUTPUT_OPTIONS:
+        value = getattr(args, dest, None)
+        if isinstance(value, str) and not value.strip():
+            return (f"argument --{dest}: {value!r} is empty; name a file or folder (e.g. "
+                    f"--{dest} runs/mine)")
+    return None
 
 
 def command_modules() -> dict[str, str]:
@@ -72,6 +110,11 @@ def main(argv: list[str] | None = None) -> int:
         return exc.exit_code
     if not getattr(args, "func", None):
         parser.print_help()
+        return 2
+    empty = _empty_output(args)
+    if empty:
+        prog = f"{parser.prog} {args.command}"
+        print(f"{prog}: error: {empty} (see {prog} --help)", file=sys.stderr)
         return 2
     try:
         code = args.func(args)

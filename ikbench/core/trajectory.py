@@ -90,16 +90,22 @@ def read_trajectory_csv(path, robot: Robot | None = None) -> pd.DataFrame:
     bad = ~np.isfinite(joints.to_numpy(dtype=float))
     if bad.any():
         row, col = np.argwhere(bad)[0]
-        value = frame.iloc[row][robot.joint_names[col]]
         raise InputError(
             f"{path}: line {row + 2} (step {row}) column {robot.joint_names[col]} = "
-            f"{'empty' if pd.isna(value) and not isinstance(value, str) else value} is not "
-            "a finite number"
+            f"{_cell_as_written(path, row, robot.joint_names[col])} is not a finite number"
         )
     for row, pose in enumerate(joints.to_numpy(dtype=float)):
         robot.check_pose(pose, f"{path}: line {row + 2} (step {row})")
     frame[list(robot.joint_names)] = joints
     return frame
+
+
+def _cell_as_written(path, row: int, column: str) -> str:
+    """A cell's text as the file has it (pandas reads "NaN", "nan", "NA" and an empty cell
+    alike as NaN): ``empty`` for an empty cell, else the text, e.g. ``NaN``."""
+    text = pd.read_csv(path, dtype=str, keep_default_na=False, usecols=[column])[column]
+    value = str(text.iloc[row]).strip()
+    return value if value else "empty"
 
 
 def read_trajectory_poses(path, robot: Robot | None = None) -> np.ndarray:

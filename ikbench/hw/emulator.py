@@ -3,7 +3,8 @@
 The emulator holds the master side of a pty; dynamixel-sdk's ``PortHandler`` opens the slave
 path (``emulator.port``) like a serial port. Each servo keeps an MX control table; its present
 position moves towards the goal at the commanded moving speed. Every packet is logged with a
-``time.monotonic()`` timestamp, and faults can be injected into status packets.
+``time.monotonic()`` timestamp (or the ``clock`` given: tests share a fake one with the
+executor), and faults can be injected into status packets.
 
 Example::
 
@@ -196,14 +197,17 @@ class Emulator:
         pose_motor_deg: (dof,) start pose [motor deg] (default: all zero).
         missing_ids: ids that never answer (as if unplugged).
         faults: :class:`Fault` rules for status packets (a list; may be extended while running).
+        clock: returns the time [s] that moves the servos and stamps the log (default
+            ``time.monotonic``).
     """
 
     def __init__(self, config: MotorConfig, pose_motor_deg=None, *, missing_ids=(),
-                 faults=()):
+                 faults=(), clock=time.monotonic):
         self.config = config
+        self._clock = clock
         pose = np.zeros(len(config.motors)) if pose_motor_deg is None else pose_motor_deg
         start_raw = config.poses_to_raw(np.asarray(pose, dtype=float))
-        now = time.monotonic()
+        now = self._clock()
         self.servos = {m.id: Servo(m, int(raw), now) for m, raw in zip(config.motors, start_raw)}
         self.missing_ids = set(missing_ids)
         self.faults = list(faults)
@@ -247,7 +251,7 @@ class Emulator:
     # ----- state --------------------------------------------------------------------------
     def present_raw(self) -> np.ndarray:
         """(dof,) present positions (register values) now, in the config's joint order."""
-        now = time.monotonic()
+        now = self._clock()
         with self._lock:
             for servo in self.servos.values():
                 servo.advance(now)
@@ -291,7 +295,7 @@ class Emulator:
                 continue
             for packet in reader.feed(data):
                 with self._lock:
-                    reply = self._handle(packet, time.monotonic())
+                    reply = self._handle(packet, self._clock())
                 if reply:
                     os.write(self._master, reply)
 

@@ -2,8 +2,9 @@
 
 Order of work: ping every motor, read present positions, refuse a start far from the first pose
 (or approach it slowly), write goal = present and enable torque, then send one SYNC WRITE per
-segment (goal position + moving speed, 4 bytes per motor, address 30) paced by
-``time.monotonic``, with no per-motor round trips in between unless recording was asked for.
+segment (goal position + moving speed, 4 bytes per motor, address 30) paced by a
+:class:`Clock` (``time.monotonic``; tests pass a fake one), with no per-motor round trips in
+between unless recording was asked for.
 On Ctrl-C (a set ``stop_event``, also while settling after the last segment) or any failure
 once motion began (a bad status packet, the port failing, an unexpected error) it stops
 sending segments, holds each motor (goal = its present position, sent right after reading it;
@@ -24,7 +25,7 @@ from ikbench.hw.bus import Bus, CommunicationError
 from ikbench.hw.motors import speed_to_raw
 from ikbench.hw.plan import MotionPlan
 
-__all__ = ["Bus", "CommunicationError", "ExecutionInterrupted", "ExecutionResult",
+__all__ = ["Bus", "Clock", "CommunicationError", "ExecutionInterrupted", "ExecutionResult",
            "ExecutionStopped", "execute"]
 
 DEFAULT_START_TOLERANCE_DEG = 5.0
@@ -36,6 +37,24 @@ HOLD_SPEED_DEG_S = 10.0
 SETTLE_S = 0.5
 SETTLE_TOLERANCE_DEG = 0.2
 SETTLE_INTERRUPTED = "interrupted while settling after the last segment"
+
+
+class Clock:
+    """Where the executor reads the time and waits: ``time.monotonic`` and the stop event's
+    own wait. A test passes a fake clock (its own ``now`` and ``wait``) to play a plan on the
+    emulator without depending on how fast a loaded machine schedules threads."""
+
+    def now(self) -> float:
+        """Monotonic time [s]."""
+        return time.monotonic()
+
+    def wait(self, event: threading.Event, timeout_s: float) -> bool:
+        """Wait until ``event`` is set or ``timeout_s`` [s] passed; return whether it is set."""
+        return event.wait(timeout_s)
+
+
+#: The clock of :func:`execute` when none is given.
+DEFAULT_CLOCK = Clock()
 
 
 class ExecutionStopped(HardwareError):
@@ -86,7 +105,7 @@ def execute(plan: MotionPlan, port_name: str, *, approach: bool = False,
             approach_speed_deg_s: float = DEFAULT_APPROACH_SPEED_DEG_S,
             start_tolerance_deg: float = DEFAULT_START_TOLERANCE_DEG, dry_run: bool = False,
             record_rate_hz: float = 0.0, stop_event: threading.Event | None = None,
-            log=print) -> ExecutionResult:
+            log=print, clock: Clock | None = None) -> ExecutionResult:
     """Play ``plan`` on the servos at ``port_name``.
 
     Args:
@@ -99,6 +118,7 @@ def execute(plan: MotionPlan, port_name: str, *, approach: bool = False,
             and only when the next segment is not due (0: only after the move).
         stop_event: set it (e.g. from a SIGINT handler) to stop the move and hold.
         log: called with progress lines.
+        clock: the time and the waits (default :data:`DEFAULT_CLOCK`, ``time.monotonic``).
 
     Raises:
         HardwareError: before anything moved (missing motors, far start, ...).
@@ -111,7 +131,7 @@ def execute(plan: MotionPlan, port_name: str, *, approach: bool = False,
     bus = Bus(port_name, plan.config)
     bus.open()
     try:
-        return _Run(plan, bus, stop_event, log, record_rate_hz).run(
+        return _Run(plan, bus, stop_event, log, record_rate_hz, clock or DEFAULT_CLOCK).run(
             approach, approach_speed_deg_s, start_tolerance_deg, dry_run)
     finally:
         bus.close()
@@ -120,8 +140,9 @@ def execute(plan: MotionPlan, port_name: str, *, approach: bool = False,
 class _Run:
     """One execution: state shared by its phases."""
 
-    def __init__(self, plan, bus, stop_event, log, record_rate_hz):
+    def __init__(self, plan, bus, stop_event, log, record_rate_hz, clock: Clock):
         self.plan, self.bus, self.stop, self.log = plan, bus, stop_event, log
+        self.clock = clock
         self.config = plan.config
         self.record_period = 1.0 / record_rate_hz if record_rate_hz > 0 else None
         self.next_sample = 0.0
@@ -147,7 +168,7 @@ class _Run:
                  f"{', '.join(str(i) for i in self.config.ids)}")
         start_raw = self.bus.read_all_raw()
         start = self.config.raw_to_poses(start_raw)
-        self._sample(start, "start", time.monotonic())
+        self._sample(start, "start", self.clock.now())
         result = self.result = ExecutionResult(self.bus.name, models, start,
                                                self.plan.n_segments, dry_run=dry_run)
         far = self._check_start(start, tolerance, approach, approach_speed)
@@ -192,6 +213,10 @@ class _Run:
                                 f"range first or check offset_deg in {self.config.source}")
         raise HardwareError(f"{what}; move the arm there or pass --approach")
 
+    def _wait(self, timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` [s] for the stop event; return whether it is set."""
+        return self.clock.wait(self.stop, timeout_s)
+
     def _check_stop(self) -> None:
         if self.stop.is_set():
             raise ExecutionInterrupted("interrupted")
@@ -213,14 +238,14 @@ class _Run:
         dof = range(len(self.config.motors))
         self.moving = True
         self.bus.sync_write({i: goals[i] for i in dof}, {i: speeds[i] for i in dof})
-        deadline = time.monotonic() + duration + 2.0
+        deadline = self.clock.now() + duration + 2.0
         while True:
-            if self.stop.wait(0.05):
+            if self._wait(0.05):
                 raise ExecutionInterrupted("interrupted")
             pose = self.config.raw_to_poses(self.bus.read_all_raw())
             if np.abs(pose - first).max() <= SETTLE_TOLERANCE_DEG:
                 return
-            if time.monotonic() > deadline:
+            if self.clock.now() > deadline:
                 raise HardwareError(f"approach did not reach the first pose in {duration + 2:.1f} "
                                     f"s (worst joint off by {np.abs(pose - first).max():.1f} deg)")
 
@@ -235,30 +260,30 @@ class _Run:
             self.log(f"playing {plan.n_segments} segments of {segment_s * 1000:.3g} ms or more "
                      f"(--timing {plan.timing}, T = {plan.duration_s:.4g} s)")
         self.moving = True
-        self.t0 = time.monotonic()
+        self.t0 = self.clock.now()
         for k in range(plan.n_segments):
             due = self.t0 + times_s[k]
-            if self.stop.wait(max(0.0, due - time.monotonic())):
+            if self._wait(max(0.0, due - self.clock.now())):
                 raise ExecutionInterrupted("interrupted")
-            result.max_late_s = max(result.max_late_s, time.monotonic() - due)
+            result.max_late_s = max(result.max_late_s, self.clock.now() - due)
             self.bus.sync_write({i: plan.goal_raw[k, i] for i in dof},
                                 {i: plan.speed_raw[k, i] for i in dof})
             result.segments_sent = k + 1
             if self.record_period:
                 self._sample_between_segments(self.t0 + times_s[k + 1])
-        if self.stop.wait(max(0.0, self.t0 + plan.duration_s - time.monotonic())):
+        if self._wait(max(0.0, self.t0 + plan.duration_s - self.clock.now())):
             raise ExecutionInterrupted("interrupted")
 
     def _sample_between_segments(self, next_due: float) -> None:
         """Read the present pose if a sample is due and it fits before ``next_due``."""
-        now = time.monotonic()
+        now = self.clock.now()
         elapsed = now - self.t0
         typical_s = float(np.median(self.read_times)) if self.read_times else 0.0
         early_s = 0.25 * self.plan.segment_s  # samples follow segment starts, give or take
         if elapsed < self.next_sample - early_s or next_due - now <= 2 * typical_s:
             return
         pose = self.config.raw_to_poses(self.bus.read_all_raw())
-        self.read_times.append(time.monotonic() - now)
+        self.read_times.append(self.clock.now() - now)
         self._sample(pose, "move", now)
         self.next_sample = elapsed + self.record_period
 
@@ -267,19 +292,19 @@ class _Run:
         for at most ``SETTLE_S``. Ctrl-C here is an interruption like any other (the arm may
         still be moving): it raises, and the arm holds."""
         final = self.plan.poses_motor_deg[-1]
-        deadline = time.monotonic() + SETTLE_S
+        deadline = self.clock.now() + SETTLE_S
         while True:
-            now = time.monotonic()
+            now = self.clock.now()
             pose = self.config.raw_to_poses(self.bus.read_all_raw())
             self._sample(pose, "settle", now)
             result.final_deg = pose
             result.settled = bool(np.abs(pose - final).max() <= SETTLE_TOLERANCE_DEG)
             if self.stop.is_set() or (not result.settled and now <= deadline
-                                      and self.stop.wait(0.01)):
+                                      and self._wait(0.01)):
                 raise ExecutionInterrupted(SETTLE_INTERRUPTED)
             if result.settled or now > deadline:
                 break
-        result.duration_s = time.monotonic() - self.t0
+        result.duration_s = self.clock.now() - self.t0
         self.moving = False
 
     # ----- failure ------------------------------------------------------------------------

@@ -223,6 +223,8 @@ class Ours(Method):
         import torch
 
         robot.torch_fk({"float32": torch.float32, "float64": torch.float64}[self.settings.dtype])
+        # torch's first optimiser imports torch._dynamo (seconds): not part of any solve
+        torch.optim.Adam([torch.zeros(1, requires_grad=True)])
 
     def solve(self, robot, task, progress=None) -> Solution:
         if task.goal_rotations is not None:

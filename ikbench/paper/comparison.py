@@ -90,9 +90,9 @@ BASELINE_METHODS = {BASELINE: ("--orientation", ORIENTATION_MODES),
                     IKPY: ("--ikpy-orientation", IKPY_MODES)}
 PAPER_BASELINE_NOTE = (
     "The paper's baseline is not this one: the authors solved it with ikpy on a *different* "
-    "NICO URDF (other joint conventions; shared/reference/README.md), so only its qualitative "
-    "claims are expected to carry over, not its numbers. Their script (andylucny/nico2, "
-    "`generate-ikpy/generate-ikpy.py`) passes a target frame to ikpy's "
+    "NICO URDF (other joint conventions; ikbench/paper/data/reference/README.md), so only its "
+    "qualitative claims are expected to carry over, not its numbers. Their script "
+    "(andylucny/nico2, `generate-ikpy/generate-ikpy.py`) passes a target frame to ikpy's "
     "`inverse_kinematics_frame` without `orientation_mode`, and ikpy then fits the position "
     "only, walking back from the touch pose (the start pose is free: a touch-pose-only task). "
     f"`ikbench run --method {IKPY_WALK}` makes their call on the paper's robot (Table 2 as "
@@ -103,14 +103,14 @@ IKPY_TABLE2_NOTE = (
     "This is the paper's baseline as the authors ran it: their library (ikpy) and their call "
     "(`inverse_kinematics_frame` with a target frame and no `orientation_mode`, so the position "
     "only), walked back from the touch pose, here on ikbench's URDF of the paper's robot rather "
-    "than theirs (other joint conventions; shared/reference/README.md). Their script also "
-    "re-solved the touch point itself; here pose n is the touch pose as given.")
+    "than theirs (other joint conventions; ikbench/paper/data/reference/README.md). Their "
+    "script also re-solved the touch point itself; here pose n is the touch pose as given.")
 TABLE2_UNITS_NOTE = (
     "Columns named *paper* are copied from the paper's Table 2. Its \"distance from the line "
     "[mm]\" and \"start point variation [mm]\" values are in centimetres (the unit label is off "
-    "by a factor of ten, see shared/reference/README.md), so they are shown here x 10, in mm. "
-    "*Start point variation* is |P_0 - P_s|, the distance of the trajectory's first point from "
-    "the recorded start point.")
+    "by a factor of ten, see ikbench/paper/data/reference/README.md), so they are shown here "
+    "x 10, in mm. *Start point variation* is |P_0 - P_s|, the distance of the trajectory's "
+    "first point from the recorded start point.")
 
 
 @dataclass

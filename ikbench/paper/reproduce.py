@@ -322,8 +322,9 @@ def _baseline_finding(frame: pd.DataFrame, authors: bool = False) -> str:
 DEVIATIONS = [
     "- **Unit of the distance columns.** The paper's \"distance from the line [mm]\" (Tables 1 "
     "and 2) and \"start point variation [mm]\" (Table 2) are in centimetres: the authors' own "
-    "trajectories (shared/reference) measure 10x the printed values in mm. Paper columns here "
-    "show the printed values x 10, in mm. Its Fig. 2 caption says cm; ikbench plots mm.",
+    "trajectories (ikbench/paper/data/reference) measure 10x the printed values in mm. Paper "
+    "columns here show the printed values x 10, in mm. Its Fig. 2 caption says cm; ikbench "
+    "plots mm.",
     "- **R_y sign slip.** The paper prints the rotation about y with its sine signs swapped; "
     "the standard right-handed R_y is used (it reproduces the authors' trajectories' "
     "figures; see `urdf/generate_urdf.py`).",

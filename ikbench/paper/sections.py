@@ -30,7 +30,8 @@ def run_section(method: str, table, record: dict, targets) -> list[str]:
         lines = ["## Beside the paper's Table 1", "",
                  "Columns named *paper* are copied from the paper. Its \"distance from the "
                  "line [mm]\" values are in centimetres (its unit label is off by a factor of "
-                 "ten, see shared/reference/README.md), so they are shown here x 10, in mm.", ""]
+                 "ten, see ikbench/paper/data/reference/README.md), so they are shown here "
+                 "x 10, in mm.", ""]
         if record["steps"] != PAPER_STEPS:
             lines += [f"The paper used n = {PAPER_STEPS} segments; this run used "
                       f"n = {record['steps']}.", ""]

@@ -51,6 +51,10 @@ LINE_TOLERANCE_MM = 1.0
 END_TOLERANCE_MM = 0.5
 SAMPLE_CHUNK = 4096
 MAX_DRAWS = 10_000_000
+#: At most this many touch poses in one batch (held in memory at once; NICO's workspace filter
+#: keeps about 2 % of the draws, so 100 000 poses need about half of MAX_DRAWS); a larger set
+#: is a dataset of several batches: ``ikbench dataset``.
+MAX_COUNT = 100_000
 #: Seeds are integers in [0, MAX_SEED) (numpy's default_rng refuses negative ones).
 MAX_SEED = 2**63
 
@@ -142,6 +146,16 @@ def sample_touch_poses(robot, start_pose_deg, count: int, seed: int = 0,
     return np.concatenate(kept)[:count], draws
 
 
+def check_count(count) -> int:
+    """Return ``count`` if it is an integer in [1, MAX_COUNT]; InputError naming it otherwise."""
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
+        raise InputError(f"--count: {count!r} must be an integer >= 1")
+    if count > MAX_COUNT:
+        raise InputError(f"--count: {count} is more than the maximum, {MAX_COUNT:,} touch poses "
+                         "in one batch (ikbench dataset builds larger sets shard by shard)")
+    return int(count)
+
+
 def check_seed(seed) -> int:
     """Return ``seed`` if it is an integer in [0, 2^63); InputError naming it otherwise."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) \
@@ -197,6 +211,7 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
             raise InputError(f"{flag}: {value!r} must be a positive number of mm")
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 2:
         raise InputError(f"--steps: {steps!r} must be an integer >= 2")
+    check_count(count)
     check_seed(seed)
     settings = [weight_setting(w) for w in weights]
     robot = as_robot(robot)

@@ -6,6 +6,8 @@ are drawn on a log scale with CppFlow's validity thresholds (0.1 mm, 0.1 deg) as
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 
 from ikbench.core.metrics import frame_errors, joint_changes
@@ -86,7 +88,7 @@ def plot_pose_path(task, curves: dict, title: str, robot=None):
             ax.set_xlabel("waypoint", fontsize=8)
         elif row == 0:
             ax.legend(fontsize=7, ncol=3, loc="lower right")
-    fig.suptitle(title, fontsize=10)
+    fig.suptitle(textwrap.fill(title, 150), fontsize=10)  # 12 in wide: ~150 characters
     fig.tight_layout(rect=(0, 0, 1, 0.96))
     return fig
 

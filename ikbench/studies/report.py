@@ -6,6 +6,8 @@ from the trajectory CSVs. Paper values appear only in columns labelled as the pa
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 import pandas as pd
 
@@ -91,9 +93,10 @@ def plot_shapes(tasks, points_by_id: dict, title: str):
         _equal_axes_3d(ax3, np.vstack([points, *curve.strokes_mm]))
         ax3.view_init(elev=20, azim=-150)
         ax3.set_title(f"{task.name}: 3-D (torso frame)")
-    fig.suptitle(f"{title}\ngrey: target curve (dotted: pen-up move), blue: fingertip "
-                 "(hollow: pen up), +: plane origin (letters: fingertip at the start pose)",
-                 fontsize=9)
+    width = max(40, int(14 * 4.2 * len(tasks)))  # characters of fontsize 9 the figure holds
+    fig.suptitle(textwrap.fill(f"{title}", width) + "\n" + textwrap.fill(
+        "grey: target curve (dotted: pen-up move), blue: fingertip (hollow: pen up), +: plane "
+        "origin (letters: fingertip at the start pose)", width), fontsize=9)
     fig.tight_layout()
     return fig
 
@@ -119,8 +122,8 @@ def plot_pointing_error(tasks, points_by_id: dict, title: str):
     ax.set_ylabel("criterion 2: pointing error [mm]")
     ax.set_yscale("symlog", linthresh=10)
     ax.grid(alpha=0.3)
-    ax.set_title(f"{title}\ndistance of the touch point from where the last 10 segments "
-                 "aim, on the touch plane")
+    ax.set_title(f"{textwrap.fill(title, 90)}\ndistance of the touch point from where the "
+                 "last 10 segments aim, on the touch plane", fontsize=9)
     ax.legend(fontsize=7, ncol=2)
     return fig
 

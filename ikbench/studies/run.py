@@ -120,6 +120,9 @@ def evaluate(robot: Robot, outcomes, method_dir: Path, method_name: str):
         else TABLE_COLUMNS
     measure = frame_metrics if framed else shape_metrics if shaped else trajectory_metrics
     rows, details, points_by_id = [], [], {}
+    # duration_s: the solve alone as the method timed it. The harness's time around the call
+    # (details: harness_wall_s) also holds what the method sets up per call and, on the first
+    # call of a process, library start-up (torch's first optimiser: seconds).
     for outcome in outcomes:
         task, solution = outcome.task, outcome.solution
         if solution is None:
@@ -132,11 +135,11 @@ def evaluate(robot: Robot, outcomes, method_dir: Path, method_name: str):
         poses = read_trajectory_poses(method_dir / f"trajectory_{task.name}.csv", robot)
         metrics = measure(robot, task, poses)
         if framed:
-            metrics["time_to_valid_s"] = outcome.wall_s if metrics["valid"] else np.nan
+            metrics["time_to_valid_s"] = solution.duration_s if metrics["valid"] else np.nan
         points_by_id[task.name] = robot.fk(poses).point_mm
         rows.append({
             "trajectory": task.name, "method": method_name,
-            "iterations": solution.iterations, "duration_s": outcome.wall_s,
+            "iterations": solution.iterations, "duration_s": solution.duration_s,
             "loss": np.nan if solution.loss is None else solution.loss,
             **{k: metrics[k] for k in columns[5:]},
         })
@@ -145,14 +148,21 @@ def evaluate(robot: Robot, outcomes, method_dir: Path, method_name: str):
                         "converged": solution.converged,
                         "within_limits": robot.within_limits(poses),
                         **extra, "method_duration_s": solution.duration_s,
-                        **solution.info, "failure": ""})
+                        "harness_wall_s": outcome.wall_s, **solution.info, "failure": ""})
     return pd.DataFrame(rows, columns=columns), pd.DataFrame(details), points_by_id
 
 
 def robot_record(robot: Robot) -> dict:
-    """How run.json names the robot: enough to load it again (:func:`robot_from_record`)."""
-    shipped = robot.config.get("config_path")
-    spec = shipped if shipped else str(robot.urdf_path)
+    """How run.json names the robot: enough to load it again (:func:`robot_from_record`).
+    A shipped robot by its name (not the path of the machine that wrote the run), any other
+    by its config or URDF path."""
+    from ikbench.core.robot import shipped_robots
+
+    config = robot.config.get("config_path")
+    spec = config if config else str(robot.urdf_path)
+    shipped = shipped_robots().get(robot.name)
+    if config and shipped is not None and Path(config).resolve() == shipped.resolve():
+        spec = robot.name
     return {**robot.describe(), "spec": spec}
 
 
@@ -460,7 +470,9 @@ def method_report(solver, table: pd.DataFrame, details: pd.DataFrame, targets: T
     lines += ["## Measured", "",
               "Computed by `ikbench.core.metrics` from the trajectory CSVs in this folder. "
               f"Distances in mm, angles in degrees, loss in {units}; duration_s is the wall "
-              "time of the solve measured by the harness.",
+              "time of the solve alone, as the method measured it (details.csv: "
+              "method_duration_s; harness_wall_s is the harness's time around the call, with "
+              "per-call set-up and, for the first trajectory, library start-up).",
               "", markdown_table(table.drop(columns=["method"]), digits), ""]
     if record.get("problem"):
         from ikbench.core.validity import describe

@@ -6,7 +6,12 @@ HELP = "sample random reachable touch poses, solve them in one batch (ours-lm)"
 
 
 def register(subparsers) -> None:
-    from ikbench.studies.batch import DEFAULT_WEIGHTS, END_TOLERANCE_MM, LINE_TOLERANCE_MM
+    from ikbench.studies.batch import (
+        DEFAULT_WEIGHTS,
+        END_TOLERANCE_MM,
+        LINE_TOLERANCE_MM,
+        MAX_COUNT,
+    )
 
     parser = subparsers.add_parser(
         "batch", help=HELP,
@@ -21,7 +26,8 @@ def register(subparsers) -> None:
         ),
     )
     parser.add_argument("--count", type=int, default=1000,
-                        help="number of touch poses N (default 1000)")
+                        help=f"number of touch poses N, at most {MAX_COUNT:,} (default 1000; "
+                        "ikbench dataset builds larger sets)")
     parser.add_argument("--seed", type=int, default=0,
                         help="sampling seed, an integer in [0, 2^63) (default 0)")
     parser.add_argument("--steps", type=int, default=50,
@@ -53,8 +59,15 @@ def run(args) -> int:
 
     from ikbench.cli.options import check_executor_args, executor_from_args, robot_from_args
     from ikbench.core.io import check_writable
-    from ikbench.studies.batch import DEFAULT_WEIGHTS, check_seed, run_batch, write
+    from ikbench.studies.batch import (
+        DEFAULT_WEIGHTS,
+        check_count,
+        check_seed,
+        run_batch,
+        write,
+    )
 
+    check_count(args.count)
     check_seed(args.seed)
     check_executor_args(args)
     robot = robot_from_args(args)

@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 HELP = "a training set: N random reachable trajectories (ours-lm) as Parquet shards"
+#: At most this many trajectories (a million took 76 min on one CPU core, docs/scale.md).
+MAX_COUNT = 1_000_000_000
+#: At most this many shards: the plan of the dataset holds one entry per shard.
+MAX_SHARDS = 100_000
 
 
 def register(subparsers) -> None:
     from ikbench.cli.options import add_executor_arguments, add_method_options, add_robot_arguments
     from ikbench.methods.registry import get_method
+    from ikbench.studies.batch import MAX_COUNT as MAX_SHARD_SIZE
     from ikbench.studies.dataset import DEFAULT_SHARD_SIZE
 
     parser = subparsers.add_parser(
@@ -25,14 +30,16 @@ def register(subparsers) -> None:
             "executor and shard order."),
     )
     parser.add_argument("--count", type=int, default=1000,
-                        help="number of trajectories N (default 1000)")
+                        help=f"number of trajectories N, at most {MAX_COUNT:,} and "
+                        f"{MAX_SHARDS:,} shards (default 1000)")
     parser.add_argument("--seed", type=int, default=0,
                         help="seed, an integer in [0, 2^63) (default 0)")
     parser.add_argument("--steps", type=int, default=50,
                         help="number of segments n per trajectory (default 50)")
     parser.add_argument("--shard-size", type=int, default=DEFAULT_SHARD_SIZE,
-                        help="trajectories per shard and per batched solve (default "
-                        f"{DEFAULT_SHARD_SIZE}; on a GPU larger shards, e.g. 100000, run faster)")
+                        help="trajectories per shard and per batched solve, at most "
+                        f"{MAX_SHARD_SIZE:,} (default {DEFAULT_SHARD_SIZE}; on a GPU larger "
+                        "shards, e.g. 100000, run faster)")
     add_robot_arguments(parser)
     parser.add_argument("--targets", default=None,
                         help="targets JSON file whose start pose is used (default: the "
@@ -62,6 +69,7 @@ def run(args) -> int:
     from ikbench.methods.registry import get_method
     from ikbench.studies.dataset import MANIFEST, build_dataset, check_options
 
+    check_sizes(args.count, args.shard_size)
     check_options(args.count, args.seed, args.steps, args.shard_size)
     check_threads(args.threads)
     check_executor_args(args)
@@ -83,3 +91,22 @@ def run(args) -> int:
           f"{summary['line_distance_mean_mm_median']:.3f} mm, median pointing deviation "
           f"{summary['pointing_deviation_mean_deg_median']:.2f} deg")
     return 0
+
+
+def check_sizes(count: int, shard_size: int) -> None:
+    """InputError, before anything is planned, for a --count or --shard-size beyond the
+    stated maxima (a count of 10^12 used to fill the memory with the plan of its shards)."""
+    from ikbench.core.errors import InputError
+    from ikbench.studies.batch import MAX_COUNT as MAX_SHARD_SIZE
+
+    if count > MAX_COUNT:
+        raise InputError(f"--count: {count} is more than the maximum, {MAX_COUNT:,} "
+                         "trajectories")
+    if shard_size > MAX_SHARD_SIZE:
+        raise InputError(f"--shard-size: {shard_size} is more than the maximum, "
+                         f"{MAX_SHARD_SIZE:,} (one shard is one batch in memory)")
+    if count >= 1 and shard_size >= 1 and -(-count // shard_size) > MAX_SHARDS:
+        raise InputError(f"--count {count} in shards of {shard_size} makes "
+                         f"{-(-count // shard_size):,} shards, more than the maximum, "
+                         f"{MAX_SHARDS:,}; raise --shard-size to at least "
+                         f"{-(-count // MAX_SHARDS)}")

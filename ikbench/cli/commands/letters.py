@@ -26,9 +26,10 @@ def register(subparsers) -> None:
             f"n = {DEFAULT_STEPS}, weights c0=1, c1=50, c6=1, others 0, to which --weights "
             f"changes apply, and for ours --stop none --max-iterations {PAPER_ITERATIONS} "
             "(best loss kept). --method ours-lm solves a letter in a fraction of a second, "
-            "starting with every pose at the start pose. Writes "
-            "OUTPUT/<method>/trajectory_<letter>.csv, table.csv, details.csv, run.json, "
-            "shapes.png, animation.gif (unless --no-animation) and report.md."),
+            "starting with every pose at the start pose. Writes the run folder "
+            f"OUTPUT/<method>/ (by default {DEFAULT_OUTPUT}/<method>/, e.g. "
+            f"{DEFAULT_OUTPUT}/ours/): trajectory_<letter>.csv, table.csv, details.csv, "
+            "run.json, shapes.png, animation.gif (unless --no-animation) and report.md."),
     )
     parser.add_argument("letters", help="letters A-Z, comma-separated, e.g. P or P,A,S "
                         "(lower case is drawn upper case)")
@@ -40,7 +41,7 @@ def register(subparsers) -> None:
     add_start_pose_argument(parser, f"the robot's letter pose; NICO: the paper's {pose}")
     parser.add_argument("--steps", type=int, default=None,
                         help=f"number of segments n per letter (default {DEFAULT_STEPS})")
-    add_run_arguments(parser, methods, DEFAULT_OUTPUT)
+    add_run_arguments(parser, methods, DEFAULT_OUTPUT, folder="<method>")
     parser.set_defaults(func=run, targets=None, only=None)
 
 

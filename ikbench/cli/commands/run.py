@@ -83,14 +83,17 @@ def add_start_pose_argument(parser, default: str) -> None:
                         f"(default: {default}); write --start-pose=-24,... for a leading minus")
 
 
-def add_run_arguments(parser, methods: dict, default_output: str) -> None:
-    """--method, output options and every method's own options (shared with ``letters``)."""
+def add_run_arguments(parser, methods: dict, default_output: str,
+                      folder: str = "<method> (or --name)") -> None:
+    """--method, output options and every method's own options (shared with ``letters``);
+    ``folder``: the run folder's name under OUTPUT, in words for the help."""
     from ikbench.cli.options import add_method_options, add_threads_and_quiet
 
     parser.add_argument("--method", default=DEFAULT_METHOD,
                         help=f"one of: {', '.join(methods)} (default: {DEFAULT_METHOD})")
     parser.add_argument("--output", default=default_output,
-                        help=f"output directory (default: {default_output}, which git ignores; "
+                        help=f"directory of the run folder: writes OUTPUT/{folder}/ (default: "
+                        f"{default_output}, which git ignores, so {default_output}/<method>/; "
                         "ikbench reproduce writes results/)")
     parser.add_argument("--duration", type=float, default=2.0,
                         help="movement duration T [s] for the time_s column (default 2)")

@@ -1,0 +1,87 @@
+"""pyproject.toml lists its packages explicitly (the robot models come from the top-level
+urdf/ folder): every package folder must be listed, and every data file shipped, or a wheel
+installed from /tmp misses it while the editable install in the checkout still works."""
+
+from __future__ import annotations
+
+import fnmatch
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import REPO
+
+SETUPTOOLS = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+#: Top-level folders whose Python packages the wheel installs.
+ROOTS = ("ikbench", "baselines")
+
+
+def package_dirs() -> dict[str, Path]:
+    """Dotted name -> folder of every listed package (``package-dir`` applied)."""
+    mapped = SETUPTOOLS.get("package-dir", {})
+    return {name: REPO / mapped.get(name, name.replace(".", "/"))
+            for name in SETUPTOOLS["packages"]}
+
+
+def folders_with_python(root: Path):
+    """Every folder under ``root`` (itself included) that holds a .py file."""
+    for path in sorted({p.parent for p in root.rglob("*.py")}):
+        if "__pycache__" not in path.parts:
+            yield path
+
+
+@pytest.mark.parametrize("root", ROOTS)
+def test_every_package_folder_is_listed(root):
+    listed = {path.resolve() for path in package_dirs().values()}
+    missing = [str(folder.relative_to(REPO)) for folder in folders_with_python(REPO / root)
+               if folder.resolve() not in listed]
+    assert not missing, f"add to [tool.setuptools] packages in pyproject.toml: {missing}"
+
+
+@pytest.mark.parametrize("root", ROOTS)
+def test_every_package_folder_is_a_package(root):
+    """A folder of modules without __init__.py would be a namespace package, which the
+    explicit list does not pick up."""
+    plain = [str(folder.relative_to(REPO)) for folder in folders_with_python(REPO / root)
+             if not (folder / "__init__.py").is_file()]
+    assert not plain, f"add __init__.py to: {plain}"
+
+
+def test_every_listed_package_exists():
+    gone = [name for name, folder in package_dirs().items() if not folder.is_dir()]
+    assert not gone, f"listed in pyproject.toml but not a folder: {gone}"
+
+
+def test_the_shipped_data_is_declared():
+    """The data files the code reads at run time match a package-data pattern."""
+    data = SETUPTOOLS["package-data"]
+    folders = package_dirs()
+    for package, subfolder in [("ikbench.paper", "data/reference"),
+                               ("ikbench.paper", "data"),
+                               ("ikbench", "data/cppflow"),
+                               ("ikbench.robots", "")]:
+        base = folders[package]
+        files = [p for p in (base / subfolder).rglob("*") if p.is_file()
+                 and p.suffix != ".py" and "__pycache__" not in p.parts
+                 and (subfolder or p.parent == base)]
+        assert files, (package, subfolder)
+        for path in files:
+            relative = path.relative_to(base).as_posix()
+            assert any(fnmatch.fnmatch(relative, pattern) and relative.count("/")
+                       == pattern.count("/") for pattern in data[package]), (
+                f"{path.relative_to(REPO)} is not in [tool.setuptools.package-data] "
+                f"{package!r}")
+
+
+def test_citation_names_this_version_and_the_paper():
+    import yaml
+
+    citation = yaml.safe_load((REPO / "CITATION.cff").read_text())
+    version = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["version"]
+    assert citation["cff-version"] == "1.2.0" and citation["version"] == version
+    paper = citation["references"][0]
+    assert paper["title"] == ("Generating and Customizing Robotic Arm Trajectories using "
+                              "Neural Networks")
+    assert [a["family-names"] for a in paper["authors"]] == [
+        "Lúčny", "Antonj", "Mazzola", "Hornáčková", "Farkaš"]
