@@ -251,3 +251,25 @@ def test_viewer_and_animation_play_the_chosen_timing(tmp_path):
     frames, durations = render_frames(robot, tasks, poses, "", 2.0, max_frames=6, dpi=30,
                                       timing="topp", limits=timing_limits(robot))
     assert len(frames) == 6 and durations[1] < 400  # 5 intervals of a topp T < 2 s
+
+
+def test_run_times_its_animation(tmp_path, capsys):
+    """`ikbench run --timing`: the animation is retimed, the trajectory files are not."""
+    from ikbench.cli import main
+
+    for timing in ("constant", "min-jerk"):
+        out = tmp_path / timing
+        assert main(["run", "--method", "ours-lm", "--only", "1", "--steps", "10", "--timing",
+                     timing, "--output", str(out), "--quiet"]) == 0
+        assert (out / "ours-lm" / "animation.gif").stat().st_size > 0
+    same = [(tmp_path / t / "ours-lm" / "trajectory_1.csv").read_text()
+            for t in ("constant", "min-jerk")]
+    assert same[0] == same[1]
+    gifs = [(tmp_path / t / "ours-lm" / "animation.gif").read_bytes()
+            for t in ("constant", "min-jerk")]
+    assert gifs[0] != gifs[1]
+    capsys.readouterr()
+    assert main(["run", "--method", "ours-lm", "--timing", "fast", "--output",
+                 str(tmp_path / "bad")]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "ikbench: error: --timing 'fast'; allowed: constant, min-jerk, topp")

@@ -263,7 +263,8 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
         duration_s: float = DEFAULT_DURATION_S, options: dict | None = None,
         progress: bool = True, shape: str = "line", size_mm: float | None = None,
         start_pose=None, direction=None, name: str | None = None,
-        animation: bool = True, problem: str | Path | None = None) -> pd.DataFrame:
+        animation: bool = True, problem: str | Path | None = None,
+        timing: str = "constant") -> pd.DataFrame:
     """Solve every selected target (or a Cartesian path problem) with ``method`` and write
     the results.
 
@@ -291,6 +292,8 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
         problem: a Cartesian path problem (a shipped name such as ``fetch_arm__hello`` or a
             YAML file in CppFlow's format) instead of targets and shapes; the run writes
             ``trajectory_<problem name>.csv`` and :data:`FRAME_TABLE_COLUMNS`.
+        timing: the timing of ``animation.gif``: ``constant``, ``min-jerk`` or ``topp``
+            (:mod:`ikbench.core.timing`; the trajectory files are not retimed).
 
     Returns:
         The table (one row per trajectory, columns :data:`ikbench.studies.report.TABLE_COLUMNS`,
@@ -301,6 +304,9 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
     """
     if not (duration_s > 0 and np.isfinite(duration_s)):
         raise InputError(f"--duration: {duration_s!r} must be a positive number of seconds")
+    from ikbench.core.timing import check_timing
+
+    check_timing(timing)
     if name is not None:
         check_name(name)
     if problem is not None:
@@ -308,13 +314,13 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
                               size=size_mm, start_pose=start_pose, direction=direction)
         solver, robot, targets, tasks, record = prepare_problem(method, problem, robot=robot,
                                                                 options=options)
-        record = {**record, "direction": None, "duration_s": duration_s}
+        record = {**record, "direction": None, "duration_s": duration_s, "timing": timing}
     else:
         solver, robot, targets, tasks = prepare(
             method, robot=robot, targets=targets, only=only, steps=steps, options=options,
             shape=shape, size_mm=size_mm, start_pose=start_pose, direction=direction)
         record = {"shape": shape, "direction": direction, "duration_s": duration_s,
-                  "size_mm": size_mm}
+                  "size_mm": size_mm, "timing": timing}
     if output is None:
         import tempfile
 
@@ -403,7 +409,14 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
         for _, file, figure in figures:
             atomic_savefig(tmp / file, figure)
         if animation and solved:
-            write_animation(tmp / ANIMATION_FILE, robot, solved, poses, title, duration_s)
+            timing = record.get("timing", "constant")
+            limits = None
+            if timing == "topp":  # the robot's limits: NICO's motor table, else its URDF
+                from ikbench.hw.limits import timing_limits
+
+                limits = timing_limits(robot)
+            write_animation(tmp / ANIMATION_FILE, robot, solved, poses, title, duration_s,
+                            timing=timing, limits=limits)
             figures.append(("animation: the arm playing each trajectory", ANIMATION_FILE, None))
         files = sorted([*written, *RUN_FILES, *(file for _, file, _ in figures)])
         full = {"method": solver.name, "name": record.get("name") or solver.name,

@@ -100,6 +100,10 @@ def add_run_arguments(parser, methods: dict, default_output: str,
     parser.add_argument("--no-animation", action="store_true",
                         help="do not write animation.gif (the arm playing each trajectory; "
                         "1-3 s for seven trajectories)")
+    parser.add_argument("--timing", default="constant", metavar="NAME",
+                        help="timing of animation.gif: constant (the paper's T/n segments), "
+                        "min-jerk or topp (time-optimal within the robot's limits); the "
+                        "trajectory files keep their poses (default constant; docs/timing.md)")
     add_threads_and_quiet(parser)
     add_method_options(parser, methods)
 
@@ -122,6 +126,9 @@ def run(args, shape: str | None = None, fixed: dict | None = None) -> int:
     from ikbench.studies.run import check_name, prepare
 
     check_threads(args.threads)
+    from ikbench.core.timing import check_timing
+
+    check_timing(args.timing)
     if getattr(args, "problem", None) is not None:
         return run_problem(args, fixed)
     robot = robot_from_args(args)
@@ -152,7 +159,7 @@ def run(args, shape: str | None = None, fixed: dict | None = None) -> int:
         print(note, file=sys.stderr)
     set_threads(args.threads)
     record = {"shape": shape, "direction": args.direction, "duration_s": args.duration,
-              "name": name, "size_mm": args.size}
+              "name": name, "size_mm": args.size, "timing": args.timing}
     return solve_write_report(solver, robot, targets, tasks, folder, record, args.quiet,
                               animation=not args.no_animation)
 
@@ -205,7 +212,8 @@ def run_problem(args, fixed: dict | None = None) -> int:
     folder = Path(args.output) / (name or solver.name)
     check_folder_writable(folder)
     set_threads(args.threads)
-    record = {**record, "direction": None, "duration_s": args.duration, "name": name}
+    record = {**record, "direction": None, "duration_s": args.duration, "name": name,
+              "timing": args.timing}
     return solve_write_report(solver, robot, targets, tasks, folder, record, args.quiet,
                               animation=not args.no_animation)
 
