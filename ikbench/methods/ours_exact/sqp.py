@@ -181,7 +181,7 @@ def restore_feasibility(kinematics, problem: ExactProblem, poses, iterations: in
     when given; ``at``: the poses' :func:`kinematics_at` when already computed. Used to
     start :func:`solve` on the constraints from a trajectory that leaves them (the joint
     interpolation), and as the second-order correction of a rejected trial."""
-    x = np.clip(np.array(poses, dtype=float), problem.lower, problem.upper)
+    x = _clip(problem, np.array(poses, dtype=float))
     if movable is None:
         movable = np.broadcast_to(~problem.fixed[..., None], x.shape)
     if at is None:
@@ -200,7 +200,7 @@ def restore_feasibility(kinematics, problem: ExactProblem, poses, iterations: in
             if not out.any():
                 break
             moving = moving & ~out
-        trial = np.clip(x + step, problem.lower, problem.upper)
+        trial = _clip(problem, x + step)
         new = kinematics_at(kinematics, problem, trial)
         better = np.max(np.abs(new[0]), axis=-1) < error                   # (B, N)
         if max_move is not None:
@@ -211,6 +211,13 @@ def restore_feasibility(kinematics, problem: ExactProblem, poses, iterations: in
         at = tuple(np.where(better.reshape(*better.shape, *([1] * (old.ndim - 2))), value, old)
                    for value, old in zip(new, at))
     return x, at
+
+
+def _clip(problem: ExactProblem, poses):
+    """``poses`` (B, N, k) clipped to the box, the fixed poses as they are (a recorded pose
+    may sit on a limit, which the box keeps a margin inside)."""
+    return np.where(problem.fixed[..., None], poses,
+                    np.clip(poses, problem.lower, problem.upper))
 
 
 def _min_norm_step(a, residual):
@@ -249,7 +256,7 @@ def _bounded_step(problem: ExactProblem, model: Model, damped, poses, free, rho,
         step, lam_round, ok_round = solve_kkt(damped, model.bands, model.jacobian, gradient,
                                               residual, free, problem.constrained)
         lam, ok = lam_round, ok & ok_round
-    combined = np.clip(poses + moved + step, problem.lower, problem.upper) - poses
+    combined = _clip(problem, poses + moved + step) - poses
     descent = predicted_decrease(model, combined, rho) > 0
     if np.all(descent):
         return combined, lam, ok, descent
@@ -259,7 +266,7 @@ def _bounded_step(problem: ExactProblem, model: Model, damped, poses, free, rho,
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(np.abs(first) > 0, room / first, np.inf)
     alpha = np.clip(np.min(ratio, axis=(1, 2)), 0.0, 1.0)[:, None, None]
-    shortened = np.clip(poses + alpha * first, problem.lower, problem.upper) - poses
+    shortened = _clip(problem, poses + alpha * first) - poses
     return np.where(descent[:, None, None], combined, shortened), lam, ok, descent
 
 
