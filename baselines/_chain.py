@@ -11,8 +11,9 @@ negative scales); in URDF units they are the min / max of the two mapped limits,
 upper always. Continuous joints keep -inf / +inf.
 
 The URDF text a library parses (:func:`chain_urdf_text`) is the robot's URDF reduced to what
-kinematics needs: ``<visual>`` / ``<collision>`` removed (no mesh files to find), every
-movable joint that is not one of the chain's turned ``fixed`` (locked at 0, as the robot's
+kinematics needs: ``<visual>`` / ``<collision>`` and the ``<transmission>`` / ``<gazebo>`` /
+``<ros2_control>`` elements removed (no mesh files to find, no joints that are not joints),
+every movable joint that is not one of the chain's turned ``fixed`` (locked at 0, as the robot's
 Pinocchio model locks it) and joint axes normalised (URDF axes are unit vectors by the
 specification; ikpy and PyRoki use them as written).
 """
@@ -29,6 +30,9 @@ import numpy as np
 
 from ikbench.core.errors import InputError, SolverError
 
+#: Top-level URDF elements that carry no kinematics (ROS control, Gazebo), left out of the text
+#: the libraries parse: a ``<transmission>`` holds ``<joint>`` elements of its own.
+NON_KINEMATIC = ("transmission", "gazebo", "ros2_control")
 #: Largest clip [pose units] that counts as round-off in :func:`poses_from_urdf`.
 ROUND_OFF = 1e-6
 
@@ -117,6 +121,8 @@ def chain_urdf_text(robot) -> str:
     """The robot's URDF as the libraries parse it (see the module docstring)."""
     tree = ET.parse(robot.urdf_path)
     root = tree.getroot()
+    for element in [e for e in root if e.tag in NON_KINEMATIC]:
+        root.remove(element)  # their <joint> children are no joints of the tree
     for link in root.iter("link"):
         for tag in ("visual", "collision"):
             for element in link.findall(tag):

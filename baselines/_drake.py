@@ -68,7 +68,9 @@ def drake_chain(chain: Chain) -> DrakeChain:
 
     plant = MultibodyPlant(time_step=0.0)
     Parser(plant).AddModelsFromString(chain.urdf_text, "urdf")
-    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(urdf_root(chain.urdf_text)))
+    root = urdf_root(chain.urdf_text)
+    if root != "world":  # a URDF link named world is Drake's world body already (UR, xArm)
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(root))
     plant.Finalize()
     if plant.num_positions() != chain.dof:
         raise ValueError(f"Drake's plant has {plant.num_positions()} positions, the chain "

@@ -567,11 +567,28 @@ def robot_from_urdf(urdf_path: Path, end_frame: str, base_link: str | None = Non
                          "source": str(urdf_path)})
 
 
+def robot_from_package(name: str, end_frame: str | None) -> Robot:
+    """A robot of an installed description package, ``PACKAGE:NAME``
+    (:mod:`ikbench.core.robot_packages`); named ``NAME``, its source the package."""
+    from dataclasses import replace
+
+    from ikbench.core.robot_packages import resolve
+
+    urdf_path, base, end, description = resolve(name, end_frame)
+    robot = robot_from_urdf(urdf_path, end, base)
+    return replace(robot, name=name.partition(":")[2], _cache={},
+                   config={"description": description, "source": name})
+
+
 @functools.lru_cache(maxsize=16)
 def _load(name_or_path: str, end_frame: str | None) -> Robot:
+    from ikbench.core.robot_packages import is_package_name
+
     shipped = shipped_robots()
     if name_or_path in shipped:
         return robot_from_config(shipped[name_or_path], end_frame)
+    if is_package_name(name_or_path):
+        return robot_from_package(name_or_path, end_frame)
     path = Path(name_or_path)
     if path.suffix.lower() == ".urdf":
         if not path.is_file():
@@ -585,8 +602,9 @@ def _load(name_or_path: str, end_frame: str | None) -> Robot:
     if path.name.endswith(".motors.json") or path.suffix.lower() in (".toml", ".json"):
         raise InputError(f"--robot: robot config {name_or_path!r} not found")
     raise InputError(f"--robot: {name_or_path!r} is not a shipped robot ("
-                     f"{', '.join(shipped) or 'none'}), a robot config (*.toml) or a URDF "
-                     "(*.urdf, with --end-frame)")
+                     f"{', '.join(shipped) or 'none'}), a robot config (*.toml), a URDF "
+                     "(*.urdf, with --end-frame) or PACKAGE:NAME from an installed description "
+                     "package (ikbench robots --all lists them)")
 
 
 def load_robot(name_or_path: str | Path = DEFAULT_ROBOT, end_frame: str | None = None) -> Robot:

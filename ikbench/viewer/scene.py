@@ -30,8 +30,19 @@ def load_model(robot: Robot, meshes: bool = True):
     """
     import yourdfpy
 
+    mesh_dir = str(robot.urdf_path.parent)
+
+    def filename(fname: str) -> str:
+        """``package://`` URIs of an installed description package resolved to its files
+        (:func:`ikbench.core.robot_packages.resolve_package_uri`), else yourdfpy's guess."""
+        from ikbench.core.robot_packages import resolve_package_uri
+
+        found = resolve_package_uri(fname)
+        return str(found) if found else yourdfpy.filename_handler_magic(fname, dir=mesh_dir)
+
     model = yourdfpy.URDF.load(str(robot.urdf_path), build_scene_graph=True,
-                               load_meshes=meshes, mesh_dir=str(robot.urdf_path.parent))
+                               load_meshes=meshes, mesh_dir=mesh_dir,
+                               filename_handler=filename)
     for joint in model.robot.joints:
         if joint.type == "prismatic" and joint.axis is not None:
             joint.axis = np.asarray(joint.axis, dtype=float) / np.linalg.norm(joint.axis)
