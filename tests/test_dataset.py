@@ -14,7 +14,7 @@ from ikbench.core.losses import PAPER_WEIGHTS, objective
 from ikbench.core.metrics import trajectory_metrics
 from ikbench.core.task import line_task
 from ikbench.studies.dataset import shard_path
-from ikbench.studies.dataset_shard import line_tasks, shard_seed
+from ikbench.studies.dataset_shard import line_problem, line_tasks, shard_seed
 
 pytest.importorskip("pyarrow", reason="datasets need pyarrow: pip install 'ikbench[scale]'")
 
@@ -160,3 +160,59 @@ def test_missing_pyarrow_names_the_extra(monkeypatch, tmp_path, capsys):
     assert capsys.readouterr().err == (
         "ikbench: error: ikbench dataset writes Parquet with pyarrow, which is not installed; "
         "pip install 'ikbench[scale]'\n")
+
+
+def test_line_problem_equals_the_problem_of_line_tasks(robot, paper_targets):
+    """The shard's array-built problem is the one Problem.from_tasks makes of its tasks."""
+    from ikbench.methods.ours_lm import Problem, initial_poses
+
+    touch = np.array([[33, 39, 25, 134, 102, 77, -168], [57, 33, 40, 134, 80, 36, -159.0]])
+    weights = dict(PAPER_WEIGHTS)
+    tasks, start_mm, touch_mm = line_tasks(robot, paper_targets.start_pose_deg, touch, 12)
+    problem, initial, start2, touch2 = line_problem(robot, paper_targets.start_pose_deg,
+                                                    touch, 12, weights)
+    reference = Problem.from_tasks(robot, tasks, weights)
+    for name in ("goal_points_cm", "goal_directions", "start_pose_deg", "end_pose_deg",
+                 "weights", "lower_deg", "upper_deg"):
+        assert np.array_equal(getattr(problem, name), getattr(reference, name)), name
+    assert np.array_equal(initial, initial_poses(robot, tasks))
+    assert np.array_equal(start2, start_mm) and np.array_equal(touch2, touch_mm)
+
+
+def test_the_manifest_names_the_cpu_backend(tmp_path):
+    from ikbench.methods.ours_lm.devices import numba_installed
+
+    out = tmp_path / "d"
+    assert main(["dataset", "--count", "3", "--steps", "6", "--lm-backend", "numpy",
+                 "--quiet", "--output", str(out)]) == 0
+    manifest = json.loads((out / "dataset.json").read_text())
+    assert manifest["config"]["solver"]["backend"] == "numpy"
+    if numba_installed():  # the default: the fastest installed, recorded as such
+        assert main(["dataset", "--count", "3", "--steps", "6", "--quiet", "--output",
+                     str(tmp_path / "e")]) == 0
+        manifest = json.loads((tmp_path / "e" / "dataset.json").read_text())
+        assert manifest["config"]["solver"]["backend"] == "numba"
+        # a dataset made by numpy is not resumed by numba (the numbers differ by rounding)
+        assert main(["dataset", "--count", "3", "--steps", "6", "--quiet", "--output",
+                     str(out)]) == 2
+
+
+def test_the_pipeline_gives_the_shards_build_shard_gives(robot, paper_targets):
+    from dataclasses import replace
+
+    from ikbench.core.losses import parse_weights
+    from ikbench.methods.ours_lm import LMSettings
+    from ikbench.studies.batch import WorkspaceFilter
+    from ikbench.studies.dataset import dataset_config, plan
+    from ikbench.studies.dataset_shard import build_shard, pipelined
+
+    settings = replace(LMSettings(), weights=parse_weights(None))
+    workspace = WorkspaceFilter.of(robot)
+    config = dataset_config(robot, paper_targets.start_pose_deg, 8, 3, 4, workspace, settings)
+    specs = plan(11, config, robot, paper_targets.start_pose_deg, settings, workspace)
+    piped = list(pipelined(specs))
+    assert len(piped) == 3
+    for spec, result in zip(specs, piped):
+        alone = build_shard(spec)
+        assert result.steps.equals(alone.steps)
+        assert result.trajectories.equals(alone.trajectories)

@@ -10,7 +10,10 @@ import torch
 
 from ikbench.cli import main
 from ikbench.core.errors import InputError
+from ikbench.methods.ours_lm.devices import numba_installed
 from ikbench.studies.throughput import parse_batches, parse_dtypes
+
+HAVE_NUMBA = numba_installed()
 
 
 def test_throughput_cli_on_cpu(tmp_path, capsys):
@@ -19,18 +22,35 @@ def test_throughput_cli_on_cpu(tmp_path, capsys):
     assert "device: cpu (" in capsys.readouterr().out
     table = pd.read_csv(tmp_path / "throughput.csv")
     cases = set(zip(table["backend"], table["dtype"], table["batch"]))
-    assert cases == {(b, d, n) for n in (7, 12) for b, d in
-                     (("numpy", "float64"), ("torch", "float64"), ("torch", "float32"))}
-    torch64 = table[(table["backend"] == "torch") & (table["dtype"] == "float64")]
-    assert (torch64["loss_max_rel_diff"] < 1e-6).all()
+    backends = [("numpy", "float64"), ("torch", "float64"), ("torch", "float32")]
+    if HAVE_NUMBA:
+        backends.append(("numba", "float64"))
+    assert cases == {(b, d, n) for n in (7, 12) for b, d in backends}
+    float64 = table[(table["backend"] != "numpy") & (table["dtype"] == "float64")]
+    assert (float64["loss_max_rel_diff"] < 1e-6).all()
     assert (table[table["dtype"] == "float32"]["loss_max_rel_diff"] < 1e-5).all()
     assert (table["converged_share"] == 1.0).all()
     assert (table[table["backend"] == "numpy"]["speedup_vs_numpy"] == 1.0).all()
     record = json.loads((tmp_path / "throughput.json").read_text())
     assert record["device"] == "cpu" and record["device_name"] and record["torch"]
     runs = pd.read_csv(tmp_path / "throughput_runs.csv")
-    assert len(runs) == 6 and (runs["wall_s"] > 0).all()
-    assert "| torch | float32 | 12 |" in (tmp_path / "throughput.md").read_text()
+    assert len(runs) == 2 * len(backends) and (runs["wall_s"] > 0).all()
+    text = (tmp_path / "throughput.md").read_text()
+    assert "| torch | float32 | 12 |" in text
+    if HAVE_NUMBA:
+        assert "| numba | float64 | 7 |" in text and record["numba_threads"] >= 1
+        assert "one thread per 16 trajectories" in record["numba_threads_rule"]
+        assert "largest relative difference of a final loss from numpy's, numba" in text
+
+
+def test_throughput_without_numba_times_numpy_and_torch(tmp_path):
+    assert main(["bench", "--device", "cpu", "--batches", "3", "--repeat", "1", "--warmup",
+                 "0", "--steps", "8", "--dtypes", "float64", "--no-numba", "--quiet",
+                 "--output", str(tmp_path)]) == 0
+    table = pd.read_csv(tmp_path / "throughput.csv")
+    assert set(table["backend"]) == {"numpy", "torch"}
+    assert json.loads((tmp_path / "throughput.json").read_text())["numba"] is None
+    assert "numba backend not timed" in (tmp_path / "throughput.md").read_text()
 
 
 @pytest.mark.parametrize("args, message", [

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -109,20 +110,82 @@ def line_tasks(robot, start_pose_deg, touch_poses_deg, steps: int, first: int = 
     return tasks, start_mm, touch_mm
 
 
+def line_problem(robot, start_pose_deg, touch_poses_deg, steps: int, weights: dict):
+    """The least-squares problem of the lines of :func:`line_tasks` and their initial poses,
+    made with array operations (no Task per line; the same numbers as
+    ``Problem.from_tasks(robot, line_tasks(...)[0], weights)`` and ``initial_poses``).
+
+    Returns:
+        (problem, initial poses (B, N, dof), start_point_mm (3,), touch_points_mm (B, 3)).
+    """
+    from ikbench.core.losses import MM_PER_CM
+    from ikbench.methods.ours_lm.problem import Problem
+
+    kin = robot.chain_kinematics()
+    start = np.asarray(start_pose_deg, dtype=float)
+    touch = np.asarray(touch_poses_deg, dtype=float)
+    point_m, _, _, _ = kin(np.vstack([start, touch]), jacobian=False)
+    start_mm, touch_mm = point_m[0] * MM_PER_M, point_m[1:] * MM_PER_M
+    t = np.linspace(0.0, 1.0, steps + 1)[:, None]
+    line = touch_mm - start_mm                                           # (B, 3)
+    length = np.array([np.linalg.norm(v) for v in line])               # as line_tasks
+    direction = line / length[:, None]
+    goal_mm = start_mm + t[None] * line[:, None, :]                      # (B, N, 3)
+    b = len(touch)
+    w = np.tile([float(weights.get(k, 0.0)) for k in TERMS], (b, 1))
+    starts = np.broadcast_to(start, touch.shape).copy()
+    problem = Problem(goal_mm / MM_PER_CM, np.repeat(direction[:, None], steps + 1, axis=1),
+                      starts, touch.copy(), w, robot.lower_motor_deg, robot.upper_motor_deg)
+    initial = np.clip(start[None, None] + t[None] * (touch - start)[:, None, :],
+                      robot.lower_motor_deg, robot.upper_motor_deg)
+    return problem, initial, start_mm, touch_mm
+
+
 def build_shard(spec: ShardSpec) -> ShardResult:
     """Sample, solve and measure one shard (runs in a worker); see the module docstring."""
-    from ikbench.methods.ours_lm import solve_batch
-
     began = time.perf_counter()
-    robot = spec.robot
-    touch, draws = sample_touch_poses(robot, spec.start_pose_deg, spec.count,
+    prepared = prepare_shard(spec)
+    return finish_shard(spec, prepared, solve_shard(spec, prepared), began)
+
+
+@dataclass
+class _Prepared:
+    """A shard's sampled lines, ready to solve."""
+
+    touch: np.ndarray           # (B, dof) touch poses
+    draws: int
+    problem: Any                # ikbench.methods.ours_lm.problem.Problem
+    initial: np.ndarray         # (B, N, dof)
+    start_mm: np.ndarray        # (3,)
+    touch_mm: np.ndarray        # (B, 3)
+
+
+def prepare_shard(spec: ShardSpec) -> _Prepared:
+    """The shard's touch poses (the batch sampler) and their line problem."""
+    touch, draws = sample_touch_poses(spec.robot, spec.start_pose_deg, spec.count,
                                       shard_seed(spec.seed, spec.shard), spec.workspace)
-    tasks, start_mm, touch_mm = line_tasks(robot, spec.start_pose_deg, touch, spec.steps,
-                                           spec.first)
-    result = solve_batch(robot, tasks, spec.settings, weights=spec.settings.weights)
+    problem, initial, start_mm, touch_mm = line_problem(
+        spec.robot, spec.start_pose_deg, touch, spec.steps, spec.settings.weights)
+    return _Prepared(touch, draws, problem, initial, start_mm, touch_mm)
+
+
+def solve_shard(spec: ShardSpec, prepared: _Prepared):
+    """(the solver's BatchResult, end points [m] (B*N, 3), directions (B*N, 3))."""
+    from ikbench.methods.ours_lm import solve_problem
+
+    result = solve_problem(spec.robot, prepared.problem, prepared.initial, spec.settings)
+    point_m, direction = _forward(spec.robot, result.poses_deg.reshape(-1, spec.robot.dof),
+                                  spec.settings)
+    return result, point_m, direction
+
+
+def finish_shard(spec: ShardSpec, prepared: _Prepared, solved, began: float) -> ShardResult:
+    """The shard's tables from its solution (metrics by array operations)."""
+    result, point_m, direction = solved
+    robot, touch, start_mm, touch_mm = spec.robot, prepared.touch, prepared.start_mm, \
+        prepared.touch_mm
     poses = result.poses_deg                                        # (B, N, dof)
     b, n_poses, dof = poses.shape
-    point_m, direction, _, _ = robot.chain_kinematics()(poses.reshape(-1, dof), False)
     points_mm = (point_m * MM_PER_M).reshape(b, n_poses, 3)
     directions = direction.reshape(b, n_poses, 3)
     start_pose = np.broadcast_to(spec.start_pose_deg, (b, dof))
@@ -132,8 +195,43 @@ def build_shard(spec: ShardSpec) -> ShardResult:
     steps = _steps_table(spec, robot, ids, poses, points_mm, directions)
     trajectories = _trajectories_table(spec, robot, ids, start_pose, touch, start_mm, touch_mm,
                                        result, metrics)
-    return ShardResult(steps, trajectories, draws, result.duration_s,
+    return ShardResult(steps, trajectories, prepared.draws, result.duration_s,
                        time.perf_counter() - began)
+
+
+def pipelined(specs) -> Iterator[ShardResult]:
+    """:func:`build_shard` of each spec, in order, in this process, in a pipeline: while one
+    shard is solved (in a second thread; the numba backend runs without the GIL), the next
+    one is sampled and the previous one measured and handed on (to be written). The results
+    are those of :func:`build_shard`; ``total_s`` spans a shard's overlapping stages."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1, thread_name_prefix="ikbench-solve") as pool:
+        running = None                      # (spec, prepared, began, future) being solved
+        for spec in specs:
+            began = time.perf_counter()
+            prepared = prepare_shard(spec)                  # during the previous shard's solve
+            previous, solved = running, running[3].result() if running else None
+            running = (spec, prepared, began, pool.submit(solve_shard, spec, prepared))
+            if previous is not None:                        # measured during this solve
+                yield finish_shard(previous[0], previous[1], solved, previous[2])
+        if running is not None:
+            yield finish_shard(running[0], running[1], running[3].result(), running[2])
+
+
+def _forward(robot, poses, settings):
+    """End points [m] and directions of poses (M, dof): compiled with the numba backend."""
+    from ikbench.methods.ours_lm.devices import cpu_backend
+
+    if settings.device is None and cpu_backend(settings) == "numba":
+        try:
+            from ikbench.methods.ours_lm.compiled import forward
+        except ImportError:  # as the solver: auto falls back to numpy
+            pass
+        else:
+            return forward(robot, poses, settings.threads)
+    point_m, direction, _, _ = robot.chain_kinematics()(poses, False)
+    return point_m, direction
 
 
 def _table(columns: dict, metadata: dict):

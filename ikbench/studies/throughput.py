@@ -1,15 +1,17 @@
-"""Throughput of ours-lm: the numpy solver against the torch backend on a device, per batch.
+"""Throughput of ours-lm: the numpy solver against the numba and torch backends, per batch.
 
 :func:`throughput` solves batches of B line trajectories (B = 7: the paper's seven targets,
 the latency case; larger B: touch poses from the batch sampler, seed 0) with the numpy solver
-(up to ``numpy_max_batch``) and with the torch backend on ``device`` in each dtype, all in
-one process: ``warmup`` untimed rounds, then ``repeat`` timed rounds per case, the cases of a
+(up to ``numpy_max_batch``), with the numba backend (the same loop compiled, on ``threads``
+threads; when numba is installed) and with the torch backend on ``device`` in each dtype, all
+in one process: ``warmup`` untimed rounds, then ``repeat`` timed rounds per case, the cases of a
 batch taking turns round by round (so a change in the machine's load hits them alike). A
 round is one ``solve_batch`` call, tasks in, poses and losses back in host memory (the torch
 backend's time on the device, synchronised, is reported too). Per case: median/min/max wall time,
 trajectories per second (B / median), the speed-up against numpy at the same B (ratio of
 medians), iterations, convergence, and how far the losses are from the numpy solver's
-(largest relative difference; from the torch float64 ones where numpy did not run).
+(largest relative difference; from the torch float64 ones where numpy did not run). The
+numba backend is compiled (or loaded from numba's cache) before the first round.
 
 Output (:func:`write`): ``throughput.csv`` (one row per case), ``throughput_runs.csv`` (every
 timed round), ``throughput.json`` (device, CPU, versions) and ``throughput.md``.
@@ -39,6 +41,7 @@ from ikbench.studies.report import markdown_table
 DEFAULT_BATCHES = (7, 1000, 10_000, 100_000)
 DEFAULT_DTYPES = ("float64", "float32")
 NUMPY = "numpy"
+NUMBA = "numba"
 
 
 def parse_batches(text) -> list[int]:
@@ -73,8 +76,10 @@ class ThroughputResult:
 def throughput(device: str, *, batches=DEFAULT_BATCHES, dtypes=DEFAULT_DTYPES,
                repeat: int = 3, warmup: int = 1, numpy_max_batch: int = 10_000,
                steps: int | None = None, targets: str | Path | Targets | None = None,
-               robot: Robot | str | None = None, progress: bool = True) -> ThroughputResult:
-    """Time the numpy solver and the torch backend on ``device`` (see the module docstring).
+               robot: Robot | str | None = None, progress: bool = True,
+               threads: int | None = None, numba: bool | None = None) -> ThroughputResult:
+    """Time the numpy solver, the numba backend and the torch backend on ``device`` (see the
+    module docstring).
 
     Args:
         device: torch device of the backend (``cpu``, ``cuda``, ``cuda:N``).
@@ -86,9 +91,11 @@ def throughput(device: str, *, batches=DEFAULT_BATCHES, dtypes=DEFAULT_DTYPES,
         targets: targets file (default the robot's); its start pose starts every line.
         robot: the robot (default NICO's right arm).
         progress: progress lines on stderr.
+        threads: threads of the numba backend (None: all cores numba sees).
+        numba: time the numba backend (None: when numba is installed).
     """
     from ikbench.methods.ours_lm import LMSettings
-    from ikbench.methods.ours_lm.devices import check_device, device_name
+    from ikbench.methods.ours_lm.devices import check_device, device_name, numba_installed
 
     device = check_device(device) or "cpu"
     for flag, value, low in (("--repeat", repeat, 1), ("--warmup", warmup, 0)):
@@ -101,8 +108,12 @@ def throughput(device: str, *, batches=DEFAULT_BATCHES, dtypes=DEFAULT_DTYPES,
     log = (lambda text: print(f"[bench] {text}", file=sys.stderr, flush=True)) if progress \
         else (lambda text: None)
     pool = _task_pool(robot, targets, batches)
-    cases = [(NUMPY, "float64", LMSettings())] + [
-        ("torch", dtype, LMSettings(device=device, dtype=dtype)) for dtype in dtypes]
+    numba = numba_installed() if numba is None else numba
+    cases = [(NUMPY, "float64", LMSettings(backend=NUMPY))]
+    if numba:
+        cases.append((NUMBA, "float64", LMSettings(backend=NUMBA, threads=threads)))
+        _warm_up_numba(robot, log)
+    cases += [("torch", dtype, LMSettings(device=device, dtype=dtype)) for dtype in dtypes]
     runs, losses = [], {}
     for b in batches:
         tasks = pool[b]
@@ -119,9 +130,17 @@ def throughput(device: str, *, batches=DEFAULT_BATCHES, dtypes=DEFAULT_DTYPES,
     record = {"device": device, "device_name": device_name(device), "batches": list(batches),
               "dtypes": list(dtypes), "repeat": repeat, "warmup": warmup,
               "numpy_max_batch": numpy_max_batch, "steps": targets.steps,
-              "robot": robot.describe(), "targets": targets.source, **_versions(),
-              **provenance()}
+              "robot": robot.describe(), "targets": targets.source,
+              **_versions(numba, threads), **provenance()}
     return ThroughputResult(summary, pd.DataFrame(runs), record)
+
+
+def _warm_up_numba(robot, log) -> None:
+    from ikbench.methods.ours_lm.compiled import warm_up
+
+    start = time.perf_counter()
+    warm_up(robot)
+    log(f"numba backend compiled or loaded from its cache in {time.perf_counter() - start:.1f} s")
 
 
 def _task_pool(robot, targets, batches) -> dict:
@@ -191,11 +210,21 @@ def summarise(runs: pd.DataFrame, losses: dict) -> pd.DataFrame:
     return table
 
 
-def _versions() -> dict:
+def _versions(numba: bool, threads: int | None) -> dict:
     import torch
 
-    return {"torch": torch.__version__, "cuda": torch.version.cuda,
-            "cuda_available": torch.cuda.is_available()}
+    out = {"torch": torch.__version__, "cuda": torch.version.cuda,
+           "cuda_available": torch.cuda.is_available(), "numba": None, "numba_threads": None}
+    if numba:
+        import numba as nb
+
+        from ikbench.methods.ours_lm.compiled import PER_THREAD, max_threads
+
+        out.update(numba=nb.__version__, numba_threads=min(threads or max_threads(),
+                                                            max_threads()),
+                   numba_threads_rule=f"one thread per {PER_THREAD} trajectories, at most "
+                   "numba_threads")
+    return out
 
 
 def write(result: ThroughputResult, output: str | Path) -> Path:
@@ -219,8 +248,9 @@ def markdown(result: ThroughputResult) -> str:
               "iterations_median": 0, "converged_share": 3}
     packages = ", ".join(f"{k} {v}" for k, v in rec["packages"].items() if v)
     return "\n".join([
-        "# ours-lm throughput: numpy solver vs torch backend", "",
-        f"Torch device `{rec['device']}` ({rec['device_name']}); batch 7 is the paper's seven "
+        "# ours-lm throughput: numpy solver vs numba and torch backends", "",
+        f"Torch device `{rec['device']}` ({rec['device_name']}); numba backend "
+        f"{_numba_text(rec)}; batch 7 is the paper's seven "
         f"targets (latency), larger batches are touch poses from the batch sampler (seed 0); "
         f"n = {rec['steps']}, the paper's weights, the same stopping rule. {rec['warmup']} "
         f"untimed warm-up round(s), then {rec['repeat']} timed rounds per case in one process, "
@@ -230,6 +260,7 @@ def markdown(result: ThroughputResult) -> str:
         "solver at the same batch, measured in this run; `loss_max_rel_diff` is the largest "
         "relative difference of a trajectory's final loss from the numpy solver's (from "
         "torch float64 where numpy did not run).", "",
+        *_headline(s),
         markdown_table(s[cols], digits), "",
         "## Machine", "",
         f"{rec['cpu']} ({rec['cpu_count']} cores, torch threads {rec['torch_threads']}); "
@@ -237,3 +268,26 @@ def markdown(result: ThroughputResult) -> str:
         f"{rec['platform']}; git {rec['git_revision']}; {packages}; {rec['created_utc']}.", "",
         "Timings on a shared machine vary from run to run; compare the ratios measured "
         "within one run.", ""])
+
+
+def _numba_text(rec: dict) -> str:
+    if not rec.get("numba"):
+        return "not timed (`--no-numba`, or numba is not installed: the `[fast]` extra)"
+    return (f"numba {rec['numba']} on up to {rec['numba_threads']} thread(s) "
+            f"({rec.get('numba_threads_rule', '')})")
+
+
+def _headline(s: pd.DataFrame) -> list[str]:
+    """Lines on the compiled backend: latency of the seven, rate, ratio, largest difference."""
+    rows = s[s["backend"] == NUMBA]
+    if not len(rows):
+        return []
+    lines = []
+    for _, row in rows.iterrows():
+        ratio = row["speedup_vs_numpy"]
+        versus = f", {ratio:.1f}x numpy" if np.isfinite(ratio) else ""
+        lines.append(f"- numba, batch {row['batch']}: {1000 * row['wall_median_s']:.1f} ms "
+                     f"median per call, {row['trajectories_per_s']:.0f} trajectories/s{versus}")
+    lines.append(f"- largest relative difference of a final loss from numpy's, numba: "
+                 f"{max(float(v) for v in rows['loss_max_rel_diff']):.1e}")
+    return [*lines, ""]

@@ -7,7 +7,7 @@ DEFAULT_METHODS = "ours,ours-lm"
 
 
 def register(subparsers) -> None:
-    from ikbench.cli.options import add_line_task_arguments, add_threads_and_quiet
+    from ikbench.cli.options import add_line_task_arguments
 
     parser = subparsers.add_parser(
         "bench", help=HELP,
@@ -34,15 +34,23 @@ def register(subparsers) -> None:
                         help="untimed rounds before timing (default 1)")
     parser.add_argument("--output", default="runs",
                         help="output directory (default: runs, which git ignores)")
-    add_threads_and_quiet(parser)
+    parser.add_argument("--threads", type=int, default=None,
+                        help="torch threads (default 1: the tensors are tiny, and on a busy "
+                        "2-core machine 2 threads ran ours 15x slower than 1); with --device "
+                        "also the numba backend's (default: all cores)")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
     scale = parser.add_argument_group(
         "throughput mode (--device)",
-        "ours-lm's numpy solver against its torch backend on a device, per batch size: "
+        "ours-lm's numpy solver against its numba backend (the same loop compiled, when "
+        "numba is installed) and its torch backend on a device, per batch size: "
         "trajectories/s, latency of the paper's seven (batch 7), speed-ups, loss agreement; "
         "writes OUTPUT/throughput.csv, throughput_runs.csv, throughput.json (device name, "
         "versions), throughput.md")
     scale.add_argument("--device", default=None, metavar="cpu|cuda|cuda:N",
-                       help="time the torch backend on this device")
+                       help="time the torch backend on this device (and the numpy and numba "
+                       "solvers on the CPU)")
+    scale.add_argument("--no-numba", action="store_true",
+                       help="leave the numba backend out (default: timed when installed)")
     scale.add_argument("--batches", default="7,1000,10000,100000",
                        help="batch sizes; 7 is the paper's seven targets (default "
                        "7,1000,10000,100000)")
@@ -67,7 +75,8 @@ def run(args) -> int:
         write,
     )
 
-    check_threads(args.threads)
+    if args.threads is not None:
+        check_threads(args.threads)
     if args.device is not None:
         return run_throughput(args)
     names = parse_methods(args.methods or DEFAULT_METHODS)
@@ -75,7 +84,7 @@ def run(args) -> int:
     robot = robot_from_args(args)
     targets = targets_from_args(args, robot)
     check_writable(Path(args.output) / "benchmark.csv")  # before the timed rounds
-    set_threads(args.threads)
+    set_threads(args.threads or 1)
     result = benchmark(names, repeat=args.repeat, warmup=args.warmup, targets=targets,
                        progress=not args.quiet, robot=robot)
     path = write(result, args.output)
@@ -92,7 +101,7 @@ def run(args) -> int:
 
 
 def run_throughput(args) -> int:
-    """``ikbench bench --device DEV``: numpy solver vs torch backend per batch size."""
+    """``ikbench bench --device DEV``: numpy solver vs numba and torch backends per batch."""
     from pathlib import Path
 
     from ikbench.cli.options import robot_from_args, set_threads
@@ -114,15 +123,22 @@ def run_throughput(args) -> int:
     device = check_device(args.device)
     robot = robot_from_args(args)
     check_writable(Path(args.output) / "throughput.csv")  # before the timed rounds
-    set_threads(args.threads)
+    set_threads(args.threads or 1)
     result = throughput(device, batches=batches, dtypes=dtypes, repeat=repeat,
                         warmup=args.warmup, numpy_max_batch=args.numpy_max_batch,
                         steps=args.steps, targets=args.targets, robot=robot,
-                        progress=not args.quiet)
+                        progress=not args.quiet, threads=args.threads,
+                        numba=False if args.no_numba else None)
     path = write(result, args.output)
     cols = ["backend", "dtype", "batch", "wall_median_s", "trajectories_per_s",
             "speedup_vs_numpy", "loss_max_rel_diff"]
     print(result.summary[cols].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     print(f"device: {result.record['device']} ({result.record['device_name']})")
+    numba = result.summary[result.summary["backend"] == "numba"]
+    if len(numba):
+        print(f"numba {result.record['numba']} on up to {result.record['numba_threads']} "
+              f"thread(s) ({result.record['numba_threads_rule']}); "
+              f"largest relative loss difference from numpy: "
+              f"{numba['loss_max_rel_diff'].max():.1e}")
     print(f"written to {path} (and throughput.md, throughput_runs.csv, throughput.json)")
     return 0

@@ -5,7 +5,9 @@ weights c0..c6) over the poses p (n+1, dof) within the joint limits, written as 
 squared residuals (:mod:`.problem`), with analytic Jacobians from the vectorised chain
 kinematics (:mod:`ikbench.core.kinematics.chain`), a banded solve of the block-tridiagonal
 normal equations (:mod:`.linalg`) and a projected LM loop batched over trajectories
-(:mod:`.solver`).
+(:mod:`.solver`). The same loop compiled with numba (:mod:`.compiled`, the ``[fast]`` extra)
+runs by default when numba is installed (``--lm-backend auto|numpy|numba``, ``--lm-threads``);
+the numpy solver is the reference and the fallback.
 
 Weights: as in ``ours``, a task may name the weights it is meant for
 (``Task.default_weights``, e.g. a letter's c0=1, c1=50, c6=1, others 0); ``--weights`` changes
@@ -26,6 +28,7 @@ import numpy as np
 
 from ikbench.core.losses import TERMS, format_weights, resolve_weights
 from ikbench.methods.base import Method, Solution
+from ikbench.methods.ours_lm.devices import BACKENDS, cpu_backend
 from ikbench.methods.ours_lm.problem import Evaluation, Problem, evaluate
 from ikbench.methods.ours_lm.solver import (
     KINEMATICS,
@@ -34,11 +37,13 @@ from ikbench.methods.ours_lm.solver import (
     LMSettings,
     initial_poses,
     solve_batch,
+    solve_problem,
 )
 from ikbench.methods.ours_lm.start_search import OursLMSettings, search
 
-__all__ = ["KINEMATICS", "LINEAR_SOLVERS", "BatchResult", "Evaluation", "LMSettings", "OursLM",
-           "OursLMSettings", "Problem", "evaluate", "initial_poses", "search", "solve_batch"]
+__all__ = ["BACKENDS", "KINEMATICS", "LINEAR_SOLVERS", "BatchResult", "Evaluation", "LMSettings",
+           "OursLM", "OursLMSettings", "Problem", "cpu_backend", "evaluate", "initial_poses",
+           "search", "solve_batch", "solve_problem"]
 
 
 class OursLM(Method):
@@ -64,6 +69,10 @@ class OursLM(Method):
             torch_chain_kinematics(robot, torch_dtype(self.settings.dtype), self.settings.device)
         elif self.settings.kinematics == "numpy":
             robot.chain_kinematics().frames(np.zeros((1, robot.dof)))
+            if cpu_backend(self.settings) == "numba":  # compiled (or loaded) outside timing
+                from ikbench.methods.ours_lm.compiled import warm_up
+
+                warm_up(robot)
         else:
             robot.pinocchio_fk()
         import scipy.linalg.lapack  # noqa: F401  the banded solver's import is not timed

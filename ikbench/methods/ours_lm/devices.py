@@ -1,18 +1,24 @@
-"""Which solver ``ours-lm`` runs: the numpy solver, or the torch backend on a device.
+"""Which solver ``ours-lm`` runs: numpy, numba (compiled), or the torch backend on a device.
 
-``--device`` None (the default) keeps the numpy solver (float64, LAPACK); ``cpu``, ``cuda`` or
-``cuda:N`` runs the torch backend (:mod:`.torch_backend`) there, in ``--dtype`` float64
-(default) or float32. Checked when the settings are made, so a bad device fails before any
-work with one line; torch is imported only when a device is named.
+``--device`` None (the default) runs on the CPU in float64: ``--lm-backend numpy`` is the
+numpy solver (the reference; LAPACK), ``numba`` the same loop compiled (:mod:`.compiled`,
+the ``[fast]`` extra), ``auto`` (default) numba when it is installed and the settings allow
+it, else numpy (:func:`cpu_backend`). ``cpu``, ``cuda`` or ``cuda:N`` runs the torch backend
+(:mod:`.torch_backend`) there, in ``--dtype`` float64 (default) or float32. Checked when the
+settings are made, so a bad choice fails before any work with one line; torch and numba are
+imported only when they run.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import re
 
 from ikbench.core.errors import InputError
 
 DTYPES = ("float64", "float32")
+BACKENDS = ("auto", "numpy", "numba")
+FAST_EXTRA = "pip install -c constraints.txt -e '.[fast]'"
 _DEVICE = re.compile(r"^(cpu|cuda(:\d+)?)$")
 
 
@@ -53,6 +59,7 @@ def check_backend(settings) -> None:
     """InputError for settings the chosen solver cannot honour (one line naming the flag)."""
     if settings.dtype not in DTYPES:
         raise InputError(f"--dtype: {settings.dtype!r} is not one of {', '.join(DTYPES)}")
+    _check_cpu_backend(settings)
     if settings.device is None:
         if settings.dtype != "float64":
             raise InputError(f"--dtype {settings.dtype}: the numpy solver (no --device) "
@@ -81,3 +88,48 @@ def device_name(device: str) -> str:
     from ikbench.core.provenance import cpu_model
 
     return cpu_model()
+
+
+def numba_installed() -> bool:
+    """True when numba is installed (found, not imported here)."""
+    try:
+        return importlib.util.find_spec("numba") is not None
+    except (ImportError, ValueError):  # ValueError: sys.modules["numba"] is None
+        return False
+
+
+def cpu_backend(settings) -> str:
+    """The CPU solver the settings run: ``"numpy"`` or ``"numba"`` (``--device`` None).
+
+    ``auto``: numba when it is installed and the settings are the compiled loop's (chain
+    kinematics ``numpy``, linear solver ``banded``), else numpy.
+    """
+    if settings.backend != "auto":
+        return settings.backend
+    if settings.kinematics == "numpy" and settings.linear_solver == "banded" \
+            and numba_installed():
+        return "numba"
+    return "numpy"
+
+
+def _check_cpu_backend(settings) -> None:
+    if settings.backend not in BACKENDS:
+        raise InputError(f"--lm-backend: {settings.backend!r} is not one of "
+                         f"{', '.join(BACKENDS)}")
+    threads = settings.threads
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
+                                or threads < 1):
+        raise InputError(f"--lm-threads: {threads!r} must be an integer >= 1")
+    if settings.backend != "numba":
+        return
+    if settings.device is not None:
+        raise InputError(f"--lm-backend numba: runs on the CPU; leave out --device "
+                         f"{settings.device} (the torch backend), or --lm-backend")
+    for flag, value, wanted in (("--lm-kinematics", settings.kinematics, "numpy"),
+                                ("--lm-linear-solver", settings.linear_solver, "banded")):
+        if value != wanted:
+            raise InputError(f"{flag} {value}: the numba backend has its own compiled "
+                             f"{wanted} loop; leave {flag} out, or use --lm-backend numpy")
+    if not numba_installed():
+        raise InputError(f"--lm-backend numba: numba is not installed; {FAST_EXTRA}, or "
+                         "use --lm-backend numpy")

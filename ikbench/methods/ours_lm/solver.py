@@ -18,7 +18,13 @@ from ikbench.core.errors import InputError
 from ikbench.core.kinematics.chain import pinocchio_kinematics
 from ikbench.core.losses import PAPER_WEIGHTS_TEXT, check_weights, resolve_weights
 from ikbench.methods.base import check_choice, check_positive, option
-from ikbench.methods.ours_lm.devices import DTYPES, check_backend, check_device
+from ikbench.methods.ours_lm.devices import (
+    BACKENDS,
+    DTYPES,
+    check_backend,
+    check_device,
+    cpu_backend,
+)
 from ikbench.methods.ours_lm.linalg import block_matvec, solve_normal_equations
 from ikbench.methods.ours_lm.problem import Evaluation, Problem, evaluate
 
@@ -46,9 +52,14 @@ class LMSettings:
         kinematics: ``"numpy"`` (vectorised chain FK from the Pinocchio model) or
             ``"pinocchio"`` (``computeFrameJacobian`` per pose; the reference, slower).
         linear_solver: ``"banded"`` (LAPACK banded Cholesky) or ``"thomas"`` (numpy).
-        device: None for this numpy solver; ``"cpu"``, ``"cuda"`` or ``"cuda:N"`` for the
-            torch backend on that device (:mod:`.torch_backend`).
+        device: None for the CPU solvers (numpy or numba, ``backend``); ``"cpu"``,
+            ``"cuda"`` or ``"cuda:N"`` for the torch backend on that device
+            (:mod:`.torch_backend`).
         dtype: the torch backend's precision, ``"float64"`` or ``"float32"``.
+        backend: without ``device``: ``"numpy"`` (this module, the reference), ``"numba"``
+            (the same loop compiled, :mod:`.compiled`; needs the ``[fast]`` extra) or
+            ``"auto"``: numba when installed (and kinematics numpy, linear solver banded).
+        threads: threads of the numba backend (None: all cores numba sees).
     """
 
     weights: dict | str | None = option(
@@ -71,6 +82,14 @@ class LMSettings:
                                 help="cpu, cuda or cuda:N: the torch backend on that device")
     dtype: str = option("float64", choices=DTYPES,
                         help="precision of the torch backend (--device)")
+    backend: str = option("auto", flag="lm-backend", choices=BACKENDS,
+                          help="CPU solver without --device: numpy (the reference), numba "
+                          "(the same loop compiled; pip extra [fast]) or auto (numba when "
+                          "installed)")
+    threads: int | None = option(None, flag="lm-threads", type=int,
+                                 show_default="all cores",
+                                 help="threads of the numba backend (trajectories are shared "
+                                 "out among them)")
 
     def __post_init__(self):
         check_positive(self, "max_iterations", integer=True)
@@ -117,6 +136,18 @@ def initial_poses(robot, tasks) -> np.ndarray:
     return np.clip(np.stack(out), robot.lower_motor_deg, robot.upper_motor_deg)
 
 
+def initial_poses_batched(robot, tasks) -> np.ndarray:
+    """:func:`~.solver.initial_poses` without a loop over tasks when every task pins a start
+    and a touch pose (the same operations, so the same numbers)."""
+    if not all(t.start_pose_deg is not None and t.end_pose_deg is not None for t in tasks) \
+            or len({t.steps for t in tasks}) != 1:
+        return initial_poses(robot, tasks)
+    start = np.stack([t.start_pose_deg for t in tasks])[:, None, :]
+    end = np.stack([t.end_pose_deg for t in tasks])[:, None, :]
+    t = np.linspace(0.0, 1.0, tasks[0].steps + 1)[None, :, None]
+    return np.clip(start + t * (end - start), robot.lower_motor_deg, robot.upper_motor_deg)
+
+
 def _free_variables(problem: Problem, poses, gradient):
     """False for variables on a bound whose descent direction (-gradient) leaves the box."""
     at_lower = poses <= problem.lower_deg + BOUND_EPS_DEG
@@ -139,7 +170,9 @@ def solve_batch(robot, tasks, settings: LMSettings | None = None, weights=None,
         problem: the least-squares problem (default: the paper's objective,
             :meth:`Problem.from_tasks`); e.g. a :class:`.frames.FrameProblem`.
         evaluator: ``evaluator(kinematics, problem, poses, derivatives)`` -> Evaluation of
-            ``problem`` (default :func:`.problem.evaluate`).
+            ``problem`` (default :func:`.problem.evaluate`). The numba backend
+            (``settings.backend``) runs the default problem and evaluator without ``until``;
+            anything else runs here in numpy. Its ``progress`` is called once, at the end.
         until: optional ``until(poses (A, N, dof), indices (A,)) -> (A,) bool`` called after
             every iteration with the active trajectories' poses; those it marks stop, counted
             as converged (e.g. once a pose path meets its validity criteria).
@@ -152,15 +185,52 @@ def solve_batch(robot, tasks, settings: LMSettings | None = None, weights=None,
         from ikbench.methods.ours_lm import torch_backend
 
         return torch_backend.solve_batch(robot, tasks, settings, weights, initial, progress)
+    compiled = (_compiled(settings) if problem is None and evaluator is evaluate
+                and until is None else None)
+    if compiled is not None:  # the same loop compiled
+        if weights is None:
+            weights = [resolve_weights(settings.weights, task) for task in tasks]
+        result = compiled.solve_batch(robot, tasks, settings, weights, initial)
+        if progress:
+            progress(int(result.iterations.max(initial=0)), 0, result.loss)
+        return result
     start = time.perf_counter()
-    kin = _kinematics(robot, settings.kinematics)
     if weights is None:
         weights = [resolve_weights(settings.weights, task) for task in tasks]
     if problem is None:
         problem = Problem.from_tasks(robot, tasks, weights)
     poses = initial_poses(robot, tasks) if initial is None else np.array(initial, dtype=float)
+    return _solve_numpy(robot, problem, poses, settings, progress, evaluator, until, start)
+
+
+def solve_problem(robot, problem: Problem, initial, settings: LMSettings | None = None,
+                  progress=None) -> BatchResult:
+    """:func:`solve_batch` of a ready :class:`.problem.Problem` (the paper's objective) from
+    ``initial`` poses (B, N, dof), by the solver ``settings`` choose (numpy, numba, torch on
+    a device); no Task objects (e.g. the lines of a dataset's shard)."""
+    settings = settings or LMSettings()
+    if settings.device is not None:
+        from ikbench.methods.ours_lm import torch_backend
+
+        return torch_backend.solve_problem(robot, problem, initial, settings, progress)
+    start = time.perf_counter()
+    poses = np.array(initial, dtype=float)
+    compiled = _compiled(settings)
+    if compiled is None:
+        return _solve_numpy(robot, problem, poses, settings, progress, evaluate, None, start)
+    result = compiled.solve(robot, problem, poses, settings)
+    if progress:
+        progress(int(result.iterations.max(initial=0)), 0, result.loss)
+    result.duration_s = time.perf_counter() - start
+    return result
+
+
+def _solve_numpy(robot, problem, poses, settings: LMSettings, progress, evaluator, until,
+                 start: float) -> BatchResult:
+    """The numpy loop of :func:`solve_batch` from initial poses (B, N, dof)."""
+    kin = _kinematics(robot, settings.kinematics)
     poses = np.clip(poses, problem.lower_deg, problem.upper_deg)
-    b = len(tasks)
+    b = len(poses)
     current = evaluator(kin, problem, poses)
     damping = np.full(b, settings.damping)
     nu = np.full(b, 2.0)
@@ -213,6 +283,22 @@ def solve_batch(robot, tasks, settings: LMSettings | None = None, weights=None,
         active = active[~done]
     return BatchResult(poses, current.loss, current.terms, iterations, converged,
                        time.perf_counter() - start)
+
+
+def _compiled(settings: LMSettings):
+    """The numba backend's module when ``settings`` choose it, else None. With ``auto``, a
+    numba that is installed but fails to import falls back to numpy; asked for by name, it
+    is an InputError."""
+    if cpu_backend(settings) != "numba":
+        return None
+    try:
+        from ikbench.methods.ours_lm import compiled
+    except ImportError as error:
+        if settings.backend == "numba":
+            raise InputError(f"--lm-backend numba: numba does not import ({error}); "
+                             "use --lm-backend numpy") from None
+        return None
+    return compiled
 
 
 def _stationary(ev: Evaluation, poses, problem: Problem, rtol: float = 1e-6):

@@ -37,7 +37,7 @@ from ikbench.methods.ours_lm.solver import (
     MIN_GAIN_RATIO,
     BatchResult,
     LMSettings,
-    initial_poses,
+    initial_poses_batched,
 )
 
 #: The smallest stopping tolerance used in float32 (relative loss decrease, or step in deg):
@@ -282,18 +282,6 @@ def stopping_tolerance(settings: LMSettings) -> float:
     if settings.dtype == "float32":
         return max(settings.tolerance, FLOAT32_TOLERANCE)
     return settings.tolerance
-
-
-def initial_poses_batched(robot, tasks) -> np.ndarray:
-    """:func:`~.solver.initial_poses` without a loop over tasks when every task pins a start
-    and a touch pose (the same operations, so the same numbers)."""
-    if not all(t.start_pose_deg is not None and t.end_pose_deg is not None for t in tasks) \
-            or len({t.steps for t in tasks}) != 1:
-        return initial_poses(robot, tasks)
-    start = np.stack([t.start_pose_deg for t in tasks])[:, None, :]
-    end = np.stack([t.end_pose_deg for t in tasks])[:, None, :]
-    t = np.linspace(0.0, 1.0, tasks[0].steps + 1)[None, :, None]
-    return np.clip(start + t * (end - start), robot.lower_motor_deg, robot.upper_motor_deg)
 
 
 def solve_batch(robot, tasks, settings: LMSettings, weights=None, initial=None,
