@@ -26,6 +26,7 @@ import numpy as np
 
 from ikbench.methods.ours_exact.kkt import solve_kkt
 from ikbench.methods.ours_exact.problem import ExactProblem, Model, evaluate, kinematics_at
+from ikbench.methods.ours_lm.solver import nielsen_update
 
 #: A joint within this distance [pose units] of a bound counts as on the bound.
 BOUND_EPS = 1e-9
@@ -139,12 +140,7 @@ def solve(kinematics, problem: ExactProblem, initial, *, max_iterations: int = 1
         x[acc] = trial[accept]
         current.put(acc, new.take(np.flatnonzero(accept)))
         multipliers[acc] = lam[accept]
-        g = gain[accept]
-        mu[acc] *= np.maximum(1.0 / 3.0, 1.0 - (2.0 * g - 1.0) ** 3)
-        nu[acc] = 2.0
-        rej = active[~accept]
-        mu[rej] *= nu[rej]
-        nu[rej] *= 2.0
+        nielsen_update(mu, nu, active, accept, gain)
 
         # a nearly undamped (Gauss-Newton) step that changes little: stationary
         scale = tolerance * np.maximum(np.abs(before), 1e-12)

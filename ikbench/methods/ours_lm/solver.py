@@ -260,12 +260,7 @@ def _solve_numpy(robot, problem, poses, settings: LMSettings, progress, evaluato
         acc = active[accept]
         poses[acc] = trial[accept]
         _put(current, acc, _take(new, np.flatnonzero(accept)))
-        g = gain[accept]
-        damping[acc] *= np.maximum(1.0 / 3.0, 1.0 - (2.0 * g - 1.0) ** 3)
-        nu[acc] = 2.0
-        rej = active[~accept]
-        damping[rej] *= nu[rej]
-        nu[rej] *= 2.0
+        nielsen_update(damping, nu, active, accept, gain)
 
         decrease = ev.loss - new.loss
         small = accept & ((decrease <= settings.tolerance * new.loss)
@@ -299,6 +294,18 @@ def _compiled(settings: LMSettings):
                              "use --lm-backend numpy") from None
         return None
     return compiled
+
+
+def nielsen_update(damping, nu, active, accept, gain) -> None:
+    """Nielsen's damping update, in place: an accepted step (gain ratio g) scales the damping
+    by max(1/3, 1 - (2g - 1)^3) and resets nu to 2; a rejected one multiplies the damping by
+    nu and doubles nu (H. B. Nielsen, Damping parameter in Marquardt's method, 1999).
+    ``active``: the trajectories' indices; ``accept``, ``gain``: per active trajectory."""
+    acc, rej = active[accept], active[~accept]
+    damping[acc] *= np.maximum(1.0 / 3.0, 1.0 - (2.0 * gain[accept] - 1.0) ** 3)
+    nu[acc] = 2.0
+    damping[rej] *= nu[rej]
+    nu[rej] *= 2.0
 
 
 def _stationary(ev: Evaluation, poses, problem: Problem, rtol: float = 1e-6):
