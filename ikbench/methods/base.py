@@ -138,6 +138,15 @@ def check_positive(settings, *field_names: str, integer: bool = False) -> None:
             raise InputError(f"{flag_of(settings, name)}: {value!r} must be {kind}")
 
 
+def check_seed(settings, field_name: str = "seed") -> None:
+    """InputError naming the flag when ``settings.<field_name>`` is not an integer in
+    [0, 2^63) (what numpy's and torch's generators take)."""
+    value = getattr(settings, field_name)
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < 2**63:
+        raise InputError(f"{flag_of(settings, field_name)}: {value!r} must be an integer in "
+                         "[0, 2^63)")
+
+
 @dataclass
 class Solution:
     """A method's result for one task.

@@ -47,7 +47,14 @@ from ikbench.core.losses import (
     resolve_weights,
     weighted_loss,
 )
-from ikbench.methods.base import Method, Solution, check_choice, check_positive, option
+from ikbench.methods.base import (
+    Method,
+    Solution,
+    check_choice,
+    check_positive,
+    check_seed,
+    option,
+)
 
 DTYPES = ("float32", "float64")
 STOPS = ("paper", "none")
@@ -103,9 +110,7 @@ class AdamSettings:
         check_choice(self, "stop", STOPS)
         check_positive(self, "lr")
         check_positive(self, "max_iterations", integer=True)
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) \
-                or not 0 <= self.seed < 2**63:
-            raise InputError(f"--seed: {self.seed!r} must be an integer in [0, 2^63)")
+        check_seed(self)
         check_weights(self.weights)
 
 

@@ -36,6 +36,7 @@ from ikbench.methods.base import (
     Solution,
     check_choice,
     check_positive,
+    check_seed,
     flag_of,
     option,
 )
@@ -117,9 +118,7 @@ class ExactSettings:
                 raise InputError(f"{flag_of(self, name)}: {value!r} must be a number >= 0")
         check_choice(self, "init", INITS)
         self.max_iterations = int(self.max_iterations)
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) \
-                or not 0 <= self.seed < 2**63:
-            raise InputError(f"--lm-seed: {self.seed!r} must be an integer in [0, 2^63)")
+        check_seed(self)
 
 
 class OursExact(Method):

@@ -35,7 +35,7 @@ from ikbench.core.validity import (
     MAX_POSITION_ERROR_MM,
     MAX_ROTATION_ERROR_DEG,
 )
-from ikbench.methods.base import check_positive, option
+from ikbench.methods.base import check_positive, check_seed, option
 from ikbench.methods.ours_lm.frames import FrameProblem, errors_from_frames, evaluate_frames
 from ikbench.methods.ours_lm.solver import LMSettings, solve_batch
 
@@ -90,9 +90,7 @@ class OursLMSettings(LMSettings):
 
     def __post_init__(self):
         super().__post_init__()
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) \
-                or not 0 <= self.seed < 2**63:
-            raise InputError(f"--lm-seed: {self.seed!r} must be an integer in [0, 2^63)")
+        check_seed(self)
         check_positive(self, "ik_seeds", "refine", integer=True)
         self.ik_seeds, self.refine = int(self.ik_seeds), int(self.refine)
 
