@@ -186,6 +186,9 @@ class Method:
             cannot draw letters or curves, which pin no pose).
         supports_frames: True for methods that follow goal frames (6-D pose paths, e.g. the
             CppFlow problems); :meth:`check_tasks` refuses such tasks for the others.
+        avoids_obstacles: True for methods that keep the robot clear of a task's obstacles
+            (``Task.obstacles``) and of itself; the others still solve such tasks, and the
+            studies name "does not avoid obstacles" beside a collision.
         batched: True when ``solve_many`` solves all tasks in one call (timed as one).
         bench_rounds: timed rounds ``ikbench bench`` gives the method by default.
     """
@@ -196,6 +199,7 @@ class Method:
     library: ClassVar[str] = "ikbench"
     requires_touch_pose: ClassVar[bool] = False
     supports_frames: ClassVar[bool] = False
+    avoids_obstacles: ClassVar[bool] = False
     batched: ClassVar[bool] = False
     bench_rounds: ClassVar[int] = 5
 
