@@ -10,6 +10,20 @@ Solver (``--drake-solver``): ``auto`` lets ``pydrake.solvers.Solve`` choose (SNO
 nonlinear programs; the pip wheel bundles it), or ``snopt`` / ``ipopt`` / ``nlopt`` by name.
 The tolerances set: SNOPT's "Major feasibility tolerance" / "Major optimality tolerance",
 IPOPT's ``constr_viol_tol`` / ``tol``, NLopt's ``xtol_rel`` (optimality only).
+
+Obstacles (:func:`drake_scene_chain`, only for a task with obstacles: without them the plant
+above is used unchanged). The same URDF in a ``DiagramBuilder`` with
+``AddMultibodyPlantSceneGraph(builder, 0.0)``; the robot's capsules
+(:mod:`baselines._collision`) registered on their links' bodies
+(``plant.RegisterCollisionGeometry(body, X_BG, Capsule(radius, length), ...)``, the capsule's
+axis its local z, X_BG from its two end points), the obstacles on the world body (``Box``,
+``Sphere``, ``Capsule``; a half-space as a large box). Collision filters
+(``scene_graph.collision_filter_manager().Apply(CollisionFilterDeclaration()...)``):
+``ExcludeWithin`` every robot geometry, then ``AllowBetween`` the capsules of each of the
+collision model's ``self_pairs``; robot-obstacle pairs stay (Drake itself filters the
+geometry welded to the world, e.g. the base link, against the obstacles: no joint moves it).
+The programs then add ``MinimumDistanceLowerBoundConstraint`` (bound = the clearance) on the
+plant context of the diagram's context.
 """
 
 from __future__ import annotations
@@ -37,12 +51,19 @@ class DrakeChain:
         plant: the finalised ``MultibodyPlant``.
         index: (dof,) position index of each chain joint.
         base_frame, end_frame: the plant's frames of the base link and the end frame.
+        diagram, root_context, context: with obstacles (:func:`drake_scene_chain`): the
+            diagram of plant and SceneGraph, its context, and the plant's context within it
+            (the one collision constraints need); None otherwise.
     """
 
     plant: Any
     index: np.ndarray
     base_frame: Any
     end_frame: Any
+
+    diagram: Any = None
+    root_context: Any = None
+    context: Any = None
 
     def positions(self, q_chain) -> np.ndarray:
         """The plant's position vector for chain joint values (dof,)."""
@@ -79,6 +100,92 @@ def drake_chain(chain: Chain) -> DrakeChain:
     _PLANTS[chain] = DrakeChain(plant, index, plant.GetFrameByName(chain.base_link),
                                 plant.GetFrameByName(chain.end_frame))
     return _PLANTS[chain]
+
+
+_SCENE_PLANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def drake_scene_chain(chain: Chain, scene) -> DrakeChain:
+    """The chain's plant with the collision geometry of ``scene``
+    (:class:`baselines._collision.Scene`) in a SceneGraph (see the module docstring); cached
+    per chain and scene."""
+    cache = _SCENE_PLANTS.setdefault(chain, {})
+    if scene.key in cache:
+        return cache[scene.key]
+    from pydrake.geometry import (
+        Box,
+        Capsule,
+        CollisionFilterDeclaration,
+        GeometrySet,
+        Sphere,
+    )
+    from pydrake.math import RigidTransform, RotationMatrix
+    from pydrake.multibody.parsing import Parser
+    from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, CoulombFriction
+    from pydrake.systems.framework import DiagramBuilder
+
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, 0.0)
+    Parser(plant).AddModelsFromString(chain.urdf_text, "urdf")
+    root = urdf_root(chain.urdf_text)
+    if root != "world":
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(root))
+    friction = CoulombFriction(0.5, 0.5)
+
+    def shape_of(shape):
+        if shape.kind == "capsule":
+            return Capsule(shape.radius_m, shape.length_m)
+        if shape.kind == "sphere":
+            return Sphere(shape.radius_m)
+        return Box(*map(float, shape.size_m))
+
+    def pose(shape):
+        return RigidTransform(RotationMatrix(shape.rotation), shape.center_m)
+
+    by_link: dict[str, list] = {}
+    for shape in scene.links:
+        body = plant.GetBodyByName(shape.link)
+        by_link.setdefault(shape.link, []).append(plant.RegisterCollisionGeometry(
+            body, pose(shape), shape_of(shape), shape.name, friction))
+    # obstacles are in the base link's frame: the base link's pose in the world is fixed
+    # (every joint between the URDF root and it is fixed: only the chain's joints move)
+    X_WB = _base_pose(chain, root)
+    for shape in scene.obstacles:
+        plant.RegisterCollisionGeometry(plant.world_body(), X_WB @ pose(shape),
+                                        shape_of(shape), shape.name, friction)
+    plant.Finalize()
+    robot = GeometrySet([g for ids in by_link.values() for g in ids])
+    declaration = CollisionFilterDeclaration().ExcludeWithin(robot)
+    for a, b in scene.self_pairs:
+        declaration.AllowBetween(GeometrySet(by_link[a]), GeometrySet(by_link[b]))
+    scene_graph.collision_filter_manager().Apply(declaration)
+    diagram = builder.Build()
+    diagram_context = diagram.CreateDefaultContext()
+    context = plant.GetMyMutableContextFromRoot(diagram_context)
+    index = np.array([plant.GetJointByName(n).position_start() for n in chain.joint_names])
+    result = DrakeChain(plant, index, plant.GetFrameByName(chain.base_link),
+                        plant.GetFrameByName(chain.end_frame), diagram, diagram_context,
+                        context)
+    cache[scene.key] = result
+    return result
+
+
+def _base_pose(chain: Chain, root: str):
+    """World <- base link, on the plain plant (the base is fixed in the world)."""
+    plain = drake_chain(chain)
+    context = plain.plant.CreateDefaultContext()
+    return plain.plant.CalcRelativeTransform(context, plain.plant.world_frame(),
+                                             plain.base_frame)
+
+
+def min_distance_constraint(drake: DrakeChain, clearance_m: float, influence_m: float):
+    """``MinimumDistanceLowerBoundConstraint(plant, clearance, plant_context, None,
+    influence)`` on ``drake`` (a :func:`drake_scene_chain`): every unfiltered pair at least
+    ``clearance_m`` apart (pairs farther than clearance + influence are not evaluated)."""
+    from pydrake.multibody.inverse_kinematics import MinimumDistanceLowerBoundConstraint
+
+    return MinimumDistanceLowerBoundConstraint(drake.plant, clearance_m, drake.context,
+                                               None, influence_m)
 
 
 def make_solver(name: str):

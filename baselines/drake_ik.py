@@ -37,6 +37,19 @@ max_step (the touch pose stays reachable in the steps left). Where that program 
 again with the pointing as ``AddAngleBetweenVectorsCost`` c (1 - cos angle)
 (``--drake-pointing-cost``, default 3000); ``pointing_relaxed_points`` counts those steps. A
 step is solved when Drake reports success and FK puts the end point within 1e-3 mm of its box.
+
+Obstacles (a task with ``obstacles``; without them nothing here changes): the plant is the one
+with collision geometry (:func:`baselines._drake.drake_scene_chain`: the robot's capsules, the
+obstacles, only the collision model's self pairs and the robot-obstacle pairs unfiltered),
+``InverseKinematics(plant, plant_context, with_joint_limits=False)`` on its diagram's plant
+context, and every program gains ``ik.AddMinimumDistanceLowerBoundConstraint(clearance,
+influence)``: every such pair at least ``--drake-clearance`` (default 5 mm) apart, pairs
+within clearance + ``--drake-influence`` (default 1 mm: larger values let more pairs into
+the constraint and made SNOPT stall more often on the CppFlow panda problems) evaluated.
+Drake's signed distances come from its own queries (FCL), its gradients from the witness
+points' Jacobians. A program that fails (SNOPT stalls where the warm start overlaps an
+obstacle: the home pose a pose path's walk starts from may) is solved again from the pose the
+same program without the distance constraint reaches (``collision_retried_points``).
 """
 
 from __future__ import annotations
@@ -46,7 +59,22 @@ from dataclasses import dataclass
 import numpy as np
 
 from baselines._chain import Chain, Goals, contract_step, urdf_step
-from baselines._drake import SOLVERS, DrakeMethod, drake_chain, make_solver, set_tolerances, solve
+from baselines._collision import (
+    AvoidsObstacles,
+    current_obstacles,
+    no_avoidance_reason,
+    scene_info,
+    scene_of,
+)
+from baselines._drake import (
+    SOLVERS,
+    DrakeMethod,
+    drake_chain,
+    drake_scene_chain,
+    make_solver,
+    set_tolerances,
+    solve,
+)
 from baselines._method import ChainResult
 from baselines._track import SCHEME_HELP, SCHEMES, speed_box, track
 from baselines._walk import PointResult, walk_back
@@ -84,12 +112,21 @@ class DrakeIKSettings:
     optimality_tolerance: float = option(1e-6, flag="drake-optimality-tolerance",
                                          help="SNOPT major optimality / IPOPT tol / NLopt "
                                          "xtol_rel")
+    clearance: float = option(5.0, flag="drake-clearance", unit="mm",
+                              help="tasks with obstacles: the least distance kept between the "
+                              "robot's capsules and the obstacles and between self pairs "
+                              "(MinimumDistanceLowerBoundConstraint's bound)")
+    influence: float = option(1.0, flag="drake-influence", unit="mm",
+                              help="tasks with obstacles: pairs closer than clearance + this "
+                              "enter the constraint (its influence_distance_offset)")
 
     def __post_init__(self):
         check_choice(self, "scheme", SCHEMES)
         check_choice(self, "solver", SOLVERS)
         check_positive(self, "pointing_tolerance", "pointing_cost", "feasibility_tolerance",
-                       "optimality_tolerance")
+                       "optimality_tolerance", "influence")
+        if not self.clearance >= 0:
+            raise InputError(f"--drake-clearance: {self.clearance!r} must be >= 0 [mm]")
         if not (self.position_tolerance >= 0 and self.warm_weight >= 0
                 and self.posture_weight >= 0):
             raise InputError("--drake-position-tolerance, --drake-warm-weight and "
@@ -98,7 +135,7 @@ class DrakeIKSettings:
 
 def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings,
                 metric: np.ndarray | None = None,
-                max_step: np.ndarray | None = None) -> ChainResult:
+                max_step: np.ndarray | None = None, scene=None) -> ChainResult:
     """Drake IK in URDF units: the tracking scheme when ``goals.track`` is set, else the walk
     (see the module docstring).
 
@@ -108,11 +145,14 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings,
         metric: (dof,) weights of the track's costs (:func:`pose_metric`); None: all 1.
         max_step: (dof,) the largest joint step per segment [rad, m] the track may take, or
             None (no speed limit known; the walk ignores it).
+        scene: the robot's capsules and the task's obstacles
+            (:class:`baselines._collision.Scene`) to keep ``settings.clearance`` apart, or
+            None (no obstacles: the programs as without them).
     """
     from pydrake.math import RotationMatrix
     from pydrake.multibody.inverse_kinematics import InverseKinematics
 
-    drake = drake_chain(chain)
+    drake = drake_chain(chain) if scene is None else drake_scene_chain(chain, scene)
     solver = make_solver(settings.solver)
     box = np.full(3, settings.position_tolerance / 1000.0)
     angle = np.radians(settings.pointing_tolerance)
@@ -123,12 +163,18 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings,
                                       else metric))
     step = None if max_step is None or not tracking else drake.positions(max_step)
     context = drake.plant.CreateDefaultContext()
-    used, relaxed = set(), []
+    used, relaxed, retried = set(), [], []
 
-    def program(q_warm, point, direction, rotation, bounds, pointing_cost):
+    def program(q_warm, point, direction, rotation, bounds, pointing_cost, collide=True):
         """One goal's program: position, pointing (a constraint, or a cost when
-        ``pointing_cost``) or frame, limits (``bounds``), the warm-start cost."""
-        ik = InverseKinematics(drake.plant, with_joint_limits=False)
+        ``pointing_cost``) or frame, limits (``bounds``), the warm-start cost; with a scene
+        and ``collide``, the minimum-distance constraint."""
+        if scene is None or not collide:
+            ik = InverseKinematics(drake.plant, with_joint_limits=False)
+        else:
+            ik = InverseKinematics(drake.plant, drake.context, with_joint_limits=False)
+            ik.AddMinimumDistanceLowerBoundConstraint(settings.clearance / 1000.0,
+                                                      settings.influence / 1000.0)
         q, prog = ik.q(), ik.get_mutable_prog()
         ik.AddPositionConstraint(drake.end_frame, np.zeros(3), drake.base_frame,
                                  point - box, point + box)
@@ -147,13 +193,32 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings,
         set_tolerances(prog, settings.feasibility_tolerance, settings.optimality_tolerance)
         return q, prog, warm
 
-    def walk_point(i: int, q_warm: np.ndarray) -> PointResult:
-        rotation = None if goals.rotations is None else goals.rotations[i]
-        q, prog, warm = program(q_warm, goals.points_m[i], goals.directions[i], rotation,
-                                (lower, upper), False)
+    def solve_avoiding(i: int, build):
+        """(result, q, solves): ``build(collide) -> (q, prog, warm)`` solved from its warm
+        start; with a scene, a failed solve is tried again from the pose the same program
+        without the distance constraint reaches (a warm start inside an obstacle stalls
+        SNOPT: the distances' gradients there do not lead out)."""
+        q, prog, warm = build(True)
         result = solve(prog, solver, warm)
         used.add(result.get_solver_id().name())
-        return PointResult(result.GetSolution(q)[drake.index], 1, bool(result.is_success()))
+        if scene is None or result.is_success():
+            return result, q, 1
+        retried.append(i)
+        q_free, prog_free, _ = build(False)
+        free = solve(prog_free, solver, warm)
+        if not free.is_success():
+            return result, q, 2
+        q_again, prog_again, _ = build(True)
+        again = solve(prog_again, solver, free.GetSolution(q_free))
+        return (again, q_again, 3) if again.is_success() else (result, q, 3)
+
+    def walk_point(i: int, q_warm: np.ndarray) -> PointResult:
+        rotation = None if goals.rotations is None else goals.rotations[i]
+        result, q, solves = solve_avoiding(i, lambda collide: program(
+            q_warm, goals.points_m[i], goals.directions[i], rotation, (lower, upper), False,
+            collide))
+        return PointResult(result.GetSolution(q)[drake.index], solves,
+                           bool(result.is_success()))
 
     def track_point(i: int, q_warm: np.ndarray) -> PointResult:
         direction = None if plan.directions is None else plan.directions[i]
@@ -164,17 +229,19 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings,
             bounds = (low, np.maximum(high, low))
         solves = 0
         for pointing_cost in ((False, True) if direction is not None else (False,)):
-            q, prog, warm = program(q_warm, plan.points_m[i], direction, None, bounds,
-                                    pointing_cost)
-            if settings.posture_weight > 0:
-                prog.AddQuadraticErrorCost(settings.posture_weight * weights,
-                                           drake.positions(plan.posture[i]), q)
-            result = solve(prog, solver, warm)
-            used.add(result.get_solver_id().name())
-            solves += 1
+            def build(collide, pointing_cost=pointing_cost):
+                q, prog, warm = program(q_warm, plan.points_m[i], direction, None, bounds,
+                                        pointing_cost, collide)
+                if settings.posture_weight > 0:
+                    prog.AddQuadraticErrorCost(settings.posture_weight * weights,
+                                               drake.positions(plan.posture[i]), q)
+                return q, prog, warm
+
+            result, q, count = solve_avoiding(i, build)
+            solves += count
             if result.is_success():
                 break
-        if solves > 1:
+        if pointing_cost:
             relaxed.append(i)
         solution = result.GetSolution(q)
         drake.plant.SetPositions(context, solution)
@@ -187,12 +254,16 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings,
     if not tracking:
         walk = walk_back(walk_point, chain, goals)
         return ChainResult.from_walk(walk, solver=",".join(sorted(used)), scheme="walk",
-                                     iterations_are="solves (Drake reports no iteration count)")
+                                     iterations_are="solves (Drake reports no iteration count)",
+                                     **({} if scene is None else
+                                        {"collision_retried_points": len(set(retried))}))
     walk = track(track_point, chain, plan)
     return ChainResult.from_walk(walk, solver=",".join(sorted(used)), scheme="track",
                                  pointing_relaxed_points=len(relaxed),
                                  speed_bounded=step is not None,
-                                 iterations_are="solves (Drake reports no iteration count)")
+                                 iterations_are="solves (Drake reports no iteration count)",
+                                 **({} if scene is None else
+                                    {"collision_retried_points": len(set(retried))}))
 
 
 def pose_metric(robot) -> np.ndarray:
@@ -205,7 +276,7 @@ def pose_metric(robot) -> np.ndarray:
     return (nominal / per_unit) ** 2
 
 
-class DrakeIK(DrakeMethod):
+class DrakeIK(AvoidsObstacles, DrakeMethod):
     """Drake InverseKinematics per point, tracked from the start pose onto the touch pose
     (``--scheme track``) or walked back from the touch pose (``--scheme walk``)."""
 
@@ -213,7 +284,8 @@ class DrakeIK(DrakeMethod):
     description = ("library: Drake InverseKinematics per point (position constraint, "
                    "angle-between-vectors constraint on the pointing axis; SNOPT), tracked "
                    "from the start pose onto the touch pose within the speed limits (--scheme "
-                   "walk: walked back from the touch pose)")
+                   "walk: walked back from the touch pose); with obstacles, "
+                   "MinimumDistanceLowerBoundConstraint on the robot's capsules")
     library = "drake"
     Settings = DrakeIKSettings
     supports_frames = True
@@ -222,4 +294,9 @@ class DrakeIK(DrakeMethod):
         step = None
         if goals.track is not None:
             step = contract_step(goals, STEP_MARGIN)
-        return solve_chain(chain, goals, self.settings, pose_metric(robot), step)
+        obstacles = current_obstacles()
+        scene = scene_of(robot, obstacles)
+        result = solve_chain(chain, goals, self.settings, pose_metric(robot), step, scene)
+        result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
+                                      self.settings.clearance))
+        return result

@@ -40,6 +40,16 @@ control points between the two poses. Solved by SNOPT (``Solve``'s choice) with 
 1e-8, optimality 1e-6 and at most 1000 major iterations; the poses are
 ``ReconstructTrajectory(result)`` sampled at t_i = s_i T. Rows are returned as solved
 (row 0 is the start pose and row n the touch pose to the feasibility tolerance).
+
+Obstacles (a task with ``obstacles``; without them nothing here changes): the plant with
+collision geometry (:func:`baselines._drake.drake_scene_chain`: the robot's capsules, the
+obstacles, the collision model's self pairs and the robot-obstacle pairs), and
+``AddPathPositionConstraint(MinimumDistanceLowerBoundConstraint(plant, clearance,
+plant_context, None, influence), s)`` at every inner goal sample s_i (and, with
+``--drake-collision-samples`` k > 1, at k - 1 further samples within each segment): the
+clearance ``--drake-clearance`` (default 5 mm) between every such pair where the waypoints
+are judged; between samples the spline is not checked. The ``ik`` initial guess is the Drake
+IK walk with the same constraint (:mod:`baselines.drake_ik`).
 """
 
 from __future__ import annotations
@@ -49,12 +59,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from baselines._chain import Chain, Goals, contract_step
+from baselines._collision import (
+    AvoidsObstacles,
+    current_obstacles,
+    no_avoidance_reason,
+    scene_info,
+    scene_of,
+)
 from baselines._drake import (
     SOLVERS,
     DrakeMethod,
     drake_chain,
+    drake_scene_chain,
     exit_code,
     make_solver,
+    min_distance_constraint,
     set_tolerances,
     solve,
 )
@@ -102,13 +121,27 @@ class DrakeTrajoptSettings:
     optimality_tolerance: float = option(1e-6, flag="drake-optimality-tolerance",
                                          help="SNOPT major optimality / IPOPT tol / NLopt "
                                          "xtol_rel")
+    clearance: float = option(5.0, flag="drake-clearance", unit="mm",
+                              help="tasks with obstacles: the least distance kept between the "
+                              "robot's capsules and the obstacles and between self pairs at "
+                              "the samples (MinimumDistanceLowerBoundConstraint's bound)")
+    influence: float = option(1.0, flag="drake-influence", unit="mm",
+                              help="tasks with obstacles: pairs closer than clearance + this "
+                              "enter the constraint (its influence_distance_offset)")
+    collision_samples: int = option(1, flag="drake-collision-samples",
+                                    help="tasks with obstacles: distance constraints per "
+                                    "segment (1: at the goal samples only)")
 
     def __post_init__(self):
         for name, allowed in (("position", ("constraint", "cost")),
                               ("pointing", ("cost", "constraint")), ("init", ("ik", "linear")),
                               ("solver", SOLVERS)):
             check_choice(self, name, allowed)
-        check_positive(self, "spline_order", "max_iterations", integer=True)
+        check_positive(self, "spline_order", "max_iterations", "collision_samples",
+                       integer=True)
+        check_positive(self, "influence")
+        if not self.clearance >= 0:
+            raise InputError(f"--drake-clearance: {self.clearance!r} must be >= 0 [mm]")
         check_positive(self, "position_weight", "pointing_tolerance", "feasibility_tolerance",
                        "optimality_tolerance")
         for name in ("control_points", "pointing_weight", "velocity_limit", "duration_weight",
@@ -117,6 +150,7 @@ class DrakeTrajoptSettings:
                 raise InputError(f"--drake-{name.replace('_', '-')}: {getattr(self, name)!r} "
                                  "must be >= 0")
         self.control_points, self.spline_order = int(self.control_points), int(self.spline_order)
+        self.collision_samples = int(self.collision_samples)
 
 
 def control_point_count(settings: DrakeTrajoptSettings, n_points: int) -> int:
@@ -153,7 +187,7 @@ def _fitted_control_points(basis, s, samples, first, last) -> np.ndarray:
     return np.vstack([first, inner, last]).T
 
 
-def _initial_guess(trajopt, chain, goals, drake, settings, s):
+def _initial_guess(trajopt, chain, goals, drake, settings, s, scene=None):
     """The B-spline guess (see ``--drake-init``) with duration 2 s."""
     from pydrake.math import BsplineBasis
     from pydrake.trajectories import BsplineTrajectory
@@ -163,7 +197,11 @@ def _initial_guess(trajopt, chain, goals, drake, settings, s):
     if settings.init == "ik":
         from baselines import drake_ik
 
-        walk = drake_ik.solve_chain(chain, goals, drake_ik.DrakeIKSettings(solver=settings.solver))
+        ik_settings = (drake_ik.DrakeIKSettings(solver=settings.solver) if scene is None else
+                       drake_ik.DrakeIKSettings(solver=settings.solver,
+                                                clearance=settings.clearance,
+                                                influence=settings.influence))
+        walk = drake_ik.solve_chain(chain, goals, ik_settings, scene=scene)
         samples = np.array([drake.positions(q) for q in walk.q])
         samples[0] = first  # the walk does not end at the start pose; the spline must
         control = _fitted_control_points(basis, s, samples, first, last)
@@ -178,7 +216,8 @@ def _initial_guess(trajopt, chain, goals, drake, settings, s):
 
 
 def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings,
-                pointing_from: int | None = 1, max_step: np.ndarray | None = None) -> ChainResult:
+                pointing_from: int | None = 1, max_step: np.ndarray | None = None,
+                scene=None) -> ChainResult:
     """The trajectory optimisation in URDF units (see the module docstring).
 
     Args:
@@ -187,6 +226,9 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings,
             without a contract; the contract's ``judged_from(n)``), or None: no pointing.
         max_step: (dof,) the largest joint change per segment [rad, m] between the samples
             s_i and s_i+1 (the contract's speed limit), or None: no such bound.
+        scene: the robot's capsules and the task's obstacles
+            (:class:`baselines._collision.Scene`) kept ``settings.clearance`` apart at the
+            samples, or None (no obstacles: the program as without them).
     """
     from pydrake.math import RotationMatrix
     from pydrake.multibody.inverse_kinematics import (
@@ -198,7 +240,7 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings,
     )
     from pydrake.planning import KinematicTrajectoryOptimization
 
-    drake = drake_chain(chain)
+    drake = drake_chain(chain) if scene is None else drake_scene_chain(chain, scene)
     plant, context = drake.plant, drake.plant.CreateDefaultContext()
     n_points, nq = len(goals), plant.num_positions()
     count = control_point_count(settings, n_points)
@@ -251,7 +293,13 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings,
             trajopt.AddPathPositionConstraint(AngleBetweenVectorsConstraint(
                 plant, base, goals.directions[i], end, axis, 0.0,
                 np.radians(settings.pointing_tolerance), context), s[i])
-    guess, duration = _initial_guess(trajopt, chain, goals, drake, settings, s)
+    if scene is not None:
+        distance = min_distance_constraint(drake, settings.clearance / 1000.0,
+                                           settings.influence / 1000.0)
+        k = settings.collision_samples
+        for at in np.linspace(0.0, 1.0, k * (n_points - 1) + 1)[1:-1]:  # the ends are fixed
+            trajopt.AddPathPositionConstraint(distance, float(at))
+    guess, duration = _initial_guess(trajopt, chain, goals, drake, settings, s, scene)
     trajopt.SetInitialGuess(guess)
     for at, q_s in path.items():
         prog.SetInitialGuess(q_s, guess.value(at * duration).reshape(-1))
@@ -272,14 +320,15 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings,
         "iterations_are": "program solves (Drake reports no SNOPT iteration count)"})
 
 
-class DrakeTrajopt(DrakeMethod):
+class DrakeTrajopt(AvoidsObstacles, DrakeMethod):
     """Drake KinematicTrajectoryOptimization of the whole path between start and touch pose."""
 
     name = "drake-trajopt"
     description = ("library: Drake KinematicTrajectoryOptimization of the whole path (B-spline "
                    "with fixed start and touch poses, goal points as path constraints, "
                    "pointing costs where the contract judges them, velocity bounds, the "
-                   "contract's joint steps as linear constraints; SNOPT)")
+                   "contract's joint steps as linear constraints; SNOPT; with obstacles, "
+                   "MinimumDistanceLowerBoundConstraint at the samples)")
     library = "drake"
     Settings = DrakeTrajoptSettings
     supports_frames = True
@@ -292,10 +341,16 @@ class DrakeTrajopt(DrakeMethod):
             control_point_count(self.settings, len(task.goal_points_mm))
 
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
+        obstacles = current_obstacles()
+        scene = scene_of(robot, obstacles)
         contract = goals.contract
         if contract is None:  # no contract: as before it, every inner point pointed
-            return solve_chain(chain, goals, self.settings)
-        steps = len(goals) - 1
-        pointing_from = contract.judged_from(steps) if contract.pointing else None
-        return solve_chain(chain, goals, self.settings, pointing_from,
-                           contract_step(goals, STEP_MARGIN))
+            result = solve_chain(chain, goals, self.settings, scene=scene)
+        else:
+            steps = len(goals) - 1
+            pointing_from = contract.judged_from(steps) if contract.pointing else None
+            result = solve_chain(chain, goals, self.settings, pointing_from,
+                                 contract_step(goals, STEP_MARGIN), scene)
+        result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
+                                      self.settings.clearance))
+        return result

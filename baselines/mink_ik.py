@@ -38,6 +38,24 @@ fraction 0.95, stall 1e-4 rad; the reasons are given there).
 Walk, per goal point: the scheme of :mod:`baselines._diffik` (the FrameTask, all three
 orientation costs for 6-D goals, and the ConfigurationLimit only). Defaults as pink's except
 the limit gain: mink's own default 0.95 (both schemes). ``iterations`` counts QP solves.
+
+**Obstacles** (a task with ``obstacles``; without them nothing here changes): the model is
+compiled again with the collision geometry (:func:`mink_scene_model`): each robot capsule a
+``mjGEOM_CAPSULE`` geom on its link's body (``body.add_geom(type, size=[radius], fromto=[a,
+b])``), each obstacle a geom on the world body (``mjGEOM_BOX`` / ``SPHERE`` / ``CAPSULE``;
+a half-space as a large box), placed from the base frame into MuJoCo's world. Among the
+limits, ``mink.CollisionAvoidanceLimit(model, geom_pairs, gain=--mink-collision-gain,
+minimum_distance_from_collisions=--mink-clearance, collision_detection_distance=clearance +
+--mink-detection)``: per QP step and geom pair within the detection distance, the normal
+velocity of the witness points (``mj_geomDistance``) keeps the pair from closing more than
+gain (d - clearance). The pairs are given explicitly (each robot capsule that moves with a
+joint against each obstacle; the capsules of each of the collision model's self pairs):
+mink's own pair filter drops a body's pairs with its parent's weld, which would drop every
+obstacle pair of the first link (the obstacles sit on the world body). In the walk, a point
+whose warm start overlaps (the home pose a pose path's walk starts from may) is first solved
+without the limit and then, if that pose is clear, with it from there
+(``started_inside_points``); a QP the limit
+makes infeasible (``NoSolutionFound``) leaves the point unsolved.
 """
 
 from __future__ import annotations
@@ -49,6 +67,13 @@ from typing import Any
 import numpy as np
 
 from baselines._chain import Chain, Goals
+from baselines._collision import (
+    AvoidsObstacles,
+    current_obstacles,
+    no_avoidance_reason,
+    scene_info,
+    scene_of,
+)
 from baselines._diffik import (
     SpeedBox,
     converge,
@@ -112,6 +137,16 @@ class MinkSettings:
     stall: float = option(1e-4, flag="mink-stall", unit="rad, m",
                           help="scheme track: a step ends once the position is within the "
                           "tolerance and the last QP step moved no joint more than this")
+    clearance: float = option(5.0, flag="mink-clearance", unit="mm",
+                              help="tasks with obstacles: CollisionAvoidanceLimit's "
+                              "minimum_distance_from_collisions, kept between the robot's "
+                              "capsules and the obstacles and between self pairs")
+    detection: float = option(200.0, flag="mink-detection", unit="mm",
+                              help="tasks with obstacles: pairs closer than clearance + this "
+                              "enter the QP (collision_detection_distance - clearance)")
+    collision_gain: float = option(0.5, flag="mink-collision-gain",
+                                   help="tasks with obstacles: CollisionAvoidanceLimit's gain "
+                                   "in (0, 1]")
 
     def __post_init__(self):
         check_choice(self, "scheme", SCHEMES)
@@ -124,6 +159,9 @@ class MinkSettings:
             raise InputError("--mink-limit-gain must be in (0, 1], --mink-speed-fraction in "
                              "[0, 1], --mink-damping, --mink-orientation-cost and "
                              "--mink-posture-cost >= 0")
+        if not (self.clearance >= 0 and self.detection > 0 and 0 < self.collision_gain <= 1):
+            raise InputError("--mink-clearance must be >= 0 [mm], --mink-detection > 0 [mm] "
+                             "and --mink-collision-gain in (0, 1]")
         self.max_steps = int(self.max_steps)
         check_qp_solver(self, "qp_solver")
 
@@ -150,6 +188,50 @@ def mink_model(chain: Chain) -> MinkModel:
     """The chain's :class:`MinkModel` (cached per chain)."""
     if chain in _MODELS:
         return _MODELS[chain]
+    _MODELS[chain] = _compile(chain)
+    return _MODELS[chain]
+
+
+_SCENE_MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def mink_scene_model(chain: Chain, scene) -> MinkModel:
+    """The chain's :class:`MinkModel` with the collision geometry of ``scene``
+    (:class:`baselines._collision.Scene`; see the module docstring), cached per chain and
+    scene."""
+    cache = _SCENE_MODELS.setdefault(chain, {})
+    if scene.key not in cache:
+        cache[scene.key] = _compile(chain, scene, mink_model(chain))
+    return cache[scene.key]
+
+
+def _add_geoms(spec, scene, plain: MinkModel) -> None:
+    """The scene's capsules on their links' bodies, its obstacles on the world body."""
+    import mujoco
+
+    types = {"capsule": mujoco.mjtGeom.mjGEOM_CAPSULE, "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
+             "box": mujoco.mjtGeom.mjGEOM_BOX}
+    for shape in scene.links:
+        a, b = shape.ends_m()
+        spec.body(shape.link).add_geom(name=shape.name, type=types["capsule"],
+                                       size=[shape.radius_m, 0.0, 0.0],
+                                       fromto=[*map(float, a), *map(float, b)])
+    for shape in scene.obstacles:
+        R = plain.R_wb @ shape.rotation
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, np.ascontiguousarray(R).reshape(9))
+        if shape.kind == "box":
+            size = [*map(float, 0.5 * shape.size_m)]
+        else:  # sphere: radius; capsule: radius, half length
+            size = [shape.radius_m, 0.5 * shape.length_m, 0.0]
+        spec.worldbody.add_geom(name=shape.name, type=types[shape.kind], size=size,
+                                pos=[*map(float, plain.R_wb @ shape.center_m + plain.p_wb)],
+                                quat=list(quat))
+
+
+def _compile(chain: Chain, scene=None, plain: MinkModel | None = None) -> MinkModel:
+    """Compile the chain's model (with ``scene``'s geoms when given; ``plain``: the model
+    without them, for the base's pose in the world)."""
     import mujoco
 
     spec = mujoco.MjSpec.from_string(chain.urdf_text)
@@ -160,6 +242,9 @@ def mink_model(chain: Chain) -> MinkModel:
     quat = np.zeros(4)
     mujoco.mju_mat2Quat(quat, np.ascontiguousarray(R_EP).reshape(9))
     spec.body(chain.end_frame).add_site(name=SITE, pos=[0.0, 0.0, 0.0], quat=list(quat))
+    if scene is not None:
+        assert plain is not None
+        _add_geoms(spec, scene, plain)
     model = spec.compile()
     if model.nq != chain.dof:
         raise ValueError(f"MuJoCo's model has {model.nq} coordinates, the chain {chain.dof}")
@@ -172,16 +257,50 @@ def mink_model(chain: Chain) -> MinkModel:
     mujoco.mj_kinematics(model, data)
     base = model.body(chain.base_link).id
     qpos = np.array([model.joint(name).qposadr[0] for name in chain.joint_names])
-    _MODELS[chain] = MinkModel(model, qpos, R_EP, data.xmat[base].reshape(3, 3).copy(),
-                               data.xpos[base].copy())
-    return _MODELS[chain]
+    return MinkModel(model, qpos, R_EP, data.xmat[base].reshape(3, 3).copy(),
+                     data.xpos[base].copy())
 
 
-def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings) -> ChainResult:
-    """The mink walk in URDF units (see the module docstring)."""
+def collision_limit(m: MinkModel, scene, settings: MinkSettings):
+    """``mink.CollisionAvoidanceLimit`` on the scene's pairs (see the module docstring)."""
     import mink
 
-    m = mink_model(chain)
+    model = m.model
+    moving = {s.link for s in scene.links if model.body_weldid[model.body(s.link).id] != 0}
+    pairs = sorted({tuple(sorted((model.geom(a.name).id, model.geom(b.name).id)))
+                    for a, b in scene.pairs(moving)})
+
+    class Limit(mink.CollisionAvoidanceLimit):
+        """mink's limit on exactly these geom pairs (its own filter bypassed)."""
+
+        def _construct_geom_id_pairs(self, geom_pairs):
+            return [tuple(p) for p in geom_pairs]
+
+    clearance = settings.clearance / 1000.0
+    return Limit(model, pairs, gain=settings.collision_gain,
+                 minimum_distance_from_collisions=clearance,
+                 collision_detection_distance=clearance + settings.detection / 1000.0)
+
+
+def penetrating(m: MinkModel, limit, q_chain: np.ndarray) -> bool:
+    """True when a pair of ``limit`` overlaps at ``q_chain`` (``mj_geomDistance``)."""
+    import mujoco
+
+    data = mujoco.MjData(m.model)
+    data.qpos[m.qpos] = q_chain
+    mujoco.mj_kinematics(m.model, data)
+    fromto = np.zeros(6)
+    return any(mujoco.mj_geomDistance(m.model, data, a, b, 0.0, fromto) < 0.0
+               for a, b in limit.geom_id_pairs)
+
+
+def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings, scene=None) -> ChainResult:
+    """The mink walk in URDF units (see the module docstring; ``scene``: the obstacles and
+    capsules to keep apart, or None)."""
+    import mink
+    from mink.exceptions import NoSolutionFound
+
+    m = mink_model(chain) if scene is None else mink_scene_model(chain, scene)
     model, site = m.model, m.model.site(SITE).id
     # the goals in MuJoCo's world frame
     world = Goals(goals.points_m @ m.R_wb.T + m.p_wb, goals.directions @ m.R_wb.T,
@@ -195,9 +314,31 @@ def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings) -> ChainResu
         align = mink.AxisAlignTask(SITE, "site", axis=(0.0, 0.0, 1.0),
                                    cost=settings.orientation_cost)
         tasks.append(align)
-    limits = [mink.ConfigurationLimit(model, gain=settings.limit_gain)]
+    plain_limits = [mink.ConfigurationLimit(model, gain=settings.limit_gain)]
+    limits = plain_limits
+    avoid = None if scene is None else collision_limit(m, scene, settings)
+    if avoid is not None:
+        limits = [*plain_limits, avoid]
+    entered: list[int] = []
 
     def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
+        if avoid is None:
+            return run(i, q_warm, limits)
+        spent = 0
+        if penetrating(m, avoid, q_warm):
+            # the limit cannot lead out of an obstacle (the walk's first warm start, the home
+            # pose, may be inside one): reach the goal without it first
+            q_free, spent, _ = run(i, q_warm, plain_limits)
+            entered.append(i)
+            if not penetrating(m, avoid, q_free):  # else: stay, not deeper inside
+                q_warm = q_free
+        try:
+            q, steps, ok = run(i, q_warm, limits)
+        except NoSolutionFound:  # the limit's QP is infeasible here
+            q, steps, ok = q_warm, 0, False
+        return PointResult(q, spent + steps, ok)
+
+    def run(i: int, q_warm: np.ndarray, limits: list) -> PointResult:
         q0 = np.zeros(model.nq)
         q0[m.qpos] = q_warm
         configuration = mink.Configuration(model, q0)
@@ -229,18 +370,20 @@ def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings) -> ChainResu
     walk = walk_back(solve_point, chain, goals)
     return ChainResult.from_walk(walk, qp_solver=settings.qp_solver,
                                  pointing_task=settings.pointing_task,
-                                 iterations_are="QP solves (mink.solve_ik calls)")
+                                 iterations_are="QP solves (mink.solve_ik calls)",
+                                 **({} if avoid is None else
+                                    {"started_inside_points": len(entered)}))
 
 
 def solve_track(robot, chain: Chain, plan, settings: MinkSettings,
-                step: np.ndarray | None = None) -> ChainResult:
+                step: np.ndarray | None = None, scene=None) -> ChainResult:
     """mink's track from the start pose onto the touch pose (``plan``: a
     :class:`baselines._track.TrackPlan`; ``step``: (dof,) the contract's largest joint change
     per segment [rad, m], or None: no speed box). See the module docstring."""
     import mink
     from mink.exceptions import NoSolutionFound
 
-    m = mink_model(chain)
+    m = mink_model(chain) if scene is None else mink_scene_model(chain, scene)
     model, site = m.model, m.model.site(SITE).id
     # the plan in MuJoCo's world frame
     world = replace(plan, points_m=plan.points_m @ m.R_wb.T + m.p_wb,
@@ -258,6 +401,8 @@ def solve_track(robot, chain: Chain, plan, settings: MinkSettings,
                                    cost=settings.orientation_cost)
         tasks.append(align)
     limits: list[Any] = [mink.ConfigurationLimit(model, gain=settings.limit_gain)]
+    if scene is not None:
+        limits.append(collision_limit(m, scene, settings))
     box = None
     if step is not None and settings.speed_fraction > 0:
         box = SpeedBox(settings.speed_fraction * step, plan.q_touch, len(plan) - 1, chain.lower,
@@ -275,7 +420,7 @@ def solve_track(robot, chain: Chain, plan, settings: MinkSettings,
                 return mink.Constraint(G=G_full, h=h)
 
         limits.append(SpeedLimit())
-    previous = {"q": None}
+    previous: dict[str, Any] = {"q": None}
     q_full = np.zeros(model.nq)
     configuration = mink.Configuration(model)
 
@@ -283,7 +428,9 @@ def solve_track(robot, chain: Chain, plan, settings: MinkSettings,
         q0 = q_warm
         if box is not None:
             box.set_step(i, q_warm)
-        if previous["q"] is not None:  # the last segment's motion again
+        # the last segment's motion again; not with obstacles: the barrier acts on QP steps
+        # only, and a warm start moved on without it may start inside an obstacle
+        if previous["q"] is not None and scene is None:
             q0 = q_warm + (q_warm - previous["q"])
             q0 = chain.clip(box.clip(q0) if box is not None else q0)
         previous["q"] = q_warm
@@ -329,7 +476,7 @@ def solve_track(robot, chain: Chain, plan, settings: MinkSettings,
                                  iterations_are="QP solves (mink.solve_ik calls)")
 
 
-class MinkIK(LibraryMethod):
+class MinkIK(AvoidsObstacles, LibraryMethod):
     """mink's QP differential IK on MuJoCo, tracking from the start pose onto the touch pose
     (or walked back from the touch pose: ``--scheme walk``)."""
 
@@ -337,7 +484,8 @@ class MinkIK(LibraryMethod):
     description = ("library: mink QP differential IK on MuJoCo (the URDF loaded by MuJoCo) "
                    "tracking the goal points from the start pose (frame task + posture task, "
                    "joint limits and speed limits as QP constraints), landing on the touch "
-                   "pose (--scheme walk: walked back from the touch pose)")
+                   "pose (--scheme walk: walked back from the touch pose); with obstacles, "
+                   "CollisionAvoidanceLimit on capsule geoms and the obstacles")
     library = "mink"
     Settings = MinkSettings
     supports_frames = True
@@ -349,7 +497,13 @@ class MinkIK(LibraryMethod):
         mink_model(chain_of(robot))
 
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
+        obstacles = current_obstacles()
+        scene = scene_of(robot, obstacles)
         if goals.track is not None:
-            return solve_track(robot, chain, goals.track, self.settings,
-                               goals.max_step)
-        return solve_chain(chain, goals, self.settings)
+            result = solve_track(robot, chain, goals.track, self.settings, goals.max_step,
+                                 scene)
+        else:
+            result = solve_chain(chain, goals, self.settings, scene)
+        result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
+                                      self.settings.clearance))
+        return result

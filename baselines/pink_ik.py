@@ -51,16 +51,43 @@ positive-definite QP Hessian, minimum-norm steps), position cost 1 /m and orient
 solver daqp (qpsolvers backend, deterministic), tolerance 1e-6 m / rad, at most 100 steps per
 point. Both schemes share dt, damping, orientation cost, limit gain, QP solver, tolerance and
 max steps. ``iterations`` counts QP solves.
+
+**Obstacles** (a task with ``obstacles``; without them nothing here changes): a Pinocchio
+``GeometryModel`` on the same model holds the robot's capsules (``coal.Capsule`` on their
+links' joints, as :mod:`ikbench.core.collision` places them) and the obstacles (on the
+universe joint; a half-space as a large box), with a ``CollisionPair`` for each robot-obstacle
+pair whose capsule moves with some joint and for the capsules of each of the collision
+model's self pairs; ``pink.Configuration(model, data, q, collision_model=geometry,
+collision_data=geometry_data)`` computes their distances on every update (coal), and
+``pink.barriers.SelfCollisionBarrier(n_collision_pairs=all pairs, gain=--pink-barrier-gain,
+safe_displacement_gain=0, d_min=--pink-clearance)`` goes to ``solve_ik(...,
+barriers=[barrier])``: every QP step keeps J_d dq >= -gain (d - d_min) for each pair (pink's
+control-barrier condition; its safe-displacement term is off, as it divides by |J|^2, zero
+for pairs no joint moves). The barrier only slows the approach; a warm start already inside
+an obstacle is not pushed out reliably (pink's gradient of a penetrating pair points along the
+witness points, which reverse inside). So, in the walk, a point whose warm start overlaps (the
+home pose the walk of a pose path starts from may: CppFlow's panda problems) is first solved
+without the barrier and then, if that pose is clear, with it from there
+(``started_inside_points`` counts them); a QP
+the barrier makes infeasible (pink's ``NoSolutionFound``) leaves the point unsolved.
 """
 
 from __future__ import annotations
 
 import weakref
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from baselines._chain import Chain, Goals
+from baselines._collision import (
+    AvoidsObstacles,
+    current_obstacles,
+    no_avoidance_reason,
+    scene_info,
+    scene_of,
+)
 from baselines._diffik import (
     SpeedBox,
     converge,
@@ -132,6 +159,13 @@ class PinkSettings:
     stall: float = option(1e-4, flag="pink-stall", unit="rad, m",
                           help="scheme track: a step ends once the position is within the "
                           "tolerance and the last QP step moved no joint more than this")
+    clearance: float = option(5.0, flag="pink-clearance", unit="mm",
+                              help="tasks with obstacles: SelfCollisionBarrier's d_min, the "
+                              "least distance kept between the robot's capsules and the "
+                              "obstacles and between self pairs")
+    barrier_gain: float = option(0.5, flag="pink-barrier-gain",
+                                 help="tasks with obstacles: SelfCollisionBarrier's gain (the "
+                                 "fraction of the distance above d_min a QP step may close)")
 
     def __post_init__(self):
         check_choice(self, "scheme", SCHEMES)
@@ -143,6 +177,9 @@ class PinkSettings:
             raise InputError("--pink-limit-gain must be in (0, 1], --pink-speed-fraction in "
                              "[0, 1], --pink-damping, --pink-orientation-cost and "
                              "--pink-posture-cost >= 0")
+        if not (self.clearance >= 0 and 0 < self.barrier_gain <= 1):
+            raise InputError("--pink-clearance must be >= 0 [mm] and --pink-barrier-gain in "
+                             "(0, 1]")
         self.max_steps = int(self.max_steps)
         check_qp_solver(self, "qp_solver")
 
@@ -166,22 +203,82 @@ def pink_model(robot, chain: Chain):
     return _MODELS[robot]
 
 
-def solve_chain(robot, chain: Chain, goals: Goals, settings: PinkSettings) -> ChainResult:
+class Avoidance:
+    """The collision geometry and the barrier of a scene (see the module docstring)."""
+
+    def __init__(self, model, root_link: str, scene, settings: PinkSettings):
+        import coal
+        import pinocchio as pin
+        from pink.barriers import SelfCollisionBarrier
+
+        geometry = pin.GeometryModel()
+        root = model.frames[model.getFrameId(root_link)].placement
+        index = {}
+        for shape in scene.links:
+            fid = model.getFrameId(shape.link)
+            frame = model.frames[fid]
+            placement = frame.placement if frame.parentJoint else root.actInv(frame.placement)
+            index[shape.name] = geometry.addGeometryObject(pin.GeometryObject(
+                shape.name, frame.parentJoint, fid,
+                placement * pin.SE3(shape.rotation, shape.center_m), _coal(coal, shape)))
+        for shape in scene.obstacles:
+            index[shape.name] = geometry.addGeometryObject(pin.GeometryObject(
+                shape.name, 0, 0, pin.SE3(shape.rotation, shape.center_m),
+                _coal(coal, shape)))
+        moving = {s.link for s in scene.links
+                  if model.frames[model.getFrameId(s.link)].parentJoint}
+        for a, b in scene.pairs(moving):
+            geometry.addCollisionPair(pin.CollisionPair(index[a.name], index[b.name]))
+        self.geometry = geometry
+        self.data = pin.GeometryData(geometry)
+        self.pairs = len(geometry.collisionPairs)
+        self.barriers = [SelfCollisionBarrier(self.pairs, gain=settings.barrier_gain,
+                                              safe_displacement_gain=0.0,
+                                              d_min=settings.clearance / 1000.0)]
+
+    def configuration(self, model, data, q):
+        """``pink.Configuration`` with the collision model (distances on each update)."""
+        import pink
+
+        return pink.Configuration(model, data, q, collision_model=self.geometry,
+                                  collision_data=self.data)
+
+    def penetrating(self, model, data, q) -> bool:
+        """True when a pair overlaps at ``q`` (coal's distances)."""
+        configuration = self.configuration(model, data, q)
+        results = configuration.collision_data.distanceResults
+        return any(r.min_distance < 0.0 for r in results)
+
+
+def _coal(coal, shape):
+    if shape.kind == "capsule":
+        return coal.Capsule(shape.radius_m, shape.length_m)
+    if shape.kind == "sphere":
+        return coal.Sphere(shape.radius_m)
+    return coal.Box(*map(float, shape.size_m))
+
+
+def solve_chain(robot, chain: Chain, goals: Goals, settings: PinkSettings,
+                scene=None) -> ChainResult:
     """The pink walk in URDF units (see the module docstring)."""
     import pink
     import pinocchio as pin
+    from pink.exceptions import NoSolutionFound
     from pink.limits import ConfigurationLimit
     from pink.tasks import FrameTask
 
     model, R_EP = pink_model(robot, chain)
     data = model.createData()
+    avoid = None if scene is None else Avoidance(model, robot.root_link, scene, settings)
     task = FrameTask(POINTING_FRAME, position_cost=settings.position_cost,
                      orientation_cost=orientation_costs(goals, settings.orientation_cost))
     limits = [ConfigurationLimit(model, config_limit_gain=settings.limit_gain)]
     lower, upper = model.lowerPositionLimit, model.upperPositionLimit
+    barriers = {} if avoid is None else {"barriers": avoid.barriers}
 
-    def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
-        configuration = pink.Configuration(model, data, q_warm)
+    def run(i: int, q_warm: np.ndarray, barriers: dict) -> PointResult:
+        configuration = (pink.Configuration(model, data, q_warm) if avoid is None or not barriers
+                         else avoid.configuration(model, data, q_warm))
 
         def frame():
             T = configuration.get_transform_frame_to_world(POINTING_FRAME)
@@ -191,7 +288,7 @@ def solve_chain(robot, chain: Chain, goals: Goals, settings: PinkSettings) -> Ch
             p_P, R_P = frame()
             task.set_target(pin.SE3(target_rotation(goals, i, R_P, R_EP), goals.points_m[i]))
             v = pink.solve_ik(configuration, [task], settings.dt, solver=settings.qp_solver,
-                              damping=settings.damping, limits=limits)
+                              damping=settings.damping, limits=limits, **barriers)
             configuration.update(np.clip(configuration.integrate(v, settings.dt), lower, upper))
 
         def measure():
@@ -201,13 +298,33 @@ def solve_chain(robot, chain: Chain, goals: Goals, settings: PinkSettings) -> Ch
         steps, ok = converge(measure, step, settings.tolerance, settings.max_steps)
         return PointResult(configuration.q.copy(), steps, ok)
 
+    def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
+        if avoid is None:
+            return run(i, q_warm, {})
+        spent = 0
+        if avoid.penetrating(model, data, q_warm):
+            # the barrier cannot start inside an obstacle (the walk's first warm start, the
+            # home pose, may be): reach the goal without it first
+            q_free, spent, _ = run(i, q_warm, {})
+            entered.append(i)
+            if not avoid.penetrating(model, data, q_free):  # else: stay, not deeper inside
+                q_warm = q_free
+        try:
+            q, steps, ok = run(i, q_warm, barriers)
+        except NoSolutionFound:  # the barrier's QP is infeasible here
+            q, steps, ok = q_warm, 0, False
+        return PointResult(q, spent + steps, ok)
+
+    entered: list[int] = []
     walk = walk_back(solve_point, chain, goals)
     return ChainResult.from_walk(walk, qp_solver=settings.qp_solver,
-                                 iterations_are="QP solves (pink.solve_ik calls)")
+                                 iterations_are="QP solves (pink.solve_ik calls)",
+                                 **({} if avoid is None else
+                                    {"started_inside_points": len(entered)}))
 
 
 def solve_track(robot, chain: Chain, plan, settings: PinkSettings,
-                step: np.ndarray | None = None) -> ChainResult:
+                step: np.ndarray | None = None, scene=None) -> ChainResult:
     """pink's track from the start pose onto the touch pose (``plan``: a
     :class:`baselines._track.TrackPlan`; ``step``: (dof,) the contract's largest joint change
     per segment [rad, m], or None: no speed box). See the module docstring."""
@@ -219,6 +336,8 @@ def solve_track(robot, chain: Chain, plan, settings: PinkSettings,
 
     model, _ = pink_model(robot, chain)
     data = model.createData()
+    avoid = None if scene is None else Avoidance(model, robot.root_link, scene, settings)
+    barriers = {} if avoid is None else {"barriers": avoid.barriers}
     lower, upper = model.lowerPositionLimit, model.upperPositionLimit
     frame_task = FrameTask(POINTING_FRAME, position_cost=settings.track_position_cost,
                            orientation_cost=track_orientation_costs(plan,
@@ -239,17 +358,20 @@ def solve_track(robot, chain: Chain, plan, settings: PinkSettings,
                 return (G, h) if len(h) else None
 
         limits.append(SpeedLimit())
-    previous = {"q": None}
+    previous: dict[str, Any] = {"q": None}
 
     def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
         q0 = q_warm
         if box is not None:
             box.set_step(i, q_warm)
-        if previous["q"] is not None:  # the last segment's motion again
+        # the last segment's motion again; not with obstacles: the barrier acts on QP steps
+        # only, and a warm start moved on without it may start inside an obstacle
+        if previous["q"] is not None and scene is None:
             q0 = q_warm + (q_warm - previous["q"])
             q0 = np.clip(box.clip(q0) if box is not None else q0, lower, upper)
         previous["q"] = q_warm
-        configuration = pink.Configuration(model, data, q0)
+        configuration = (pink.Configuration(model, data, q0) if avoid is None
+                         else avoid.configuration(model, data, q0))
         posture_task.set_target(plan.posture[i])
 
         def frame():
@@ -261,7 +383,7 @@ def solve_track(robot, chain: Chain, plan, settings: PinkSettings,
             frame_task.set_target(pin.SE3(track_target_rotation(plan, i, R_P),
                                           plan.points_m[i]))
             v = pink.solve_ik(configuration, tasks, settings.dt, solver=settings.qp_solver,
-                              damping=settings.damping, limits=limits)
+                              damping=settings.damping, limits=limits, **barriers)
             q_before = configuration.q.copy()
             configuration.update(np.clip(configuration.integrate(v, settings.dt), lower, upper))
             return float(np.max(np.abs(configuration.q - q_before)))
@@ -283,7 +405,7 @@ def solve_track(robot, chain: Chain, plan, settings: PinkSettings,
                                  iterations_are="QP solves (pink.solve_ik calls)")
 
 
-class PinkIK(LibraryMethod):
+class PinkIK(AvoidsObstacles, LibraryMethod):
     """pink's QP differential IK, tracking from the start pose onto the touch pose (or walked
     back from the touch pose: ``--scheme walk``)."""
 
@@ -291,7 +413,8 @@ class PinkIK(LibraryMethod):
     description = ("library: pink QP differential IK on Pinocchio tracking the goal points "
                    "from the start pose (frame task + posture task, joint limits and speed "
                    "limits as QP constraints), landing on the touch pose (--scheme walk: "
-                   "walked back from the touch pose)")
+                   "walked back from the touch pose); with obstacles, SelfCollisionBarrier "
+                   "on the robot's capsules and the obstacles")
     library = "pin-pink"
     Settings = PinkSettings
     supports_frames = True
@@ -304,7 +427,13 @@ class PinkIK(LibraryMethod):
         pink_model(robot, chain_of(robot))
 
     def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
+        obstacles = current_obstacles()
+        scene = scene_of(robot, obstacles)
         if goals.track is not None:
-            return solve_track(robot, chain, goals.track, self.settings,
-                               goals.max_step)
-        return solve_chain(robot, chain, goals, self.settings)
+            result = solve_track(robot, chain, goals.track, self.settings, goals.max_step,
+                                 scene)
+        else:
+            result = solve_chain(robot, chain, goals, self.settings, scene)
+        result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
+                                      self.settings.clearance))
+        return result

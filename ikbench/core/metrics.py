@@ -213,10 +213,14 @@ def frame_metrics(robot, task, poses_deg) -> dict:
         ``max_joint_change_mm`` (prismatic joints; NaN without one), ``joint_path_length_deg``
         (sum of the absolute wrapped revolute changes) and ``prismatic_path_length_mm``,
         ``cartesian_path_length_mm`` (the end point's path) and ``target_path_length_mm``,
-        ``within_limits`` (the task's limits, e.g. CppFlow's bounds), ``valid`` (all of
-        :func:`ikbench.core.validity.validity_failures`) and ``failed_criteria`` (their
-        names, ``""`` when valid).
+        ``within_limits`` (the task's limits, e.g. CppFlow's bounds), the collision figures
+        of :func:`ikbench.core.collision.check_trajectory` (``self_collisions``,
+        ``env_collisions``, ``min_clearance_mm`` ..., ``collision_model``),
+        ``initial_configuration_distance`` (rad, m; NaN when the task gives none), ``valid``
+        (all of :func:`ikbench.core.validity.validity_failures`) and ``failed_criteria``
+        (their names, ``""`` when valid).
     """
+    from ikbench.core.collision import check_trajectory
     from ikbench.core.validity import validity_failures
 
     poses = np.asarray(poses_deg, dtype=float)
@@ -239,9 +243,21 @@ def frame_metrics(robot, task, poses_deg) -> dict:
         "target_path_length_mm": float(np.linalg.norm(np.diff(task.goal_points_mm, axis=0),
                                                       axis=1).sum()),
         "within_limits": within,
+        **check_trajectory(robot, poses, getattr(task, "obstacles", ())),
+        "initial_configuration_distance": initial_distance(robot, task, poses),
     }
     failures = validity_failures(out)
     return {**out, "valid": not failures, "failed_criteria": ",".join(failures)}
+
+
+def initial_distance(robot, task, poses_deg) -> float:
+    """Euclidean distance (URDF units: rad, m) of the first pose from the task's initial pose
+    (CppFlow's ``initial_q_norm_dist``); NaN when the task gives none."""
+    initial = getattr(task, "initial_pose_deg", None)
+    if initial is None:
+        return float("nan")
+    first = robot.to_urdf(np.asarray(poses_deg, dtype=float)[0])
+    return float(np.linalg.norm(first - robot.to_urdf(np.asarray(initial, dtype=float))))
 
 
 # ----- the task contract (ikbench.core.contract) -----------------------------------------------

@@ -12,11 +12,17 @@ the obstacle-free problems it republishes from TORM ship with ikbench
   that frame must not be rotated against the base;
 - ``path_xyz_offset``: [x, y, z] [m] added to every path position;
 - ``path_R_offset``: a 3 x 3 rotation matrix (rows) that right-multiplies every path rotation;
-- ``obstacles``, ``obstacle_xyz_offset``: boxes; a non-empty ``obstacles`` list is refused
-  (ikbench has no collision model yet).
+- ``obstacles``: boxes (``x, y, z, roll, pitch, yaw, size_x, size_y, size_z``, metres and
+  radians, in the robot's base frame), shifted by ``obstacle_xyz_offset`` [m]; the task's
+  obstacles (:func:`ikbench.core.obstacles.cppflow_obstacles`);
+- ``initial_configuration`` (optional, as CppFlow's ``Problem``): the configuration [URDF
+  units: rad, m] the path should start near; a solution is valid only when its first pose is
+  within 0.2 of it (Euclidean norm, URDF units; CppFlow's
+  ``SUCCESS_THRESHOLD_initial_q_norm_dist``).
 
 The path CSV has the header ``time,x,y,z,qw,qx,qy,qz`` (metres, unit quaternions w first; the
-time column is not used). The goal pose of waypoint i, in the robot's base frame, is
+time column is not used), or, as CppFlow's Panda paths, ``,0,1,2,3,4,5,6`` (an index column,
+then the same seven values). The goal pose of waypoint i, in the robot's base frame, is
 ``p_i + path_xyz_offset + t_frame`` and ``R(q_i) @ path_R_offset`` (as CppFlow composes it).
 """
 
@@ -29,12 +35,15 @@ from pathlib import Path
 import numpy as np
 
 from ikbench.core.errors import InputError
+from ikbench.core.obstacles import cppflow_obstacles
 from ikbench.core.rotations import quat_wxyz_to_matrix
 
 KEYS = ("robot", "path_name", "path_offset_frame", "path_xyz_offset", "path_R_offset",
-        "obstacle_xyz_offset", "obstacles")
+        "obstacle_xyz_offset", "obstacles", "initial_configuration")
 REQUIRED = KEYS[:5]
 PATH_HEADER = ["time", "x", "y", "z", "qw", "qx", "qy", "qz"]
+#: The header of CppFlow's Panda paths (a pandas index column, then x..qz numbered 0-6).
+INDEXED_PATH_HEADER = ["", "0", "1", "2", "3", "4", "5", "6"]
 #: The shipped benchmark's name (``--problems cppflow``) and its problems, in this order.
 BENCHMARK = "cppflow"
 #: A path quaternion whose norm differs from 1 by more than this is refused.
@@ -71,6 +80,8 @@ class CartesianProblem:
         xyz_offset_m: (3,) [m].
         R_offset: (3, 3) rotation.
         path_m: (N, 3) path positions [m]; ``path_quat_wxyz`` (N, 4) unit quaternions.
+        obstacles: the boxes [mm] in the robot's base frame (offset applied).
+        initial_configuration: (dof,) [rad, m] or None.
     """
 
     name: str
@@ -83,6 +94,8 @@ class CartesianProblem:
     R_offset: np.ndarray
     path_m: np.ndarray
     path_quat_wxyz: np.ndarray
+    obstacles: tuple = ()
+    initial_configuration: np.ndarray | None = None
 
 
 def resolve_problem(spec: str | Path) -> Path:
@@ -135,10 +148,16 @@ def read_problem(spec: str | Path) -> CartesianProblem:
     if missing:
         raise InputError(f"{where}: missing key(s) {', '.join(missing)}; a problem needs "
                          f"{', '.join(REQUIRED)}")
-    if doc.get("obstacles"):
-        raise InputError(f"{where}: has {len(doc['obstacles'])} obstacle(s); obstacles are "
-                         "not supported yet (ikbench has no collision model): remove the "
-                         "obstacles key or use an obstacle-free problem")
+    offset = doc.get("obstacle_xyz_offset")
+    if offset is not None:
+        offset = _vector(offset, f"{where}: obstacle_xyz_offset")
+    obstacles = cppflow_obstacles(doc.get("obstacles"), offset, where)
+    initial = doc.get("initial_configuration")
+    if initial is not None:
+        if not (isinstance(initial, list) and initial and all(map(_is_number, initial))):
+            raise InputError(f"{where}: initial_configuration = {initial!r} must be a list of "
+                             "finite numbers (rad, m for prismatic joints)")
+        initial = np.array(initial, dtype=float)
     for key in ("robot", "path_name", "path_offset_frame"):
         if not isinstance(doc[key], str) or not doc[key].strip():
             raise InputError(f"{where}: {key} = {doc[key]!r} must be a non-empty string")
@@ -147,7 +166,8 @@ def read_problem(spec: str | Path) -> CartesianProblem:
     path_file = _path_file(doc["path_name"], path)
     points, quats = read_path_csv(path_file)
     return CartesianProblem(path.stem, path, doc["robot"], doc["path_name"], path_file,
-                            doc["path_offset_frame"], xyz, R_offset, points, quats)
+                            doc["path_offset_frame"], xyz, R_offset, points, quats, obstacles,
+                            initial)
 
 
 def _load_yaml(path: Path) -> dict:
@@ -213,8 +233,9 @@ def read_path_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read path file {str(path)!r}: {exc}") from None
     header = [h.strip() for h in lines[0].split(",")] if lines else []
-    if header != PATH_HEADER:
-        raise InputError(f"{path}: line 1 must be the header {','.join(PATH_HEADER)}, got "
+    if header not in (PATH_HEADER, INDEXED_PATH_HEADER):
+        raise InputError(f"{path}: line 1 must be the header {','.join(PATH_HEADER)} (or "
+                         f"CppFlow's indexed {','.join(INDEXED_PATH_HEADER)}), got "
                          f"{','.join(header) or 'nothing'}")
     rows = []
     for number, line in enumerate(lines[1:], start=2):
@@ -284,9 +305,17 @@ def problem_task(problem: CartesianProblem, robot):
     offset_m = problem.xyz_offset_m + offset_frame_position_m(robot, problem.offset_frame)
     points_mm = (problem.path_m + offset_m) * 1000.0
     rotations = quat_wxyz_to_matrix(problem.path_quat_wxyz) @ problem.R_offset
+    initial = None
+    if problem.initial_configuration is not None:
+        if len(problem.initial_configuration) != robot.dof:
+            raise InputError(f"{problem.source}: initial_configuration has "
+                             f"{len(problem.initial_configuration)} values; {robot.name} has "
+                             f"{robot.dof} joints ({', '.join(robot.joint_names)})")
+        initial = robot.from_urdf(problem.initial_configuration)
     return frame_task(robot, problem.name, points_mm, rotations,
-                      reference_pose_deg=home_pose(robot),
-                      joint_limits=(robot.validity_lower, robot.validity_upper))
+                      reference_pose_deg=home_pose(robot) if initial is None else initial,
+                      joint_limits=(robot.validity_lower, robot.validity_upper),
+                      obstacles=problem.obstacles, initial_pose_deg=initial)
 
 
 def home_pose(robot) -> np.ndarray:

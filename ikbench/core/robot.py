@@ -49,7 +49,7 @@ MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
 #: Keys a robot config may hold (a typo would otherwise be ignored silently).
 CONFIG_KEYS = ("name", "description", "source", "urdf", "base_link", "end_frame",
                "pointing_axis", "joints", "motor_map", "hardware", "targets", "frame",
-               "letters", "batch", "locked", "validity_limits")
+               "letters", "batch", "locked", "validity_limits", "collision")
 
 
 def robots_dir() -> Path:

@@ -66,6 +66,11 @@ class Task:
             (:class:`ikbench.core.contract.Contract`: fixed poses, pointing and its judged
             part, speed limits, tolerances), or None (a plain run: the method's own scheme).
             Methods read it to honour the task, e.g. where pointing is asked for.
+        obstacles: the obstacles the robot must not touch, in the base frame
+            (:class:`ikbench.core.obstacles.Obstacle`); empty: none. Judged with the robot's
+            collision model (:mod:`ikbench.core.collision`) where the robot has one.
+        initial_pose_deg: (dof,) [pose units] the pose a 6-D pose path must start near (a
+            CppFlow problem's ``initial_configuration``), or None.
     """
 
     name: str
@@ -81,6 +86,8 @@ class Task:
     goal_rotations: np.ndarray | None = None
     joint_limits: tuple[np.ndarray, np.ndarray] | None = None
     contract: Any = None
+    obstacles: tuple = ()
+    initial_pose_deg: np.ndarray | None = None
 
     def __post_init__(self):
         if self.pen_down is None:

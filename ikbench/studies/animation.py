@@ -3,8 +3,11 @@
 One small 3-D panel per trajectory, all on the same clock: the arm skeleton
 (:meth:`ikbench.core.robot.Robot.skeleton_mm`), the goal path (dashed black, whole), the
 fingertip's path so far (the trajectory's colour, as in ``trajectories_3d.png``) and the
-current goal point (hollow circle). Every panel has the same limits and the robot config's
-view. The GIF plays at the trajectory's real speed: frames are ``stride`` steps apart
+current goal point (hollow circle). A task's obstacles (``Task.obstacles``) are drawn in
+its panel (:func:`ikbench.studies.arm_plots.draw_obstacles`), and the arm turns red in the
+frames where it touches one or itself (:mod:`ikbench.core.collision`; checked only for tasks
+with obstacles, on robots with a collision model). Every panel has the same limits and the
+robot config's view. The GIF plays at the trajectory's real speed: frames are ``stride`` steps apart
 (at most ``max_frames`` frames), each shown ``stride * T / n`` seconds, GIF delays rounded to
 10 ms; the first frame is held 0.5 s and the last 1 s before it loops. Under ``timing``
 ``min-jerk`` or ``topp`` (:mod:`ikbench.core.timing`) frames are evenly apart in time (at most
@@ -25,7 +28,10 @@ import numpy as np
 
 from ikbench.core.io import atomic_path
 from ikbench.studies.arm_plots import (
+    COLLISION_COLOR,
     GOAL_STYLE,
+    colliding_waypoints,
+    draw_obstacles,
     frame_labels,
     matplotlib_pyplot,
     style_axes_3d,
@@ -39,6 +45,8 @@ MAX_FRAMES = 26
 HOLD_FIRST_S, HOLD_LAST_S = 0.5, 1.0
 #: Colours in the GIF's shared palette.
 PALETTE_COLORS = 96
+#: The arm's colour, and in the frames where it collides.
+ARM_COLOR, ARM_COLLIDING_COLOR = "0.2", COLLISION_COLOR
 
 
 def frame_steps(steps: int, max_frames: int = MAX_FRAMES) -> tuple[np.ndarray, int]:
@@ -72,10 +80,12 @@ class _Panel:
     def __init__(self, ax, task, poses, robot, color):
         self.task, self.arms = task, robot.skeleton_mm(poses)  # (n+1, dof+2, 3)
         self.tip = self.arms[:, -1]
+        #: (n+1,) True where the pose collides; None: not checked (no obstacles or model)
+        self.colliding = colliding_waypoints(robot, poses, getattr(task, "obstacles", ()))
         (self.path,) = ax.plot([], [], [], "-", color=color, lw=2.4, zorder=2, animated=True)
         self.goals = [ax.plot(*path.T, **GOAL_STYLE, zorder=2, animated=True)[0]
                       for path in _goal_paths(task)]
-        (self.arm,) = ax.plot([], [], [], "-o", color="0.2", lw=2.6, ms=3, zorder=3,
+        (self.arm,) = ax.plot([], [], [], "-o", color=ARM_COLOR, lw=2.6, ms=3, zorder=3,
                               animated=True)
         (self.goal,) = ax.plot([], [], [], "o", mfc="none", mec="k", ms=5, zorder=4,
                                animated=True)
@@ -88,6 +98,8 @@ class _Panel:
             k = min(int(round(t_s / dt_s)), len(self.tip) - 1) if dt_s > 0 else 0
         self.path.set_data_3d(*self.tip[:k + 1].T)
         self.arm.set_data_3d(*self.arms[k].T)
+        hit = self.colliding is not None and bool(self.colliding[k])
+        self.arm.set_color(ARM_COLLIDING_COLOR if hit else ARM_COLOR)
         goal = self.task.goal_points_mm[min(k, len(self.task.goal_points_mm) - 1)]
         self.goal.set_data_3d([goal[0]], [goal[1]], [goal[2]])
         for artist in (self.path, *self.goals, self.arm, self.goal):  # goal over the path
@@ -116,17 +128,24 @@ def render_frames(robot, tasks, poses_by_id: dict, title: str, duration_s: float
     plt = matplotlib_pyplot()
     rows, cols = _grid(len(tasks))
     panel_in = 2.7 if len(tasks) > 2 else 3.6
-    height_in = rows * (panel_in + 0.2) + 0.4
+    notes_in = 0.12 if any(getattr(t, "obstacles", ()) for t in tasks) else 0.0  # 3rd line
+    height_in = rows * (panel_in + 0.2) + 0.4 + notes_in
     fig = plt.figure(figsize=(cols * panel_in, height_in), dpi=dpi)
     fig.subplots_adjust(left=0.0, right=0.97, bottom=0.25 / height_in,
-                        top=1 - 0.45 / height_in, wspace=0.05, hspace=0.2)
+                        top=1 - (0.45 + notes_in) / height_in, wspace=0.05, hspace=0.2)
     panels = []
     for k, (task, color) in enumerate(zip(tasks, task_colors(len(tasks)))):
         ax = fig.add_subplot(rows, cols, k + 1, projection="3d")
         ax.computed_zorder = False
         panels.append(_Panel(ax, task, poses_by_id[task.name], robot, color))
+    drawn = []
+    for panel in panels:  # static: drawn once, into the background
+        obstacles = getattr(panel.task, "obstacles", ())
+        if obstacles:
+            around = np.vstack([panel.arms.reshape(-1, 3), *_goal_paths(panel.task)])
+            drawn.append(draw_obstacles(panel.ax, obstacles, around, label=False)[1])
     fit = np.vstack([p.arms.reshape(-1, 3) for p in panels]
-                    + [g for t in tasks for g in _goal_paths(t)])
+                    + [g for t in tasks for g in _goal_paths(t)] + drawn)
     for panel in panels:
         style_axes_3d(panel.ax, fit, robot, fontsize=6, nbins=3, zoom=1.0)
         panel.ax.set(xlabel="", ylabel="", zlabel="")  # named once, in the caption
@@ -134,8 +153,10 @@ def render_frames(robot, tasks, poses_by_id: dict, title: str, duration_s: float
             axis.set_pane_color((1.0, 1.0, 1.0, 0.0))  # white: fewer colours, smaller GIF
         panel.ax.set_title(f"trajectory {panel.task.name}", fontsize=8, pad=-6)
     labels, _ = frame_labels(robot)
+    notes = ("\nbrown: obstacles" if drawn else "") + (
+        "; red arm: in collision" if any(p.colliding is not None for p in panels) else "")
     fig.suptitle(f"{textwrap.shorten(title, 70)}\n{', '.join(labels)}; dashed: goal path, "
-                 "o: current goal point", fontsize=7, x=0.01, ha="left", y=0.995)
+                 f"o: current goal point{notes}", fontsize=7, x=0.01, ha="left", y=0.995)
     clock = fig.text(0.99, 0.995, "", fontsize=8, ha="right", va="top", animated=True)
     steps = max(len(p.tip) - 1 for p in panels)
     shown, stride = frame_steps(steps, max_frames)
@@ -182,7 +203,10 @@ def save_gif(path, frames, durations) -> Path:
     from PIL import Image
 
     images = [Image.fromarray(f) for f in frames]
-    sample = np.vstack([frames[0], frames[len(frames) // 2], frames[-1]])
+    # a few frames across the whole clip, so a colour seen in some frames only (the red arm
+    # of a collision) gets its palette entry
+    sample = np.vstack([frames[k] for k in sorted({0, *np.linspace(0, len(frames) - 1, 8)
+                                                   .round().astype(int).tolist()})])
     palette = Image.fromarray(sample).quantize(PALETTE_COLORS, method=Image.Quantize.FASTOCTREE)
     quantized = [im.quantize(palette=palette, dither=Image.Dither.NONE) for im in images]
     with atomic_path(path) as tmp:

@@ -37,7 +37,11 @@ COLUMNS = ["problem", "robot", "waypoints", "method", "seed", "valid", "time_to_
            "rotation_error_mean_deg", "rotation_error_max_deg", "max_joint_change_deg",
            "max_joint_change_mm", "joint_path_length_deg", "prismatic_path_length_mm",
            "cartesian_path_length_mm", "target_path_length_mm", "failed_criteria", "failure",
-           "trajectory"]
+           "trajectory", "obstacles", "avoids_obstacles", "self_collisions", "env_collisions",
+           "min_clearance_mm", "min_self_clearance_mm", "first_collision_waypoint",
+           "first_collision_pair", "collision_model", "initial_configuration_distance"]
+#: The note beside a collision of a method without obstacle avoidance.
+NO_AVOIDANCE = "does not avoid obstacles"
 
 
 @dataclass
@@ -150,7 +154,7 @@ def cartesian(problems=BENCHMARK, methods=None, seeds=DEFAULT_SEEDS, options=Non
                 except IkbenchError as exc:  # refused before solving: a row saying why
                     outcome = Outcome(task, None, 0.0, f"refused: {exc}")
                 done += 1
-                if outcome.ok:  # the table describes the poses as written (10 digits)
+                if outcome.solution is not None:  # the table describes the poses as written
                     outcome.solution.poses_deg = as_written(outcome.solution.poses_deg)
                     poses[(problem, name, seed)] = outcome.solution.poses_deg
                 row = _row(problem, robot, task, name, seed, outcome)
@@ -170,15 +174,20 @@ def as_written(poses) -> np.ndarray:
 
 
 def _row(problem, robot, task, method, seed, outcome) -> dict:
+    avoids = bool(get_method(method).avoids_obstacles)
     base = {"problem": problem, "robot": robot.name, "waypoints": task.steps + 1,
             "method": method, "seed": seed, "duration_s": outcome.wall_s,
-            "trajectory": f"{method}/trajectory_{problem}_seed{seed}.csv"}
+            "trajectory": f"{method}/trajectory_{problem}_seed{seed}.csv",
+            "obstacles": len(task.obstacles), "avoids_obstacles": avoids}
     if not outcome.ok:
         return {**base, "valid": False, "failed_criteria": "failure",
                 "failure": outcome.failure, "trajectory": ""}
     metrics = frame_metrics(robot, task, outcome.solution.poses_deg)
+    failure = ""
+    if metrics["env_collisions"] and not avoids:
+        failure = NO_AVOIDANCE
     return {**base, **{k: v for k, v in metrics.items() if k in COLUMNS},
-            "iterations": outcome.solution.iterations, "failure": "",
+            "iterations": outcome.solution.iterations, "failure": failure,
             "time_to_valid_s": outcome.wall_s if metrics["valid"] else np.nan}
 
 
@@ -199,6 +208,10 @@ def summarise(table: pd.DataFrame) -> pd.DataFrame:
             "max_joint_change_deg": group["max_joint_change_deg"].max(),
             "max_joint_change_mm": group["max_joint_change_mm"].max(),
             "joint_path_length_median_deg": group["joint_path_length_deg"].median(),
+            "env_collision_runs": int((group["env_collisions"].fillna(0) > 0).sum()),
+            "self_collision_runs": int((group["self_collisions"].fillna(0) > 0).sum()),
+            "min_clearance_median_mm": group["min_clearance_mm"].median(),
+            "avoids_obstacles": bool(group["avoids_obstacles"].iloc[0]),
             "failed_criteria": ", ".join(sorted({c for text in group["failed_criteria"]
                                                  .fillna("") for c in str(text).split(",")
                                                  if c})),

@@ -2,6 +2,11 @@
 
 Everything is recomputed from the poses (:func:`ikbench.core.metrics.frame_errors`). Errors
 are drawn on a log scale with CppFlow's validity thresholds (0.1 mm, 0.1 deg) as lines.
+A task's obstacles (``Task.obstacles``) are drawn in the 3-D panel (boxes translucent, spheres
+and capsules as wireframes, a half-space as a square of its surface around the path), and the
+waypoints where a reached path collides (with an obstacle or the robot itself,
+:mod:`ikbench.core.collision`) are marked red; a task without obstacles, or a robot without a
+collision model, draws neither.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ from ikbench.core.validity import (
     MAX_POSITION_ERROR_MM,
     MAX_ROTATION_ERROR_DEG,
 )
+from ikbench.studies.arm_plots import COLLISION_COLOR, colliding_waypoints, draw_obstacles
 from ikbench.studies.report import _equal_axes_3d, _matplotlib, frame_labels
 
 #: Errors below this are drawn at it (a log scale has no zero) [mm or deg].
@@ -24,12 +30,23 @@ ERROR_FLOOR = 1e-7
 
 def reached(robot, task, poses_deg) -> dict:
     """{points_mm (n+1, 3), position_mm (n+1,), rotation_deg (n+1,), step_deg (n,): the
-    largest revolute joint change into each waypoint (wrapped)} of poses on a task."""
+    largest revolute joint change into each waypoint (wrapped)} of poses on a task; with the
+    task's obstacles and the robot's collision model also colliding (n+1,): True where the
+    pose touches an obstacle or the robot itself, and when any does, collision_arm_mm
+    (dof+2, 3): the arm's skeleton at the first colliding waypoint."""
     position, rotation, points = frame_errors(robot, task, poses_deg)
     revolute, _ = joint_changes(robot, poses_deg)
     step = np.abs(revolute).max(axis=1) if revolute.size else np.zeros(len(points) - 1)
-    return {"points_mm": points, "position_mm": position, "rotation_deg": rotation,
-            "step_deg": step}
+    out = {"points_mm": points, "position_mm": position, "rotation_deg": rotation,
+           "step_deg": step}
+    colliding = colliding_waypoints(robot, poses_deg, getattr(task, "obstacles", ()))
+    if colliding is not None:
+        out["colliding"] = colliding
+        if colliding.any():
+            first = int(np.argmax(colliding))
+            out["collision_arm_mm"] = robot.skeleton_mm(
+                np.asarray(poses_deg, dtype=float)[first:first + 1])[0]
+    return out
 
 
 def plot_pose_path(task, curves: dict, title: str, robot=None):
@@ -37,7 +54,8 @@ def plot_pose_path(task, curves: dict, title: str, robot=None):
 
     Args:
         task: the task (goal points [mm], goal rotations).
-        curves: label -> :func:`reached` dict (e.g. one per method); may be empty.
+        curves: label -> :func:`reached` dict (e.g. one per method); may be empty. Its
+            ``colliding`` waypoints (when given) are marked red.
         title: the figure's title.
         robot: the robot (axis labels and view from its config).
     """
@@ -56,6 +74,11 @@ def plot_pose_path(task, curves: dict, title: str, robot=None):
         ax3.plot(points[:, 0], points[:, 1], points[:, 2], "-", color=colors[k % 10], lw=1.2,
                  label=label)
         everything.append(points)
+    obstacles = getattr(task, "obstacles", ())
+    if obstacles:
+        _, drawn = draw_obstacles(ax3, obstacles, np.vstack(everything))
+        everything.append(drawn)
+    everything += _mark_collisions(ax3, curves)
     everything.append(_frame_arrows(ax3, task))
     labels, (elev, azim) = frame_labels(robot)
     ax3.set_xlabel(labels[0], fontsize=8)
@@ -91,6 +114,35 @@ def plot_pose_path(task, curves: dict, title: str, robot=None):
     fig.suptitle(textwrap.fill(title, 150), fontsize=10)  # 12 in wide: ~150 characters
     fig.tight_layout(rect=(0, 0, 1, 0.96))
     return fig
+
+
+def _mark_collisions(ax, curves: dict) -> list[np.ndarray]:
+    """Red crosses at every curve's colliding waypoints, one legend entry per curve that
+    was checked: ``collision (N waypoints)`` (the curve's label first when there are
+    several), or ``collision-free``; the arm at the first colliding waypoint faintly red.
+    Returns the arms drawn (to fit the axes)."""
+    arms = []
+    for label, curve in curves.items():
+        colliding = curve.get("colliding")
+        if colliding is None:
+            continue
+        prefix = f"{label}: " if len(curves) > 1 else ""
+        count = int(np.count_nonzero(colliding))
+        if not count:
+            ax.plot([], [], " ", label=f"{prefix}collision-free")
+            continue
+        hits = curve["points_mm"][np.asarray(colliding, dtype=bool)]
+        ax.scatter(*hits.T, marker="x", s=28, color=COLLISION_COLOR, linewidths=1.4,
+                   depthshade=False, zorder=5, gid="collisions",
+                   label=f"{prefix}collision ({count} waypoint{'s' if count != 1 else ''})")
+        arm = curve.get("collision_arm_mm")
+        if arm is not None:
+            first = int(np.argmax(colliding))
+            ax.plot(*arm.T, "-o", color=COLLISION_COLOR, lw=2.0, ms=2.5, alpha=0.35, zorder=1,
+                    gid="collision arm", label=f"{prefix}arm at the first collision "
+                    f"(waypoint {first})")
+            arms.append(arm)
+    return arms
 
 
 def path_view(points_mm, tilt_deg: float = 20.0) -> tuple[float, float] | None:

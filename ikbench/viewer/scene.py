@@ -97,3 +97,111 @@ def lighter(rgb: RGB, amount: float = 0.6) -> RGB:
     """``rgb`` blended towards white by ``amount`` (0: unchanged, 1: white)."""
     r, g, b = (int(round(c + (255 - c) * amount)) for c in rgb)
     return r, g, b
+
+
+# ----- obstacles and collisions (Task.obstacles, ikbench.core.collision) ----------------------
+
+#: Obstacles (translucent brown) and the markers at colliding waypoints (red), RGB 0-255.
+OBSTACLE_COLOR: RGB = (153, 115, 77)
+OBSTACLE_OPACITY = 0.45
+COLLISION_COLOR: RGB = (220, 20, 20)
+
+
+def rotation_wxyz(R: np.ndarray) -> np.ndarray:
+    """(4,) the unit quaternion (w, x, y, z) of a rotation matrix (viser's ``wxyz``)."""
+    R = np.asarray(R, dtype=float)
+    t = np.trace(R)
+    # Shepperd: from the largest of 4w^2, 4x^2, 4y^2, 4z^2 (no cancellation near 180 deg)
+    k = int(np.argmax([t, R[0, 0], R[1, 1], R[2, 2]]))
+    if k == 0:
+        r = math.sqrt(1.0 + t)
+        q = np.array([r, (R[2, 1] - R[1, 2]) / r, (R[0, 2] - R[2, 0]) / r,
+                      (R[1, 0] - R[0, 1]) / r])
+    else:
+        i, j, m = k - 1, k % 3, (k + 1) % 3
+        r = math.sqrt(max(1.0 + R[i, i] - R[j, j] - R[m, m], 1e-300))
+        q = np.empty(4)
+        q[0] = (R[m, j] - R[j, m]) / r
+        q[1 + i], q[1 + j], q[1 + m] = r, (R[j, i] + R[i, j]) / r, (R[m, i] + R[i, m]) / r
+    return q / np.linalg.norm(q)
+
+
+def capsule_mesh(radius_mm: float, length_mm: float, rings: int = 8,
+                 sectors: int = 16) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (V, 3) [mm], faces (F, 3)) of a capsule along the local z, centred: a UV
+    sphere whose upper half is moved up and lower half down by ``length_mm / 2``."""
+    polar = np.concatenate([np.linspace(0, np.pi / 2, rings + 1),
+                            np.linspace(np.pi / 2, np.pi, rings + 1)])
+    shift = np.where(np.arange(len(polar)) <= rings, 0.5, -0.5) * length_mm
+    azim = np.linspace(0, 2 * np.pi, sectors, endpoint=False)
+    p, a = np.meshgrid(polar, azim, indexing="ij")
+    vertices = np.stack([radius_mm * np.sin(p) * np.cos(a), radius_mm * np.sin(p) * np.sin(a),
+                         radius_mm * np.cos(p) + shift[:, None]], axis=-1).reshape(-1, 3)
+    faces = []
+    for i in range(len(polar) - 1):
+        for j in range(sectors):
+            a0, a1 = i * sectors + j, i * sectors + (j + 1) % sectors
+            b0, b1 = a0 + sectors, a1 + sectors
+            faces += [[a0, b0, b1], [a0, b1, a1]]
+    return vertices, np.array(faces, dtype=np.int32)
+
+
+def add_obstacles(server, obstacles, T_root_base: np.ndarray,
+                  around_mm: np.ndarray | None = None, name: str = "/obstacles") -> list:
+    """Add a task's obstacles to a viser scene (translucent brown; base frame [mm] -> the
+    URDF's root [m]): boxes with ``add_box``, spheres with ``add_icosphere``, capsules and
+    a half-space's surface (a square around ``around_mm`` (N, 3) [mm], base frame: e.g. the
+    goal path; :func:`ikbench.studies.arm_plots.halfspace_patch`) with ``add_mesh_simple``.
+    Returns the handles, one per obstacle."""
+    from ikbench.studies.arm_plots import halfspace_patch
+
+    R_root = np.asarray(T_root_base, dtype=float)[:3, :3]
+    style = {"color": OBSTACLE_COLOR, "opacity": OBSTACLE_OPACITY}
+    handles = []
+    for k, obstacle in enumerate(obstacles):
+        node = f"{name}/{k}_" + "".join(c if c.isalnum() or c in "_-." else "_"
+                                        for c in obstacle.name)
+        position = to_root_m(T_root_base, np.asarray(obstacle.center_mm, dtype=float))
+        wxyz = rotation_wxyz(R_root @ np.asarray(obstacle.rotation, dtype=float))
+        if obstacle.kind == "box":
+            handle = server.scene.add_box(node, dimensions=tuple(np.asarray(
+                obstacle.size_mm, dtype=float) / 1000.0), wxyz=wxyz, position=position,
+                side="double", **style)
+        elif obstacle.kind == "sphere":
+            handle = server.scene.add_icosphere(node, radius=obstacle.radius_mm / 1000.0,
+                                                position=position, **style)
+        elif obstacle.kind == "capsule":
+            vertices, faces = capsule_mesh(obstacle.radius_mm, obstacle.length_mm)
+            handle = server.scene.add_mesh_simple(node, vertices / 1000.0, faces, wxyz=wxyz,
+                                                  position=position, side="double", **style)
+        else:
+            corners = to_root_m(T_root_base, halfspace_patch(obstacle, around_mm))
+            handle = server.scene.add_mesh_simple(node, corners, np.array([[0, 1, 2],
+                                                                            [0, 2, 3]]),
+                                                  side="double", **style)
+        handles.append(handle)
+    return handles
+
+
+def colliding_tips_m(robot: Robot, poses, tip_mm: np.ndarray, obstacles,
+                     T_root_base: np.ndarray) -> np.ndarray:
+    """(K, 3) [m, URDF root] the end points of the waypoints where poses (N, dof) collide
+    with an obstacle or the robot itself (:func:`ikbench.studies.arm_plots.
+    colliding_waypoints`); empty without obstacles, collision model or collision."""
+    from ikbench.studies.arm_plots import colliding_waypoints
+
+    colliding = colliding_waypoints(robot, poses, obstacles)
+    if colliding is None or not colliding.any():
+        return np.zeros((0, 3))
+    return to_root_m(T_root_base, np.asarray(tip_mm, dtype=float)[colliding])
+
+
+def add_collision_markers(server, name: str, robot: Robot, poses, tip_mm: np.ndarray,
+                          obstacles, T_root_base: np.ndarray, point_size: float = 0.012):
+    """Red points at a trajectory's colliding waypoints' end points (:func:`colliding_tips_m`)
+    as one viser point cloud named ``name``; None when no waypoint collides."""
+    points = colliding_tips_m(robot, poses, tip_mm, obstacles, T_root_base)
+    if not len(points):
+        return None
+    return server.scene.add_point_cloud(name, points.astype(np.float32), COLLISION_COLOR,
+                                        point_size=point_size, point_shape="circle")

@@ -33,15 +33,32 @@ def chain_urdf_xml(robot) -> str:
 
 def build_chain_model(robot):
     """The Pinocchio model of ``robot``'s chain (see the module docstring)."""
+    return build_chain_model_with_geometry(robot, with_collision=False)[0]
+
+
+def build_chain_model_with_geometry(robot, with_collision: bool = True):
+    """(model, collision GeometryModel or None) of ``robot``'s chain: :func:`build_chain_model`
+    and, with ``with_collision``, the URDF's ``<collision>`` elements reduced with it (meshes
+    found through ``package://`` paths relative to the URDF's folder and its parents)."""
     import pinocchio as pin
 
-    full = pin.buildModelFromXML(chain_urdf_xml(robot))
+    xml = chain_urdf_xml(robot)
+    full = pin.buildModelFromXML(xml)
+    geometry = None
+    if with_collision:
+        dirs = [str(p) for p in [robot.urdf_path.parent, *robot.urdf_path.parents][:4]]
+        geometry = pin.buildGeomFromUrdfString(full, xml, pin.GeometryType.COLLISION,
+                                               package_dirs=dirs)
     keep = set(robot.joint_names)
     lock = [j for j in range(1, full.njoints) if full.names[j] not in keep]
     reference = pin.neutral(full)
     for name, value in robot.locked_urdf.items():  # the config's locked joints, others at 0
         reference[full.idx_qs[full.getJointId(name)]] = value
-    model = pin.buildReducedModel(full, lock, reference) if lock else full
+    model = full
+    if lock and geometry is not None:
+        model, geometry = pin.buildReducedModel(full, geometry, lock, reference)
+    elif lock:
+        model = pin.buildReducedModel(full, lock, reference)
     names = tuple(model.names[1:])
     if names != robot.joint_names:
         raise ValueError(f"URDF joint order {names} differs from {robot.joint_names}")
@@ -54,7 +71,10 @@ def build_chain_model(robot):
         # the chain's base becomes the world frame: its first joint hangs off the universe
         first = 1
         model.jointPlacements[first] = T_world_base.actInv(model.jointPlacements[first])
-    return model
+        for item in (geometry.geometryObjects if geometry is not None else []):
+            if item.parentJoint == 0:
+                item.placement = T_world_base.actInv(item.placement)
+    return model, geometry
 
 
 class PinocchioFK:

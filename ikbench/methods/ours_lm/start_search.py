@@ -18,6 +18,11 @@ A 7-DoF arm reaches each pose in infinitely many ways; the path is solved by:
    thresholds; the valid one with the lowest loss is kept. When none gets there, the next
    ``refine`` candidates are tried, and so on; failing all, the lowest-loss one is returned.
 
+With obstacles (a task's ``obstacles`` and the robot's collision model), every step also keeps
+clear of them and of the robot itself (:mod:`.avoidance`): carrying pushes close pairs apart in
+the null space, candidates are ranked by their colliding waypoints, the LM objective gains a
+clearance penalty, and a valid path must be collision-free. Without obstacles nothing changes.
+
 Everything is deterministic for a seed. Errors are in mm and degrees throughout.
 """
 
@@ -36,6 +41,7 @@ from ikbench.core.validity import (
     MAX_ROTATION_ERROR_DEG,
 )
 from ikbench.methods.base import check_positive, check_seed, option
+from ikbench.methods.ours_lm.avoidance import Avoidance, avoidance_for
 from ikbench.methods.ours_lm.frames import FrameProblem, errors_from_frames, evaluate_frames
 from ikbench.methods.ours_lm.solver import LMSettings, solve_batch
 
@@ -65,6 +71,11 @@ SEARCH_MARGIN = 0.9
 SEED_TOLERANCE = 1e-3
 #: Damping of the carrying steps [mm] (damped least squares, J^T (J J^T + d^2 I)^-1 e).
 CARRY_DAMPING = 1e-2
+#: IK seeds for the first waypoint at least, when the task has obstacles (a narrow passage
+#: leaves few collision-free ways to reach it).
+OBSTACLE_IK_SEEDS = 128
+#: Carried candidates refined at most, when the task has obstacles.
+OBSTACLE_MAX_REFINED = 8
 #: Gain of the joint-limit avoidance in the null space while carrying (per waypoint).
 AVOIDANCE_GAIN = 0.005
 
@@ -87,11 +98,18 @@ class OursLMSettings(LMSettings):
                            "pose and random ones)")
     refine: int = option(2, flag="lm-refine",
                          help="6-D pose paths: carried candidates refined by LM together")
+    clearance_mm: float = option(10.0, flag="lm-clearance-mm", unit="mm",
+                                 help="pose paths with obstacles: the clearance the collision "
+                                 "penalty asks for (validity needs >= 0)")
+    collision_weight: float = option(10.0, flag="lm-collision-weight",
+                                     help="pose paths with obstacles: weight of the collision "
+                                     "penalty (per mm^2 of missing clearance, per waypoint)")
 
     def __post_init__(self):
         super().__post_init__()
         check_seed(self)
         check_positive(self, "ik_seeds", "refine", integer=True)
+        check_positive(self, "clearance_mm", "collision_weight")
         self.ik_seeds, self.refine = int(self.ik_seeds), int(self.refine)
 
 
@@ -163,16 +181,18 @@ def limit_avoidance(q, lower, upper) -> np.ndarray:
     return -AVOIDANCE_GAIN * half * u**3
 
 
-def redundant_step(e, J, damping, q, lower, upper):
+def redundant_step(e, J, damping, q, lower, upper, extra=None):
     """A damped least-squares step (K, dof) towards the goal plus the limit-avoidance motion
-    projected into the Jacobian's null space; a joint that would pass a limit is held (its
-    column removed) and the step solved again, once."""
+    (and ``extra`` (K, dof), e.g. collision avoidance) projected into the Jacobian's null
+    space; a joint that would pass a limit is held (its column removed) and the step solved
+    again, once."""
     held = np.zeros(q.shape, dtype=bool)
+    motion = limit_avoidance(q, lower, upper) + (0.0 if extra is None else extra)
     for _ in range(2):
         Jf = J * ~held[:, None, :]
         JJt = Jf @ Jf.swapaxes(-1, -2) + damping**2 * np.eye(J.shape[-2])
         pinv = Jf.swapaxes(-1, -2) @ np.linalg.inv(JJt)                  # (K, dof, 6)
-        z = limit_avoidance(q, lower, upper) * ~held
+        z = motion * ~held
         step = -(pinv @ e[..., None])[..., 0] + z - (pinv @ (Jf @ z[..., None]))[..., 0]
         passing = ((q + step < lower) | (q + step > upper)) & ~held
         if not passing.any():
@@ -181,14 +201,15 @@ def redundant_step(e, J, damping, q, lower, upper):
     return step
 
 
-def carry(frames, task, start, lower, upper):
+def carry(frames, task, start, lower, upper, avoid: Avoidance | None = None):
     """Carry start poses (K, dof) along the task's waypoints, each warm started from the last.
 
     Waypoint i starts from the linear extrapolation 2 q_{i-1} - q_{i-2} (the previous pose at
-    i = 1) and takes one :func:`redundant_step` (damped least squares, limit avoidance in the
-    null space); another (at most :data:`CARRY_ITERATIONS` in all) when an error before the
-    step exceeded :data:`CARRY_RETRY` (mm or deg), e.g. at a corner of the path. The LM
-    refinement polishes what is left.
+    i = 1) and takes one :func:`redundant_step` (damped least squares, limit avoidance and,
+    with ``avoid``, collision avoidance in the null space); another (at most
+    :data:`CARRY_ITERATIONS` in all) when an error before the step exceeded
+    :data:`CARRY_RETRY` (mm or deg), e.g. at a corner of the path. The LM refinement
+    polishes what is left.
 
     Returns:
         (paths (K, N, dof), iterations).
@@ -202,8 +223,9 @@ def carry(frames, task, start, lower, upper):
         q = paths[alive, i - 1] if i == 1 else np.clip(
             2 * paths[alive, i - 1] - paths[alive, i - 2], lower, upper)
         for attempt in range(CARRY_ITERATIONS):
-            e, J = _stack(*errors_from_frames(*frames(q), goals_mm[i], goals_R[i],
-                                              exact=False))
+            point, rotation, j_point, j_angular = frames(q)
+            e, J = _stack(*errors_from_frames(point, rotation, j_point, j_angular, goals_mm[i],
+                                              goals_R[i], exact=False))
             size = np.abs(e).max(1)
             if attempt == 0 and np.any(size > DROP_MM_DEG):     # lost: carried no further
                 keep = size <= DROP_MM_DEG
@@ -211,7 +233,9 @@ def carry(frames, task, start, lower, upper):
                 alive, q, e, J, size = alive[keep], q[keep], e[keep], J[keep], size[keep]
                 if not alive.size:
                     return paths, iterations
-            q = np.clip(q + redundant_step(e, J, CARRY_DAMPING, q, lower, upper), lower, upper)
+            extra = avoid.motion(q) if avoid is not None and attempt == 0 else None
+            q = np.clip(q + redundant_step(e, J, CARRY_DAMPING, q, lower, upper, extra),
+                        lower, upper)
             iterations += 1
             if size.max() <= CARRY_RETRY:
                 break
@@ -231,10 +255,12 @@ def lost_waypoints(frames, task, paths) -> np.ndarray:
     return np.sum(size > LOST_MM_DEG, axis=1)
 
 
-def check_paths(robot, task, paths, frames, margin: float = 1.0):
+def check_paths(robot, task, paths, frames, margin: float = 1.0,
+                avoid: Avoidance | None = None):
     """CppFlow's validity of paths (K, N, dof): (valid (K,), max position error [mm],
     max rotation error [deg], max revolute step [deg]) (see :mod:`ikbench.core.validity`);
-    ``margin`` scales the position and rotation thresholds."""
+    ``margin`` scales the position and rotation thresholds; with ``avoid`` a valid path is
+    also collision-free."""
     point, rotation, _, _ = frames(paths.reshape(-1, robot.dof), False)
     e_point, e_rot, _, _ = errors_from_frames(point, rotation, None, None,
                                               np.tile(task.goal_points_mm, (len(paths), 1)),
@@ -253,6 +279,8 @@ def check_paths(robot, task, paths, frames, margin: float = 1.0):
     valid = (position < margin * MAX_POSITION_ERROR_MM) \
         & (rotation < margin * MAX_ROTATION_ERROR_DEG) \
         & (revolute < MAX_JOINT_CHANGE_DEG) & (sliding < MAX_JOINT_CHANGE_MM) & within
+    if avoid is not None and valid.any():
+        valid[valid] = avoid.collision_free(paths[valid])
     return valid, position, rotation, revolute
 
 
@@ -264,7 +292,9 @@ def search(robot, task, settings: OursLMSettings, weights: dict) -> SearchResult
     low = np.where(np.isfinite(lower), lower, robot.sample_lower)
     high = np.where(np.isfinite(upper), upper, robot.sample_upper)
     rng = np.random.default_rng(settings.seed)
-    seeds = rng.uniform(low, high, (settings.ik_seeds, robot.dof))
+    avoid = avoidance_for(robot, task, settings.clearance_mm, settings.collision_weight)
+    count = max(settings.ik_seeds, OBSTACLE_IK_SEEDS) if avoid is not None else settings.ik_seeds
+    seeds = rng.uniform(low, high, (count, robot.dof))
     if task.reference_pose_deg is not None:
         seeds[0] = task.reference_pose_deg
     q0, pos, rot, ik_iterations = first_waypoint_ik(
@@ -274,26 +304,33 @@ def search(robot, task, settings: OursLMSettings, weights: dict) -> SearchResult
         raise InputError(f"trajectory {task.name!r}: the first waypoint was not reached from "
                          f"any of {settings.ik_seeds} IK seeds (out of reach?); try more "
                          "--lm-ik-seeds or another --lm-seed")
+    if avoid is not None and found.size:  # carry only the collision-free seeds, if any
+        free = avoid.collision_free(q0[found][:, None])
+        found = found[free] if free.any() else found
     t_seeds = time.perf_counter()
-    paths, carry_iterations = carry(frames, task, q0[found], lower, upper)
+    paths, carry_iterations = carry(frames, task, q0[found], lower, upper, avoid)
     missed = lost_waypoints(frames, task, paths)
+    colliding = avoid.colliding_waypoints(paths) if avoid is not None else np.zeros(len(paths))
     t_carry = time.perf_counter()
-    order = _rank(robot, paths, missed)
+    order = _rank(robot, paths, missed, colliding)
     problem_of = _problem_factory(robot, task, weights, frames)
+    evaluator = avoid.evaluator(evaluate_frames) if avoid is not None else evaluate_frames
     lm_settings = replace(settings, weights=weights)
     refined, lm_iterations, best = 0, 0, None
+    if avoid is not None:  # a bounded search: colliding candidates rarely refine to valid
+        order = order[:OBSTACLE_MAX_REFINED]
     for start in range(0, len(order), settings.refine):
         chosen = order[start:start + settings.refine]
         tasks = [task] * len(chosen)
         result = solve_batch(robot, tasks, lm_settings, [weights] * len(chosen),
                              initial=paths[chosen], problem=problem_of(len(chosen)),
-                             evaluator=evaluate_frames,
+                             evaluator=evaluator,
                              until=lambda poses, _: np.full(len(poses), check_paths(
-                                 robot, task, poses, frames, SEARCH_MARGIN)[0].any()))
+                                 robot, task, poses, frames, SEARCH_MARGIN, avoid)[0].any()))
         refined += len(chosen)
         lm_iterations += int(result.iterations.max())
         valid, position, rotation, step = check_paths(robot, task, result.poses_deg, frames,
-                                                      SEARCH_MARGIN)
+                                                      SEARCH_MARGIN, avoid)
         k = int(np.argmin(np.where(valid, result.loss, np.inf) if valid.any()
                           else result.loss))
         if best is None or valid[k] or result.loss[k] < best[1].loss[best[2]]:
@@ -310,6 +347,7 @@ def search(robot, task, settings: OursLMSettings, weights: dict) -> SearchResult
             "search_max_position_error_mm": float(position),
             "search_max_rotation_error_deg": float(rotation),
             "search_max_joint_step_deg": float(step),
+            "carried_candidates_colliding": int(np.sum(colliding > 0)),
             "seeds_s": t_seeds - started, "carry_s": t_carry - t_seeds,
             "refine_s": t_end - t_carry}
     return SearchResult(result.poses_deg[k], float(result.loss[k]), result.terms[k],
@@ -317,12 +355,13 @@ def search(robot, task, settings: OursLMSettings, weights: dict) -> SearchResult
                         bool(result.converged[k]), info)
 
 
-def _rank(robot, paths, missed) -> np.ndarray:
-    """Candidate order: fewest lost waypoints, then those whose steps all stay below CppFlow's
-    joint-change limit, then the shortest joint path (pose units)."""
+def _rank(robot, paths, missed, colliding) -> np.ndarray:
+    """Candidate order: fewest lost waypoints, then fewest colliding waypoints, then those
+    whose steps all stay below CppFlow's joint-change limit, then the shortest joint path
+    (pose units)."""
     steps = np.abs(np.diff(paths, axis=1))
     jumps = steps.max(axis=(1, 2)) >= MAX_JOINT_CHANGE_DEG
-    return np.lexsort((steps.sum(axis=(1, 2)), jumps, missed))
+    return np.lexsort((steps.sum(axis=(1, 2)), jumps, colliding, missed))
 
 
 def _problem_factory(robot, task, weights, frames):

@@ -1,0 +1,442 @@
+"""Collision checking: the robot against itself and against a task's obstacles.
+
+The robot's collision geometry comes from
+
+- its config's ``collision`` file (``urdf/<robot>.collision.json``): capsules in link frames
+  [mm], the link pairs that never collide (as an SRDF's ``disable_collisions``) and named
+  obstacle sets (e.g. NICO's ``touchscreen``); the shipped robots have one (Panda and Fetch:
+  jstmn/jrl's capsules; NICO: capsules from its link dimensions), or
+- the URDF's ``<collision>`` elements (a user's URDF, a description package's robot), read by
+  Pinocchio.
+
+Pairs never checked: geometry on the same moving body (their distance cannot change), on
+adjacent moving bodies (one hangs from the other through a single movable joint, fixed links in
+between included: the rule an SRDF's "Adjacent" pairs follow for URDFs whose joints are
+separated by fixed frames, as NICO's), and the config's ``never_collide`` pairs. (jstmn/jrl
+checks Panda's panda_link6 / panda_hand pair, which this rule skips: the hand is fixed to
+panda_link7, the body next to panda_link6.)
+
+Distances are computed by coal through Pinocchio's ``GeometryModel``
+(``pinocchio.computeDistances``), one call per waypoint for every checked pair: **self
+pairs** (see below) and **environment pairs** (every robot geometry
+against every obstacle). A distance is signed: negative inside (the penetration depth for
+convex shapes); a waypoint collides when a distance is below 0 (touching is not a collision,
+as in CppFlow's capsule check).
+
+:meth:`CollisionModel.check` reports per waypoint; :meth:`CollisionModel.distance_jacobians`
+gives the distances of the close pairs with their gradients in pose units, for methods that
+keep clear of obstacles (the gradient of a distance is n . (J(p2) - J(p1)) with the witness
+points p1, p2 and the unit normal n from the first to the second geometry).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ikbench.core.errors import InputError
+from ikbench.core.obstacles import Obstacle
+
+MM_PER_M = 1000.0
+#: Keys a robot's collision file may hold.
+CONFIG_KEYS = ("description", "source", "licence", "capsules", "never_collide",
+               "obstacle_sets")
+CAPSULE_KEYS = ("link", "a_mm", "b_mm", "radius_mm")
+
+
+@dataclass(frozen=True, eq=False)
+class Capsule:
+    """A robot capsule in its link's frame: the points within ``radius_mm`` of the segment
+    ``a_mm`` - ``b_mm`` (3,) [mm]."""
+
+    link: str
+    a_mm: np.ndarray
+    b_mm: np.ndarray
+    radius_mm: float
+
+
+def collision_config(robot) -> dict | None:
+    """The robot's collision file as a dict (with ``path``), or None when it names none."""
+    name = robot.config.get("collision")
+    if not name:
+        return None
+    key = "collision_config"
+    if key not in robot._cache:
+        base = Path(robot.config.get("config_path", robot.urdf_path)).parent
+        path = (base / name).resolve()
+        robot._cache[key] = _read_collision_file(path)
+    return robot._cache[key]
+
+
+def _read_collision_file(path: Path) -> dict:
+    where = f"collision file {str(path)!r}"
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise InputError(f"cannot read {where}: {exc.strerror}") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{where}: not valid JSON (line {exc.lineno}): {exc.msg}") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{where}: must be a JSON object with keys {', '.join(CONFIG_KEYS)}")
+    unknown = [k for k in doc if k not in CONFIG_KEYS]
+    if unknown:
+        raise InputError(f"{where}: unknown key(s) {', '.join(unknown)}; allowed: "
+                         f"{', '.join(CONFIG_KEYS)}")
+    capsules = []
+    for k, item in enumerate(doc.get("capsules", [])):
+        if not isinstance(item, dict) or sorted(item) != sorted(CAPSULE_KEYS):
+            raise InputError(f"{where}: capsule {k} must have exactly the keys "
+                             f"{', '.join(CAPSULE_KEYS)}")
+        a, b = np.array(item["a_mm"], dtype=float), np.array(item["b_mm"], dtype=float)
+        radius = float(item["radius_mm"])
+        if a.shape != (3,) or b.shape != (3,) or not (radius > 0 and math.isfinite(radius)):
+            raise InputError(f"{where}: capsule {k} ({item['link']}): a_mm and b_mm must be "
+                             "three numbers and radius_mm positive")
+        capsules.append(Capsule(str(item["link"]), a, b, radius))
+    pairs = doc.get("never_collide", [])
+    if not all(isinstance(p, list) and len(p) == 2 for p in pairs):
+        raise InputError(f"{where}: never_collide must be a list of [link, link] pairs")
+    return {**doc, "path": str(path), "capsules": capsules,
+            "never_collide": [tuple(p) for p in pairs]}
+
+
+@dataclass
+class CollisionReport:
+    """Signed distances of every checked pair at every waypoint.
+
+    Attributes:
+        distances_mm: (N, P) signed distances [mm] (negative: penetration).
+        pairs: (P,) (first, second) names: links, or a link and an obstacle.
+        is_env: (P,) True for robot-obstacle pairs.
+    """
+
+    distances_mm: np.ndarray
+    pairs: list[tuple[str, str]]
+    is_env: np.ndarray
+
+    @property
+    def colliding(self) -> np.ndarray:
+        """(N, P) True where a pair collides."""
+        return self.distances_mm < 0.0
+
+    @property
+    def self_colliding(self) -> np.ndarray:
+        """(N,) True at waypoints where the robot collides with itself."""
+        return np.any(self.colliding[:, ~self.is_env], axis=1)
+
+    @property
+    def env_colliding(self) -> np.ndarray:
+        """(N,) True at waypoints where the robot collides with an obstacle."""
+        return np.any(self.colliding[:, self.is_env], axis=1)
+
+    def min_clearance_mm(self, env: bool | None = None) -> float:
+        """The smallest signed distance over all waypoints (``env``: obstacle pairs only,
+        False: self pairs only); inf when there is no such pair."""
+        cols = np.ones(len(self.pairs), dtype=bool) if env is None else self.is_env == env
+        values = self.distances_mm[:, cols]
+        return float(values.min()) if values.size else math.inf
+
+    def first_collision(self) -> tuple[int, str, str] | None:
+        """(waypoint, first name, second name) of the first colliding pair (the deepest at
+        that waypoint), or None."""
+        rows = np.flatnonzero(np.any(self.colliding, axis=1))
+        if not rows.size:
+            return None
+        i = int(rows[0])
+        a, b = self.pairs[int(np.argmin(self.distances_mm[i]))]
+        return i, a, b
+
+    def summary(self) -> dict[str, Any]:
+        """The table columns: ``self_collisions`` and ``env_collisions`` (waypoints in
+        collision), ``min_clearance_mm`` (obstacles; NaN without any),
+        ``min_self_clearance_mm``, ``first_collision_waypoint`` (NaN: none) and
+        ``first_collision_pair`` (``link / other``, "" when none)."""
+        first = self.first_collision()
+        env = self.min_clearance_mm(env=True)
+        own = self.min_clearance_mm(env=False)
+        return {"self_collisions": int(self.self_colliding.sum()),
+                "env_collisions": int(self.env_colliding.sum()),
+                "min_clearance_mm": env if math.isfinite(env) else math.nan,
+                "min_self_clearance_mm": own if math.isfinite(own) else math.nan,
+                "first_collision_waypoint": first[0] if first else math.nan,
+                "first_collision_pair": f"{first[1]} / {first[2]}" if first else ""}
+
+
+@dataclass
+class _Scene:
+    """A GeometryModel with the robot's geometry, some obstacles and the checked pairs."""
+
+    geometry: Any
+    data: Any
+    pairs: list[tuple[str, str]]
+    is_env: np.ndarray
+    first_joint: np.ndarray       # (P,) the parent joint of each pair's first geometry
+    second_joint: np.ndarray      # (P,) 0 for an obstacle
+    obstacles: tuple = ()
+
+
+@dataclass(eq=False)
+class CollisionModel:
+    """The robot's collision geometry and its checked pairs (see the module docstring).
+
+    Attributes:
+        robot: the robot.
+        source: where the geometry comes from (one sentence).
+        capsules: the capsules (empty when the geometry comes from the URDF).
+        links: (G,) the link of each robot geometry.
+        self_pairs: the link pairs checked for self-collision.
+    """
+
+    robot: Any
+    source: str
+    capsules: tuple[Capsule, ...]
+    links: tuple[str, ...]
+    self_pairs: tuple[tuple[str, str], ...]
+    _model: Any = field(repr=False, default=None)
+    _geometry: Any = field(repr=False, default=None)
+    _self_index: list[tuple[int, int]] = field(repr=False, default_factory=list)
+    _scenes: dict = field(repr=False, default_factory=dict)
+
+    # ----- building -----------------------------------------------------------------------------
+    def scene(self, obstacles: Sequence[Obstacle] = ()) -> _Scene:
+        """The geometry with ``obstacles`` added and every checked pair (cached per set)."""
+        import pinocchio as pin
+
+        key = tuple(id(o) for o in obstacles)
+        if key in self._scenes:
+            return self._scenes[key]
+        geometry = self._geometry.clone()
+        n_robot = geometry.ngeoms
+        for obstacle in obstacles:
+            shape, placement = coal_shape(obstacle)
+            geometry.addGeometryObject(pin.GeometryObject(f"obstacle:{obstacle.name}", 0, 0,
+                                                          placement, shape))
+        pairs, is_env, index = [], [], []
+        for a, b in self._self_index:
+            index.append((a, b))
+            pairs.append((self.links[a], self.links[b]))
+            is_env.append(False)
+        for k, obstacle in enumerate(obstacles):
+            for a in range(n_robot):
+                index.append((a, n_robot + k))
+                pairs.append((self.links[a], obstacle.name))
+                is_env.append(True)
+        for a, b in index:
+            geometry.addCollisionPair(pin.CollisionPair(a, b))
+        data = geometry.createData()
+        joints = [g.parentJoint for g in geometry.geometryObjects]
+        scene = _Scene(geometry, data, pairs, np.array(is_env, dtype=bool),
+                       np.array([joints[a] for a, _ in index], dtype=int),
+                       np.array([joints[b] for _, b in index], dtype=int), tuple(obstacles))
+        if len(self._scenes) > 8:
+            self._scenes.clear()
+        self._scenes[key] = scene
+        return scene
+
+    # ----- checking -----------------------------------------------------------------------------
+    def check(self, poses, obstacles: Sequence[Obstacle] = ()) -> CollisionReport:
+        """Signed distances of every checked pair at every pose (N, dof) [pose units]."""
+        import pinocchio as pin
+
+        scene = self.scene(obstacles)
+        q_urdf = np.atleast_2d(self.robot.to_urdf(np.asarray(poses, dtype=float)))
+        data = self._model.createData()
+        out = np.empty((len(q_urdf), len(scene.pairs)))
+        for i, q in enumerate(q_urdf):
+            pin.computeDistances(self._model, data, scene.geometry, scene.data, q)
+            out[i] = [r.min_distance for r in scene.data.distanceResults]
+        return CollisionReport(out * MM_PER_M, list(scene.pairs), scene.is_env.copy())
+
+    def distance_jacobians(self, poses, obstacles: Sequence[Obstacle] = (),
+                           below_mm: float = 50.0, self_pairs: bool = True):
+        """Distances below ``below_mm`` and their gradients, for poses (N, dof) [pose units].
+
+        Returns:
+            (waypoint (K,), pair (K,), distance_mm (K,), gradient (K, dof) [mm per pose
+            unit], pair names (P,)): one row per (waypoint, pair) closer than ``below_mm``.
+        """
+        import pinocchio as pin
+
+        scene = self.scene(obstacles)
+        robot = self.robot
+        poses = np.atleast_2d(np.asarray(poses, dtype=float))
+        q_urdf = robot.to_urdf(poses)
+        per_unit = robot.to_urdf(np.ones(robot.dof)) - robot.to_urdf(np.zeros(robot.dof))
+        data = self._model.createData()
+        use = np.ones(len(scene.pairs), dtype=bool) if self_pairs else scene.is_env
+        rows_i, rows_p, rows_d, rows_g = [], [], [], []
+        world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        for i, q in enumerate(q_urdf):
+            pin.computeDistances(self._model, data, scene.geometry, scene.data, q)
+            results = scene.data.distanceResults
+            d = np.array([r.min_distance for r in results]) * MM_PER_M
+            close = np.flatnonzero((d < below_mm) & use)
+            if not close.size:
+                continue
+            pin.computeJointJacobians(self._model, data, q)
+            for p in close:
+                r = results[int(p)]
+                n = np.asarray(r.normal)
+                g = (_point_jacobian(self._model, data, scene.second_joint[p],
+                                     r.getNearestPoint2(), world)
+                     - _point_jacobian(self._model, data, scene.first_joint[p],
+                                       r.getNearestPoint1(), world))
+                rows_i.append(i)
+                rows_p.append(p)
+                rows_d.append(d[p])
+                rows_g.append(n @ g * MM_PER_M * per_unit)
+        dof = robot.dof
+        return (np.array(rows_i, dtype=int), np.array(rows_p, dtype=int),
+                np.array(rows_d, dtype=float), np.array(rows_g, dtype=float).reshape(-1, dof),
+                list(scene.pairs))
+
+    def placements(self, poses) -> np.ndarray:
+        """(N, G, 4, 4) [mm] base <- geometry of every robot geometry at each pose."""
+        import pinocchio as pin
+
+        q_urdf = np.atleast_2d(self.robot.to_urdf(np.asarray(poses, dtype=float)))
+        data = self._model.createData()
+        gdata = self._geometry.createData()
+        out = np.empty((len(q_urdf), self._geometry.ngeoms, 4, 4))
+        for i, q in enumerate(q_urdf):
+            pin.updateGeometryPlacements(self._model, data, self._geometry, gdata, q)
+            for k in range(self._geometry.ngeoms):
+                out[i, k] = gdata.oMg[k].homogeneous
+        out[..., :3, 3] *= MM_PER_M
+        return out
+
+    def capsule_segments(self, poses) -> np.ndarray:
+        """(N, C, 2, 3) [mm] both end-sphere centres of every capsule in the base frame (for
+        drawing; empty when the geometry is not capsules)."""
+        if not self.capsules:
+            return np.zeros((len(np.atleast_2d(poses)), 0, 2, 3))
+        T = self.placements(poses)
+        half = np.array([0.5 * float(np.linalg.norm(c.b_mm - c.a_mm)) for c in self.capsules])
+        axis = T[..., :3, 2]
+        centre = T[..., :3, 3]
+        return np.stack([centre - half[None, :, None] * axis,
+                         centre + half[None, :, None] * axis], axis=2)
+
+
+def _point_jacobian(model, data, joint: int, point_m, frame) -> np.ndarray:
+    """(3, nv) [m per rad] velocity Jacobian of a point rigidly attached to ``joint``."""
+    import pinocchio as pin
+
+    if joint == 0:
+        return np.zeros((3, model.nv))
+    J = pin.getJointJacobian(model, data, int(joint), frame)
+    r = np.asarray(point_m) - data.oMi[int(joint)].translation
+    skew = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    return J[:3] - skew @ J[3:]
+
+
+def coal_shape(obstacle: Obstacle):
+    """(coal geometry, pinocchio.SE3 placement) of an obstacle, in metres."""
+    import coal
+    import pinocchio as pin
+
+    centre_m = obstacle.center_mm / MM_PER_M
+    if obstacle.kind == "box":
+        assert obstacle.size_mm is not None
+        shape = coal.Box(*(obstacle.size_mm / MM_PER_M))
+    elif obstacle.kind == "sphere":
+        shape = coal.Sphere(obstacle.radius_mm / MM_PER_M)
+    elif obstacle.kind == "capsule":
+        shape = coal.Capsule(obstacle.radius_mm / MM_PER_M, obstacle.length_mm / MM_PER_M)
+    else:
+        assert obstacle.normal is not None
+        n = np.asarray(obstacle.normal, dtype=float)
+        return coal.Halfspace(n, float(n @ centre_m)), pin.SE3.Identity()
+    return shape, pin.SE3(np.asarray(obstacle.rotation, dtype=float), centre_m)
+
+
+def _capsule_placement(capsule: Capsule):
+    """(coal.Capsule, SE3 link <- capsule) of a robot capsule."""
+    import coal
+    import pinocchio as pin
+
+    from ikbench.core.obstacles import frame_with_z
+
+    a, b = capsule.a_mm / MM_PER_M, capsule.b_mm / MM_PER_M
+    length = float(np.linalg.norm(b - a))
+    shape = coal.Capsule(capsule.radius_mm / MM_PER_M, length)
+    return shape, pin.SE3(frame_with_z(b - a), 0.5 * (a + b))
+
+
+def build_collision_model(robot) -> CollisionModel | None:
+    """The robot's :class:`CollisionModel` (see the module docstring), or None when it has no
+    collision geometry.
+
+    Raises:
+        InputError: a collision file naming a link the robot does not have.
+    """
+    import pinocchio as pin
+
+    from ikbench.core.kinematics.pinocchio_fk import build_chain_model_with_geometry
+
+    config = collision_config(robot)
+    if config is None:
+        model, geometry = build_chain_model_with_geometry(robot, with_collision=True)
+        if geometry is None or geometry.ngeoms == 0:
+            return None
+        links = tuple(model.frames[g.parentFrame].name for g in geometry.geometryObjects)
+        source = f"the <collision> elements of {robot.urdf_path.name}"
+        capsules: tuple[Capsule, ...] = ()
+        never: set = set()
+    else:
+        model = robot.pinocchio_fk().model
+        geometry = pin.GeometryModel()
+        root = model.frames[model.getFrameId(robot.root_link)].placement
+        names = []
+        for k, capsule in enumerate(config["capsules"]):
+            if not model.existFrame(capsule.link):
+                raise InputError(f"collision file {config['path']!r}: capsule {k}: link "
+                                 f"{capsule.link!r} is not a link of {robot.name}'s model")
+            fid = model.getFrameId(capsule.link)
+            frame = model.frames[fid]
+            placement = frame.placement if frame.parentJoint else root.actInv(frame.placement)
+            shape, local = _capsule_placement(capsule)
+            geometry.addGeometryObject(pin.GeometryObject(
+                f"{capsule.link}:{k}", frame.parentJoint, fid, placement * local, shape))
+            names.append(capsule.link)
+        links = tuple(names)
+        capsules = tuple(config["capsules"])
+        never = {frozenset(p) for p in config["never_collide"]}
+        source = str(config.get("source") or config["path"])
+    joints = [g.parentJoint for g in geometry.geometryObjects]
+    index, pairs = [], []
+    for a in range(len(joints)):
+        for b in range(a + 1, len(joints)):
+            la, lb, ja, jb = links[a], links[b], joints[a], joints[b]
+            adjacent = ja == jb or model.parents[ja] == jb or model.parents[jb] == ja
+            if adjacent or frozenset((la, lb)) in never:
+                continue
+            index.append((a, b))
+            pairs.append((links[a], links[b]))
+    return CollisionModel(robot, source, capsules, links, tuple(dict.fromkeys(pairs)),
+                          _model=model, _geometry=geometry, _self_index=index)
+
+
+def collision_model(robot) -> CollisionModel | None:
+    """The robot's :class:`CollisionModel` (cached on the robot), or None without geometry."""
+    if "collision_model" not in robot._cache:
+        robot._cache["collision_model"] = build_collision_model(robot)
+    return robot._cache["collision_model"]
+
+
+def check_trajectory(robot, poses, obstacles: Sequence[Obstacle] = ()) -> dict[str, Any]:
+    """:meth:`CollisionReport.summary` of poses (N, dof) [pose units], plus
+    ``collision_model`` (its source; "none" when the robot has no collision geometry: then the
+    counts are 0 and the clearances NaN, nothing was checked)."""
+    model = collision_model(robot)
+    if model is None:
+        return {"self_collisions": 0, "env_collisions": 0, "min_clearance_mm": math.nan,
+                "min_self_clearance_mm": math.nan, "first_collision_waypoint": math.nan,
+                "first_collision_pair": "", "collision_model": "none"}
+    return {**model.check(poses, obstacles).summary(), "collision_model": model.source}

@@ -1,0 +1,175 @@
+"""The collision checker against distances computed directly, and its verdicts on trajectories."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from ikbench.core.collision import collision_model
+from ikbench.core.errors import InputError
+from ikbench.core.metrics import frame_metrics
+from ikbench.core.obstacles import (
+    box,
+    cppflow_obstacles,
+    halfspace,
+    parse_obstacles,
+    read_obstacles,
+    rpy_to_matrix,
+    sphere,
+)
+from ikbench.core.problems import load_problem
+from ikbench.core.robot import load_robot
+
+
+def _segment_box_distance_mm(a, b, radius, center, size, samples=20001):
+    """Capsule (segment a-b, radius) to an axis-aligned box, by dense sampling of the segment
+    (a capsule-box distance is the segment-box distance minus the radius)."""
+    t = np.linspace(0.0, 1.0, samples)[:, None]
+    points = a + t * (b - a)
+    half = np.asarray(size) / 2.0
+    outside = np.maximum(np.abs(points - center) - half, 0.0)
+    return float(np.linalg.norm(outside, axis=1).min()) - radius
+
+
+def _capsule_world(model, poses):
+    """(C, 2, 3) end centres [mm] of the robot's capsules at one pose."""
+    return model.capsule_segments(poses[None])[0]
+
+
+@pytest.fixture(scope="module")
+def panda():
+    return load_robot("panda")
+
+
+def test_capsule_box_distances_match_a_direct_computation(panda):
+    model = collision_model(panda)
+    rng = np.random.default_rng(3)
+    pose = np.array([0.0, 20.0, 0.0, -120.0, 0.0, 140.0, 45.0])
+    for _ in range(5):
+        center = rng.uniform([-300, -300, 100], [600, 300, 900])
+        size = rng.uniform(50, 300, 3)
+        obstacle = box("b", center, size)
+        report = model.check(pose[None], (obstacle,))
+        segments = _capsule_world(model, pose)
+        for k, capsule in enumerate(model.capsules):
+            column = report.pairs.index((capsule.link, "b"))
+            direct = _segment_box_distance_mm(*segments[k], capsule.radius_mm, center, size)
+            if direct > 0:  # separated: the distance itself
+                assert report.distances_mm[0, column] == pytest.approx(direct, abs=0.1)
+            else:           # overlapping: a collision either way
+                assert report.distances_mm[0, column] < 0.1
+
+
+def test_sphere_and_halfspace_distances_match_a_direct_computation(panda):
+    model = collision_model(panda)
+    pose = np.array([10.0, -30.0, 20.0, -100.0, 10.0, 120.0, 0.0])
+    ball = sphere("s", [400.0, 100.0, 500.0], 80.0)
+    floor = halfspace("floor", [0.0, 0.0, 150.0], [0.0, 0.2, 1.0])
+    report = model.check(pose[None], (ball, floor))
+    segments = _capsule_world(model, pose)
+    normal = np.array([0.0, 0.2, 1.0]) / np.linalg.norm([0.0, 0.2, 1.0])
+    for k, capsule in enumerate(model.capsules):
+        a, b = segments[k]
+        t = np.clip((ball.center_mm - a) @ (b - a) / max((b - a) @ (b - a), 1e-12), 0, 1)
+        to_ball = np.linalg.norm(a + t * (b - a) - ball.center_mm) - 80.0 - capsule.radius_mm
+        height = min((a - [0, 0, 150.0]) @ normal, (b - [0, 0, 150.0]) @ normal)
+        to_floor = height - capsule.radius_mm
+        assert report.distances_mm[0, report.pairs.index((capsule.link, "s"))] == \
+            pytest.approx(to_ball, abs=0.1)
+        assert report.distances_mm[0, report.pairs.index((capsule.link, "floor"))] == \
+            pytest.approx(to_floor, abs=0.1)
+
+
+def test_distance_gradients_match_finite_differences(panda):
+    model = collision_model(panda)
+    obstacles = (box("b", [450.0, 0.0, 300.0], [200.0, 200.0, 200.0]),
+                 sphere("s", [200.0, 300.0, 700.0], 60.0))
+    rng = np.random.default_rng(0)
+    poses = np.array([0.0, 10.0, 0.0, -110.0, 0.0, 120.0, 45.0]) + rng.normal(0, 15, (3, 7))
+    rows, pairs, distances, gradients, _ = model.distance_jacobians(poses, obstacles, 1e9)
+    assert len(rows) == 3 * len(model.check(poses[:1], obstacles).pairs)
+    step = 0.05  # deg: well above the solver's tolerance, small against the curvature
+    worst = 0.0
+    for row, pair, gradient in zip(rows, pairs, gradients):
+        numeric = np.zeros(7)
+        for j in range(7):
+            up, down = poses[row].copy(), poses[row].copy()
+            up[j] += step
+            down[j] -= step
+            numeric[j] = (model.check(up[None], obstacles).distances_mm[0, pair]
+                          - model.check(down[None], obstacles).distances_mm[0, pair]) / (2 * step)
+        worst = max(worst, float(np.abs(numeric - gradient).max()))
+    assert worst < 0.05, worst  # mm per deg
+
+
+def test_a_trajectory_through_a_box_is_invalid_with_its_first_colliding_waypoint():
+    robot, task, _ = load_problem("panda__1cube")
+    free = dataclasses.replace(task, obstacles=())
+    from ikbench.methods.ours_lm import OursLM
+
+    poses = OursLM(seed=1).solve(robot, free).poses_deg       # ignores the cube
+    report = collision_model(robot).check(poses, task.obstacles)
+    first = report.first_collision()
+    assert first is not None
+    metrics = frame_metrics(robot, task, poses)
+    assert not metrics["valid"] and "env_collision" in metrics["failed_criteria"].split(",")
+    assert metrics["first_collision_waypoint"] == first[0]
+    assert metrics["first_collision_pair"] == f"{first[1]} / {first[2]}"
+    assert first[2] == "box0" and first[1].startswith("panda_")
+    assert not report.env_colliding[:first[0]].any() and report.env_colliding[first[0]]
+    # the same poses without the cube: valid (the obstacle-free check is unchanged)
+    assert frame_metrics(robot, free, poses)["valid"]
+
+
+def test_ours_lm_keeps_clear_of_the_cube():
+    robot, task, _ = load_problem("panda__1cube")
+    from ikbench.methods.ours_lm import OursLM
+
+    solution = OursLM(seed=2).solve(robot, task)
+    metrics = frame_metrics(robot, task, solution.poses_deg)
+    assert metrics["valid"], metrics["failed_criteria"]
+    assert metrics["min_clearance_mm"] > 0 and metrics["env_collisions"] == 0
+
+
+def test_cppflow_boxes_are_read_as_cppflow_writes_them():
+    items = [[{"x": 0.4}, {"y": -0.4}, {"z": 0.825}, {"roll": 0.0}, {"pitch": 0.0},
+              {"yaw": 0.5}, {"size_x": 0.3}, {"size_y": 0.05}, {"size_z": 0.8}]]
+    (b,) = cppflow_obstacles(items, [0.0, 0.1, 0.0], "t.yaml")
+    np.testing.assert_allclose(b.center_mm, [400.0, -300.0, 825.0])
+    np.testing.assert_allclose(b.size_mm, [300.0, 50.0, 800.0])
+    np.testing.assert_allclose(b.rotation, rpy_to_matrix(0.0, 0.0, 0.5))
+
+
+def test_obstacle_files_round_trip_and_bad_items_fail_in_one_line(tmp_path):
+    obstacles = (box("table", [500, 0, -20], [800, 1200, 40], rpy_to_matrix(0.1, 0.2, 0.3)),
+                 sphere("ball", [300, 200, 400], 50), halfspace("wall", [0, -400, 0], [0, 1, 0]))
+    path = tmp_path / "obstacles.json"
+    path.write_text(json.dumps({"obstacles": [o.to_dict() for o in obstacles]}))
+    back = read_obstacles(str(path))
+    for a, b in zip(obstacles, back):
+        assert a.kind == b.kind and a.name == b.name
+        np.testing.assert_allclose(a.center_mm, b.center_mm, atol=1e-6)
+        np.testing.assert_allclose(a.rotation, b.rotation, atol=1e-9)
+    with pytest.raises(InputError, match=r"obstacle 0: type = 'cube' is not one of box"):
+        parse_obstacles([{"type": "cube"}], "f.json")
+    with pytest.raises(InputError, match=r"radius_mm = -1 must be a positive number"):
+        parse_obstacles([{"type": "sphere", "center_mm": [0, 0, 0], "radius_mm": -1}], "f")
+    with pytest.raises(InputError, match=r"--obstacles: 'nothing' is neither"):
+        read_obstacles("nothing", load_robot("nico_right_arm"))
+
+
+def test_nicos_touchscreen_is_a_named_obstacle_set_and_the_touches_clear_it():
+    robot = load_robot("nico_right_arm")
+    (screen,) = read_obstacles("touchscreen", robot)
+    assert screen.kind == "halfspace"
+    from ikbench.core.targets import load_targets
+
+    targets = load_targets(None, robot)
+    touches = np.array(list(targets.touch_poses_deg.values()))
+    report = collision_model(robot).check(touches, (screen,))
+    assert not report.env_colliding.any() and not report.self_colliding.any()
+    assert math.isfinite(report.min_clearance_mm(env=True))
