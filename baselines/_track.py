@@ -105,6 +105,7 @@ def plan_track(robot, task, goals: Goals) -> TrackPlan:
     judged_from = (contract.judged_from(n) if contract is not None
                    else int(np.ceil(DEFAULT_POINTING_FROM * n)))
     q_start, q_touch = goals.q_start, goals.q_touch
+    assert q_start is not None and q_touch is not None  # a tracked line pins both poses
     s = np.linspace(0.0, 1.0, n + 1)[:, None]
     posture = q_start + s * (q_touch - q_start)
     directions = None

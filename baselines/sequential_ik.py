@@ -346,7 +346,7 @@ def dls_step(J, e, damping, q_rad, lower, upper, posture=None) -> np.ndarray:
     return dq
 
 
-def solve_point(residual: Residual, q0_rad, settings: DLSSettings, lower, upper,
+def solve_point(residual: Residual | WeightedResidual, q0_rad, settings: DLSSettings, lower, upper,
                 posture_rad=None) -> PointResult:
     """Solve one point by DLS from ``q0_rad`` (nv,) [rad]; returns the last iterate.
 

@@ -12,16 +12,14 @@ The public API, in a few names::
 
 Poses are in the robot's units (motor degrees for NICO; joint degrees, mm for prismatic
 joints, otherwise), reports in millimetres and degrees. Names are imported on first use, so
-``import ikbench`` is quick.
+``import ikbench`` is quick. The module paths of ikbench 0.1 (``ikbench.task``,
+``ikbench.compare``, ...) are plain modules here that give the moved module itself.
 """
 
 from __future__ import annotations
 
 import importlib
-import importlib.abc
-import importlib.util
-import sys
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import ikbench.paper  # noqa: F401  registers the paper's report sections (nothing heavy)
 
@@ -58,39 +56,10 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from ikbench.studies.run import run
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name in _EXPORTS:
         value = getattr(importlib.import_module(_EXPORTS[name]), name)
         globals()[name] = value
         return value
     raise AttributeError(f"module 'ikbench' has no attribute {name!r}")
 
-
-# ----- the module paths of ikbench 0.1 (before the layers), kept importable ----------------
-_MOVED = {
-    **{f"ikbench.{m}": f"ikbench.core.{m}" for m in (
-        "errors", "io", "provenance", "robot", "kinematics", "task", "shapes", "letters",
-        "targets", "losses", "metrics", "trajectory")},
-    **{f"ikbench.{m}": f"ikbench.studies.{m}" for m in (
-        "run", "report", "ablation", "sweep", "bench", "batch")},
-    "ikbench.compare": "ikbench.paper.comparison", "ikbench.reproduce": "ikbench.paper.reproduce",
-    "ikbench.commands": "ikbench.cli.commands",
-}
-
-
-class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-    """``import ikbench.task`` gives ``ikbench.core.task`` (the same module object)."""
-
-    def find_spec(self, fullname, path, target=None):
-        if fullname in _MOVED:
-            return importlib.util.spec_from_loader(fullname, self)
-        return None
-
-    def create_module(self, spec):
-        return importlib.import_module(_MOVED[spec.name])
-
-    def exec_module(self, module):
-        pass
-
-
-sys.meta_path.append(_MovedModules())

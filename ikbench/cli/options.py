@@ -9,6 +9,7 @@ chosen method is built (:func:`method_from_args`), so bad input fails before any
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from ikbench.core.errors import InputError
 
@@ -53,7 +54,7 @@ def targets_from_args(args, robot):
     return select_targets(args.targets, robot, args.only, args.steps)
 
 
-def add_method_options(parser: argparse.ArgumentParser, methods: dict[str, type]) -> None:
+def add_method_options(parser: argparse.ArgumentParser, methods: dict[str, Any]) -> None:
     """One argument group with every option of ``methods`` (shared names merged).
 
     Every option defaults to None, so an unset option keeps the method's own default.
@@ -88,7 +89,7 @@ def _given(args) -> dict[str, object]:
             if key.startswith("opt_") and value is not None}
 
 
-def reject_foreign_options(args, cls, methods: dict[str, type] | None = None) -> None:
+def reject_foreign_options(args, cls, methods: dict[str, Any] | None = None) -> None:
     """InputError if an option of another method was given (it would be silently ignored)."""
     own = {opt.flag for opt in cls.options()}
     for flag in _given(args):
@@ -99,7 +100,7 @@ def reject_foreign_options(args, cls, methods: dict[str, type] | None = None) ->
             raise InputError(f"--{flag} is an option of {by}, not of --method {cls.name}")
 
 
-def method_from_args(args, cls, methods: dict[str, type] | None = None, **fixed):
+def method_from_args(args, cls, methods: dict[str, Any] | None = None, **fixed):
     """Build ``cls`` from the options given (each converted by the method's own settings);
     ``fixed`` settings go on top. InputError for options of other methods."""
     reject_foreign_options(args, cls, methods)
@@ -118,7 +119,7 @@ def _convert(opt, value):
     return value
 
 
-def method_names_help(methods: dict[str, type]) -> str:
+def method_names_help(methods: dict[str, Any]) -> str:
     """``ours, ours-lm, sequential-ik`` (the available methods)."""
     return ", ".join(methods)
 

@@ -5,10 +5,15 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ikbench.core.errors import OutputError
+
+if TYPE_CHECKING:
+    import pandas as pd
+    from matplotlib.figure import Figure
 
 
 def _umask() -> int:
@@ -91,14 +96,15 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
     return Path(path)
 
 
-def atomic_write_csv(path: str | os.PathLike, frame, float_format: str | None = None) -> Path:
+def atomic_write_csv(path: str | os.PathLike, frame: pd.DataFrame,
+                     float_format: str | None = None) -> Path:
     """Write a pandas DataFrame as CSV (no index) atomically; return the path."""
     with atomic_path(path) as tmp:
         frame.to_csv(tmp, index=False, float_format=float_format)
     return Path(path)
 
 
-def atomic_savefig(path: str | os.PathLike, fig, dpi: int = 120) -> Path:
+def atomic_savefig(path: str | os.PathLike, fig: Figure, dpi: int = 120) -> Path:
     """Save a matplotlib figure as PNG atomically and close it; return the path."""
     import matplotlib.pyplot as plt
 
@@ -118,7 +124,8 @@ def check_folder_writable(path: str | os.PathLike) -> Path:
 
 
 @contextlib.contextmanager
-def staged_folder(path: str | os.PathLike, keep=None) -> Iterator[Path]:
+def staged_folder(path: str | os.PathLike,
+                  keep: Callable[[Path], bool] | None = None) -> Iterator[Path]:
     """Write a folder whole or not at all.
 
     Yields an empty temporary folder beside ``path``. When the block succeeds, the files of

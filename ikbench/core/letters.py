@@ -17,6 +17,7 @@ import math
 import string
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import InputError
 from ikbench.core.shapes import Curve, Plane
@@ -136,8 +137,8 @@ def letter_box(letter: str) -> tuple[float, float]:
     return float(u.min()), float(u.max())
 
 
-def letter_curve(letter: str, size_mm: float, centre_mm, u_axis=FRONTAL_U,
-                 v_axis=FRONTAL_V) -> Curve:
+def letter_curve(letter: str, size_mm: float, centre_mm: npt.ArrayLike,
+                 u_axis: npt.ArrayLike = FRONTAL_U, v_axis: npt.ArrayLike = FRONTAL_V) -> Curve:
     """A letter scaled to ``size_mm`` high with its box centred at ``centre_mm``.
 
     Args:

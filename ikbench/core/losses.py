@@ -14,11 +14,19 @@ v_i the unit pointing directions, p_i the poses, P^g_i / v^g_i the goals:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import InputError
+
+if TYPE_CHECKING:
+    import torch
+    from torch import Tensor
+
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
 
 TERMS = ("L0", "L1", "L2", "L3", "L4", "L5", "L6")
 #: The paper's weights c0..c6.
@@ -83,13 +91,13 @@ def format_weights(weights: dict) -> str:
     return ",".join(f"c{name[1:]}={weights.get(name, 0.0):g}" for name in TERMS)
 
 
-def check_weights(weights) -> None:
+def check_weights(weights: dict[str, float] | str | None) -> None:
     """InputError when ``weights`` is neither a dict, None nor valid ``--weights`` changes."""
     if not isinstance(weights, dict):
         parse_weights(weights)
 
 
-def resolve_weights(weights, task) -> dict[str, float]:
+def resolve_weights(weights: dict[str, float] | str | None, task: Task) -> dict[str, float]:
     """The complete weights for ``task``: a dict as given, or changes (a ``--weights`` string;
     None for none) on top of the task's own default weights, else the paper's."""
     if isinstance(weights, dict):
@@ -107,7 +115,8 @@ class LossGoals:
     end_pose_deg: Any           # (dof,) or None
 
     @classmethod
-    def from_task(cls, task, dtype, device="cpu") -> LossGoals:
+    def from_task(cls, task: Task, dtype: torch.dtype, device: str | torch.device = "cpu"
+                  ) -> LossGoals:
         import torch
 
         def tensor(x):
@@ -117,7 +126,8 @@ class LossGoals:
                    tensor(task.start_pose_deg), tensor(task.end_pose_deg))
 
 
-def loss_terms(points_cm, directions, poses_deg, goals: LossGoals) -> dict:
+def loss_terms(points_cm: Tensor, directions: Tensor, poses_deg: Tensor,
+               goals: LossGoals) -> dict[str, Tensor]:
     """The seven terms (scalar tensors) for one trajectory.
 
     Args:
@@ -140,7 +150,7 @@ def loss_terms(points_cm, directions, poses_deg, goals: LossGoals) -> dict:
     }
 
 
-def weighted_loss(terms: dict, weights: dict):
+def weighted_loss(terms: dict[str, Tensor], weights: dict[str, float]) -> Tensor:
     """L = sum_k c_k L_k over the terms whose weight is non-zero."""
     total = None
     for name in TERMS:
@@ -150,7 +160,8 @@ def weighted_loss(terms: dict, weights: dict):
     return total if total is not None else next(iter(terms.values())) * 0.0
 
 
-def objective(robot, task, poses_deg, weights: dict | None = None) -> tuple[float, dict]:
+def objective(robot: Robot, task: Task, poses_deg: npt.ArrayLike,
+              weights: dict[str, float] | None = None) -> tuple[float, dict[str, float]]:
     """Evaluate the loss of given poses (n+1, dof) [motor deg] in float64.
 
     The one reference evaluation every method's final loss is compared with.

@@ -10,13 +10,16 @@ trajectories is measured in seconds instead of hours. The tests check it against
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 #: Joint steps smaller than this [deg] do not count as a direction (as in metrics.smoothness).
 STILL_DEG = 1e-3
 
 
-def line_metrics(points_mm, directions, poses_deg, start_point_mm, end_point_mm,
-                 start_pose_deg, end_pose_deg) -> dict[str, np.ndarray]:
+def line_metrics(points_mm: npt.ArrayLike, directions: npt.ArrayLike, poses_deg: npt.ArrayLike,
+                 start_point_mm: npt.ArrayLike, end_point_mm: npt.ArrayLike,
+                 start_pose_deg: npt.ArrayLike, end_pose_deg: npt.ArrayLike
+                 ) -> dict[str, np.ndarray]:
     """Figures of B line trajectories against their lines from P^s to P^e.
 
     Args:
@@ -57,7 +60,7 @@ def line_metrics(points_mm, directions, poses_deg, start_point_mm, end_point_mm,
     }
 
 
-def smoothness(poses_deg) -> dict[str, np.ndarray]:
+def smoothness(poses_deg: npt.ArrayLike) -> dict[str, np.ndarray]:
     """:func:`ikbench.core.metrics.smoothness` of B trajectories (B, N, dof), (B,) each."""
     poses = np.asarray(poses_deg, dtype=float)
     d1 = np.diff(poses, axis=1)
@@ -71,7 +74,7 @@ def smoothness(poses_deg) -> dict[str, np.ndarray]:
     }
 
 
-def velocity_sign_changes(steps_deg) -> np.ndarray:
+def velocity_sign_changes(steps_deg: npt.ArrayLike) -> np.ndarray:
     """Sign changes of joint velocity summed over joints, ignoring steps below
     :data:`STILL_DEG`, for steps (B, n, dof); (B,) integers."""
     signs = np.sign(np.where(np.abs(steps_deg) < STILL_DEG, 0.0, steps_deg))

@@ -6,8 +6,10 @@ import datetime
 import os
 import platform
 import subprocess
+from collections.abc import Iterable
 from importlib import metadata
 from pathlib import Path
+from typing import Any
 
 #: Distributions whose versions are recorded (scipy: ours-lm's banded Cholesky, LAPACK pbsv).
 PACKAGES = ("ikbench", "torch", "pytorch-kinematics", "pin", "numpy", "scipy", "pandas",
@@ -56,12 +58,12 @@ def git_revision() -> str | None:
     return rev + ("-dirty" if changed else "")
 
 
-def library_versions(names) -> dict[str, str | None]:
+def library_versions(names: Iterable[str]) -> dict[str, str | None]:
     """PyPI distribution -> installed version (None when not installed)."""
     return {name: _version(name) for name in names}
 
 
-def provenance(extra=()) -> dict:
+def provenance(extra: Iterable[str] = ()) -> dict[str, Any]:
     """A JSON-able record of what produced a result.
 
     Args:

@@ -8,6 +8,7 @@ distance between two rotations is the geodesic angle |log(R_a^T R_b)| [rad], in 
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 #: Below this angle [rad] the series expansions of the maps are used.
 SMALL_ANGLE = 1e-6
@@ -23,7 +24,7 @@ def skew(v: np.ndarray) -> np.ndarray:
     return out
 
 
-def quat_wxyz_to_matrix(q) -> np.ndarray:
+def quat_wxyz_to_matrix(q: npt.ArrayLike) -> np.ndarray:
     """Rotation matrices (..., 3, 3) of quaternions (..., 4) (w, x, y, z); normalised first."""
     q = np.asarray(q, dtype=float)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
@@ -35,7 +36,7 @@ def quat_wxyz_to_matrix(q) -> np.ndarray:
     ], -2)
 
 
-def matrix_to_quat_wxyz(R) -> np.ndarray:
+def matrix_to_quat_wxyz(R: npt.ArrayLike) -> np.ndarray:
     """Unit quaternions (..., 4) (w, x, y, z) with w >= 0 of rotation matrices (..., 3, 3).
 
     Shepperd's method: the largest of w, x, y, z is computed from the diagonal, the others
@@ -63,7 +64,7 @@ def matrix_to_quat_wxyz(R) -> np.ndarray:
     return np.where(q[..., :1] < 0, -q, q)
 
 
-def so3_exp(phi) -> np.ndarray:
+def so3_exp(phi: npt.ArrayLike) -> np.ndarray:
     """Rotation matrices (..., 3, 3) of rotation vectors (..., 3) [rad] (Rodrigues)."""
     phi = np.asarray(phi, dtype=float)
     theta = np.linalg.norm(phi, axis=-1)[..., None, None]
@@ -75,7 +76,7 @@ def so3_exp(phi) -> np.ndarray:
     return np.eye(3) + a * K + b * (K @ K)
 
 
-def so3_log(R) -> np.ndarray:
+def so3_log(R: npt.ArrayLike) -> np.ndarray:
     """Rotation vectors (..., 3) [rad], angle in [0, pi], of rotation matrices (..., 3, 3).
 
     Accurate near 0 (series) and near pi (the axis from the symmetric part of R).
@@ -106,7 +107,7 @@ def _log_near_pi(R, theta, vee):
     return axis * (sign * theta)[:, None]
 
 
-def right_jacobian_inverse(phi) -> np.ndarray:
+def right_jacobian_inverse(phi: npt.ArrayLike) -> np.ndarray:
     """Jr^-1(phi) (..., 3, 3): log(exp(phi) exp(d)) = phi + Jr^-1(phi) d + O(|d|^2)."""
     phi = np.asarray(phi, dtype=float)
     theta = np.linalg.norm(phi, axis=-1)[..., None, None]
@@ -118,7 +119,7 @@ def right_jacobian_inverse(phi) -> np.ndarray:
     return np.eye(3) + 0.5 * K + coefficient * (K @ K)
 
 
-def geodesic_angle(R_a, R_b) -> np.ndarray:
+def geodesic_angle(R_a: npt.ArrayLike, R_b: npt.ArrayLike) -> np.ndarray:
     """The angles (...,) [rad] between rotations (..., 3, 3): |log(R_a^T R_b)|."""
     R_a, R_b = np.asarray(R_a, dtype=float), np.asarray(R_b, dtype=float)
     return np.linalg.norm(so3_log(R_a.swapaxes(-1, -2) @ R_b), axis=-1)

@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import InputError
 
@@ -44,7 +46,7 @@ class Plane:
         """u x v."""
         return np.cross(self.u, self.v)
 
-    def project(self, points_mm) -> np.ndarray:
+    def project(self, points_mm: npt.ArrayLike) -> np.ndarray:
         """In-plane coordinates (N, 2) [mm] of points (N, 3)."""
         rel = np.asarray(points_mm, dtype=float) - self.origin_mm
         return np.stack([rel @ self.u, rel @ self.v], axis=-1)
@@ -112,7 +114,7 @@ class Curve:
         pen_down = pen[index] | ~inside
         return Resampled(points, tangents, pen_down)
 
-    def distances_mm(self, points_mm) -> np.ndarray:
+    def distances_mm(self, points_mm: npt.ArrayLike) -> np.ndarray:
         """Distance [mm] of each point (N, 3) from the nearest pen-down stroke."""
         return distances_to_polylines_mm(points_mm, self.strokes_mm)
 
@@ -121,7 +123,8 @@ class Curve:
         return self.plane or best_fit_plane(np.concatenate(self.strokes_mm))
 
 
-def distances_to_polylines_mm(points_mm, polylines) -> np.ndarray:
+def distances_to_polylines_mm(points_mm: npt.ArrayLike,
+                              polylines: Iterable[np.ndarray]) -> np.ndarray:
     """Distance [mm] of each point (N, 3) from the nearest segment of any polyline (k_i, 3)."""
     points = np.asarray(points_mm, dtype=float).reshape(-1, 3)
     starts = np.concatenate([p[:-1] for p in polylines])        # (M, 3)
@@ -136,7 +139,7 @@ def distances_to_polylines_mm(points_mm, polylines) -> np.ndarray:
     return out
 
 
-def best_fit_plane(points_mm) -> Plane:
+def best_fit_plane(points_mm: npt.ArrayLike) -> Plane:
     """Plane through the centroid spanned by the two principal axes of the points.
 
     Signs are fixed so the result is deterministic: v has a non-negative z component (up
@@ -208,7 +211,7 @@ def _is_number(text: str) -> bool:
     return True
 
 
-def dedupe(points) -> np.ndarray:
+def dedupe(points: npt.ArrayLike) -> np.ndarray:
     """Drop points closer than :data:`DUPLICATE_TOLERANCE_MM` to their predecessor."""
     points = np.asarray(points, dtype=float)
     if len(points) < 2:
@@ -218,7 +221,7 @@ def dedupe(points) -> np.ndarray:
 
 
 # ----- splines -------------------------------------------------------------------------------
-def catmull_rom(points, samples_per_span: int = SPLINE_SAMPLES_PER_SPAN,
+def catmull_rom(points: npt.ArrayLike, samples_per_span: int = SPLINE_SAMPLES_PER_SPAN,
                 alpha: float = SPLINE_ALPHA) -> np.ndarray:
     """Dense Catmull-Rom spline (m, 3) through control points (k, 3), k >= 2.
 

@@ -209,7 +209,8 @@ def load_targets(path: str | Path | None = None, robot: Robot | None = None) -> 
     return replace(parse_targets(spec, robot, source), shipped=shipped)
 
 
-def select_targets(targets: str | Path | Targets | None, robot: Robot, only=None,
+def select_targets(targets: str | Path | Targets | None, robot: Robot,
+                   only: str | list[str] | None = None,
                    steps: int | None = None) -> Targets:
     """``targets`` (a file, :class:`Targets` or None for the robot's own) with the trajectory
     ids ``only`` (``"1,3"``) and ``steps`` segments (None keeps the file's)."""

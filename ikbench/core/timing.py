@@ -29,10 +29,17 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import InputError
+
+if TYPE_CHECKING:
+    from scipy.interpolate import CubicSpline
+
+    from ikbench.core.robot import Robot
 
 #: ``--timing`` values -> what they do.
 TIMINGS = {
@@ -127,7 +134,7 @@ class TimedPath:
         """How the motion runs between solved poses, in words."""
         return INTERPOLATION[self.timing]
 
-    def sample(self, times_s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def sample(self, times_s: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q, qd, qdd), each (m, dof), at times ``times_s`` (m,) [s], clipped to [0, T]."""
         t = np.clip(np.asarray(times_s, dtype=float), 0.0, self.duration_s)
         return self.sampler(t)
@@ -142,8 +149,8 @@ class TimedPath:
         return k if self.times_s[k] - t_s < t_s - self.times_s[k - 1] else k - 1
 
 
-def retime(robot, poses, timing: str, *, duration_s: float = 2.0,
-           limits: Limits | None = None, tip_mm=None) -> TimedPath:
+def retime(robot: Robot, poses: npt.ArrayLike, timing: str, *, duration_s: float = 2.0,
+           limits: Limits | None = None, tip_mm: npt.ArrayLike | None = None) -> TimedPath:
     """Time a path.
 
     Args:
@@ -206,7 +213,7 @@ def path_parameter(tip_mm: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(chord / chord.mean())])
 
 
-def spline(knots: np.ndarray, poses: np.ndarray):
+def spline(knots: np.ndarray, poses: np.ndarray) -> CubicSpline:
     """The cubic spline (not-a-knot) through ``poses`` at ``knots`` (scipy CubicSpline)."""
     from scipy.interpolate import CubicSpline
 
@@ -214,7 +221,7 @@ def spline(knots: np.ndarray, poses: np.ndarray):
 
 
 # ----- minimum jerk ----------------------------------------------------------------------------
-def min_jerk_profile(tau) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def min_jerk_profile(tau: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Minimum-jerk progress u(tau) = 10 tau^3 - 15 tau^4 + 6 tau^5 and its first two
     derivatives in tau, for tau in [0, 1]."""
     tau = np.clip(np.asarray(tau, dtype=float), 0.0, 1.0)
@@ -224,7 +231,7 @@ def min_jerk_profile(tau) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return u, du, ddu
 
 
-def min_jerk_inverse(u) -> np.ndarray:
+def min_jerk_inverse(u: npt.ArrayLike) -> np.ndarray:
     """tau in [0, 1] with ``min_jerk_profile(tau)[0] == u`` (bisection to 1e-15)."""
     u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
     low, high = np.zeros_like(u), np.ones_like(u)
@@ -235,7 +242,8 @@ def min_jerk_inverse(u) -> np.ndarray:
     return 0.5 * (low + high)
 
 
-def min_jerk(poses: np.ndarray, tip_mm: np.ndarray, duration_s: float, robot) -> TimedPath:
+def min_jerk(poses: np.ndarray, tip_mm: np.ndarray, duration_s: float, robot: Robot
+             ) -> TimedPath:
     """The fingertip's arc length along the motion on the minimum-jerk profile over
     ``duration_s``; the joints along :func:`spline`.
 
@@ -280,7 +288,8 @@ def min_jerk(poses: np.ndarray, tip_mm: np.ndarray, duration_s: float, robot) ->
 
 
 # ----- measures --------------------------------------------------------------------------------
-def finite_differences(times_s, poses) -> tuple[np.ndarray, np.ndarray]:
+def finite_differences(times_s: npt.ArrayLike, poses: npt.ArrayLike
+                       ) -> tuple[np.ndarray, np.ndarray]:
     """Velocities (n, dof) and accelerations (n+1, dof) of samples by finite differences.
 
     Velocity of segment k: ``(q[k+1] - q[k]) / (t[k+1] - t[k])``. Acceleration at sample k:
@@ -297,7 +306,8 @@ def finite_differences(times_s, poses) -> tuple[np.ndarray, np.ndarray]:
     return v, np.diff(padded, axis=0) / half[:, None]
 
 
-def limit_use(times_s, poses, limits: Limits) -> tuple[np.ndarray, np.ndarray]:
+def limit_use(times_s: npt.ArrayLike, poses: npt.ArrayLike, limits: Limits
+              ) -> tuple[np.ndarray, np.ndarray]:
     """(dof,) peak |velocity| / limit and (dof,) peak |acceleration| / limit of samples, by
     :func:`finite_differences` (1.0: at the limit)."""
     v, a = finite_differences(times_s, poses)
@@ -305,7 +315,7 @@ def limit_use(times_s, poses, limits: Limits) -> tuple[np.ndarray, np.ndarray]:
             np.abs(a).max(axis=0) / limits.acceleration)
 
 
-def constant_duration_within(poses, limits: Limits) -> float:
+def constant_duration_within(poses: npt.ArrayLike, limits: Limits) -> float:
     """The shortest T [s] whose ``constant`` timing keeps :func:`finite_differences` within
     ``limits`` (the fair comparison for ``topp``: the same limits, the same measure)."""
     q = np.asarray(poses, dtype=float)
@@ -317,7 +327,8 @@ def constant_duration_within(poses, limits: Limits) -> float:
     return float(max(by_speed, by_acceleration))
 
 
-def fingertip_deviation_mm(robot, samples, solved_tip_mm) -> float:
+def fingertip_deviation_mm(robot: Robot, samples: npt.ArrayLike, solved_tip_mm: np.ndarray
+                           ) -> float:
     """Largest distance [mm] of the fingertip at ``samples`` (m, dof) [pose units] from the
     solved path: the polyline through ``solved_tip_mm`` (n+1, 3)."""
     points = np.asarray(robot.fk(np.asarray(samples, dtype=float)).point_mm, dtype=float)

@@ -23,31 +23,36 @@ import json
 import math
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import InputError
 from ikbench.core.timing import Limits
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
 
 #: Time [s] to reach full speed assumed for a joint without a stated acceleration limit.
 DEFAULT_ACCELERATION_TIME_S = 0.5
 LIMITS_SUFFIX = ".limits.json"
 
 
-def urdf_units_per_pose_unit(robot) -> np.ndarray:
+def urdf_units_per_pose_unit(robot: Robot) -> np.ndarray:
     """(dof,) signed factor from a rate in pose units to the same rate in URDF units
     (``scale * si``, the derivative of the robot's map)."""
     si = np.array([1e-3 if t == "prismatic" else math.pi / 180.0 for t in robot.joint_types])
     return np.asarray(robot.scale, dtype=float) * si
 
 
-def pose_units_per_urdf_unit(robot) -> np.ndarray:
+def pose_units_per_urdf_unit(robot: Robot) -> np.ndarray:
     """(dof,) pose units per URDF unit of each joint's rate (deg per rad / |scale|, or mm per
     m for prismatic joints)."""
     return 1.0 / np.abs(urdf_units_per_pose_unit(robot))
 
 
-def urdf_velocity_limits(robot) -> np.ndarray:
+def urdf_velocity_limits(robot: Robot) -> np.ndarray:
     """(dof,) the URDF's joint velocity limits [URDF units/s]; NaN where a joint has none."""
     try:
         root = ET.parse(robot.urdf_path).getroot()
@@ -66,7 +71,7 @@ def urdf_velocity_limits(robot) -> np.ndarray:
     return np.array(values)
 
 
-def limits_file(robot) -> Path | None:
+def limits_file(robot: Robot) -> Path | None:
     """``<config stem>.limits.json`` next to the robot's config, if there is one."""
     config = robot.config.get("config_path")
     if not config:
@@ -76,7 +81,7 @@ def limits_file(robot) -> Path | None:
     return path if path.is_file() else None
 
 
-def urdf_limits(robot, velocity=None) -> Limits:
+def urdf_limits(robot: Robot, velocity: npt.ArrayLike | None = None) -> Limits:
     """The robot's limits from its URDF and limits file (see the module doc) [pose units].
 
     Args:
@@ -127,7 +132,8 @@ def parse_limit_option(text: str | None, dof: int, option: str) -> np.ndarray | 
     return np.broadcast_to(values, (dof,)).astype(float)
 
 
-def with_overrides(limits: Limits, velocity=None, acceleration=None) -> Limits:
+def with_overrides(limits: Limits, velocity: npt.ArrayLike | None = None,
+                   acceleration: npt.ArrayLike | None = None) -> Limits:
     """``limits`` with the velocity and/or acceleration limits replaced where given."""
     source = limits.source
     if velocity is not None:

@@ -16,6 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError
@@ -35,8 +36,9 @@ def trajectory_columns(robot: Robot, quaternion: bool = False) -> list[str]:
             *(QUATERNION_COLUMNS if quaternion else [])]
 
 
-def trajectory_frame(robot: Robot, poses_motor_deg, duration_s: float = DEFAULT_DURATION_S,
-                     quaternion: bool = False):
+def trajectory_frame(robot: Robot, poses_motor_deg: npt.ArrayLike,
+                     duration_s: float = DEFAULT_DURATION_S,
+                     quaternion: bool = False) -> pd.DataFrame:
     """Build the trajectory table for poses (n+1, dof) [motor deg]; returns a DataFrame
     (``quaternion``: add the end frame's orientation, for pose paths)."""
     poses = np.asarray(poses_motor_deg, dtype=float)
@@ -56,7 +58,7 @@ def trajectory_frame(robot: Robot, poses_motor_deg, duration_s: float = DEFAULT_
     return frame
 
 
-def write_trajectory_csv(path, robot: Robot, poses_motor_deg,
+def write_trajectory_csv(path: str | Path, robot: Robot, poses_motor_deg: npt.ArrayLike,
                          duration_s: float = DEFAULT_DURATION_S,
                          quaternion: bool = False) -> Path:
     """Write a trajectory CSV atomically; return its path."""
@@ -64,7 +66,7 @@ def write_trajectory_csv(path, robot: Robot, poses_motor_deg,
                                                    quaternion), float_format="%.10g")
 
 
-def read_trajectory_csv(path, robot: Robot | None = None) -> pd.DataFrame:
+def read_trajectory_csv(path: str | Path, robot: Robot | None = None) -> pd.DataFrame:
     """Read and validate a trajectory CSV; return the whole table.
 
     Raises:
@@ -108,7 +110,7 @@ def _cell_as_written(path, row: int, column: str) -> str:
     return value if value else "empty"
 
 
-def read_trajectory_poses(path, robot: Robot | None = None) -> np.ndarray:
+def read_trajectory_poses(path: str | Path, robot: Robot | None = None) -> np.ndarray:
     """Poses (n+1, dof) [motor deg] of a trajectory CSV (validated)."""
     robot = robot or load_robot()
     return read_trajectory_csv(path, robot)[list(robot.joint_names)].to_numpy(dtype=float)

@@ -32,6 +32,7 @@ def describe_sdk_exception(exc: Exception) -> tuple[bool, str]:
     goes away (USB adapter unplugged, an emulator's pty closed) that raises ``termios.error``,
     which is not an OSError. Anything else the SDK raises is named by its type.
     """
+    termios_error: type[Exception] | tuple[()]
     try:
         import termios
 
@@ -104,7 +105,7 @@ class Bus:
             raise CommunicationError(f"{what} on {label}: {self._describe(result)}",
                                      timeout=result == self.sdk.COMM_RX_TIMEOUT)
         if error:
-            raise CommunicationError(f"{what}: motor {self.config.label(index)} reports error "
+            raise CommunicationError(f"{what}: {label} reports error "
                                      f"{describe_error(error)} (status error byte 0x{error:02x})")
         return values[0] if values else None
 

@@ -20,9 +20,11 @@ import select
 import threading
 import time
 import tty
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError
@@ -201,8 +203,9 @@ class Emulator:
             ``time.monotonic``).
     """
 
-    def __init__(self, config: MotorConfig, pose_motor_deg=None, *, missing_ids=(),
-                 faults=(), clock=time.monotonic):
+    def __init__(self, config: MotorConfig, pose_motor_deg: npt.ArrayLike | None = None, *,
+                 missing_ids: Iterable[int] = (), faults: Iterable[Fault] = (),
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.config = config
         self._clock = clock
         pose = np.zeros(len(config.motors)) if pose_motor_deg is None else pose_motor_deg
@@ -217,7 +220,7 @@ class Emulator:
         self.port: str | None = None
         self.t_start = now
         self._lock = threading.Lock()
-        self._thread = None
+        self._thread: threading.Thread | None = None
 
     # ----- lifecycle ----------------------------------------------------------------------
     def start(self) -> str:
@@ -226,9 +229,9 @@ class Emulator:
         tty.setraw(self._slave)  # 8-bit clean, no echo, even before a client configures it
         self.port = os.ttyname(self._slave)
         self._stop_r, self._stop_w = os.pipe()
-        self._thread = threading.Thread(target=self._serve, name="dynamixel-emulator",
-                                        daemon=True)
-        self._thread.start()
+        thread = self._thread = threading.Thread(target=self._serve, name="dynamixel-emulator",
+                                                 daemon=True)
+        thread.start()
         return self.port
 
     def close(self) -> None:
@@ -336,11 +339,11 @@ class Emulator:
                     error |= fault.error_bits
                     note = f"fault: error bits 0x{fault.error_bits:02x}"
                 else:
-                    reply = bytearray(p1.packet(servo.motor.id, error, params))
-                    reply[-1] ^= 0x5A
-                    self._log(now, "tx", servo.motor.id, "STATUS", bytes(reply),
+                    corrupted = bytearray(p1.packet(servo.motor.id, error, params))
+                    corrupted[-1] ^= 0x5A
+                    self._log(now, "tx", servo.motor.id, "STATUS", bytes(corrupted),
                               "fault: corrupted checksum")
-                    return bytes(reply)
+                    return bytes(corrupted)
                 break
         reply = p1.packet(servo.motor.id, error, params)
         self._log(now, "tx", servo.motor.id, "STATUS", reply, note)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,6 +62,8 @@ class ExecutionStopped(HardwareError):
     """The move was stopped part-way (communication or other failure); the arm holds its
     position. ``result`` is the :class:`ExecutionResult` so far."""
 
+    result: ExecutionResult  # set by the executor before raising
+
 
 class ExecutionInterrupted(ExecutionStopped):
     """The move was stopped by the user (Ctrl-C)."""
@@ -105,7 +108,8 @@ def execute(plan: MotionPlan, port_name: str, *, approach: bool = False,
             approach_speed_deg_s: float = DEFAULT_APPROACH_SPEED_DEG_S,
             start_tolerance_deg: float = DEFAULT_START_TOLERANCE_DEG, dry_run: bool = False,
             record_rate_hz: float = 0.0, stop_event: threading.Event | None = None,
-            log=print, clock: Clock | None = None) -> ExecutionResult:
+            log: Callable[[str], object] = print, clock: Clock | None = None
+            ) -> ExecutionResult:
     """Play ``plan`` on the servos at ``port_name``.
 
     Args:
@@ -149,7 +153,7 @@ class _Run:
         self.read_times: list[float] = []
         self.rows: list[tuple] = []
         self.moving = False
-        self.t0 = None
+        self.t0: float | None = None
         self.result: ExecutionResult | None = None
 
     def run(self, approach, approach_speed, tolerance, dry_run) -> ExecutionResult:
@@ -260,9 +264,9 @@ class _Run:
             self.log(f"playing {plan.n_segments} segments of {segment_s * 1000:.3g} ms or more "
                      f"(--timing {plan.timing}, T = {plan.duration_s:.4g} s)")
         self.moving = True
-        self.t0 = self.clock.now()
+        t0 = self.t0 = self.clock.now()
         for k in range(plan.n_segments):
-            due = self.t0 + times_s[k]
+            due = t0 + times_s[k]
             if self._wait(max(0.0, due - self.clock.now())):
                 raise ExecutionInterrupted("interrupted")
             result.max_late_s = max(result.max_late_s, self.clock.now() - due)
@@ -270,13 +274,14 @@ class _Run:
                                 {i: plan.speed_raw[k, i] for i in dof})
             result.segments_sent = k + 1
             if self.record_period:
-                self._sample_between_segments(self.t0 + times_s[k + 1])
-        if self._wait(max(0.0, self.t0 + plan.duration_s - self.clock.now())):
+                self._sample_between_segments(t0 + times_s[k + 1])
+        if self._wait(max(0.0, t0 + plan.duration_s - self.clock.now())):
             raise ExecutionInterrupted("interrupted")
 
     def _sample_between_segments(self, next_due: float) -> None:
         """Read the present pose if a sample is due and it fits before ``next_due``."""
         now = self.clock.now()
+        assert self.t0 is not None, "sampled before the move started"
         elapsed = now - self.t0
         typical_s = float(np.median(self.read_times)) if self.read_times else 0.0
         early_s = 0.25 * self.plan.segment_s  # samples follow segment starts, give or take
@@ -285,7 +290,7 @@ class _Run:
         pose = self.config.raw_to_poses(self.bus.read_all_raw())
         self.read_times.append(self.clock.now() - now)
         self._sample(pose, "move", now)
-        self.next_sample = elapsed + self.record_period
+        self.next_sample = elapsed + (self.record_period or 0.0)  # set when sampling
 
     def _settle(self, result: ExecutionResult) -> None:
         """Read the present pose until it is within ``SETTLE_TOLERANCE_DEG`` of the last pose,
@@ -304,6 +309,7 @@ class _Run:
                 raise ExecutionInterrupted(SETTLE_INTERRUPTED)
             if result.settled or now > deadline:
                 break
+        assert self.t0 is not None, "settled before the move started"
         result.duration_s = self.clock.now() - self.t0
         self.moving = False
 
@@ -325,6 +331,7 @@ class _Run:
             reason = str(exc)
         else:
             reason = f"unexpected {type(exc).__name__}: {exc}"
+        assert self.result is not None, "moving without a result"
         sent = self.result.segments_sent
         where = (f"sent {sent} of {self.plan.n_segments} segments"
                  + (f" (last: segment {sent - 1})" if sent else ""))

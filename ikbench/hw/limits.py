@@ -5,10 +5,14 @@ its URDF and limits file; ``--max-velocity`` / ``--max-acceleration`` override t
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ikbench.core.timing import Limits
 from ikbench.core.timing_limits import parse_limit_option, urdf_limits, with_overrides
 from ikbench.hw.motors import MotorConfig, load_motor_config
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
 
 
 def motor_limits(config: MotorConfig) -> Limits:
@@ -17,7 +21,7 @@ def motor_limits(config: MotorConfig) -> Limits:
                   f"{Path(config.source).name} (max_speed_deg_s, max_acceleration_deg_s2)")
 
 
-def timing_limits(robot, config: MotorConfig | None = None, max_velocity: str | None = None,
+def timing_limits(robot: Robot, config: MotorConfig | None = None, max_velocity: str | None = None,
                   max_acceleration: str | None = None) -> Limits:
     """The robot's limits [pose units/s, /s^2].
 

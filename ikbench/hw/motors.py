@@ -20,8 +20,10 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import InputError
 from ikbench.core.robot import Robot, load_robot
@@ -104,16 +106,16 @@ class Motor:
         """Model number the motor reports at address 0 (None: not checked)."""
         return MODELS[self.model][0]
 
-    def deg_to_raw_unclipped(self, q_motor_deg):
+    def deg_to_raw_unclipped(self, q_motor_deg: npt.ArrayLike) -> np.ndarray:
         """Goal register value(s) for angle(s) [motor deg], rounded, not clipped."""
         steps = self.sign * (np.asarray(q_motor_deg, dtype=float) + self.offset_deg) / DEG_PER_STEP
         return np.rint(CENTER_RAW + steps).astype(np.int64)
 
-    def deg_to_raw(self, q_motor_deg):
+    def deg_to_raw(self, q_motor_deg: npt.ArrayLike) -> np.ndarray:
         """Goal register value(s) in 0..4095 (+180 deg maps to 4096, sent as 4095)."""
         return np.clip(self.deg_to_raw_unclipped(q_motor_deg), 0, RAW_MAX)
 
-    def raw_to_deg(self, raw):
+    def raw_to_deg(self, raw: npt.ArrayLike) -> np.ndarray:
         """Angle(s) [motor deg] of register value(s)."""
         return self.sign * (np.asarray(raw, dtype=float) - CENTER_RAW) * DEG_PER_STEP \
             - self.offset_deg
@@ -174,24 +176,24 @@ class MotorConfig:
                 return motor
         raise InputError(f"motor id {motor_id} is not in {self.source}; ids: {list(self.ids)}")
 
-    def poses_to_raw(self, poses_motor_deg) -> np.ndarray:
+    def poses_to_raw(self, poses_motor_deg: npt.ArrayLike) -> np.ndarray:
         """Goal register values (..., dof) for poses (..., dof) [motor deg]."""
         poses = np.asarray(poses_motor_deg, dtype=float)
         return np.stack([m.deg_to_raw(poses[..., i]) for i, m in enumerate(self.motors)], -1)
 
-    def raw_to_poses(self, raw) -> np.ndarray:
+    def raw_to_poses(self, raw: npt.ArrayLike) -> np.ndarray:
         """Poses (..., dof) [motor deg] for register values (..., dof)."""
         raw = np.asarray(raw)
         return np.stack([m.raw_to_deg(raw[..., i]) for i, m in enumerate(self.motors)], -1)
 
-    def outside_limits(self, poses_motor_deg) -> np.ndarray:
+    def outside_limits(self, poses_motor_deg: npt.ArrayLike) -> np.ndarray:
         """Boolean mask (..., dof): angle outside its motor's angle limits."""
         poses = np.asarray(poses_motor_deg, dtype=float)
         return (poses < self.lower_deg - LIMIT_TOLERANCE_DEG) | (
             poses > self.upper_deg + LIMIT_TOLERANCE_DEG)
 
 
-def speed_to_raw(speed_deg_s) -> np.ndarray:
+def speed_to_raw(speed_deg_s: npt.ArrayLike) -> np.ndarray:
     """Moving-speed register values for speeds [deg/s]: rounded up, clamped to 1..1023.
 
     Rounded up so that a joint finishes its segment in time (at most one unit, 0.684 deg/s,
@@ -203,7 +205,7 @@ def speed_to_raw(speed_deg_s) -> np.ndarray:
     return np.clip(raw, SPEED_RAW_MIN, SPEED_RAW_MAX).astype(np.int64)
 
 
-def raw_to_speed(raw) -> np.ndarray:
+def raw_to_speed(raw: npt.ArrayLike) -> np.ndarray:
     """Speeds [deg/s] of moving-speed register values (0 is "full speed": returned as 0)."""
     return np.asarray(raw, dtype=float) * SPEED_UNIT_DEG_S
 
@@ -241,7 +243,7 @@ def load_motor_config(path: str | Path | None = None, robot: Robot | None = None
     return parse_motor_config(spec, robot, str(path))
 
 
-def parse_motor_config(spec, robot: Robot, source: str) -> MotorConfig:
+def parse_motor_config(spec: Any, robot: Robot, source: str) -> MotorConfig:
     """Validate a motor config (the parsed JSON); see :func:`load_motor_config`."""
     if not isinstance(spec, dict) or not isinstance(spec.get("motors"), dict):
         raise InputError(f"{source}: needs an object with a \"motors\" object keyed by joint name")

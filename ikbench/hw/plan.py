@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError
@@ -21,6 +23,12 @@ from ikbench.core.robot import load_robot
 from ikbench.core.timing import TimedPath, retime
 from ikbench.core.trajectory import read_trajectory_csv
 from ikbench.hw.motors import MotorConfig, speed_to_raw
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from ikbench.core.robot import Robot
+    from ikbench.core.timing import Limits
 
 #: Shortest segment [s] the executor accepts (one sync write takes ~0.5 ms at 1 Mbaud).
 MIN_SEGMENT_S = 0.005
@@ -78,7 +86,7 @@ class MotionPlan:
     @property
     def flagged(self) -> np.ndarray:
         """(n,) True where a segment exceeds a speed limit or leaves the angle limits."""
-        return self.over_speed.any(axis=1) | self.out_of_limits.any(axis=1)
+        return np.asarray(self.over_speed.any(axis=1) | self.out_of_limits.any(axis=1))
 
     def table(self) -> pd.DataFrame:
         """The segment table: one row per segment, speeds in motor deg/s, flags as text."""
@@ -135,7 +143,7 @@ class MotionPlan:
             )
 
 
-def make_plan(poses_motor_deg, config: MotorConfig, duration_s: float = 2.0,
+def make_plan(poses_motor_deg: npt.ArrayLike, config: MotorConfig, duration_s: float = 2.0,
               timed: TimedPath | None = None) -> MotionPlan:
     """Plan the segments of a trajectory.
 
@@ -197,9 +205,10 @@ def _retimed_plan(poses: np.ndarray, config: MotorConfig, timed: TimedPath) -> M
     )
 
 
-def plan_trajectory_file(path, config: MotorConfig, duration_s: float = 2.0,
-                         strict: bool = True, robot=None, timing: str = "constant",
-                         limits=None) -> tuple[MotionPlan, str | None]:
+def plan_trajectory_file(path: str | Path, config: MotorConfig, duration_s: float = 2.0,
+                         strict: bool = True, robot: Robot | None = None,
+                         timing: str = "constant", limits: Limits | None = None
+                         ) -> tuple[MotionPlan, str | None]:
     """Read a trajectory CSV and plan it; return the plan and a note when the file's own
     ``time_s`` column ends at another duration than ``duration_s`` (else None).
 

@@ -11,6 +11,7 @@ packets and builds status packets itself::
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 HEADER = b"\xff\xff"
@@ -61,7 +62,7 @@ class Packet:
 class PacketReader:
     """Split a byte stream into packets, skipping noise; keeps partial packets between feeds."""
 
-    def __init__(self, clock=time.monotonic):
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
         self._buffer = bytearray()
         self._clock = clock
         self._last_feed = clock()
@@ -73,7 +74,7 @@ class PacketReader:
             self._buffer.clear()
         self._last_feed = now
         self._buffer.extend(data)
-        packets = []
+        packets: list[Packet] = []
         while True:
             start = self._buffer.find(HEADER)
             if start < 0:

@@ -5,7 +5,8 @@ A method's options live in one place, its settings dataclass: each field declare
 from these fields (:func:`method_options`). Two methods may share an option name (``--weights``
 for ``ours`` and ``ours-lm``); the CLI then shows one option whose help names both.
 
-A method class sets ``name``, ``description``, ``Settings`` and ``solve``; optionally
+A method class sets ``name``, ``description``, ``Settings`` and ``solve`` (the one abstract
+method of :class:`Method`, an :class:`abc.ABC`); optionally
 ``solve_many`` (batched methods), ``check_tasks`` (refuse before any solve) and ``prepare``
 (untimed set-up, e.g. building kinematics). Methods that come from another library say so
 in ``library`` (its PyPI distribution, whose version is recorded with results).
@@ -13,16 +14,21 @@ in ``library`` (its PyPI distribution, whose version is recorded with results).
 
 from __future__ import annotations
 
+import abc
 import copy
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
 from ikbench.core.errors import InputError
+
+if TYPE_CHECKING:  # the robot module imports pinocchio: for type checkers only
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
 
 #: Metadata key of the option description in a settings field.
 OPTION = "ikbench_option"
@@ -44,13 +50,13 @@ class OptionSpec:
     help: str
     unit: str | None = None
     flag: str | None = None
-    choices: tuple | None = None
-    type: Callable | None = None
+    choices: tuple[Any, ...] | None = None
+    type: Callable[[str], Any] | None = None
     show_default: str | None = None
 
 
 def option(default: Any, *, help: str, unit: str | None = None, flag: str | None = None,
-           choices: Sequence | None = None, type: Callable | None = None,
+           choices: Sequence[Any] | None = None, type: Callable[[str], Any] | None = None,
            show_default: str | None = None) -> Any:
     """A settings field that is also a CLI option (see :class:`OptionSpec`).
 
@@ -78,11 +84,13 @@ class MethodOption:
         return self.flag.replace("-", "_")
 
     def help_text(self) -> str:
+        """The option's ``--help`` line: help, unit and default."""
         unit = f" [{self.spec.unit}]" if self.spec.unit else ""
         shown = self.spec.show_default if self.spec.show_default is not None else self.default
         return f"{self.spec.help}{unit} (default {shown})"
 
-    def value_type(self) -> Callable:
+    def value_type(self) -> Callable[[str], Any]:
+        """What turns the command-line text into the value (argparse ``type``)."""
         if self.spec.type is not None:
             return self.spec.type
         if isinstance(self.default, bool) or self.default is None:
@@ -92,9 +100,9 @@ class MethodOption:
         return str
 
 
-def method_options(settings_class) -> list[MethodOption]:
+def method_options(settings_class: type) -> list[MethodOption]:
     """The CLI options declared by a settings dataclass, in field order."""
-    out = []
+    out: list[MethodOption] = []
     for f in dataclasses.fields(settings_class):
         spec = f.metadata.get(OPTION)
         if spec is None:
@@ -109,7 +117,7 @@ def method_options(settings_class) -> list[MethodOption]:
     return out
 
 
-def flag_of(settings, field_name: str) -> str:
+def flag_of(settings: Any, field_name: str) -> str:
     """``--lm-max-iterations`` for the field ``max_iterations`` of ``settings``."""
     for opt in method_options(type(settings)):
         if opt.field == field_name:
@@ -117,7 +125,7 @@ def flag_of(settings, field_name: str) -> str:
     return field_name
 
 
-def check_choice(settings, field_name: str, allowed) -> None:
+def check_choice(settings: Any, field_name: str, allowed: Collection[Any]) -> None:
     """InputError naming the flag when ``settings.<field_name>`` is not in ``allowed``."""
     value = getattr(settings, field_name)
     if value not in allowed:
@@ -125,7 +133,7 @@ def check_choice(settings, field_name: str, allowed) -> None:
                          f"{', '.join(map(str, allowed))}")
 
 
-def check_positive(settings, *field_names: str, integer: bool = False) -> None:
+def check_positive(settings: Any, *field_names: str, integer: bool = False) -> None:
     """InputError naming the flag when a field is not a positive (integer) number."""
     for name in field_names:
         value = getattr(settings, name)
@@ -138,7 +146,7 @@ def check_positive(settings, *field_names: str, integer: bool = False) -> None:
             raise InputError(f"{flag_of(settings, name)}: {value!r} must be {kind}")
 
 
-def check_seed(settings, field_name: str = "seed") -> None:
+def check_seed(settings: Any, field_name: str = "seed") -> None:
     """InputError naming the flag when ``settings.<field_name>`` is not an integer in
     [0, 2^63) (what numpy's and torch's generators take)."""
     value = getattr(settings, field_name)
@@ -166,7 +174,7 @@ class Solution:
     duration_s: float
     loss: float | None
     converged: bool = True
-    info: dict = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -174,7 +182,20 @@ class NoSettings:
     """Settings of a method without options."""
 
 
-class Method:
+class Progress(Protocol):
+    """Where a method reports its progress (the studies pass ``harness.Progress``)."""
+
+    def start(self, task: Task, index: int, total: int) -> None:
+        """Task ``index`` of ``total`` (from 0) starts."""
+
+    def update(self, task: Task, iteration: int, loss: float) -> None:
+        """An iteration of the task's solve."""
+
+    def done(self, task: Task, solution: Solution) -> None:
+        """The task's solve finished."""
+
+
+class Method(abc.ABC):
     """Base class of every method (see the module docstring).
 
     Class attributes:
@@ -203,7 +224,7 @@ class Method:
     batched: ClassVar[bool] = False
     bench_rounds: ClassVar[int] = 5
 
-    def __init__(self, settings=None, **options):
+    def __init__(self, settings: Any = None, **options: Any) -> None:
         """Build from a settings object or from its fields as keywords."""
         if settings is not None and options:
             raise TypeError("give settings or keyword options, not both")
@@ -224,7 +245,7 @@ class Method:
         return any(f.name == "weights" for f in dataclasses.fields(cls.Settings))
 
     @classmethod
-    def from_values(cls, values: dict) -> Method:
+    def from_values(cls, values: dict[str, Any]) -> Method:
         """Build from CLI values keyed by flag (``{"lm-max-iterations": 50}``); None = unset."""
         kwargs = {}
         for opt in cls.options():
@@ -233,11 +254,11 @@ class Method:
                 kwargs[opt.field] = value
         return cls(**kwargs)
 
-    def settings_for(self, task):
+    def settings_for(self, task: Task) -> Any:
         """The settings used for one task (default: the method's own)."""
         return self.settings
 
-    def prepare(self, robot) -> None:
+    def prepare(self, robot: Robot) -> None:  # noqa: B027  (an optional hook, empty by default)
         """Untimed set-up before the first solve (e.g. build the kinematics)."""
 
     def fixed_poses(self) -> frozenset[str]:
@@ -262,7 +283,7 @@ class Method:
             parts.append(f"weights {weights}" if weights else "the paper's weights")
         return ", ".join(parts)
 
-    def check_tasks(self, robot, tasks) -> None:
+    def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
         """Raise InputError before any solve if a task cannot be solved by this method."""
         for task in tasks:
             if getattr(task, "goal_rotations", None) is not None and not self.supports_frames:
@@ -284,10 +305,12 @@ class Method:
                         "task has no end pose (for letters, polylines and splines use "
                         f"{' or '.join(planners) or 'a method that plans the whole path'})")
 
-    def solve(self, robot, task, progress=None) -> Solution:  # pragma: no cover - abstract
-        raise NotImplementedError
+    @abc.abstractmethod
+    def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
+        """Solve one task: the poses and the method's own figures."""
 
-    def solve_many(self, robot, tasks, progress=None) -> list[Solution]:
+    def solve_many(self, robot: Robot, tasks: Sequence[Task],
+                   progress: Progress | None = None) -> list[Solution]:
         """Solve every task; batched methods override this."""
         solutions = []
         for k, task in enumerate(tasks):

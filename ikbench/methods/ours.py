@@ -34,6 +34,7 @@ import math
 import statistics
 import time
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -49,12 +50,20 @@ from ikbench.core.losses import (
 )
 from ikbench.methods.base import (
     Method,
+    Progress,
     Solution,
     check_choice,
     check_positive,
     check_seed,
     option,
 )
+
+if TYPE_CHECKING:
+    import torch
+    from torch import Tensor
+
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
 
 DTYPES = ("float32", "float64")
 STOPS = ("paper", "none")
@@ -116,7 +125,8 @@ class AdamSettings:
 
 
 
-def initial_logits(robot, task, dtype, init: str = "random", seed: int = 0):
+def initial_logits(robot: Robot, task: Task, dtype: torch.dtype, init: str = "random",
+                   seed: int = 0) -> Tensor:
     """Initial logits (n+1, dof): seeded uniform +-1/sqrt(n+1), or the joint interpolation.
 
     The interpolation runs from the task's start to its end pose; a task that pins neither
@@ -145,7 +155,8 @@ def initial_logits(robot, task, dtype, init: str = "random", seed: int = 0):
     return torch.tensor(np.log(unit / (1.0 - unit)), dtype=dtype)
 
 
-def optimise(robot, task, settings: AdamSettings, progress=None, logits=None) -> Solution:
+def optimise(robot: Robot, task: Task, settings: AdamSettings, progress: Progress | None = None,
+             logits: Tensor | None = None) -> Solution:
     """Run the paper's Adam optimisation for one task; return the best poses (see module doc).
 
     Args:
@@ -220,18 +231,18 @@ class Ours(Method):
     bench_rounds = 3  # tens of seconds per round on the paper's seven targets
     supports_frames = True  # 6-D pose paths: ikbench.methods.ours_frames
 
-    def settings_for(self, task) -> AdamSettings:
+    def settings_for(self, task: Task) -> AdamSettings:
         """The settings for one task, with its complete weights (see :func:`resolve_weights`)."""
         return replace(self.settings, weights=resolve_weights(self.settings.weights, task))
 
-    def prepare(self, robot) -> None:
+    def prepare(self, robot: Robot) -> None:
         import torch
 
         robot.torch_fk({"float32": torch.float32, "float64": torch.float64}[self.settings.dtype])
         # torch's first optimiser imports torch._dynamo (seconds): not part of any solve
         torch.optim.Adam([torch.zeros(1, requires_grad=True)])
 
-    def solve(self, robot, task, progress=None) -> Solution:
+    def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         if task.goal_rotations is not None:
             from ikbench.methods.ours_frames import optimise_frames
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -31,12 +32,21 @@ from ikbench.core.validity import (
     MAX_POSITION_ERROR_MM,
     MAX_ROTATION_ERROR_DEG,
 )
-from ikbench.methods.base import Solution
+from ikbench.methods.base import Progress, Solution
+
+if TYPE_CHECKING:
+    from torch import Tensor
+
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+    from ikbench.methods.ours import AdamSettings
 
 DEG_PER_RAD = 180.0 / math.pi
 
 
-def frame_loss(T_base_tip, poses, goal_mm, goal_R, weights: dict, prismatic):
+def frame_loss(T_base_tip: Tensor, poses: Tensor, goal_mm: Tensor, goal_R: Tensor,
+               weights: dict[str, float], prismatic: Tensor
+               ) -> tuple[Tensor, dict[str, Tensor], dict[str, float]]:
     """(loss, terms {L0, L1, L6}, figures {position_mm, rotation_deg, step_deg, step_mm}) of
     end-frame transforms (N, 4, 4) [m] at poses (N, dof), as torch tensors."""
     import torch
@@ -46,7 +56,8 @@ def frame_loss(T_base_tip, poses, goal_mm, goal_R, weights: dict, prismatic):
     steps = poses.diff(dim=0)
     terms = {"L0": (e_point**2).mean(), "L1": chord.mean() * DEG_PER_RAD**2 / 6.0,
              "L6": (steps**2).mean()}
-    loss = sum(weights.get(k, 0.0) * v for k, v in terms.items())
+    # a tensor (the integer 0 only when no weight names L0, L1 or L6)
+    loss = cast("Tensor", sum(weights.get(k, 0.0) * v for k, v in terms.items()))
     with torch.no_grad():
         angle = 2.0 * torch.asin(torch.clamp(chord.sqrt() / (2.0 * math.sqrt(2.0)), max=1.0))
         revolute = steps[:, ~prismatic]
@@ -67,7 +78,8 @@ def is_valid(figures: dict) -> bool:
             and figures["step_mm"] < MAX_JOINT_CHANGE_MM)
 
 
-def optimise_frames(robot, task, settings, progress=None) -> Solution:
+def optimise_frames(robot: Robot, task: Task, settings: AdamSettings,
+                    progress: Progress | None = None) -> Solution:
     """Adam on a 6-D pose path (see the module docstring); ``settings``: ``AdamSettings``."""
     import torch
 

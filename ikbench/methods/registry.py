@@ -19,9 +19,13 @@ import importlib
 import importlib.util
 from dataclasses import dataclass
 from importlib import metadata
+from typing import TypeVar
 
 from ikbench.core.errors import InputError
 from ikbench.methods.base import Method
+
+#: A method class (:func:`register` returns the class it is given).
+M = TypeVar("M", bound=Method)
 
 ENTRY_POINT_GROUP = "ikbench.methods"
 LIBS_EXTRA = "pip install 'ikbench[libs]'"
@@ -131,7 +135,7 @@ def get_method(name: str) -> type[Method]:
                      f"{', '.join(available_methods())} (ikbench methods lists them all)")
 
 
-def register(cls):
+def register(cls: type[M]) -> type[M]:
     """Class decorator kept for methods defined in scripts and notebooks: makes ``cls``
     available by its ``name`` for this process (packages use the entry-point group)."""
     method_status()[cls.name] = MethodStatus(cls.name, cls, "", "registered at run time")

@@ -30,8 +30,10 @@ says what it shows for each scheme.
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -42,6 +44,13 @@ from ikbench.core.metrics import pointing_deviations_deg, trajectory_metrics
 from ikbench.paper.values import PAPER_STEPS, accuracy_beside_paper, paper_values
 from ikbench.studies.report import markdown_table
 from ikbench.studies.run import RESERVED_NAMES, robot_from_record
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from ikbench.core.robot import Robot
+    from ikbench.core.targets import Targets
+    from ikbench.core.task import Task
 
 OURS, BASELINE = "ours", "sequential-ik"
 #: The paper authors' own baseline library; its runs are baseline runs too.
@@ -244,7 +253,7 @@ def _method_folders(output_dir: Path) -> list[Path]:
     return folders
 
 
-def load_method_run(folder: Path, robot) -> MethodRun:
+def load_method_run(folder: Path, robot: Robot) -> MethodRun:
     """Read run.json, the trajectory CSVs, the solver columns of table.csv and details.csv."""
     from ikbench.core.trajectory import read_trajectory_poses
 
@@ -302,7 +311,7 @@ def ikpy_table2_run(runs: dict) -> str | None:
                  and runs[n].scheme == "walk" and runs[n].orientation == "position"), None)
 
 
-def load_runs(output_dir) -> tuple[dict, list, object]:
+def load_runs(output_dir: str | Path) -> tuple[dict[str, MethodRun], list[Task], Targets]:
     """Every run in ``output_dir`` and the shared tasks; InputError if unusable.
 
     Returns:
@@ -346,7 +355,7 @@ def load_runs(output_dir) -> tuple[dict, list, object]:
     shared = [t for t in runs[OURS].poses if all(t in r.poses for r in runs.values())]
     if not shared:
         raise InputError("report: the method folders share no trajectory id")
-    targets = load_targets(source, robot).select(shared).with_steps(int(steps))
+    targets = load_targets(source, robot).select(shared).with_steps(int(steps or 0))
     if start:  # the run's own start pose (--start-pose may have replaced the file's)
         targets = replace(targets, start_pose_deg=np.asarray(start, dtype=float))
     order = [OURS, *baseline_names(runs)]
@@ -354,7 +363,7 @@ def load_runs(output_dir) -> tuple[dict, list, object]:
     return {n: runs[n] for n in order}, line_tasks(robot, targets), targets
 
 
-def evaluate_runs(runs: dict, tasks) -> pd.DataFrame:
+def evaluate_runs(runs: dict[str, MethodRun], tasks: Sequence[Task]) -> pd.DataFrame:
     """One row per (trajectory, run): solver figures + :func:`trajectory_metrics`."""
     robot = robot_from_record(next(iter(runs.values())).record)
     rows = []
@@ -384,7 +393,8 @@ def _missed(run: MethodRun, trajectory: str) -> dict:
             "points_solved": float(solved)}
 
 
-def pointing_per_step(runs: dict, tasks) -> dict:
+def pointing_per_step(runs: dict[str, MethodRun], tasks: Sequence[Task]
+                      ) -> dict[tuple[str, str], np.ndarray]:
     """(run, trajectory id) -> (n+1,) pointing deviation [deg] of each pose."""
     robot = robot_from_record(next(iter(runs.values())).record)
     return {(name, task.name): pointing_deviations_deg(robot.fk(run.poses[task.name]).direction,
@@ -478,7 +488,7 @@ def check_claims(summary: pd.DataFrame, baseline: str = BASELINE,
          f"{b} {base['mean pointing deviation [deg]']:.2f} deg; ratio {b} / {o} = "
          f"{pointing:.2f}{line}" + (f"; {missing}" if missing else ""),
          f"ratio >= {WORSE_FACTOR:g}", pointing >= WORSE_FACTOR),
-        ("its start pose varies, while ours is constant" + START_CLAIM_NOTES.get(scheme, ""),
+        ("its start pose varies, while ours is constant" + START_CLAIM_NOTES.get(scheme or "", ""),
          f"|p_0 - p^s| [motor deg]: {o} max {ours['max |p_0 - p^s| [deg]']:.3f}, "
          f"{b} median {base['median |p_0 - p^s| [deg]']:.2f} (ratio {start:.0f}); "
          f"spread of start poses over the trajectories: {o} "
@@ -767,7 +777,8 @@ def table2_task_line(scheme: str | None) -> str:
     return f"Task solved: {task_text(scheme) or 'not recorded'}."
 
 
-def plot_pointing_per_step(deviations: dict, tasks, methods: list[str]):
+def plot_pointing_per_step(deviations: dict[tuple[str, str], np.ndarray], tasks: Sequence[Task],
+                           methods: list[str]) -> Figure:
     """Pointing deviation [deg] per step, one panel per trajectory, one line per method."""
     from ikbench.studies.report import _matplotlib
 
@@ -847,9 +858,9 @@ class Comparison:
         summary: :func:`summarise` (one row per run).
     """
 
-    runs: dict
-    tasks: list
-    targets: object
+    runs: dict[str, MethodRun]
+    tasks: list[Task]
+    targets: Targets
     frame: pd.DataFrame
     summary: pd.DataFrame
 
@@ -871,7 +882,7 @@ class Comparison:
         return modes_table(self.frame, self.runs, self.targets.steps, self.targets.is_paper)
 
 
-def compare(output_dir) -> Comparison:
+def compare(output_dir: str | Path) -> Comparison:
     """Load, measure and summarise every run in ``output_dir`` (see :func:`load_runs`)."""
     runs, tasks, targets = load_runs(output_dir)
     frame = evaluate_runs(runs, tasks)
@@ -886,7 +897,7 @@ def _run_table2(frame: pd.DataFrame, runs: dict, name: str, steps: int,
                           run.method, run.scheme, run.orientation)
 
 
-def write_comparison_report(output_dir) -> Path:
+def write_comparison_report(output_dir: str | Path) -> Path:
     """Write ``output_dir/report.md`` and its figure comparing every run folder there.
 
     Args:

@@ -36,6 +36,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -164,8 +165,8 @@ def reproduce(output: str | Path | None = None, quick: bool = False,
     baseline, write_comparison_report = _baseline(), _comparison_writer()
     for first in (output / OURS / "table.csv", output / "README.md"):
         check_writable(first)  # before any solving, not after minutes of it
-    subset = {"only": QUICK["only"], "steps": QUICK["steps"]} if quick else {}
-    ours_options = {"max_iterations": QUICK["max_iterations"]} if quick else {}
+    subset: dict[str, Any] = {"only": QUICK["only"], "steps": QUICK["steps"]} if quick else {}
+    ours_options: dict[str, Any] = {"max_iterations": QUICK["max_iterations"]} if quick else {}
     ours = get_method(OURS)
 
     def modes(mode, name, title=None):

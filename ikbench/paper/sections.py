@@ -5,8 +5,15 @@ Only on the paper's task: its targets and start pose, a straight line, pointing 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 from ikbench.paper.values import PAPER_STEPS, table1_comparison
 from ikbench.studies.report import markdown_table
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from ikbench.core.targets import Targets
 
 #: The methods whose runs the paper's tables describe: Table 2's baseline as the paper's text
 #: describes it (the sequential-ik family) and as the authors ran it (the ikpy family, their
@@ -16,13 +23,14 @@ TABLE1_METHOD = "ours"
 TABLE2_METHODS = ("sequential-ik", "sequential-ik-walk", "ikpy", "ikpy-walk")
 
 
-def paper_task(record: dict, targets) -> bool:
+def paper_task(record: dict[str, Any], targets: Targets) -> bool:
     """True when a run solved the paper's own task (targets, start pose, line, pointing)."""
     return (targets.is_paper and record.get("shape", "line") == "line"
             and record.get("direction") is None)
 
 
-def run_section(method: str, table, record: dict, targets) -> list[str]:
+def run_section(method: str, table: pd.DataFrame, record: dict[str, Any], targets: Targets
+                ) -> list[str]:
     """Table 1 beside ``ours``, Table 2 beside a baseline, on the paper's task; else none."""
     if not paper_task(record, targets) or table["line_distance_mean_mm"].isna().any():
         return []

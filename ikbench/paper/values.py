@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import functools
 import json
+from collections.abc import Mapping
 from importlib import resources
+from typing import Any
 
 import pandas as pd
 
@@ -23,7 +25,8 @@ def paper_values() -> dict:
     return json.loads(text)
 
 
-def accuracy_beside_paper(row, paper_row: dict | None, scale: float) -> dict:
+def accuracy_beside_paper(row: Mapping[str, Any], paper_row: dict[str, Any] | None,
+                          scale: float) -> dict[str, Any]:
     """Measured line distance and pointing (mean ± std) beside the paper's printed values.
 
     Args:

@@ -23,10 +23,13 @@ import json
 import re
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError, SolverError
@@ -47,10 +50,16 @@ from ikbench.core.trajectory import (
     read_trajectory_poses,
     write_trajectory_csv,
 )
+from ikbench.methods.base import Method
 from ikbench.methods.registry import available_methods, get_method
 from ikbench.studies.harness import Progress, solve_tasks
 from ikbench.studies.report import TABLE_COLUMNS, _matplotlib, markdown_table, report_sections
 from ikbench.studies.run import DEFAULT_OUTPUT, TRAJECTORY_FILE, evaluate, robot_record
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from ikbench.core.task import Task
 
 EACH = "each"
 FULL = "full"
@@ -135,7 +144,7 @@ def weighted_methods() -> dict[str, type]:
     return {name: cls for name, cls in available_methods().items() if cls.takes_weights()}
 
 
-def check_method(name: str) -> type:
+def check_method(name: str) -> type[Method]:
     """The method class ``name`` if it takes loss weights; InputError naming those that do."""
     cls = get_method(name)
     if not cls.takes_weights():
@@ -144,7 +153,8 @@ def check_method(name: str) -> type:
     return cls
 
 
-def joint_interpolation_distance_deg(poses_motor_deg, start_pose_deg, end_pose_deg) -> float:
+def joint_interpolation_distance_deg(poses_motor_deg: npt.ArrayLike, start_pose_deg: npt.ArrayLike,
+                                     end_pose_deg: npt.ArrayLike) -> float:
     """How far a trajectory is from linear motion in joint space [motor deg].
 
     The mean over the n+1 poses of the largest absolute joint difference between pose i and
@@ -160,14 +170,17 @@ def joint_interpolation_distance_deg(poses_motor_deg, start_pose_deg, end_pose_d
     return float(np.abs(poses - line).max(axis=1).mean())
 
 
-def joint_interpolation(start_pose_deg, end_pose_deg, count: int) -> np.ndarray:
+def joint_interpolation(start_pose_deg: npt.ArrayLike, end_pose_deg: npt.ArrayLike,
+                        count: int) -> np.ndarray:
     """(count, dof) poses linearly interpolated from start to end pose [motor deg]."""
     start = np.asarray(start_pose_deg, dtype=float)
     t = np.linspace(0.0, 1.0, count)[:, None]
     return start + t * (np.asarray(end_pose_deg, dtype=float) - start)
 
 
-def joint_interpolation_by_joint(robot, tasks, poses_by_variant: dict) -> pd.DataFrame:
+def joint_interpolation_by_joint(robot: Robot, tasks: Sequence[Task],
+                                 poses_by_variant: dict[str, dict[str, np.ndarray]]
+                                 ) -> pd.DataFrame:
     """Mean absolute difference [motor deg] from the joint-space interpolation, per joint.
 
     Args:
@@ -182,6 +195,8 @@ def joint_interpolation_by_joint(robot, tasks, poses_by_variant: dict) -> pd.Dat
     for name, poses in poses_by_variant.items():
         per_task = []
         for task in tasks:
+            assert task.start_pose_deg is not None and task.end_pose_deg is not None, \
+                "the ablation's tasks are lines between two poses"
             line = joint_interpolation(task.start_pose_deg, task.end_pose_deg, task.steps + 1)
             per_task.append(np.abs(poses[task.name] - line).mean(axis=0))
         rows[name] = np.mean(per_task, axis=0)
@@ -403,7 +418,8 @@ def _tradeoffs(m: VariantMeans) -> list[str]:
     return lines
 
 
-def ablation_report(table: pd.DataFrame, summary: pd.DataFrame, variants, record,
+def ablation_report(table: pd.DataFrame, summary: pd.DataFrame, variants: Sequence[Variant],
+                    record: dict[str, Any],
                     by_joint: pd.DataFrame | None = None) -> str:
     """report.md of an ablation run (``by_joint``: :func:`joint_interpolation_by_joint`)."""
     tradeoffs = _tradeoffs(VariantMeans(table))
@@ -445,7 +461,7 @@ def ablation_report(table: pd.DataFrame, summary: pd.DataFrame, variants, record
     return "\n".join(lines)
 
 
-def plot_metrics(table: pd.DataFrame):
+def plot_metrics(table: pd.DataFrame) -> Figure:
     """Bars per metric: the mean per variant, dots for the single trajectories."""
     plt = _matplotlib()
     names = list(dict.fromkeys(table["variant"]))
@@ -482,7 +498,8 @@ def _grid(plt, count: int, projection=None, size=(3.6, 3.2)):
                  for k in range(count)]
 
 
-def plot_variants_3d(robot, task, poses_by_variant: dict, title: str):
+def plot_variants_3d(robot: Robot, task: Task, poses_by_variant: dict[str, np.ndarray],
+                     title: str) -> Figure:
     """One 3-D panel per variant: the fingertip path of one trajectory over its goal line
     (the full loss's path in grey for reference), same axes and front view everywhere."""
     plt = _matplotlib()
@@ -506,12 +523,15 @@ def plot_variants_3d(robot, task, poses_by_variant: dict, title: str):
     return fig
 
 
-def plot_joints(robot, task, poses_by_variant: dict, title: str):
+def plot_joints(robot: Robot, task: Task, poses_by_variant: dict[str, np.ndarray], title: str
+                ) -> Figure:
     """One panel per variant: joint angles [motor deg] per step (solid) and the linear
     interpolation from start to touch pose (dashed)."""
     plt = _matplotlib()
     fig, axes = _grid(plt, len(poses_by_variant), size=(3.8, 2.8))
     steps = np.arange(task.steps + 1)
+    assert task.start_pose_deg is not None and task.end_pose_deg is not None, \
+        "the ablation's tasks are lines between two poses"
     line = joint_interpolation(task.start_pose_deg, task.end_pose_deg, task.steps + 1)
     colors = plt.cm.tab10(np.linspace(0, 1, 10))
     for ax, (name, poses) in zip(axes, poses_by_variant.items()):

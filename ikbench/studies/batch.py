@@ -24,11 +24,14 @@ from __future__ import annotations
 import json
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from functools import partial
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError
@@ -42,6 +45,10 @@ from ikbench.core.task import line_task
 from ikbench.studies.executors import Executor, LocalExecutor
 from ikbench.studies.parallel import solve_parts
 from ikbench.studies.report import markdown_table
+
+if TYPE_CHECKING:
+    from ikbench.core.task import Task
+    from ikbench.methods.ours_lm.solver import BatchResult
 
 #: Weight settings of the default batch: the paper's, and two from the weight sweep
 #: (results/sweep): c0=100 puts the fingertip ~70x closer to the line for +0.6 deg pointing;
@@ -75,7 +82,7 @@ class WorkspaceFilter:
     min_line_mm: float = MIN_LINE_MM
 
     @classmethod
-    def of(cls, robot) -> WorkspaceFilter:
+    def of(cls, robot: Robot) -> WorkspaceFilter:
         """The robot config's ``[batch]`` filter (unknown keys refused)."""
         section = dict(robot.config.get("batch") or {})
         known = {f for f in cls.__dataclass_fields__}
@@ -85,7 +92,8 @@ class WorkspaceFilter:
                              f"allowed: {', '.join(sorted(known))}")
         return cls(**section)
 
-    def accept(self, points_mm, directions, start_point_mm) -> np.ndarray:
+    def accept(self, points_mm: np.ndarray, directions: np.ndarray, start_point_mm: np.ndarray
+               ) -> np.ndarray:
         """(M,) bool for end points (M, 3) [mm] and pointing directions (M, 3)."""
         line = points_mm - start_point_mm
         length = np.linalg.norm(line, axis=1)
@@ -117,8 +125,8 @@ class WorkspaceFilter:
         return ", ".join(parts)
 
 
-def sample_touch_poses(robot, start_pose_deg, count: int, seed: int = 0,
-                       workspace: WorkspaceFilter | None = None):
+def sample_touch_poses(robot: Robot, start_pose_deg: npt.ArrayLike, count: int, seed: int = 0,
+                       workspace: WorkspaceFilter | None = None) -> tuple[np.ndarray, int]:
     """``count`` touch poses (count, dof) [motor deg] in the front workspace, reproducibly.
 
     Poses are drawn uniformly within the motor ranges by ``numpy.random.default_rng(seed)``
@@ -134,7 +142,8 @@ def sample_touch_poses(robot, start_pose_deg, count: int, seed: int = 0,
     kin = robot.chain_kinematics()
     start_mm = robot.fk(start_pose_deg).point_mm[0]
     rng = np.random.default_rng(seed)
-    kept, draws = [], 0
+    kept: list[np.ndarray] = []
+    draws = 0
     while sum(len(k) for k in kept) < count:
         if draws >= MAX_DRAWS:
             raise InputError(f"the workspace filter accepted fewer than {count} of "
@@ -146,7 +155,7 @@ def sample_touch_poses(robot, start_pose_deg, count: int, seed: int = 0,
     return np.concatenate(kept)[:count], draws
 
 
-def check_count(count) -> int:
+def check_count(count: object) -> int:
     """Return ``count`` if it is an integer in [1, MAX_COUNT]; InputError naming it otherwise."""
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
         raise InputError(f"--count: {count!r} must be an integer >= 1")
@@ -156,7 +165,7 @@ def check_count(count) -> int:
     return int(count)
 
 
-def check_seed(seed) -> int:
+def check_seed(seed: object) -> int:
     """Return ``seed`` if it is an integer in [0, 2^63); InputError naming it otherwise."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) \
             or not 0 <= seed < MAX_SEED:
@@ -183,7 +192,7 @@ class BatchReport:
 
 
 def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
-              weights=DEFAULT_WEIGHTS, targets: str | Path | Targets | None = None,
+              weights: Sequence[str] = DEFAULT_WEIGHTS, targets: str | Path | Targets | None = None,
               line_tolerance_mm: float = LINE_TOLERANCE_MM,
               end_tolerance_mm: float = END_TOLERANCE_MM, progress: bool = True,
               robot: Robot | str | None = None, executor: Executor | None = None) -> BatchReport:
@@ -227,7 +236,8 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
         f"front workspace) in {sample_s:.2f} s")
     tasks = [line_task(robot, targets.start_pose_deg, pose, steps, str(k))
              for k, pose in enumerate(touch)]
-    rows, summary = [], []
+    rows: list[dict[str, Any]] = []
+    summary: list[dict[str, Any]] = []
     for label, w in settings:
         lm = LMSettings(weights=w)
         if executor is None or executor.name == "local":
@@ -244,6 +254,7 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
         else:  # solved and measured in parts on the executor's workers
             result, mine = solve_parts(executor, robot, tasks, lm, [w] * count,
                                        partial(measure_batch, label=label))
+            assert mine is not None, "measured beside the solve (measure given)"
             log(f"{label}: solved and measured {count} trajectories in "
                 f"{result.duration_s:.2f} s on {executor.workers} {executor.name} workers "
                 f"({count / result.duration_s:.0f} per s)")
@@ -264,7 +275,8 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
     return BatchReport(pd.DataFrame(summary), pd.DataFrame(rows), poses, record)
 
 
-def measure_batch(robot, tasks, weights, result, label: str) -> list[dict]:
+def measure_batch(robot: Robot, tasks: Sequence[Task], weights: Sequence[dict[str, float]],
+                  result: BatchResult, label: str) -> list[dict[str, Any]]:
     """One row per trajectory of a solved batch: loss, convergence, the line metrics."""
     rows = []
     for k, task in enumerate(tasks):

@@ -18,8 +18,10 @@ from __future__ import annotations
 import json
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -34,6 +36,9 @@ from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import line_tasks
 from ikbench.methods.registry import get_method
 from ikbench.studies.report import markdown_table
+
+if TYPE_CHECKING:
+    from ikbench.core.task import Task
 
 TOTAL = "total"
 TOTAL_BATCHED = "total (batched)"
@@ -169,7 +174,8 @@ def _stats(values) -> dict:
             "wall_min_s": float(values.min()), "wall_max_s": float(values.max())}
 
 
-def summarise(robot, tasks, names, runs: pd.DataFrame, last: dict) -> pd.DataFrame:
+def summarise(robot: Robot, tasks: Sequence[Task], names: Sequence[str], runs: pd.DataFrame,
+              last: dict[tuple[str, str], Any]) -> pd.DataFrame:
     """One row per method and trajectory, plus the totals, with ratios to the first method."""
     rows = []
     for name in names:

@@ -346,7 +346,7 @@ def ours_lm_sweep(robot, tasks, contract, solvers) -> pd.DataFrame:
         solver = cls(weights=f"c0={c0:g}")
         outcomes = solve_tasks(solver, robot, tasks, Progress("sweep", enabled=False))
         figures = [contract_metrics(robot, o.task, o.solution.poses_deg, contract)
-                   for o in outcomes if o.ok]
+                   for o in outcomes if o.solution is not None]
         met = [all(judge(contract, f).values()) for f in figures]
         rows.append({"c0": c0, "weights": f"c0={c0:g} (others the paper's)",
                      "line_distance_max_mm": float(np.median(

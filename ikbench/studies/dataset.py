@@ -32,10 +32,13 @@ import json
 import math
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_path, atomic_write_text
@@ -54,6 +57,9 @@ from ikbench.studies.dataset_shard import (
 )
 from ikbench.studies.executors import SCALE_EXTRA, Executor, LocalExecutor, portable_robot
 from ikbench.studies.parallel import gpus_for
+
+if TYPE_CHECKING:
+    from ikbench.methods.ours_lm.solver import LMSettings
 
 DEFAULT_SHARD_SIZE = 10_000
 MAX_STEPS = 5000
@@ -75,7 +81,7 @@ class DatasetReport:
     kept: list[int]             # complete shards found and kept
 
 
-def check_options(count, seed, steps, shard_size) -> None:
+def check_options(count: Any, seed: Any, steps: Any, shard_size: Any) -> None:
     """InputError naming the flag for a bad count, seed, steps or shard size, or when pyarrow
     (the Parquet writer) is not installed."""
     for flag, value, low in (("--count", count, 1), ("--steps", steps, 2),
@@ -90,24 +96,27 @@ def check_options(count, seed, steps, shard_size) -> None:
                          f"{SCALE_EXTRA}")
 
 
-def dataset_config(robot, start_pose_deg, steps, seed, shard_size, workspace, settings):
+def dataset_config(robot: Robot, start_pose_deg: np.ndarray, steps: int, seed: int,
+                   shard_size: int, workspace: WorkspaceFilter, settings: LMSettings
+                   ) -> dict[str, Any]:
     """Everything that determines the shards' content (hashed into each shard)."""
     from ikbench.methods.ours_lm.devices import cpu_backend
 
-    solver = {"max_iterations": settings.max_iterations, "tolerance": settings.tolerance,
-              "damping": settings.damping}
+    solver: dict[str, Any] = {"max_iterations": settings.max_iterations,
+                              "tolerance": settings.tolerance, "damping": settings.damping}
     if settings.device is None:  # numpy or numba (equal to ~1e-12, but not bit for bit)
         solver.update(backend=cpu_backend(settings), kinematics=settings.kinematics,
                       linear_solver=settings.linear_solver)
     else:
         solver.update(backend="torch", device_type=settings.device.split(":")[0],
                       dtype=settings.dtype)
+    weights = cast("dict[str, float]", settings.weights)  # a dict: build_dataset parsed them
     return {"format": FORMAT, "version": VERSION,
             "robot": {"name": robot.name, "urdf_sha256": robot.urdf_sha256,
                       "end_frame": robot.end_frame, "joints": list(robot.joint_names)},
             "start_pose_deg": [float(v) for v in start_pose_deg], "steps": steps,
             "seed": seed, "shard_size": shard_size, "workspace": asdict(workspace),
-            "weights": {f"c{t[1]}": settings.weights[t] for t in TERMS}, "solver": solver}
+            "weights": {f"c{t[1]}": weights[t] for t in TERMS}, "solver": solver}
 
 
 def config_hash(config: dict) -> str:
@@ -115,7 +124,8 @@ def config_hash(config: dict) -> str:
     return hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def plan(count, config, robot, start_pose_deg, settings, workspace) -> list[ShardSpec]:
+def plan(count: int, config: dict[str, Any], robot: Robot, start_pose_deg: npt.ArrayLike,
+         settings: LMSettings, workspace: WorkspaceFilter) -> list[ShardSpec]:
     """The shards of a dataset of ``count`` trajectories, in order."""
     size, digest = config["shard_size"], config_hash(config)
     portable = portable_robot(robot)
@@ -125,7 +135,7 @@ def plan(count, config, robot, start_pose_deg, settings, workspace) -> list[Shar
             for s in range(math.ceil(count / size))]
 
 
-def is_complete(output, spec: ShardSpec) -> bool:
+def is_complete(output: str | Path, spec: ShardSpec) -> bool:
     """True when both files of the shard exist, are readable Parquet and describe it."""
     import pyarrow.parquet as pq
 
@@ -142,7 +152,7 @@ def is_complete(output, spec: ShardSpec) -> bool:
     return True
 
 
-def check_manifest(output, config: dict, count: int) -> None:
+def check_manifest(output: str | Path, config: dict[str, Any], count: int) -> None:
     """InputError when OUTPUT holds a dataset made with other options, or more trajectories."""
     path = Path(output) / MANIFEST
     if not path.is_file():
@@ -165,7 +175,7 @@ def check_manifest(output, config: dict, count: int) -> None:
 
 
 def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
-                  shard_size: int = DEFAULT_SHARD_SIZE, lm_settings=None,
+                  shard_size: int = DEFAULT_SHARD_SIZE, lm_settings: LMSettings | None = None,
                   targets: str | Path | Targets | None = None,
                   robot: Robot | str | None = None, output: str | Path = "runs/dataset",
                   executor: Executor | None = None, progress: bool = True) -> DatasetReport:
@@ -259,7 +269,7 @@ def _manifest(config, count, specs, output, executor, run) -> dict:
     return manifest
 
 
-def summarise(output) -> dict:
+def summarise(output: str | Path) -> dict[str, Any]:
     """Shares and medians over every trajectory of the dataset (read from its shards)."""
     import pyarrow.dataset as ds
 
@@ -272,7 +282,7 @@ def summarise(output) -> dict:
             **{f"{c}_median": float(frame[c].median()) for c in names[2:]}}
 
 
-def columns(joints) -> dict:
+def columns(joints: Sequence[str]) -> dict[str, Any]:
     """The tables' columns and their units (the manifest's schema)."""
     pose = "pose units (motor deg for NICO; joint deg, mm for prismatic joints)"
     steps = {"trajectory": "id", "step": "index 0..n", **{j: pose for j in joints},

@@ -18,17 +18,23 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.losses import TERMS
 from ikbench.core.metrics_batch import line_metrics
 from ikbench.core.robot import MM_PER_M, RANGE_TOLERANCE_DEG
 from ikbench.core.task import Task
 from ikbench.studies.batch import sample_touch_poses
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.methods.ours_lm.problem import Problem
+    from ikbench.methods.ours_lm.solver import BatchResult
 
 #: Dataset format name and version, written into every shard and the manifest.
 FORMAT = "ikbench-dataset"
@@ -89,7 +95,8 @@ def shard_seed(seed: int, shard: int) -> int:
     return int(state) >> 1
 
 
-def line_tasks(robot, start_pose_deg, touch_poses_deg, steps: int, first: int = 0):
+def line_tasks(robot: Robot, start_pose_deg: npt.ArrayLike, touch_poses_deg: np.ndarray,
+               steps: int, first: int = 0) -> tuple[list[Task], np.ndarray, np.ndarray]:
     """The paper's line tasks (as :func:`ikbench.core.task.line_task`) for many touch poses,
     with one vectorised FK; task names are the global ids ``first``, ``first + 1``, ...
 
@@ -110,7 +117,9 @@ def line_tasks(robot, start_pose_deg, touch_poses_deg, steps: int, first: int = 
     return tasks, start_mm, touch_mm
 
 
-def line_problem(robot, start_pose_deg, touch_poses_deg, steps: int, weights: dict):
+def line_problem(robot: Robot, start_pose_deg: npt.ArrayLike, touch_poses_deg: npt.ArrayLike,
+                 steps: int, weights: dict[str, float]
+                 ) -> tuple[Problem, np.ndarray, np.ndarray, np.ndarray]:
     """The least-squares problem of the lines of :func:`line_tasks` and their initial poses,
     made with array operations (no Task per line; the same numbers as
     ``Problem.from_tasks(robot, line_tasks(...)[0], weights)`` and ``initial_poses``).
@@ -169,7 +178,8 @@ def prepare_shard(spec: ShardSpec) -> _Prepared:
     return _Prepared(touch, draws, problem, initial, start_mm, touch_mm)
 
 
-def solve_shard(spec: ShardSpec, prepared: _Prepared):
+def solve_shard(spec: ShardSpec, prepared: _Prepared
+                ) -> tuple[BatchResult, np.ndarray, np.ndarray]:
     """(the solver's BatchResult, end points [m] (B*N, 3), directions (B*N, 3))."""
     from ikbench.methods.ours_lm import solve_problem
 
@@ -179,7 +189,8 @@ def solve_shard(spec: ShardSpec, prepared: _Prepared):
     return result, point_m, direction
 
 
-def finish_shard(spec: ShardSpec, prepared: _Prepared, solved, began: float) -> ShardResult:
+def finish_shard(spec: ShardSpec, prepared: _Prepared,
+                 solved: tuple[BatchResult, np.ndarray, np.ndarray], began: float) -> ShardResult:
     """The shard's tables from its solution (metrics by array operations)."""
     result, point_m, direction = solved
     robot, touch, start_mm, touch_mm = spec.robot, prepared.touch, prepared.start_mm, \
@@ -199,7 +210,7 @@ def finish_shard(spec: ShardSpec, prepared: _Prepared, solved, began: float) -> 
                        time.perf_counter() - began)
 
 
-def pipelined(specs) -> Iterator[ShardResult]:
+def pipelined(specs: Iterable[ShardSpec]) -> Iterator[ShardResult]:
     """:func:`build_shard` of each spec, in order, in this process, in a pipeline: while one
     shard is solved (in a second thread; the numba backend runs without the GIL), the next
     one is sampled and the previous one measured and handed on (to be written). The results
@@ -207,11 +218,12 @@ def pipelined(specs) -> Iterator[ShardResult]:
     from concurrent.futures import ThreadPoolExecutor
 
     with ThreadPoolExecutor(1, thread_name_prefix="ikbench-solve") as pool:
-        running = None                      # (spec, prepared, began, future) being solved
+        running: tuple[Any, ...] | None = None  # (spec, prepared, began, future) being solved
         for spec in specs:
             began = time.perf_counter()
             prepared = prepare_shard(spec)                  # during the previous shard's solve
-            previous, solved = running, running[3].result() if running else None
+            previous: tuple[Any, ...] | None = running
+            solved: Any = running[3].result() if running else None
             running = (spec, prepared, began, pool.submit(solve_shard, spec, prepared))
             if previous is not None:                        # measured during this solve
                 yield finish_shard(previous[0], previous[1], solved, previous[2])

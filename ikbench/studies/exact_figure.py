@@ -10,17 +10,24 @@ joint step per segment [motor deg] against the contract's speed limit. Regenerat
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ikbench.core.io import atomic_savefig
 from ikbench.core.metrics import line_distances_mm, pointing_deviations_deg
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+
 #: Distances below this [mm] are drawn at it (the log axis cannot show 0).
 FLOOR_MM = 1e-9
 
 
-def exact_figure(robot, task, poses_by_method: dict):
+def exact_figure(robot: Robot, task: Task, poses_by_method: dict[str, np.ndarray]) -> Figure:
     """The three-panel figure for ``task`` and {method name: poses (n+1, dof)}."""
     from ikbench.studies.arm_plots import matplotlib_pyplot
 
@@ -58,7 +65,7 @@ def exact_figure(robot, task, poses_by_method: dict):
     return fig
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     """Write the figure for one of NICO's paper targets."""
     from ikbench.core.robot import load_robot
     from ikbench.core.targets import load_targets

@@ -23,9 +23,12 @@ import importlib.util
 import logging
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ikbench.core.errors import IkbenchError, InputError
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
 
 EXECUTORS = ("local", "ray")
 SCALE_EXTRA = "pip install 'ikbench[scale]'"
@@ -55,7 +58,7 @@ def split(count: int, parts: int) -> list[range]:
     return [range(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
 
 
-def portable_robot(robot):
+def portable_robot(robot: Robot) -> Robot:
     """The robot without its caches (kinematics, models), to send to another process."""
     return dataclasses.replace(robot, _cache={})
 

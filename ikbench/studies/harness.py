@@ -15,6 +15,7 @@ import sys
 import time
 from dataclasses import dataclass
 
+from ikbench.core.task import Task
 from ikbench.methods.base import Solution
 
 
@@ -30,7 +31,7 @@ class Outcome:
         failure: ``"ExceptionType: message"`` when the solve raised, else None.
     """
 
-    task: object
+    task: Task
     solution: Solution | None
     wall_s: float
     failure: str | None = None

@@ -20,13 +20,21 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError
 from ikbench.studies.harness import Progress, describe
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from ikbench.core.robot import Robot
 
 FOLDER = "ik"
 KINDS = ("pose", "position")
@@ -75,7 +83,7 @@ class Targets:
 class IKResult:
     """What :func:`run_ik` produced."""
 
-    robot: object
+    robot: Robot
     settings: IKSettings
     targets: Targets
     table: pd.DataFrame
@@ -117,7 +125,7 @@ def check_memory(count: int, methods: int) -> None:
                          f"{available / 2**30:.1f} GiB are free here: at most {most}")
 
 
-def parse_methods(text, kind: str = "pose") -> list[str]:
+def parse_methods(text: str | Sequence[str] | None, kind: str = "pose") -> list[str]:
     """Method names (comma-separated or a list); None: every installed one that takes
     ``kind`` targets. InputError for unknown, missing or unsuitable ones."""
     from baselines.single_pose import SOLVERS
@@ -142,7 +150,7 @@ def parse_methods(text, kind: str = "pose") -> list[str]:
     return names
 
 
-def sample_targets(robot, settings: IKSettings) -> Targets:
+def sample_targets(robot: Robot, settings: IKSettings) -> Targets:
     """The seeded targets and initial poses (the same for every method and re-run)."""
     rng = np.random.default_rng(settings.seed)
     lo, hi = robot.sample_lower, robot.sample_upper
@@ -156,7 +164,8 @@ def sample_targets(robot, settings: IKSettings) -> Targets:
     return Targets(q_target, T, q_init)
 
 
-def judge(robot, T_target, poses, settings: IKSettings) -> dict:
+def judge(robot: Robot, T_target: np.ndarray, poses: npt.ArrayLike, settings: IKSettings
+          ) -> dict[str, np.ndarray]:
     """FK through Pinocchio of ``poses`` (B, dof) [pose units] against the targets: errors
     [mm, deg], within the limits, success at the settings' tolerances (NaN poses fail)."""
     poses = np.asarray(poses, dtype=float)
@@ -176,7 +185,8 @@ def judge(robot, T_target, poses, settings: IKSettings) -> dict:
             "within_limits": within & finite}
 
 
-def run_ik(robot, settings: IKSettings | None = None, methods=None,
+def run_ik(robot: Robot, settings: IKSettings | None = None,
+           methods: str | Sequence[str] | None = None,
            progress: bool = True) -> IKResult:
     """Run the benchmark (see the module docstring); nothing is written.
 
@@ -310,7 +320,7 @@ def summarise(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def success_curve(table: pd.DataFrame, kind: str, ratio_deg_per_mm: float,
-                  tolerances_mm) -> pd.DataFrame:
+                  tolerances_mm: Iterable[float]) -> pd.DataFrame:
     """Success rate [%] per method at each position tolerance (rotation tolerance scaled
     alike: ``ratio_deg_per_mm`` x it), within the limits; one column per method."""
     out = {}
@@ -337,12 +347,12 @@ def load_average() -> tuple | None:
         return None
 
 
-def robot_slug(robot) -> str:
+def robot_slug(robot: Robot) -> str:
     """The robot's folder name (its name, without a package prefix)."""
     return str(robot.name).split(":")[-1].replace("/", "_")
 
 
-def write(result: IKResult, output, command: str = ""):
+def write(result: IKResult, output: str | Path, command: str = "") -> Path:
     """Write ``OUTPUT/ik/<robot>/`` whole (:mod:`.ik_report`); return the folder."""
     from pathlib import Path
 

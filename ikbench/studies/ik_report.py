@@ -15,10 +15,14 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ikbench.studies.ik import IKResult, settings_record, success_curve, summarise
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 PARQUET_ROWS = 50_000
 #: Position tolerances [mm] of the success curve.
@@ -105,7 +109,7 @@ def _fmt(value, digits: int = 3) -> str:
     return f"{value:.{digits}g}"
 
 
-def leaderboard(result: IKResult, summary, record: dict) -> str:
+def leaderboard(result: IKResult, summary: pd.DataFrame, record: dict[str, Any]) -> str:
     """leaderboard.md: the task above the table, one row per method (see the module doc)."""
     s, robot = result.settings, result.robot
     prov = record["provenance"]

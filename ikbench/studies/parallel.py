@@ -8,12 +8,18 @@ studies (sweep, batch) get the same results from every executor.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ikbench.studies.executors import Executor, LocalExecutor, portable_robot, split
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+    from ikbench.methods.ours_lm.solver import BatchResult, LMSettings
 
 
 @dataclass
@@ -21,13 +27,16 @@ class Part:
     """One part of a batch: what a worker needs (all picklable)."""
 
     robot: Any
-    tasks: list
+    tasks: Sequence[Any]
     settings: Any
-    weights: list
+    weights: Sequence[Any]
     measure: Any = None      # optional fn(robot, tasks, weights, result) -> list of rows
 
 
-def solve_parts(executor: Executor | None, robot, tasks, settings, weights, measure=None):
+def solve_parts(executor: Executor | None, robot: Robot, tasks: Sequence[Task],
+                settings: LMSettings, weights: Sequence[dict[str, float]],
+                measure: Callable[..., list[dict[str, Any]]] | None = None
+                ) -> tuple[BatchResult, list[dict[str, Any]] | None]:
     """Solve ``tasks`` (with per-task ``weights``) by ours-lm on ``executor``.
 
     Args:
@@ -53,7 +62,7 @@ def solve_parts(executor: Executor | None, robot, tasks, settings, weights, meas
     return result, rows
 
 
-def solve_part(part: Part):
+def solve_part(part: Part) -> tuple[BatchResult, list[dict[str, Any]] | None]:
     """Solve one part (in a worker); returns (BatchResult, rows or None)."""
     from ikbench.methods.ours_lm import solve_batch
 
@@ -63,7 +72,7 @@ def solve_part(part: Part):
     return result, rows
 
 
-def gpus_for(settings) -> float:
+def gpus_for(settings: object) -> float:
     """GPUs a task needs for ours-lm ``settings``: 1 on a CUDA device, else 0."""
     device = getattr(settings, "device", None)
     return 1.0 if device is not None and device.startswith("cuda") else 0.0

@@ -7,6 +7,7 @@ from the trajectory CSVs. Paper values appear only in columns labelled as the pa
 from __future__ import annotations
 
 import textwrap
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -19,6 +20,13 @@ from ikbench.studies.arm_plots import (  # noqa: F401  (plot_trajectories_3d: re
     style_axes_3d,
 )
 from ikbench.studies.sections import add_report_section, report_sections  # noqa: F401
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from matplotlib.figure import Figure
+
+    from ikbench.core.task import Task
 
 TABLE_COLUMNS = [
     "trajectory", "method", "iterations", "duration_s", "loss",
@@ -51,7 +59,8 @@ def _matplotlib():
     return matplotlib_pyplot()
 
 
-def plot_shapes(tasks, points_by_id: dict, title: str):
+def plot_shapes(tasks: Sequence[Task], points_by_id: dict[str, np.ndarray], title: str
+                ) -> Figure:
     """Drawn curves over their target curves: on the drawing plane (top) and in 3-D (bottom).
 
     One column per task. The plane is the task curve's own (a letter's frontal plane, seen
@@ -66,6 +75,7 @@ def plot_shapes(tasks, points_by_id: dict, title: str):
     fig = plt.figure(figsize=(4.2 * len(tasks), 8.4))
     for k, task in enumerate(tasks):
         curve, points = task.curve, points_by_id[task.name]
+        assert curve is not None, f"task {task.name} has no target curve"
         plane = curve.drawing_plane()
         ax = fig.add_subplot(2, len(tasks), k + 1)
         vertices, pen = curve.path()
@@ -111,7 +121,8 @@ def _equal_axes_3d(ax, points_mm) -> None:
     ax.set_box_aspect((1, 1, 1))
 
 
-def plot_pointing_error(tasks, points_by_id: dict, title: str):
+def plot_pointing_error(tasks: Sequence[Task], points_by_id: dict[str, np.ndarray], title: str
+                        ) -> Figure:
     """The paper's Fig. 2: criterion 2 [mm] per step for every trajectory."""
     plt = _matplotlib()
     fig, ax = plt.subplots(figsize=(8, 4.5))

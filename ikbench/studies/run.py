@@ -26,6 +26,7 @@ import json
 import re
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -180,7 +181,7 @@ def robot_from_record(record: dict) -> Robot:
     name, spec = entry.get("name"), entry.get("spec")
     if name in shipped_robots():
         spec = name
-    robot = load_robot(spec, entry.get("end_frame"))
+    robot = load_robot(str(spec), entry.get("end_frame"))
     if entry.get("urdf_sha256") and entry["urdf_sha256"] != robot.urdf_sha256:
         raise InputError(f"the URDF of robot {name!r} ({robot.urdf_path}) changed since this "
                          "run was written (sha256 differs); rerun it")
@@ -375,7 +376,7 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
     with staged_folder(folder, keep=lambda rel: str(rel) not in previous) as tmp:
         written = []
         for outcome in outcomes:
-            if outcome.ok:
+            if outcome.solution is not None:
                 file = f"trajectory_{outcome.task.name}.csv"
                 write_trajectory_csv(tmp / file, robot, outcome.solution.poses_deg, duration_s,
                                      quaternion=outcome.task.goal_rotations is not None)
@@ -386,14 +387,14 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
         settings = {"settings": solver.settings_for(tasks[0])}
         solved = [o.task for o in outcomes if o.ok]
         title = f"{solver.name}: {solver.description}"
-        figures = []
+        figures: list[tuple[str, str, Any]] = []
         poses = {t.name: read_trajectory_poses(tmp / f"trajectory_{t.name}.csv", robot)
                  for t in solved}
         if solved and solved[0].goal_rotations is not None:
             from ikbench.studies.pose_paths import plot_pose_path, reached
 
             for outcome in outcomes:
-                if outcome.ok:
+                if outcome.solution is not None:
                     task = outcome.task
                     curve = reached(robot, task, outcome.solution.poses_deg)
                     figures.append((f"pose path {task.name}", f"pose_path_{task.name}.png",

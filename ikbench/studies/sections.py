@@ -8,6 +8,7 @@ imports nothing heavy: registering costs nothing at start-up.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 #: kind -> providers; a provider takes the report's context as keywords and returns lines.
 _SECTIONS: dict[str, list[Callable[..., list[str] | None]]] = {"run": [], "ablation": []}
@@ -21,7 +22,7 @@ def add_report_section(kind: str, provider: Callable[..., list[str] | None]) -> 
         _SECTIONS[kind].append(provider)
 
 
-def report_sections(kind: str, **context) -> list[str]:
+def report_sections(kind: str, **context: Any) -> list[str]:
     """The lines every provider of ``kind`` adds for ``context``."""
     lines: list[str] = []
     for provider in _SECTIONS[kind]:

@@ -24,10 +24,13 @@ from __future__ import annotations
 import itertools
 import json
 import sys
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError
@@ -42,6 +45,12 @@ from ikbench.core.task import build_tasks, letter_start_pose, parse_shape
 from ikbench.studies.executors import Executor, LocalExecutor
 from ikbench.studies.parallel import solve_parts
 from ikbench.studies.report import markdown_table
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from ikbench.core.task import Task
+    from ikbench.methods.ours_lm.solver import LMSettings
 
 #: Per-trajectory figures averaged (mean) or taken at the worst target (max) per setting.
 MEAN_COLUMNS = ("line_distance_mean_mm", "pointing_deviation_mean_deg",
@@ -138,7 +147,7 @@ def parse_grid(items: list[str] | str) -> dict[str, list[float]]:
     return grid
 
 
-def setting_label(weights: dict, grid_terms) -> str:
+def setting_label(weights: dict[str, float], grid_terms: Iterable[str]) -> str:
     """``"c0=100,c1=50"`` for the grid's terms of a weights dict."""
     return ",".join(f"c{t[1]}={weights[t]:g}" for t in grid_terms)
 
@@ -165,7 +174,7 @@ def grid_settings(grid: dict[str, list[float]], base: dict | None = None) -> lis
     return out
 
 
-def effective_weights(weights: dict, task) -> dict:
+def effective_weights(weights: dict[str, float], task: Task) -> dict[str, float]:
     """``weights`` with c2 / c3 set to 0 where ``task`` pins no start / end pose."""
     return {**weights, "L2": weights["L2"] if task.start_pose_deg is not None else 0.0,
             "L3": weights["L3"] if task.end_pose_deg is not None else 0.0}
@@ -182,7 +191,8 @@ class SweepResult:
 
 def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None = None,
           only: str | None = None, steps: int | None = None, shape: str = "line",
-          size_mm: float | None = None, start_pose=None, direction=None, lm_settings=None,
+          size_mm: float | None = None, start_pose: npt.ArrayLike | None = None,
+          direction: str | npt.ArrayLike | None = None, lm_settings: LMSettings | None = None,
           progress: bool = True, robot: Robot | str | None = None,
           executor: Executor | None = None, method: str = "ours-lm") -> SweepResult:
     """Solve the tasks of a shape for every weight setting of ``grid`` (module docstring).
@@ -291,7 +301,8 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
 SWEEP_METHODS = {"ours-lm": TERMS, "ours-exact": ("L1", "L6")}
 
 
-def check_sweep_method(method: str, grid: dict, executor) -> None:
+def check_sweep_method(method: str, grid: dict[str, list[float]], executor: Executor | None
+                       ) -> None:
     """InputError for an unknown method, a grid term it has no weight for, or ours-exact on
     another executor than this process."""
     if method not in SWEEP_METHODS:
@@ -367,7 +378,7 @@ def summarise(per_traj: pd.DataFrame, method: str = "ours-lm") -> pd.DataFrame:
 
 
 def plot_pareto(table: pd.DataFrame, title: str = "", reference: str = "the paper's weights",
-                method: str = "ours-lm"):
+                method: str = "ours-lm") -> Figure:
     """Accuracy (line distance or point error) vs pointing deviation, smoothness as colour."""
     import matplotlib
 

@@ -22,8 +22,10 @@ from __future__ import annotations
 import json
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -44,7 +46,7 @@ NUMPY = "numpy"
 NUMBA = "numba"
 
 
-def parse_batches(text) -> list[int]:
+def parse_batches(text: object) -> list[int]:
     """``"7,1000"`` -> [7, 1000] (each an integer >= 1)."""
     try:
         values = [int(v) for v in str(text).split(",") if v.strip()]
@@ -56,7 +58,7 @@ def parse_batches(text) -> list[int]:
     return list(dict.fromkeys(values))
 
 
-def parse_dtypes(text) -> list[str]:
+def parse_dtypes(text: object) -> list[str]:
     """``"float64,float32"`` -> the dtypes (each float64 or float32)."""
     values = [v.strip() for v in str(text).split(",") if v.strip()]
     if not values or any(v not in DEFAULT_DTYPES for v in values):
@@ -73,7 +75,8 @@ class ThroughputResult:
     record: dict
 
 
-def throughput(device: str, *, batches=DEFAULT_BATCHES, dtypes=DEFAULT_DTYPES,
+def throughput(device: str, *, batches: Sequence[int] = DEFAULT_BATCHES,
+               dtypes: Sequence[str] = DEFAULT_DTYPES,
                repeat: int = 3, warmup: int = 1, numpy_max_batch: int = 10_000,
                steps: int | None = None, targets: str | Path | Targets | None = None,
                robot: Robot | str | None = None, progress: bool = True,
@@ -213,7 +216,7 @@ def summarise(runs: pd.DataFrame, losses: dict) -> pd.DataFrame:
 def _versions(numba: bool, threads: int | None) -> dict:
     import torch
 
-    out = {"torch": torch.__version__, "cuda": torch.version.cuda,
+    out: dict[str, Any] = {"torch": torch.__version__, "cuda": torch.version.cuda,
            "cuda_available": torch.cuda.is_available(), "numba": None, "numba_threads": None}
     if numba:
         import numba as nb

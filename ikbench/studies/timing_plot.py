@@ -8,16 +8,23 @@ at :data:`SAMPLES` instants; the solved poses marked).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ikbench.core.timing import Limits, TimedPath, retime
 from ikbench.studies.arm_plots import matplotlib_pyplot
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from ikbench.core.robot import Robot
+
 #: Instants per timing at which speeds are drawn.
 SAMPLES = 1500
 
 
-def timings_of(robot, poses, duration_s: float, limits: Limits | None,
+def timings_of(robot: Robot, poses: np.ndarray, duration_s: float, limits: Limits | None,
                topp: bool = True) -> dict[str, TimedPath]:
     """The three timings of ``poses`` (``topp`` only when ``topp`` and ``limits``)."""
     timings = {name: retime(robot, poses, name, duration_s=duration_s)
@@ -27,7 +34,8 @@ def timings_of(robot, poses, duration_s: float, limits: Limits | None,
     return timings
 
 
-def fingertip_speed(robot, timed: TimedPath, samples: int = SAMPLES):
+def fingertip_speed(robot: Robot, timed: TimedPath, samples: int = SAMPLES
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """(t_mid_s (m-1,), speed_mm_s (m-1,)): the fingertip's speed by finite differences of FK at
     ``samples`` instants evenly over the timing."""
     t = np.linspace(0.0, timed.duration_s, samples)
@@ -37,7 +45,8 @@ def fingertip_speed(robot, timed: TimedPath, samples: int = SAMPLES):
     return 0.5 * (t[1:] + t[:-1]), speed
 
 
-def plot_timings(robot, timings: dict[str, TimedPath], limits: Limits | None, title: str = ""):
+def plot_timings(robot: Robot, timings: dict[str, TimedPath], limits: Limits | None,
+                 title: str = "") -> Figure:
     """The figure (see the module doc); returns the matplotlib Figure."""
     plt = matplotlib_pyplot()
     rows = len(timings)

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
+
+from ikbench.cli.commands import Subparsers
+
 HELP = ("loss-term ablation: run a method with terms of L0..L6 dropped, compare with "
         "the full loss")
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     from ikbench.cli.options import (
         add_line_task_arguments,
         add_method_options,
@@ -48,7 +52,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
     from ikbench.cli.options import (

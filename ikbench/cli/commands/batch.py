@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import argparse
+
+from ikbench.cli.commands import Subparsers
+
 HELP = "sample random reachable touch poses, solve them in one batch (ours-lm)"
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     from ikbench.studies.batch import (
         DEFAULT_WEIGHTS,
         END_TOLERANCE_MM,
@@ -54,7 +58,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ikbench.cli.options import check_executor_args, executor_from_args, robot_from_args

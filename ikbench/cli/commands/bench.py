@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
+
+from ikbench.cli.commands import Subparsers
+
 HELP = "time methods on the same targets (median/min/max, ratios, losses)"
 DEFAULT_METHODS = "ours,ours-lm"
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     from ikbench.cli.options import add_line_task_arguments
 
     parser = subparsers.add_parser(
@@ -61,7 +65,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ikbench.cli.options import check_threads, robot_from_args, set_threads, targets_from_args
@@ -100,7 +104,7 @@ def run(args) -> int:
     return 0
 
 
-def run_throughput(args) -> int:
+def run_throughput(args: argparse.Namespace) -> int:
     """``ikbench bench --device DEV``: numpy solver vs numba and torch backends per batch."""
     from pathlib import Path
 
@@ -121,6 +125,7 @@ def run_throughput(args) -> int:
         raise InputError(f"--repeat: {args.repeat!r} must be an integer >= 1 with "
                          "--device") from None
     device = check_device(args.device)
+    assert device is not None, "the throughput mode runs with --device"
     robot = robot_from_args(args)
     check_writable(Path(args.output) / "throughput.csv")  # before the timed rounds
     set_threads(args.threads or 1)

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
+
+from ikbench.cli.commands import Subparsers
 
 HELP = "compare methods and libraries on the same robot and tasks: results.csv, leaderboard"
 DEFAULT_METHODS = "ours-lm,ours-exact,sequential-ik"
 DEFAULT_OUTPUT = "runs"
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     from ikbench.cli.options import add_line_task_arguments, add_threads_and_quiet
 
     parser = subparsers.add_parser(
@@ -70,7 +73,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     if args.problems:
         return run_problems(args)
     if args.seeds is not None:
@@ -133,7 +136,7 @@ def run(args) -> int:
     return 0
 
 
-def run_problems(args) -> int:
+def run_problems(args: argparse.Namespace) -> int:
     """``compare --problems``: the Cartesian benchmark (ikbench cartesian)."""
     import argparse
 

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import argparse
+
+from ikbench.cli.commands import Subparsers
+
 HELP = "a training set: N random reachable trajectories (ours-lm) as Parquet shards"
 #: At most this many trajectories (a million took 76 min on one CPU core, docs/scale.md).
 MAX_COUNT = 1_000_000_000
@@ -9,7 +13,7 @@ MAX_COUNT = 1_000_000_000
 MAX_SHARDS = 100_000
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     from ikbench.cli.options import add_executor_arguments, add_method_options, add_robot_arguments
     from ikbench.methods.registry import get_method
     from ikbench.studies.batch import MAX_COUNT as MAX_SHARD_SIZE
@@ -54,7 +58,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ikbench.cli.options import (

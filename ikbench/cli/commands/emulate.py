@@ -2,13 +2,21 @@
 
 from __future__ import annotations
 
+import argparse
+from typing import TYPE_CHECKING
+
+from ikbench.cli.commands import Subparsers
+
+if TYPE_CHECKING:
+    from ikbench.hw.emulator import Fault
+
 HELP = ("start emulated Dynamixel servos (Protocol 1.0) on a pseudo-terminal; prints its "
         "port")
 
 INSTRUCTIONS = {"ping": 0x01, "read": 0x02, "write": 0x03, "*": None}
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "emulate", help=HELP,
         description=(
@@ -43,7 +51,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def parse_fault(text: str):
+def parse_fault(text: str) -> Fault:
     """``"drop:5:read:2"`` -> :class:`ikbench.hw.emulator.Fault`."""
     from ikbench.core.errors import InputError
     from ikbench.hw.emulator import FAULT_KINDS, Fault
@@ -65,7 +73,7 @@ def parse_fault(text: str):
     return Fault(kind, motor_id, INSTRUCTIONS[instruction.lower()], after=after_n)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     import signal
     import threading
 

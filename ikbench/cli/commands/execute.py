@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import argparse
 import math
 
+from ikbench.cli.commands import Subparsers
 from ikbench.cli.commands.plan import add_plan_arguments, check_timing_args, timing_from_args
 
 HELP = "play a trajectory on the arm's Dynamixel servos (Protocol 1.0) or an emulator"
@@ -11,7 +13,7 @@ HELP = "play a trajectory on the arm's Dynamixel servos (Protocol 1.0) or an emu
 EMULATOR_PORT = "emulator"
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "execute", help=HELP,
         description=(
@@ -50,7 +52,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     import signal
     import threading
 

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
+
+from ikbench.cli.commands import Subparsers
+
 HELP = "write a trajectory as a ROS JointTrajectory (JSON/YAML) or a CSV in URDF radians"
 DEFAULT_DURATION_S = 2.0
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     from ikbench.viewer.export import FORMATS
 
     parser = subparsers.add_parser(
@@ -43,7 +47,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     import sys
 
     from ikbench.cli.commands.plan import check_timing_args, timing_from_args

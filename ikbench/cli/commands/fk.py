@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
 import json
+
+from ikbench.cli.commands import Subparsers
 
 HELP = "forward kinematics: end point [mm] and pointing direction of a pose"
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     from ikbench.cli.options import add_robot_arguments
 
     parser = subparsers.add_parser(
@@ -32,7 +35,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ikbench.cli.options import robot_from_args
     from ikbench.core.targets import load_targets, parse_pose
 

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
+
+from ikbench.cli.commands import Subparsers
+
 HELP = "single-pose IK benchmark: success rate and solve time of every library on a robot"
 DEFAULT_OUTPUT = "runs"
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     from ikbench.cli.options import add_robot_arguments
 
     parser = subparsers.add_parser(
@@ -48,7 +52,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def parse_caps(text) -> dict[str, int]:
+def parse_caps(text: str | None) -> dict[str, int]:
     """``"ikpy=500,drake-ik=2000"`` -> {"ikpy": 500, "drake-ik": 2000}; InputError else."""
     from ikbench.core.errors import InputError
 
@@ -66,7 +70,7 @@ def parse_caps(text) -> dict[str, int]:
     return caps
 
 
-def command_line(args) -> str:
+def command_line(args: argparse.Namespace) -> str:
     """The command as given (for the leaderboard)."""
     import shlex
 
@@ -86,7 +90,7 @@ def command_line(args) -> str:
     return " ".join(shlex.quote(w) for w in words)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ikbench.cli.options import robot_from_args

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
+
+from ikbench.cli.commands import Subparsers
+
 HELP = "draw letters A-Z in the air with the end point (the paper's letter experiment)"
 DEFAULT_OUTPUT = "runs/letters"
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     from ikbench.cli.commands.run import add_run_arguments, add_start_pose_argument
     from ikbench.cli.options import add_robot_arguments
     from ikbench.core.letters import DEFAULT_STEPS, PAPER_ITERATIONS, PAPER_START_POSE_DEG
@@ -45,7 +49,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run, targets=None, only=None)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ikbench.cli.commands.run import run as run_command
     from ikbench.cli.options import robot_from_args
     from ikbench.core.letters import PAPER_ITERATIONS
@@ -54,7 +58,7 @@ def run(args) -> int:
     if args.start_pose is None:
         robot = robot_from_args(args)
         args.start_pose = ",".join(f"{v:.17g}" for v in letter_start_pose(robot))
-    fixed = {}
+    fixed: dict[str, object] = {}
     if args.method == "ours":  # the paper's letter script: a fixed number of iterations
         if getattr(args, "opt_stop", None) is None:
             fixed["stop"] = "none"

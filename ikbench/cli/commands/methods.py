@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
+from typing import Any
+
+from ikbench.cli.commands import Subparsers
+
 HELP = "list the methods: available ones with their library, missing ones with the reason"
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "methods", help=HELP,
         description=(
@@ -20,13 +25,13 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     import json
 
     from ikbench.core.provenance import library_versions
     from ikbench.methods.registry import method_status
 
-    rows = []
+    rows: list[dict[str, Any]] = []
     for name, status in method_status().items():
         cls = status.cls
         library = cls.library if cls else ""

@@ -2,12 +2,25 @@
 
 from __future__ import annotations
 
+import argparse
+from typing import TYPE_CHECKING
+
+from ikbench.cli.commands import Subparsers
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from ikbench.core.robot import Robot
+    from ikbench.core.timing import Limits, TimedPath
+    from ikbench.hw.motors import MotorConfig
+    from ikbench.hw.plan import MotionPlan
+
 HELP = "segment table of a trajectory: joint speeds [motor deg/s] and limit flags"
 
 DEFAULT_DURATION_S = 2.0
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "plan", help=HELP,
         description=(
@@ -28,7 +41,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def add_plan_arguments(parser) -> None:
+def add_plan_arguments(parser: argparse.ArgumentParser) -> None:
     """The trajectory, --duration and --motors options shared with ``ikbench execute``."""
     parser.add_argument("trajectory", metavar="TRAJ.csv",
                         help="trajectory CSV (columns step, time_s, joint angles in motor deg, "
@@ -46,7 +59,7 @@ def add_plan_arguments(parser) -> None:
     add_robot_arguments(parser)
 
 
-def add_timing_arguments(parser) -> None:
+def add_timing_arguments(parser: argparse.ArgumentParser) -> None:
     """--timing, --max-velocity and --max-acceleration (plan, execute, export, view)."""
     from ikbench.core.timing import DEFAULT_TIMING, TIMINGS
 
@@ -62,7 +75,8 @@ def add_timing_arguments(parser) -> None:
                         "one per joint (default: the robot's; see docs/timing.md)")
 
 
-def timing_from_args(args, robot, config=None):
+def timing_from_args(args: argparse.Namespace, robot: Robot, config: MotorConfig | None = None
+                     ) -> tuple[str, Limits | None]:
     """``(timing, limits)`` of the timing options; limits None unless ``topp``."""
     from ikbench.core.timing import check_timing
 
@@ -74,7 +88,7 @@ def timing_from_args(args, robot, config=None):
     return timing, timing_limits(robot, config, args.max_velocity, args.max_acceleration)
 
 
-def check_timing_args(args) -> None:
+def check_timing_args(args: argparse.Namespace) -> None:
     """Refuse a bad --timing or limit option before anything heavy loads."""
     from ikbench.core.timing import check_timing
     from ikbench.core.timing_limits import parse_limit_option
@@ -87,7 +101,7 @@ def check_timing_args(args) -> None:
             parse_limit_option(text, count, option)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ikbench.cli.options import robot_from_args
     from ikbench.core.io import atomic_write_csv, check_writable
     from ikbench.hw.motors import load_motor_config
@@ -136,7 +150,7 @@ def _write_figure(path, robot, plan, args, config) -> None:
     print(f"timing figure written to {path}{missing}")
 
 
-def format_plan(plan) -> str:
+def format_plan(plan: MotionPlan) -> str:
     """The segment table as text: speeds [deg/s] per joint and flags, then a summary."""
     import numpy as np
     import pandas as pd
@@ -171,7 +185,7 @@ def format_plan(plan) -> str:
     return "\n".join(lines)
 
 
-def timing_lines(timed, labels, config_source: str = "") -> list[str]:
+def timing_lines(timed: TimedPath, labels: Sequence[str], config_source: str = "") -> list[str]:
     """Lines on a retimed plan: limits, their peak use, the constant timing within them, and
     what the bus plays between poses."""
     from ikbench.core.timing import constant_duration_within, limit_use

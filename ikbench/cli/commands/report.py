@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import argparse
+
+from ikbench.cli.commands import Subparsers
+
 HELP = "compare the runs in DIR (ours vs each sequential-ik run); write DIR/report.md"
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "report", help=HELP,
         description=(
@@ -26,7 +30,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ikbench.paper.comparison import write_comparison_report
 
     path = write_comparison_report(args.dir)

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
+
+from ikbench.cli.commands import Subparsers
+
 HELP = ("regenerate Tables 1 and 2, the comparison, the ablation, all figures and "
         "results/README.md")
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     from ikbench.cli.options import add_threads_and_quiet
 
     parser = subparsers.add_parser(
@@ -36,7 +40,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ikbench.cli.options import check_threads, set_threads
     from ikbench.paper.reproduce import reproduce
 

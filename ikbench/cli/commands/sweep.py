@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
+
+from ikbench.cli.commands import Subparsers
+
 HELP = ("solve the targets or a shape for a grid of loss weights (ours-lm or ours-exact); "
         "CSV, Pareto figure")
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     from ikbench.cli.commands.run import add_task_arguments
     from ikbench.core.letters import PAPER_START_POSE_DEG
 
@@ -44,7 +48,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ikbench.cli.options import check_executor_args, executor_from_args, robot_from_args

@@ -2,11 +2,22 @@
 
 from __future__ import annotations
 
+import argparse
+from typing import TYPE_CHECKING
+
+from ikbench.cli.commands import Subparsers
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from ikbench.core.robot import Robot
+    from ikbench.viewer.folders import ViewRun
+
 HELP = "show run folders in a 3-D browser viewer: the arm, goal and fingertip paths, playback"
 INSTALL = "pip install 'ikbench[viewer]'"
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "view", help=HELP,
         description=(
@@ -39,7 +50,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ikbench.cli.commands.plan import check_timing_args
     from ikbench.core.errors import InputError
     from ikbench.viewer.folders import check_folders, load_runs
@@ -63,7 +74,7 @@ def run(args) -> int:
     return 0
 
 
-def retime_runs(robot, runs, args) -> None:
+def retime_runs(robot: Robot, runs: Sequence[ViewRun], args: argparse.Namespace) -> None:
     """Apply --timing (and --duration) to every trajectory of ``runs``."""
     from ikbench.cli.commands.plan import timing_from_args
 

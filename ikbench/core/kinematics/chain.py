@@ -9,9 +9,19 @@ dq/dp, the URDF units per pose unit (motor map scale x pi/180, or 1/1000 m per m
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any, TypeAlias
+
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import SolverError
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+
+#: (point or position (M, 3), direction (M, 3) or rotation (M, 3, 3), and their Jacobians
+#: (M, 3, dof), or None without them)
+Frames: TypeAlias = tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]
 
 _REVOLUTE = {"JointModelRX": (1.0, 0.0, 0.0), "JointModelRY": (0.0, 1.0, 0.0),
              "JointModelRZ": (0.0, 0.0, 1.0)}
@@ -19,7 +29,7 @@ _PRISMATIC = {"JointModelPX": (1.0, 0.0, 0.0), "JointModelPY": (0.0, 1.0, 0.0),
               "JointModelPZ": (0.0, 0.0, 1.0)}
 
 
-def joint_axis(joint, name: str) -> tuple[np.ndarray, bool]:
+def joint_axis(joint: Any, name: str) -> tuple[np.ndarray, bool]:
     """(unit axis (3,) in the joint frame, prismatic?) of a Pinocchio joint model."""
     short = joint.shortname()
     if short in _REVOLUTE:
@@ -49,18 +59,21 @@ class ChainKinematics:
     the full end-frame rotation too.
     """
 
-    def __init__(self, robot):
+    def __init__(self, robot: Robot) -> None:
         pfk = robot.pinocchio_fk()
         model = pfk.model
         self.dof = robot.dof
-        self.rotations, self.translations, self.axes, self.prismatic = [], [], [], []
+        self.rotations: list[np.ndarray] = []
+        self.translations: list[np.ndarray] = []
+        self.axes: list[np.ndarray] = []
+        joint_is_prismatic: list[bool] = []
         for j in range(1, model.njoints):
             if model.parents[j] != j - 1:
                 raise SolverError(f"a serial chain is needed; joint {model.names[j]} hangs off "
                                   f"joint {model.names[model.parents[j]]}")
             axis, prismatic = joint_axis(model.joints[j], model.names[j])
             self.axes.append(axis)
-            self.prismatic.append(prismatic)
+            joint_is_prismatic.append(prismatic)
             self.rotations.append(np.array(model.jointPlacements[j].rotation))
             self.translations.append(np.array(model.jointPlacements[j].translation))
         frame = model.frames[pfk.frame_id]
@@ -69,12 +82,13 @@ class ChainKinematics:
         self.tip_rotation = np.array(frame.placement.rotation)
         self.tip_translation = np.array(frame.placement.translation)
         self.tip_axis = self.tip_rotation @ robot.pointing_axis
-        self.prismatic = np.array(self.prismatic)
+        self.prismatic = np.array(joint_is_prismatic)
         #: URDF units [rad or m] per pose unit, per joint
         self.urdf_per_unit = robot.to_urdf(np.ones(self.dof)) - robot.to_urdf(np.zeros(self.dof))
         self.robot = robot
 
-    def transforms(self, poses):
+    def transforms(self, poses: npt.ArrayLike
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(position_m (M, 3), rotation (M, 3, 3), axes_world (M, dof, 3),
         origins_m (M, dof, 3)) of the end frame and the joints, for poses (M, dof)."""
         q = self.robot.to_urdf(np.asarray(poses, dtype=float))
@@ -113,7 +127,7 @@ class ChainKinematics:
         return point, direction, j_point.transpose(0, 2, 1), j_dir.transpose(0, 2, 1)
 
 
-    def frames(self, poses, jacobian: bool = True):
+    def frames(self, poses: npt.ArrayLike, jacobian: bool = True) -> Frames:
         """End-frame poses (and Jacobians) of poses (M, dof) [pose units].
 
         A second formulation of the chain, built for few poses at a time (the start search of
@@ -165,7 +179,7 @@ class ChainKinematics:
         self._tip[:3, :3], self._tip[:3, 3] = self.tip_rotation, self.tip_translation
 
 
-def pinocchio_frames(robot, poses, jacobian: bool = True):
+def pinocchio_frames(robot: Robot, poses: npt.ArrayLike, jacobian: bool = True) -> Frames:
     """The reference of :meth:`ChainKinematics.frames`: Pinocchio per pose."""
     import pinocchio as pin
 
@@ -186,7 +200,7 @@ def pinocchio_frames(robot, poses, jacobian: bool = True):
     return point, rotation, j_point, j_angular
 
 
-def pinocchio_kinematics(robot, poses, jacobian: bool = True):
+def pinocchio_kinematics(robot: Robot, poses: npt.ArrayLike, jacobian: bool = True) -> Frames:
     """The reference of :class:`ChainKinematics`: Pinocchio per pose (LOCAL_WORLD_ALIGNED)."""
     import pinocchio as pin
 

@@ -10,10 +10,17 @@ pose unit. In float64 its outputs equal the numpy chain's to about 1e-15.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import torch
+    from torch import Tensor
+
+    from ikbench.core.robot import Robot
 
 
-def torch_chain_kinematics(robot, dtype=None, device="cpu") -> TorchChainKinematics:
+def torch_chain_kinematics(robot: Robot, dtype: torch.dtype | None = None,
+                           device: str | torch.device = "cpu") -> TorchChainKinematics:
     """The robot's :class:`TorchChainKinematics` for ``dtype`` / ``device`` (cached)."""
     import torch
 
@@ -37,7 +44,8 @@ class TorchChainKinematics:
     direction (M, 3) and their Jacobians d/d(pose unit) (M, 3, dof), all tensors.
     """
 
-    def __init__(self, robot, dtype=None, device="cpu"):
+    def __init__(self, robot: Robot, dtype: torch.dtype | None = None,
+                 device: str | torch.device = "cpu") -> None:
         import torch
 
         chain = robot.chain_kinematics()
@@ -60,7 +68,7 @@ class TorchChainKinematics:
         self.urdf_per_unit = tensor(chain.urdf_per_unit)             # (dof,)
         self.revolute = torch.as_tensor([not p for p in self.prismatic], device=self.device)
 
-    def transforms(self, poses):
+    def transforms(self, poses: Tensor) -> tuple[Tensor, Tensor, Tensor, Tensor]:
         """(position_m (M, 3), rotation (M, 3, 3), axes_world (M, dof, 3), origins_m
         (M, dof, 3)) of the end frame and the joints, for poses (M, dof) [pose units]."""
         import torch

@@ -2,6 +2,15 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import pytorch_kinematics as pk
+    import torch
+    from torch import Tensor
+
+    from ikbench.core.robot import Robot
+
 
 def _float64_transform(origin):
     """URDF origin -> float64 Transform3d (pytorch-kinematics rounds rpy to float32)."""
@@ -15,7 +24,8 @@ def _float64_transform(origin):
     return tf.Transform3d(rot=tf.quaternion_from_euler(rpy, "sxyz"), pos=pos, dtype=torch.float64)
 
 
-def build_chain_float64(urdf_bytes: bytes, end_frame: str, root_frame: str = ""):
+def build_chain_float64(urdf_bytes: bytes, end_frame: str, root_frame: str = ""
+                        ) -> pk.SerialChain:
     """``pk.build_serial_chain_from_urdf`` with its constant transforms exact in float64.
 
     pytorch-kinematics (0.10) converts every URDF ``rpy`` and joint axis through a float32
@@ -54,7 +64,8 @@ class TorchFK:
         device: torch device.
     """
 
-    def __init__(self, robot, dtype=None, device: str = "cpu"):
+    def __init__(self, robot: Robot, dtype: torch.dtype | None = None,
+                 device: str = "cpu") -> None:
         import torch
 
         self.robot = robot
@@ -75,7 +86,7 @@ class TorchFK:
         self.pointing_axis = torch.as_tensor(robot.pointing_axis, dtype=self.dtype,
                                              device=device)
 
-    def transform(self, q_pose):
+    def transform(self, q_pose: Tensor) -> Tensor:
         """End-frame homogeneous transforms (B, 4, 4) [m] for poses (B, dof) [pose units]."""
         q_urdf = self.robot.to_urdf(q_pose)
         if self._locked is not None:
