@@ -56,6 +56,7 @@ class OursLM(Method):
     Settings = OursLMSettings
     batched = True
     supports_frames = True
+    avoids_obstacles = True     # on 6-D pose paths (:mod:`.avoidance`); 3-D tasks: none
 
     def settings_for(self, task) -> LMSettings:
         """The settings for one task, with its complete weights."""
