@@ -4,9 +4,9 @@
 Output layout under ``output/<name>/`` (``name`` defaults to the method's name, e.g. ``ours``):
 ``trajectory_<id>.csv``, ``table.csv`` (the Table 1/2 columns), ``details.csv`` (smoothness,
 solver figures, failures), ``run.json`` (method, robot, settings, versions, the files
-written), ``trajectories_3d.png``, ``pointing_error.png``, ``animation.gif`` (the arm playing
-every trajectory, :mod:`ikbench.studies.animation`; ``animation=False`` skips it) and
-``report.md``.
+written, the tasks' obstacles where they have any: :func:`obstacles_record`),
+``trajectories_3d.png``, ``pointing_error.png``, ``animation.gif`` (the arm playing every
+trajectory, :mod:`ikbench.studies.animation`; ``animation=False`` skips it) and ``report.md``.
 
 The folder is replaced whole or not at all (:func:`ikbench.core.io.staged_folder`): files
 an earlier run wrote there and this one does not are gone, files it did not write (notes,
@@ -435,11 +435,28 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
                 "total_wall_time_s": record.get("total_wall_time_s"),
                 "files": files, **provenance(extra=(solver.library,)),
                 **{k: record[k] for k in ("problem", "problem_name") if k in record}}
+        shapes = obstacles_record(tasks)
+        if shapes:  # a run without obstacles writes run.json as before
+            full["obstacles"] = shapes
         atomic_write_text(tmp / "run.json", json.dumps(full, indent=2) + "\n")
         atomic_write_text(tmp / "report.md", method_report(
             solver, table, details, targets, full,
             {caption: file for caption, file, _ in figures}))
     return table
+
+
+def obstacles_record(tasks) -> list | dict | None:
+    """How run.json records the tasks' obstacles (``Obstacle.to_dict`` items, base frame,
+    mm): one list when every task has the same ones (a problem's), else a mapping from
+    trajectory id to its list (tasks without obstacles left out); None when no task has any.
+    :func:`ikbench.viewer.folders.load_runs` reads it back."""
+    items = {t.name: [o.to_dict() for o in t.obstacles] for t in tasks}
+    if not any(items.values()):
+        return None
+    lists = list(items.values())
+    if all(entry == lists[0] for entry in lists):
+        return lists[0]
+    return {name: entry for name, entry in items.items() if entry}
 
 
 def _jsonable(value):

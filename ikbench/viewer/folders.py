@@ -8,7 +8,9 @@ recorded targets, start pose and n (as ``ikbench report`` does), other shapes fr
 recorded shape, start pose, n, direction and letter size; when that fails (e.g. the targets
 file is not found from here) a line run falls back to the straight line between each
 trajectory's first and last fingertip points, and another shape shows no goal.
-:attr:`ViewRun.goal_source` says which.
+:attr:`ViewRun.goal_source` says which. Obstacles come from run.json's ``obstacles``
+(:func:`ikbench.studies.run.obstacles_record`: one list for every trajectory, or one per
+trajectory id); a run folder written without them has none.
 """
 
 from __future__ import annotations
@@ -37,6 +39,8 @@ class ViewTrajectory:
             out) or None.
         times_s: (n+1,) when each pose is reached under ``--timing min-jerk`` or ``topp``
             [s] (None: evenly apart, the paper's timing).
+        obstacles: the obstacles of this trajectory's task
+            (:class:`ikbench.core.obstacles.Obstacle`, base frame [mm]); empty: none.
     """
 
     name: str
@@ -46,6 +50,7 @@ class ViewTrajectory:
     goal_mm: np.ndarray | None = None
     goal_segments_mm: np.ndarray | None = None
     times_s: np.ndarray | None = None
+    obstacles: tuple = ()
 
     @property
     def steps(self) -> int:
@@ -80,12 +85,16 @@ class ViewTrajectory:
 @dataclass
 class ViewRun:
     """A run folder read back: its label (folder name, and the method when it differs),
-    trajectories by id (run.json's order) and where its goal paths come from."""
+    trajectories by id (run.json's order), where its goal paths come from, and the
+    obstacles every trajectory shares (:class:`ikbench.core.obstacles.Obstacle`, base frame
+    [mm]; empty when there are none or they differ between trajectories: then each
+    :attr:`ViewTrajectory.obstacles` holds its own)."""
 
     folder: Path
     label: str
     trajectories: dict[str, ViewTrajectory]
     goal_source: str
+    obstacles: tuple = ()
 
 
 def check_folders(folders) -> list[Path]:
@@ -162,9 +171,41 @@ def _load_run(folder: Path, record: dict, robot: Robot) -> ViewRun:
         raise InputError(f"view: {folder} holds no trajectory CSV of run.json's trajectories "
                          f"({', '.join(map(str, record['trajectories'])) or 'none'})")
     source = _add_goals(robot, record, trajectories)
+    shared = _add_obstacles(folder, record, trajectories)
     method, name = str(record.get("method", folder.name)), folder.name
     return ViewRun(folder, name if method == name else f"{name} ({method})", trajectories,
-                   source)
+                   source, shared)
+
+
+def _add_obstacles(folder: Path, record: dict, trajectories: dict) -> tuple:
+    """Set each trajectory's obstacles from run.json's ``obstacles``; return those every
+    trajectory shares (a list, or ``ikbench compare``'s ``{"source", "items"}``: all of
+    them; a mapping by trajectory id: none).
+
+    Raises:
+        InputError: the entry is not a list or a mapping of obstacle lists.
+    """
+    from ikbench.core.obstacles import parse_obstacles
+
+    entry = record.get("obstacles")
+    where = f"view: {folder / 'run.json'} obstacles"
+    if not entry:  # older run folders, runs without obstacles
+        return ()
+    if isinstance(entry, dict) and isinstance(entry.get("source"), str) and set(entry) == {
+            "source", "items"}:  # ikbench compare's record: {"source": ..., "items": [...]}
+        entry = entry["items"]
+    if isinstance(entry, list):
+        shared = parse_obstacles(entry, where)
+        for traj in trajectories.values():
+            traj.obstacles = shared
+        return shared
+    if not isinstance(entry, dict):
+        raise InputError(f"{where}: expected a list of obstacles or a mapping from "
+                         f"trajectory id to one, got {type(entry).__name__}")
+    for tid, traj in trajectories.items():
+        if entry.get(tid):
+            traj.obstacles = parse_obstacles(entry[tid], f"{where} of trajectory {tid}")
+    return ()
 
 
 def _add_goals(robot: Robot, record: dict, trajectories: dict) -> str:

@@ -14,7 +14,7 @@ import viser
 from ikbench.viewer import scene as sc
 
 if TYPE_CHECKING:
-    from ikbench.viewer.server import Viewer
+    from ikbench.viewer.server import RunScene, Viewer
 
 #: Playback speeds (label -> factor of the real speed).
 SPEEDS = {"0.25x": 0.25, "0.5x": 0.5, "1x": 1.0, "2x": 2.0}
@@ -29,18 +29,35 @@ def _legend(scenes) -> str:
     rows = [f"<div>{swatch(s.color)}<b>{s.run.label}</b>: fingertip, arm "
             f"{'in URDF colours' if i == 0 else 'ghost'}</div>" for i, s in enumerate(scenes)]
     rows.append(f"<div>{swatch(sc.GOAL_COLOR)}goal path</div>")
+    if any(s.obstacles for s in scenes):
+        rows.append(f"<div>{swatch(sc.OBSTACLE_COLOR, sc.OBSTACLE_OPACITY)}obstacles</div>")
+        rows.append(f"<div>{swatch(sc.COLLISION_COLOR)}colliding waypoints (fingertip)</div>")
     return '<div style="font-size:0.8em;line-height:1.6">' + "".join(rows) + "</div>"
+
+
+def _collision_note(scene: RunScene) -> str:
+    """``; obstacles: N, colliding waypoints: 1: 12 of 200, ...`` for a run with
+    obstacles, else nothing."""
+    if not scene.obstacles:
+        return ""
+    counts = ", ".join(
+        f"{tid}: {len(scene.collisions[tid].points) if tid in scene.collisions else 0} of "
+        f"{len(traj.poses)}" for tid, traj in scene.run.trajectories.items()
+        if tid in scene.obstacles)
+    count = len({id(h) for handles in scene.obstacles.values() for h in handles})
+    return f"; {count} obstacle{'s' * (count != 1)}, colliding waypoints {counts}"
 
 
 def add_gui(server, viewer: Viewer, ids: list[str]) -> None:
     """Add the panel's controls to ``server`` and wire them to ``viewer``; the handles go
     into ``viewer.gui`` (``trajectory``, ``step``, ``time``, ``play``, ``speed``, ``loop``,
-    ``runs``, ``goal``, ``tip``, ``others``)."""
+    ``runs``, ``goal``, ``tip``, ``others``; ``obstacles`` and ``collisions`` when a run has
+    obstacles)."""
     gui, scenes = viewer.gui, viewer.scenes
     with server.gui.add_folder("Trajectory"):
         gui["trajectory"] = server.gui.add_dropdown("trajectory", ids, initial_value=ids[0])
         server.gui.add_markdown("<br>".join(f"**{s.run.label}**: {s.run.goal_source}"
-                                            for s in scenes))
+                                            f"{_collision_note(s)}" for s in scenes))
     with server.gui.add_folder("Playback"):
         gui["step"] = server.gui.add_slider("step", min=0, max=max(len(viewer.times) - 1, 1),
                                             step=1, initial_value=0)
@@ -55,6 +72,10 @@ def add_gui(server, viewer: Viewer, ids: list[str]) -> None:
         gui["tip"] = server.gui.add_checkbox("fingertip path", True)
         gui["others"] = server.gui.add_checkbox("other trajectories", True,
                                                 hint="the first run's, faint")
+        if any(s.obstacles for s in scenes):
+            gui["obstacles"] = server.gui.add_checkbox("obstacles", True)
+            gui["collisions"] = server.gui.add_checkbox(
+                "colliding waypoints", True, hint="red: the arm touches an obstacle or itself")
 
     @gui["step"].on_update
     def _(event) -> None:
@@ -76,5 +97,6 @@ def add_gui(server, viewer: Viewer, ids: list[str]) -> None:
         viewer.refresh_visibility()
         viewer.show(int(gui["step"].value))
 
-    for box in [*gui["runs"], gui["goal"], gui["tip"], gui["others"]]:
+    boxes = [*gui["runs"], gui["goal"], gui["tip"], gui["others"]]
+    for box in boxes + [gui[k] for k in ("obstacles", "collisions") if k in gui]:
         box.on_update(lambda _: viewer.refresh_visibility())

@@ -10,7 +10,12 @@ trajectory's real speed (one step every T/n seconds, times the chosen speed; the
 taken from the wall clock, so playback does not drift), with loop and speed controls. Under
 ``--timing min-jerk`` or ``topp`` each pose is shown from the time the timing reaches it
 (:meth:`ikbench.viewer.folders.ViewTrajectory.retime`); the slider then steps at the shortest
-segment (at most :data:`MAX_STEPS` steps).
+segment (at most :data:`MAX_STEPS` steps). A run whose tasks have obstacles (run.json's
+``obstacles``) shows them, translucent brown, with the selected trajectory
+(:func:`ikbench.viewer.scene.add_obstacles`; a set of obstacles several runs share is drawn
+once), and red points at the fingertip of each waypoint where the arm touches an obstacle
+or itself (:func:`ikbench.viewer.scene.add_collision_markers`); a run without obstacles is
+drawn as before.
 
 Needs the ``[viewer]`` extra (viser); :mod:`ikbench.viewer` imports it only here.
 """
@@ -19,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import math
 import signal
 import threading
@@ -63,6 +69,11 @@ class RunScene:
     goal_paths: dict[str, viser.LineSegmentsHandle]
     tip_marker: viser.IcosphereHandle
     goal_marker: viser.IcosphereHandle
+    #: per trajectory id: the handles of its obstacles (one list shared by the trajectories,
+    #: and by the runs, that have the same obstacles); ids without obstacles are absent
+    obstacles: dict[str, list] = field(default_factory=dict)
+    #: per trajectory id: the red points at its colliding waypoints; absent when none collide
+    collisions: dict[str, viser.PointCloudHandle] = field(default_factory=dict)
 
 
 @dataclass
@@ -162,6 +173,14 @@ class Viewer:
                 path.visible = key != tid and bool(gui["others"].value)
             for key, path in s.goal_paths.items():
                 path.visible = key == tid and bool(gui["goal"].value)
+            for key, points in s.collisions.items():
+                points.visible = key == tid and bool(gui["collisions"].value)
+        shown = {id(h) for s, box in zip(self.scenes, gui["runs"]) if box.value
+                 for h in s.obstacles.get(tid, ())} if "obstacles" in gui else set()
+        for s in self.scenes:
+            for handles in s.obstacles.values():
+                for handle in handles:
+                    handle.visible = id(handle) in shown and bool(gui["obstacles"].value)
 
     def _player(self) -> None:
         """Playback loop: the step follows the wall clock x speed (no drift)."""
@@ -195,7 +214,11 @@ def timeline(runs: list[ViewRun]) -> np.ndarray:
     return np.arange(int(round(total / dt)) + 1) * dt
 
 
-def _add_run(server, robot: Robot, run: ViewRun, index: int, framing: list) -> RunScene:
+def _add_run(server, robot: Robot, run: ViewRun, index: int, framing: list,
+             drawn: dict[str, list] | None = None) -> RunScene:
+    """Add one run's arm, paths, markers, obstacles and collision markers to the scene;
+    ``framing`` gains the points [m] the initial camera should see, ``drawn`` (obstacle
+    sets already in the scene, by their JSON) the obstacles drawn here."""
     color = sc.RUN_COLORS[index % len(sc.RUN_COLORS)]
     model = sc.load_model(robot)  # one yourdfpy model per arm
     T_root_base = sc.base_transform(model, robot)
@@ -231,9 +254,39 @@ def _add_run(server, robot: Robot, run: ViewRun, index: int, framing: list) -> R
                                             color=color)
     goal_marker = server.scene.add_icosphere(f"/run{index}/goal_marker", radius=0.006,
                                              color=sc.GOAL_COLOR, opacity=0.8)
+    obstacles, collisions = _add_obstacles(server, robot, run, index, T_root_base, framing,
+                                           {} if drawn is None else drawn)
     return RunScene(run, color, 1.0 if override is None else GHOST_OPACITY, model, frame, arm,
                     urdf, cfg, tips, goals, tip_paths, faint, goal_paths, tip_marker,
-                    goal_marker)
+                    goal_marker, obstacles, collisions)
+
+
+def _add_obstacles(server, robot: Robot, run: ViewRun, index: int, T_root_base: np.ndarray,
+                   framing: list, drawn: dict[str, list]) -> tuple[dict, dict]:
+    """Draw the run's obstacles (each distinct set once, under ``/obstacles/<k>``; a set an
+    earlier run drew is reused) and red points at each trajectory's colliding waypoints.
+    Returns (handles by trajectory id, collision markers by trajectory id); both empty for
+    a run without obstacles."""
+    handles: dict[str, list] = {}
+    markers: dict[str, viser.PointCloudHandle] = {}
+    trajs = [t for t in run.trajectories.values() if t.obstacles]
+    if not trajs:
+        return handles, markers
+    around = np.vstack([t.tip_mm for t in run.trajectories.values()])  # a half-space's patch
+    for traj in trajs:
+        key = json.dumps([o.to_dict() for o in traj.obstacles], sort_keys=True)
+        if key not in drawn:
+            drawn[key] = sc.add_obstacles(server, traj.obstacles, T_root_base, around,
+                                          name=f"/obstacles/{len(drawn)}")
+            framing.append(np.array([h.position for h, o in zip(drawn[key], traj.obstacles)
+                                     if o.kind != "halfspace"]).reshape(-1, 3))
+        handles[traj.name] = drawn[key]
+        marker = sc.add_collision_markers(
+            server, f"/run{index}/paths/{_node(traj.name)}/collisions", robot, traj.poses,
+            traj.tip_mm, traj.obstacles, T_root_base)
+        if marker is not None:
+            markers[traj.name] = marker
+    return handles, markers
 
 
 def _node(tid: str) -> str:
@@ -279,7 +332,8 @@ def serve(robot: Robot, runs: list[ViewRun], *, port: int = 8080, host: str = "1
         server = viser.ViserServer(host=host, port=port, label=TITLE, verbose=False)
     server.scene.set_up_direction("+z")
     framing: list[np.ndarray] = []
-    scenes = [_add_run(server, robot, run, i, framing) for i, run in enumerate(runs)]
+    drawn: dict[str, list] = {}  # obstacle sets in the scene, shared by the runs that have them
+    scenes = [_add_run(server, robot, run, i, framing, drawn) for i, run in enumerate(runs)]
     _frame_scene(server, robot, framing)
     viewer = Viewer(server, host, timeline(runs), scenes)
     add_gui(server, viewer, ids)
