@@ -18,7 +18,13 @@ A comparison is only worth reading when every method solves the same stated task
   Dynamixel table, T = 2 s, n = 50: at most 10.8 motor deg per segment; other robots: their
   URDF's ``<limit velocity>`` (rad/s or m/s, turned into pose units);
 - **tolerances** for each criterion (:data:`DEFAULT_TOLERANCES`), printed above every
-  leaderboard and overridable (``--tolerance start_pose_deg=0.5,...``).
+  leaderboard and overridable (``--tolerance start_pose_deg=0.5,...``);
+- **collisions**, only when the tasks carry obstacles (``Contract.obstacles``: a targets
+  file's ``obstacles``, ``ikbench compare --obstacles``): no waypoint in collision with the
+  obstacles nor with the robot itself (:mod:`ikbench.core.collision`; figures
+  ``self_collisions`` and ``env_collisions`` of
+  :func:`ikbench.core.metrics.contract_metrics`). Without obstacles the criterion does not
+  exist and nothing changes.
 
 Success is computed by the study from the written trajectory (:func:`judge`), never reported
 by the method. A method whose scheme cannot honour a fixed pose says so
@@ -62,6 +68,11 @@ CRITERIA = {
     "line": ("line_distance_max_mm", "line_distance_max_mm"),
     "pointing": ("pointing_deviation_judged_mean_deg", "pointing_judged_mean_deg"),
 }
+#: The criterion judged only when the tasks carry obstacles (after :data:`CRITERIA`): no
+#: waypoint in collision, with itself or with an obstacle (both figures must be 0).
+COLLISION_CRITERION = "collisions"
+#: The figures the collision criterion reads (waypoints in collision).
+COLLISION_FIGURES = ("self_collisions", "env_collisions")
 POINTING_CHOICES = ("auto", "on", "off")
 
 
@@ -77,6 +88,8 @@ class Contract:
         max_speed: (dof,) joint speed limits [pose units per s], or None when unknown.
         speed_source: where ``max_speed`` comes from (a sentence).
         tolerances: criterion tolerances (keys of :data:`DEFAULT_TOLERANCES`).
+        obstacles: True when the tasks carry obstacles: collisions are judged
+            (:data:`COLLISION_CRITERION`).
     """
 
     track: str = "paper"
@@ -86,6 +99,7 @@ class Contract:
     max_speed: np.ndarray | None = None
     speed_source: str = "no speed limit known"
     tolerances: Mapping[str, float] = field(default_factory=lambda: dict(DEFAULT_TOLERANCES))
+    obstacles: bool = False
 
     def __post_init__(self):
         if self.track not in TRACKS:
@@ -102,7 +116,8 @@ class Contract:
         return TRACKS[self.track]
 
     def criteria(self) -> list[str]:
-        """The criteria judged on this track (names of :data:`CRITERIA`)."""
+        """The criteria judged on this track (names of :data:`CRITERIA`, then
+        :data:`COLLISION_CRITERION` when the tasks carry obstacles)."""
         out = []
         for name in CRITERIA:
             if name == "start_pose" and "start_pose" not in self.fixed_poses:
@@ -112,7 +127,14 @@ class Contract:
             if name == "pointing" and not self.pointing:
                 continue
             out.append(name)
+        if self.obstacles:
+            out.append(COLLISION_CRITERION)
         return out
+
+    def criterion_names(self) -> list[str]:
+        """Every criterion a table of this contract has a column for, on any track:
+        :data:`CRITERIA`, then :data:`COLLISION_CRITERION` when the tasks carry obstacles."""
+        return [*CRITERIA, *([COLLISION_CRITERION] if self.obstacles else [])]
 
     def max_step(self, steps: int) -> np.ndarray | None:
         """(dof,) the largest joint change per segment [pose units] at T / n per segment."""
@@ -129,14 +151,18 @@ class Contract:
         return replace(self, track=track)
 
     def to_dict(self) -> dict:
-        """Plain values (run.json)."""
-        return {"track": self.track, "fixed_poses": list(self.fixed_poses),
-                "pointing": self.pointing, "pointing_judged_from": self.pointing_judged_from,
-                "duration_s": self.duration_s,
-                "max_speed": None if self.max_speed is None else
-                [float(v) for v in self.max_speed],
-                "speed_source": self.speed_source, "tolerances": dict(self.tolerances),
-                "criteria": self.criteria()}
+        """Plain values (run.json); ``obstacles`` only when True (obstacle-free contracts
+        are written as before)."""
+        out = {"track": self.track, "fixed_poses": list(self.fixed_poses),
+               "pointing": self.pointing, "pointing_judged_from": self.pointing_judged_from,
+               "duration_s": self.duration_s,
+               "max_speed": None if self.max_speed is None else
+               [float(v) for v in self.max_speed],
+               "speed_source": self.speed_source, "tolerances": dict(self.tolerances),
+               "criteria": self.criteria()}
+        if self.obstacles:
+            out["obstacles"] = True
+        return out
 
     @classmethod
     def from_dict(cls, spec: Mapping) -> Contract:
@@ -146,7 +172,8 @@ class Contract:
                    pointing_judged_from=spec["pointing_judged_from"],
                    duration_s=spec["duration_s"],
                    max_speed=None if speed is None else np.asarray(speed, dtype=float),
-                   speed_source=spec["speed_source"], tolerances=dict(spec["tolerances"]))
+                   speed_source=spec["speed_source"], tolerances=dict(spec["tolerances"]),
+                   obstacles=bool(spec.get("obstacles", False)))
 
     def describe(self, steps: int, unit: str = "deg") -> str:
         """The contract in a few sentences (leaderboard headers)."""
@@ -175,6 +202,9 @@ class Contract:
                           f"{100 * (1 - self.pointing_judged_from):.0f} %)")
         else:
             parts[-1] += "; pointing not judged"
+        if self.obstacles:
+            parts[-1] += ("; no waypoint in collision with the obstacles or with the robot "
+                          "itself (its collision model)")
         parts[-1] += "."
         return " ".join(parts)
 
@@ -280,9 +310,13 @@ def contract_for(robot, track: str = "paper", tolerances: str | Mapping | None =
 
 def judge(contract: Contract, figures: Mapping) -> dict[str, bool]:
     """criterion -> met, for the criteria of ``contract`` (:meth:`Contract.criteria`), from a
-    trajectory's figures (:func:`ikbench.core.metrics.contract_metrics`). A NaN figure fails."""
+    trajectory's figures (:func:`ikbench.core.metrics.contract_metrics`). A NaN figure fails;
+    the collision criterion holds when both :data:`COLLISION_FIGURES` are 0."""
     out = {}
     for name in contract.criteria():
+        if name == COLLISION_CRITERION:
+            out[name] = all(_is_zero(figures.get(column)) for column in COLLISION_FIGURES)
+            continue
         column, key = CRITERIA[name]
         value = figures.get(column)
         if key is None:
@@ -294,3 +328,11 @@ def judge(contract: Contract, figures: Mapping) -> dict[str, bool]:
             number = math.nan
         out[name] = bool(number <= contract.tolerances[key])
     return out
+
+
+def _is_zero(value: object) -> bool:
+    """True for a figure equal to 0 (a count of waypoints in collision); NaN, None: False."""
+    try:
+        return float(value) == 0.0  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return False

@@ -7,6 +7,8 @@ degrees; they return mm and degrees. :func:`trajectory_metrics` gives the Table 
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 #: Window of the paper's criterion 2: the displacement of the last 10 segments is averaged.
@@ -274,7 +276,7 @@ def speed_limit_use(poses_deg, max_step) -> float:
     return float(np.max(steps / np.asarray(max_step, dtype=float), initial=0.0))
 
 
-def contract_metrics(robot, task, poses_motor_deg, contract) -> dict[str, float]:
+def contract_metrics(robot, task, poses_motor_deg, contract) -> dict[str, Any]:
     """The figures a :class:`ikbench.core.contract.Contract` judges, with the Table 1/2 ones.
 
     Returns:
@@ -284,11 +286,17 @@ def contract_metrics(robot, task, poses_motor_deg, contract) -> dict[str, float]
         contract does not judge pointing), ``speed_limit_use`` (:func:`speed_limit_use` at
         the contract's duration; NaN without speed limits), ``max_step_limit_deg`` (the
         smallest allowed change per segment over the joints) and ``within_limits`` (every
-        pose within the task's limits).
+        pose within the task's limits). When the task carries obstacles (``Task.obstacles``)
+        also ``self_collisions`` and ``env_collisions`` (waypoints in collision with the robot
+        itself, with an obstacle), ``min_clearance_mm`` (the smallest signed distance to an
+        obstacle), ``first_collision_waypoint`` (NaN: none) and ``first_collision_pair``
+        (:func:`ikbench.core.collision.check_trajectory`; all NaN, "" for the pair, on a robot
+        without a collision model: nothing can be checked, so the collision criterion fails).
+        Obstacle-free tasks get none of these.
     """
     poses = np.asarray(poses_motor_deg, dtype=float)
     fk = robot.fk(poses)
-    out = _line_metrics(task, poses, fk)
+    out: dict[str, Any] = _line_metrics(task, poses, fk)
     mask = np.asarray(task.pen_down, dtype=bool)
     out["line_distance_max_mm"] = float(line_distances_mm(
         fk.point_mm[mask], task.start_point_mm, task.end_point_mm).max())
@@ -307,4 +315,13 @@ def contract_metrics(robot, task, poses_motor_deg, contract) -> dict[str, float]
     out["max_step_limit_deg"] = float("nan") if max_step is None else float(np.min(max_step))
     lower, upper = task.limits(robot)
     out["within_limits"] = bool(np.all(poses >= lower - 1e-6) and np.all(poses <= upper + 1e-6))
+    if getattr(task, "obstacles", ()):
+        from ikbench.core.collision import check_trajectory
+
+        found = check_trajectory(robot, poses, task.obstacles)
+        checked = found["collision_model"] != "none"
+        for key in ("self_collisions", "env_collisions", "min_clearance_mm",
+                    "first_collision_waypoint"):
+            out[key] = found[key] if checked else float("nan")
+        out["first_collision_pair"] = found["first_collision_pair"]
     return out

@@ -6,6 +6,7 @@ Format (JSON)::
      "start_pose": [...dof...],
      "targets": {"1": [...dof...], "2": [...], ...},
      "steps": 50,                      # optional, default 50
+     "obstacles": [...] or "NAME",     # optional, default none
      "description": "..."}             # optional
 
 Poses are in the robot's pose units (motor degrees for NICO; joint degrees, mm for prismatic
@@ -13,6 +14,13 @@ joints, for robots without a motor map). Target ids name files (``trajectory_<id
 letters, digits, ``_``, ``-`` and ``.``. Unknown keys are rejected (a misspelt "steps" would
 otherwise be ignored silently). A robot config may name default targets (``[targets]``); NICO's
 are the paper's seven touch poses, named ``paper`` (:data:`PAPER_TARGETS`).
+
+``obstacles`` (optional) are put on every task made from the targets (``Task.obstacles``;
+:func:`ikbench.core.task.line_tasks`), and ``ikbench compare`` then judges collisions: a list
+in the obstacle file format of :mod:`ikbench.core.obstacles` (mm, degrees), or a string: a
+named obstacle set of the robot's collision config (``"touchscreen"`` for NICO), an obstacle
+file (``*.json``, ``*.yaml``; relative to the targets file's folder) or ``"none"``. Without the
+key there are no obstacles.
 """
 
 from __future__ import annotations
@@ -25,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ikbench.core.errors import TargetsError
+from ikbench.core.errors import InputError, TargetsError
 from ikbench.core.robot import Robot, load_robot
 
 PAPER_TARGETS = "paper"
@@ -33,7 +41,7 @@ MIN_STEPS = 2
 #: The largest number of segments n: 5000 poses already give a 2 s movement at 2.5 kHz, and
 #: ours (Adam) would run for hours on more.
 MAX_STEPS = 5000
-KEYS = ("joint_names", "start_pose", "targets", "steps", "description")
+KEYS = ("joint_names", "start_pose", "targets", "steps", "obstacles", "description")
 #: A target id names files (trajectory_<id>.csv) and is chosen with --only "1,3".
 ID_PATTERN = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 
@@ -49,6 +57,10 @@ class Targets:
         steps: number of segments n (a trajectory has n + 1 poses).
         source: the name of a robot's default targets (``"paper"``), else the file path.
         shipped: the default targets document as shipped (None for other files).
+        obstacles: the obstacles every task must keep clear of
+            (:class:`ikbench.core.obstacles.Obstacle`, base frame); empty: none.
+        obstacles_source: where the obstacles come from (a named set, a file, ``"list"`` for
+            a list in the targets file); "" without obstacles.
     """
 
     joint_names: tuple[str, ...]
@@ -57,6 +69,8 @@ class Targets:
     steps: int
     source: str
     shipped: dict | None = None
+    obstacles: tuple = ()
+    obstacles_source: str = ""
 
     @property
     def is_default(self) -> bool:
@@ -103,6 +117,11 @@ class Targets:
         _check_steps(steps, "--steps")
         return replace(self, steps=steps)
 
+    def with_obstacles(self, obstacles: tuple, source: str) -> Targets:
+        """A copy with other obstacles (``--obstacles``; empty: none) from ``source``."""
+        obstacles = tuple(obstacles)
+        return replace(self, obstacles=obstacles, obstacles_source=source if obstacles else "")
+
 
 def _check_steps(steps, what: str) -> int:
     if isinstance(steps, bool) or not isinstance(steps, int) or not \
@@ -127,8 +146,47 @@ def _check_pose(robot: Robot, value, what: str) -> np.ndarray:
         raise TargetsError(str(exc)) from None
 
 
-def parse_targets(spec: dict, robot: Robot, source: str) -> Targets:
-    """Validate a parsed targets document; raise :class:`TargetsError` naming the bad entry."""
+def parse_targets_obstacles(value: object, robot: Robot, where: str,
+                            folder: Path | None = None) -> tuple[tuple, str]:
+    """(obstacles, source) of a targets file's ``obstacles`` value: a list in the obstacle
+    file format, a named set of ``robot`` (``"touchscreen"``), an obstacle file (relative to
+    ``folder``, the targets file's) or ``"none"``; :class:`TargetsError` naming the bad value."""
+    from ikbench.core.obstacles import load_file, named_sets, parse_obstacles
+
+    here = f"{where}: obstacles"
+    try:
+        if isinstance(value, list):
+            return parse_obstacles(value, here), "list"
+        if not isinstance(value, str) or not value.strip():
+            raise TargetsError(f"{here}: {value!r} must be a list of obstacles (mm, see "
+                               "docs/collisions.md), a named obstacle set of the robot, an "
+                               "obstacle file (*.json, *.yaml) or 'none'")
+        text = value.strip()
+        if text.lower() == "none":
+            return (), ""
+        sets = named_sets(robot)
+        if text in sets:
+            return parse_obstacles(load_file(sets[text]), str(sets[text])), text
+        path = Path(text)
+        if not path.is_absolute() and folder is not None:
+            path = folder / path
+        if path.suffix.lower() not in (".json", ".yaml", ".yml"):
+            named = f"a named set of {robot.name} ({', '.join(sets)}), " if sets else ""
+            raise TargetsError(f"{here}: {text!r} is neither {named}nor an obstacle file "
+                               "(*.json, *.yaml), nor none")
+        if not path.is_file():
+            raise TargetsError(f"{here}: file {str(path)!r} not found (a relative path is "
+                               "relative to the targets file's folder)")
+        return parse_obstacles(load_file(path), str(path)), text
+    except TargetsError:
+        raise
+    except InputError as exc:  # the obstacle parser's message, already naming the entry
+        raise TargetsError(str(exc)) from None
+
+
+def parse_targets(spec: dict, robot: Robot, source: str, folder: Path | None = None) -> Targets:
+    """Validate a parsed targets document; raise :class:`TargetsError` naming the bad entry.
+    ``folder``: where a relative obstacle file is looked for (the targets file's folder)."""
     where = "targets file" if source == PAPER_TARGETS else source
     if not isinstance(spec, dict):
         raise TargetsError(f"{where}: top level must be a JSON object")
@@ -160,7 +218,11 @@ def parse_targets(spec: dict, robot: Robot, source: str) -> Targets:
             raise TargetsError(f"{where}: duplicate target id {key!r}")
         poses[key] = _check_pose(robot, value, f"{where}: target {key!r}")
     steps = _check_steps(spec.get("steps", 50), f"{where}")
-    return Targets(robot.joint_names, start, poses, steps, source)
+    if "obstacles" not in spec:
+        return Targets(robot.joint_names, start, poses, steps, source)
+    obstacles, origin = parse_targets_obstacles(spec["obstacles"], robot, where, folder)
+    return Targets(robot.joint_names, start, poses, steps, source, obstacles=obstacles,
+                   obstacles_source=origin if obstacles else "")
 
 
 def _reject_duplicate_keys(pairs):
@@ -193,8 +255,10 @@ def load_targets(path: str | Path | None = None, robot: Robot | None = None) -> 
         file, source = default_targets(robot)
         text = file.read_text(encoding="utf-8")
         shipped = json.loads(text)
+        folder = file.parent
     else:
         source = str(path)
+        folder = Path(path).parent
         try:
             text = Path(path).read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
@@ -206,7 +270,7 @@ def load_targets(path: str | Path | None = None, robot: Robot | None = None) -> 
         raise TargetsError(f"{source}: {exc}") from None
     except json.JSONDecodeError as exc:
         raise TargetsError(f"{source}: not valid JSON ({exc})") from None
-    return replace(parse_targets(spec, robot, source), shipped=shipped)
+    return replace(parse_targets(spec, robot, source, folder), shipped=shipped)
 
 
 def select_targets(targets: str | Path | Targets | None, robot: Robot,

@@ -179,15 +179,19 @@ def line_tasks(robot: Robot, targets: Targets, contract=None) -> list[Task]:
     contract (:class:`ikbench.core.contract.Contract`; default
     :func:`ikbench.core.contract.contract_for` the robot). Where the contract does not ask for
     pointing (a robot whose config names no pointing axis), the tasks' default weights drop
-    the pointing term (c1 = 0; ``--weights`` can set it again)."""
+    the pointing term (c1 = 0; ``--weights`` can set it again). Every task carries the
+    targets' obstacles (``Targets.obstacles``), and with obstacles the contract judges
+    collisions (``Contract.obstacles``)."""
     from ikbench.core.contract import contract_for
     from ikbench.core.losses import PAPER_WEIGHTS
 
     contract = contract if contract is not None else contract_for(robot)
+    if targets.obstacles and not contract.obstacles:
+        contract = replace(contract, obstacles=True)
     weights = None if contract.pointing else {**PAPER_WEIGHTS, "L1": 0.0}
     return [
         replace(line_task(robot, targets.start_pose_deg, pose, targets.steps, name),
-                contract=contract, default_weights=weights)
+                contract=contract, default_weights=weights, obstacles=tuple(targets.obstacles))
         for name, pose in targets.touch_poses_deg.items()
     ]
 
@@ -314,7 +318,18 @@ def build_tasks(robot: Robot, targets: Targets, shape: str = "line", steps: int 
             :data:`ikbench.core.letters.DEFAULT_STEPS` for other shapes).
         size_mm: letter height [mm] (letters only; default 300).
         direction: ``"tangent"``, ``"normal"`` or a vector; None: the shape's default.
+
+    Every task carries the targets' obstacles (``Targets.obstacles``; none by default).
     """
+    tasks = _shape_tasks(robot, targets, shape, steps, size_mm, direction)
+    if not targets.obstacles:
+        return tasks
+    return [replace(t, obstacles=tuple(targets.obstacles)) for t in tasks]
+
+
+def _shape_tasks(robot: Robot, targets: Targets, shape: str, steps: int | None,
+                 size_mm: float | None, direction: Any) -> list[Task]:
+    """:func:`build_tasks` without the obstacles."""
     kind, arg = parse_shape(shape)
     if size_mm is not None and kind != "letter":
         raise InputError(f"--size: only letters are scaled; shape {shape!r} is in mm as given")

@@ -15,6 +15,13 @@ touch poses fixed) and ``touch`` (touch pose only). A method whose scheme does n
 pose the paper's track fixes (``Method.fixed_poses``: the authors' walk from the touch pose)
 has status ``does not honour: start pose`` there, never success.
 
+Obstacles (a targets file's ``obstacles``, or ``obstacles=`` / ``--obstacles`` overriding them)
+go on every task, and the contract then judges collisions too (``ok_collisions``: no
+self-collision, no collision with an obstacle, from the robot's collision model);
+``results.csv`` then gains :data:`OBSTACLE_COLUMNS` (whether the method avoids obstacles, the
+waypoints in collision, the clearance, the first collision). Without obstacles the columns
+and the tables are exactly those of an obstacle-free comparison.
+
 Output ``DIR/compare/``: ``results.csv`` (long form: one row per method, robot, task and
 trajectory, one ``ok_<criterion>`` column per criterion, ``success`` for the paper's track and
 ``success_touch`` for the touch-pose-only track), ``leaderboard.md`` / ``leaderboard.csv``
@@ -27,13 +34,21 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ikbench.core.contract import CRITERIA, DEFAULT_TOLERANCES, Contract, contract_for, judge
+from ikbench.core.contract import (
+    COLLISION_CRITERION,
+    CRITERIA,
+    DEFAULT_TOLERANCES,
+    Contract,
+    contract_for,
+    judge,
+)
 from ikbench.core.errors import IkbenchError, InputError
 from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text, staged_folder
 from ikbench.core.metrics import contract_metrics
@@ -67,6 +82,15 @@ COLUMNS = ["method", "library", "library_version", "robot", "task", "trajectory"
            "iterations", "within_limits", *METRICS,
            "track", "scheme", "fixed_poses", "success_touch", "time_batched_s",
            *CONTRACT_METRICS, *OK_COLUMNS]
+#: Columns results.csv gains when the tasks carry obstacles (after :data:`COLUMNS`).
+OBSTACLE_COLUMNS = ["obstacles", "avoids_obstacles", "self_collisions", "env_collisions",
+                    "min_clearance_mm", "first_collision_waypoint", "first_collision_pair",
+                    f"ok_{COLLISION_CRITERION}"]
+#: The collision figures of contract_metrics copied into results.csv.
+COLLISION_METRICS = ["self_collisions", "env_collisions", "min_clearance_mm",
+                     "first_collision_waypoint", "first_collision_pair"]
+#: The note beside a collision of a method that does not avoid obstacles.
+NO_AVOIDANCE = "does not avoid obstacles"
 #: Statuses that make ``ikbench compare`` exit with 1.
 FAILING = ("failed", "refused", "does not honour")
 
@@ -109,6 +133,38 @@ def check_repeat(repeat) -> int:
     return repeat
 
 
+def columns_for(contract: Contract) -> list[str]:
+    """The columns of results.csv: :data:`COLUMNS`, then :data:`OBSTACLE_COLUMNS` when the
+    contract judges collisions."""
+    return [*COLUMNS, *(OBSTACLE_COLUMNS if contract.obstacles else [])]
+
+
+def avoids_obstacles(cls: type | Method | None, tasks: Sequence) -> bool:
+    """True when the method ``cls`` keeps clear of the obstacles of these tasks:
+    ``Method.avoids_obstacles`` covers pose paths (goal frames) only, so on line tasks no
+    method avoids them today."""
+    return bool(getattr(cls, "avoids_obstacles", False)) and all(t.has_frames for t in tasks)
+
+
+def with_obstacles(targets: Targets, obstacles: str | Path | Sequence | None,
+                   robot: Robot) -> Targets:
+    """``targets`` with the obstacles of ``obstacles`` (a file, a named set of the robot such
+    as ``touchscreen``, ``none``, or parsed obstacles) instead of their own; None keeps
+    theirs. InputError when obstacles are given for a robot without collision geometry."""
+    from ikbench.core.collision import collision_model
+    from ikbench.core.obstacles import read_obstacles
+
+    if obstacles is not None:
+        source = str(obstacles) if isinstance(obstacles, (str, Path)) else "given"
+        targets = targets.with_obstacles(read_obstacles(obstacles, robot), source)
+    if targets.obstacles and collision_model(robot) is None:
+        raise InputError(f"obstacles ({targets.obstacles_source}): robot {robot.name} has no "
+                         "collision geometry (a collision file in its config or <collision> "
+                         "elements in its URDF), so collisions cannot be judged; give "
+                         "--obstacles none")
+    return targets
+
+
 def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
             targets: str | Path | Targets | None = None, only: str | None = None,
             steps: int | None = None, repeat: int = 5, warmup: int = 1,
@@ -117,7 +173,8 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
             solvers: dict[str, Method] | None = None, executor=None,
             contract: Contract | None = None, tolerances: str | dict | None = None,
             pointing: str | bool = "auto", duration_s: float = 2.0,
-            sweep: bool = True) -> CompareResult:
+            sweep: bool = True,
+            obstacles: str | Path | Sequence | None = None) -> CompareResult:
     """Run every method on every task ``repeat`` times; write ``output/compare/``.
 
     Args:
@@ -143,6 +200,9 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
         pointing: ``auto`` (on for robots whose config names a pointing axis), ``on``, ``off``.
         duration_s: the trajectories' duration T [s] the speed limits are judged at.
         sweep: with ours-lm among the methods, solve its weight sweep for pareto.png.
+        obstacles: obstacles for every task instead of the targets' (a file, a named set of
+            the robot such as ``"touchscreen"``, ``"none"``, or parsed obstacles); None keeps
+            the targets file's. With obstacles the contract judges collisions.
 
     Returns:
         A :class:`CompareResult`.
@@ -153,9 +213,10 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
     names = parse_methods(methods)
     repeat = check_repeat(repeat)
     robot = as_robot(robot)
-    targets = select_targets(targets, robot, only, steps)
+    targets = with_obstacles(select_targets(targets, robot, only, steps), obstacles, robot)
     contract = contract or contract_for(robot, tolerances=tolerances, pointing=pointing,
                                         duration_s=duration_s)
+    contract = replace(contract, obstacles=bool(targets.obstacles))
     tasks = line_tasks(robot, targets, contract)
     reference = reference or ("ours-lm" if "ours-lm" in names else names[0])
     if reference not in names:
@@ -188,6 +249,9 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
               "schemes": {name: solver.scheme_label() for name, solver in built.items()},
               "libraries": library_versions(sorted({r["library"] for r in rows if r["library"]})),
               **provenance()}
+    if targets.obstacles:
+        record["obstacles"] = {"source": targets.obstacles_source,
+                               "items": [o.to_dict() for o in targets.obstacles]}
     results = pd.DataFrame(rows)
     if output is None:
         import tempfile
@@ -299,13 +363,24 @@ def measure(results, built, robot, targets, tasks, contract, last, folder: Path,
                     folder / name / f"trajectory_{outcome.task.name}.csv", robot)
                 figures[name, outcome.task.name] = contract_metrics(
                     robot, by_name[outcome.task.name], poses, contract)
-    columns = ("within_limits", *METRICS, *CONTRACT_METRICS)
+    columns = ("within_limits", *METRICS, *CONTRACT_METRICS,
+               *(COLLISION_METRICS if contract.obstacles else ()))
+    status = method_status()
     rows = []
     for row in results.to_dict("records"):
         measured = figures.get((row["method"], row["trajectory"]), {})
-        rows.append({**row, "track": contract.track,
-                     **{c: measured.get(c, np.nan) for c in columns}})
-    return judge_rows(pd.DataFrame(rows).reindex(columns=COLUMNS), contract,
+        out = {**row, "track": contract.track, **{c: measured.get(c, np.nan) for c in columns}}
+        if contract.obstacles:
+            cls = built[row["method"]] if row["method"] in built else \
+                status[row["method"]].cls if row["method"] in status else None
+            avoids = avoids_obstacles(cls, tasks)
+            out.update(obstacles=len(by_name[row["trajectory"]].obstacles),
+                       avoids_obstacles=avoids)
+            if (measured.get("env_collisions") or 0) > 0 and not avoids \
+                    and not str(row.get("failure") or ""):
+                out["failure"] = NO_AVOIDANCE
+        rows.append(out)
+    return judge_rows(pd.DataFrame(rows).reindex(columns=columns_for(contract)), contract,
                       contract.with_track("touch"))
 
 
@@ -321,12 +396,12 @@ def judge_rows(results: pd.DataFrame, contract: Contract, touch: Contract) -> pd
         out = {**row, "ok_solved": bool(ok),
                "ok_honours": (not str(row["status"]).startswith("does not honour"))
                if ok else None}
-        for name in CRITERIA:
+        for name in contract.criterion_names():
             out[f"ok_{name}"] = verdict.get(name, touch_verdict.get(name))
         out["success"] = bool(ok and out["ok_honours"] and all(verdict.values()))
         out["success_touch"] = bool(ok and all(touch_verdict.values()))
         rows.append(out)
-    return pd.DataFrame(rows).reindex(columns=COLUMNS)
+    return pd.DataFrame(rows).reindex(columns=columns_for(contract))
 
 
 #: c0 values of ours-lm's weight sweep drawn in pareto.png (the paper's other weights).

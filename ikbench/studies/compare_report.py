@@ -7,7 +7,10 @@ each criterion and all of them, the worst pose errors, line distance (mean and m
 (all steps and the judged part), the largest joint step and the speed limit's use, jerk, the
 time of one trajectory solved alone (median, min-max over repetitions and trajectories), the
 batched time per trajectory where the method batches, and the ratio to the reference method's
-single-trajectory time in the same run.
+single-trajectory time in the same run. When the tasks carry obstacles (``Contract.obstacles``)
+each row also counts the trajectories free of collisions (``collisions_count``), the smallest
+clearance to the obstacles and whether the method avoids obstacles; the header lists the
+obstacles. Without obstacles the tables are exactly as before.
 """
 
 from __future__ import annotations
@@ -17,11 +20,12 @@ import math
 import numpy as np
 import pandas as pd
 
-from ikbench.core.contract import CRITERIA, TRACK_TITLES, Contract
+from ikbench.core.contract import TRACK_TITLES, Contract
 
 #: Criterion -> its short column title.
 CRITERION_TITLES = {"start_pose": "start", "end_pose": "touch", "limits": "limits",
-                    "speed": "speed", "line": "line", "pointing": "pointing"}
+                    "speed": "speed", "line": "line", "pointing": "pointing",
+                    "collisions": "no collision"}
 
 
 def leaderboard(results: pd.DataFrame, reference: str, contract: Contract) -> pd.DataFrame:
@@ -49,7 +53,7 @@ def _board_row(name, group, track, judged: Contract, success: str, ref) -> dict:
            "status": "; ".join(status), "trajectories": count,
            "success_count": int(group[success].astype(bool).sum()),
            "success": float(group[success].astype(bool).mean()) if count else 0.0}
-    for criterion in CRITERIA:
+    for criterion in judged.criterion_names():
         if criterion in judged.criteria():
             row[f"{criterion}_count"] = int((group[f"ok_{criterion}"] == True).sum())  # noqa
         else:
@@ -75,6 +79,9 @@ def _board_row(name, group, track, judged: Contract, success: str, ref) -> dict:
     row["time_vs_reference"] = (row["time_median_s"] / ref if ref and ref > 0
                                 else np.nan)
     row["note"] = "" if len(solved) else str(group["failure"].iloc[0])
+    if judged.obstacles:  # after every obstacle-free column, so those stay as they were
+        row.update(min_clearance_mm=agg("min_clearance_mm", "min"),
+                   avoids_obstacles=bool(group["avoids_obstacles"].astype(bool).any()))
     return row
 
 
@@ -98,7 +105,8 @@ def _table(board: pd.DataFrame, reference: str, judged: Contract) -> list[str]:
             + ["start err [deg]", "touch err [deg]", "line mean [mm]", "line max [mm]",
                "pointing all [deg]", "pointing judged [deg]", "max step [deg]",
                "speed use", "jerk [deg^2]", "time single [s] median (min-max)",
-               "time batched [s]", f"x {reference}"])
+               "time batched [s]", f"x {reference}"]
+            + (["min clearance [mm]", "avoids obstacles"] if judged.obstacles else []))
     lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
     for _, row in board.iterrows():
         n = int(row["trajectories"])
@@ -116,6 +124,9 @@ def _table(board: pd.DataFrame, reference: str, judged: Contract) -> list[str]:
                   fmt(row["max_joint_step_deg"]), fmt(row["speed_limit_use"]),
                   fmt(row["mean_sq_jerk_deg2"]), time, fmt(row["time_batched_s"]),
                   fmt(row["time_vs_reference"])]
+        if judged.obstacles:
+            cells += [fmt(row["min_clearance_mm"]),
+                      "yes" if row["avoids_obstacles"] else "no"]
         if row["note"]:
             cells[3] += f": {row['note'][:120]}"
         lines.append("| " + " | ".join(cells) + " |")
@@ -139,6 +150,8 @@ def leaderboard_markdown(board: pd.DataFrame, record: dict, contract: Contract) 
              f"trajectories; x {record['reference']}: time single over "
              f"`{record['reference']}`'s, measured in the same run. Speed use: the largest "
              "joint step over the step the speed limit allows (1 = at the limit).", ""]
+    if record.get("obstacles"):
+        lines += _obstacles_paragraph(record["obstacles"])
     for track in dict.fromkeys(board["track"]):
         judged = contract.with_track(track)
         lines += [f"## Track `{track}`: {TRACK_TITLES[track]}", "",
@@ -148,6 +161,20 @@ def leaderboard_markdown(board: pd.DataFrame, record: dict, contract: Contract) 
               + ", ".join(f"{k} {v}" for k, v in record["libraries"].items())
               + f"; ikbench git {record['git_revision']}.", ""]
     return "\n".join(lines)
+
+
+def _obstacles_paragraph(obstacles: dict) -> list[str]:
+    """The header lines naming the obstacles (run.json's ``obstacles``)."""
+    from ikbench.core.obstacles import parse_obstacles
+
+    items = parse_obstacles(obstacles["items"], "run.json")
+    return [f"Obstacles ({obstacles['source']}), on every task: "
+            + "; ".join(o.describe() for o in items) + ". Collisions are judged with the "
+            "robot's collision model (docs/collisions.md): \"no collision\" counts the "
+            "trajectories with no waypoint in collision with an obstacle or with the robot "
+            "itself; min clearance is the smallest signed distance to an obstacle [mm] "
+            "(negative: a penetration). Methods that do not avoid obstacles still solve the "
+            "tasks; a collision fails their row.", ""]
 
 
 def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Contract):

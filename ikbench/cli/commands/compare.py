@@ -60,6 +60,12 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--duration", type=float, default=2.0,
                         help="trajectory duration T [s] the speed limits are judged at "
                         "(segments of T/n; default 2, the paper's)")
+    parser.add_argument("--obstacles", default=None, metavar="FILE|NAME|none",
+                        help="obstacles on every task instead of the targets file's: an "
+                        "obstacle file (*.json, *.yaml; mm, docs/collisions.md), a named set "
+                        "of the robot (e.g. touchscreen for NICO) or none; the contract then "
+                        "judges collisions (no self-collision, no obstacle collision; default: "
+                        "the targets file's obstacles, none for the shipped targets)")
     parser.add_argument("--reference", default=None,
                         help="method the ratios are against (default ours-lm if compared, "
                         "else the first)")
@@ -106,6 +112,9 @@ def run(args: argparse.Namespace) -> int:
     contract = contract_for(robot, tolerances=args.tolerance, pointing=args.pointing,
                             duration_s=args.duration)
     targets = targets_from_args(args, robot)
+    from ikbench.studies.compare import with_obstacles
+
+    targets = with_obstacles(targets, args.obstacles, robot)
     check_folder_writable(Path(args.output) / "compare")
     set_threads(args.threads)
     from ikbench.studies.harness import Interrupted
@@ -122,6 +131,8 @@ def run(args: argparse.Namespace) -> int:
     shown = ["track", "method", "status", "success_count", "trajectories", "time_median_s",
              "time_vs_reference", "line_distance_max_mm", "pointing_deviation_judged_mean_deg",
              "max_joint_step_deg"]
+    if "collisions_count" in result.leaderboard:
+        shown.insert(4, "collisions_count")
     board = result.leaderboard[shown]
     print(board.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     print(f"written to {Path(args.output) / 'compare'}/ (leaderboard.md, results.csv, "
@@ -143,11 +154,13 @@ def run_problems(args: argparse.Namespace) -> int:
     from ikbench.cli.commands import cartesian
     from ikbench.studies.cartesian import DEFAULT_SEEDS
 
-    if args.targets or args.only or args.steps is not None or args.reference:
+    if args.targets or args.only or args.steps is not None or args.reference \
+            or args.obstacles is not None:
         from ikbench.core.errors import InputError
 
-        raise InputError("--targets, --only, --steps and --reference do not apply to "
-                         "--problems (the problem files define the paths)")
+        raise InputError("--targets, --only, --steps, --obstacles and --reference do not "
+                         "apply to --problems (the problem files define the paths and their "
+                         "obstacles)")
     given = argparse.Namespace(
         problems=args.problems, methods=None if args.methods == "all" else args.methods,
         seeds=args.seeds or ",".join(map(str, DEFAULT_SEEDS)), output=args.output,
