@@ -24,11 +24,17 @@ import weakref
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import InputError, SolverError
+
+if TYPE_CHECKING:
+    from ikbench.core.contract import Contract
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
 
 #: Top-level URDF elements that carry no kinematics (ROS control, Gazebo), left out of the text
 #: the libraries parse: a ``<transmission>`` holds ``<joint>`` elements of its own.
@@ -70,7 +76,7 @@ class Chain:
         """Number of movable joints."""
         return len(self.joint_names)
 
-    def clip(self, q) -> np.ndarray:
+    def clip(self, q: npt.ArrayLike) -> np.ndarray:
         """``q`` (..., dof) [rad, m] clipped onto the limits."""
         return np.clip(q, self.lower, self.upper)
 
@@ -109,7 +115,7 @@ class Goals:
         return len(self.points_m)
 
 
-def urdf_limits(robot) -> tuple[np.ndarray, np.ndarray]:
+def urdf_limits(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
     """(lower, upper), each (dof,), in URDF units [rad, m]: min / max of the mapped pose
     limits (a negative motor scale swaps them); continuous joints stay -inf / +inf."""
     a = robot.to_urdf(np.asarray(robot.lower, dtype=float))
@@ -117,7 +123,7 @@ def urdf_limits(robot) -> tuple[np.ndarray, np.ndarray]:
     return np.minimum(a, b), np.maximum(a, b)
 
 
-def chain_urdf_text(robot) -> str:
+def chain_urdf_text(robot: Robot) -> str:
     """The robot's URDF as the libraries parse it (see the module docstring)."""
     tree = ET.parse(robot.urdf_path)
     root = tree.getroot()
@@ -170,7 +176,7 @@ def _fold_into_origin(joint: ET.Element, kind: str, value: float) -> None:
     origin.set("rpy", " ".join(repr(float(v)) for v in rotation.as_euler("xyz")))
 
 
-def chain_of(robot) -> Chain:
+def chain_of(robot: Robot) -> Chain:
     """The robot's :class:`Chain` (cached per robot object)."""
     if robot not in _CHAINS:
         lower, upper = urdf_limits(robot)
@@ -181,7 +187,7 @@ def chain_of(robot) -> Chain:
     return _CHAINS[robot]
 
 
-def goals_of(robot, task) -> Goals:
+def goals_of(robot: Robot, task: Task) -> Goals:
     """The task's goals in URDF units (6-D rotations from ``task.goal_rotations`` if any)."""
     directions = np.asarray(task.goal_directions, dtype=float)
     directions = directions / np.linalg.norm(directions, axis=1, keepdims=True)
@@ -198,7 +204,7 @@ def goals_of(robot, task) -> Goals:
                  max_step=max_step_urdf(robot, contract, len(task.goal_points_mm) - 1))
 
 
-def urdf_step(robot, pose_step) -> np.ndarray:
+def urdf_step(robot: Robot, pose_step: npt.ArrayLike) -> np.ndarray:
     """(dof,) a joint change [pose units] in URDF units [rad, m] (the pose map is affine:
     |scale| times the change, deg to rad, mm to m)."""
     return np.abs(robot.to_urdf(np.asarray(pose_step, dtype=float))
@@ -213,7 +219,7 @@ def contract_step(goals: Goals, margin: float = 1.0) -> np.ndarray | None:
     return margin * goals.max_step
 
 
-def max_step_urdf(robot, contract, steps: int) -> np.ndarray | None:
+def max_step_urdf(robot: Robot, contract: Contract | None, steps: int) -> np.ndarray | None:
     """(dof,) the largest joint change per segment [rad, m]: the contract's speed limits at
     its duration (:meth:`~ikbench.core.contract.Contract.max_step`); without a contract the
     robot's own limits at the default duration; None when no speed limit is known."""
@@ -227,7 +233,7 @@ def max_step_urdf(robot, contract, steps: int) -> np.ndarray | None:
     return None if step is None else urdf_step(robot, step)
 
 
-def poses_from_urdf(robot, q_urdf) -> np.ndarray:
+def poses_from_urdf(robot: Robot, q_urdf: npt.ArrayLike) -> np.ndarray:
     """Joint values (N, dof) [rad, m] -> poses [pose units], clipped onto the motor ranges.
 
     The clip only removes round-off of the unit conversion: the adapters keep their joint
@@ -258,7 +264,7 @@ def element_path(urdf_text: str, base_link: str, end_frame: str) -> list[tuple[s
     return path[::-1]
 
 
-def require_touch_and_start(task, method: str) -> None:
+def require_touch_and_start(task: Task, method: str) -> None:
     """InputError unless the task fixes both the start and the touch pose (whole-path
     methods pin both ends)."""
     if task.start_pose_deg is None or task.end_pose_deg is None:

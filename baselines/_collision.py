@@ -28,9 +28,19 @@ from __future__ import annotations
 
 import contextvars
 import itertools
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from ikbench.core.collision import Capsule
+    from ikbench.core.obstacles import Obstacle
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+    from ikbench.methods.base import Progress, Solution
 
 #: A half-space as a box: edge along the plane [m] and depth behind it [m], centred on the
 #: plane's point nearest the robot's base (larger boxes cost the libraries' GJK precision:
@@ -43,7 +53,7 @@ _OBSTACLES: contextvars.ContextVar[tuple] = contextvars.ContextVar("ikbench_obst
                                                                    default=())
 
 
-def task_obstacles(task) -> tuple:
+def task_obstacles(task: Task) -> tuple:
     """The task's obstacles (``()`` for tasks without the field)."""
     return tuple(getattr(task, "obstacles", None) or ())
 
@@ -60,7 +70,7 @@ class AvoidsObstacles:
 
     avoids_obstacles = True
 
-    def solve(self, robot, task, progress=None):
+    def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         token = _OBSTACLES.set(task_obstacles(task))
         try:
             return super().solve(robot, task, progress)  # type: ignore[misc]
@@ -127,7 +137,7 @@ class Scene:
         """The links that carry capsules, in first-seen order."""
         return tuple(dict.fromkeys(s.link for s in self.links))  # type: ignore[misc]
 
-    def pairs(self, moving: set[str] | None = None) -> list[tuple[Shape, Shape]]:
+    def pairs(self, moving: Collection[str | None] | None = None) -> list[tuple[Shape, Shape]]:
         """Every pair of shapes to keep apart: each robot capsule with each obstacle, and
         the capsules of each self pair. ``moving``: the links that move with some joint
         (a link that moves with none is welded to the base: its obstacle pairs are left
@@ -144,14 +154,14 @@ class Scene:
         return out
 
 
-def rotation_with_z(axis) -> np.ndarray:
+def rotation_with_z(axis: npt.ArrayLike) -> np.ndarray:
     """A rotation whose z column is ``axis`` normalised (identity for a zero axis)."""
     from ikbench.core.obstacles import frame_with_z
 
     return frame_with_z(axis)
 
 
-def capsule_shape(capsule, index: int) -> Shape:
+def capsule_shape(capsule: Capsule, index: int) -> Shape:
     """A robot capsule (:class:`ikbench.core.collision.Capsule`, link frame, mm) as a
     :class:`Shape` [m]."""
     a = np.asarray(capsule.a_mm, dtype=float) * MM
@@ -161,7 +171,7 @@ def capsule_shape(capsule, index: int) -> Shape:
                  length_m=float(np.linalg.norm(b - a)), link=str(capsule.link))
 
 
-def obstacle_shape(obstacle, index: int) -> Shape:
+def obstacle_shape(obstacle: Obstacle, index: int) -> Shape:
     """A task obstacle (:class:`ikbench.core.obstacles.Obstacle`, base frame, mm) as a
     :class:`Shape` [m]; a half-space as the box of the module docstring."""
     name = f"obstacle{index}_{obstacle.name}"
@@ -191,7 +201,7 @@ def _key(shape: Shape) -> tuple:
             round(shape.length_m, 12), shape.link)
 
 
-def scene_of(robot, obstacles) -> Scene | None:
+def scene_of(robot: Robot, obstacles: Sequence[Obstacle]) -> Scene | None:
     """The :class:`Scene` of ``robot`` among ``obstacles``; None when there are no obstacles
     (nothing changes then) or the robot has no capsule model (nothing to keep apart:
     :func:`no_avoidance_reason` says why)."""
@@ -209,7 +219,7 @@ def scene_of(robot, obstacles) -> Scene | None:
     return Scene(links, shapes, pairs, key)
 
 
-def no_avoidance_reason(robot, obstacles) -> str:
+def no_avoidance_reason(robot: Robot, obstacles: Sequence[Obstacle]) -> str:
     """Why :func:`scene_of` is None ('' when it is not)."""
     if not obstacles:
         return "no obstacles"

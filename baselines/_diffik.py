@@ -22,11 +22,17 @@ scheduled pointing may be out of reach), the posture task's per-joint weights
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from baselines._chain import Goals
 from baselines._geometry import angle_between_rad, closest_rotation_with_axis, rotation_angle_rad
+
+if TYPE_CHECKING:
+    from baselines._track import TrackPlan
+    from ikbench.core.robot import Robot
 
 Z = np.array([0.0, 0.0, 1.0])
 
@@ -38,7 +44,8 @@ def target_rotation(goals: Goals, i: int, R_P: np.ndarray, R_EP: np.ndarray) -> 
     return closest_rotation_with_axis(R_P, Z, goals.directions[i])
 
 
-def errors(goals: Goals, i: int, p_P, R_P, R_EP) -> tuple[float, float]:
+def errors(goals: Goals, i: int, p_P: npt.ArrayLike, R_P: np.ndarray, R_EP: np.ndarray
+           ) -> tuple[float, float]:
     """(position error [m], orientation error [rad]) of P at (p_P (3,), R_P (3, 3)): the angle
     between its z-axis and the goal direction, or to the goal rotation for 6-D goals."""
     position = float(np.linalg.norm(np.asarray(p_P) - goals.points_m[i]))
@@ -70,7 +77,7 @@ def converge(measure: Callable[[], tuple[float, float]], step: Callable[[], None
 # --- the tracking scheme (baselines._track): one solve per step from the start pose ---------
 
 
-def track_target_rotation(plan, i: int, R_P: np.ndarray) -> np.ndarray:
+def track_target_rotation(plan: TrackPlan, i: int, R_P: np.ndarray) -> np.ndarray:
     """The rotation (3, 3) the frame task asks of P at step ``i`` of a
     :class:`baselines._track.TrackPlan`: the rotation nearest P's whose z-axis is the
     scheduled direction (roll kept), or P's own rotation when the plan asks no pointing."""
@@ -79,7 +86,8 @@ def track_target_rotation(plan, i: int, R_P: np.ndarray) -> np.ndarray:
     return closest_rotation_with_axis(R_P, Z, plan.directions[i])
 
 
-def track_errors(plan, i: int, p_P, R_P) -> tuple[float, float]:
+def track_errors(plan: TrackPlan, i: int, p_P: npt.ArrayLike, R_P: np.ndarray
+                 ) -> tuple[float, float]:
     """(position error [m], pointing error [rad]) of P at step ``i`` of a plan; the pointing
     error is 0 when the plan asks no pointing."""
     position = float(np.linalg.norm(np.asarray(p_P) - plan.points_m[i]))
@@ -88,7 +96,7 @@ def track_errors(plan, i: int, p_P, R_P) -> tuple[float, float]:
     return position, angle_between_rad(np.asarray(R_P)[:, 2], plan.directions[i])
 
 
-def track_orientation_costs(plan, cost: float) -> list[float]:
+def track_orientation_costs(plan: TrackPlan, cost: float) -> list[float]:
     """P's orientation cost on a tracking step: ``[w, w, 0]`` (roll free), all 0 when the plan
     asks no pointing (position only)."""
     return [0.0, 0.0, 0.0] if plan.directions is None else [cost, cost, 0.0]
@@ -115,7 +123,7 @@ def settle(measure: Callable[[], tuple[float, float]], step: Callable[[], float]
         steps += 1
 
 
-def posture_weights(robot) -> np.ndarray:
+def posture_weights(robot: Robot) -> np.ndarray:
     """(dof,) per-joint factors of the posture cost so that one pose unit of every joint costs
     the same as a URDF degree (or mm) of a joint mapped 1 : 1 (NICO: a motor degree; its wrist
     and finger motors turn their joints only 0.5 and 0.22 URDF degrees per motor degree, and
@@ -145,7 +153,8 @@ class SpeedBox:
         gain: the configuration limit's gain.
     """
 
-    def __init__(self, step, q_touch, n: int, lower, upper, gain: float):
+    def __init__(self, step: npt.ArrayLike, q_touch: npt.ArrayLike, n: int,
+                 lower: npt.ArrayLike, upper: npt.ArrayLike, gain: float) -> None:
         self.step = np.asarray(step, dtype=float)
         self.q_touch = np.asarray(q_touch, dtype=float)
         self.n = int(n)
@@ -155,7 +164,7 @@ class SpeedBox:
         self.lo = self.lower.copy()
         self.hi = self.upper.copy()
 
-    def set_step(self, i: int, q_previous) -> None:
+    def set_step(self, i: int, q_previous: npt.ArrayLike) -> None:
         """Set the box of step ``i`` after the previous step's pose ``q_previous`` (dof,)."""
         q_previous = np.asarray(q_previous, dtype=float)
         reach = (self.n - i) * self.step
@@ -167,11 +176,11 @@ class SpeedBox:
         self.lo = np.clip(np.where(apart, land, lo), self.lower, self.upper)
         self.hi = np.clip(np.where(apart, land, hi), self.lower, self.upper)
 
-    def clip(self, q) -> np.ndarray:
+    def clip(self, q: npt.ArrayLike) -> np.ndarray:
         """``q`` (dof,) clipped into the current box."""
         return np.clip(q, self.lo, self.hi)
 
-    def inequalities(self, q) -> tuple[np.ndarray, np.ndarray]:
+    def inequalities(self, q: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """(G (k, dof), h (k,)): ``lo - q <= dq <= hi - q`` as ``G dq <= h``, the rows with
         an infinite bound (continuous joints) left out; k = 0 when no row is left."""
         q = np.asarray(q, dtype=float)

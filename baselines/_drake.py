@@ -31,13 +31,18 @@ from __future__ import annotations
 import weakref
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from baselines._chain import Chain, chain_of
 from baselines._method import LibraryMethod
 from ikbench.core.errors import InputError
+
+if TYPE_CHECKING:
+    from baselines._collision import Scene
+    from ikbench.core.robot import Robot
 
 SOLVERS = ("auto", "snopt", "ipopt", "nlopt")
 _PLANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -65,7 +70,7 @@ class DrakeChain:
     root_context: Any = None
     context: Any = None
 
-    def positions(self, q_chain) -> np.ndarray:
+    def positions(self, q_chain: npt.ArrayLike) -> np.ndarray:
         """The plant's position vector for chain joint values (dof,)."""
         q = np.zeros(self.plant.num_positions())
         q[self.index] = q_chain
@@ -105,7 +110,7 @@ def drake_chain(chain: Chain) -> DrakeChain:
 _SCENE_PLANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def drake_scene_chain(chain: Chain, scene) -> DrakeChain:
+def drake_scene_chain(chain: Chain, scene: Scene) -> DrakeChain:
     """The chain's plant with the collision geometry of ``scene``
     (:class:`baselines._collision.Scene`) in a SceneGraph (see the module docstring); cached
     per chain and scene."""
@@ -142,7 +147,7 @@ def drake_scene_chain(chain: Chain, scene) -> DrakeChain:
     def pose(shape):
         return RigidTransform(RotationMatrix(shape.rotation), shape.center_m)
 
-    by_link: dict[str, list] = {}
+    by_link: dict[str | None, list] = {}  # every link shape names its link
     for shape in scene.links:
         body = plant.GetBodyByName(shape.link)
         by_link.setdefault(shape.link, []).append(plant.RegisterCollisionGeometry(
@@ -178,7 +183,7 @@ def _base_pose(chain: Chain, root: str):
                                              plain.base_frame)
 
 
-def min_distance_constraint(drake: DrakeChain, clearance_m: float, influence_m: float):
+def min_distance_constraint(drake: DrakeChain, clearance_m: float, influence_m: float) -> Any:
     """``MinimumDistanceLowerBoundConstraint(plant, clearance, plant_context, None,
     influence)`` on ``drake`` (a :func:`drake_scene_chain`): every unfiltered pair at least
     ``clearance_m`` apart (pairs farther than clearance + influence are not evaluated)."""
@@ -188,7 +193,7 @@ def min_distance_constraint(drake: DrakeChain, clearance_m: float, influence_m: 
                                                None, influence_m)
 
 
-def make_solver(name: str):
+def make_solver(name: str) -> Any:
     """The Drake solver called ``name`` (None for ``auto``); InputError if not usable here."""
     if name == "auto":
         return None
@@ -201,7 +206,8 @@ def make_solver(name: str):
     return solver
 
 
-def set_tolerances(prog, feasibility: float, optimality: float, major_iterations=None) -> None:
+def set_tolerances(prog: Any, feasibility: float, optimality: float,
+                   major_iterations: int | None = None) -> None:
     """Set the tolerances (and SNOPT's major iteration limit) for every solver on ``prog``."""
     from pydrake.solvers import IpoptSolver, NloptSolver, SnoptSolver
 
@@ -215,7 +221,7 @@ def set_tolerances(prog, feasibility: float, optimality: float, major_iterations
     prog.SetSolverOption(NloptSolver().solver_id(), "xtol_rel", optimality)
 
 
-def solve(prog, solver, initial_guess=None):
+def solve(prog: Any, solver: Any, initial_guess: npt.ArrayLike | None = None) -> Any:
     """Solve ``prog`` with ``solver`` (None: ``pydrake.solvers.Solve`` chooses)."""
     from pydrake.solvers import Solve
 
@@ -224,7 +230,7 @@ def solve(prog, solver, initial_guess=None):
     return solver.Solve(prog, initial_guess, None)
 
 
-def exit_code(result) -> int | None:
+def exit_code(result: Any) -> int | None:
     """SNOPT's exit code (1 = optimal) or IPOPT's status; None for other solvers."""
     details = result.get_solver_details()
     for attribute in ("info", "status"):
@@ -239,9 +245,9 @@ class DrakeMethod(LibraryMethod):
     Subclasses set ``settings.solver`` (one of :data:`SOLVERS`) and ``solve_chain``.
     """
 
-    def check_robot(self, robot) -> None:
+    def check_robot(self, robot: Robot) -> None:
         make_solver(self.settings.solver)
 
-    def prepare(self, robot) -> None:
+    def prepare(self, robot: Robot) -> None:
         """Untimed: Drake parses the URDF and finalises its plant."""
         drake_chain(chain_of(robot))

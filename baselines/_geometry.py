@@ -4,24 +4,25 @@ columns are the rotated frame's axes)."""
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 #: Below this |a x b| (unit vectors) two directions count as parallel.
 PARALLEL_EPS = 1e-12
 
 
-def skew(v) -> np.ndarray:
+def skew(v: npt.ArrayLike) -> np.ndarray:
     """(3, 3) matrix of the cross product with ``v`` (3,)."""
     x, y, z = np.asarray(v, dtype=float)
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
-def rotation_about(axis, angle_rad: float) -> np.ndarray:
+def rotation_about(axis: npt.ArrayLike, angle_rad: float) -> np.ndarray:
     """Rotation by ``angle_rad`` about ``axis`` (3,) (Rodrigues)."""
     k = skew(np.asarray(axis, dtype=float) / np.linalg.norm(axis))
     return np.eye(3) + np.sin(angle_rad) * k + (1.0 - np.cos(angle_rad)) * (k @ k)
 
 
-def rotation_between(a, b) -> np.ndarray:
+def rotation_between(a: npt.ArrayLike, b: npt.ArrayLike) -> np.ndarray:
     """The smallest rotation R with R a = b for directions ``a``, ``b`` (3,); for opposite
     directions a half turn about an axis orthogonal to ``a``, chosen deterministically."""
     a = np.asarray(a, dtype=float) / np.linalg.norm(a)
@@ -38,33 +39,34 @@ def rotation_between(a, b) -> np.ndarray:
     return rotation_about(cross, float(np.arctan2(sin, cos)))
 
 
-def closest_rotation_with_axis(rotation, axis_local, direction) -> np.ndarray:
+def closest_rotation_with_axis(rotation: np.ndarray, axis_local: npt.ArrayLike,
+                               direction: npt.ArrayLike) -> np.ndarray:
     """The rotation nearest ``rotation`` (3, 3) whose local ``axis_local`` (3,) points along
     ``direction`` (3,): ``rotation`` tilted by the smallest angle, its roll kept."""
     rotation = np.asarray(rotation, dtype=float)
     return rotation_between(rotation @ np.asarray(axis_local, dtype=float), direction) @ rotation
 
 
-def frame_with_z_on(axis_local) -> np.ndarray:
+def frame_with_z_on(axis_local: npt.ArrayLike) -> np.ndarray:
     """A constant rotation R_EP (end frame E -> a pointing frame P) whose z-axis is
     ``axis_local`` (3,): libraries that free the roll about a frame's z-axis act on
     P = E R_EP. The identity for the default axis +z."""
     return rotation_between([0.0, 0.0, 1.0], axis_local)
 
 
-def angle_between_rad(u, v) -> float:
+def angle_between_rad(u: np.ndarray, v: np.ndarray) -> float:
     """Angle [rad] between two vectors (3,) (atan2 form, accurate near 0)."""
     u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
     return float(np.arctan2(np.linalg.norm(np.cross(u, v)), u @ v))
 
 
-def rotation_angle_rad(a, b) -> float:
+def rotation_angle_rad(a: np.ndarray, b: np.ndarray) -> float:
     """Angle [rad] of the relative rotation a^T b of two rotations (3, 3)."""
     cos = (np.trace(np.asarray(a, dtype=float).T @ np.asarray(b, dtype=float)) - 1.0) / 2.0
     return float(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
-def quaternion_xyzw(rotation) -> tuple[float, float, float, float]:
+def quaternion_xyzw(rotation: npt.ArrayLike) -> tuple[float, float, float, float]:
     """Unit quaternion (x, y, z, w) of a rotation (3, 3) (Shepperd: the largest of w, x, y, z
     is computed from the trace, the others from it)."""
     r = np.asarray(rotation, dtype=float)

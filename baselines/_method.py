@@ -8,8 +8,9 @@ units (:mod:`baselines._chain`) and returns a :class:`ChainResult`; everything e
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
@@ -19,6 +20,11 @@ from baselines._track import plan_track, require_start_and_touch
 from baselines._walk import Walk
 from ikbench.core.errors import InputError
 from ikbench.methods.base import Method, Solution
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+    from ikbench.methods.base import Progress
 
 
 @dataclass
@@ -38,7 +44,7 @@ class ChainResult:
     info: dict = field(default_factory=dict)
 
     @classmethod
-    def from_walk(cls, walk: Walk, **info) -> ChainResult:
+    def from_walk(cls, walk: Walk, **info: object) -> ChainResult:
         """The result of a sequential walk (:func:`baselines._walk.walk_back`)."""
         return cls(walk.q, walk.iterations, not walk.failed, {**walk.info(), **info})
 
@@ -72,7 +78,7 @@ class LibraryMethod(Method):
             return "whole-path"
         return str(getattr(self.settings, "scheme", "walk"))
 
-    def tracks(self, task) -> bool:
+    def tracks(self, task: Task) -> bool:
         """True when ``task`` is solved by the tracking scheme (a pose path is always
         walked forward from the home pose: it has no start pose to track from)."""
         return self.scheme == "track" and getattr(task, "goal_rotations", None) is None
@@ -84,7 +90,7 @@ class LibraryMethod(Method):
             return frozenset({"touch_pose"})
         return frozenset({"start_pose", "touch_pose"})
 
-    def check_tasks(self, robot, tasks) -> None:
+    def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
         """Refuse, before any solve: tasks without the poses the method fixes, 6-D goal frames
         the library cannot take, locked joints, robots the library cannot model
         (:meth:`check_robot`)."""
@@ -99,19 +105,20 @@ class LibraryMethod(Method):
         super().check_tasks(robot, tasks)
         self.check_robot(robot)
 
-    def check_robot(self, robot) -> None:
+    def check_robot(self, robot: Robot) -> None:
         """InputError when the library cannot model this robot (default: it can)."""
 
-    def prepare(self, robot) -> None:
+    def prepare(self, robot: Robot) -> None:
         """Untimed: build the chain in URDF units (parses the URDF once)."""
         chain_of(robot)
 
-    def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:  # pragma: no cover
+    def solve_chain(self, robot: Robot, chain: Chain,
+                    goals: Goals) -> ChainResult:  # pragma: no cover
         """Solve one task in URDF units (implemented by each library method); ``robot`` for
         methods that work on the robot's own model (pink: its Pinocchio model)."""
         raise NotImplementedError
 
-    def solve(self, robot, task, progress=None) -> Solution:
+    def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         """Solve ``task`` with the library; poses in the robot's pose units."""
         started = time.perf_counter()
         goals = goals_of(robot, task)

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -35,6 +36,10 @@ from baselines._chain import Chain, Goals
 from baselines._walk import PointResult, Walk
 from ikbench.core.contract import DEFAULT_POINTING_FROM
 from ikbench.core.errors import InputError
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
 
 #: The last part of the steps over which the pointing turns to the touch pose's own.
 LANDING_FRACTION = 0.2
@@ -87,7 +92,7 @@ def slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
             + axis * (axis @ a) * (1 - np.cos(phi)))
 
 
-def require_start_and_touch(task, method: str) -> None:
+def require_start_and_touch(task: Task, method: str) -> None:
     """InputError unless the task fixes both poses (the scheme starts and lands on them)."""
     if task.start_pose_deg is None or task.end_pose_deg is None:
         missing = "no start pose" if task.start_pose_deg is None else "no touch pose"
@@ -97,7 +102,7 @@ def require_start_and_touch(task, method: str) -> None:
                          "ours-lm)")
 
 
-def plan_track(robot, task, goals: Goals) -> TrackPlan:
+def plan_track(robot: Robot, task: Task, goals: Goals) -> TrackPlan:
     """The per-step targets of the tracking scheme for ``task`` (see the module doc)."""
     contract = getattr(task, "contract", None)
     pointing = True if contract is None else bool(contract.pointing)
@@ -110,6 +115,7 @@ def plan_track(robot, task, goals: Goals) -> TrackPlan:
     posture = q_start + s * (q_touch - q_start)
     directions = None
     if pointing:
+        assert task.start_pose_deg is not None and task.end_pose_deg is not None  # as q_*
         fk = robot.fk(np.stack([task.start_pose_deg, task.end_pose_deg]))
         d_start, d_touch = fk.direction
         goal = goals.directions
@@ -124,7 +130,8 @@ def plan_track(robot, task, goals: Goals) -> TrackPlan:
     return TrackPlan(goals.points_m, directions, posture, q_start, q_touch, judged_from)
 
 
-def speed_box(q_previous, q_touch, steps_left: int, step, lower, upper
+def speed_box(q_previous: np.ndarray, q_touch: np.ndarray, steps_left: int,
+              step: np.ndarray, lower: np.ndarray, upper: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray]:
     """(low, high) (dof,) [rad, m]: the joint box of a tracking step under a speed limit:
     within the limits, within ``step`` of the previous pose and within ``steps_left`` steps

@@ -55,12 +55,14 @@ same program without the distance constraint reaches (``collision_retried_points
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from baselines._chain import Chain, Goals, contract_step, urdf_step
 from baselines._collision import (
     AvoidsObstacles,
+    Scene,
     current_obstacles,
     no_avoidance_reason,
     scene_info,
@@ -80,6 +82,9 @@ from baselines._track import SCHEME_HELP, SCHEMES, speed_box, track
 from baselines._walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
 
 #: A tracked step counts as solved when FK puts the end point within this [m] of its box.
 POSITION_CHECK_M = 1e-6
@@ -135,7 +140,7 @@ class DrakeIKSettings:
 
 def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings,
                 metric: np.ndarray | None = None,
-                max_step: np.ndarray | None = None, scene=None) -> ChainResult:
+                max_step: np.ndarray | None = None, scene: Scene | None = None) -> ChainResult:
     """Drake IK in URDF units: the tracking scheme when ``goals.track`` is set, else the walk
     (see the module docstring).
 
@@ -266,7 +271,7 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings,
                                     {"collision_retried_points": len(set(retried))}))
 
 
-def pose_metric(robot) -> np.ndarray:
+def pose_metric(robot: Robot) -> np.ndarray:
     """(dof,) weights that measure a joint change in the robot's pose units: (pose units per
     URDF unit)^2, normalised to 1 for a joint whose pose unit is its URDF unit (deg per rad,
     mm per m). NICO: 1 / scale^2 (its wrist and finger motors turn 4.5 motor deg per joint
@@ -290,7 +295,7 @@ class DrakeIK(AvoidsObstacles, DrakeMethod):
     Settings = DrakeIKSettings
     supports_frames = True
 
-    def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
+    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         step = None
         if goals.track is not None:
             step = contract_step(goals, STEP_MARGIN)

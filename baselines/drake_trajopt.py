@@ -54,13 +54,16 @@ IK walk with the same constraint (:mod:`baselines.drake_ik`).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from baselines._chain import Chain, Goals, contract_step
 from baselines._collision import (
     AvoidsObstacles,
+    Scene,
     current_obstacles,
     no_avoidance_reason,
     scene_info,
@@ -81,6 +84,10 @@ from baselines._method import ChainResult
 from baselines.drake_ik import STEP_MARGIN
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
 
 #: Velocity limit [rad/s, m/s] for joints whose URDF gives none.
 DEFAULT_VELOCITY_LIMIT = 10.0
@@ -217,7 +224,7 @@ def _initial_guess(trajopt, chain, goals, drake, settings, s, scene=None):
 
 def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings,
                 pointing_from: int | None = 1, max_step: np.ndarray | None = None,
-                scene=None) -> ChainResult:
+                scene: Scene | None = None) -> ChainResult:
     """The trajectory optimisation in URDF units (see the module docstring).
 
     Args:
@@ -247,6 +254,7 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings,
     s = np.linspace(0.0, 1.0, n_points)
     trajopt = KinematicTrajectoryOptimization(nq, count, settings.spline_order, 1.0)
     prog = trajopt.get_mutable_prog()
+    assert goals.q_start is not None and goals.q_touch is not None  # pinned (check_tasks)
     for pose, at in ((goals.q_start, 0.0), (goals.q_touch, 1.0)):
         trajopt.AddPathPositionConstraint(drake.positions(pose), drake.positions(pose), at)
     trajopt.AddPositionBounds(drake.positions(chain.lower), drake.positions(chain.upper))
@@ -334,13 +342,13 @@ class DrakeTrajopt(AvoidsObstacles, DrakeMethod):
     supports_frames = True
     whole_path = True
 
-    def check_tasks(self, robot, tasks) -> None:
+    def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
         """Also: enough control points for the spline order (:func:`control_point_count`)."""
         super().check_tasks(robot, tasks)
         for task in tasks:
             control_point_count(self.settings, len(task.goal_points_mm))
 
-    def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
+    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         obstacles = current_obstacles()
         scene = scene_of(robot, obstacles)
         contract = goals.contract

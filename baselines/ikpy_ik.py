@@ -55,10 +55,13 @@ from __future__ import annotations
 import io
 import warnings
 import weakref
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from baselines._chain import Chain, Goals, element_path
 from baselines._geometry import angle_between_rad, rotation_angle_rad
@@ -67,6 +70,9 @@ from baselines._track import SCHEME_HELP, SCHEMES, speed_box, track
 from baselines._walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
 
 ORIENTATIONS = ("position", "pointing")
 #: The narrowest bounds [rad, m] given to ikpy (scipy's least_squares needs lower < upper).
@@ -131,7 +137,7 @@ class IkpyWalkSettings(IkpySettings):
                               help=ORIENTATION_HELP)
 
 
-def authors_rotation(direction) -> np.ndarray:
+def authors_rotation(direction: npt.ArrayLike) -> np.ndarray:
     """The target rotation the authors built (their ``rotation_from_z``): z on ``direction``,
     x = up x z with up = +y (+x when z is parallel to +-y). ikpy ignores it in position mode."""
     z = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
@@ -143,7 +149,7 @@ def authors_rotation(direction) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
-def ikpy_chain(chain: Chain):
+def ikpy_chain(chain: Chain) -> tuple[Any, np.ndarray]:
     """The ikpy chain of ``chain`` and the indices of its active links (cached per chain)."""
     if chain in _CHAINS:
         return _CHAINS[chain]
@@ -184,7 +190,7 @@ def axis_mode(chain: Chain) -> tuple[str, float]:
 
 
 @contextmanager
-def orientation_coeff(value: float):
+def orientation_coeff(value: float) -> Iterator[None]:
     """ikpy's weight of the orientation residual against the position residual [m]
     (``ikpy.inverse_kinematics.ORIENTATION_COEFF``, 1 in ikpy) set to ``value`` for the
     calls inside, and restored after."""
@@ -284,20 +290,20 @@ class IkpyIK(LibraryMethod):
     Settings = IkpySettings
     supports_frames = True
 
-    def check_robot(self, robot) -> None:
+    def check_robot(self, robot: Robot) -> None:
         """Pointing mode needs a coordinate pointing axis (ikpy's X / Y / Z modes)."""
         if self.settings.orientation == "pointing":
             from baselines._chain import chain_of
 
             axis_mode(chain_of(robot))
 
-    def prepare(self, robot) -> None:
+    def prepare(self, robot: Robot) -> None:
         """Untimed: parse the URDF and build ikpy's chain (sympy-compiled link matrices)."""
         from baselines._chain import chain_of
 
         ikpy_chain(chain_of(robot))
 
-    def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
+    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         return solve_chain(chain, goals, self.settings,
                            goals.max_step if goals.track is not None else None)
 

@@ -62,13 +62,14 @@ from __future__ import annotations
 
 import weakref
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from baselines._chain import Chain, Goals
 from baselines._collision import (
     AvoidsObstacles,
+    Scene,
     current_obstacles,
     no_avoidance_reason,
     scene_info,
@@ -93,6 +94,10 @@ from baselines._walk import PointResult, walk_back
 from baselines.pink_ik import check_qp_solver
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
+
+if TYPE_CHECKING:
+    from baselines._track import TrackPlan
+    from ikbench.core.robot import Robot
 
 SITE = "ikbench_pointing_site"
 POINTING_TASKS = ("frame", "axis-align")
@@ -195,7 +200,7 @@ def mink_model(chain: Chain) -> MinkModel:
 _SCENE_MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def mink_scene_model(chain: Chain, scene) -> MinkModel:
+def mink_scene_model(chain: Chain, scene: Scene) -> MinkModel:
     """The chain's :class:`MinkModel` with the collision geometry of ``scene``
     (:class:`baselines._collision.Scene`; see the module docstring), cached per chain and
     scene."""
@@ -261,7 +266,7 @@ def _compile(chain: Chain, scene=None, plain: MinkModel | None = None) -> MinkMo
                      data.xpos[base].copy())
 
 
-def collision_limit(m: MinkModel, scene, settings: MinkSettings):
+def collision_limit(m: MinkModel, scene: Scene, settings: MinkSettings) -> Any:
     """``mink.CollisionAvoidanceLimit`` on the scene's pairs (see the module docstring)."""
     import mink
 
@@ -282,7 +287,7 @@ def collision_limit(m: MinkModel, scene, settings: MinkSettings):
                  collision_detection_distance=clearance + settings.detection / 1000.0)
 
 
-def penetrating(m: MinkModel, limit, q_chain: np.ndarray) -> bool:
+def penetrating(m: MinkModel, limit: Any, q_chain: np.ndarray) -> bool:
     """True when a pair of ``limit`` overlaps at ``q_chain`` (``mj_geomDistance``)."""
     import mujoco
 
@@ -294,7 +299,8 @@ def penetrating(m: MinkModel, limit, q_chain: np.ndarray) -> bool:
                for a, b in limit.geom_id_pairs)
 
 
-def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings, scene=None) -> ChainResult:
+def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings,
+                scene: Scene | None = None) -> ChainResult:
     """The mink walk in URDF units (see the module docstring; ``scene``: the obstacles and
     capsules to keep apart, or None)."""
     import mink
@@ -375,8 +381,8 @@ def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings, scene=None) 
                                     {"started_inside_points": len(entered)}))
 
 
-def solve_track(robot, chain: Chain, plan, settings: MinkSettings,
-                step: np.ndarray | None = None, scene=None) -> ChainResult:
+def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: MinkSettings,
+                step: np.ndarray | None = None, scene: Scene | None = None) -> ChainResult:
     """mink's track from the start pose onto the touch pose (``plan``: a
     :class:`baselines._track.TrackPlan`; ``step``: (dof,) the contract's largest joint change
     per segment [rad, m], or None: no speed box). See the module docstring."""
@@ -439,6 +445,7 @@ def solve_track(robot, chain: Chain, plan, settings: MinkSettings,
         q_full[m.qpos] = plan.posture[i]
         posture_task.set_target(q_full)
         if axis_align:
+            assert world.directions is not None  # axis_align needs them
             align.set_target(world.directions[i])
 
         def frame():
@@ -490,13 +497,13 @@ class MinkIK(AvoidsObstacles, LibraryMethod):
     Settings = MinkSettings
     supports_frames = True
 
-    def prepare(self, robot) -> None:
+    def prepare(self, robot: Robot) -> None:
         """Untimed: MuJoCo parses and compiles the URDF."""
         from baselines._chain import chain_of
 
         mink_model(chain_of(robot))
 
-    def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
+    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         obstacles = current_obstacles()
         scene = scene_of(robot, obstacles)
         if goals.track is not None:

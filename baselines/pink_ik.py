@@ -76,13 +76,14 @@ from __future__ import annotations
 
 import weakref
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from baselines._chain import Chain, Goals
 from baselines._collision import (
     AvoidsObstacles,
+    Scene,
     current_obstacles,
     no_avoidance_reason,
     scene_info,
@@ -107,11 +108,15 @@ from baselines._walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
+if TYPE_CHECKING:
+    from baselines._track import TrackPlan
+    from ikbench.core.robot import Robot
+
 POINTING_FRAME = "ikbench_pointing_frame"
 _MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def check_qp_solver(settings, field_name: str) -> None:
+def check_qp_solver(settings: object, field_name: str) -> None:
     """InputError naming the flag when the qpsolvers backend is not installed."""
     import qpsolvers
 
@@ -184,7 +189,7 @@ class PinkSettings:
         check_qp_solver(self, "qp_solver")
 
 
-def pink_model(robot, chain: Chain):
+def pink_model(robot: Robot, chain: Chain) -> tuple[Any, np.ndarray]:
     """A copy of the robot's Pinocchio model with the chain's limits and the frame P."""
     if robot in _MODELS:
         return _MODELS[robot]
@@ -206,7 +211,8 @@ def pink_model(robot, chain: Chain):
 class Avoidance:
     """The collision geometry and the barrier of a scene (see the module docstring)."""
 
-    def __init__(self, model, root_link: str, scene, settings: PinkSettings):
+    def __init__(self, model: Any, root_link: str, scene: Scene, settings: PinkSettings
+                 ) -> None:
         import coal
         import pinocchio as pin
         from pink.barriers import SelfCollisionBarrier
@@ -236,14 +242,14 @@ class Avoidance:
                                               safe_displacement_gain=0.0,
                                               d_min=settings.clearance / 1000.0)]
 
-    def configuration(self, model, data, q):
+    def configuration(self, model: Any, data: Any, q: np.ndarray) -> Any:
         """``pink.Configuration`` with the collision model (distances on each update)."""
         import pink
 
         return pink.Configuration(model, data, q, collision_model=self.geometry,
                                   collision_data=self.data)
 
-    def penetrating(self, model, data, q) -> bool:
+    def penetrating(self, model: Any, data: Any, q: np.ndarray) -> bool:
         """True when a pair overlaps at ``q`` (coal's distances)."""
         configuration = self.configuration(model, data, q)
         results = configuration.collision_data.distanceResults
@@ -258,8 +264,8 @@ def _coal(coal, shape):
     return coal.Box(*map(float, shape.size_m))
 
 
-def solve_chain(robot, chain: Chain, goals: Goals, settings: PinkSettings,
-                scene=None) -> ChainResult:
+def solve_chain(robot: Robot, chain: Chain, goals: Goals, settings: PinkSettings,
+                scene: Scene | None = None) -> ChainResult:
     """The pink walk in URDF units (see the module docstring)."""
     import pink
     import pinocchio as pin
@@ -323,8 +329,8 @@ def solve_chain(robot, chain: Chain, goals: Goals, settings: PinkSettings,
                                     {"started_inside_points": len(entered)}))
 
 
-def solve_track(robot, chain: Chain, plan, settings: PinkSettings,
-                step: np.ndarray | None = None, scene=None) -> ChainResult:
+def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: PinkSettings,
+                step: np.ndarray | None = None, scene: Scene | None = None) -> ChainResult:
     """pink's track from the start pose onto the touch pose (``plan``: a
     :class:`baselines._track.TrackPlan`; ``step``: (dof,) the contract's largest joint change
     per segment [rad, m], or None: no speed box). See the module docstring."""
@@ -420,13 +426,13 @@ class PinkIK(AvoidsObstacles, LibraryMethod):
     supports_frames = True
     loads_urdf = False  # the robot's own Pinocchio model
 
-    def prepare(self, robot) -> None:
+    def prepare(self, robot: Robot) -> None:
         """Untimed: the model copy with the pointing frame."""
         from baselines._chain import chain_of
 
         pink_model(robot, chain_of(robot))
 
-    def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
+    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         obstacles = current_obstacles()
         scene = scene_of(robot, obstacles)
         if goals.track is not None:

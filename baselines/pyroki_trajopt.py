@@ -47,7 +47,9 @@ from __future__ import annotations
 import io
 import time
 import weakref
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -55,6 +57,10 @@ from baselines._chain import Chain, Goals, contract_step
 from baselines._method import ChainResult, LibraryMethod
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
 
 #: Stand-in [rad, m] for the infinite limits of continuous joints in the limit constraint.
 UNBOUNDED = 1e6
@@ -119,7 +125,7 @@ def with_velocity_limits(urdf_text: str) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
-def pyroki_robot(chain: Chain):
+def pyroki_robot(chain: Chain) -> tuple[Any, np.ndarray, int, int]:
     """(pyroki.Robot, order, end link index, base link index) of the chain (cached):
     ``order`` maps PyRoki's actuated joints to the chain's (q_pyroki = q_chain[order])."""
     if chain in _ROBOTS:
@@ -308,12 +314,12 @@ class PyrokiTrajopt(LibraryMethod):
     whole_path = True
     supports_frames = False
 
-    def check_tasks(self, robot, tasks) -> None:
+    def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
         super().check_tasks(robot, tasks)
         self._sizes = sorted({(len(task.goal_points_mm), _speed_limited(task))
                               for task in tasks})
 
-    def prepare(self, robot) -> None:
+    def prepare(self, robot: Robot) -> None:
         """Untimed: parse the URDF, and JIT-compile the solve for every task size (and with or
         without the speed constraint) seen by :meth:`check_tasks` (one solve of a placeholder
         task each)."""
@@ -331,7 +337,7 @@ class PyrokiTrajopt(LibraryMethod):
                         max_step=np.ones(chain.dof) if speed else None)
         self._compile_s = time.perf_counter() - started
 
-    def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
+    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         contract = goals.contract
         if contract is None:  # no contract: as before it, every inner point pointed
             result = solve_chain(chain, goals, self.settings)

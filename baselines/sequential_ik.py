@@ -71,10 +71,12 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from baselines._track import (
     SCHEME_HELP,
@@ -85,6 +87,12 @@ from baselines._track import (
 )
 from ikbench.core.errors import InputError
 from ikbench.methods.base import Method, Solution, check_choice, check_positive, option
+
+if TYPE_CHECKING:
+    from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+    from ikbench.methods.base import Progress
 
 ORIENTATIONS = ("frame", "pointing", "position")
 #: ``up_vector`` value that takes the roll from the touch pose (y-axis of its end frame).
@@ -180,12 +188,12 @@ class PointResult(NamedTuple):
 PARALLEL_EPS = 1e-9
 
 
-def format_vector(vector) -> str:
+def format_vector(vector: npt.ArrayLike) -> str:
     """``(0.1, -0.53, 0.84)``: a vector as plain numbers (6 significant digits)."""
     return "(" + ", ".join(f"{float(v):.6g}" for v in np.ravel(vector)) + ")"
 
 
-def check_up_vector(up, direction, where: str = "") -> None:
+def check_up_vector(up: npt.ArrayLike, direction: npt.ArrayLike, where: str = "") -> None:
     """InputError if ``up`` (3,) is parallel to ``direction`` (3,): the roll would be undefined.
 
     Args:
@@ -202,7 +210,7 @@ def check_up_vector(up, direction, where: str = "") -> None:
                          "at an angle to it, or 'touch'")
 
 
-def rotation_from_z(direction, up) -> np.ndarray:
+def rotation_from_z(direction: npt.ArrayLike, up: npt.ArrayLike) -> np.ndarray:
     """Rotation (3, 3) with z-axis ``direction`` and x-axis up x z, y = z x x (columns).
 
     Raises:
@@ -215,7 +223,7 @@ def rotation_from_z(direction, up) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
-def axis_frame(axis) -> np.ndarray:
+def axis_frame(axis: npt.ArrayLike) -> np.ndarray:
     """A fixed rotation M (3, 3) of the end frame whose z-axis is the pointing ``axis``
     (identity for z): frame mode builds the goal of the frame R M, so R_goal = V M^T."""
     a = np.asarray(axis, dtype=float)
@@ -225,7 +233,7 @@ def axis_frame(axis) -> np.ndarray:
     return rotation_from_z(a, helper)
 
 
-def orthonormal_complement(direction) -> np.ndarray:
+def orthonormal_complement(direction: npt.ArrayLike) -> np.ndarray:
     """Two unit vectors (2, 3) orthogonal to ``direction`` and to each other."""
     d = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
     helper = np.eye(3)[np.argmin(np.abs(d))]
@@ -246,7 +254,9 @@ class Residual:
         direction: (3,) unit goal direction (pointing mode) or None.
     """
 
-    def __init__(self, pin_fk, data, orientation, point_m, rotation=None, direction=None):
+    def __init__(self, pin_fk: PinocchioFK, data: Any, orientation: str, point_m: npt.ArrayLike,
+                 rotation: np.ndarray | None = None, direction: np.ndarray | None = None
+                 ) -> None:
         import pinocchio as pin
 
         self.pin, self.model, self.data = pin, pin_fk.model, data
@@ -258,7 +268,7 @@ class Residual:
         self.direction = direction
         self.axis = pin_fk.robot.pointing_axis
 
-    def error(self, q_rad) -> np.ndarray:
+    def error(self, q_rad: np.ndarray) -> np.ndarray:
         """e (k,) at ``q_rad``; also leaves the placement in ``self.data``."""
         pin = self.pin
         pin.framesForwardKinematics(self.model, self.data, q_rad)
@@ -272,7 +282,7 @@ class Residual:
         z = T_base_tip.rotation @ self.axis                  # the pointing axis
         return np.concatenate([e_pos, -(self.basis @ z)])
 
-    def jacobian(self, q_rad) -> np.ndarray:
+    def jacobian(self, q_rad: np.ndarray) -> np.ndarray:
         """-de/dq (k, nv): the Jacobian of the current task quantity (call :meth:`error` at
         the same q first)."""
         pin = self.pin
@@ -288,6 +298,7 @@ class Residual:
             return J[:3]
         z = self.data.oMf[self.frame_id].rotation @ self.axis
         # d(b.z) = b.(w x z) = (z x b).w
+        assert self.basis is not None  # pointing mode has a direction
         rows = np.cross(z, self.basis) @ J[3:]
         return np.vstack([J[:3], rows])
 
@@ -297,7 +308,7 @@ class WeightedResidual:
     ``weight`` [m per rad]: when a step cannot meet both goals (the tracking scheme's speed
     bounds), the DLS then gives up orientation before position."""
 
-    def __init__(self, residual: Residual, weight: float):
+    def __init__(self, residual: Residual, weight: float) -> None:
         self.residual = residual
         self.scale = None if weight == 1.0 else weight
 
@@ -308,14 +319,16 @@ class WeightedResidual:
         rows[3:] *= self.scale
         return rows
 
-    def error(self, q_rad) -> np.ndarray:
+    def error(self, q_rad: np.ndarray) -> np.ndarray:
         return self._scaled(self.residual.error(q_rad))
 
-    def jacobian(self, q_rad) -> np.ndarray:
+    def jacobian(self, q_rad: np.ndarray) -> np.ndarray:
         return self._scaled(self.residual.jacobian(q_rad))
 
 
-def dls_step(J, e, damping, q_rad, lower, upper, posture=None) -> np.ndarray:
+def dls_step(J: np.ndarray, e: np.ndarray, damping: float, q_rad: np.ndarray,
+             lower: np.ndarray, upper: np.ndarray, posture: np.ndarray | None = None
+             ) -> np.ndarray:
     """Damped-least-squares step dq (nv,) with joints pushed past a limit left out.
 
     Args:
@@ -346,8 +359,9 @@ def dls_step(J, e, damping, q_rad, lower, upper, posture=None) -> np.ndarray:
     return dq
 
 
-def solve_point(residual: Residual | WeightedResidual, q0_rad, settings: DLSSettings, lower, upper,
-                posture_rad=None) -> PointResult:
+def solve_point(residual: Residual | WeightedResidual, q0_rad: npt.ArrayLike,
+                settings: DLSSettings, lower: np.ndarray, upper: np.ndarray,
+                posture_rad: np.ndarray | None = None) -> PointResult:
     """Solve one point by DLS from ``q0_rad`` (nv,) [rad]; returns the last iterate.
 
     ``posture_rad`` (nv,): a pose the redundancy is pulled toward in the task's null space,
@@ -394,7 +408,7 @@ class Walk(NamedTuple):
     up: np.ndarray | None
 
 
-def walk_joint_rad(robot, task, settings: DLSSettings) -> Walk:
+def walk_joint_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
     """The walk from the touch pose back to P_0 in the URDF's joint space (see the module doc).
 
     Raises:
@@ -415,7 +429,8 @@ def walk_joint_rad(robot, task, settings: DLSSettings) -> Walk:
     iterations, missed, worst_pos_mm, worst_angle_deg = 0, 0, 0.0, 0.0
     for i in range(n - 1, -1, -1):
         d = task.goal_directions[i]
-        rotation = (rotation_from_z(d, up) @ axis_frame(robot.pointing_axis).T
+        rotation = (rotation_from_z(d, cast(np.ndarray, up))  # frame mode has an up vector
+                    @ axis_frame(robot.pointing_axis).T
                     if settings.orientation == "frame" else None)
         residual = Residual(pin_fk, data, settings.orientation, task.goal_points_mm[i] / 1000.0,
                             rotation, d if settings.orientation == "pointing" else None)
@@ -432,7 +447,7 @@ def walk_joint_rad(robot, task, settings: DLSSettings) -> Walk:
 FIRST_POINT_ITERATIONS = 1000
 
 
-def walk_path_rad(robot, task, settings: DLSSettings) -> Walk:
+def walk_path_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
     """A 6-D pose path walked forward: waypoint 0 by IK from the task's start pose (else its
     reference, the robot's home pose), each next waypoint from the previous solution. In frame
     mode the goal rotations are the task's; the joints stay within the task's limits."""
@@ -449,7 +464,8 @@ def walk_path_rad(robot, task, settings: DLSSettings) -> Walk:
     first = replace(settings, max_ik_iterations=max(settings.max_ik_iterations,
                                                     FIRST_POINT_ITERATIONS))
     for i in range(task.steps + 1):
-        rotation = task.goal_rotations[i] if settings.orientation == "frame" else None
+        rotation = (cast(np.ndarray, task.goal_rotations)[i]  # a pose path has goal frames
+                    if settings.orientation == "frame" else None)
         residual = Residual(pin_fk, data, settings.orientation, task.goal_points_mm[i] / 1000.0,
                             rotation, task.goal_directions[i]
                             if settings.orientation == "pointing" else None)
@@ -462,7 +478,7 @@ def walk_path_rad(robot, task, settings: DLSSettings) -> Walk:
     return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, None)
 
 
-def track_joint_rad(robot, task, settings: DLSSettings) -> Walk:
+def track_joint_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
     """The tracking scheme in the URDF's joint space (see the module doc): row 0 the start
     pose, rows 1..n-1 solved forward, each from the row before, row n the touch pose.
 
@@ -486,7 +502,8 @@ def track_joint_rad(robot, task, settings: DLSSettings) -> Walk:
     for i in range(1, n):
         direction = None if plan.directions is None else plan.directions[i]
         mode = "position" if direction is None else settings.orientation
-        rotation = (rotation_from_z(direction, up) @ axis_frame(robot.pointing_axis).T
+        rotation = (rotation_from_z(cast(np.ndarray, direction), cast(np.ndarray, up))
+                    @ axis_frame(robot.pointing_axis).T  # frame mode: both are set
                     if mode == "frame" else None)
         residual = WeightedResidual(Residual(pin_fk, data, mode, plan.points_m[i], rotation,
                                              direction if mode == "pointing" else None),
@@ -506,7 +523,7 @@ def track_joint_rad(robot, task, settings: DLSSettings) -> Walk:
     return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, up)
 
 
-def walk(robot, task, settings: DLSSettings) -> Solution:
+def walk(robot: Robot, task: Task, settings: DLSSettings) -> Solution:
     """The sequential walk as a :class:`Solution` in motor degrees (see the module doc),
     whatever ``settings.scheme`` says (:func:`solve_task` picks the scheme).
 
@@ -526,7 +543,7 @@ def walk(robot, task, settings: DLSSettings) -> Solution:
     return _solution(raw, poses_deg, settings, started, "walk")
 
 
-def track(robot, task, settings: DLSSettings) -> Solution:
+def track(robot: Robot, task: Task, settings: DLSSettings) -> Solution:
     """The tracking scheme as a :class:`Solution` in motor degrees: pose 0 the start pose and
     pose n the touch pose, exactly as given; poses 1..n-1 the IK's (clipped like
     :func:`walk`'s)."""
@@ -539,7 +556,7 @@ def track(robot, task, settings: DLSSettings) -> Solution:
     return _solution(raw, poses_deg, settings, started, "track")
 
 
-def solve_task(robot, task, settings: DLSSettings) -> Solution:
+def solve_task(robot: Robot, task: Task, settings: DLSSettings) -> Solution:
     """One task by ``settings.scheme``: :func:`track` or :func:`walk`. A pose path (goal
     frames) is always walked forward (it has no start and touch pose to track between); in
     the track scheme it follows its goal frames (frame mode), as the walk's default does."""
@@ -566,7 +583,8 @@ def _solution(raw: Walk, poses_deg, settings: DLSSettings, started: float,
                     loss=None, converged=missed == 0, info=info)
 
 
-def check_tasks(robot, tasks, settings: DLSSettings, method: str = "sequential-ik") -> None:
+def check_tasks(robot: Robot, tasks: Sequence[Task], settings: DLSSettings,
+                method: str = "sequential-ik") -> None:
     """Fail before any solve: the walk needs a touch pose, the track a start and a touch pose
     (a pose path needs neither: it is walked forward), and frame mode an up vector that is not
     parallel to any goal direction asked (InputError naming the trajectory)."""
@@ -593,7 +611,7 @@ def check_tasks(robot, tasks, settings: DLSSettings, method: str = "sequential-i
         up = _up_vector(settings, pin_fk,
                         robot.motor_to_joint_rad(np.asarray(task.end_pose_deg, dtype=float)))
         for d in np.unique(np.asarray(directions, dtype=float), axis=0):
-            check_up_vector(up, d, f"trajectory {task.name}")
+            check_up_vector(cast(np.ndarray, up), d, f"trajectory {task.name}")  # frame mode
 
 
 def _up_vector(settings: DLSSettings, pin_fk, q_touch_rad) -> np.ndarray | None:
@@ -624,7 +642,7 @@ def _point_errors(pin_fk, data, q_rad, task, i, rotation, direction=None) -> tup
     return pos_mm, float(np.degrees(angle))
 
 
-def parse_up_vector(value) -> str | tuple:
+def parse_up_vector(value: str | Sequence[float]) -> str | tuple:
     """``"touch"`` or ``"x,y,z"`` (or a sequence of 3 numbers) -> the setting; InputError else."""
     if isinstance(value, str):
         if value.strip() == UP_FROM_TOUCH:
@@ -655,7 +673,7 @@ class SequentialIK(Method):
     requires_touch_pose = True
     supports_frames = True
 
-    def prepare(self, robot) -> None:
+    def prepare(self, robot: Robot) -> None:
         robot.pinocchio_fk()
 
     def fixed_poses(self) -> frozenset[str]:
@@ -665,13 +683,13 @@ class SequentialIK(Method):
             return frozenset({"touch_pose"})
         return frozenset({"start_pose", "touch_pose"})
 
-    def check_tasks(self, robot, tasks) -> None:
+    def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
         """The walk needs a touch pose, the track a start and a touch pose (pose paths are
         walked forward), frame mode an up vector not parallel to a line
         (:func:`check_tasks`)."""
         check_tasks(robot, tasks, self.settings, self.name)
 
-    def solve(self, robot, task, progress=None) -> Solution:
+    def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         return solve_task(robot, task, self.settings)
 
 

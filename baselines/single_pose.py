@@ -20,11 +20,15 @@ from __future__ import annotations
 
 import importlib.util
 import warnings
-from typing import ClassVar, NamedTuple
+from typing import TYPE_CHECKING, ClassVar, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from baselines._chain import chain_of
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
 
 #: The libraries' own stopping tolerance [m, rad] (far below the study's mm and degrees).
 LIBRARY_TOLERANCE = 1e-6
@@ -67,7 +71,7 @@ class PoseSolver:
     batched: ClassVar[bool] = False
     iterations_are: ClassVar[str] = "iterations"
 
-    def __init__(self, robot, kind: str = "pose"):
+    def __init__(self, robot: Robot, kind: str = "pose") -> None:
         self.robot = robot
         self.kind = kind
         self.chain = chain_of(robot)
@@ -80,7 +84,8 @@ class PoseSolver:
     def prepare(self) -> None:
         """Untimed set-up (models, compilation)."""
 
-    def solve(self, q_init, point_m, rotation) -> PoseOut:  # pragma: no cover - interface
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray,
+              rotation: np.ndarray) -> PoseOut:  # pragma: no cover - interface
         raise NotImplementedError
 
 
@@ -97,7 +102,7 @@ class DLSSolver(PoseSolver):
         self.data = self.fk.model.createData()
         self.settings = DLSSettings(tolerance=LIBRARY_TOLERANCE, max_ik_iterations=MAX_STEPS)
 
-    def solve(self, q_init, point_m, rotation) -> PoseOut:
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         from baselines.sequential_ik import Residual, solve_point
 
         mode = "frame" if self.kind == "pose" else "position"
@@ -135,7 +140,7 @@ class PinkSolver(PoseSolver):
         self.model, self.R_EP = pink_model(self.robot, self.chain)
         self.data = self.model.createData()
 
-    def solve(self, q_init, point_m, rotation) -> PoseOut:
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         import pink
         import pinocchio as pin
         from pink.limits import ConfigurationLimit
@@ -177,7 +182,7 @@ class MinkSolver(PoseSolver):
 
         self.m = mink_model(self.chain)
 
-    def solve(self, q_init, point_m, rotation) -> PoseOut:
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         import mink
 
         from baselines.mink_ik import SITE
@@ -225,7 +230,7 @@ class IkpySolver(PoseSolver):
 
         self.ik_chain, self.active = ikpy_chain(self.chain)
 
-    def solve(self, q_init, point_m, rotation) -> PoseOut:
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         frame = np.eye(4)
         frame[:3, :3], frame[:3, 3] = rotation, point_m
         start = np.zeros(len(self.ik_chain.links))
@@ -255,7 +260,7 @@ class TracIKSolver(PoseSolver):
         self.solver = tracik_solver(self.chain, TracIKSettings(
             timeout=TRACIK_TIMEOUT_S, eps=TRACIK_EPS, solve_type=TRACIK_SOLVE_TYPE))
 
-    def solve(self, q_init, point_m, rotation) -> PoseOut:
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         import pytracik
 
         from baselines._geometry import quaternion_xyzw
@@ -281,7 +286,7 @@ class DrakeSolver(PoseSolver):
         self.lower = self.drake.positions(self.chain.lower)
         self.upper = self.drake.positions(self.chain.upper)
 
-    def solve(self, q_init, point_m, rotation) -> PoseOut:
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         from pydrake.math import RotationMatrix
         from pydrake.multibody.inverse_kinematics import InverseKinematics
 
@@ -353,7 +358,7 @@ class PyrokiSolver(PoseSolver):
 
         return run
 
-    def solve(self, q_init, point_m, rotation) -> PoseOut:
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         import jax.numpy as jnp
         import jaxlie
 
@@ -377,7 +382,9 @@ class OursLMSolver(PoseSolver):
     #: Restarts per target at most, iterations since a (re)start before the next, in all.
     RESTARTS, RESTART_AFTER, MAX_ITERATIONS = 100, 15, 1500
 
-    def solve_batch(self, initial_deg, goal_points_mm, goal_rotations, tolerance, seed: int):
+    def solve_batch(self, initial_deg: npt.ArrayLike, goal_points_mm: npt.ArrayLike,
+                    goal_rotations: npt.ArrayLike, tolerance: tuple[float, float], seed: int
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(poses (B, dof) [pose units], iterations (B,), converged (B,))."""
         from ikbench.methods.ours_lm.single_pose import solve_poses
 

@@ -49,8 +49,10 @@ from __future__ import annotations
 
 import weakref
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from baselines._chain import Chain, Goals
 from baselines._geometry import (
@@ -64,6 +66,9 @@ from baselines._track import SCHEME_HELP, SCHEMES, track
 from baselines._walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
 
 SOLVE_TYPES = ("Speed", "Distance", "Manip1", "Manip2")
 #: What TRAC-IK takes as the limits of a continuous joint (it tests against FLT_MAX).
@@ -116,7 +121,7 @@ class TracIKSettings:
         return rolls
 
 
-def tracik_solver(chain: Chain, settings: TracIKSettings):
+def tracik_solver(chain: Chain, settings: TracIKSettings) -> Any:
     """The TRAC-IK solver of ``chain`` (cached per chain and timeout, eps, solve type)."""
     key = (settings.timeout, settings.eps, settings.solve_type)
     cached = _SOLVERS.setdefault(chain, {})
@@ -135,7 +140,7 @@ def tracik_solver(chain: Chain, settings: TracIKSettings):
     return solver
 
 
-def set_limits(solver, lower, upper) -> None:
+def set_limits(solver: Any, lower: npt.ArrayLike, upper: npt.ArrayLike) -> None:
     """TRAC-IK's joint limits [rad, m]; infinite ones (continuous joints) as +-FLT_MAX."""
     import pytracik
 
@@ -200,7 +205,8 @@ def solve_chain(chain: Chain, goals: Goals, settings: TracIKSettings) -> ChainRe
                                  "iteration count)")
 
 
-def pose_error(solver, q, point, rotation) -> float:
+def pose_error(solver: Any, q: npt.ArrayLike, point: npt.ArrayLike, rotation: np.ndarray
+               ) -> float:
     """The larger of the position error [m] and the rotation error [rad] of ``q`` against the
     pose (``point``, ``rotation``), by ``pytracik.fk``."""
     import pytracik
@@ -223,11 +229,11 @@ class TracIK(LibraryMethod):
     Settings = TracIKSettings
     supports_frames = True
 
-    def prepare(self, robot) -> None:
+    def prepare(self, robot: Robot) -> None:
         """Untimed: KDL parses the URDF, TRAC-IK builds its solvers."""
         from baselines._chain import chain_of
 
         tracik_solver(chain_of(robot), self.settings)
 
-    def solve_chain(self, robot, chain: Chain, goals: Goals) -> ChainResult:
+    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         return solve_chain(chain, goals, self.settings)

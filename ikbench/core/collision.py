@@ -36,12 +36,16 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import InputError
 from ikbench.core.obstacles import Obstacle
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
 
 MM_PER_M = 1000.0
 #: Keys a robot's collision file may hold.
@@ -61,7 +65,7 @@ class Capsule:
     radius_mm: float
 
 
-def collision_config(robot) -> dict | None:
+def collision_config(robot: Robot) -> dict | None:
     """The robot's collision file as a dict (with ``path``), or None when it names none."""
     name = robot.config.get("collision")
     if not name:
@@ -240,7 +244,7 @@ class CollisionModel:
         return scene
 
     # ----- checking -----------------------------------------------------------------------------
-    def check(self, poses, obstacles: Sequence[Obstacle] = ()) -> CollisionReport:
+    def check(self, poses: npt.ArrayLike, obstacles: Sequence[Obstacle] = ()) -> CollisionReport:
         """Signed distances of every checked pair at every pose (N, dof) [pose units]."""
         import pinocchio as pin
 
@@ -253,8 +257,10 @@ class CollisionModel:
             out[i] = [r.min_distance for r in scene.data.distanceResults]
         return CollisionReport(out * MM_PER_M, list(scene.pairs), scene.is_env.copy())
 
-    def distance_jacobians(self, poses, obstacles: Sequence[Obstacle] = (),
-                           below_mm: float = 50.0, self_pairs: bool = True):
+    def distance_jacobians(self, poses: npt.ArrayLike, obstacles: Sequence[Obstacle] = (),
+                           below_mm: float = 50.0, self_pairs: bool = True
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                      list[tuple[str, str]]]:
         """Distances below ``below_mm`` and their gradients, for poses (N, dof) [pose units].
 
         Returns:
@@ -296,7 +302,7 @@ class CollisionModel:
                 np.array(rows_d, dtype=float), np.array(rows_g, dtype=float).reshape(-1, dof),
                 list(scene.pairs))
 
-    def placements(self, poses) -> np.ndarray:
+    def placements(self, poses: npt.ArrayLike) -> np.ndarray:
         """(N, G, 4, 4) [mm] base <- geometry of every robot geometry at each pose."""
         import pinocchio as pin
 
@@ -311,7 +317,7 @@ class CollisionModel:
         out[..., :3, 3] *= MM_PER_M
         return out
 
-    def capsule_segments(self, poses) -> np.ndarray:
+    def capsule_segments(self, poses: npt.ArrayLike) -> np.ndarray:
         """(N, C, 2, 3) [mm] both end-sphere centres of every capsule in the base frame (for
         drawing; empty when the geometry is not capsules)."""
         if not self.capsules:
@@ -336,7 +342,7 @@ def _point_jacobian(model, data, joint: int, point_m, frame) -> np.ndarray:
     return J[:3] - skew @ J[3:]
 
 
-def coal_shape(obstacle: Obstacle):
+def coal_shape(obstacle: Obstacle) -> tuple[Any, Any]:
     """(coal geometry, pinocchio.SE3 placement) of an obstacle, in metres."""
     import coal
     import pinocchio as pin
@@ -369,7 +375,7 @@ def _capsule_placement(capsule: Capsule):
     return shape, pin.SE3(frame_with_z(b - a), 0.5 * (a + b))
 
 
-def build_collision_model(robot) -> CollisionModel | None:
+def build_collision_model(robot: Robot) -> CollisionModel | None:
     """The robot's :class:`CollisionModel` (see the module docstring), or None when it has no
     collision geometry.
 
@@ -423,14 +429,15 @@ def build_collision_model(robot) -> CollisionModel | None:
                           _model=model, _geometry=geometry, _self_index=index)
 
 
-def collision_model(robot) -> CollisionModel | None:
+def collision_model(robot: Robot) -> CollisionModel | None:
     """The robot's :class:`CollisionModel` (cached on the robot), or None without geometry."""
     if "collision_model" not in robot._cache:
         robot._cache["collision_model"] = build_collision_model(robot)
     return robot._cache["collision_model"]
 
 
-def check_trajectory(robot, poses, obstacles: Sequence[Obstacle] = ()) -> dict[str, Any]:
+def check_trajectory(robot: Robot, poses: npt.ArrayLike,
+                     obstacles: Sequence[Obstacle] = ()) -> dict[str, Any]:
     """:meth:`CollisionReport.summary` of poses (N, dof) [pose units], plus
     ``collision_model`` (its source; "none" when the robot has no collision geometry: then the
     counts are 0 and the clearances NaN, nothing was checked)."""

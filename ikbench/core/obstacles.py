@@ -30,11 +30,15 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import InputError
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
 
 KINDS = ("box", "sphere", "capsule", "halfspace")
 #: Keys each kind of obstacle item may hold (besides ``type`` and ``name``).
@@ -150,27 +154,28 @@ def _positive(item: dict, key: str, where: str) -> float:
     return float(value)  # type: ignore[arg-type]
 
 
-def box(name: str, center_mm, size_mm, rotation=None) -> Obstacle:
+def box(name: str, center_mm: npt.ArrayLike, size_mm: npt.ArrayLike,
+        rotation: npt.ArrayLike | None = None) -> Obstacle:
     """A box of full edge lengths ``size_mm`` (3,) centred at ``center_mm`` (3,)."""
     R = np.eye(3) if rotation is None else np.asarray(rotation, dtype=float)
     return Obstacle("box", name, np.asarray(center_mm, dtype=float), R,
                     size_mm=np.asarray(size_mm, dtype=float))
 
 
-def sphere(name: str, center_mm, radius_mm: float) -> Obstacle:
+def sphere(name: str, center_mm: npt.ArrayLike, radius_mm: float) -> Obstacle:
     """A sphere of ``radius_mm`` at ``center_mm``."""
     return Obstacle("sphere", name, np.asarray(center_mm, dtype=float), np.eye(3),
                     radius_mm=float(radius_mm))
 
 
-def capsule(name: str, a_mm, b_mm, radius_mm: float) -> Obstacle:
+def capsule(name: str, a_mm: npt.ArrayLike, b_mm: npt.ArrayLike, radius_mm: float) -> Obstacle:
     """A capsule: the points within ``radius_mm`` of the segment from ``a_mm`` to ``b_mm``."""
     a, b = np.asarray(a_mm, dtype=float), np.asarray(b_mm, dtype=float)
     return Obstacle("capsule", name, 0.5 * (a + b), frame_with_z(b - a),
                     radius_mm=float(radius_mm), length_mm=float(np.linalg.norm(b - a)))
 
 
-def halfspace(name: str, point_mm, normal) -> Obstacle:
+def halfspace(name: str, point_mm: npt.ArrayLike, normal: npt.ArrayLike) -> Obstacle:
     """The half-space behind the plane through ``point_mm`` with (outward) ``normal``."""
     n = np.asarray(normal, dtype=float)
     n = n / np.linalg.norm(n)
@@ -178,7 +183,7 @@ def halfspace(name: str, point_mm, normal) -> Obstacle:
                     normal=n)
 
 
-def frame_with_z(axis) -> np.ndarray:
+def frame_with_z(axis: npt.ArrayLike) -> np.ndarray:
     """A rotation whose z column is ``axis`` normalised (identity for a zero axis)."""
     z = np.asarray(axis, dtype=float)
     norm = np.linalg.norm(z)
@@ -191,7 +196,7 @@ def frame_with_z(axis) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
-def parse_obstacle(item, index: int, where: str) -> Obstacle:
+def parse_obstacle(item: object, index: int, where: str) -> Obstacle:
     """One item of an obstacle file (see the module docstring)."""
     here = f"{where}: obstacle {index}"
     if not isinstance(item, dict):
@@ -223,7 +228,7 @@ def parse_obstacle(item, index: int, where: str) -> Obstacle:
     return halfspace(name, _vector3(item, "point_mm", here), normal)
 
 
-def parse_obstacles(items, where: str) -> tuple[Obstacle, ...]:
+def parse_obstacles(items: object, where: str) -> tuple[Obstacle, ...]:
     """Obstacles from a file's content: ``{"obstacles": [...]}`` or a bare list."""
     if isinstance(items, dict):
         extra = [k for k in items if k not in ("obstacles", "description")]
@@ -242,7 +247,8 @@ def parse_obstacles(items, where: str) -> tuple[Obstacle, ...]:
     return obstacles
 
 
-def cppflow_obstacles(items, xyz_offset_m, where: str) -> tuple[Obstacle, ...]:
+def cppflow_obstacles(items: object, xyz_offset_m: npt.ArrayLike | None,
+                      where: str) -> tuple[Obstacle, ...]:
     """CppFlow's boxes (metres, roll/pitch/yaw [rad]; each a mapping or, as its YAML files
     write them, a list of one-key mappings), shifted by ``obstacle_xyz_offset`` [m]."""
     if items is None:
@@ -304,7 +310,7 @@ def load_file(path: Path) -> Any:
 
 
 def read_obstacles(spec: str | Path | Sequence[Obstacle] | None,
-                   robot=None) -> tuple[Obstacle, ...]:
+                   robot: Robot | None = None) -> tuple[Obstacle, ...]:
     """Obstacles from ``spec``: a file (``*.json``, ``*.yaml``, ``*.yml``), a named set of
     ``robot``'s collision config (e.g. ``touchscreen``), ``none``/None/"" (no obstacles), or
     obstacles already parsed.
@@ -325,12 +331,13 @@ def read_obstacles(spec: str | Path | Sequence[Obstacle] | None,
         if not path.is_file():
             raise InputError(f"--obstacles: file {text!r} not found")
         return parse_obstacles(load_file(path), text)
-    named = f"a named set of {robot.name} ({', '.join(sets)}), " if sets else ""
+    named = (f"a named set of {robot.name} ({', '.join(sets)}), "
+             if sets and robot is not None else "")  # sets only come from a robot
     raise InputError(f"--obstacles: {text!r} is neither {named}nor an obstacle file "
                      "(*.json, *.yaml), nor none")
 
 
-def named_sets(robot) -> dict[str, Path]:
+def named_sets(robot: Robot) -> dict[str, Path]:
     """name -> file of the obstacle sets the robot's collision config names."""
     from ikbench.core.collision import collision_config
 

@@ -29,14 +29,20 @@ then the same seven values). The goal pose of waypoint i, in the robot's base fr
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.core.obstacles import cppflow_obstacles
 from ikbench.core.rotations import quat_wxyz_to_matrix
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
 
 KEYS = ("robot", "path_name", "path_offset_frame", "path_xyz_offset", "path_R_offset",
         "obstacle_xyz_offset", "obstacles", "initial_configuration")
@@ -113,7 +119,7 @@ def resolve_problem(spec: str | Path) -> Path:
                      "nor a problem file (*.yaml)")
 
 
-def resolve_problems(spec) -> list[Path]:
+def resolve_problems(spec: str | Path | Sequence[str | Path]) -> list[Path]:
     """``cppflow`` (every shipped problem), names and files separated by commas, or a list."""
     items = spec if isinstance(spec, (list, tuple)) else str(spec).split(",")
     names = [str(s).strip() for s in items if str(s).strip()]
@@ -260,7 +266,7 @@ def read_path_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return table[:, 1:4], quats
 
 
-def offset_frame_position_m(robot, frame: str) -> np.ndarray:
+def offset_frame_position_m(robot: Robot, frame: str) -> np.ndarray:
     """Position [m] of ``frame`` in the robot's base frame at the all-zero joint vector
     (locked joints at their values); ``world`` is the base frame itself.
 
@@ -290,7 +296,7 @@ def offset_frame_position_m(robot, frame: str) -> np.ndarray:
     return np.array(T.translation)
 
 
-def problem_task(problem: CartesianProblem, robot):
+def problem_task(problem: CartesianProblem, robot: Robot) -> Task:
     """The :class:`~ikbench.core.task.Task` of a problem for ``robot``: goal points [mm] and
     rotations in the base frame, the robot's validity limits, its home pose as reference.
 
@@ -318,7 +324,7 @@ def problem_task(problem: CartesianProblem, robot):
                       obstacles=problem.obstacles, initial_pose_deg=initial)
 
 
-def home_pose(robot) -> np.ndarray:
+def home_pose(robot: Robot) -> np.ndarray:
     """The robot's home pose [pose units]: its default targets' start pose, else all zeros
     (clipped to the validity limits)."""
     pose = np.zeros(robot.dof)

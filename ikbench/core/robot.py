@@ -33,11 +33,19 @@ import tomllib
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, overload
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import InputError
+
+if TYPE_CHECKING:
+    import torch
+
+    from ikbench.core.kinematics.chain import ChainKinematics
+    from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
+    from ikbench.core.kinematics.torch_fk import TorchFK
 
 DEFAULT_ROBOT = "nico_right_arm"
 DEG2RAD = math.pi / 180.0
@@ -118,6 +126,8 @@ class Robot:
     validity_lower: np.ndarray | None = None
     validity_upper: np.ndarray | None = None
     _cache: dict = field(default_factory=dict, repr=False)
+    if TYPE_CHECKING:  # set by __post_init__: SI units per pose unit (rad per deg, m per mm)
+        _si_per_unit: np.ndarray = field(init=False, repr=False)
 
     def __repr__(self) -> str:
         return (f"Robot({self.name!r}: {self.dof} joints, {self.root_link} -> {self.end_frame}, "
@@ -196,21 +206,31 @@ class Robot:
                 "source": self.config.get("source", "")}
 
     # ----- pose units <-> URDF units ---------------------------------------------------------
-    def to_urdf(self, q):
+    @overload
+    def to_urdf(self, q: torch.Tensor) -> torch.Tensor: ...
+    @overload
+    def to_urdf(self, q: npt.ArrayLike) -> np.ndarray: ...
+
+    def to_urdf(self, q: Any) -> Any:
         """Poses [pose units] -> URDF joint values [rad, m]; numpy arrays or tensors (..., dof)."""
         scale, offset, si = self._map_constants(q)
         return (q * scale + offset) * si
 
-    def from_urdf(self, q_urdf):
+    @overload
+    def from_urdf(self, q_urdf: torch.Tensor) -> torch.Tensor: ...
+    @overload
+    def from_urdf(self, q_urdf: npt.ArrayLike) -> np.ndarray: ...
+
+    def from_urdf(self, q_urdf: Any) -> Any:
         """Inverse of :meth:`to_urdf`."""
         scale, offset, si = self._map_constants(q_urdf)
         return (q_urdf / si - offset) / scale
 
-    def motor_to_joint_rad(self, q_motor_deg):
+    def motor_to_joint_rad(self, q_motor_deg: npt.ArrayLike) -> np.ndarray:
         """Poses [pose units] -> URDF joint values (the older name of :meth:`to_urdf`)."""
         return self.to_urdf(q_motor_deg)
 
-    def joint_rad_to_motor_deg(self, q_rad):
+    def joint_rad_to_motor_deg(self, q_rad: npt.ArrayLike) -> np.ndarray:
         """URDF joint values -> poses (the older name of :meth:`from_urdf`)."""
         return self.from_urdf(q_rad)
 
@@ -227,7 +247,7 @@ class Robot:
         return self._cache[key]
 
     # ----- validation -------------------------------------------------------------------------
-    def check_pose(self, pose_motor_deg, what: str = "pose") -> np.ndarray:
+    def check_pose(self, pose_motor_deg: npt.ArrayLike, what: str = "pose") -> np.ndarray:
         """Validate one pose (length, finite, within the limits); return it as float64.
 
         Raises:
@@ -255,7 +275,7 @@ class Robot:
                                  f"range [{lo:g}, {hi:g}]")
         return pose
 
-    def check_poses(self, poses, what: str = "poses") -> np.ndarray:
+    def check_poses(self, poses: npt.ArrayLike, what: str = "poses") -> np.ndarray:
         """Validate poses (B, dof) or (dof,); InputError naming the shape expected."""
         array = np.asarray(poses, dtype=float)
         if array.ndim not in (1, 2) or array.shape[-1] != self.dof:
@@ -264,7 +284,8 @@ class Robot:
                              f"({', '.join(self.joint_names)}; {self.pose_unit})")
         return array
 
-    def within_limits(self, poses_motor_deg, tol_deg: float = RANGE_TOLERANCE_DEG) -> bool:
+    def within_limits(self, poses_motor_deg: npt.ArrayLike,
+                      tol_deg: float = RANGE_TOLERANCE_DEG) -> bool:
         """True when every pose in (..., dof) lies within the limits (+- ``tol_deg``)."""
         poses = np.asarray(poses_motor_deg, dtype=float)
         return bool(
@@ -273,7 +294,7 @@ class Robot:
         )
 
     # ----- kinematics -------------------------------------------------------------------------
-    def torch_fk(self, dtype=None, device: str = "cpu"):
+    def torch_fk(self, dtype: torch.dtype | None = None, device: str = "cpu") -> TorchFK:
         """The pytorch-kinematics FK backend (cached per dtype/device); see ``TorchFK``."""
         import torch
 
@@ -285,7 +306,7 @@ class Robot:
             self._cache[key] = TorchFK(self, dtype=dtype, device=device)
         return self._cache[key]
 
-    def pinocchio_fk(self):
+    def pinocchio_fk(self) -> PinocchioFK:
         """The Pinocchio FK backend (cached); see ``PinocchioFK``."""
         from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
 
@@ -293,7 +314,7 @@ class Robot:
             self._cache["pin_fk"] = PinocchioFK(self)
         return self._cache["pin_fk"]
 
-    def chain_kinematics(self):
+    def chain_kinematics(self) -> ChainKinematics:
         """The vectorised numpy chain (cached); see ``ChainKinematics``."""
         from ikbench.core.kinematics.chain import ChainKinematics
 
@@ -301,7 +322,7 @@ class Robot:
             self._cache["chain"] = ChainKinematics(self)
         return self._cache["chain"]
 
-    def fk(self, q_motor_deg, backend: str = "pinocchio") -> FKResult:
+    def fk(self, q_motor_deg: npt.ArrayLike, backend: str = "pinocchio") -> FKResult:
         """End point [mm] and pointing direction for poses (dof,) or (B, dof) [pose units].
 
         Args:
@@ -316,7 +337,7 @@ class Robot:
         return FKResult(T_base_tip[:, :3, 3] * MM_PER_M, T_base_tip[:, :3, :3]
                         @ self.pointing_axis)
 
-    def skeleton_mm(self, q_motor_deg) -> np.ndarray:
+    def skeleton_mm(self, q_motor_deg: npt.ArrayLike) -> np.ndarray:
         """The arm as a polyline: points (B, dof + 2, 3) [mm] in the base frame for poses
         (dof,) or (B, dof) [pose units].
 
@@ -330,7 +351,7 @@ class Robot:
         base = np.zeros((len(q), 1, 3))
         return np.concatenate([base, origins_m, point_m[:, None]], axis=1) * MM_PER_M
 
-    def fk_transform(self, q_motor_deg, backend: str = "pinocchio") -> np.ndarray:
+    def fk_transform(self, q_motor_deg: npt.ArrayLike, backend: str = "pinocchio") -> np.ndarray:
         """End-frame transforms (B, 4, 4) in the base frame [m] for poses (B, dof)."""
         q = np.atleast_2d(self.check_poses(q_motor_deg, "fk"))
         if backend == "pinocchio":

@@ -21,8 +21,11 @@ canvas), and Pillow writes the frames with one shared palette.
 from __future__ import annotations
 
 import math
+import os
 import textwrap
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -37,6 +40,11 @@ from ikbench.studies.arm_plots import (
     style_axes_3d,
     task_colors,
 )
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+    from ikbench.core.timing import Limits
 
 #: File name of a run folder's animation.
 ANIMATION_FILE = "animation.gif"
@@ -106,9 +114,10 @@ class _Panel:
             self.ax.draw_artist(artist)
 
 
-def render_frames(robot, tasks, poses_by_id: dict, title: str, duration_s: float,
-                  max_frames: int = MAX_FRAMES, dpi: int = 80, timing: str = "constant",
-                  limits=None):
+def render_frames(robot: Robot, tasks: Sequence[Task], poses_by_id: dict, title: str,
+                  duration_s: float, max_frames: int = MAX_FRAMES, dpi: int = 80,
+                  timing: str = "constant", limits: Limits | None = None
+                  ) -> tuple[list[np.ndarray], list[int]]:
     """Frames (RGB uint8 arrays) and their durations [ms] of the run's animation.
 
     Args:
@@ -198,7 +207,8 @@ def _timings(robot, tasks, poses_by_id, timing, duration_s, limits):
             for task in tasks]
 
 
-def save_gif(path, frames, durations) -> Path:
+def save_gif(path: str | os.PathLike, frames: Sequence[np.ndarray], durations: Sequence[int]
+             ) -> Path:
     """Write frames (RGB arrays) as a looping GIF atomically, one palette for all frames."""
     from PIL import Image
 
@@ -215,8 +225,9 @@ def save_gif(path, frames, durations) -> Path:
     return Path(path)
 
 
-def write_animation(path, robot, tasks, poses_by_id: dict, title: str,
-                    duration_s: float, timing: str = "constant", limits=None) -> Path:
+def write_animation(path: str | os.PathLike, robot: Robot, tasks: Sequence[Task],
+                    poses_by_id: dict, title: str, duration_s: float,
+                    timing: str = "constant", limits: Limits | None = None) -> Path:
     """Render the run's animation (see the module doc) and write it to ``path`` (GIF);
     ``timing`` and ``limits`` as :func:`render_frames` takes them."""
     frames, durations = render_frames(robot, tasks, poses_by_id, title, duration_s,

@@ -13,6 +13,7 @@ from types import ModuleType
 from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -20,6 +21,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
     from mpl_toolkits.mplot3d import Axes3D
 
+    from ikbench.core.obstacles import Obstacle
     from ikbench.core.robot import Robot
     from ikbench.core.task import Task
 
@@ -160,14 +162,14 @@ BOX_FACES = np.array([[0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0
                       [1, 3, 7, 5]])
 
 
-def box_corners(obstacle) -> np.ndarray:
+def box_corners(obstacle: Obstacle) -> np.ndarray:
     """(8, 3) [mm] a box obstacle's corners in the base frame (see :data:`BOX_FACES`)."""
     bits = (np.arange(8)[:, None] >> np.array([2, 1, 0])) & 1
     local = (bits - 0.5) * np.asarray(obstacle.size_mm, dtype=float)
     return local @ np.asarray(obstacle.rotation, dtype=float).T + obstacle.center_mm
 
 
-def halfspace_patch(obstacle, around_mm: np.ndarray | None, minimum_mm: float = 100.0
+def halfspace_patch(obstacle: Obstacle, around_mm: np.ndarray | None, minimum_mm: float = 100.0
                     ) -> np.ndarray:
     """(4, 3) [mm] a square of a half-space's surface around ``around_mm`` (N, 3): centred
     where their centre projects onto the surface, 1.2 times their extent wide (at least
@@ -202,7 +204,8 @@ def _round_polylines(centre, rotation, radius: float, half_length: float = 0.0,
     return [line @ R.T + c0 for line in lines]
 
 
-def draw_obstacles(ax, obstacles, around_mm: np.ndarray | None = None, *, label=True,
+def draw_obstacles(ax: Axes3D, obstacles: Sequence[Obstacle],
+                   around_mm: np.ndarray | None = None, *, label: bool = True,
                    zorder: float = 0.5) -> tuple[list, np.ndarray]:
     """Draw obstacles on a 3-D axes: boxes and half-spaces (a square of the surface around
     ``around_mm``, :func:`halfspace_patch`) as translucent faces, spheres and capsules as
@@ -242,7 +245,8 @@ def draw_obstacles(ax, obstacles, around_mm: np.ndarray | None = None, *, label=
     return artists, (np.vstack(points) if points else np.zeros((0, 3)))
 
 
-def colliding_waypoints(robot, poses, obstacles) -> np.ndarray | None:
+def colliding_waypoints(robot: Robot | None, poses: npt.ArrayLike,
+                        obstacles: Sequence[Obstacle]) -> np.ndarray | None:
     """(N,) True at the poses (N, dof) [pose units] that touch an obstacle or the robot
     itself (:meth:`ikbench.core.collision.CollisionModel.check`); None without obstacles
     or without the robot's collision model (nothing checked, nothing to draw)."""

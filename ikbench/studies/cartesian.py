@@ -15,15 +15,19 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import IkbenchError, InputError
 from ikbench.core.metrics import frame_metrics
 from ikbench.core.problems import BENCHMARK, load_problem, resolve_problems
+from ikbench.methods.base import Method
 from ikbench.methods.registry import available_methods, get_method
 from ikbench.studies.harness import Outcome, Progress, solve_tasks
 
@@ -72,7 +76,7 @@ def frame_methods() -> dict[str, type]:
     return {name: cls for name, cls in available_methods().items() if cls.supports_frames}
 
 
-def parse_seeds(text) -> tuple[int, ...]:
+def parse_seeds(text: str | int | Sequence[int | str]) -> tuple[int, ...]:
     """``"1,2,3"`` (or a sequence) -> (1, 2, 3); InputError for anything but distinct
     integers in [0, 2^63)."""
     items = text if isinstance(text, (list, tuple)) else str(text).split(",")
@@ -86,7 +90,7 @@ def parse_seeds(text) -> tuple[int, ...]:
     return seeds
 
 
-def parse_methods(text) -> list[str]:
+def parse_methods(text: str | Sequence[str] | None) -> list[str]:
     """Method names (comma-separated or a list); None: every method that follows goal frames.
 
     Raises:
@@ -107,7 +111,7 @@ def parse_methods(text) -> list[str]:
     return names
 
 
-def build_method(name: str, seed: int, options: dict | None = None):
+def build_method(name: str, seed: int, options: dict[str, Any] | None = None) -> Method:
     """The method ``name`` with ``options`` (its settings' fields) and, when its settings
     have a ``seed`` field, ``seed``."""
     cls = get_method(name)
@@ -118,7 +122,10 @@ def build_method(name: str, seed: int, options: dict | None = None):
     return cls(**settings)
 
 
-def cartesian(problems=BENCHMARK, methods=None, seeds=DEFAULT_SEEDS, options=None,
+def cartesian(problems: str | Path | Sequence[str | Path] = BENCHMARK,
+              methods: str | Sequence[str] | None = None,
+              seeds: str | int | Sequence[int | str] = DEFAULT_SEEDS,
+              options: dict[str, dict[str, Any]] | None = None,
               progress: bool = True) -> CartesianResult:
     """Run the benchmark (see the module docstring); nothing is written.
 
@@ -168,7 +175,7 @@ def cartesian(problems=BENCHMARK, methods=None, seeds=DEFAULT_SEEDS, options=Non
                            seeds, time.perf_counter() - started, options)
 
 
-def as_written(poses) -> np.ndarray:
+def as_written(poses: npt.ArrayLike) -> np.ndarray:
     """Poses rounded to the 10 significant digits a trajectory CSV holds."""
     return np.array([[float(f"{v:.10g}") for v in row] for row in np.asarray(poses)])
 

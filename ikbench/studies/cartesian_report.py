@@ -14,7 +14,9 @@ from __future__ import annotations
 import csv
 import json
 import math
+from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -29,6 +31,9 @@ from ikbench.studies.pose_paths import plot_pose_path, reached
 from ikbench.studies.report import markdown_table
 from ikbench.studies.run import files_written_by
 
+if TYPE_CHECKING:
+    from ikbench.studies.cartesian import CartesianResult
+
 NOT_FOUND = "not found"
 #: Published columns: label -> (method, metric) in ikbench/data/cppflow/published.csv.
 PUBLISHED = {
@@ -42,7 +47,7 @@ PUBLISHED = {
 IN_SET = "in CppFlow's benchmark set (cppflow/data_type_utils.py ALL_PROBLEM_FILENAMES)"
 
 
-def published_table(problems) -> pd.DataFrame:
+def published_table(problems: Iterable[str]) -> pd.DataFrame:
     """One row per problem: the published figures, labelled with their source, else
     ``not found`` (never estimated), from ``ikbench/data/cppflow/published.csv``."""
     with open(data_dir() / "published.csv", newline="", encoding="utf-8") as f:
@@ -65,7 +70,8 @@ def published_table(problems) -> pd.DataFrame:
 TRAJECTORIES = ("first", "all")
 
 
-def write_folder(result, folder: Path, command: str = "", trajectories: str = "first") -> Path:
+def write_folder(result: CartesianResult, folder: Path, command: str = "",
+                 trajectories: str = "first") -> Path:
     """Write the study's folder whole; return it. ``trajectories``: write the trajectory CSVs
     of the first seed only (``first``; the table names the files written) or of every seed."""
     previous = files_written_by(folder)
@@ -173,7 +179,8 @@ def _cell(value, digits=3) -> str:
     return f"{value:.{digits}g}"
 
 
-def report(result, summary, published, figures, reach, record) -> str:
+def report(result: CartesianResult, summary: pd.DataFrame, published: pd.DataFrame,
+           figures: dict[str, str], reach: dict[str, str], record: dict[str, Any]) -> str:
     """report.md of the study."""
     seeds = ", ".join(map(str, result.seeds))
     lines = [

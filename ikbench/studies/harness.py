@@ -13,10 +13,16 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, TextIO
 
 from ikbench.core.task import Task
 from ikbench.methods.base import Solution
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.methods.base import Method
 
 
 @dataclass
@@ -52,7 +58,7 @@ class Interrupted(Exception):
 class Progress:
     """Progress lines on stderr: one per trajectory start/end, one per progress update."""
 
-    def __init__(self, label: str, stream=None, enabled: bool = True):
+    def __init__(self, label: str, stream: TextIO | None = None, enabled: bool = True) -> None:
         self.label = label
         self.stream = stream or sys.stderr
         self.enabled = enabled
@@ -62,13 +68,13 @@ class Progress:
         if self.enabled:
             print(f"[{self.label}] {text}", file=self.stream, flush=True)
 
-    def start(self, task, index: int, total: int) -> None:
+    def start(self, task: Task, index: int, total: int) -> None:
         self.say(f"trajectory {task.name} ({index + 1}/{total}): solving, n = {task.steps}")
 
-    def update(self, task, iteration: int, loss: float) -> None:
+    def update(self, task: Task, iteration: int, loss: float) -> None:
         self.say(f"trajectory {task.name}: iteration {iteration}, loss {loss:.4f}")
 
-    def done(self, task, solution) -> None:
+    def done(self, task: Task, solution: Solution) -> None:
         loss = "" if solution.loss is None else f", loss {solution.loss:.4f}"
         flag = "" if solution.converged else " (did not meet its stopping criterion)"
         if solution.info.get("infeasible"):  # a method's best infeasible result, said so
@@ -76,7 +82,7 @@ class Progress:
         self.say(f"trajectory {task.name}: done in {solution.iterations} iterations, "
                  f"{solution.duration_s:.2f} s{loss}{flag}")
 
-    def failed(self, task, failure: str) -> None:
+    def failed(self, task: Task, failure: str) -> None:
         self.say(f"trajectory {task.name}: FAILED: {failure}")
 
 
@@ -86,7 +92,8 @@ def describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
-def solve_tasks(method, robot, tasks, progress: Progress | None = None) -> list[Outcome]:
+def solve_tasks(method: Method, robot: Robot, tasks: Sequence[Task],
+                progress: Progress | None = None) -> list[Outcome]:
     """Solve ``tasks`` with ``method``, timed by the harness (see the module docstring).
 
     Raises:

@@ -12,8 +12,10 @@ collision model, draws neither.
 from __future__ import annotations
 
 import textwrap
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.metrics import frame_errors, joint_changes
 from ikbench.core.validity import (
@@ -24,11 +26,17 @@ from ikbench.core.validity import (
 from ikbench.studies.arm_plots import COLLISION_COLOR, colliding_waypoints, draw_obstacles
 from ikbench.studies.report import _equal_axes_3d, _matplotlib, frame_labels
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+
 #: Errors below this are drawn at it (a log scale has no zero) [mm or deg].
 ERROR_FLOOR = 1e-7
 
 
-def reached(robot, task, poses_deg) -> dict:
+def reached(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[str, np.ndarray]:
     """{points_mm (n+1, 3), position_mm (n+1,), rotation_deg (n+1,), step_deg (n,): the
     largest revolute joint change into each waypoint (wrapped)} of poses on a task; with the
     task's obstacles and the robot's collision model also colliding (n+1,): True where the
@@ -49,7 +57,8 @@ def reached(robot, task, poses_deg) -> dict:
     return out
 
 
-def plot_pose_path(task, curves: dict, title: str, robot=None):
+def plot_pose_path(task: Task, curves: dict[str, dict[str, np.ndarray]], title: str,
+                   robot: Robot | None = None) -> Figure:
     """One pose path: the target (grey) and every reached path in 3-D; errors per waypoint.
 
     Args:
@@ -145,7 +154,7 @@ def _mark_collisions(ax, curves: dict) -> list[np.ndarray]:
     return arms
 
 
-def path_view(points_mm, tilt_deg: float = 20.0) -> tuple[float, float] | None:
+def path_view(points_mm: np.ndarray, tilt_deg: float = 20.0) -> tuple[float, float] | None:
     """(elevation, azimuth) [deg] that show a flat path face on, from the side of the base
     (as the robot sees it), tilted a little; None for a path that is not flat or is a point."""
     centred = points_mm - points_mm.mean(axis=0)

@@ -10,14 +10,19 @@ model's world frame (positions and world-aligned Jacobians are in the base frame
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
 
 #: Limit [rad] given to continuous joints in the model (Pinocchio needs finite numbers).
 CONTINUOUS_LIMIT_RAD = 1e6
 
 
-def chain_urdf_xml(robot) -> str:
+def chain_urdf_xml(robot: Robot) -> str:
     """The robot's URDF text with its continuous joints made revolute with wide limits."""
     tree = ET.parse(robot.urdf_path)
     for joint in tree.getroot().iter("joint"):
@@ -31,12 +36,13 @@ def chain_urdf_xml(robot) -> str:
     return ET.tostring(tree.getroot(), encoding="unicode")
 
 
-def build_chain_model(robot):
+def build_chain_model(robot: Robot) -> Any:
     """The Pinocchio model of ``robot``'s chain (see the module docstring)."""
     return build_chain_model_with_geometry(robot, with_collision=False)[0]
 
 
-def build_chain_model_with_geometry(robot, with_collision: bool = True):
+def build_chain_model_with_geometry(robot: Robot, with_collision: bool = True
+                                    ) -> tuple[Any, Any | None]:
     """(model, collision GeometryModel or None) of ``robot``'s chain: :func:`build_chain_model`
     and, with ``with_collision``, the URDF's ``<collision>`` elements reduced with it (meshes
     found through ``package://`` paths relative to the URDF's folder and its parents)."""
@@ -86,20 +92,20 @@ class PinocchioFK:
         frame_id: the end frame's id.
     """
 
-    def __init__(self, robot):
+    def __init__(self, robot: Robot) -> None:
         self.robot = robot
         self.model = build_chain_model(robot)
         self.data = self.model.createData()
         self.frame_id = self.model.getFrameId(robot.end_frame)
 
-    def placement(self, q_rad: np.ndarray):
+    def placement(self, q_rad: np.ndarray) -> Any:
         """The end frame's ``pin.SE3`` in the base frame for one configuration (dof,)."""
         import pinocchio as pin
 
         pin.framesForwardKinematics(self.model, self.data, q_rad)
         return self.data.oMf[self.frame_id]
 
-    def transforms(self, q_pose) -> np.ndarray:
+    def transforms(self, q_pose: npt.ArrayLike) -> np.ndarray:
         """End-frame transforms (B, 4, 4) [m] for poses (B, dof) [pose units]."""
         q_urdf = self.robot.to_urdf(np.atleast_2d(np.asarray(q_pose, dtype=float)))
         out = np.empty((len(q_urdf), 4, 4))

@@ -24,8 +24,9 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -42,6 +43,11 @@ from ikbench.methods.base import (
 )
 from ikbench.methods.ours_exact.problem import TERMS, ExactProblem
 from ikbench.methods.ours_exact.sqp import RESTORATIONS, SQPResult, solve
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+    from ikbench.methods.base import Progress
 
 __all__ = ["ExactProblem", "ExactSettings", "OursExact", "SQPResult", "build_problem", "solve"]
 
@@ -146,14 +152,15 @@ class OursExact(Method):
                      max_iterations=s.max_iterations, tolerance=s.tolerance,
                      feasibility_tolerance=s.feasibility_tolerance)
 
-    def prepare(self, robot) -> None:
+    def prepare(self, robot: Robot) -> None:
         robot.chain_kinematics().frames(np.zeros((1, robot.dof)))
         import scipy.linalg.lapack  # noqa: F401  the banded solver's import is not timed
 
-    def solve(self, robot, task, progress=None) -> Solution:
+    def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         return self.solve_many(robot, [task])[0]
 
-    def solve_many(self, robot, tasks, progress=None) -> list[Solution]:
+    def solve_many(self, robot: Robot, tasks: Sequence[Task],
+                   progress: Progress | None = None) -> list[Solution]:
         """Solve tasks in batches of one length and kind; each Solution's duration_s is its
         share of its batch's wall time (the initial solve included)."""
         groups: dict[tuple, list[int]] = {}
@@ -260,7 +267,7 @@ def describe_violation(problem: ExactProblem, result: SQPResult, k: int) -> str:
             "reach or a path that needs a jump)")
 
 
-def step_limits(robot, task, settings: ExactSettings) -> np.ndarray:
+def step_limits(robot: Robot, task: Task, settings: ExactSettings) -> np.ndarray:
     """(k,) the largest joint step per segment the penalty allows [pose units]: for a task
     with a contract, ``--exact-max-step`` or the contract's speed limit (the stricter); for a
     6-D pose path, CppFlow's joint-change limits; none (inf) for other tasks (a letter asks
@@ -277,7 +284,7 @@ def step_limits(robot, task, settings: ExactSettings) -> np.ndarray:
     return limit
 
 
-def pointing_scales(task, settings: ExactSettings) -> np.ndarray:
+def pointing_scales(task: Task, settings: ExactSettings) -> np.ndarray:
     """(N,) squared residual scale of the pointing residual per pose: c1 / (2 N_judged) on
     the judged poses (the contract's judged part, pen-down points; the whole path without a
     contract), 0 elsewhere and for 6-D pose paths (their frames are constraints)."""
@@ -294,7 +301,7 @@ def pointing_scales(task, settings: ExactSettings) -> np.ndarray:
     return out
 
 
-def build_problem(robot, tasks, settings: ExactSettings) -> ExactProblem:
+def build_problem(robot: Robot, tasks: Sequence[Task], settings: ExactSettings) -> ExactProblem:
     """The :class:`ExactProblem` of tasks of one length, kind and joint limits."""
     n = tasks[0].steps
     dof = robot.dof
@@ -308,7 +315,9 @@ def build_problem(robot, tasks, settings: ExactSettings) -> ExactProblem:
     return ExactProblem(
         goal_points_mm=np.stack([t.goal_points_mm for t in tasks]),
         goal_directions=np.stack([t.goal_directions for t in tasks]),
-        goal_rotations=np.stack([t.goal_rotations for t in tasks]) if frames else None,
+        # a batch is of one kind: every task has frames when the first has
+        goal_rotations=(np.stack([cast(np.ndarray, t.goal_rotations) for t in tasks])
+                        if frames else None),
         pointing=np.stack([pointing_scales(t, settings) for t in tasks]),
         smooth=np.full(len(tasks), settings.smoothness_weight / (n * dof)),
         jerk=np.full(len(tasks), jerk if n >= 3 else 0.0),
@@ -317,7 +326,8 @@ def build_problem(robot, tasks, settings: ExactSettings) -> ExactProblem:
         fixed=fixed, constrained=~fixed, lower=lower, upper=upper)
 
 
-def initial_trajectories(robot, tasks, settings: ExactSettings):
+def initial_trajectories(robot: Robot, tasks: Sequence[Task], settings: ExactSettings
+                         ) -> tuple[np.ndarray, list[str]]:
     """(poses (B, N, k) to start from, a word per task saying which)."""
     both = [t.start_pose_deg is not None and t.end_pose_deg is not None for t in tasks]
     use_lm = [settings.init == "ours-lm" or (settings.init == "auto" and not ok)

@@ -31,7 +31,9 @@ import numpy as np
 REGULARISATION = 1e-12
 
 
-def solve_kkt(diagonal, bands, jacobian, gradient, residual, free, constrained):
+def solve_kkt(diagonal: np.ndarray, bands: dict[int, np.ndarray], jacobian: np.ndarray,
+              gradient: np.ndarray, residual: np.ndarray, free: np.ndarray,
+              constrained: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Solve the KKT systems of B trajectories.
 
     Args:

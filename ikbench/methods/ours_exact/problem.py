@@ -25,12 +25,22 @@ Every term is a sum of squared residuals, so :func:`evaluate` returns the Gauss-
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
 from ikbench.methods.ours_lm.frames import errors_from_frames
+
+if TYPE_CHECKING:
+    from ikbench.core.kinematics.chain import ChainKinematics
+
+#: Trajectories picked from a batch: indices (or a mask) into its first axis.
+Index: TypeAlias = "np.ndarray | Sequence[int] | slice | int"
+#: :func:`kinematics_at`'s (c (B, N, m), A (B, N, m, k), directions (B, N, 3), their Jacobian
+#: (B, N, 3, k)): the Jacobians are arrays, or None without derivatives.
+KinematicsAt: TypeAlias = "tuple[np.ndarray, Any, np.ndarray, Any]"
 
 MM_PER_M = 1000.0
 #: The objective's terms, in the order of ``Model.terms``.
@@ -77,7 +87,7 @@ class ExactProblem:
         """Constraint rows per pose: 3 (point) or 6 (point and frame)."""
         return 3 if self.goal_rotations is None else 6
 
-    def take(self, index) -> ExactProblem:
+    def take(self, index: Index) -> ExactProblem:
         """The sub-problem of trajectories ``index``."""
         rotations = None if self.goal_rotations is None else self.goal_rotations[index]
         return ExactProblem(
@@ -106,7 +116,7 @@ class Model:
     bands: dict = field(default_factory=dict)
     jacobian: Any = None
 
-    def take(self, index) -> Model:
+    def take(self, index: Index) -> Model:
         """The model of trajectories ``index``."""
         def pick(v):
             return None if v is None else v[index]
@@ -115,14 +125,14 @@ class Model:
                      pick(self.gradient), pick(self.diagonal),
                      {d: v[index] for d, v in self.bands.items()}, pick(self.jacobian))
 
-    def put(self, index, other: Model) -> None:
+    def put(self, index: Index, other: Model) -> None:
         """Overwrite trajectories ``index`` with ``other``."""
         for name in ("objective", "terms", "residual", "gradient", "diagonal", "jacobian"):
             getattr(self, name)[index] = getattr(other, name)
         for d, values in other.bands.items():
             self.bands[d][index] = values
 
-    def hessian_times(self, step) -> np.ndarray:
+    def hessian_times(self, step: np.ndarray) -> np.ndarray:
         """(J^T J) step for step (B, N, k)."""
         out = (self.diagonal @ step[..., None])[..., 0]
         for d, values in self.bands.items():
@@ -135,8 +145,8 @@ class Model:
         return np.max(np.abs(self.residual), axis=(1, 2), initial=0.0)
 
 
-def evaluate(kinematics, problem: ExactProblem, poses, derivatives: bool = True,
-             at=None) -> Model:
+def evaluate(kinematics: ChainKinematics, problem: ExactProblem, poses: np.ndarray,
+             derivatives: bool = True, at: KinematicsAt | None = None) -> Model:
     """The :class:`Model` of ``problem`` at ``poses`` (B, N, k); ``at``: the poses'
     :func:`kinematics_at` when already computed."""
     b, n_poses, k = poses.shape
@@ -179,7 +189,8 @@ def evaluate(kinematics, problem: ExactProblem, poses, derivatives: bool = True,
     return model
 
 
-def kinematics_at(kinematics, problem: ExactProblem, poses, derivatives: bool = True):
+def kinematics_at(kinematics: ChainKinematics, problem: ExactProblem, poses: np.ndarray,
+                  derivatives: bool = True) -> KinematicsAt:
     """Constraints c (B, N, m) [mm, deg], their Jacobian A (B, N, m, k), the pointing
     directions (B, N, 3) and their Jacobian (B, N, 3, k) at poses (B, N, k) (Jacobians None
     without ``derivatives``); c and A are zero where a pose is not constrained."""
@@ -188,6 +199,7 @@ def kinematics_at(kinematics, problem: ExactProblem, poses, derivatives: bool = 
     point_m, rotation, j_point, j_angular = kinematics.frames(poses.reshape(-1, k), derivatives)
     point_m, rotation = point_m.reshape(*shape, 3), rotation.reshape(*shape, 3, 3)
     if derivatives:
+        assert j_point is not None and j_angular is not None  # asked for
         j_point, j_angular = j_point.reshape(*shape, 3, k), j_angular.reshape(*shape, 3, k)
     direction = rotation @ kinematics.robot.pointing_axis
     if problem.goal_rotations is None:
@@ -204,6 +216,7 @@ def kinematics_at(kinematics, problem: ExactProblem, poses, derivatives: bool = 
     j_dir = None
     if derivatives:
         jacobian = jacobian * mask[..., None]
+        assert j_angular is not None  # asked for
         j_dir = np.cross(j_angular, direction[..., None, :], axisa=-2, axisb=-1, axisc=-2)
     return residual, jacobian, direction, j_dir
 

@@ -20,13 +20,24 @@ step changed the merit by less than ``tolerance`` (relative) or moved no joint b
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from ikbench.methods.ours_exact.kkt import solve_kkt
-from ikbench.methods.ours_exact.problem import ExactProblem, Model, evaluate, kinematics_at
+from ikbench.methods.ours_exact.problem import (
+    ExactProblem,
+    KinematicsAt,
+    Model,
+    evaluate,
+    kinematics_at,
+)
 from ikbench.methods.ours_lm.solver import nielsen_update
+
+if TYPE_CHECKING:
+    from ikbench.core.kinematics.chain import ChainKinematics
 
 #: A joint within this distance [pose units] of a bound counts as on the bound.
 BOUND_EPS = 1e-9
@@ -72,10 +83,11 @@ class SQPResult:
     duration_s: float
 
 
-def solve(kinematics, problem: ExactProblem, initial, *, max_iterations: int = 100,
-          tolerance: float = 1e-4, feasibility_tolerance: float = 1e-6,
-          damping: float = 1e-3, restorations: int = RESTORATIONS,
-          trace=None) -> SQPResult:
+def solve(kinematics: ChainKinematics, problem: ExactProblem, initial: np.ndarray, *,
+          max_iterations: int = 100, tolerance: float = 1e-4,
+          feasibility_tolerance: float = 1e-6, damping: float = 1e-3,
+          restorations: int = RESTORATIONS,
+          trace: Callable[..., object] | None = None) -> SQPResult:
     """Solve ``problem`` from ``initial`` poses (B, N, k); fixed poses keep their values.
     The initial poses are first moved onto the constraints pose by pose
     (:func:`restore_feasibility`, at most ``restorations`` steps; 0: start from them as they
@@ -120,7 +132,7 @@ def solve(kinematics, problem: ExactProblem, initial, *, max_iterations: int = 1
             part = sub.take(retry)
             corrected, at_corrected = restore_feasibility(
                 kinematics, part, trial[retry], CORRECTIONS, feasibility_tolerance,
-                movable=free[retry], at=tuple(v[retry] for v in at),
+                movable=free[retry], at=cast(KinematicsAt, tuple(v[retry] for v in at)),
                 max_move=np.max(np.abs(step[retry]), axis=-1) + CORRECTION_SLACK)
             second = evaluate(kinematics, part, corrected, at=at_corrected)
             second_gain = _gain(before[retry], second, r[retry], predicted[retry])
@@ -168,8 +180,10 @@ def solve(kinematics, problem: ExactProblem, initial, *, max_iterations: int = 1
                      iterations, converged, time.perf_counter() - started)
 
 
-def restore_feasibility(kinematics, problem: ExactProblem, poses, iterations: int = 20,
-                        tolerance: float = 1e-7, movable=None, max_move=None, at=None):
+def restore_feasibility(kinematics: ChainKinematics, problem: ExactProblem, poses: np.ndarray,
+                        iterations: int = 20, tolerance: float = 1e-7,
+                        movable: np.ndarray | None = None, max_move: np.ndarray | None = None,
+                        at: KinematicsAt | None = None) -> tuple[np.ndarray, KinematicsAt]:
     """Move every constrained pose, independently, towards its goal by minimum-norm
     Gauss-Newton steps over its ``movable`` joints (default: all of the poses that are not
     fixed), clipped to the box; a correction that does not lower a pose's violation is
@@ -204,8 +218,9 @@ def restore_feasibility(kinematics, problem: ExactProblem, poses, iterations: in
         if not better.any():
             break
         x = np.where(better[..., None], trial, x)
-        at = tuple(np.where(better.reshape(*better.shape, *([1] * (old.ndim - 2))), value, old)
-                   for value, old in zip(new, at))
+        at = cast(KinematicsAt, tuple(
+            np.where(better.reshape(*better.shape, *([1] * (old.ndim - 2))), value, old)
+            for value, old in zip(new, at)))
     return x, at
 
 
@@ -272,7 +287,7 @@ def _gain(before, new: Model, rho, predicted):
     return (before - after) / np.where(predicted > 0, predicted, np.inf)
 
 
-def predicted_decrease(model: Model, step, rho) -> np.ndarray:
+def predicted_decrease(model: Model, step: np.ndarray, rho: np.ndarray) -> np.ndarray:
     """(B,) the merit's decrease f + rho |c|_1 that the Gauss-Newton model and the
     linearised constraints predict for ``step``."""
     linear = model.residual + (model.jacobian @ step[..., None])[..., 0]

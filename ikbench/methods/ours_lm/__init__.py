@@ -22,7 +22,9 @@ along the path, the best refined by this LM), one task at a time.
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -41,6 +43,11 @@ from ikbench.methods.ours_lm.solver import (
 )
 from ikbench.methods.ours_lm.start_search import OursLMSettings, search
 
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+    from ikbench.methods.base import Progress
+
 __all__ = ["BACKENDS", "KINEMATICS", "LINEAR_SOLVERS", "BatchResult", "Evaluation", "LMSettings",
            "OursLM", "OursLMSettings", "Problem", "cpu_backend", "evaluate", "initial_poses",
            "search", "solve_batch", "solve_problem"]
@@ -58,11 +65,11 @@ class OursLM(Method):
     supports_frames = True
     avoids_obstacles = True     # on 6-D pose paths (:mod:`.avoidance`); 3-D tasks: none
 
-    def settings_for(self, task) -> LMSettings:
+    def settings_for(self, task: Task) -> LMSettings:
         """The settings for one task, with its complete weights."""
         return replace(self.settings, weights=resolve_weights(self.settings.weights, task))
 
-    def prepare(self, robot) -> None:
+    def prepare(self, robot: Robot) -> None:
         if self.settings.device is not None:  # the torch backend's kinematics on its device
             from ikbench.core.kinematics.chain_torch import torch_chain_kinematics
             from ikbench.methods.ours_lm.devices import torch_dtype
@@ -78,10 +85,11 @@ class OursLM(Method):
             robot.pinocchio_fk()
         import scipy.linalg.lapack  # noqa: F401  the banded solver's import is not timed
 
-    def solve(self, robot, task, progress=None) -> Solution:
+    def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         return self.solve_many(robot, [task])[0]
 
-    def solve_many(self, robot, tasks, progress=None) -> list[Solution]:
+    def solve_many(self, robot: Robot, tasks: Sequence[Task],
+                   progress: Progress | None = None) -> list[Solution]:
         """One batched solve of every task (each with :meth:`settings_for`'s weights); each
         Solution's duration_s is its share of the batch's wall time. Tasks with goal frames
         are solved one at a time by :func:`.start_search.search`."""

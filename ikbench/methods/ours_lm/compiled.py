@@ -30,12 +30,14 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
 from numba import njit, prange
 
-from ikbench.methods.ours_lm.problem import CM_PER_M, Problem
+from ikbench.methods.ours_lm.problem import CM_PER_M, Problem, Weights
 from ikbench.methods.ours_lm.solver import (
     BOUND_EPS_DEG,
     MAX_DAMPING,
@@ -43,6 +45,13 @@ from ikbench.methods.ours_lm.solver import (
     BatchResult,
     initial_poses_batched,
 )
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+    from ikbench.methods.ours_lm.solver import LMSettings
 
 #: A batch gets a second (third, ...) thread for every this many trajectories.
 PER_THREAD = 16
@@ -60,7 +69,7 @@ class Chain:
         tip_translation: (3,) [m].  tip_axis: (3,) pointing axis in the last joint's frame.
     """
 
-    def __init__(self, robot):
+    def __init__(self, robot: Robot) -> None:
         kin = robot.chain_kinematics()
         k = kin.dof
         self.translations = np.ascontiguousarray(kin.translations, dtype=float).reshape(k, 3)
@@ -82,13 +91,14 @@ class Chain:
         self.tip_translation = np.asarray(kin.tip_translation, dtype=float)
         self.tip_axis = np.asarray(kin.tip_axis, dtype=float)
 
-    def arrays(self):
+    def arrays(self) -> tuple[np.ndarray, ...]:
         return (self.translations, self.rotations, self.rot_k, self.rot_k2, self.axes,
                 self.prismatic, self.urdf_per_unit, self.map_scale, self.map_offset,
                 self.map_si, self.tip_translation, self.tip_axis)
 
 
-def solve_batch(robot, tasks, settings, weights, initial=None) -> BatchResult:
+def solve_batch(robot: Robot, tasks: Sequence[Task], settings: LMSettings, weights: Weights,
+                initial: npt.ArrayLike | None = None) -> BatchResult:
     """:func:`.solver.solve_batch` of the paper's objective, compiled (same arguments)."""
     start = time.perf_counter()
     problem = Problem.from_tasks(robot, tasks, weights)
@@ -99,7 +109,8 @@ def solve_batch(robot, tasks, settings, weights, initial=None) -> BatchResult:
     return result
 
 
-def solve(robot, problem: Problem, poses, settings) -> BatchResult:
+def solve(robot: Robot, problem: Problem, poses: npt.ArrayLike, settings: LMSettings
+          ) -> BatchResult:
     """:func:`solve_problem` with the solver settings (``poses`` are clipped to the box)."""
     start = time.perf_counter()
     poses = np.ascontiguousarray(np.clip(poses, problem.lower_deg, problem.upper_deg),
@@ -116,8 +127,9 @@ def max_threads() -> int:
     return int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
 
 
-def solve_problem(chain: Chain, problem: Problem, poses, max_iterations: int, tolerance: float,
-                  damping: float, threads: int | None = None):
+def solve_problem(chain: Chain, problem: Problem, poses: np.ndarray, max_iterations: int,
+                  tolerance: float, damping: float, threads: int | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(poses (B, N, k), loss (B,), terms (B, 7), iterations (B,), converged (B,)) from
     initial ``poses`` (B, N, k) within the limits, on ``threads`` threads (None: all)."""
     b = poses.shape[0]
@@ -154,7 +166,8 @@ def thread_count(batch: int, threads: int | None = None) -> int:
     return max(1, min(limit, batch // PER_THREAD))
 
 
-def forward(robot, poses, threads: int | None = None):
+def forward(robot: Robot, poses: npt.ArrayLike, threads: int | None = None
+            ) -> tuple[np.ndarray, np.ndarray]:
     """End points [m] (M, 3) and pointing directions (M, 3) of poses (M, dof) [pose units]:
     the chain's FK compiled (as :class:`ikbench.core.kinematics.chain.ChainKinematics`)."""
     poses = np.ascontiguousarray(poses, dtype=float).reshape(-1, robot.dof)
@@ -170,7 +183,7 @@ def forward(robot, poses, threads: int | None = None):
     return point_cm / CM_PER_M, direction
 
 
-def warm_up(robot) -> None:
+def warm_up(robot: Robot) -> None:
     """Compile (or load from numba's cache) the kernels outside any timed region."""
     from ikbench.core.losses import PAPER_WEIGHTS
     from ikbench.core.task import Task

@@ -13,8 +13,14 @@ from __future__ import annotations
 
 import importlib.util
 import re
+from typing import TYPE_CHECKING
 
 from ikbench.core.errors import InputError
+
+if TYPE_CHECKING:
+    import torch
+
+    from ikbench.methods.ours_lm.solver import LMSettings
 
 DTYPES = ("float64", "float32")
 BACKENDS = ("auto", "numpy", "numba")
@@ -55,7 +61,7 @@ def _cuda_build(torch) -> str:
     return f"built for CUDA {cuda}, no GPU found" if cuda else "a CPU-only build"
 
 
-def check_backend(settings) -> None:
+def check_backend(settings: LMSettings) -> None:
     """InputError for settings the chosen solver cannot honour (one line naming the flag)."""
     if settings.dtype not in DTYPES:
         raise InputError(f"--dtype: {settings.dtype!r} is not one of {', '.join(DTYPES)}")
@@ -72,7 +78,7 @@ def check_backend(settings) -> None:
                          "--lm-kinematics out")
 
 
-def torch_dtype(name: str):
+def torch_dtype(name: str) -> torch.dtype:
     """``"float32"`` -> ``torch.float32``."""
     import torch
 
@@ -98,7 +104,7 @@ def numba_installed() -> bool:
         return False
 
 
-def cpu_backend(settings) -> str:
+def cpu_backend(settings: LMSettings) -> str:
     """The CPU solver the settings run: ``"numpy"`` or ``"numba"`` (``--device`` None).
 
     ``auto``: numba when it is installed and the settings are the compiled loop's (chain

@@ -16,15 +16,21 @@ Only L6 couples neighbouring poses, so J^T J keeps the block-tridiagonal form of
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.core.losses import TERMS
 from ikbench.core.rotations import right_jacobian_inverse, so3_log
-from ikbench.methods.ours_lm.problem import Evaluation
+from ikbench.methods.ours_lm.problem import Evaluation, Index, Weights
+
+if TYPE_CHECKING:
+    from ikbench.core.kinematics.chain import Frames
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
 
 DEG_PER_RAD = 180.0 / np.pi
 MM_PER_M = 1000.0
@@ -50,25 +56,27 @@ class FrameProblem:
     frames: Any
 
     @classmethod
-    def from_tasks(cls, robot, tasks, weights, frames) -> FrameProblem:
+    def from_tasks(cls, robot: Robot, tasks: Sequence[Task], weights: Weights,
+                   frames: Callable[[np.ndarray, bool], Frames]) -> FrameProblem:
         """Stack frame tasks of equal length and limits; ``weights``: a dict or one per task."""
         if any(t.goal_rotations is None for t in tasks):
             raise InputError("the 6-D objective needs tasks with goal frames")
         if len({t.steps for t in tasks}) != 1:
             raise InputError("ours-lm batches pose paths of one length only")
-        per_task = weights if isinstance(weights, (list, tuple)) else [weights] * len(tasks)
+        per_task = cast("Sequence[dict[str, float]]", weights if isinstance(weights, (list, tuple))
+                        else [weights] * len(tasks))  # a list or tuple: one dict per task
         w = np.array([[float(ws.get(k, 0.0)) for k in TERMS] for ws in per_task])
         lower, upper = tasks[0].limits(robot)
         return cls(np.stack([t.goal_points_mm for t in tasks]),
-                   np.stack([t.goal_rotations for t in tasks]), w,
+                   np.stack([cast(np.ndarray, t.goal_rotations) for t in tasks]), w,
                    np.asarray(lower, dtype=float), np.asarray(upper, dtype=float), frames)
 
-    def take(self, index) -> FrameProblem:
+    def take(self, index: Index) -> FrameProblem:
         """The sub-problem of trajectories ``index``."""
         return FrameProblem(self.goal_points_mm[index], self.goal_rotations[index],
                             self.weights[index], self.lower_deg, self.upper_deg, self.frames)
 
-    def residual_weights(self):
+    def residual_weights(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Squared residual scales (B,) each of L0, L1, L6 (see the module docstring)."""
         n_poses = self.goal_points_mm.shape[1]
         dof = len(self.lower_deg)
@@ -76,7 +84,9 @@ class FrameProblem:
         return c[0] / (3 * n_poses), c[1] / (3 * n_poses), c[6] / ((n_poses - 1) * dof)
 
 
-def pose_errors(frames, goal_points_mm, goal_rotations, poses, derivatives: bool = True):
+def pose_errors(frames: Callable[[np.ndarray, bool], Frames], goal_points_mm: np.ndarray,
+                goal_rotations: np.ndarray, poses: np.ndarray, derivatives: bool = True
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
     """Position errors [mm] and rotation errors log(R^g^T R) [deg] of poses (..., dof).
 
     Returns:
@@ -87,13 +97,16 @@ def pose_errors(frames, goal_points_mm, goal_rotations, poses, derivatives: bool
     dof = poses.shape[-1]
     point, rotation, j_point, j_angular = frames(poses.reshape(-1, dof), derivatives)
     if derivatives:
+        assert j_point is not None and j_angular is not None  # asked for
         j_point, j_angular = j_point.reshape(*shape, 3, dof), j_angular.reshape(*shape, 3, dof)
     return errors_from_frames(point.reshape(*shape, 3), rotation.reshape(*shape, 3, 3),
                               j_point, j_angular, goal_points_mm, goal_rotations)
 
 
-def errors_from_frames(point_m, rotation, j_point, j_angular, goal_points_mm, goal_rotations,
-                       exact: bool = True):
+def errors_from_frames(point_m: np.ndarray, rotation: np.ndarray, j_point: np.ndarray | None,
+                       j_angular: np.ndarray | None, goal_points_mm: np.ndarray,
+                       goal_rotations: np.ndarray, exact: bool = True
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
     """:func:`pose_errors` from evaluated frames: point_m (..., 3), rotation (..., 3, 3) and
     their Jacobians (..., 3, dof) [m, rad per pose unit] or None. ``exact=False`` leaves out
     Jr^-1 (= I + O(angle)), a cheaper Jacobian for small rotation errors."""
@@ -107,7 +120,8 @@ def errors_from_frames(point_m, rotation, j_point, j_angular, goal_points_mm, go
     return e_point, e_rot, j_point * MM_PER_M, j_rot
 
 
-def evaluate_frames(kinematics, problem: FrameProblem, poses, derivatives: bool = True):
+def evaluate_frames(kinematics: object, problem: FrameProblem, poses: np.ndarray,
+                    derivatives: bool = True) -> Evaluation:
     """Loss, terms, gradient and Gauss-Newton blocks at poses (B, N, dof) (``kinematics`` is
     unused: the problem carries its frame kinematics); see :class:`.problem.Evaluation`."""
     b, n_poses, dof = poses.shape
@@ -122,6 +136,7 @@ def evaluate_frames(kinematics, problem: FrameProblem, poses, derivatives: bool 
     if not derivatives:
         return Evaluation(loss, terms)
     a0, a1, a6 = problem.residual_weights()
+    assert j_point is not None and j_rot is not None  # asked for
     j_point_t, j_rot_t = j_point.swapaxes(-1, -2), j_rot.swapaxes(-1, -2)
     diagonal = (a0[:, None, None, None] * (j_point_t @ j_point)
                 + a1[:, None, None, None] * (j_rot_t @ j_rot))

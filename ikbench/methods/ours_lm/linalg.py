@@ -7,10 +7,17 @@ a numpy block-Thomas elimination, vectorised over the batch.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
+if TYPE_CHECKING:
+    from ikbench.methods.ours_lm.problem import Evaluation
 
-def solve_normal_equations(diagonal, coupling, rhs, free, solver: str = "banded"):
+
+def solve_normal_equations(diagonal: np.ndarray, coupling: np.ndarray, rhs: np.ndarray,
+                           free: np.ndarray, solver: str = "banded"
+                           ) -> tuple[np.ndarray, np.ndarray]:
     """Solve the block-tridiagonal system for the free variables.
 
     The matrix has diagonal blocks ``diagonal`` (B, N, k, k) and off-diagonal blocks
@@ -77,7 +84,7 @@ def _solve_thomas(diag, off, rhs):
     return x, ok
 
 
-def block_matvec(evaluation, x):
+def block_matvec(evaluation: Evaluation, x: np.ndarray) -> np.ndarray:
     """(J^T J) x for x (B, N, dof)."""
     out = (evaluation.diagonal @ x[..., None])[..., 0]
     c = evaluation.coupling[:, None, None]

@@ -13,13 +13,26 @@ neighbouring poses, with a multiple of the identity, so J^T J is block-tridiagon
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias, cast
 
 import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.core.losses import MM_PER_CM, TERMS
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+
+#: The loss weights: one dict (term -> weight) for every task, or one dict per task.
+Weights: TypeAlias = "dict[str, float] | Sequence[dict[str, float]]"
+#: Trajectories picked from a batch: indices (or a mask) into its first axis.
+Index: TypeAlias = "np.ndarray | Sequence[int] | slice | int"
+#: FK with Jacobians: ``kinematics(poses (M, dof), jacobian)`` -> (points [m] (M, 3),
+#: directions (M, 3), their Jacobians (M, 3, dof) per pose unit, or None without them).
+Kinematics: TypeAlias = "Callable[[np.ndarray, bool], tuple[Any, Any, Any, Any]]"
 
 CM_PER_M = 100.0
 
@@ -44,12 +57,13 @@ class Problem:
     upper_deg: np.ndarray
 
     @classmethod
-    def from_tasks(cls, robot, tasks, weights) -> Problem:
+    def from_tasks(cls, robot: Robot, tasks: Sequence[Task], weights: Weights) -> Problem:
         """Stack tasks of equal length; ``weights`` is one dict or one dict per task."""
         sizes = {t.steps for t in tasks}
         if len(sizes) != 1:
             raise InputError(f"ours-lm batches tasks of one length; got n = {sorted(sizes)}")
-        per_task = weights if isinstance(weights, (list, tuple)) else [weights] * len(tasks)
+        per_task = cast("Sequence[dict[str, float]]", weights if isinstance(weights, (list, tuple))
+                        else [weights] * len(tasks))  # a list or tuple: one dict per task
         w = np.array([[float(ws.get(k, 0.0)) for k in TERMS] for ws in per_task])
         zero = np.zeros(robot.dof)
         start = np.stack([zero if t.start_pose_deg is None else t.start_pose_deg for t in tasks])
@@ -60,13 +74,13 @@ class Problem:
                    np.stack([t.goal_directions for t in tasks]), start, end, w,
                    robot.lower_motor_deg, robot.upper_motor_deg)
 
-    def take(self, index) -> Problem:
+    def take(self, index: Index) -> Problem:
         """The sub-problem of trajectories ``index``."""
         return Problem(self.goal_points_cm[index], self.goal_directions[index],
                        self.start_pose_deg[index], self.end_pose_deg[index],
                        self.weights[index], self.lower_deg, self.upper_deg)
 
-    def residual_weights(self):
+    def residual_weights(self) -> tuple[np.ndarray, ...]:
         """Squared residual scales (B,) each: a0^2 .. a6^2 (see the module docstring)."""
         n_poses = self.goal_points_cm.shape[1]
         dof = len(self.lower_deg)
@@ -91,7 +105,8 @@ class Evaluation:
     coupling: Any = None
 
 
-def evaluate(kinematics, problem: Problem, poses, derivatives: bool = True) -> Evaluation:
+def evaluate(kinematics: Kinematics, problem: Problem, poses: np.ndarray,
+             derivatives: bool = True) -> Evaluation:
     """Residuals of ``problem`` at ``poses`` (B, N, dof) [motor deg]; see :class:`Evaluation`."""
     b, n_poses, dof = poses.shape
     point, direction, j_point, j_dir = kinematics(poses.reshape(-1, dof), derivatives)

@@ -21,10 +21,15 @@ budget shared - as TRAC-IK and KDL restart within their time budget.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.methods.ours_lm.frames import errors_from_frames
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
 
 #: A target whose damping exceeds this made no progress for many iterations (stuck).
 STALLED = 1e8
@@ -60,7 +65,8 @@ def _residuals(frames, q, goal_mm, goal_R, scale, position_only: bool):
             np.concatenate([j_point / scale[0], j_rot / scale[1]], -2))
 
 
-def solve_poses(robot, goal_points_mm, goal_rotations, initial, tolerance=(1.0, 0.5),
+def solve_poses(robot: Robot, goal_points_mm: npt.ArrayLike, goal_rotations: npt.ArrayLike,
+                initial: npt.ArrayLike, tolerance: tuple[float, float] = (1.0, 0.5),
                 position_only: bool = False, max_iterations: int = 100, stop: float = 1e-3,
                 restarts: int = 0, restart_after: int = 25, seed: int = 0) -> BatchIK:
     """Solve B single-pose IK problems in one batch (see the module docstring).

@@ -10,9 +10,12 @@ pose. Many trajectories are solved at once, vectorised over trajectories and pos
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import InputError
 from ikbench.core.kinematics.chain import pinocchio_kinematics
@@ -26,7 +29,15 @@ from ikbench.methods.ours_lm.devices import (
     cpu_backend,
 )
 from ikbench.methods.ours_lm.linalg import block_matvec, solve_normal_equations
-from ikbench.methods.ours_lm.problem import Evaluation, Problem, evaluate
+from ikbench.methods.ours_lm.problem import Evaluation, Problem, Weights, evaluate
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+    from ikbench.methods.ours_lm.frames import FrameProblem
+
+#: ``progress(iteration, n_active, losses)``: called every iteration of a batched solve.
+LMProgress = Callable[[int, int, np.ndarray], object]
 
 KINEMATICS = ("numpy", "pinocchio")
 LINEAR_SOLVERS = ("banded", "thomas")
@@ -114,7 +125,7 @@ class BatchResult:
     duration_s: float            # wall time of the whole batch [s]
 
 
-def initial_poses(robot, tasks) -> np.ndarray:
+def initial_poses(robot: Robot, tasks: Sequence[Task]) -> np.ndarray:
     """Initial poses (B, N, dof) [motor deg], clipped to the motor ranges.
 
     The joint interpolation from start to touch pose; a task that pins neither (a letter,
@@ -136,14 +147,15 @@ def initial_poses(robot, tasks) -> np.ndarray:
     return np.clip(np.stack(out), robot.lower_motor_deg, robot.upper_motor_deg)
 
 
-def initial_poses_batched(robot, tasks) -> np.ndarray:
+def initial_poses_batched(robot: Robot, tasks: Sequence[Task]) -> np.ndarray:
     """:func:`~.solver.initial_poses` without a loop over tasks when every task pins a start
     and a touch pose (the same operations, so the same numbers)."""
     if not all(t.start_pose_deg is not None and t.end_pose_deg is not None for t in tasks) \
             or len({t.steps for t in tasks}) != 1:
         return initial_poses(robot, tasks)
-    start = np.stack([t.start_pose_deg for t in tasks])[:, None, :]
-    end = np.stack([t.end_pose_deg for t in tasks])[:, None, :]
+    # every task pins both (checked above)
+    start = np.stack([cast(np.ndarray, t.start_pose_deg) for t in tasks])[:, None, :]
+    end = np.stack([cast(np.ndarray, t.end_pose_deg) for t in tasks])[:, None, :]
     t = np.linspace(0.0, 1.0, tasks[0].steps + 1)[None, :, None]
     return np.clip(start + t * (end - start), robot.lower_motor_deg, robot.upper_motor_deg)
 
@@ -155,9 +167,13 @@ def _free_variables(problem: Problem, poses, gradient):
     return ~((at_lower & (gradient > 0)) | (at_upper & (gradient < 0)))
 
 
-def solve_batch(robot, tasks, settings: LMSettings | None = None, weights=None,
-                initial=None, progress=None, problem=None, evaluator=evaluate,
-                until=None) -> BatchResult:
+def solve_batch(robot: Robot, tasks: Sequence[Task], settings: LMSettings | None = None,
+                weights: Weights | None = None, initial: npt.ArrayLike | None = None,
+                progress: LMProgress | None = None,
+                problem: Problem | FrameProblem | None = None,
+                evaluator: Callable[..., Evaluation] = evaluate,
+                until: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
+                ) -> BatchResult:
     """Minimise the paper's objective for many tasks at once.
 
     Args:
@@ -203,8 +219,9 @@ def solve_batch(robot, tasks, settings: LMSettings | None = None, weights=None,
     return _solve_numpy(robot, problem, poses, settings, progress, evaluator, until, start)
 
 
-def solve_problem(robot, problem: Problem, initial, settings: LMSettings | None = None,
-                  progress=None) -> BatchResult:
+def solve_problem(robot: Robot, problem: Problem, initial: npt.ArrayLike,
+                  settings: LMSettings | None = None,
+                  progress: LMProgress | None = None) -> BatchResult:
     """:func:`solve_batch` of a ready :class:`.problem.Problem` (the paper's objective) from
     ``initial`` poses (B, N, dof), by the solver ``settings`` choose (numpy, numba, torch on
     a device); no Task objects (e.g. the lines of a dataset's shard)."""
@@ -296,7 +313,8 @@ def _compiled(settings: LMSettings):
     return compiled
 
 
-def nielsen_update(damping, nu, active, accept, gain) -> None:
+def nielsen_update(damping: np.ndarray, nu: np.ndarray, active: np.ndarray, accept: np.ndarray,
+                   gain: np.ndarray) -> None:
     """Nielsen's damping update, in place: an accepted step (gain ratio g) scales the damping
     by max(1/3, 1 - (2g - 1)^3) and resets nu to 2; a rejected one multiplies the damping by
     nu and doubles nu (H. B. Nielsen, Damping parameter in Marquardt's method, 1999).

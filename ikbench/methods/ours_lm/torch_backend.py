@@ -21,24 +21,32 @@ the objective of the poses returned, whatever the working precision.
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 import torch
 
 from ikbench.core.kinematics.chain_torch import torch_chain_kinematics
 from ikbench.core.losses import resolve_weights
 from ikbench.methods.ours_lm.devices import torch_dtype
-from ikbench.methods.ours_lm.problem import CM_PER_M, Problem
+from ikbench.methods.ours_lm.problem import CM_PER_M, Problem, Weights
 from ikbench.methods.ours_lm.solver import (
     BOUND_EPS_DEG,
     MAX_DAMPING,
     MIN_GAIN_RATIO,
     BatchResult,
+    LMProgress,
     LMSettings,
     initial_poses_batched,
 )
+
+if TYPE_CHECKING:
+    from ikbench.core.kinematics.chain_torch import TorchChainKinematics
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
 
 #: The smallest stopping tolerance used in float32 (relative loss decrease, or step in deg):
 #: about 2.5 float32 ulps. 1e-6 stopped 7 of 50 000 sampled trajectories up to 1.8e-4 above
@@ -81,11 +89,12 @@ class TorchProblem:
     upper_deg: Any
 
     @classmethod
-    def of(cls, problem: Problem, dtype, device) -> TorchProblem:
+    def of(cls, problem: Problem, dtype: torch.dtype, device: str | torch.device
+           ) -> TorchProblem:
         return cls(*(torch.as_tensor(getattr(problem, f.name), dtype=dtype, device=device)
                      for f in fields(Problem)))
 
-    def take(self, index) -> TorchProblem:
+    def take(self, index: torch.Tensor | None) -> TorchProblem:
         """The sub-problem of trajectories ``index`` (a long tensor; None: all)."""
         if index is None:
             return self
@@ -93,7 +102,7 @@ class TorchProblem:
                             self.start_pose_deg[index], self.end_pose_deg[index],
                             self.weights[index], self.lower_deg, self.upper_deg)
 
-    def residual_weights(self):
+    def residual_weights(self) -> tuple[torch.Tensor, ...]:
         """Squared residual scales a0^2 .. a6^2, (B,) each (see :mod:`.problem`)."""
         n_poses = self.goal_points_cm.shape[1]
         dof = self.lower_deg.shape[0]
@@ -113,7 +122,7 @@ class TorchEvaluation:
     diagonal: Any = None
     coupling: Any = None
 
-    def take(self, index) -> TorchEvaluation:
+    def take(self, index: torch.Tensor | None) -> TorchEvaluation:
         if index is None:
             return self
         return TorchEvaluation(*(None if v is None else v[index] for v in self._values()))
@@ -122,7 +131,8 @@ class TorchEvaluation:
         return (self.loss, self.terms, self.gradient, self.diagonal, self.coupling)
 
 
-def evaluate(kinematics, problem: TorchProblem, poses, derivatives: bool = True):
+def evaluate(kinematics: TorchChainKinematics, problem: TorchProblem, poses: torch.Tensor,
+             derivatives: bool = True) -> TorchEvaluation:
     """Residuals of ``problem`` at ``poses`` (B, N, dof) [motor deg]: a
     :class:`TorchEvaluation` (the numpy :func:`~.problem.evaluate`, in torch)."""
     b, n_poses, dof = poses.shape
@@ -168,7 +178,9 @@ def evaluate(kinematics, problem: TorchProblem, poses, derivatives: bool = True)
     return TorchEvaluation(loss, terms, gradient, diagonal, a6)
 
 
-def solve_normal_equations(diagonal, coupling, rhs, free, method: str = "cyclic"):
+def solve_normal_equations(diagonal: torch.Tensor, coupling: torch.Tensor, rhs: torch.Tensor,
+                           free: torch.Tensor, method: str = "cyclic"
+                           ) -> tuple[torch.Tensor, torch.Tensor]:
     """Solve the block-tridiagonal system for the free variables, batched on the device.
 
     The matrix has diagonal blocks ``diagonal`` (B, N, k, k) and off-diagonal blocks
@@ -255,7 +267,7 @@ def _thomas(diag, off, rhs):
     return x, ok
 
 
-def block_matvec(evaluation: TorchEvaluation, x):
+def block_matvec(evaluation: TorchEvaluation, x: torch.Tensor) -> torch.Tensor:
     """(J^T J) x for x (B, N, dof)."""
     out = (evaluation.diagonal @ x[..., None])[..., 0]
     c = evaluation.coupling[:, None, None]
@@ -284,8 +296,9 @@ def stopping_tolerance(settings: LMSettings) -> float:
     return settings.tolerance
 
 
-def solve_batch(robot, tasks, settings: LMSettings, weights=None, initial=None,
-                progress=None) -> TorchBatchResult:
+def solve_batch(robot: Robot, tasks: Sequence[Task], settings: LMSettings,
+                weights: Weights | None = None, initial: npt.ArrayLike | None = None,
+                progress: LMProgress | None = None) -> TorchBatchResult:
     """:func:`~.solver.solve_batch` on ``settings.device`` in ``settings.dtype``.
 
     Args:
@@ -309,8 +322,8 @@ def solve_batch(robot, tasks, settings: LMSettings, weights=None, initial=None,
     return result
 
 
-def solve_problem(robot, problem: Problem, initial, settings: LMSettings,
-                  progress=None) -> TorchBatchResult:
+def solve_problem(robot: Robot, problem: Problem, initial: npt.ArrayLike, settings: LMSettings,
+                  progress: LMProgress | None = None) -> TorchBatchResult:
     """Minimise ``problem`` from ``initial`` (B, N, dof) [motor deg] on ``settings.device``.
 
     Returns:
