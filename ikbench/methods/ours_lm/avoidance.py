@@ -9,7 +9,8 @@ do not change. Three places:
   by a fraction of the missing distance along its distance gradient (the minimum-norm joint
   motion, capped); the carrying step projects it into the Jacobian's null space, so the path
   is still followed;
-- **ranking** the carried candidates: fewest colliding waypoints first (after lost ones);
+- **stitching** (:func:`.start_search.stitched_candidates`): only collision-free carried poses
+  are nodes of the stitched path; candidates are ranked by their colliding waypoints;
 - **refining** (:func:`with_collisions`): the LM objective gains one residual per close pair
   and waypoint, sqrt(w / N) max(0, clearance - d) with d the signed distance [mm] and w the
   collision weight (``--lm-collision-weight``; the clearance is ``--lm-clearance-mm`` against

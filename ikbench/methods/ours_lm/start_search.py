@@ -18,10 +18,12 @@ A 7-DoF arm reaches each pose in infinitely many ways; the path is solved by:
    thresholds; the valid one with the lowest loss is kept. When none gets there, the next
    ``refine`` candidates are tried, and so on; failing all, the lowest-loss one is returned.
 
-With obstacles (a task's ``obstacles`` and the robot's collision model), every step also keeps
-clear of them and of the robot itself (:mod:`.avoidance`): carrying pushes close pairs apart in
-the null space, candidates are ranked by their colliding waypoints, the LM objective gains a
-clearance penalty, and a valid path must be collision-free. Without obstacles nothing changes.
+With obstacles (a task's ``obstacles`` and the robot's collision model), the candidates come
+from :func:`stitched_candidates` instead of step 2: paths carried from both ends (and, where
+needed, from waypoints along the path) with a push away from close pairs in the null space,
+stitched together where they meet into one collision-free path; the LM objective gains a
+clearance penalty (:mod:`.avoidance`) and a valid path must be collision-free. Without
+obstacles nothing changes.
 
 Everything is deterministic for a seed. Errors are in mm and degrees throughout.
 """
@@ -71,9 +73,6 @@ SEARCH_MARGIN = 0.9
 SEED_TOLERANCE = 1e-3
 #: Damping of the carrying steps [mm] (damped least squares, J^T (J J^T + d^2 I)^-1 e).
 CARRY_DAMPING = 1e-2
-#: IK seeds for the first waypoint at least, when the task has obstacles (a narrow passage
-#: leaves few collision-free ways to reach it).
-OBSTACLE_IK_SEEDS = 128
 #: Carried candidates refined at most, when the task has obstacles.
 OBSTACLE_MAX_REFINED = 8
 #: Gain of the joint-limit avoidance in the null space while carrying (per waypoint).
@@ -98,7 +97,7 @@ class OursLMSettings(LMSettings):
                            "pose and random ones)")
     refine: int = option(2, flag="lm-refine",
                          help="6-D pose paths: carried candidates refined by LM together")
-    clearance_mm: float = option(10.0, flag="lm-clearance-mm", unit="mm",
+    clearance_mm: float = option(0.5, flag="lm-clearance-mm", unit="mm",
                                  help="pose paths with obstacles: the clearance the collision "
                                  "penalty asks for (validity needs >= 0)")
     collision_weight: float = option(10.0, flag="lm-collision-weight",
@@ -293,8 +292,7 @@ def search(robot, task, settings: OursLMSettings, weights: dict) -> SearchResult
     high = np.where(np.isfinite(upper), upper, robot.sample_upper)
     rng = np.random.default_rng(settings.seed)
     avoid = avoidance_for(robot, task, settings.clearance_mm, settings.collision_weight)
-    count = max(settings.ik_seeds, OBSTACLE_IK_SEEDS) if avoid is not None else settings.ik_seeds
-    seeds = rng.uniform(low, high, (count, robot.dof))
+    seeds = rng.uniform(low, high, (settings.ik_seeds, robot.dof))
     if task.reference_pose_deg is not None:
         seeds[0] = task.reference_pose_deg
     q0, pos, rot, ik_iterations = first_waypoint_ik(
@@ -304,15 +302,19 @@ def search(robot, task, settings: OursLMSettings, weights: dict) -> SearchResult
         raise InputError(f"trajectory {task.name!r}: the first waypoint was not reached from "
                          f"any of {settings.ik_seeds} IK seeds (out of reach?); try more "
                          "--lm-ik-seeds or another --lm-seed")
-    if avoid is not None and found.size:  # carry only the collision-free seeds, if any
-        free = avoid.collision_free(q0[found][:, None])
-        found = found[free] if free.any() else found
     t_seeds = time.perf_counter()
-    paths, carry_iterations = carry(frames, task, q0[found], lower, upper, avoid)
+    stitch_info: dict = {}
+    if avoid is None:
+        paths, carry_iterations = carry(frames, task, q0[found], lower, upper)
+    else:  # carried from several waypoints both ways, stitched where they meet (see stitch)
+        paths, carry_iterations, stitch_info = stitched_candidates(
+            frames, task, avoid, lower, upper, low, high, rng)
     missed = lost_waypoints(frames, task, paths)
     colliding = avoid.colliding_waypoints(paths) if avoid is not None else np.zeros(len(paths))
     t_carry = time.perf_counter()
     order = _rank(robot, paths, missed, colliding)
+    if stitch_info.get("stitched"):  # the stitched path first
+        order = np.concatenate([[0], order[order != 0]])
     problem_of = _problem_factory(robot, task, weights, frames)
     evaluator = avoid.evaluator(evaluate_frames) if avoid is not None else evaluate_frames
     lm_settings = replace(settings, weights=weights)
@@ -347,12 +349,163 @@ def search(robot, task, settings: OursLMSettings, weights: dict) -> SearchResult
             "search_max_position_error_mm": float(position),
             "search_max_rotation_error_deg": float(rotation),
             "search_max_joint_step_deg": float(step),
-            "carried_candidates_colliding": int(np.sum(colliding > 0)),
+            "carried_candidates_colliding": int(np.sum(colliding > 0)), **stitch_info,
             "seeds_s": t_seeds - started, "carry_s": t_carry - t_seeds,
             "refine_s": t_end - t_carry}
     return SearchResult(result.poses_deg[k], float(result.loss[k]), result.terms[k],
                         is_valid, ik_iterations + carry_iterations + lm_iterations,
                         bool(result.converged[k]), info)
+
+
+#: Stitching (tasks with obstacles): waypoints spread over the path that paths are carried from
+#: in the second round, IK seeds at each waypoint carried from, and the largest joint step
+#: [pose units] the stitched path may take.
+STITCH_ANCHORS = 9
+STITCH_SEEDS = 64
+STITCH_MAX_STEP = 6.5
+#: The cost of a step above it: the path jumps only where no carried path continues (the LM
+#: refinement may then smooth the jump).
+STITCH_JUMP_COST = 1e6
+#: Rounds of carrying from around where the stitched path still jumps (waypoint offsets).
+STITCH_ROUNDS = 4
+STITCH_AROUND = np.array([-12, -5, 0, 1, 6, 13])
+#: Jumps carried from around per round at most, and how far [waypoints] each way.
+STITCH_JUMPS = 3
+STITCH_REACH = 30
+#: A carried pose further than this [mm or deg] from its goal is not a node of the stitch.
+STITCH_REACHED = 1.0
+
+
+def stitched_candidates(frames, task, avoid: Avoidance, lower, upper, low, high, rng):
+    """Candidates for a task with obstacles: the stitched path (:func:`stitch`) first, then the
+    paths carried forward from the first waypoint.
+
+    From the first and the last waypoint, :data:`STITCH_SEEDS` random IK seeds whose solutions
+    are collision-free are carried forward to the last waypoint and backward to the first
+    (:func:`carry`, with collision avoidance). Every carried pose that reaches its goal
+    and collides with nothing is a node; the stitched path picks one node per waypoint,
+    minimising the sum of squared joint steps plus :data:`STITCH_JUMP_COST` per step above
+    :data:`STITCH_MAX_STEP` (dynamic programming), so it can switch between carried paths
+    where they meet: a narrow passage that no single carried path gets through may be passed
+    by pieces of several.
+    While the stitched path still jumps (or none exists), more paths are carried, from around
+    each jump (:data:`STITCH_AROUND`, :data:`STITCH_REACH` waypoints each way) and, the first
+    time, from :data:`STITCH_ANCHORS` waypoints spread over the path (to both ends), for at most
+    :data:`STITCH_ROUNDS` more rounds.
+
+    Returns:
+        (paths (K, N, dof), carrying iterations, info): the stitched path at index 0 when one
+        was found (``info["stitched"]``), then the forward-carried paths.
+    """
+    n, dof = len(task.goal_points_mm), len(lower)
+    jobs: list[tuple[np.ndarray, int]] = [(np.array([0, n - 1]), n)]   # (anchors, reach)
+    tracks: list[np.ndarray] = []
+    forward, iterations = np.zeros((0, n, dof)), 0
+    path, rounds = None, 0
+    while True:
+        for anchors, reach in jobs:
+            count, first = _carry_from(frames, task, avoid, anchors, reach, lower, upper, low,
+                                       high, rng, tracks)
+            iterations += count
+            if first is not None:
+                forward = first
+        if tracks:
+            path = stitch(frames, task, avoid, np.concatenate(tracks))
+        jumps = np.zeros(0, dtype=int) if path is None else np.flatnonzero(
+            np.abs(np.diff(path, axis=0)).max(axis=1) > STITCH_MAX_STEP)
+        rounds += 1
+        if path is not None and not jumps.size or rounds > STITCH_ROUNDS:
+            break
+        # carry from around where the stitched path jumps, the first time also from waypoints
+        # spread over the path
+        if len(jumps) > STITCH_JUMPS:  # a bounded round: around a few jumps, spread out
+            jumps = jumps[np.linspace(0, len(jumps) - 1, STITCH_JUMPS).round().astype(int)]
+        around = np.unique(np.clip((jumps[:, None] + STITCH_AROUND).ravel(), 0, n - 1))
+        jobs = [(around, STITCH_REACH)]
+        if rounds == 1 or not jumps.size:
+            spread = np.linspace(0, n - 1, STITCH_ANCHORS)[1:-1].round().astype(int)
+            jobs.append((spread, n))
+    if not tracks:
+        raise InputError(f"trajectory {task.name!r}: no collision-free IK solution found at "
+                         "any of the stitching waypoints; try another --lm-seed")
+    info = {"stitched": path is not None, "stitch_tracks": int(sum(len(t) for t in tracks)),
+            "stitch_rounds": rounds}
+    paths = forward if path is None else np.concatenate([path[None], forward])
+    if not len(paths):
+        paths = np.nan_to_num(np.concatenate(tracks))[:1]
+    return paths, iterations, info
+
+
+def _carry_from(frames, task, avoid: Avoidance, anchors, reach: int, lower, upper, low, high,
+                rng, tracks):
+    """Carry collision-free IK solutions at each anchor waypoint forward and backward, at most
+    ``reach`` waypoints each way, adding (M, N, dof) arrays (NaN where not carried) to
+    ``tracks``; returns (carrying iterations, the paths carried forward from waypoint 0 to the
+    last, or None)."""
+    n, dof = len(task.goal_points_mm), len(lower)
+    iterations, forward = 0, None
+    for anchor in anchors:
+        seeds = rng.uniform(low, high, (STITCH_SEEDS, dof))
+        if anchor == 0 and task.reference_pose_deg is not None:
+            seeds[0] = task.reference_pose_deg
+        q, position, rotation, _ = first_waypoint_ik(
+            frames, task.goal_points_mm[anchor], task.goal_rotations[anchor], seeds, lower, upper)
+        found = distinct(q, (position < SEED_TOLERANCE) & (rotation < SEED_TOLERANCE))
+        if found.size:
+            found = found[avoid.collision_free(q[found][:, None])]
+        if not found.size:
+            continue
+        for index in (np.arange(anchor, min(n, anchor + reach + 1)),
+                      np.arange(anchor, max(-1, anchor - reach - 1), -1)):
+            if len(index) < 2:
+                continue
+            part = replace(task, goal_points_mm=task.goal_points_mm[index],
+                           goal_rotations=task.goal_rotations[index])
+            carried, count = carry(frames, part, q[found], lower, upper, avoid)
+            iterations += count
+            track = np.full((len(found), n, dof), np.nan)
+            track[:, index] = carried
+            tracks.append(track)
+            if anchor == 0 and index[-1] == n - 1:
+                forward = carried
+    return iterations, forward
+
+
+def stitch(frames, task, avoid: Avoidance, tracks) -> np.ndarray | None:
+    """The stitched path (N, dof) through the nodes of carried tracks (M, N, dof) (NaN where a
+    track does not reach), see :func:`stitched_candidates`; None when no node sequence
+    exists."""
+    m, n, dof = tracks.shape
+    flat = np.nan_to_num(tracks.reshape(-1, dof))
+    point, rotation, _, _ = frames(flat, False)
+    e_point, e_rot, _, _ = errors_from_frames(point, rotation, None, None,
+                                              np.tile(task.goal_points_mm, (m, 1)),
+                                              np.tile(task.goal_rotations, (m, 1, 1)))
+    error = np.maximum(np.abs(e_point).max(-1), np.abs(e_rot).max(-1)).reshape(m, n)
+    node = (error < STITCH_REACHED) & ~np.isnan(tracks[..., 0])
+    free = np.zeros(m * n, dtype=bool)
+    free[node.ravel()] = avoid.model.check(flat[node.ravel()], avoid.obstacles).distances_mm \
+        .min(axis=1, initial=np.inf) > 0
+    node &= free.reshape(m, n)
+    poses = np.nan_to_num(tracks).swapaxes(0, 1)                    # (N, M, dof)
+    nodes = [np.flatnonzero(node[:, i]) for i in range(n)]
+    if any(not len(k) for k in nodes):
+        return None
+    cost = np.zeros(len(nodes[0]))
+    back = []
+    for i in range(1, n):
+        step = np.abs(poses[i, nodes[i]][None] - poses[i - 1, nodes[i - 1]][:, None])
+        total = cost[:, None] + np.sum(step**2, axis=-1) \
+            + STITCH_JUMP_COST * (step.max(axis=-1) > STITCH_MAX_STEP)
+        back.append(np.argmin(total, axis=0))
+        cost = total[back[-1], np.arange(len(nodes[i]))]
+    k = int(np.argmin(cost))
+    path = np.empty((n, dof))
+    for i in range(n - 1, -1, -1):
+        path[i] = poses[i, nodes[i][k]]
+        if i:
+            k = int(back[i - 1][k])
+    return path
 
 
 def _rank(robot, paths, missed, colliding) -> np.ndarray:

@@ -1,0 +1,70 @@
+"""ours-lm's pose-path search with obstacles: stitching carried paths, and what it returns."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ikbench.core.collision import collision_model
+from ikbench.core.metrics import frame_metrics
+from ikbench.core.problems import load_problem
+from ikbench.methods.ours_lm import OursLM
+from ikbench.methods.ours_lm.avoidance import Avoidance
+from ikbench.methods.ours_lm.start_search import STITCH_MAX_STEP, stitch
+
+
+def _free_solution(name: str, seed: int = 1):
+    robot, task, _ = load_problem(name)
+    free = dataclasses.replace(task, obstacles=())
+    return robot, task, OursLM(seed=seed).solve(robot, free).poses_deg
+
+
+def test_stitch_switches_between_partial_tracks_where_they_meet():
+    robot, task, poses = _free_solution("panda__1cube")
+    task = dataclasses.replace(task, obstacles=())
+    n = len(poses)
+    first, second = np.full_like(poses, np.nan), np.full_like(poses, np.nan)
+    first[:80], second[60:] = poses[:80], poses[60:]
+    wrong = poses + 40.0                       # reaches no goal: never a node
+    avoid = Avoidance(collision_model(robot), (), 2.0, 10.0)
+    path = stitch(robot.chain_kinematics().frames, task, avoid,
+                  np.stack([wrong, first, second]))
+    assert path is not None
+    np.testing.assert_allclose(path, poses)
+    assert np.abs(np.diff(path, axis=0)).max() <= STITCH_MAX_STEP
+    # a gap no track covers: no path
+    second[:90] = np.nan
+    first[70:] = np.nan
+    assert stitch(robot.chain_kinematics().frames, task, avoid,
+                  np.stack([first, second])) is None
+    assert n == task.steps + 1
+
+
+def test_ours_lm_passes_between_the_flappy_bird_boxes():
+    robot, task, _ = load_problem("panda__flappy_bird")
+    solution = OursLM(seed=2).solve(robot, task)
+    metrics = frame_metrics(robot, task, solution.poses_deg)
+    assert metrics["valid"], metrics["failed_criteria"]
+    assert metrics["env_collisions"] == 0 and metrics["min_clearance_mm"] > 0
+    assert solution.info["stitched"]
+    # without the boxes the same search is the obstacle-free one (no stitching), and its
+    # path hits them
+    _, _, free = _free_solution("panda__flappy_bird", seed=2)
+    assert collision_model(robot).check(free, task.obstacles).env_colliding.any()
+
+
+def test_a_users_problem_file_with_the_cube_moved(tmp_path):
+    """Any CppFlow-format file with obstacles, not only the shipped ones (the path resolves to
+    the shipped 1cube.csv; the cube is moved by obstacle_xyz_offset)."""
+    from ikbench.core.problems import shipped_problems
+
+    text = shipped_problems()["panda__1cube"].read_text()
+    moved = tmp_path / "moved_cube.yaml"
+    moved.write_text(text.replace("obstacle_xyz_offset: [0, 0, 0]",
+                                  "obstacle_xyz_offset: [0.05, -0.04, 0.03]"))
+    robot, task, _ = load_problem(moved)
+    np.testing.assert_allclose(task.obstacles[0].center_mm, [50.0, 160.0, 730.0])
+    metrics = frame_metrics(robot, task, OursLM(seed=1).solve(robot, task).poses_deg)
+    assert metrics["valid"], metrics["failed_criteria"]
+    assert metrics["min_clearance_mm"] > 0
