@@ -173,3 +173,21 @@ def test_nicos_touchscreen_is_a_named_obstacle_set_and_the_touches_clear_it():
     report = collision_model(robot).check(touches, (screen,))
     assert not report.env_colliding.any() and not report.self_colliding.any()
     assert math.isfinite(report.min_clearance_mm(env=True))
+
+
+def test_a_urdfs_collision_meshes_work_as_they_are():
+    """A robot without a collision file uses its URDF's <collision> elements (meshes here):
+    UR5 of example-robot-data folded onto itself collides; a box on its forearm too."""
+    robot = load_robot("example-robot-data:ur5")
+    model = collision_model(robot)
+    assert model is not None and "<collision>" in model.source and not model.capsules
+    folded = np.zeros((1, robot.dof))
+    folded[0, 2] = 150.0  # the elbow folded: the wrist meets the base
+    assert model.check(folded).self_colliding.all()
+    home = np.zeros((1, robot.dof))
+    on_forearm = box("b", [400.0, 100.0, 0.0], [300.0, 300.0, 100.0])
+    above = box("b", [400.0, 100.0, 400.0], [300.0, 300.0, 100.0])
+    report = model.check(home, (on_forearm,))
+    assert report.env_colliding.all() and report.first_collision()[1] == "forearm_link"
+    assert not model.check(home, (above,)).env_colliding.any()
+    assert not model.check(home).self_colliding.any()

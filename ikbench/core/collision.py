@@ -20,8 +20,9 @@ Distances are computed by coal through Pinocchio's ``GeometryModel``
 (``pinocchio.computeDistances``), one call per waypoint for every checked pair: **self
 pairs** (see below) and **environment pairs** (every robot geometry
 against every obstacle). A distance is signed: negative inside (the penetration depth for
-convex shapes); a waypoint collides when a distance is below 0 (touching is not a collision,
-as in CppFlow's capsule check).
+convex shapes; a penetrating mesh, whose depth coal does not give, reads -0.001 mm from
+``pinocchio.computeCollisions``); a waypoint collides when a distance is below 0 (touching is
+not a collision, as in CppFlow's capsule check).
 
 :meth:`CollisionModel.check` reports per waypoint; :meth:`CollisionModel.distance_jacobians`
 gives the distances of the close pairs with their gradients in pose units, for methods that
@@ -52,6 +53,9 @@ MM_PER_M = 1000.0
 CONFIG_KEYS = ("description", "source", "licence", "capsules", "never_collide",
                "obstacle_sets")
 CAPSULE_KEYS = ("link", "a_mm", "b_mm", "radius_mm")
+#: The distance [m] reported for a penetrating mesh pair (coal gives a mesh's distance as 0, not
+#: its depth): a collision, depth unknown.
+MESH_PENETRATION_M = 1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -183,6 +187,7 @@ class _Scene:
     first_joint: np.ndarray       # (P,) the parent joint of each pair's first geometry
     second_joint: np.ndarray      # (P,) 0 for an obstacle
     obstacles: tuple = ()
+    meshes: bool = False
 
 
 @dataclass(eq=False)
@@ -210,6 +215,7 @@ class CollisionModel:
     # ----- building -----------------------------------------------------------------------------
     def scene(self, obstacles: Sequence[Obstacle] = ()) -> _Scene:
         """The geometry with ``obstacles`` added and every checked pair (cached per set)."""
+        import coal
         import pinocchio as pin
 
         key = tuple(id(o) for o in obstacles)
@@ -235,9 +241,11 @@ class CollisionModel:
             geometry.addCollisionPair(pin.CollisionPair(a, b))
         data = geometry.createData()
         joints = [g.parentJoint for g in geometry.geometryObjects]
+        meshes = any(isinstance(g.geometry, coal.BVHModelBase) for g in geometry.geometryObjects)
         scene = _Scene(geometry, data, pairs, np.array(is_env, dtype=bool),
                        np.array([joints[a] for a, _ in index], dtype=int),
-                       np.array([joints[b] for _, b in index], dtype=int), tuple(obstacles))
+                       np.array([joints[b] for _, b in index], dtype=int), tuple(obstacles),
+                       meshes)
         if len(self._scenes) > 8:
             self._scenes.clear()
         self._scenes[key] = scene
@@ -255,6 +263,10 @@ class CollisionModel:
         for i, q in enumerate(q_urdf):
             pin.computeDistances(self._model, data, scene.geometry, scene.data, q)
             out[i] = [r.min_distance for r in scene.data.distanceResults]
+            if scene.meshes:  # a mesh's distance is 0, not negative, when it penetrates
+                pin.computeCollisions(self._model, data, scene.geometry, scene.data, q, False)
+                hit = np.array([r.isCollision() for r in scene.data.collisionResults])
+                out[i, hit] = np.minimum(out[i, hit], -MESH_PENETRATION_M)
         return CollisionReport(out * MM_PER_M, list(scene.pairs), scene.is_env.copy())
 
     def distance_jacobians(self, poses: npt.ArrayLike, obstacles: Sequence[Obstacle] = (),

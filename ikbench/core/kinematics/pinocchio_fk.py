@@ -52,7 +52,7 @@ def build_chain_model_with_geometry(robot: Robot, with_collision: bool = True
     full = pin.buildModelFromXML(xml)
     geometry = None
     if with_collision:
-        dirs = [str(p) for p in [robot.urdf_path.parent, *robot.urdf_path.parents][:4]]
+        dirs = [str(p) for p in robot.urdf_path.parents][:8]
         geometry = pin.buildGeomFromUrdfString(full, xml, pin.GeometryType.COLLISION,
                                                package_dirs=dirs)
     keep = set(robot.joint_names)
