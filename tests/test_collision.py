@@ -191,3 +191,25 @@ def test_a_urdfs_collision_meshes_work_as_they_are():
     assert report.env_colliding.all() and report.first_collision()[1] == "forearm_link"
     assert not model.check(home, (above,)).env_colliding.any()
     assert not model.check(home).self_colliding.any()
+
+
+def test_an_initial_configuration_is_part_of_validity(tmp_path):
+    """CppFlow's Problem may give an initial configuration: the first pose must be within 0.2
+    (URDF units) of it."""
+    from ikbench.core.problems import shipped_problems
+
+    robot, task, _ = load_problem("fetch_arm__hello")
+    from ikbench.methods.ours_lm import OursLM
+
+    poses = OursLM(seed=1).solve(robot, task).poses_deg
+    first_rad = robot.to_urdf(poses[0])
+    text = shipped_problems()["fetch_arm__hello"].read_text()
+    for offset, ok in ((0.05, True), (0.5, False)):
+        near = tmp_path / f"near{offset}.yaml"
+        near.write_text(text + "\ninitial_configuration: "
+                        + json.dumps([float(v) for v in first_rad + offset / math.sqrt(7)])
+                        + "\n")
+        _, with_initial, _ = load_problem(near)
+        metrics = frame_metrics(robot, with_initial, poses)
+        assert metrics["initial_configuration_distance"] == pytest.approx(offset, abs=1e-6)
+        assert ("initial_configuration" not in metrics["failed_criteria"].split(",")) == ok
