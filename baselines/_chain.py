@@ -94,8 +94,8 @@ class Goals:
         q_home: (dof,) where a walk without a touch pose starts (a pose path: the task's
             reference pose, the robot's home), or None.
         track: the per-step targets of the tracking scheme
-            (:class:`baselines._track.TrackPlan`) when the method tracks from the start pose,
-            else None (the walk).
+            (:class:`ikbench.baselines._track.TrackPlan`) when the method tracks from the start
+            pose, else None (the walk).
         contract: the task's contract (:class:`ikbench.core.contract.Contract`), or None.
         max_step: (dof,) the largest joint change per segment [rad, m]
             (:func:`max_step_urdf`), or None when no speed limit is known.

@@ -2,7 +2,7 @@
 
 A task's obstacles (``Task.obstacles``, :mod:`ikbench.core.obstacles`: boxes, spheres, capsules,
 half-spaces in the robot's base frame [mm]) reach an adapter's ``solve_chain`` through
-:class:`AvoidsObstacles` (a mixin before :class:`baselines._method.LibraryMethod`): its
+:class:`AvoidsObstacles` (a mixin before :class:`ikbench.baselines._method.LibraryMethod`): its
 ``solve`` keeps the task's obstacles in a context variable for the solve, and the adapter
 reads them with :func:`current_obstacles`. The robot's collision geometry is ikbench's own
 (:func:`ikbench.core.collision.collision_model`: capsules in link frames [mm] and the link

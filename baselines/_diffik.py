@@ -4,14 +4,14 @@ Per goal point, from the warm start, repeat until the position error is below ``
 [m] and the pointing error below ``tolerance`` [rad], or ``max_steps`` steps:
 
 1. measure the pointing frame P (the end frame turned so that its z-axis is the pointing
-   axis, :func:`baselines._geometry.frame_with_z_on`) and the errors;
+   axis, :func:`ikbench.baselines._geometry.frame_with_z_on`) and the errors;
 2. set the frame task's target: the goal point, and the rotation nearest P's whose z-axis is
    the goal direction (so the roll error is 0 and the orientation cost ``[w, w, 0]`` on P's
    body twist frees the roll); for 6-D goals the goal rotation itself, cost ``[w, w, w]``;
 3. one QP: ``v = solve_ik(configuration, tasks, dt, damping, limits)``, q <- q + v dt.
 
-That is the walk's solve. The tracking scheme (:mod:`baselines._track`) shares the rest of this
-module: the frame task's target at step i (:func:`track_target_rotation`: the scheduled
+That is the walk's solve. The tracking scheme (:mod:`ikbench.baselines._track`) shares the rest
+of this module: the frame task's target at step i (:func:`track_target_rotation`: the scheduled
 pointing direction, roll free, or none), the errors (:func:`track_errors`), the stop rule
 (:func:`settle`: position within the tolerance and the last QP step stalled, since the
 scheduled pointing may be out of reach), the posture task's per-joint weights
@@ -27,11 +27,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from baselines._chain import Goals
-from baselines._geometry import angle_between_rad, closest_rotation_with_axis, rotation_angle_rad
+from ikbench.baselines._chain import Goals
+from ikbench.baselines._geometry import (
+    angle_between_rad,
+    closest_rotation_with_axis,
+    rotation_angle_rad,
+)
 
 if TYPE_CHECKING:
-    from baselines._track import TrackPlan
+    from ikbench.baselines._track import TrackPlan
     from ikbench.core.robot import Robot
 
 Z = np.array([0.0, 0.0, 1.0])
@@ -74,12 +78,12 @@ def converge(measure: Callable[[], tuple[float, float]], step: Callable[[], None
         steps += 1
 
 
-# --- the tracking scheme (baselines._track): one solve per step from the start pose ---------
+# --- the tracking scheme (ikbench.baselines._track): one solve per step from the start pose -
 
 
 def track_target_rotation(plan: TrackPlan, i: int, R_P: np.ndarray) -> np.ndarray:
     """The rotation (3, 3) the frame task asks of P at step ``i`` of a
-    :class:`baselines._track.TrackPlan`: the rotation nearest P's whose z-axis is the
+    :class:`ikbench.baselines._track.TrackPlan`: the rotation nearest P's whose z-axis is the
     scheduled direction (roll kept), or P's own rotation when the plan asks no pointing."""
     if plan.directions is None:
         return np.asarray(R_P, dtype=float)

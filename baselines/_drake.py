@@ -14,7 +14,7 @@ IPOPT's ``constr_viol_tol`` / ``tol``, NLopt's ``xtol_rel`` (optimality only).
 Obstacles (:func:`drake_scene_chain`, only for a task with obstacles: without them the plant
 above is used unchanged). The same URDF in a ``DiagramBuilder`` with
 ``AddMultibodyPlantSceneGraph(builder, 0.0)``; the robot's capsules
-(:mod:`baselines._collision`) registered on their links' bodies
+(:mod:`ikbench.baselines._collision`) registered on their links' bodies
 (``plant.RegisterCollisionGeometry(body, X_BG, Capsule(radius, length), ...)``, the capsule's
 axis its local z, X_BG from its two end points), the obstacles on the world body (``Box``,
 ``Sphere``, ``Capsule``; a half-space as a large box). Collision filters
@@ -36,12 +36,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from baselines._chain import Chain, chain_of
-from baselines._method import LibraryMethod
+from ikbench.baselines._chain import Chain, chain_of
+from ikbench.baselines._method import LibraryMethod
 from ikbench.core.errors import InputError
 
 if TYPE_CHECKING:
-    from baselines._collision import Scene
+    from ikbench.baselines._collision import Scene
     from ikbench.core.robot import Robot
 
 SOLVERS = ("auto", "snopt", "ipopt", "nlopt")
@@ -112,7 +112,7 @@ _SCENE_PLANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 def drake_scene_chain(chain: Chain, scene: Scene) -> DrakeChain:
     """The chain's plant with the collision geometry of ``scene``
-    (:class:`baselines._collision.Scene`) in a SceneGraph (see the module docstring); cached
+    (:class:`ikbench.baselines._collision.Scene`) in a SceneGraph (see the module docstring); cached
     per chain and scene."""
     cache = _SCENE_PLANTS.setdefault(chain, {})
     if scene.key in cache:

@@ -2,7 +2,7 @@
 result to a :class:`~ikbench.methods.base.Solution` in pose units, the method's own timer.
 
 A library method implements :meth:`LibraryMethod.solve_chain` on the chain and goals in URDF
-units (:mod:`baselines._chain`) and returns a :class:`ChainResult`; everything else is here.
+units (:mod:`ikbench.baselines._chain`) and returns a :class:`ChainResult`; everything else is here.
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from baselines._chain import Chain, Goals, chain_of, goals_of, poses_from_urdf
-from baselines._chain import require_touch_and_start as _require_both
-from baselines._track import plan_track, require_start_and_touch
-from baselines._walk import Walk
+from ikbench.baselines._chain import Chain, Goals, chain_of, goals_of, poses_from_urdf
+from ikbench.baselines._chain import require_touch_and_start as _require_both
+from ikbench.baselines._track import plan_track, require_start_and_touch
+from ikbench.baselines._walk import Walk
 from ikbench.core.errors import InputError
 from ikbench.methods.base import Method, Solution
 
@@ -45,7 +45,7 @@ class ChainResult:
 
     @classmethod
     def from_walk(cls, walk: Walk, **info: object) -> ChainResult:
-        """The result of a sequential walk (:func:`baselines._walk.walk_back`)."""
+        """The result of a sequential walk (:func:`ikbench.baselines._walk.walk_back`)."""
         return cls(walk.q, walk.iterations, not walk.failed, {**walk.info(), **info})
 
 
@@ -59,7 +59,7 @@ class LibraryMethod(Method):
             fixed; the result's rows are returned as solved, row n included); False for the
             sequential walks (row n is the touch pose exactly).
         loads_urdf: True when the library parses the URDF itself (the chain's URDF text
-            from :func:`baselines._chain.chain_urdf_text`, locked joints folded into fixed
+            from :func:`ikbench.baselines._chain.chain_urdf_text`, locked joints folded into fixed
             ones).
     """
 
@@ -71,8 +71,8 @@ class LibraryMethod(Method):
 
     @property
     def scheme(self) -> str:
-        """``track`` (from the start pose onto the touch pose, :mod:`baselines._track`),
-        ``walk`` (back from the touch pose, :mod:`baselines._walk`) or ``whole-path``
+        """``track`` (from the start pose onto the touch pose, :mod:`ikbench.baselines._track`),
+        ``walk`` (back from the touch pose, :mod:`ikbench.baselines._walk`) or ``whole-path``
         (trajectory optimisers)."""
         if self.whole_path:
             return "whole-path"

@@ -32,8 +32,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from baselines._chain import Chain, Goals
-from baselines._walk import PointResult, Walk
+from ikbench.baselines._chain import Chain, Goals
+from ikbench.baselines._walk import PointResult, Walk
 from ikbench.core.contract import DEFAULT_POINTING_FROM
 from ikbench.core.errors import InputError
 
@@ -153,7 +153,7 @@ def track(solve_point: Callable[[int, np.ndarray], PointResult], chain: Chain,
         plan: the targets (:func:`plan_track`).
 
     Returns:
-        A :class:`baselines._walk.Walk`; row 0 the start pose, row n the touch pose.
+        A :class:`ikbench.baselines._walk.Walk`; row 0 the start pose, row n the touch pose.
     """
     n_points = len(plan)
     q = np.empty((n_points, chain.dof))

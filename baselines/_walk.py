@@ -16,7 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from baselines._chain import Chain, Goals
+from ikbench.baselines._chain import Chain, Goals
 
 
 class PointResult(NamedTuple):

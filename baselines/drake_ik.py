@@ -3,7 +3,7 @@ start pose onto the touch pose (``--scheme track``, default) or walked back from
 pose (``--scheme walk``, the authors' scheme).
 
 Walk (and any pose path): per goal point i, warm start q_w (the previous solution), on the
-plant of :mod:`baselines._drake`::
+plant of :mod:`ikbench.baselines._drake`::
 
     ik = InverseKinematics(plant, with_joint_limits=False)       # the chain's limits below
     ik.AddPositionConstraint(end_frame, [0, 0, 0], base_frame, p_i - tol, p_i + tol)
@@ -21,7 +21,7 @@ The warm-start cost pulls the pointing to the edge of its 0.01 deg cone. ``itera
 solves (Drake reports no SNOPT iteration count); a point whose result is not a success counts
 as not converged.
 
-Track (:mod:`baselines._track`): steps 1..n-1 forward from the start pose (row 0), each
+Track (:mod:`ikbench.baselines._track`): steps 1..n-1 forward from the start pose (row 0), each
 warm-started at the step before; row n is the touch pose. Per step i the same program with
 the plan's goals: the position constraint at ``plan.points_m[i]``; the pointing constraint on
 the scheduled direction ``plan.directions[i]`` (none when the contract does not ask for
@@ -38,18 +38,18 @@ again with the pointing as ``AddAngleBetweenVectorsCost`` c (1 - cos angle)
 (``--drake-pointing-cost``, default 3000); ``pointing_relaxed_points`` counts those steps. A
 step is solved when Drake reports success and FK puts the end point within 1e-3 mm of its box.
 
-Obstacles (a task with ``obstacles``; without them nothing here changes): the plant is the one
-with collision geometry (:func:`baselines._drake.drake_scene_chain`: the robot's capsules, the
+Obstacles (a task with ``obstacles``; without them nothing here changes): the plant is the one with
+collision geometry (:func:`ikbench.baselines._drake.drake_scene_chain`: the robot's capsules, the
 obstacles, only the collision model's self pairs and the robot-obstacle pairs unfiltered),
-``InverseKinematics(plant, plant_context, with_joint_limits=False)`` on its diagram's plant
-context, and every program gains ``ik.AddMinimumDistanceLowerBoundConstraint(clearance,
-influence)``: every such pair at least ``--drake-clearance`` (default 5 mm) apart, pairs
-within clearance + ``--drake-influence`` (default 1 mm: larger values let more pairs into
-the constraint and made SNOPT stall more often on the CppFlow panda problems) evaluated.
-Drake's signed distances come from its own queries (FCL), its gradients from the witness
-points' Jacobians. A program that fails (SNOPT stalls where the warm start overlaps an
-obstacle: the home pose a pose path's walk starts from may) is solved again from the pose the
-same program without the distance constraint reaches (``collision_retried_points``).
+``InverseKinematics(plant, plant_context, with_joint_limits=False)`` on its diagram's plant context,
+and every program gains ``ik.AddMinimumDistanceLowerBoundConstraint(clearance, influence)``: every
+such pair at least ``--drake-clearance`` (default 5 mm) apart, pairs within clearance +
+``--drake-influence`` (default 1 mm: larger values let more pairs into the constraint and made SNOPT
+stall more often on the CppFlow panda problems) evaluated. Drake's signed distances come from its
+own queries (FCL), its gradients from the witness points' Jacobians. A program that fails (SNOPT
+stalls where the warm start overlaps an obstacle: the home pose a pose path's walk starts from may)
+is solved again from the pose the same program without the distance constraint reaches
+(``collision_retried_points``).
 """
 
 from __future__ import annotations
@@ -59,8 +59,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from baselines._chain import Chain, Goals, contract_step, urdf_step
-from baselines._collision import (
+from ikbench.baselines._chain import Chain, Goals, contract_step, urdf_step
+from ikbench.baselines._collision import (
     AvoidsObstacles,
     Scene,
     current_obstacles,
@@ -68,7 +68,7 @@ from baselines._collision import (
     scene_info,
     scene_of,
 )
-from baselines._drake import (
+from ikbench.baselines._drake import (
     SOLVERS,
     DrakeMethod,
     drake_chain,
@@ -77,9 +77,9 @@ from baselines._drake import (
     set_tolerances,
     solve,
 )
-from baselines._method import ChainResult
-from baselines._track import SCHEME_HELP, SCHEMES, speed_box, track
-from baselines._walk import PointResult, walk_back
+from ikbench.baselines._method import ChainResult
+from ikbench.baselines._track import SCHEME_HELP, SCHEMES, speed_box, track
+from ikbench.baselines._walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
@@ -151,7 +151,7 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings,
         max_step: (dof,) the largest joint step per segment [rad, m] the track may take, or
             None (no speed limit known; the walk ignores it).
         scene: the robot's capsules and the task's obstacles
-            (:class:`baselines._collision.Scene`) to keep ``settings.clearance`` apart, or
+            (:class:`ikbench.baselines._collision.Scene`) to keep ``settings.clearance`` apart, or
             None (no obstacles: the programs as without them).
     """
     from pydrake.math import RotationMatrix

@@ -34,22 +34,22 @@ contract's largest step per segment at n (``contract.max_step(n)``, pose units) 
 it bounds the spline's derivative at its free duration, not the steps between the samples.
 
 Initial guess (``--drake-init``): ``ik`` (default) fits the spline to the Drake IK walk
-(:mod:`baselines.drake_ik`, ``--scheme walk``: it ends away from the start pose, so the guess
-jumps in its first segment) by least squares with the ends fixed; ``linear`` interpolates the
+(:mod:`ikbench.baselines.drake_ik`, ``--scheme walk``: it ends away from the start pose, so the
+guess jumps in its first segment) by least squares with the ends fixed; ``linear`` interpolates the
 control points between the two poses. Solved by SNOPT (``Solve``'s choice) with feasibility
 1e-8, optimality 1e-6 and at most 1000 major iterations; the poses are
 ``ReconstructTrajectory(result)`` sampled at t_i = s_i T. Rows are returned as solved
 (row 0 is the start pose and row n the touch pose to the feasibility tolerance).
 
 Obstacles (a task with ``obstacles``; without them nothing here changes): the plant with
-collision geometry (:func:`baselines._drake.drake_scene_chain`: the robot's capsules, the
+collision geometry (:func:`ikbench.baselines._drake.drake_scene_chain`: the robot's capsules, the
 obstacles, the collision model's self pairs and the robot-obstacle pairs), and
 ``AddPathPositionConstraint(MinimumDistanceLowerBoundConstraint(plant, clearance,
 plant_context, None, influence), s)`` at every inner goal sample s_i (and, with
 ``--drake-collision-samples`` k > 1, at k - 1 further samples within each segment): the
 clearance ``--drake-clearance`` (default 5 mm) between every such pair where the waypoints
 are judged; between samples the spline is not checked. The ``ik`` initial guess is the Drake
-IK walk with the same constraint (:mod:`baselines.drake_ik`).
+IK walk with the same constraint (:mod:`ikbench.baselines.drake_ik`).
 """
 
 from __future__ import annotations
@@ -60,8 +60,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from baselines._chain import Chain, Goals, contract_step
-from baselines._collision import (
+from ikbench.baselines._chain import Chain, Goals, contract_step
+from ikbench.baselines._collision import (
     AvoidsObstacles,
     Scene,
     current_obstacles,
@@ -69,7 +69,7 @@ from baselines._collision import (
     scene_info,
     scene_of,
 )
-from baselines._drake import (
+from ikbench.baselines._drake import (
     SOLVERS,
     DrakeMethod,
     drake_chain,
@@ -80,8 +80,8 @@ from baselines._drake import (
     set_tolerances,
     solve,
 )
-from baselines._method import ChainResult
-from baselines.drake_ik import STEP_MARGIN
+from ikbench.baselines._method import ChainResult
+from ikbench.baselines.drake_ik import STEP_MARGIN
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
@@ -202,7 +202,7 @@ def _initial_guess(trajopt, chain, goals, drake, settings, s, scene=None):
     basis = trajopt.basis()
     first, last = drake.positions(goals.q_start), drake.positions(goals.q_touch)
     if settings.init == "ik":
-        from baselines import drake_ik
+        from ikbench.baselines import drake_ik
 
         ik_settings = (drake_ik.DrakeIKSettings(solver=settings.solver) if scene is None else
                        drake_ik.DrakeIKSettings(solver=settings.solver,
@@ -234,7 +234,7 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings,
         max_step: (dof,) the largest joint change per segment [rad, m] between the samples
             s_i and s_i+1 (the contract's speed limit), or None: no such bound.
         scene: the robot's capsules and the task's obstacles
-            (:class:`baselines._collision.Scene`) kept ``settings.clearance`` apart at the
+            (:class:`ikbench.baselines._collision.Scene`) kept ``settings.clearance`` apart at the
             samples, or None (no obstacles: the program as without them).
     """
     from pydrake.math import RotationMatrix

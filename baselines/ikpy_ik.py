@@ -22,7 +22,7 @@ Orientation modes (``--ikpy-orientation``):
 
 Tasks with 6-D goal frames use ``orientation_mode="all"`` (``[p - p_goal, R - R_goal]``).
 
-The track (:mod:`baselines._track`): row 0 is the start pose, row n the touch pose; step i
+The track (:mod:`ikbench.baselines._track`): row 0 is the start pose, row n the touch pose; step i
 asks for the plan's point and scheduled pointing direction (position only when the task asks
 no pointing), from the pose before. ikpy has no posture term; two things make the poses
 playable:
@@ -63,11 +63,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from baselines._chain import Chain, Goals, element_path
-from baselines._geometry import angle_between_rad, rotation_angle_rad
-from baselines._method import ChainResult, LibraryMethod
-from baselines._track import SCHEME_HELP, SCHEMES, speed_box, track
-from baselines._walk import PointResult, walk_back
+from ikbench.baselines._chain import Chain, Goals, element_path
+from ikbench.baselines._geometry import angle_between_rad, rotation_angle_rad
+from ikbench.baselines._method import ChainResult, LibraryMethod
+from ikbench.baselines._track import SCHEME_HELP, SCHEMES, speed_box, track
+from ikbench.baselines._walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
@@ -293,13 +293,13 @@ class IkpyIK(LibraryMethod):
     def check_robot(self, robot: Robot) -> None:
         """Pointing mode needs a coordinate pointing axis (ikpy's X / Y / Z modes)."""
         if self.settings.orientation == "pointing":
-            from baselines._chain import chain_of
+            from ikbench.baselines._chain import chain_of
 
             axis_mode(chain_of(robot))
 
     def prepare(self, robot: Robot) -> None:
         """Untimed: parse the URDF and build ikpy's chain (sympy-compiled link matrices)."""
-        from baselines._chain import chain_of
+        from ikbench.baselines._chain import chain_of
 
         ikpy_chain(chain_of(robot))
 

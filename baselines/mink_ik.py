@@ -10,24 +10,25 @@ depend on it). A site on the end body, its z-axis on the pointing axis
 The chain's limits replace ``model.jnt_range`` (continuous joints stay unlimited); goals are
 turned from the base body's frame into MuJoCo's world frame.
 
-Two schemes, as pink's (:mod:`baselines.pink_ik`): **track** (``--scheme track``, the
-default: from the start pose along the goal points onto the touch pose, :mod:`baselines._track`)
-and **walk** (``--scheme walk``: back from the touch pose, the start pose free; also every 6-D
-pose path). Both call ``mink.Configuration(model, q)``, ``mink.solve_ik(configuration, tasks,
-dt, qp_solver, damping=..., limits=limits)`` with ``mink.ConfigurationLimit(model, gain)`` among
-the limits, and ``configuration.integrate(v, dt)`` / ``update(q)``; the pointing is
+Two schemes, as pink's (:mod:`ikbench.baselines.pink_ik`): **track** (``--scheme track``, the
+default: from the start pose along the goal points onto the touch pose,
+:mod:`ikbench.baselines._track`) and **walk** (``--scheme walk``: back from the touch pose, the
+start pose free; also every 6-D pose path). Both call ``mink.Configuration(model, q)``,
+``mink.solve_ik(configuration, tasks, dt, qp_solver, damping=..., limits=limits)`` with
+``mink.ConfigurationLimit(model, gain)`` among the limits, and ``configuration.integrate(v, dt)`` /
+``update(q)``; the pointing is
 ``mink.FrameTask(site, "site", position_cost, orientation_cost=[w, w, 0])`` with
-``set_target(mink.SE3.from_rotation_and_translation(...))`` or, with ``--mink-pointing-task
-axis-align``, ``mink.AxisAlignTask(site, "site", axis=z)`` (rank 2, roll free) beside a
-position-only FrameTask.
+``set_target(mink.SE3.from_rotation_and_translation(...))`` or, with
+``--mink-pointing-task axis-align``, ``mink.AxisAlignTask(site, "site", axis=z)`` (rank 2, roll
+free) beside a position-only FrameTask.
 
 Track, per step i (forward from the start pose, warm-started at the step before moved on by
 the last segment's motion): the FrameTask at the goal point (``track_position_cost``) and the
 scheduled pointing direction (the rotation nearest P's with that z-axis; orientation cost 0
 when the task asks no pointing), ``mink.PostureTask(model, cost=posture_cost * weights)`` with
 ``set_target(posture[i])`` (the start-to-touch interpolation, every pose unit weighted alike:
-:func:`baselines._diffik.posture_weights`), and a speed box (a ``mink.Limit`` returning a
-``mink.Constraint``, :class:`baselines._diffik.SpeedBox`: every joint within
+:func:`ikbench.baselines._diffik.posture_weights`), and a speed box (a ``mink.Limit`` returning a
+``mink.Constraint``, :class:`ikbench.baselines._diffik.SpeedBox`: every joint within
 ``speed_fraction`` of the contract's largest change per segment from step i-1 and within
 (n - i) such changes of the touch pose); QP steps until the position error is below
 ``tolerance`` and the last step moved no joint more than ``stall``, at most ``max_steps``. A
@@ -35,7 +36,7 @@ step is converged when the site's position (MuJoCo's FK) is within ``tolerance``
 as pink's (position cost 1000 /m, orientation cost 0.1 /rad, posture cost 0.01 /rad, speed
 fraction 0.95, stall 1e-4 rad; the reasons are given there).
 
-Walk, per goal point: the scheme of :mod:`baselines._diffik` (the FrameTask, all three
+Walk, per goal point: the scheme of :mod:`ikbench.baselines._diffik` (the FrameTask, all three
 orientation costs for 6-D goals, and the ConfigurationLimit only). Defaults as pink's except
 the limit gain: mink's own default 0.95 (both schemes). ``iterations`` counts QP solves.
 
@@ -66,8 +67,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from baselines._chain import Chain, Goals
-from baselines._collision import (
+from ikbench.baselines._chain import Chain, Goals
+from ikbench.baselines._collision import (
     AvoidsObstacles,
     Scene,
     current_obstacles,
@@ -75,7 +76,7 @@ from baselines._collision import (
     scene_info,
     scene_of,
 )
-from baselines._diffik import (
+from ikbench.baselines._diffik import (
     SpeedBox,
     converge,
     errors,
@@ -87,16 +88,16 @@ from baselines._diffik import (
     track_orientation_costs,
     track_target_rotation,
 )
-from baselines._geometry import frame_with_z_on
-from baselines._method import ChainResult, LibraryMethod
-from baselines._track import SCHEME_HELP, SCHEMES, track
-from baselines._walk import PointResult, walk_back
-from baselines.pink_ik import check_qp_solver
+from ikbench.baselines._geometry import frame_with_z_on
+from ikbench.baselines._method import ChainResult, LibraryMethod
+from ikbench.baselines._track import SCHEME_HELP, SCHEMES, track
+from ikbench.baselines._walk import PointResult, walk_back
+from ikbench.baselines.pink_ik import check_qp_solver
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
 if TYPE_CHECKING:
-    from baselines._track import TrackPlan
+    from ikbench.baselines._track import TrackPlan
     from ikbench.core.robot import Robot
 
 SITE = "ikbench_pointing_site"
@@ -202,7 +203,7 @@ _SCENE_MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 def mink_scene_model(chain: Chain, scene: Scene) -> MinkModel:
     """The chain's :class:`MinkModel` with the collision geometry of ``scene``
-    (:class:`baselines._collision.Scene`; see the module docstring), cached per chain and
+    (:class:`ikbench.baselines._collision.Scene`; see the module docstring), cached per chain and
     scene."""
     cache = _SCENE_MODELS.setdefault(chain, {})
     if scene.key not in cache:
@@ -384,8 +385,8 @@ def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings,
 def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: MinkSettings,
                 step: np.ndarray | None = None, scene: Scene | None = None) -> ChainResult:
     """mink's track from the start pose onto the touch pose (``plan``: a
-    :class:`baselines._track.TrackPlan`; ``step``: (dof,) the contract's largest joint change
-    per segment [rad, m], or None: no speed box). See the module docstring."""
+    :class:`ikbench.baselines._track.TrackPlan`; ``step``: (dof,) the contract's largest joint
+    change per segment [rad, m], or None: no speed box). See the module docstring."""
     import mink
     from mink.exceptions import NoSolutionFound
 
@@ -415,7 +416,7 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: MinkSetti
                        chain.upper, settings.limit_gain)
 
         class SpeedLimit(mink.Limit):
-            """The speed box (:class:`baselines._diffik.SpeedBox`) as a mink limit."""
+            """The speed box (:class:`ikbench.baselines._diffik.SpeedBox`) as a mink limit."""
 
             def compute_qp_inequalities(self, configuration, dt):
                 G, h = box.inequalities(configuration.q[m.qpos])
@@ -499,7 +500,7 @@ class MinkIK(AvoidsObstacles, LibraryMethod):
 
     def prepare(self, robot: Robot) -> None:
         """Untimed: MuJoCo parses and compiles the URDF."""
-        from baselines._chain import chain_of
+        from ikbench.baselines._chain import chain_of
 
         mink_model(chain_of(robot))
 

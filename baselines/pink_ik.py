@@ -13,7 +13,7 @@ among the limits: the joint limits are QP constraints ``q_min - q <= v dt <= q_m
 (scaled by the gain), so no step leaves them. pink's frame error is P's body twist
 log(T_P^-1 T_target), so a zero orientation cost on P's z frees the roll.
 
-**Track** (:mod:`baselines._track`; tasks with a start and a touch pose and no 6-D goal
+**Track** (:mod:`ikbench.baselines._track`; tasks with a start and a touch pose and no 6-D goal
 frames). Row 0 is the start pose, row n the touch pose; steps 1 .. n-1 are solved forward, each
 from the step before moved on by the last segment's motion (a constant-speed warm start).
 Per step i, QP steps of
@@ -25,9 +25,9 @@ Per step i, QP steps of
 - ``pink.tasks.PostureTask(cost=posture_cost * weights)`` with ``set_target(posture[i])``,
   the start-to-touch interpolation; the weights make every pose unit cost alike (NICO: a motor
   degree; its wrist and finger motors turn their joints only 0.5 and 0.22 URDF degree per
-  motor degree), :func:`baselines._diffik.posture_weights`;
+  motor degree), :func:`ikbench.baselines._diffik.posture_weights`;
 - a speed box (a ``pink.limits.Limit`` beside the ConfigurationLimit,
-  :class:`baselines._diffik.SpeedBox`): every joint moves at most ``speed_fraction`` of the
+  :class:`ikbench.baselines._diffik.SpeedBox`): every joint moves at most ``speed_fraction`` of the
   contract's largest change per segment from step i-1, and stays within (n - i) such changes
   of the touch pose, so the arm lands on it without a jump,
 
@@ -42,8 +42,8 @@ leave the pointing a few degrees from its schedule at most), speed fraction 0.95
 to the contract's limit), stall 1e-4 rad (2-4 QP solves per step, ~40-70 ms per 50-step
 trajectory).
 
-**Walk** (:mod:`baselines._walk`; also every 6-D pose path). Per goal point the scheme of
-:mod:`baselines._diffik`: ``FrameTask(P, position_cost, orientation_cost=[w, w, 0])`` (all
+**Walk** (:mod:`ikbench.baselines._walk`; also every 6-D pose path). Per goal point the scheme of
+:mod:`ikbench.baselines._diffik`: ``FrameTask(P, position_cost, orientation_cost=[w, w, 0])`` (all
 three for 6-D goals) and the ConfigurationLimit only. Defaults: dt 1 s with task gain 1 (a
 full damped Gauss-Newton step per QP), damping 1e-6 (the 7-DoF arm is redundant: a
 positive-definite QP Hessian, minimum-norm steps), position cost 1 /m and orientation cost
@@ -80,8 +80,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from baselines._chain import Chain, Goals
-from baselines._collision import (
+from ikbench.baselines._chain import Chain, Goals
+from ikbench.baselines._collision import (
     AvoidsObstacles,
     Scene,
     current_obstacles,
@@ -89,7 +89,7 @@ from baselines._collision import (
     scene_info,
     scene_of,
 )
-from baselines._diffik import (
+from ikbench.baselines._diffik import (
     SpeedBox,
     converge,
     errors,
@@ -101,15 +101,15 @@ from baselines._diffik import (
     track_orientation_costs,
     track_target_rotation,
 )
-from baselines._geometry import frame_with_z_on
-from baselines._method import ChainResult, LibraryMethod
-from baselines._track import SCHEME_HELP, SCHEMES, track
-from baselines._walk import PointResult, walk_back
+from ikbench.baselines._geometry import frame_with_z_on
+from ikbench.baselines._method import ChainResult, LibraryMethod
+from ikbench.baselines._track import SCHEME_HELP, SCHEMES, track
+from ikbench.baselines._walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
 if TYPE_CHECKING:
-    from baselines._track import TrackPlan
+    from ikbench.baselines._track import TrackPlan
     from ikbench.core.robot import Robot
 
 POINTING_FRAME = "ikbench_pointing_frame"
@@ -332,8 +332,8 @@ def solve_chain(robot: Robot, chain: Chain, goals: Goals, settings: PinkSettings
 def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: PinkSettings,
                 step: np.ndarray | None = None, scene: Scene | None = None) -> ChainResult:
     """pink's track from the start pose onto the touch pose (``plan``: a
-    :class:`baselines._track.TrackPlan`; ``step``: (dof,) the contract's largest joint change
-    per segment [rad, m], or None: no speed box). See the module docstring."""
+    :class:`ikbench.baselines._track.TrackPlan`; ``step``: (dof,) the contract's largest joint
+    change per segment [rad, m], or None: no speed box). See the module docstring."""
     import pink
     import pinocchio as pin
     from pink.exceptions import NoSolutionFound
@@ -357,7 +357,7 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: PinkSetti
                        upper, settings.limit_gain)
 
         class SpeedLimit(Limit):
-            """The speed box (:class:`baselines._diffik.SpeedBox`) as a pink limit."""
+            """The speed box (:class:`ikbench.baselines._diffik.SpeedBox`) as a pink limit."""
 
             def compute_qp_inequalities(self, configuration, dt):
                 G, h = box.inequalities(configuration.q)
@@ -428,7 +428,7 @@ class PinkIK(AvoidsObstacles, LibraryMethod):
 
     def prepare(self, robot: Robot) -> None:
         """Untimed: the model copy with the pointing frame."""
-        from baselines._chain import chain_of
+        from ikbench.baselines._chain import chain_of
 
         pink_model(robot, chain_of(robot))
 

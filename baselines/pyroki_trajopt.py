@@ -53,8 +53,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from baselines._chain import Chain, Goals, contract_step
-from baselines._method import ChainResult, LibraryMethod
+from ikbench.baselines._chain import Chain, Goals, contract_step
+from ikbench.baselines._method import ChainResult, LibraryMethod
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
@@ -323,7 +323,7 @@ class PyrokiTrajopt(LibraryMethod):
         """Untimed: parse the URDF, and JIT-compile the solve for every task size (and with or
         without the speed constraint) seen by :meth:`check_tasks` (one solve of a placeholder
         task each)."""
-        from baselines._chain import chain_of
+        from ikbench.baselines._chain import chain_of
 
         chain = chain_of(robot)
         pyroki_robot(chain)

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, ClassVar, NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from baselines._chain import chain_of
+from ikbench.baselines._chain import chain_of
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -96,14 +96,14 @@ class DLSSolver(PoseSolver):
     iterations_are = "DLS steps"
 
     def prepare(self) -> None:
-        from baselines.sequential_ik import DLSSettings
+        from ikbench.baselines.sequential_ik import DLSSettings
 
         self.fk = self.robot.pinocchio_fk()
         self.data = self.fk.model.createData()
         self.settings = DLSSettings(tolerance=LIBRARY_TOLERANCE, max_ik_iterations=MAX_STEPS)
 
     def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
-        from baselines.sequential_ik import Residual, solve_point
+        from ikbench.baselines.sequential_ik import Residual, solve_point
 
         mode = "frame" if self.kind == "pose" else "position"
         residual = Residual(self.fk, self.data, mode, point_m, rotation)
@@ -123,7 +123,7 @@ def _converge(measure, step) -> tuple[int, bool]:
 
 
 def _angle(a, b) -> float:
-    from baselines._geometry import rotation_angle_rad
+    from ikbench.baselines._geometry import rotation_angle_rad
 
     return rotation_angle_rad(a, b)
 
@@ -135,7 +135,7 @@ class PinkSolver(PoseSolver):
     iterations_are = "QP solves (pink.solve_ik calls)"
 
     def prepare(self) -> None:
-        from baselines.pink_ik import pink_model
+        from ikbench.baselines.pink_ik import pink_model
 
         self.model, self.R_EP = pink_model(self.robot, self.chain)
         self.data = self.model.createData()
@@ -146,7 +146,7 @@ class PinkSolver(PoseSolver):
         from pink.limits import ConfigurationLimit
         from pink.tasks import FrameTask
 
-        from baselines.pink_ik import POINTING_FRAME
+        from ikbench.baselines.pink_ik import POINTING_FRAME
 
         pose = self.kind == "pose"
         task = FrameTask(POINTING_FRAME, position_cost=1.0, orientation_cost=1.0 if pose
@@ -178,14 +178,14 @@ class MinkSolver(PoseSolver):
     iterations_are = "QP solves (mink.solve_ik calls)"
 
     def prepare(self) -> None:
-        from baselines.mink_ik import mink_model
+        from ikbench.baselines.mink_ik import mink_model
 
         self.m = mink_model(self.chain)
 
     def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         import mink
 
-        from baselines.mink_ik import SITE
+        from ikbench.baselines.mink_ik import SITE
 
         m, pose = self.m, self.kind == "pose"
         site = m.model.site(SITE).id
@@ -226,7 +226,7 @@ class IkpySolver(PoseSolver):
     INSIDE = 1e-3
 
     def prepare(self) -> None:
-        from baselines.ikpy_ik import ikpy_chain
+        from ikbench.baselines.ikpy_ik import ikpy_chain
 
         self.ik_chain, self.active = ikpy_chain(self.chain)
 
@@ -255,7 +255,7 @@ class TracIKSolver(PoseSolver):
     iterations_are = "pytracik.ik calls (TRAC-IK reports no iteration count)"
 
     def prepare(self) -> None:
-        from baselines.trac_ik import TracIKSettings, tracik_solver
+        from ikbench.baselines.trac_ik import TracIKSettings, tracik_solver
 
         self.solver = tracik_solver(self.chain, TracIKSettings(
             timeout=TRACIK_TIMEOUT_S, eps=TRACIK_EPS, solve_type=TRACIK_SOLVE_TYPE))
@@ -263,7 +263,7 @@ class TracIKSolver(PoseSolver):
     def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         import pytracik
 
-        from baselines._geometry import quaternion_xyzw
+        from ikbench.baselines._geometry import quaternion_xyzw
 
         x, y, z = (float(v) for v in point_m)
         out = pytracik.ik(self.solver, np.ascontiguousarray(q_init, dtype=float), x, y, z,
@@ -280,7 +280,7 @@ class DrakeSolver(PoseSolver):
     iterations_are = "solves (Drake reports no iteration count)"
 
     def prepare(self) -> None:
-        from baselines._drake import drake_chain
+        from ikbench.baselines._drake import drake_chain
 
         self.drake = drake_chain(self.chain)
         self.lower = self.drake.positions(self.chain.lower)
@@ -290,7 +290,7 @@ class DrakeSolver(PoseSolver):
         from pydrake.math import RotationMatrix
         from pydrake.multibody.inverse_kinematics import InverseKinematics
 
-        from baselines._drake import set_tolerances, solve
+        from ikbench.baselines._drake import set_tolerances, solve
 
         d = self.drake
         ik = InverseKinematics(d.plant, with_joint_limits=False)
@@ -320,7 +320,7 @@ class PyrokiSolver(PoseSolver):
         import jax.numpy as jnp
         import jaxlie
 
-        from baselines.pyroki_trajopt import UNBOUNDED, _setup_jax, pyroki_robot
+        from ikbench.baselines.pyroki_trajopt import UNBOUNDED, _setup_jax, pyroki_robot
 
         jax = _setup_jax()
         robot, order, link, base = pyroki_robot(self.chain)
@@ -340,7 +340,7 @@ class PyrokiSolver(PoseSolver):
         import jaxls
         import pyroki
 
-        from baselines.pyroki_trajopt import _cost_factories
+        from ikbench.baselines.pyroki_trajopt import _cost_factories
 
         limits = _cost_factories()[4]
 

@@ -1,6 +1,6 @@
 """TRAC-IK (PyPI ``pytracik``): one exact 6-D IK per goal point, warm-started: tracked from the
 start pose onto the touch pose (``scheme`` track, the default) or walked back from the touch
-pose (walk, :mod:`baselines._walk`).
+pose (walk, :mod:`ikbench.baselines._walk`).
 
 pytracik 0.0.3 ships only its compiled binding (module ``pytracik``; the ``trac_ik`` Python
 wrapper of its README is not in the wheel; source: github.com/chenhaox/pytracik
@@ -27,7 +27,7 @@ converged. 6-D goal frames are solved as given. A returned solution counts as so
 pose-error twist by ``eps`` in its own frame, so position [m] and rotation angle [rad] within
 sqrt(3) eps (:data:`FK_CHECK`).
 
-The track (:mod:`baselines._track`): row 0 is the start pose, row n the touch pose; step i
+The track (:mod:`ikbench.baselines._track`): row 0 is the start pose, row n the touch pose; step i
 asks for the plan's point and scheduled pointing direction, the rotation built as above. When
 the task asks no pointing, position only is impossible with an exact-pose solver: the step asks
 for the task's own goal direction (not judged; roll swept as above) and, when none of those
@@ -54,16 +54,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from baselines._chain import Chain, Goals
-from baselines._geometry import (
+from ikbench.baselines._chain import Chain, Goals
+from ikbench.baselines._geometry import (
     closest_rotation_with_axis,
     quaternion_xyzw,
     rotation_about,
     rotation_angle_rad,
 )
-from baselines._method import ChainResult, LibraryMethod
-from baselines._track import SCHEME_HELP, SCHEMES, track
-from baselines._walk import PointResult, walk_back
+from ikbench.baselines._method import ChainResult, LibraryMethod
+from ikbench.baselines._track import SCHEME_HELP, SCHEMES, track
+from ikbench.baselines._walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
@@ -231,7 +231,7 @@ class TracIK(LibraryMethod):
 
     def prepare(self, robot: Robot) -> None:
         """Untimed: KDL parses the URDF, TRAC-IK builds its solvers."""
-        from baselines._chain import chain_of
+        from ikbench.baselines._chain import chain_of
 
         tracik_solver(chain_of(robot), self.settings)
 

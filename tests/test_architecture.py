@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import ast
 import os
+import re
 import subprocess
 import sys
 import tomllib
@@ -22,7 +23,7 @@ def _modules():
     for path in sorted([*(REPO / "ikbench").rglob("*.py"), *(REPO / "baselines").rglob("*.py")]):
         rel = path.relative_to(REPO).with_suffix("")
         parts = rel.parts
-        if parts[0] == "baselines":
+        if parts[0] == "baselines":  # the folder of the package ikbench.baselines
             yield path, "baselines"
         elif len(parts) > 2 or (len(parts) == 2 and parts[1] != "__init__"
                                 and parts[1] != "__main__"):
@@ -42,8 +43,6 @@ def _imported(path: Path) -> set[str]:
 
 def _part(module: str) -> str | None:
     parts = module.split(".")
-    if parts[0] == "baselines":
-        return "baselines"
     if parts[0] == "ikbench" and len(parts) > 1 and parts[1] in LAYERS:
         return parts[1]
     return None
@@ -61,6 +60,27 @@ def test_every_module_imports_only_its_layer_or_lower():
     assert not bad, "\n".join(bad)
 
 
+def test_nothing_names_the_retired_top_level_baselines():
+    """baselines/ installs as ``ikbench.baselines`` (issue 27): no import, and no "module:Class"
+    or importlib string, names the top-level ``baselines`` any more."""
+    bad = []
+    folders = ("ikbench", "baselines", "tests", "examples", "benchmarks")
+    for path in sorted(p for folder in folders for p in (REPO / folder).rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and not node.level:
+                names = [node.module or ""]
+            elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+                target = re.fullmatch(r"(baselines(?:\.\w+)+)(?::\w+)?", node.value)
+                names = [target.group(1)] if target else []
+            else:
+                continue
+            if any(name == "baselines" or name.startswith("baselines.") for name in names):
+                bad.append(f"{path.relative_to(REPO)}:{node.lineno}: {names}")
+    assert not bad, "write ikbench.baselines:\n" + "\n".join(bad)
+
+
 def test_generic_code_names_no_method():
     """core and studies work for every method: no "ours" or "sequential-ik" literal in them."""
     bad = []
@@ -76,9 +96,11 @@ def test_generic_code_names_no_method():
 def test_pyproject_lists_every_package():
     listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
                  ["packages"])
+    # baselines/ installs as ikbench.baselines (package-dir in pyproject.toml)
     found = {str(p.parent.relative_to(REPO)).replace(os.sep, ".")
-             for p in [*(REPO / "ikbench").rglob("__init__.py"),
-                       *(REPO / "baselines").rglob("__init__.py")]}
+             for p in (REPO / "ikbench").rglob("__init__.py")}
+    found |= {"ikbench." + str(p.parent.relative_to(REPO)).replace(os.sep, ".")
+              for p in (REPO / "baselines").rglob("__init__.py")}
     assert found <= listed, f"not in pyproject.toml: {sorted(found - listed)}"
 
 
@@ -129,7 +151,7 @@ def test_a_built_in_method_with_its_library_missing_is_listed_with_the_extra(mon
     from ikbench.methods import registry
 
     monkeypatch.setattr(registry, "BUILTIN", (
-        *registry.BUILTIN, registry.Entry("needs-lib", "baselines.nothing:X",
+        *registry.BUILTIN, registry.Entry("needs-lib", "ikbench.baselines.nothing:X",
                                           ("not_a_real_kinematics_library",))))
     monkeypatch.setattr(registry, "_STATUS", None)
     status = registry.method_status()["needs-lib"]
@@ -142,7 +164,7 @@ def test_a_built_in_method_with_its_library_missing_is_listed_with_the_extra(mon
 def test_fk_imports_no_method_and_no_torch():
     code = ("import sys; from ikbench.cli import main; main(['fk', '--json']); "
             "print(sorted(m for m in sys.modules if m.startswith(('ikbench.methods', "
-            "'baselines', 'torch'))))")
+            "'ikbench.baselines', 'baselines', 'torch'))))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=REPO).stdout.splitlines()
     assert out[-1] == "[]"

@@ -1,11 +1,17 @@
 """pyproject.toml lists its packages explicitly (the robot models come from the top-level
-urdf/ folder): every package folder must be listed, and every data file shipped, or a wheel
-installed from /tmp misses it while the editable install in the checkout still works."""
+urdf/ folder, the library methods from the top-level baselines/ folder as ikbench.baselines):
+every package folder must be listed, and every data file shipped, or a wheel installed from
+/tmp misses it while the editable install in the checkout still works; and the wheel installs
+nothing beside ``ikbench``."""
 
 from __future__ import annotations
 
 import fnmatch
+import shutil
+import subprocess
+import sys
 import tomllib
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -13,8 +19,10 @@ import pytest
 from tests.conftest import REPO
 
 SETUPTOOLS = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
-#: Top-level folders whose Python packages the wheel installs.
+#: Top-level folders whose Python packages the wheel installs (baselines/ as ikbench.baselines).
 ROOTS = ("ikbench", "baselines")
+#: What a wheel is built from (a copy of them, so no stale build/ of the checkout leaks in).
+SOURCES = ("pyproject.toml", "README.md", "LICENSE", "ikbench", "baselines", "urdf")
 
 
 def package_dirs() -> dict[str, Path]:
@@ -51,6 +59,45 @@ def test_every_package_folder_is_a_package(root):
 def test_every_listed_package_exists():
     gone = [name for name, folder in package_dirs().items() if not folder.is_dir()]
     assert not gone, f"listed in pyproject.toml but not a folder: {gone}"
+
+
+def test_every_package_is_inside_ikbench():
+    """No top-level package but ``ikbench``: a generic ``baselines`` in site-packages would
+    collide with any other package of that name (issue 27)."""
+    outside = [name for name in SETUPTOOLS["packages"] if name.split(".")[0] != "ikbench"]
+    assert not outside, f"installed outside the ikbench namespace: {outside}"
+    assert SETUPTOOLS["package-dir"]["ikbench.baselines"] == "baselines"
+
+
+def test_the_wheel_installs_no_top_level_package_but_ikbench(tmp_path):
+    """Build the wheel (from a copy of the sources, ~2 s) and read its file list: everything
+    under ``ikbench/`` (``baselines/*.py`` as ``ikbench/baselines/*.py``) and its dist-info."""
+    source = tmp_path / "src"
+    source.mkdir()
+    ignore = shutil.ignore_patterns("__pycache__", "*.egg-info")
+    for name in SOURCES:
+        path = REPO / name
+        if path.is_dir():
+            shutil.copytree(path, source / name, ignore=ignore)
+        else:
+            shutil.copy2(path, source / name)
+    build = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-index",
+                            "--no-build-isolation", "-q", "-w", str(tmp_path / "dist"),
+                            str(source)], capture_output=True, text=True)
+    assert build.returncode == 0, build.stdout + build.stderr
+    (wheel,) = (tmp_path / "dist").glob("ikbench-*.whl")
+    with zipfile.ZipFile(wheel) as archive:
+        names = archive.namelist()
+        info = next(n.split("/")[0] for n in names if n.endswith(".dist-info/RECORD"))
+        top_level = archive.read(f"{info}/top_level.txt").decode().split()
+    assert top_level == ["ikbench"]
+    outside = sorted({n.split("/")[0] for n in names} - {"ikbench", info})
+    assert not outside, f"the wheel installs beside ikbench: {outside}"
+    shipped = {n for n in names if n.endswith(".py")}
+    expected = {f"{name.replace('.', '/')}/{path.name}"
+                for name, folder in package_dirs().items() for path in folder.glob("*.py")}
+    assert "ikbench/baselines/trac_ik.py" in expected
+    assert shipped == expected
 
 
 def test_the_shipped_data_is_declared():

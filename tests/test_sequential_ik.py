@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from baselines.sequential_ik import (
+from ikbench.baselines.sequential_ik import (
     DLSSettings,
     Residual,
     SequentialIK,

@@ -13,8 +13,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from baselines._chain import goals_of
-from baselines._diffik import SpeedBox, posture_weights
+from ikbench.baselines._chain import goals_of
+from ikbench.baselines._diffik import SpeedBox, posture_weights
 from ikbench.core.contract import contract_for, judge
 from ikbench.core.errors import InputError
 from ikbench.core.metrics import contract_metrics
@@ -30,10 +30,10 @@ def method_class(name: str):
     if importlib.util.find_spec(LIBRARIES[name]) is None:
         pytest.skip(f"{name} is not installed")
     if name == "pink":
-        from baselines.pink_ik import PinkIK
+        from ikbench.baselines.pink_ik import PinkIK
 
         return PinkIK
-    from baselines.mink_ik import MinkIK
+    from ikbench.baselines.mink_ik import MinkIK
 
     return MinkIK
 

@@ -5,8 +5,8 @@
 - :mod:`ikbench.methods.registry`: the built-in methods and the ``ikbench.methods``
   entry-point group; a method whose library is missing is listed as unavailable;
 - :mod:`ikbench.methods.ours` (the paper's Adam) and :mod:`ikbench.methods.ours_lm`
-  (the same objective by Levenberg-Marquardt). Methods from other libraries live in the
-  top-level ``baselines`` package.
+  (the same objective by Levenberg-Marquardt). Methods from other libraries live in
+  :mod:`ikbench.baselines` (the checkout's top-level ``baselines/`` folder).
 """
 
 from ikbench.methods.base import Method, MethodOption, Solution, option

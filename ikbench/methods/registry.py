@@ -53,17 +53,17 @@ BUILTIN = (
     Entry("ours", "ikbench.methods.ours:Ours", ("torch", "pytorch_kinematics")),
     Entry("ours-lm", "ikbench.methods.ours_lm:OursLM", ("scipy", "pinocchio")),
     Entry("ours-exact", "ikbench.methods.ours_exact:OursExact", ("scipy", "pinocchio")),
-    Entry("sequential-ik", "baselines.sequential_ik:SequentialIK", ("pinocchio",)),
-    Entry("sequential-ik-walk", "baselines.sequential_ik:SequentialIKWalk", ("pinocchio",)),
+    Entry("sequential-ik", "ikbench.baselines.sequential_ik:SequentialIK", ("pinocchio",)),
+    Entry("sequential-ik-walk", "ikbench.baselines.sequential_ik:SequentialIKWalk", ("pinocchio",)),
     # other kinematics libraries (baselines/, installed with the [libs] extra)
-    Entry("ikpy", "baselines.ikpy_ik:IkpyIK", ("ikpy",)),
-    Entry("ikpy-walk", "baselines.ikpy_ik:IkpyWalk", ("ikpy",)),
-    Entry("pink", "baselines.pink_ik:PinkIK", ("pink", "qpsolvers", "daqp")),
-    Entry("trac-ik", "baselines.trac_ik:TracIK", ("pytracik",)),
-    Entry("mink", "baselines.mink_ik:MinkIK", ("mink", "mujoco", "qpsolvers", "daqp")),
-    Entry("drake-ik", "baselines.drake_ik:DrakeIK", ("pydrake",)),
-    Entry("drake-trajopt", "baselines.drake_trajopt:DrakeTrajopt", ("pydrake",)),
-    Entry("pyroki", "baselines.pyroki_trajopt:PyrokiTrajopt", ("pyroki", "jax", "jaxls")),
+    Entry("ikpy", "ikbench.baselines.ikpy_ik:IkpyIK", ("ikpy",)),
+    Entry("ikpy-walk", "ikbench.baselines.ikpy_ik:IkpyWalk", ("ikpy",)),
+    Entry("pink", "ikbench.baselines.pink_ik:PinkIK", ("pink", "qpsolvers", "daqp")),
+    Entry("trac-ik", "ikbench.baselines.trac_ik:TracIK", ("pytracik",)),
+    Entry("mink", "ikbench.baselines.mink_ik:MinkIK", ("mink", "mujoco", "qpsolvers", "daqp")),
+    Entry("drake-ik", "ikbench.baselines.drake_ik:DrakeIK", ("pydrake",)),
+    Entry("drake-trajopt", "ikbench.baselines.drake_trajopt:DrakeTrajopt", ("pydrake",)),
+    Entry("pyroki", "ikbench.baselines.pyroki_trajopt:PyrokiTrajopt", ("pyroki", "jax", "jaxls")),
 )
 
 

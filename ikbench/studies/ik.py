@@ -5,8 +5,8 @@ configurations drawn uniformly within the joint limits (continuous joints: +-180
 so every target is reachable. Each method starts from a stated initial pose: ``random`` (drawn
 uniformly, seeded, independent of the target) or ``nearby`` (the target's own configuration
 moved by up to ``perturb_deg`` per joint, the tracking case). Every library solves the same
-targets from the same initial poses (:mod:`baselines.single_pose`), one call per target timed
-here with ``time.perf_counter`` around the call (set-up untimed), an exception being a failed
+targets from the same initial poses (:mod:`ikbench.baselines.single_pose`), one call per target
+timed here with ``time.perf_counter`` around the call (set-up untimed), an exception being a failed
 row; a batched method solves all targets in one call and each target gets its share of the
 time (``batched_time_per_ik_s``). Success is judged here, never taken from the library: FK of
 the answer through Pinocchio within ``tolerance_mm`` and ``tolerance_deg`` (position only for
@@ -128,7 +128,7 @@ def check_memory(count: int, methods: int) -> None:
 def parse_methods(text: str | Sequence[str] | None, kind: str = "pose") -> list[str]:
     """Method names (comma-separated or a list); None: every installed one that takes
     ``kind`` targets. InputError for unknown, missing or unsuitable ones."""
-    from baselines.single_pose import SOLVERS
+    from ikbench.baselines.single_pose import SOLVERS
 
     if text is None:
         return [n for n, c in SOLVERS.items() if c.available() and kind in c.kinds]
@@ -196,7 +196,7 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
         methods: method names; None: every installed one (:func:`parse_methods`).
         progress: progress lines on stderr.
     """
-    from baselines.single_pose import SOLVERS
+    from ikbench.baselines.single_pose import SOLVERS
 
     started = time.perf_counter()
     load = load_average()
