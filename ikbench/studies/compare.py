@@ -55,12 +55,12 @@ from ikbench.core.metrics import contract_metrics
 from ikbench.core.provenance import library_versions, provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, select_targets
-from ikbench.core.task import line_tasks
+from ikbench.core.task import Task, line_tasks
 from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.methods.base import Method
 from ikbench.methods.registry import method_status
-from ikbench.studies.executors import LocalExecutor, portable_robot
-from ikbench.studies.harness import Progress, describe, solve_tasks
+from ikbench.studies.executors import Executor, LocalExecutor, portable_robot
+from ikbench.studies.harness import Outcome, Progress, describe, solve_tasks
 from ikbench.studies.run import write_run
 
 #: The default tolerances (kept under their old name; the contract states them).
@@ -218,40 +218,16 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
                                         duration_s=duration_s)
     contract = replace(contract, obstacles=bool(targets.obstacles))
     tasks = line_tasks(robot, targets, contract)
-    reference = reference or ("ours-lm" if "ours-lm" in names else names[0])
-    if reference not in names:
-        raise InputError(f"--reference: {reference!r} is not among --methods "
-                         f"{', '.join(names)}")
+    reference = _reference_method(reference, names)
     log = Progress("compare", enabled=progress)
     started = time.perf_counter()
-    rows, built = _build(names, robot, targets, tasks, solvers or {}, log)
-    executor = executor or LocalExecutor()
-    portable = robot if executor.workers == 1 else portable_robot(robot)
-    work = [(name, solver, portable, tasks, warmup, repeat) for name, solver in built.items()]
-    log.say(f"solving {len(tasks)} trajectories with {len(built)} method(s), each trajectory "
-            f"alone, {warmup} warm-up + {repeat} timed round(s) ({executor.name} executor)")
-    last = {}
-    for (name, solver), (single, batched) in zip(built.items(),
-                                                 executor.map(solve_method, work)):
-        last[name] = single[-1]
-        rows += _timed_rows(name, solver, robot, targets, contract, single, batched, repeat)
-        median_s = np.median([r["time_median_s"] for r in rows[-len(tasks):]])
-        log.say(f"{name}: {repeat} x {len(tasks)} trajectories solved alone, median "
-                f"{median_s:.4f} s per trajectory")
+    rows, built, last = _solve_methods(names, robot, targets, tasks, contract, solvers or {},
+                                       executor, warmup, repeat, log)
     sweep_frame = (ours_lm_sweep(robot, tasks, contract, solvers or {})
                    if sweep and "ours-lm" in built else None)
     from ikbench.studies import compare_report as report
 
-    record = {"methods": names, "reference": reference, "repeat": repeat, "warmup": warmup,
-              "robot": robot.describe(), "targets": targets.source,
-              "trajectories": targets.ids, "steps": targets.steps,
-              "contract": contract.to_dict(), "tolerances": dict(contract.tolerances),
-              "schemes": {name: solver.scheme_label() for name, solver in built.items()},
-              "libraries": library_versions(sorted({r["library"] for r in rows if r["library"]})),
-              **provenance()}
-    if targets.obstacles:
-        record["obstacles"] = {"source": targets.obstacles_source,
-                               "items": [o.to_dict() for o in targets.obstacles]}
+    record = _record(names, reference, repeat, warmup, robot, targets, contract, built, rows)
     results = pd.DataFrame(rows)
     if output is None:
         import tempfile
@@ -266,16 +242,80 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
         results = measure(results, built, robot, targets, tasks, contract, last, tmp)
         board = report.leaderboard(results, reference, contract)
         record["total_wall_time_s"] = time.perf_counter() - started
-        atomic_write_csv(tmp / "results.csv", results, float_format="%.10g")
-        atomic_write_csv(tmp / "leaderboard.csv", board, float_format="%.6g")
-        atomic_write_text(tmp / "leaderboard.md", report.leaderboard_markdown(board, record,
-                                                                              contract))
-        if sweep_frame is not None:
-            atomic_write_csv(tmp / "pareto_sweep.csv", sweep_frame, float_format="%.8g")
-        atomic_savefig(tmp / "pareto.png", report.plot_pareto(results, sweep_frame, contract))
-        atomic_write_text(tmp / "run.json", json.dumps(record, indent=2) + "\n")
+        _write_tables(tmp, results, board, record, contract, sweep_frame)
     log.say(f"written to {root}/ in {time.perf_counter() - started:.1f} s")
     return CompareResult(results, board, record, contract)
+
+
+def _reference_method(reference: str | None, names: list[str]) -> str:
+    """The method the time ratios are against: ``reference``, else ``ours-lm`` when compared,
+    else the first method. InputError when it is not among ``names``."""
+    reference = reference or ("ours-lm" if "ours-lm" in names else names[0])
+    if reference not in names:
+        raise InputError(f"--reference: {reference!r} is not among --methods "
+                         f"{', '.join(names)}")
+    return reference
+
+
+def _solve_methods(names: list[str], robot: Robot, targets: Targets, tasks: list[Task],
+                   contract: Contract, solvers: dict[str, Method], executor: Executor | None,
+                   warmup: int, repeat: int, log: Progress
+                   ) -> tuple[list[dict], dict[str, Method], dict[str, list[Outcome]]]:
+    """Build the methods and time each one on ``executor`` (:func:`solve_method`).
+
+    Returns:
+        (rows of results.csv so far: one per method and task, unmeasured; the methods built,
+        by name; each built method's last repetition, its outcomes by task, by name).
+    """
+    rows, built = _build(names, robot, targets, tasks, solvers, log)
+    executor = executor or LocalExecutor()
+    portable = robot if executor.workers == 1 else portable_robot(robot)
+    work = [(name, solver, portable, tasks, warmup, repeat) for name, solver in built.items()]
+    log.say(f"solving {len(tasks)} trajectories with {len(built)} method(s), each trajectory "
+            f"alone, {warmup} warm-up + {repeat} timed round(s) ({executor.name} executor)")
+    last = {}
+    for (name, solver), (single, batched) in zip(built.items(),
+                                                 executor.map(solve_method, work)):
+        last[name] = single[-1]
+        rows += _timed_rows(name, solver, robot, targets, contract, single, batched, repeat)
+        median_s = np.median([r["time_median_s"] for r in rows[-len(tasks):]])
+        log.say(f"{name}: {repeat} x {len(tasks)} trajectories solved alone, median "
+                f"{median_s:.4f} s per trajectory")
+    return rows, built, last
+
+
+def _record(names: list[str], reference: str, repeat: int, warmup: int, robot: Robot,
+            targets: Targets, contract: Contract, built: dict[str, Method],
+            rows: list[dict]) -> dict:
+    """What run.json records: the methods and settings, the robot, targets and contract,
+    each method's scheme, the libraries' versions, the provenance and any obstacles."""
+    record = {"methods": names, "reference": reference, "repeat": repeat, "warmup": warmup,
+              "robot": robot.describe(), "targets": targets.source,
+              "trajectories": targets.ids, "steps": targets.steps,
+              "contract": contract.to_dict(), "tolerances": dict(contract.tolerances),
+              "schemes": {name: solver.scheme_label() for name, solver in built.items()},
+              "libraries": library_versions(sorted({r["library"] for r in rows if r["library"]})),
+              **provenance()}
+    if targets.obstacles:
+        record["obstacles"] = {"source": targets.obstacles_source,
+                               "items": [o.to_dict() for o in targets.obstacles]}
+    return record
+
+
+def _write_tables(folder: Path, results: pd.DataFrame, board: pd.DataFrame, record: dict,
+                  contract: Contract, sweep_frame: pd.DataFrame | None) -> None:
+    """Write results.csv, leaderboard.csv / .md, pareto_sweep.csv (with a sweep), pareto.png
+    and run.json into ``folder`` (the method folders are :func:`measure`'s)."""
+    from ikbench.studies import compare_report as report
+
+    atomic_write_csv(folder / "results.csv", results, float_format="%.10g")
+    atomic_write_csv(folder / "leaderboard.csv", board, float_format="%.6g")
+    atomic_write_text(folder / "leaderboard.md", report.leaderboard_markdown(board, record,
+                                                                             contract))
+    if sweep_frame is not None:
+        atomic_write_csv(folder / "pareto_sweep.csv", sweep_frame, float_format="%.8g")
+    atomic_savefig(folder / "pareto.png", report.plot_pareto(results, sweep_frame, contract))
+    atomic_write_text(folder / "run.json", json.dumps(record, indent=2) + "\n")
 
 
 def _build(names, robot, targets, tasks, solvers, log) -> tuple[list[dict], dict]:

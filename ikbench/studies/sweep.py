@@ -50,7 +50,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from ikbench.core.task import Task
-    from ikbench.methods.ours_lm.solver import LMSettings
+    from ikbench.methods.ours_lm.solver import BatchResult, LMSettings
 
 #: Per-trajectory figures averaged (mean) or taken at the worst target (max) per setting.
 MEAN_COLUMNS = ("line_distance_mean_mm", "pointing_deviation_mean_deg",
@@ -227,6 +227,51 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
 
     check_sweep_method(method, grid, executor)
     robot = as_robot(robot)
+    targets, tasks, kind = _sweep_tasks(robot, targets, shape, only, steps, size_mm,
+                                        start_pose, direction)
+    base, settings = _sweep_settings(tasks, grid, shape, method)
+    all_tasks = [task for _ in settings for task in tasks]
+    all_weights = [w for w in settings for _ in tasks]
+    if progress:
+        how = ("one batched ours-lm solve" if method == "ours-lm"
+               else f"{len(settings)} batched ours-exact solves")
+        print(f"[sweep] {len(settings)} weight settings x {len(tasks)} tasks ({shape}): "
+              f"{how} of {len(all_tasks)} trajectories", file=sys.stderr, flush=True)
+    result: BatchResult | _ExactBatch
+    if method == "ours-lm":
+        result, _ = solve_parts(executor, robot, all_tasks, lm_settings or LMSettings(),
+                                all_weights)
+    else:
+        result = _solve_exact(robot, tasks, settings)
+    if progress:
+        print(f"[sweep] solved in {result.duration_s:.2f} s; measuring", file=sys.stderr,
+              flush=True)
+    per_traj = pd.DataFrame(_trajectory_rows(robot, kind, grid, base, all_tasks, all_weights,
+                                             result))
+    record = {"grid": {f"c{t[1]}": v for t, v in grid.items()}, "robot": robot.describe(),
+              "targets": targets.source,
+              "shape": shape, "size_mm": (size_mm or DEFAULT_SIZE_MM) if kind == "letter" else None,
+              "direction": direction, "start_pose_deg": targets.start_pose_deg.tolist(),
+              "reference_weights": {f"c{t[1]}": base[t] for t in TERMS},
+              "reference": reference_name(kind) if method == "ours-lm"
+              else "ours-exact's default weights", "method": method,
+              "trajectories": [t.name for t in tasks], "steps": tasks[0].steps,
+              "solve_wall_time_s": result.duration_s, "trajectories_solved": len(all_tasks),
+              **(executor or LocalExecutor()).describe(), **provenance()}
+    return SweepResult(summarise(per_traj, method), per_traj, record)
+
+
+def _sweep_tasks(robot: Robot, targets: str | Path | Targets | None, shape: str,
+                 only: str | None, steps: int | None, size_mm: float | None,
+                 start_pose: npt.ArrayLike | None, direction: str | npt.ArrayLike | None
+                 ) -> tuple[Targets, list[Task], str]:
+    """(the targets as swept, the tasks of one setting, the shape's kind) for :func:`sweep`'s
+    options: letters start from the robot's letter start pose unless ``start_pose`` is given;
+    ``only`` selects touch poses (the line only) and ``steps`` sets the line's segments.
+
+    Raises:
+        InputError: bad targets, shape or options.
+    """
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
     kind, _ = parse_shape(shape)
@@ -240,7 +285,19 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
     targets = targets.select(only)
     if kind == "line":
         targets = targets.with_steps(steps)
-    tasks = build_tasks(robot, targets, shape, steps, size_mm, direction)
+    return targets, build_tasks(robot, targets, shape, steps, size_mm, direction), kind
+
+
+def _sweep_settings(tasks: list[Task], grid: dict[str, list[float]], shape: str, method: str
+                    ) -> tuple[dict[str, float], list[dict]]:
+    """(the reference weights, every setting of ``grid`` on top of them, the reference
+    first): the tasks' own default weights (the paper's when they have none), or ours-exact's
+    defaults for ``method`` ours-exact.
+
+    Raises:
+        InputError: the tasks have different default weights, or a setting weights nothing
+            but poses the tasks do not pin (its loss would be empty).
+    """
     defaults = {json.dumps(t.default_weights, sort_keys=True) for t in tasks}
     if len(defaults) != 1:  # not for any shape ikbench makes today
         raise InputError(f"--shape: {shape!r} makes tasks with different default weights; "
@@ -255,21 +312,15 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
                              f"only the start/end pose terms c2, c3, which shape {shape!r} "
                              "does not pin: the loss would be empty; give another term a "
                              "weight > 0")
-    all_tasks = [task for _ in settings for task in tasks]
-    all_weights = [w for w in settings for _ in tasks]
-    if progress:
-        how = ("one batched ours-lm solve" if method == "ours-lm"
-               else f"{len(settings)} batched ours-exact solves")
-        print(f"[sweep] {len(settings)} weight settings x {len(tasks)} tasks ({shape}): "
-              f"{how} of {len(all_tasks)} trajectories", file=sys.stderr, flush=True)
-    if method == "ours-lm":
-        result, _ = solve_parts(executor, robot, all_tasks, lm_settings or LMSettings(),
-                                all_weights)
-    else:
-        result = _solve_exact(robot, tasks, settings)
-    if progress:
-        print(f"[sweep] solved in {result.duration_s:.2f} s; measuring", file=sys.stderr,
-              flush=True)
+    return base, settings
+
+
+def _trajectory_rows(robot: Robot, kind: str, grid: dict[str, list[float]],
+                     base: dict[str, float], all_tasks: list[Task], all_weights: list[dict],
+                     result: BatchResult | _ExactBatch) -> list[dict]:
+    """One row of sweep_trajectories.csv per solved trajectory (setting x task, in solve
+    order): the setting and its weights, the loss with them and with the reference weights,
+    iterations, convergence, limits, and the line's or shape's metrics."""
     measure = trajectory_metrics if kind == "line" else shape_metrics
     rows = []
     for k, (task, weights) in enumerate(zip(all_tasks, all_weights)):
@@ -283,18 +334,7 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
                      "iterations": int(result.iterations[k]),
                      "converged": bool(result.converged[k]),
                      "within_limits": robot.within_limits(poses), **metrics})
-    per_traj = pd.DataFrame(rows)
-    record = {"grid": {f"c{t[1]}": v for t, v in grid.items()}, "robot": robot.describe(),
-              "targets": targets.source,
-              "shape": shape, "size_mm": (size_mm or DEFAULT_SIZE_MM) if kind == "letter" else None,
-              "direction": direction, "start_pose_deg": targets.start_pose_deg.tolist(),
-              "reference_weights": {f"c{t[1]}": base[t] for t in TERMS},
-              "reference": reference_name(kind) if method == "ours-lm"
-              else "ours-exact's default weights", "method": method,
-              "trajectories": [t.name for t in tasks], "steps": tasks[0].steps,
-              "solve_wall_time_s": result.duration_s, "trajectories_solved": len(all_tasks),
-              **(executor or LocalExecutor()).describe(), **provenance()}
-    return SweepResult(summarise(per_traj, method), per_traj, record)
+    return rows
 
 
 #: Methods a sweep can run, and the terms of the grid each can take.

@@ -5,6 +5,22 @@ one pass over the joints for all M poses. For a revolute joint with world axis w
 dP/dq = w x (P - o) and dv/dq = w x v; for a prismatic joint dP/dq = w and dv/dq = 0; times
 dq/dp, the URDF units per pose unit (motor map scale x pi/180, or 1/1000 m per mm).
 ``pinocchio_kinematics`` is the per-pose reference it is tested against.
+
+One chain, three loops. :class:`ChainKinematics` is where the chain's constants are read from
+the Pinocchio model, once per robot (``robot.chain_kinematics()``, cached): the joint
+placements (``rotations``, ``translations``), ``axes``, their cross-product matrices
+``skews``, ``prismatic``, the end frame (``tip_rotation``, ``tip_translation``, ``tip_axis``)
+and ``urdf_per_unit``. Its twins take these arrays from it and read nothing else of the
+model: :class:`~ikbench.core.kinematics.chain_torch.TorchChainKinematics` (torch, any device
+and dtype, for ours-lm's torch backend) and :class:`ikbench.methods.ours_lm.compiled.Chain`
+(numba). The pass over the joints is written once per array library, not shared, because
+one loop for all three would need an array-namespace layer (eye, zeros, stack, sin, cos,
+cross, where) around twenty lines of algebra: numpy functions turn a CUDA tensor into an
+error or a host copy, torch functions take no ndarray, and numba compiles neither torch nor
+the batched ``(M, 3, 3) @ (3, 3)`` products used here (its matmul takes 1-D and 2-D arrays),
+so the compiled loop is written per pose in scalars. The loops are kept equal by tests
+instead: ``tests/test_ours_lm_torch.py`` (torch = numpy to 1e-12 on revolute, prismatic,
+continuous and unaligned axes) and ``tests/test_ours_lm_compiled.py`` (numba = numpy).
 """
 
 from __future__ import annotations
@@ -43,6 +59,15 @@ def joint_axis(joint: Any, name: str) -> tuple[np.ndarray, bool]:
                       f"is {short}")
 
 
+def cross_matrices(axes: npt.ArrayLike) -> np.ndarray:
+    """Cross-product matrices [a]_x (k, 3, 3) of vectors (k, 3): [a]_x v = a x v."""
+    a = np.asarray(axes, dtype=float).reshape(-1, 3)
+    skew = np.zeros((len(a), 3, 3))
+    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -a[:, 2], a[:, 1], -a[:, 0]
+    skew -= skew.transpose(0, 2, 1)
+    return skew
+
+
 def axis_rotation(axis: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
     """Rotations (M, 3, 3) about a unit axis by angles (M,) (Rodrigues)."""
     k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
@@ -57,6 +82,9 @@ class ChainKinematics:
     Call with poses (M, dof) [pose units]; returns the end point [m] (M, 3), the pointing
     direction (M, 3) and their Jacobians d/d(pose unit) (M, 3, dof); :meth:`transforms` gives
     the full end-frame rotation too.
+
+    Its attributes are the chain's constants, read from the Pinocchio model here and only
+    here; the torch and numba twins take them from this object (module docstring).
     """
 
     def __init__(self, robot: Robot) -> None:
@@ -83,6 +111,8 @@ class ChainKinematics:
         self.tip_translation = np.array(frame.placement.translation)
         self.tip_axis = self.tip_rotation @ robot.pointing_axis
         self.prismatic = np.array(joint_is_prismatic)
+        #: [a]_x (dof, 3, 3) of each joint axis (joint frame), for Rodrigues' formula
+        self.skews = cross_matrices(self.axes)
         #: URDF units [rad or m] per pose unit, per joint
         self.urdf_per_unit = robot.to_urdf(np.ones(self.dof)) - robot.to_urdf(np.zeros(self.dof))
         self.robot = robot
@@ -109,7 +139,7 @@ class ChainKinematics:
         point = pos + rot @ self.tip_translation
         return point, rot @ self.tip_rotation, np.stack(axes_world, 1), np.stack(origins, 1)
 
-    def __call__(self, poses, jacobian: bool = True):
+    def __call__(self, poses: npt.ArrayLike, jacobian: bool = True) -> Frames:
         """FK (and Jacobians) of poses (M, dof) [pose units].
 
         Returns:
@@ -163,17 +193,14 @@ class ChainKinematics:
         j_point = np.where(revolute, cross, w) * scale
         return point, rotation, j_point, w * (revolute * scale)
 
-    def _prepare_frames(self):
+    def _prepare_frames(self) -> None:
         """Constant 4 x 4 placements, axes and their cross-product matrices (for frames)."""
         self._placements = np.zeros((self.dof, 4, 4))
         self._placements[:, :3, :3] = self.rotations
         self._placements[:, :3, 3] = self.translations
         self._placements[:, 3, 3] = 1.0
         self._axes = np.array(self.axes, dtype=float)
-        a = self._axes
-        self._skew = np.zeros((self.dof, 3, 3))
-        self._skew[:, 0, 1], self._skew[:, 0, 2], self._skew[:, 1, 2] = -a[:, 2], a[:, 1], -a[:, 0]
-        self._skew -= self._skew.transpose(0, 2, 1)
+        self._skew = self.skews
         self._skew2 = self._skew @ self._skew
         self._tip = np.eye(4)
         self._tip[:3, :3], self._tip[:3, 3] = self.tip_rotation, self.tip_translation

@@ -160,7 +160,8 @@ def initial_poses_batched(robot: Robot, tasks: Sequence[Task]) -> np.ndarray:
     return np.clip(start + t * (end - start), robot.lower_motor_deg, robot.upper_motor_deg)
 
 
-def _free_variables(problem: Problem, poses, gradient):
+def _free_variables(problem: Problem | FrameProblem, poses: np.ndarray, gradient: np.ndarray
+                    ) -> np.ndarray:
     """False for variables on a bound whose descent direction (-gradient) leaves the box."""
     at_lower = poses <= problem.lower_deg + BOUND_EPS_DEG
     at_upper = poses >= problem.upper_deg - BOUND_EPS_DEG
@@ -242,9 +243,15 @@ def solve_problem(robot: Robot, problem: Problem, initial: npt.ArrayLike,
     return result
 
 
-def _solve_numpy(robot, problem, poses, settings: LMSettings, progress, evaluator, until,
+def _solve_numpy(robot: Robot, problem: Problem | FrameProblem, poses: np.ndarray,
+                 settings: LMSettings, progress: LMProgress | None,
+                 evaluator: Callable[..., Evaluation],
+                 until: Callable[[np.ndarray, np.ndarray], np.ndarray] | None,
                  start: float) -> BatchResult:
-    """The numpy loop of :func:`solve_batch` from initial poses (B, N, dof)."""
+    """The numpy loop of :func:`solve_batch` from initial poses (B, N, dof): per iteration,
+    a damped step of the trajectories still running (:func:`_damped_step`), the gain test,
+    Nielsen's damping update and the stopping rule (:func:`_stopping_rule`); ``start``: the
+    :func:`time.perf_counter` the duration counts from."""
     kin = _kinematics(robot, settings.kinematics)
     poses = np.clip(poses, problem.lower_deg, problem.upper_deg)
     b = len(poses)
@@ -258,17 +265,8 @@ def _solve_numpy(robot, problem, poses, settings: LMSettings, progress, evaluato
         sub = problem.take(active)
         ev = _take(current, active)
         x = poses[active]
-        free = _free_variables(sub, x, ev.gradient)
-        scale = np.maximum(np.diagonal(ev.diagonal, axis1=-2, axis2=-1), 1e-12)
-        damped = ev.diagonal.copy()
-        idx = np.arange(x.shape[-1])
-        damped[..., idx, idx] += damping[active, None, None] * scale
-        step, ok = solve_normal_equations(damped, ev.coupling, -ev.gradient, free,
-                                          settings.linear_solver)
-        trial = np.clip(x + step, sub.lower_deg, sub.upper_deg)
-        step = trial - x
-        predicted = -(2.0 * np.sum(ev.gradient * step, axis=(1, 2))
-                      + np.sum(step * block_matvec(ev, step), axis=(1, 2)))
+        trial, step, ok, predicted = _damped_step(ev, sub, x, damping[active],
+                                                  settings.linear_solver)
         new = evaluator(kin, sub, trial)
         gain = (ev.loss - new.loss) / np.where(predicted > 0, predicted, np.inf)
         accept = ok & (predicted > 0) & (gain > MIN_GAIN_RATIO)
@@ -279,13 +277,8 @@ def _solve_numpy(robot, problem, poses, settings: LMSettings, progress, evaluato
         _put(current, acc, _take(new, np.flatnonzero(accept)))
         nielsen_update(damping, nu, active, accept, gain)
 
-        decrease = ev.loss - new.loss
-        small = accept & ((decrease <= settings.tolerance * new.loss)
-                          | (np.max(np.abs(step), axis=(1, 2)) <= settings.tolerance))
-        converged[active[small]] = True
-        stuck = damping[active] > MAX_DAMPING
-        converged[active[stuck & ~small]] = _stationary(ev, x, sub)[stuck & ~small]
-        done = small | stuck | (iterations[active] >= settings.max_iterations)
+        done = _stopping_rule(ev, new, x, sub, step, accept, active, damping, iterations,
+                              converged, settings)
         if until is not None:
             reached = np.asarray(until(poses[active], active), dtype=bool)
             converged[active[reached]] = True
@@ -295,6 +288,61 @@ def _solve_numpy(robot, problem, poses, settings: LMSettings, progress, evaluato
         active = active[~done]
     return BatchResult(poses, current.loss, current.terms, iterations, converged,
                        time.perf_counter() - start)
+
+
+def _damped_step(ev: Evaluation, problem: Problem | FrameProblem, poses: np.ndarray,
+                 damping: np.ndarray, linear_solver: str
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One projected Levenberg-Marquardt step of the active trajectories.
+
+    Solves (J^T J + lambda diag(J^T J)) s = -J^T r over the free variables (those on a bound
+    whose descent leaves the box are held), then clips ``poses + s`` to the box.
+
+    Args:
+        ev: the evaluation at ``poses`` (A trajectories).
+        problem: their sub-problem (bounds).
+        poses: (A, N, dof) [motor deg].
+        damping: (A,) Marquardt damping factors lambda.
+        linear_solver: ``banded`` or ``thomas`` (:func:`.linalg.solve_normal_equations`).
+
+    Returns:
+        (trial poses (A, N, dof), the step taken after clipping (A, N, dof), ok (A,): the
+        damped system was solved, predicted loss decrease (A,) of the Gauss-Newton model).
+    """
+    free = _free_variables(problem, poses, ev.gradient)
+    scale = np.maximum(np.diagonal(ev.diagonal, axis1=-2, axis2=-1), 1e-12)
+    damped = ev.diagonal.copy()
+    idx = np.arange(poses.shape[-1])
+    damped[..., idx, idx] += damping[:, None, None] * scale
+    step, ok = solve_normal_equations(damped, ev.coupling, -ev.gradient, free, linear_solver)
+    trial = np.clip(poses + step, problem.lower_deg, problem.upper_deg)
+    step = trial - poses
+    predicted = -(2.0 * np.sum(ev.gradient * step, axis=(1, 2))
+                  + np.sum(step * block_matvec(ev, step), axis=(1, 2)))
+    return trial, step, ok, predicted
+
+
+def _stopping_rule(ev: Evaluation, new: Evaluation, poses: np.ndarray,
+                   problem: Problem | FrameProblem,
+                   step: np.ndarray, accept: np.ndarray, active: np.ndarray,
+                   damping: np.ndarray, iterations: np.ndarray, converged: np.ndarray,
+                   settings: LMSettings) -> np.ndarray:
+    """Which active trajectories stop after this iteration, (A,) bool; ``converged`` (B,) is
+    marked in place.
+
+    An accepted step that lowers the loss by at most ``tolerance * loss`` or moves no pose
+    by more than ``tolerance`` deg converges; a damping above :data:`MAX_DAMPING` (no descent
+    step found) stops, converged when the projected gradient is negligible; the iteration
+    cap stops, not converged. ``ev``, ``poses``, ``problem``, ``step``, ``accept``: the
+    iteration's (per active trajectory); ``damping``, ``iterations``: per trajectory (B,).
+    """
+    decrease = ev.loss - new.loss
+    small = accept & ((decrease <= settings.tolerance * new.loss)
+                      | (np.max(np.abs(step), axis=(1, 2)) <= settings.tolerance))
+    converged[active[small]] = True
+    stuck = damping[active] > MAX_DAMPING
+    converged[active[stuck & ~small]] = _stationary(ev, poses, problem)[stuck & ~small]
+    return small | stuck | (iterations[active] >= settings.max_iterations)
 
 
 def _compiled(settings: LMSettings):
@@ -326,7 +374,8 @@ def nielsen_update(damping: np.ndarray, nu: np.ndarray, active: np.ndarray, acce
     nu[rej] *= 2.0
 
 
-def _stationary(ev: Evaluation, poses, problem: Problem, rtol: float = 1e-6):
+def _stationary(ev: Evaluation, poses: np.ndarray, problem: Problem | FrameProblem,
+                rtol: float = 1e-6) -> np.ndarray:
     """True where the projected gradient is negligible (no descent direction is left)."""
     g = np.where(_free_variables(problem, poses, ev.gradient), ev.gradient, 0.0)
     return np.max(np.abs(g), axis=(1, 2)) <= rtol * np.maximum(ev.loss, 1.0)
