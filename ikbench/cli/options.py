@@ -9,9 +9,18 @@ chosen method is built (:func:`method_from_args`), so bad input fails before any
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from ikbench.core.errors import InputError
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.core.targets import Targets
+    from ikbench.methods.base import Method
+    from ikbench.studies.executors import Executor
+
+#: A method class's own type (method_from_args returns an instance of the class it gets).
+M = TypeVar("M", bound="Method")
 
 DEFAULT_ROBOT = "nico_right_arm"
 
@@ -28,7 +37,7 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
                         "its root to this link, whose z-axis points)")
 
 
-def robot_from_args(args):
+def robot_from_args(args: argparse.Namespace) -> Robot:
     """The robot of ``--robot`` / ``--end-frame`` (validated; no heavy imports)."""
     from ikbench.core.robot import load_robot
 
@@ -47,7 +56,7 @@ def add_line_task_arguments(parser: argparse.ArgumentParser) -> None:
                         "for NICO's)")
 
 
-def targets_from_args(args, robot):
+def targets_from_args(args: argparse.Namespace, robot: Robot) -> Targets:
     """The targets of --targets/--only/--steps for ``robot`` (validated)."""
     from ikbench.core.targets import select_targets
 
@@ -89,7 +98,8 @@ def _given(args) -> dict[str, object]:
             if key.startswith("opt_") and value is not None}
 
 
-def reject_foreign_options(args, cls, methods: dict[str, Any] | None = None) -> None:
+def reject_foreign_options(args: argparse.Namespace, cls: type[Method],
+                           methods: dict[str, Any] | None = None) -> None:
     """InputError if an option of another method was given (it would be silently ignored)."""
     own = {opt.flag for opt in cls.options()}
     for flag in _given(args):
@@ -100,7 +110,8 @@ def reject_foreign_options(args, cls, methods: dict[str, Any] | None = None) -> 
             raise InputError(f"--{flag} is an option of {by}, not of --method {cls.name}")
 
 
-def method_from_args(args, cls, methods: dict[str, Any] | None = None, **fixed):
+def method_from_args(args: argparse.Namespace, cls: type[M], methods: dict[str, Any] | None = None,
+                     **fixed: Any) -> M:
     """Build ``cls`` from the options given (each converted by the method's own settings);
     ``fixed`` settings go on top. InputError for options of other methods."""
     reject_foreign_options(args, cls, methods)
@@ -158,14 +169,14 @@ def add_executor_arguments(parser: argparse.ArgumentParser) -> None:
                         "ray://HOST:PORT or auto (default: start a local Ray)")
 
 
-def check_executor_args(args) -> None:
+def check_executor_args(args: argparse.Namespace) -> None:
     """Validate ``--executor`` / ``--ray-address`` (no heavy imports; Ray not started)."""
     from ikbench.studies.executors import check_executor
 
     check_executor(args.executor, args.ray_address)
 
 
-def executor_from_args(args):
+def executor_from_args(args: argparse.Namespace) -> Executor:
     """The executor of ``--executor`` / ``--ray-address`` (starts or joins Ray)."""
     from ikbench.studies.executors import get_executor
 

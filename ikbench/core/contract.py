@@ -39,10 +39,14 @@ import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ikbench.core.errors import InputError
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
 
 #: The tracks: which poses a trajectory must start and end at.
 TRACKS = {"paper": ("start_pose", "touch_pose"), "touch": ("touch_pose",)}
@@ -233,13 +237,13 @@ def parse_tolerances(text: str | Mapping | None,
     return out
 
 
-def pointing_declared(robot) -> bool:
+def pointing_declared(robot: Robot) -> bool:
     """True when the robot's config names its pointing axis (shipped robots); a bare URDF's
     end frame has no declared pointing axis."""
     return "pointing_axis" in (getattr(robot, "config", None) or {})
 
 
-def speed_limits(robot) -> tuple[np.ndarray | None, str]:
+def speed_limits(robot: Robot) -> tuple[np.ndarray | None, str]:
     """The robot's joint speed limits (dof,) [pose units per s] and where they come from.
 
     Order: the robot's hardware table (``max_speed_deg_s`` per joint, motor deg/s: NICO's
@@ -282,7 +286,7 @@ def _read_speed_limits(robot) -> tuple[np.ndarray | None, str]:
     return si * per_unit / scale, f"<limit velocity> of {Path(robot.urdf_path).name}"
 
 
-def contract_for(robot, track: str = "paper", tolerances: str | Mapping | None = None,
+def contract_for(robot: Robot, track: str = "paper", tolerances: str | Mapping | None = None,
                  pointing: str | bool = "auto", duration_s: float = DEFAULT_DURATION_S,
                  pointing_judged_from: float = DEFAULT_POINTING_FROM) -> Contract:
     """The contract of a robot's line tasks (see the module doc).

@@ -7,15 +7,23 @@ degrees; they return mm and degrees. :func:`trajectory_metrics` gives the Table 
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from ikbench.core.contract import Contract
+    from ikbench.core.robot import Robot
+    from ikbench.core.shapes import Curve
+    from ikbench.core.task import Task
 
 #: Window of the paper's criterion 2: the displacement of the last 10 segments is averaged.
 CRITERION2_WINDOW = 10
 
 
-def line_distances_mm(points_mm, start_mm, end_mm) -> np.ndarray:
+def line_distances_mm(points_mm: npt.ArrayLike, start_mm: npt.ArrayLike,
+                      end_mm: npt.ArrayLike) -> np.ndarray:
     """Perpendicular distance [mm] of each point (N, 3) from the line through start and end."""
     points = np.asarray(points_mm, dtype=float)
     start = np.asarray(start_mm, dtype=float)
@@ -25,7 +33,8 @@ def line_distances_mm(points_mm, start_mm, end_mm) -> np.ndarray:
     return np.linalg.norm(rel - np.outer(rel @ axis, axis), axis=1)
 
 
-def pointing_deviations_deg(directions, goal_directions) -> np.ndarray:
+def pointing_deviations_deg(directions: npt.ArrayLike,
+                            goal_directions: npt.ArrayLike) -> np.ndarray:
     """Angle [deg] between each direction (N, 3) and its goal direction ((N, 3) or (3,))."""
     v = np.asarray(directions, dtype=float)
     g = np.broadcast_to(np.asarray(goal_directions, dtype=float), v.shape)
@@ -35,7 +44,8 @@ def pointing_deviations_deg(directions, goal_directions) -> np.ndarray:
     return np.degrees(np.arctan2(np.linalg.norm(np.cross(v, g), axis=1), np.sum(v * g, axis=1)))
 
 
-def criterion2_mm(points_mm, touch_point_mm, window: int = CRITERION2_WINDOW) -> np.ndarray:
+def criterion2_mm(points_mm: npt.ArrayLike, touch_point_mm: npt.ArrayLike,
+                  window: int = CRITERION2_WINDOW) -> np.ndarray:
     """The paper's criterion 2 (Fig. 2): where the movement so far points, per step.
 
     For step i the mean displacement m_i of segments j = max(0, i-window) .. min(i, n-1)
@@ -68,7 +78,7 @@ def criterion2_mm(points_mm, touch_point_mm, window: int = CRITERION2_WINDOW) ->
     return out
 
 
-def smoothness(poses_motor_deg) -> dict[str, float]:
+def smoothness(poses_motor_deg: npt.ArrayLike) -> dict[str, float]:
     """Fluency figures of a trajectory (n+1, dof) [motor deg], per step (time-free).
 
     Returns:
@@ -110,7 +120,8 @@ def _end_errors_and_smoothness(task, points_mm, poses) -> dict[str, float]:
     }
 
 
-def trajectory_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
+def trajectory_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
+                       ) -> dict[str, float]:
     """The Table 1/2 figures of one trajectory against its task.
 
     Points and directions come from FK (Pinocchio, float64) of the poses. Line distance and
@@ -143,7 +154,8 @@ def _line_metrics(task, poses, fk) -> dict[str, float]:
     }
 
 
-def shape_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
+def shape_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
+                  ) -> dict[str, float]:
     """Figures of a trajectory against a general shape (its task has a ``curve``).
 
     Points and directions come from FK (Pinocchio, float64) of the poses; distances and
@@ -161,7 +173,7 @@ def shape_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
     poses = np.asarray(poses_motor_deg, dtype=float)
     fk = robot.fk(poses)
     mask = task.pen_down
-    distances = task.curve.distances_mm(fk.point_mm[mask])
+    distances = cast("Curve", task.curve).distances_mm(fk.point_mm[mask])  # a shape task
     errors = np.linalg.norm(fk.point_mm - task.goal_points_mm, axis=1)[mask]
     deviations = pointing_deviations_deg(fk.direction[mask], task.goal_directions[mask])
 
@@ -179,7 +191,8 @@ def shape_metrics(robot, task, poses_motor_deg) -> dict[str, float]:
 
 
 # ----- 6-D pose paths (tasks with goal frames) ------------------------------------------------
-def frame_errors(robot, task, poses_deg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def frame_errors(robot: Robot, task: Task, poses_deg: npt.ArrayLike
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per-waypoint errors of poses (n+1, dof) against a task with goal frames.
 
     Returns:
@@ -191,11 +204,11 @@ def frame_errors(robot, task, poses_deg) -> tuple[np.ndarray, np.ndarray, np.nda
     T = robot.fk_transform(np.asarray(poses_deg, dtype=float))
     points_mm = T[:, :3, 3] * 1000.0
     position = np.linalg.norm(points_mm - task.goal_points_mm, axis=1)
-    rotation = np.degrees(geodesic_angle(task.goal_rotations, T[:, :3, :3]))
+    rotation = np.degrees(geodesic_angle(cast(np.ndarray, task.goal_rotations), T[:, :3, :3]))
     return position, rotation, points_mm
 
 
-def joint_changes(robot, poses_deg) -> tuple[np.ndarray, np.ndarray]:
+def joint_changes(robot: Robot, poses_deg: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Joint changes between consecutive poses in joint units: (revolute (n, r) [deg], wrapped
     to [-180, 180) as CppFlow does, so a continuous joint crossing +-180 moves a little;
     prismatic (n, p) [mm])."""
@@ -206,7 +219,7 @@ def joint_changes(robot, poses_deg) -> tuple[np.ndarray, np.ndarray]:
     return revolute, steps[:, prismatic] * 1000.0
 
 
-def frame_metrics(robot, task, poses_deg) -> dict:
+def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[str, Any]:
     """Figures of a trajectory against a 6-D pose path, with CppFlow's validity.
 
     Returns:
@@ -252,7 +265,7 @@ def frame_metrics(robot, task, poses_deg) -> dict:
     return {**out, "valid": not failures, "failed_criteria": ",".join(failures)}
 
 
-def initial_distance(robot, task, poses_deg) -> float:
+def initial_distance(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> float:
     """Euclidean distance (URDF units: rad, m) of the first pose from the task's initial pose
     (CppFlow's ``initial_q_norm_dist``); NaN when the task gives none."""
     initial = getattr(task, "initial_pose_deg", None)
@@ -263,7 +276,7 @@ def initial_distance(robot, task, poses_deg) -> float:
 
 
 # ----- the task contract (ikbench.core.contract) -----------------------------------------------
-def speed_limit_use(poses_deg, max_step) -> float:
+def speed_limit_use(poses_deg: npt.ArrayLike, max_step: npt.ArrayLike | None) -> float:
     """The largest joint change per segment over its allowed change (1.0: at the limit).
 
     Args:
@@ -276,7 +289,8 @@ def speed_limit_use(poses_deg, max_step) -> float:
     return float(np.max(steps / np.asarray(max_step, dtype=float), initial=0.0))
 
 
-def contract_metrics(robot, task, poses_motor_deg, contract) -> dict[str, Any]:
+def contract_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike,
+                     contract: Contract) -> dict[str, Any]:
     """The figures a :class:`ikbench.core.contract.Contract` judges, with the Table 1/2 ones.
 
     Returns:

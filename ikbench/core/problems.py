@@ -335,7 +335,7 @@ def home_pose(robot: Robot) -> np.ndarray:
     return np.clip(pose, robot.validity_lower, robot.validity_upper)
 
 
-def load_problem(spec: str | Path):
+def load_problem(spec: str | Path) -> tuple[Robot, Task, CartesianProblem]:
     """(robot, task, problem) of a shipped problem name or a problem file."""
     from ikbench.core.robot import load_robot, shipped_robots
 

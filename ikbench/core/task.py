@@ -20,11 +20,13 @@ path tangent (line, polyline, spline) or the drawing plane's normal (letters).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core import letters
 from ikbench.core.errors import InputError
@@ -32,6 +34,9 @@ from ikbench.core.losses import FRAME_WEIGHTS
 from ikbench.core.robot import Robot
 from ikbench.core.shapes import Curve, catmull_rom, read_points_csv
 from ikbench.core.targets import Targets
+
+if TYPE_CHECKING:
+    from ikbench.core.contract import Contract
 
 #: Below this distance [mm] start and touch points coincide and a line has no direction.
 MIN_LINE_LENGTH_MM = 1e-6
@@ -120,7 +125,8 @@ class Task:
         return self.goal_points_mm[-1]
 
 
-def line_task(robot: Robot, start_pose_deg, end_pose_deg, steps: int, name: str = "") -> Task:
+def line_task(robot: Robot, start_pose_deg: npt.ArrayLike, end_pose_deg: npt.ArrayLike,
+              steps: int, name: str = "") -> Task:
     """The paper's straight-line task (Eq. 1) from FK(start pose) to FK(end pose).
 
     Args:
@@ -147,7 +153,8 @@ def line_task(robot: Robot, start_pose_deg, end_pose_deg, steps: int, name: str 
     return Task(name, points_mm, directions, start, end, shape="line")
 
 
-def frame_task(robot: Robot, name: str, points_mm, rotations, **fields) -> Task:
+def frame_task(robot: Robot, name: str, points_mm: npt.ArrayLike, rotations: npt.ArrayLike,
+               **fields: Any) -> Task:
     """A 6-D pose path: goal points (n+1, 3) [mm] and goal rotations (n+1, 3, 3) of the end
     frame in the base frame; the goal directions are the rotations' pointing axes.
 
@@ -174,7 +181,7 @@ def frame_task(robot: Robot, name: str, points_mm, rotations, **fields) -> Task:
                 **fields)
 
 
-def line_tasks(robot: Robot, targets: Targets, contract=None) -> list[Task]:
+def line_tasks(robot: Robot, targets: Targets, contract: Contract | None = None) -> list[Task]:
     """One line task per touch pose of ``targets`` (start pose shared), each with the task
     contract (:class:`ikbench.core.contract.Contract`; default
     :func:`ikbench.core.contract.contract_for` the robot). Where the contract does not ask for
@@ -213,8 +220,8 @@ def parse_shape(spec: str) -> tuple[str, str]:
     return kind, arg.strip()
 
 
-def curve_task(curve: Curve, steps: int, name: str, shape: str, direction="tangent",
-               **fields) -> Task:
+def curve_task(curve: Curve, steps: int, name: str, shape: str,
+               direction: str | npt.ArrayLike = "tangent", **fields: Any) -> Task:
     """A task following ``curve`` with n+1 = ``steps`` + 1 goal points evenly by arc length.
 
     Args:
@@ -232,7 +239,8 @@ def curve_task(curve: Curve, steps: int, name: str, shape: str, direction="tange
                 shape=shape, pen_down=samples.pen_down, curve=curve, **fields)
 
 
-def goal_directions(curve: Curve | None, tangents: np.ndarray, direction) -> np.ndarray:
+def goal_directions(curve: Curve | None, tangents: np.ndarray,
+                    direction: str | npt.ArrayLike) -> np.ndarray:
     """(n+1, 3) unit goal directions: the tangents, the plane normal or a fixed vector."""
     if isinstance(direction, str) and direction == "tangent":
         return tangents
@@ -246,9 +254,10 @@ def goal_directions(curve: Curve | None, tangents: np.ndarray, direction) -> np.
     return np.repeat(vector[None] / np.linalg.norm(vector), len(tangents), axis=0)
 
 
-def parse_direction(value) -> np.ndarray:
+def parse_direction(value: str | npt.ArrayLike) -> np.ndarray:
     """A fixed direction from ``"x,y,z"`` or a sequence; non-zero and finite."""
-    text = ",".join(map(str, value)) if not isinstance(value, str) else value
+    text = (",".join(map(str, cast(Iterable[Any], value))) if not isinstance(value, str)
+            else value)  # a sequence of 3 numbers, or the text
     try:
         vector = np.array([float(v) for v in text.split(",")], dtype=float)
     except ValueError:
@@ -280,8 +289,9 @@ def letter_start_pose(robot: Robot, targets: Targets | None = None) -> np.ndarra
     return targets.start_pose_deg
 
 
-def letter_task(robot: Robot, letter: str, start_pose_deg, steps: int = letters.DEFAULT_STEPS,
-                size_mm: float = letters.DEFAULT_SIZE_MM, direction="normal") -> Task:
+def letter_task(robot: Robot, letter: str, start_pose_deg: npt.ArrayLike,
+                steps: int = letters.DEFAULT_STEPS, size_mm: float = letters.DEFAULT_SIZE_MM,
+                direction: str | npt.ArrayLike = "normal") -> Task:
     """The paper's letter in the air: ``letter`` on the robot's letter plane through the end
     point at the start pose (NICO: the frontal plane x = FK(start pose).x).
 
@@ -297,8 +307,8 @@ def letter_task(robot: Robot, letter: str, start_pose_deg, steps: int = letters.
                       default_weights=dict(letters.LETTER_WEIGHTS), reference_pose_deg=start)
 
 
-def file_task(kind: str, path: str | Path, steps: int, direction="tangent",
-              reference_pose_deg=None) -> Task:
+def file_task(kind: str, path: str | Path, steps: int, direction: str | npt.ArrayLike = "tangent",
+              reference_pose_deg: np.ndarray | None = None) -> Task:
     """A polyline or spline task through the control points [mm] of a CSV file."""
     points = read_points_csv(path)
     curve = Curve((points if kind == "polyline" else catmull_rom(points),))
@@ -307,7 +317,8 @@ def file_task(kind: str, path: str | Path, steps: int, direction="tangent",
 
 
 def build_tasks(robot: Robot, targets: Targets, shape: str = "line", steps: int | None = None,
-                size_mm: float | None = None, direction=None) -> list[Task]:
+                size_mm: float | None = None, direction: str | npt.ArrayLike | None = None
+                ) -> list[Task]:
     """The tasks of a shape (see the module docstring).
 
     Args:

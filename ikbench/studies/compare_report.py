@@ -16,11 +16,17 @@ obstacles. Without obstacles the tables are exactly as before.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
 from ikbench.core.contract import TRACK_TITLES, Contract
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from matplotlib.figure import Figure
 
 #: Criterion -> its short column title.
 CRITERION_TITLES = {"start_pose": "start", "end_pose": "touch", "limits": "limits",
@@ -85,7 +91,7 @@ def _board_row(name, group, track, judged: Contract, success: str, ref) -> dict:
     return row
 
 
-def fmt(value, digits: int = 3) -> str:
+def fmt(value: float | None, digits: int = 3) -> str:
     """A number in a precision that shows differences: 3 significant digits, scientific
     below 1e-3 (5.6e-05, not 0.000); NaN as an empty cell."""
     if value is None or (isinstance(value, float) and math.isnan(value)):
@@ -177,7 +183,8 @@ def _obstacles_paragraph(obstacles: dict) -> list[str]:
             "tasks; a collision fails their row.", ""]
 
 
-def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Contract):
+def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Contract
+                ) -> Figure:
     """Two panels: time vs line distance (max), and line distance vs pointing (judged part)
     with ours-lm's weight sweep as a curve; one colour per library."""
     from ikbench.studies.report import _matplotlib
@@ -269,7 +276,7 @@ def readme_table(board: pd.DataFrame, reference: str = "ours-lm") -> str:
     return "\n".join(lines)
 
 
-def write_readme_table(readme, leaderboard_csv) -> None:
+def write_readme_table(readme: str | Path, leaderboard_csv: str | Path) -> None:
     """Replace the table between :data:`README_MARKERS` in ``readme`` by :func:`readme_table`
     of ``leaderboard_csv`` (``python -c "from ikbench.studies.compare_report import
     write_readme_table as w; w('README.md', 'results/compare/leaderboard.csv')"``)."""
@@ -286,7 +293,7 @@ def write_readme_table(readme, leaderboard_csv) -> None:
     atomic_write_text(path, f"{head}{start}\n{table}\n{end}{tail}")
 
 
-def render(folder) -> None:
+def render(folder: str | Path) -> None:
     """Write ``leaderboard.md``, ``leaderboard.csv`` and ``pareto.png`` of a compare folder
     again from its ``results.csv``, ``pareto_sweep.csv`` and ``run.json`` (nothing is solved:
     for a change of presentation only)."""

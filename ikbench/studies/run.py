@@ -24,11 +24,13 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError
@@ -43,7 +45,7 @@ from ikbench.core.metrics import frame_metrics, shape_metrics, trajectory_metric
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot, load_robot
 from ikbench.core.targets import ID_PATTERN, Targets, load_targets
-from ikbench.core.task import build_tasks, parse_shape
+from ikbench.core.task import Task, build_tasks, parse_shape
 from ikbench.core.trajectory import (
     DEFAULT_DURATION_S,
     read_trajectory_poses,
@@ -63,6 +65,9 @@ from ikbench.studies.report import (
     plot_trajectories_3d,
     report_sections,
 )
+
+if TYPE_CHECKING:
+    from ikbench.core.problems import CartesianProblem
 
 #: Where ad-hoc runs go by default (git ignores it); ``ikbench reproduce`` writes results/.
 DEFAULT_OUTPUT = "runs"
@@ -107,7 +112,8 @@ def files_written_by(folder: Path) -> set[str]:
     return {*RUN_FILES, *RUN_FIGURES, *(f"trajectory_{i}.csv" for i in ids)}
 
 
-def evaluate(robot: Robot, outcomes, method_dir: Path, method_name: str):
+def evaluate(robot: Robot, outcomes: Sequence[Outcome], method_dir: Path, method_name: str
+             ) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, np.ndarray]]:
     """Metrics of the written trajectories: returns (table, details, points_by_id).
 
     Line tasks get :func:`ikbench.core.metrics.trajectory_metrics` and the Table 1/2 columns;
@@ -191,7 +197,9 @@ def robot_from_record(record: dict) -> Robot:
 def prepare(method: str | Method, *, robot: Robot | str | None = None,
             targets: str | Path | Targets | None = None, only: str | None = None,
             steps: int | None = None, options: dict | None = None, shape: str = "line",
-            size_mm: float | None = None, start_pose=None, direction=None):
+            size_mm: float | None = None, start_pose: npt.ArrayLike | None = None,
+            direction: str | npt.ArrayLike | None = None
+            ) -> tuple[Method, Robot, Targets, list[Task]]:
     """Validate everything a run needs and build its tasks, before any solve.
 
     Returns:
@@ -215,8 +223,9 @@ def prepare(method: str | Method, *, robot: Robot | str | None = None,
     return solver, robot, targets, tasks
 
 
-def prepare_problem(method: str | Method, problem, *, robot: Robot | str | None = None,
-                    options: dict | None = None):
+def prepare_problem(method: str | Method, problem: str | Path, *,
+                    robot: Robot | str | None = None, options: dict | None = None
+                    ) -> tuple[Method, Robot, Targets, list[Task], dict[str, Any]]:
     """Validate a Cartesian path problem run and build its task, before any solve.
 
     Args:
@@ -241,6 +250,7 @@ def prepare_problem(method: str | Method, problem, *, robot: Robot | str | None 
     if isinstance(problem_robot.config.get("targets"), dict):
         targets = load_targets(None, problem_robot)
     else:
+        assert task.reference_pose_deg is not None  # problem_task sets it
         targets = Targets(problem_robot.joint_names, task.reference_pose_deg, {}, task.steps,
                           "problem")
     solver = method if isinstance(method, Method) else get_method(method)(**(options or {}))
@@ -249,7 +259,7 @@ def prepare_problem(method: str | Method, problem, *, robot: Robot | str | None 
     return solver, problem_robot, replace(targets, steps=task.steps), [task], record
 
 
-def problem_label(problem) -> str:
+def problem_label(problem: CartesianProblem) -> str:
     """How reports name a problem: ``NAME (shipped)`` or its file path."""
     from ikbench.core.problems import shipped_problems
 
@@ -263,7 +273,8 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
         steps: int | None = None, output: str | Path | None = DEFAULT_OUTPUT,
         duration_s: float = DEFAULT_DURATION_S, options: dict | None = None,
         progress: bool = True, shape: str = "line", size_mm: float | None = None,
-        start_pose=None, direction=None, name: str | None = None,
+        start_pose: npt.ArrayLike | None = None, direction: str | npt.ArrayLike | None = None,
+        name: str | None = None,
         animation: bool = True, problem: str | Path | None = None,
         timing: str = "constant") -> pd.DataFrame:
     """Solve every selected target (or a Cartesian path problem) with ``method`` and write
@@ -334,7 +345,7 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
                            progress, animation)
 
 
-def check_problem_options(**given) -> None:
+def check_problem_options(**given: Any) -> None:
     """InputError naming the first task option given with a problem (the problem defines the
     task: targets, shape, steps and start pose do not apply)."""
     defaults = {"shape": "line"}
@@ -345,7 +356,8 @@ def check_problem_options(**given) -> None:
                              "the path, its waypoints and the robot)")
 
 
-def solve_and_write(solver: Method, robot: Robot, targets: Targets, tasks, folder: Path,
+def solve_and_write(solver: Method, robot: Robot, targets: Targets, tasks: Sequence[Task],
+                    folder: Path,
                     record: dict, progress: bool = True, animation: bool = True) -> pd.DataFrame:
     """Solve ``tasks`` through the harness and write the run folder (see the module doc)."""
     import time
@@ -445,7 +457,7 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
     return table
 
 
-def obstacles_record(tasks) -> list | dict | None:
+def obstacles_record(tasks: Sequence[Task]) -> list | dict | None:
     """How run.json records the tasks' obstacles (``Obstacle.to_dict`` items, base frame,
     mm): one list when every task has the same ones (a problem's), else a mapping from
     trajectory id to its list (tasks without obstacles left out); None when no task has any.
@@ -467,7 +479,7 @@ def _jsonable(value):
     return str(value)
 
 
-def method_report(solver, table: pd.DataFrame, details: pd.DataFrame, targets: Targets,
+def method_report(solver: Method, table: pd.DataFrame, details: pd.DataFrame, targets: Targets,
                   record: dict, figures: dict | None = None) -> str:
     """report.md of one method's run; ``figures`` maps captions to the PNG names written."""
     figures = {"trajectories": "trajectories_3d.png",

@@ -42,12 +42,19 @@ import csv
 import io
 import json
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_text
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from ikbench.core.robot import Robot
+    from ikbench.core.timing import Limits, TimedPath
 
 NS_PER_S = 1_000_000_000
 #: Points per second of a retimed export.
@@ -84,7 +91,7 @@ def velocities(q: np.ndarray, dt_s: float,
     return v
 
 
-def joint_trajectory(robot, poses, duration_s: float,
+def joint_trajectory(robot: Robot, poses: npt.ArrayLike, duration_s: float,
                      end_velocities: Literal["zero", "one-sided"] = "zero") -> dict[str, Any]:
     """The ``JointTrajectory`` (a dict, see the module doc) of poses (n+1, dof) [pose units]
     played in ``duration_s`` [s]."""
@@ -102,7 +109,8 @@ def joint_trajectory(robot, poses, duration_s: float,
             "joint_names": list(robot.joint_names), "points": points}
 
 
-def timed_points(robot, timed, rate_hz: float = DEFAULT_RATE_HZ):
+def timed_points(robot: Robot, timed: TimedPath, rate_hz: float = DEFAULT_RATE_HZ
+                 ) -> tuple[list[int], np.ndarray, np.ndarray, np.ndarray]:
     """``(times_ns, q, qd, qdd)`` of a retimed export [URDF units]: the timing sampled at
     ``rate_hz`` (0: at the solved poses), see the module doc."""
     from ikbench.core.timing_limits import urdf_units_per_pose_unit
@@ -125,7 +133,8 @@ def timed_points(robot, timed, rate_hz: float = DEFAULT_RATE_HZ):
     return times_ns, np.asarray(robot.to_urdf(q), dtype=float), qd * factor, qdd * factor
 
 
-def timed_joint_trajectory(robot, timed, rate_hz: float = DEFAULT_RATE_HZ) -> dict[str, Any]:
+def timed_joint_trajectory(robot: Robot, timed: TimedPath, rate_hz: float = DEFAULT_RATE_HZ
+                           ) -> dict[str, Any]:
     """The ``JointTrajectory`` of a retimed path (see the module doc)."""
     times, q, qd, qdd = timed_points(robot, timed, rate_hz)
     points = [{"positions": a.tolist(), "velocities": b.tolist(), "accelerations": c.tolist(),
@@ -148,7 +157,7 @@ def from_joint_trajectory(message: dict) -> tuple[list[str], np.ndarray, np.ndar
     return names, q, times
 
 
-def to_poses(robot, joint_names, q_urdf) -> np.ndarray:
+def to_poses(robot: Robot, joint_names: Sequence[str], q_urdf: npt.ArrayLike) -> np.ndarray:
     """Joint values [URDF units] in any column order -> poses (n+1, dof) [pose units]."""
     missing = [n for n in robot.joint_names if n not in joint_names]
     if missing:
@@ -171,7 +180,8 @@ def yaml_text(message: dict) -> str:
     return yaml.safe_dump(message, sort_keys=False, default_flow_style=None, width=120)
 
 
-def csv_rad_text(robot, poses, duration_s: float, message: dict | None = None) -> str:
+def csv_rad_text(robot: Robot, poses: npt.ArrayLike, duration_s: float,
+                 message: dict | None = None) -> str:
     """``step,time_s,<joint names>`` with the joints in URDF units (rad; m for prismatic), of
     ``message`` (default: the constant timing of ``poses`` over ``duration_s``)."""
     message = message or joint_trajectory(robot, poses, duration_s)
@@ -185,7 +195,7 @@ def csv_rad_text(robot, poses, duration_s: float, message: dict | None = None) -
     return out.getvalue()
 
 
-def read_export(path, fmt: str) -> tuple[list[str], np.ndarray, np.ndarray]:
+def read_export(path: str | Path, fmt: str) -> tuple[list[str], np.ndarray, np.ndarray]:
     """``(joint_names, q [URDF units], times_s)`` of a file :func:`export_trajectory` wrote."""
     text = Path(path).read_text(encoding="utf-8")
     if fmt == "ros-json":
@@ -201,8 +211,8 @@ def read_export(path, fmt: str) -> tuple[list[str], np.ndarray, np.ndarray]:
     return rows[0][2:], values[:, 2:], values[:, 1]
 
 
-def export_trajectory(trajectory_csv, fmt: str, output, robot, duration_s: float,
-                      timing: str = "constant", limits=None,
+def export_trajectory(trajectory_csv: str | Path, fmt: str, output: str | Path, robot: Robot,
+                      duration_s: float, timing: str = "constant", limits: Limits | None = None,
                       rate_hz: float = DEFAULT_RATE_HZ) -> tuple[Path, str | None]:
     """Write a trajectory CSV [pose units] as ``fmt`` (:data:`FORMATS`) to ``output``
     atomically, played in ``duration_s`` [s] (or as ``timing`` times it, sampled at

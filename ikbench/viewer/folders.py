@@ -16,13 +16,18 @@ trajectory id); a run folder written without them has none.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.core.robot import Robot
+
+if TYPE_CHECKING:
+    from ikbench.core.timing import Limits
 
 
 @dataclass
@@ -68,7 +73,8 @@ class ViewTrajectory:
             return 0
         return int(min(round(t_s * self.steps / self.duration_s), self.steps))
 
-    def retime(self, robot, timing: str, limits=None, duration_s: float | None = None) -> None:
+    def retime(self, robot: Robot, timing: str, limits: Limits | None = None,
+               duration_s: float | None = None) -> None:
         """Play under ``timing`` (``min-jerk`` over ``duration_s``, default this trajectory's
         own; ``topp`` within ``limits``): sets ``times_s`` and ``duration_s``."""
         from ikbench.core.timing import retime
@@ -97,7 +103,7 @@ class ViewRun:
     obstacles: tuple = ()
 
 
-def check_folders(folders) -> list[Path]:
+def check_folders(folders: Iterable[str | Path]) -> list[Path]:
     """The folders as Paths; InputError for one that is not a run folder (cheap, no imports)."""
     paths = [Path(f) for f in folders]
     if not paths:
@@ -125,7 +131,7 @@ def _same_robot(a: Robot, b: Robot) -> bool:
         b.urdf_sha256, b.joint_names, b.root_link, b.end_frame)
 
 
-def load_runs(folders) -> tuple[Robot, list[ViewRun]]:
+def load_runs(folders: Iterable[str | Path]) -> tuple[Robot, list[ViewRun]]:
     """The shared robot and every folder's run.
 
     Raises:

@@ -48,7 +48,7 @@ def _collision_note(scene: RunScene) -> str:
     return f"; {count} obstacle{'s' * (count != 1)}, colliding waypoints {counts}"
 
 
-def add_gui(server, viewer: Viewer, ids: list[str]) -> None:
+def add_gui(server: viser.ViserServer, viewer: Viewer, ids: list[str]) -> None:
     """Add the panel's controls to ``server`` and wire them to ``viewer``; the handles go
     into ``viewer.gui`` (``trajectory``, ``step``, ``time``, ``play``, ``speed``, ``loop``,
     ``runs``, ``goal``, ``tip``, ``others``; ``obstacles`` and ``collisions`` when a run has

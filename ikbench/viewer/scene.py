@@ -9,10 +9,19 @@ so that both agree (the viewer's tests check the drawn end frame against ``Robot
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ikbench.core.robot import Robot
+
+if TYPE_CHECKING:
+    import viser
+    import yourdfpy
+
+    from ikbench.core.obstacles import Obstacle
 
 RGB = tuple[int, int, int]
 #: Run colours (RGB 0-255): matplotlib's tab10, as in the figures.
@@ -22,7 +31,7 @@ RUN_COLORS: tuple[RGB, ...] = ((31, 119, 180), (255, 127, 14), (148, 103, 189),
 GOAL_COLOR: RGB = (44, 160, 44)
 
 
-def load_model(robot: Robot, meshes: bool = True):
+def load_model(robot: Robot, meshes: bool = True) -> yourdfpy.URDF:
     """The robot's URDF in yourdfpy with its visual scene graph.
 
     yourdfpy moves a prismatic joint along its axis as written; the URDF spec (and
@@ -49,7 +58,7 @@ def load_model(robot: Robot, meshes: bool = True):
     return model
 
 
-def configurations(model, robot: Robot, poses) -> np.ndarray:
+def configurations(model: yourdfpy.URDF, robot: Robot, poses: npt.ArrayLike) -> np.ndarray:
     """(B, n_actuated) yourdfpy configurations [rad, m] of poses (B, dof) [pose units]:
     the chain's joints through ``Robot.to_urdf``, every other joint at 0 (as Pinocchio
     locks them)."""
@@ -60,7 +69,7 @@ def configurations(model, robot: Robot, poses) -> np.ndarray:
     return cfg
 
 
-def base_transform(model, robot: Robot) -> np.ndarray:
+def base_transform(model: yourdfpy.URDF, robot: Robot) -> np.ndarray:
     """T_root_base (4, 4): the robot's base link in the URDF's root frame (other joints 0)."""
     model.update_cfg(np.zeros(len(model.actuated_joint_names)))
     return np.asarray(model.get_transform(robot.root_link), dtype=float)
@@ -146,8 +155,9 @@ def capsule_mesh(radius_mm: float, length_mm: float, rings: int = 8,
     return vertices, np.array(faces, dtype=np.int32)
 
 
-def add_obstacles(server, obstacles, T_root_base: np.ndarray,
-                  around_mm: np.ndarray | None = None, name: str = "/obstacles") -> list:
+def add_obstacles(server: viser.ViserServer, obstacles: Sequence[Obstacle],
+                  T_root_base: np.ndarray, around_mm: np.ndarray | None = None,
+                  name: str = "/obstacles") -> list:
     """Add a task's obstacles to a viser scene (translucent brown; base frame [mm] -> the
     URDF's root [m]): boxes with ``add_box``, spheres with ``add_icosphere``, capsules and
     a half-space's surface (a square around ``around_mm`` (N, 3) [mm], base frame: e.g. the
@@ -156,7 +166,7 @@ def add_obstacles(server, obstacles, T_root_base: np.ndarray,
     from ikbench.studies.arm_plots import halfspace_patch
 
     R_root = np.asarray(T_root_base, dtype=float)[:3, :3]
-    style = {"color": OBSTACLE_COLOR, "opacity": OBSTACLE_OPACITY}
+    style: dict[str, Any] = {"color": OBSTACLE_COLOR, "opacity": OBSTACLE_OPACITY}
     handles = []
     for k, obstacle in enumerate(obstacles):
         node = f"{name}/{k}_" + "".join(c if c.isalnum() or c in "_-." else "_"
@@ -183,8 +193,8 @@ def add_obstacles(server, obstacles, T_root_base: np.ndarray,
     return handles
 
 
-def colliding_tips_m(robot: Robot, poses, tip_mm: np.ndarray, obstacles,
-                     T_root_base: np.ndarray) -> np.ndarray:
+def colliding_tips_m(robot: Robot, poses: npt.ArrayLike, tip_mm: np.ndarray,
+                     obstacles: Sequence[Obstacle], T_root_base: np.ndarray) -> np.ndarray:
     """(K, 3) [m, URDF root] the end points of the waypoints where poses (N, dof) collide
     with an obstacle or the robot itself (:func:`ikbench.studies.arm_plots.
     colliding_waypoints`); empty without obstacles, collision model or collision."""
@@ -196,8 +206,10 @@ def colliding_tips_m(robot: Robot, poses, tip_mm: np.ndarray, obstacles,
     return to_root_m(T_root_base, np.asarray(tip_mm, dtype=float)[colliding])
 
 
-def add_collision_markers(server, name: str, robot: Robot, poses, tip_mm: np.ndarray,
-                          obstacles, T_root_base: np.ndarray, point_size: float = 0.012):
+def add_collision_markers(server: viser.ViserServer, name: str, robot: Robot,
+                          poses: npt.ArrayLike, tip_mm: np.ndarray,
+                          obstacles: Sequence[Obstacle], T_root_base: np.ndarray,
+                          point_size: float = 0.012) -> viser.PointCloudHandle | None:
     """Red points at a trajectory's colliding waypoints' end points (:func:`colliding_tips_m`)
     as one viser point cloud named ``name``; None when no waypoint collides."""
     points = colliding_tips_m(robot, poses, tip_mm, obstacles, T_root_base)

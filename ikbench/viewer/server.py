@@ -31,6 +31,7 @@ import threading
 import time
 import webbrowser
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import viser
@@ -348,7 +349,7 @@ def serve(robot: Robot, runs: list[ViewRun], *, port: int = 8080, host: str = "1
     return viewer
 
 
-def run_forever(robot: Robot, runs: list[ViewRun], **kwargs) -> None:
+def run_forever(robot: Robot, runs: list[ViewRun], **kwargs: Any) -> None:
     """Serve (keywords of :func:`serve`), print the URL and block until Ctrl-C or SIGTERM,
     then stop cleanly (no traceback; another Ctrl-C while stopping changes nothing).
 

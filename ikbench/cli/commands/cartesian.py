@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+import argparse
+from collections.abc import Sequence
+
+from ikbench.cli.commands import Subparsers
+
 HELP = "Cartesian path benchmark: methods on the CppFlow/TORM 6-D pose paths, several seeds"
 DEFAULT_OUTPUT = "runs"
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     from ikbench.cli.options import add_method_options
     from ikbench.core.problems import BENCHMARK, shipped_problems
     from ikbench.studies.cartesian import DEFAULT_SEEDS, frame_methods
@@ -46,7 +51,7 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def method_settings(args, names: list[str]) -> dict[str, dict]:
+def method_settings(args: argparse.Namespace, names: list[str]) -> dict[str, dict]:
     """method -> settings from the method options given (each applies to the methods that
     have it); InputError for an option none of them has, and for --seed, --lm-seed (use --seeds)."""
     from ikbench.cli.options import _convert, _given
@@ -71,7 +76,7 @@ def method_settings(args, names: list[str]) -> dict[str, dict]:
     return out
 
 
-def command_line(args, problems: str, seeds) -> str:
+def command_line(args: argparse.Namespace, problems: str, seeds: Sequence[int]) -> str:
     """The command as given (options in a fixed order), for the report."""
     import shlex
 
@@ -88,7 +93,7 @@ def command_line(args, problems: str, seeds) -> str:
     return " ".join(shlex.quote(w) for w in words)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 

@@ -2,6 +2,22 @@
 
 from __future__ import annotations
 
+import argparse
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+from ikbench.cli.commands import Subparsers
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    import pandas as pd
+
+    from ikbench.core.robot import Robot
+    from ikbench.core.targets import Targets
+    from ikbench.core.task import Task
+    from ikbench.methods.base import Method
+
 HELP = "generate trajectories with a method; write CSVs, table, figures and report"
 LINE_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "line_distance_mean_mm",
                 "pointing_deviation_mean_deg", "end_point_error_mm"]
@@ -14,7 +30,7 @@ DEFAULT_OUTPUT = "runs"
 DEFAULT_ROBOT = "nico_right_arm"
 
 
-def register(subparsers) -> None:
+def register(subparsers: Subparsers) -> None:
     from ikbench.methods.registry import available_methods
 
     methods = available_methods()
@@ -50,7 +66,8 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def add_task_arguments(parser, only_help: str, start_pose_default: str) -> None:
+def add_task_arguments(parser: argparse.ArgumentParser, only_help: str,
+                       start_pose_default: str) -> None:
     """--robot, --end-frame, --targets, --only, --shape, --size, --direction, --start-pose,
     --steps (run, sweep)."""
     from ikbench.cli.options import add_robot_arguments
@@ -77,13 +94,13 @@ def add_task_arguments(parser, only_help: str, start_pose_default: str) -> None:
                         "for lines; 100 for other shapes)")
 
 
-def add_start_pose_argument(parser, default: str) -> None:
+def add_start_pose_argument(parser: argparse.ArgumentParser, default: str) -> None:
     parser.add_argument("--start-pose", default=None,
                         help=f"start pose, comma-separated values in the robot's units "
                         f"(default: {default}); write --start-pose=-24,... for a leading minus")
 
 
-def add_run_arguments(parser, methods: dict, default_output: str,
+def add_run_arguments(parser: argparse.ArgumentParser, methods: dict, default_output: str,
                       folder: str = "<method> (or --name)") -> None:
     """--method, output options and every method's own options (shared with ``letters``);
     ``folder``: the run folder's name under OUTPUT, in words for the help."""
@@ -116,7 +133,7 @@ def lowercase_letters_note(shape: str) -> str | None:
     return None
 
 
-def run(args, shape: str | None = None, fixed: dict | None = None) -> int:
+def run(args: argparse.Namespace, shape: str | None = None, fixed: dict | None = None) -> int:
     """Validate everything, then solve and write; ``fixed``: method settings on top."""
     import sys
 
@@ -164,8 +181,8 @@ def run(args, shape: str | None = None, fixed: dict | None = None) -> int:
                               animation=not args.no_animation)
 
 
-def solve_write_report(solver, robot, targets, tasks, folder, record, quiet: bool,
-                       animation: bool = True) -> int:
+def solve_write_report(solver: Method, robot: Robot, targets: Targets, tasks: Sequence[Task],
+                       folder: Path, record: dict, quiet: bool, animation: bool = True) -> int:
     """Solve, write the run folder and print its table; 130 after Ctrl-C."""
     import sys
 
@@ -186,7 +203,7 @@ def solve_write_report(solver, robot, targets, tasks, folder, record, quiet: boo
     return report_table(table, folder)
 
 
-def run_problem(args, fixed: dict | None = None) -> int:
+def run_problem(args: argparse.Namespace, fixed: dict | None = None) -> int:
     """``run --problem``: validate, solve the problem's pose path, write, print the table."""
     from pathlib import Path
 
@@ -218,7 +235,7 @@ def run_problem(args, fixed: dict | None = None) -> int:
                               animation=not args.no_animation)
 
 
-def report_table(table, folder) -> int:
+def report_table(table: pd.DataFrame, folder: Path) -> int:
     """Print a run's table and where it went; exit code 1 when a solve failed."""
     import sys
 

@@ -25,10 +25,17 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ikbench.methods.ours_lm.problem import Evaluation
+
+if TYPE_CHECKING:
+    from ikbench.core.collision import CollisionModel
+    from ikbench.core.obstacles import Obstacle
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
 
 #: The clearance the penalty asks for between the robot's own links [mm] (at most the
 #: clearance): neighbouring capsules of a conservative model often sit close together.
@@ -51,7 +58,8 @@ class Avoidance:
         weight: the collision weight w.
     """
 
-    def __init__(self, model, obstacles: Sequence, clearance_mm: float, weight: float):
+    def __init__(self, model: CollisionModel, obstacles: Sequence[Obstacle], clearance_mm: float,
+                 weight: float):
         self.model = model
         self.obstacles = tuple(obstacles)
         self.clearance_mm = float(clearance_mm)
@@ -78,7 +86,8 @@ class Avoidance:
         size = np.abs(out).max(axis=1, keepdims=True)
         return out * np.minimum(1.0, CARRY_MAX_STEP / np.maximum(size, 1e-300))
 
-    def terms(self, poses: np.ndarray, derivatives: bool = True):
+    def terms(self, poses: np.ndarray, derivatives: bool = True
+              ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """The penalty at poses (B, N, dof): (loss (B,), gradient (B, N, dof) = J^T r,
         diagonal blocks (B, N, dof, dof) = J^T J) (None, None without derivatives)."""
         b, n, dof = poses.shape
@@ -112,7 +121,8 @@ class Avoidance:
         return evaluate_with_collisions
 
 
-def avoidance_for(robot, task, clearance_mm: float, weight: float) -> Avoidance | None:
+def avoidance_for(robot: Robot, task: Task, clearance_mm: float, weight: float
+                  ) -> Avoidance | None:
     """The :class:`Avoidance` of a task with obstacles on a robot with a collision model,
     else None (nothing changes)."""
     if not getattr(task, "obstacles", ()):

@@ -31,7 +31,9 @@ Everything is deterministic for a seed. Errors are in mm and degrees throughout.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -46,6 +48,11 @@ from ikbench.methods.base import check_positive, check_seed, option
 from ikbench.methods.ours_lm.avoidance import Avoidance, avoidance_for
 from ikbench.methods.ours_lm.frames import FrameProblem, errors_from_frames, evaluate_frames
 from ikbench.methods.ours_lm.solver import LMSettings, solve_batch
+
+if TYPE_CHECKING:
+    from ikbench.core.kinematics.chain import Frames
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
 
 #: First-waypoint IK: iterations, and the tolerance on the errors [mm, deg].
 IK_ITERATIONS = 100
@@ -137,7 +144,9 @@ def _dls(e, J, damping):
     return -(J.swapaxes(-1, -2) @ np.linalg.solve(JJt, e[..., None]))[..., 0]
 
 
-def first_waypoint_ik(frames, goal_mm, goal_R, seeds, lower, upper):
+def first_waypoint_ik(frames: Callable[..., Frames], goal_mm: np.ndarray, goal_R: np.ndarray,
+                      seeds: np.ndarray, lower: np.ndarray, upper: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Damped least-squares IK of one pose from every seed (K, dof), with an adaptive damping.
 
     Returns:
@@ -162,7 +171,7 @@ def first_waypoint_ik(frames, goal_mm, goal_R, seeds, lower, upper):
     return q, np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(e[:, 3:], axis=1), iterations
 
 
-def distinct(poses, keep) -> np.ndarray:
+def distinct(poses: np.ndarray, keep: np.ndarray) -> np.ndarray:
     """Indices of ``poses`` (K, dof) where ``keep``, dropping near-duplicates (first kept)."""
     chosen: list[int] = []
     for k in np.flatnonzero(keep):
@@ -171,7 +180,7 @@ def distinct(poses, keep) -> np.ndarray:
     return np.array(chosen, dtype=int)
 
 
-def limit_avoidance(q, lower, upper) -> np.ndarray:
+def limit_avoidance(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """Joint motion (K, dof) [pose units] away from the limits, for the null space: with
     u = (q - middle) / half-range in [-1, 1], -:data:`AVOIDANCE_GAIN` half-range u^3 (small in
     the middle of the range, strong near a limit)."""
@@ -180,7 +189,9 @@ def limit_avoidance(q, lower, upper) -> np.ndarray:
     return -AVOIDANCE_GAIN * half * u**3
 
 
-def redundant_step(e, J, damping, q, lower, upper, extra=None):
+def redundant_step(e: np.ndarray, J: np.ndarray, damping: float, q: np.ndarray,
+                   lower: np.ndarray, upper: np.ndarray, extra: np.ndarray | None = None
+                   ) -> np.ndarray:
     """A damped least-squares step (K, dof) towards the goal plus the limit-avoidance motion
     (and ``extra`` (K, dof), e.g. collision avoidance) projected into the Jacobian's null
     space; a joint that would pass a limit is held (its column removed) and the step solved
@@ -200,7 +211,8 @@ def redundant_step(e, J, damping, q, lower, upper, extra=None):
     return step
 
 
-def carry(frames, task, start, lower, upper, avoid: Avoidance | None = None):
+def carry(frames: Callable[..., Frames], task: Task, start: np.ndarray, lower: np.ndarray,
+          upper: np.ndarray, avoid: Avoidance | None = None) -> tuple[np.ndarray, int]:
     """Carry start poses (K, dof) along the task's waypoints, each warm started from the last.
 
     Waypoint i starts from the linear extrapolation 2 q_{i-1} - q_{i-2} (the previous pose at
@@ -213,7 +225,7 @@ def carry(frames, task, start, lower, upper, avoid: Avoidance | None = None):
     Returns:
         (paths (K, N, dof), iterations).
     """
-    goals_mm, goals_R = task.goal_points_mm, task.goal_rotations
+    goals_mm, goals_R = task.goal_points_mm, cast(np.ndarray, task.goal_rotations)  # a pose path
     k, dof = start.shape
     paths = np.repeat(start[:, None], len(goals_mm), axis=1)
     alive = np.arange(k)
@@ -242,28 +254,29 @@ def carry(frames, task, start, lower, upper, avoid: Avoidance | None = None):
     return paths, iterations
 
 
-def lost_waypoints(frames, task, paths) -> np.ndarray:
+def lost_waypoints(frames: Callable[..., Frames], task: Task, paths: np.ndarray) -> np.ndarray:
     """(K,) waypoints of carried paths (K, N, dof) whose error exceeds :data:`LOST_MM_DEG`
     (mm or deg): where a candidate lost track of the path (e.g. held by a joint limit)."""
     k, n, dof = paths.shape
     point, rotation, _, _ = frames(paths.reshape(-1, dof), False)
-    e_point, e_rot, _, _ = errors_from_frames(point, rotation, None, None,
-                                              np.tile(task.goal_points_mm, (k, 1)),
-                                              np.tile(task.goal_rotations, (k, 1, 1)))
+    e_point, e_rot, _, _ = errors_from_frames(
+        point, rotation, None, None, np.tile(task.goal_points_mm, (k, 1)),
+        np.tile(cast(np.ndarray, task.goal_rotations), (k, 1, 1)))
     size = np.maximum(np.abs(e_point).max(-1), np.abs(e_rot).max(-1)).reshape(k, n)
     return np.sum(size > LOST_MM_DEG, axis=1)
 
 
-def check_paths(robot, task, paths, frames, margin: float = 1.0,
-                avoid: Avoidance | None = None):
+def check_paths(robot: Robot, task: Task, paths: np.ndarray, frames: Callable[..., Frames],
+                margin: float = 1.0, avoid: Avoidance | None = None
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """CppFlow's validity of paths (K, N, dof): (valid (K,), max position error [mm],
     max rotation error [deg], max revolute step [deg]) (see :mod:`ikbench.core.validity`);
     ``margin`` scales the position and rotation thresholds; with ``avoid`` a valid path is
     also collision-free."""
     point, rotation, _, _ = frames(paths.reshape(-1, robot.dof), False)
-    e_point, e_rot, _, _ = errors_from_frames(point, rotation, None, None,
-                                              np.tile(task.goal_points_mm, (len(paths), 1)),
-                                              np.tile(task.goal_rotations, (len(paths), 1, 1)))
+    e_point, e_rot, _, _ = errors_from_frames(
+        point, rotation, None, None, np.tile(task.goal_points_mm, (len(paths), 1)),
+        np.tile(cast(np.ndarray, task.goal_rotations), (len(paths), 1, 1)))
     position = np.linalg.norm(e_point, axis=1).reshape(len(paths), -1).max(1)
     rotation = np.linalg.norm(e_rot, axis=1).reshape(len(paths), -1).max(1)
     q = robot.to_urdf(paths)
@@ -283,7 +296,7 @@ def check_paths(robot, task, paths, frames, margin: float = 1.0,
     return valid, position, rotation, revolute
 
 
-def search(robot, task, settings: OursLMSettings, weights: dict) -> SearchResult:
+def search(robot: Robot, task: Task, settings: OursLMSettings, weights: dict) -> SearchResult:
     """Solve a 6-D pose path without a start pose (see the module docstring)."""
     started = time.perf_counter()
     frames = robot.chain_kinematics().frames
@@ -296,7 +309,8 @@ def search(robot, task, settings: OursLMSettings, weights: dict) -> SearchResult
     if task.reference_pose_deg is not None:
         seeds[0] = task.reference_pose_deg
     q0, pos, rot, ik_iterations = first_waypoint_ik(
-        frames, task.goal_points_mm[0], task.goal_rotations[0], seeds, lower, upper)
+        frames, task.goal_points_mm[0], cast(np.ndarray, task.goal_rotations)[0], seeds, lower,
+        upper)
     found = distinct(q0, (pos < SEED_TOLERANCE) & (rot < SEED_TOLERANCE))
     if not found.size:
         raise InputError(f"trajectory {task.name!r}: the first waypoint was not reached from "
@@ -376,7 +390,9 @@ STITCH_REACH = 30
 STITCH_REACHED = 1.0
 
 
-def stitched_candidates(frames, task, avoid: Avoidance, lower, upper, low, high, rng):
+def stitched_candidates(frames: Callable[..., Frames], task: Task, avoid: Avoidance,
+                        lower: np.ndarray, upper: np.ndarray, low: np.ndarray, high: np.ndarray,
+                        rng: np.random.Generator) -> tuple[np.ndarray, int, dict[str, Any]]:
     """Candidates for a task with obstacles: the stitched path (:func:`stitch`) first, then the
     paths carried forward from the first waypoint.
 
@@ -471,16 +487,17 @@ def _carry_from(frames, task, avoid: Avoidance, anchors, reach: int, lower, uppe
     return iterations, forward
 
 
-def stitch(frames, task, avoid: Avoidance, tracks) -> np.ndarray | None:
+def stitch(frames: Callable[..., Frames], task: Task, avoid: Avoidance, tracks: np.ndarray
+           ) -> np.ndarray | None:
     """The stitched path (N, dof) through the nodes of carried tracks (M, N, dof) (NaN where a
     track does not reach), see :func:`stitched_candidates`; None when no node sequence
     exists."""
     m, n, dof = tracks.shape
     flat = np.nan_to_num(tracks.reshape(-1, dof))
     point, rotation, _, _ = frames(flat, False)
-    e_point, e_rot, _, _ = errors_from_frames(point, rotation, None, None,
-                                              np.tile(task.goal_points_mm, (m, 1)),
-                                              np.tile(task.goal_rotations, (m, 1, 1)))
+    e_point, e_rot, _, _ = errors_from_frames(
+        point, rotation, None, None, np.tile(task.goal_points_mm, (m, 1)),
+        np.tile(cast(np.ndarray, task.goal_rotations), (m, 1, 1)))
     error = np.maximum(np.abs(e_point).max(-1), np.abs(e_rot).max(-1)).reshape(m, n)
     node = (error < STITCH_REACHED) & ~np.isnan(tracks[..., 0])
     free = np.zeros(m * n, dtype=bool)
@@ -527,7 +544,8 @@ def _problem_factory(robot, task, weights, frames):
 REACH_SEEDS = 32
 
 
-def waypoint_reach(robot, task, count: int = REACH_SEEDS, seed: int = 0):
+def waypoint_reach(robot: Robot, task: Task, count: int = REACH_SEEDS, seed: int = 0
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """How closely each waypoint can be reached on its own within the task's limits: IK of
     every waypoint from ``count`` random poses (seeded), all at once.
 
@@ -543,7 +561,7 @@ def waypoint_reach(robot, task, count: int = REACH_SEEDS, seed: int = 0):
     seeds = np.random.default_rng(seed).uniform(low, high, (n * count, robot.dof))
     _, position, rotation, _ = first_waypoint_ik(
         frames, np.repeat(task.goal_points_mm, count, axis=0),
-        np.repeat(task.goal_rotations, count, axis=0), seeds, lower, upper)
+        np.repeat(cast(np.ndarray, task.goal_rotations), count, axis=0), seeds, lower, upper)
     position, rotation = position.reshape(n, count), rotation.reshape(n, count)
     best = np.argmin(np.maximum(position, rotation), axis=1)
     rows = np.arange(n)
