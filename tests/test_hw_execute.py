@@ -60,6 +60,9 @@ class FakeClock(Clock):
 
     def __init__(self, start_s: float = 100.0):
         self.t = start_s
+        #: fake time a SYNC WRITE takes (0: none); a test that orders events by time around a
+        #: send sets it, else a send and what follows it share one instant
+        self.send_tick_s = 0.0
         self.ctrl_c_at: float | None = None
         self.sends: list[float] = []
         self._emulator: Emulator | None = None
@@ -101,6 +104,9 @@ def fake_clock(monkeypatch):
         sent_at = clock.now()
         original(bus, goals_raw, speeds_raw)
         clock.sends.append(sent_at)
+        if clock.send_tick_s:  # once the emulator stamped the write, time moves on
+            clock._caught_up()
+            clock.t += clock.send_tick_s
 
     monkeypatch.setattr(Bus, "sync_write", sync_write)
     return clock
@@ -319,23 +325,25 @@ def test_faults_before_the_move(short_traj, capsys, fault, message):
     ("error", ("read present position: motor id 5 (r_elbow_y) reports error overload (status "
                "error byte 0x20)")),
 ])
-def test_fault_during_the_move_stops_and_holds(short_traj, tmp_path, capsys, kind, message):
+def test_fault_during_the_move_stops_and_holds(short_traj, tmp_path, capsys, kind, message,
+                                               fake_clock):
     # reads of id 5: model number at ping, start pose, then one per recorded sample; the fault
-    # hits the second sample of the move (a later one could fall after the move on a loaded
-    # machine, where samples that do not fit between segments are skipped)
+    # hits the second sample of the move; on the fake clock (a send takes 1 us, so the
+    # failing read comes after the segment sent before it)
+    fake_clock.send_tick_s = 1e-6
     fault = Fault(kind, 5, 0x02, after=2 + 1, count=1)
     record = tmp_path / "rec.csv"
-    with Emulator(load_motor_config(), START, faults=[fault]) as emulator:
+    with fake_clock.emulator(load_motor_config(), START, faults=[fault]) as emulator:
         code = main(["execute", str(short_traj), "--port", emulator.port, "--duration", "0.6",
                      "--record-rate", "100", "--record", str(record)])
-        time.sleep(0.1)
+        fake_clock.t += 0.1  # the hold settles
         settled = emulator.present_deg()
     err = capsys.readouterr().err
     assert code == 3
     writes = sync_writes(emulator)
     t_fault = first_fault_time(emulator)
     before = [w for w in writes if w[0] < t_fault]
-    after = [w for w in writes if w[0] > t_fault]
+    after = [w for w in writes if w[0] >= t_fault]    # the hold follows at the fault's instant
     assert 1 <= len(before) < 10
     assert err == (f"ikbench: error: {message}; sent {len(before)} of 10 segments (last: "
                    f"segment {len(before) - 1}); holding present position\n")
