@@ -416,6 +416,7 @@ def stitched_candidates(frames: Callable[..., Frames], task: Task, avoid: Avoida
     n, dof = len(task.goal_points_mm), len(lower)
     jobs: list[tuple[np.ndarray, int]] = [(np.array([0, n - 1]), n)]   # (anchors, reach)
     tracks: list[np.ndarray] = []
+    nodes: list[np.ndarray] = []      # each track's node mask, found once
     forward, iterations = np.zeros((0, n, dof)), 0
     path, rounds = None, 0
     while True:
@@ -425,8 +426,9 @@ def stitched_candidates(frames: Callable[..., Frames], task: Task, avoid: Avoida
             iterations += count
             if first is not None:
                 forward = first
+        nodes += [stitch_nodes(frames, task, avoid, t) for t in tracks[len(nodes):]]
         if tracks:
-            path = stitch(frames, task, avoid, np.concatenate(tracks))
+            path = stitch(frames, task, avoid, np.concatenate(tracks), np.concatenate(nodes))
         jumps = np.zeros(0, dtype=int) if path is None else np.flatnonzero(
             np.abs(np.diff(path, axis=0)).max(axis=1) > STITCH_MAX_STEP)
         rounds += 1
@@ -487,23 +489,35 @@ def _carry_from(frames, task, avoid: Avoidance, anchors, reach: int, lower, uppe
     return iterations, forward
 
 
-def stitch(frames: Callable[..., Frames], task: Task, avoid: Avoidance, tracks: np.ndarray
-           ) -> np.ndarray | None:
-    """The stitched path (N, dof) through the nodes of carried tracks (M, N, dof) (NaN where a
-    track does not reach), see :func:`stitched_candidates`; None when no node sequence
-    exists."""
+def stitch_nodes(frames: Callable[..., Frames], task: Task, avoid: Avoidance,
+                 tracks: np.ndarray) -> np.ndarray:
+    """(M, N) True where a carried track (M, N, dof) (NaN where it does not reach) is a node
+    of the stitch: within :data:`STITCH_REACHED` of its goal and colliding with nothing."""
     m, n, dof = tracks.shape
-    flat = np.nan_to_num(tracks.reshape(-1, dof))
-    point, rotation, _, _ = frames(flat, False)
+    reached = ~np.isnan(tracks[..., 0])
+    waypoint = np.broadcast_to(np.arange(n), (m, n))[reached]
+    poses = tracks[reached]
+    point, rotation, _, _ = frames(poses, False)
     e_point, e_rot, _, _ = errors_from_frames(
-        point, rotation, None, None, np.tile(task.goal_points_mm, (m, 1)),
-        np.tile(cast(np.ndarray, task.goal_rotations), (m, 1, 1)))
-    error = np.maximum(np.abs(e_point).max(-1), np.abs(e_rot).max(-1)).reshape(m, n)
-    node = (error < STITCH_REACHED) & ~np.isnan(tracks[..., 0])
-    free = np.zeros(m * n, dtype=bool)
-    free[node.ravel()] = avoid.model.check(flat[node.ravel()], avoid.obstacles).distances_mm \
+        point, rotation, None, None, task.goal_points_mm[waypoint],
+        cast(np.ndarray, task.goal_rotations)[waypoint])
+    close = np.maximum(np.abs(e_point).max(-1), np.abs(e_rot).max(-1)) < STITCH_REACHED
+    free = np.zeros(len(poses), dtype=bool)
+    free[close] = avoid.model.check(poses[close], avoid.obstacles).distances_mm \
         .min(axis=1, initial=np.inf) > 0
-    node &= free.reshape(m, n)
+    node = np.zeros((m, n), dtype=bool)
+    node[reached] = close & free
+    return node
+
+
+def stitch(frames: Callable[..., Frames], task: Task, avoid: Avoidance, tracks: np.ndarray,
+           node: np.ndarray | None = None) -> np.ndarray | None:
+    """The stitched path (N, dof) through the nodes of carried tracks (M, N, dof) (NaN where a
+    track does not reach; ``node``: their :func:`stitch_nodes`, found here when None), see
+    :func:`stitched_candidates`; None when no node sequence exists."""
+    m, n, dof = tracks.shape
+    if node is None:
+        node = stitch_nodes(frames, task, avoid, tracks)
     poses = np.nan_to_num(tracks).swapaxes(0, 1)                    # (N, M, dof)
     nodes = [np.flatnonzero(node[:, i]) for i in range(n)]
     if any(not len(k) for k in nodes):
