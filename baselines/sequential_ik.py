@@ -2,7 +2,8 @@
 
 Two schemes (``scheme``):
 
-- ``"track"`` (default, ``sequential-ik``; the paper's task, :mod:`ikbench.baselines._track`):
+- ``"track"`` (default, ``sequential-ik``; the paper's task,
+:mod:`ikbench.baselines._common.track`):
   pose 0 *is* the start pose and pose n the touch pose (both exactly as given); points 1..n-1 are
   solved forward, each from the pose before, towards the plan's goal point and scheduled
   pointing direction (position only when the task asks no pointing). Three additions make
@@ -78,7 +79,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, cast
 import numpy as np
 import numpy.typing as npt
 
-from ikbench.baselines._track import (
+from ikbench.baselines._common.track import (
     SCHEME_HELP,
     SCHEMES,
     plan_track,
@@ -485,7 +486,7 @@ def track_joint_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
     Raises:
         InputError: the task lacks the start or the touch pose.
     """
-    from ikbench.baselines._chain import goals_of, max_step_urdf
+    from ikbench.baselines._common.chain import goals_of, max_step_urdf
 
     require_start_and_touch(task, "sequential-ik")
     pin_fk = robot.pinocchio_fk()
@@ -588,7 +589,7 @@ def check_tasks(robot: Robot, tasks: Sequence[Task], settings: DLSSettings,
     """Fail before any solve: the walk needs a touch pose, the track a start and a touch pose
     (a pose path needs neither: it is walked forward), and frame mode an up vector that is not
     parallel to any goal direction asked (InputError naming the trajectory)."""
-    from ikbench.baselines._chain import goals_of
+    from ikbench.baselines._common.chain import goals_of
 
     pin_fk = robot.pinocchio_fk()
     for task in tasks:

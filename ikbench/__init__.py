@@ -12,8 +12,9 @@ The public API, in a few names::
 
 Poses are in the robot's units (motor degrees for NICO; joint degrees, mm for prismatic
 joints, otherwise), reports in millimetres and degrees. Names are imported on first use, so
-``import ikbench`` is quick. The module paths of ikbench 0.1 (``ikbench.task``,
-``ikbench.compare``, ...) are plain modules here that give the moved module itself.
+``import ikbench`` is quick. The layout (``core``, ``methods``, ``baselines``, ``runtime``,
+``render``, ``studies``, ``hw``, ``paper``, ``viewer``, ``cli``) and its rules:
+docs/contributing.md.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import ikbench.paper  # noqa: F401  registers the paper's report sections (nothing heavy)
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 #: public name -> module that defines it
 _EXPORTS = {

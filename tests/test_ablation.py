@@ -17,6 +17,7 @@ from ikbench.core.metrics import trajectory_metrics
 from ikbench.core.task import line_tasks
 from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.paper.ablation_claims import check_claims
+from ikbench.render.run_report import TABLE_COLUMNS
 from ikbench.studies.ablation import (
     FULL,
     SUMMARY_METRICS,
@@ -26,7 +27,6 @@ from ikbench.studies.ablation import (
     joint_interpolation_distance_deg,
     parse_drops,
 )
-from ikbench.studies.report import TABLE_COLUMNS
 from tests.conftest import register_temporarily
 
 

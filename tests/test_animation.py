@@ -13,7 +13,7 @@ from PIL import Image
 import ikbench
 from ikbench.cli import main
 from ikbench.core.task import letter_task, line_tasks
-from ikbench.studies.animation import frame_steps, write_animation
+from ikbench.render.animation import frame_steps, write_animation
 from tests.conftest import register_temporarily
 from tests.test_run_folder import Straight
 

@@ -11,7 +11,7 @@ import pytest
 from ikbench.core.robot import load_robot
 from ikbench.core.targets import load_targets
 from ikbench.core.task import line_tasks
-from ikbench.studies.arm_plots import frame_labels, plot_trajectories_3d
+from ikbench.render.arm_plots import frame_labels, plot_trajectories_3d
 
 DATA = Path(__file__).parent / "data"
 

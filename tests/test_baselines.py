@@ -18,8 +18,8 @@ import pandas as pd
 import pytest
 
 from ikbench import load_robot, load_targets
-from ikbench.baselines._chain import chain_of, poses_from_urdf, urdf_limits
-from ikbench.baselines._geometry import quaternion_xyzw, rotation_between
+from ikbench.baselines._common.chain import chain_of, poses_from_urdf, urdf_limits
+from ikbench.baselines._common.geometry import quaternion_xyzw, rotation_between
 from ikbench.cli import main
 from ikbench.core.errors import InputError, SolverError
 from ikbench.core.metrics import pointing_deviations_deg, trajectory_metrics
@@ -324,7 +324,7 @@ def test_locked_joints_are_folded_into_the_urdf_the_libraries_load(tmp_path):
     holds that motion: Pinocchio on the text agrees with the robot's own FK."""
     import pinocchio as pin
 
-    from ikbench.baselines._chain import chain_urdf_text
+    from ikbench.baselines._common.chain import chain_urdf_text
     from ikbench.core.robot import load_robot
 
     config = tmp_path / "locked.toml"

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from ikbench import load_robot
-from ikbench.baselines._collision import obstacle_shape, scene_of
+from ikbench.baselines._common.collision import obstacle_shape, scene_of
 from ikbench.core.collision import collision_model
 from ikbench.core.obstacles import box, capsule, halfspace, sphere
 from ikbench.core.task import Task
@@ -146,8 +146,8 @@ def test_drakes_geometry_is_ikbenchs(panda):
     """Drake's signed distances on the plant with collision geometry equal the checker's
     (within 0.1 mm) for a box, a sphere, a capsule and a half-space (a large box for Drake)."""
     pytest.importorskip("pydrake")
-    from ikbench.baselines._chain import chain_of
-    from ikbench.baselines._drake import drake_scene_chain
+    from ikbench.baselines._common.chain import chain_of
+    from ikbench.baselines._common.drake import drake_scene_chain
 
     obstacles = _obstacles()
     scene = scene_of(panda, obstacles)
@@ -180,8 +180,8 @@ def test_mujocos_geometry_is_ikbenchs(panda):
     checker's (within 0.1 mm)."""
     mujoco = pytest.importorskip("mujoco")
     pytest.importorskip("mink")
-    from ikbench.baselines._chain import chain_of
-    from ikbench.baselines.mink_ik import mink_scene_model
+    from ikbench.baselines._common.chain import chain_of
+    from ikbench.baselines.libraries.mink_ik import mink_scene_model
 
     obstacles = _obstacles()
     scene = scene_of(panda, obstacles)

@@ -146,7 +146,7 @@ def test_the_benchmark_command_writes_its_folder(tmp_path, capsys):
 
 
 def test_published_figures_are_labelled_and_never_estimated():
-    from ikbench.studies.cartesian_report import published_table
+    from ikbench.render.cartesian_report import published_table
 
     table = published_table(["fetch_arm__hello", "fetch__hello", "panda__square"])
     row = table.set_index("problem")

@@ -14,9 +14,9 @@ import pytest
 from ikbench.core.collision import collision_model
 from ikbench.core.obstacles import box, halfspace, sphere
 from ikbench.core.problems import load_problem
-from ikbench.studies.animation import render_frames
-from ikbench.studies.arm_plots import BOX_FACES, box_corners, colliding_waypoints
-from ikbench.studies.pose_paths import plot_pose_path, reached
+from ikbench.render.animation import render_frames
+from ikbench.render.arm_plots import BOX_FACES, box_corners, colliding_waypoints
+from ikbench.render.pose_paths import plot_pose_path, reached
 
 
 @cache

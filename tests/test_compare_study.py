@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import ikbench
 from ikbench.cli import main
 from ikbench.core.contract import contract_for, judge
 from ikbench.core.metrics import contract_metrics
@@ -22,8 +23,8 @@ from ikbench.core.task import line_tasks
 from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.methods import registry
 from ikbench.methods.base import Solution, option
+from ikbench.render.leaderboard import fmt
 from ikbench.studies.compare import COLUMNS, CONTRACT_METRICS, compare
-from ikbench.studies.compare_report import fmt
 from tests.conftest import register_temporarily
 from tests.test_run_folder import Straight
 
@@ -118,7 +119,7 @@ def test_compare_judges_every_method_by_the_contract_from_the_csvs(tmp_path, rob
     assert contract.describe(6, "motor deg") in text  # the contract above its table
     assert "does not honour: start pose" in text
     record = json.loads((root / "run.json").read_text())
-    assert record["repeat"] == 2 and record["libraries"] == {"ikbench": "0.2.0"}
+    assert record["repeat"] == 2 and record["libraries"] == {"ikbench": ikbench.__version__}
     assert record["contract"]["tolerances"] == contract.to_dict()["tolerances"]
     assert (root / "pareto.png").stat().st_size > 0
     sweep = pd.read_csv(root / "pareto_sweep.csv")

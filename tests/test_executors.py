@@ -12,9 +12,9 @@ import pytest
 
 from ikbench.cli import main
 from ikbench.core.errors import InputError
+from ikbench.runtime.executors import LocalExecutor, check_executor, get_executor, split
 from ikbench.studies.batch import check_seed, run_batch
 from ikbench.studies.dataset import shard_path
-from ikbench.studies.executors import LocalExecutor, check_executor, get_executor, split
 
 
 def test_split_is_contiguous_ordered_and_balanced():

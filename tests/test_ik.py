@@ -9,8 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from ikbench.baselines._chain import chain_of
-from ikbench.baselines.single_pose import SOLVERS, PoseOut, PoseSolver
+from ikbench.baselines._common.chain import chain_of
+from ikbench.baselines._common.single_pose import SOLVERS, PoseOut, PoseSolver
 from ikbench.cli import main
 from ikbench.core.errors import InputError
 from ikbench.core.robot import load_robot

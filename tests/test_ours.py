@@ -15,7 +15,7 @@ from ikbench.core.losses import PAPER_WEIGHTS, objective, parse_terms, parse_wei
 from ikbench.core.task import line_task
 from ikbench.core.trajectory import trajectory_columns
 from ikbench.methods.ours import AdamSettings, Ours, initial_logits, optimise
-from ikbench.studies.report import TABLE_COLUMNS
+from ikbench.render.run_report import TABLE_COLUMNS
 from tests.conftest import PAPER_START
 from tests.test_kinematics import paper_fk_cm
 

@@ -28,8 +28,17 @@ SOURCES = ("pyproject.toml", "README.md", "LICENSE", "ikbench", "baselines", "ur
 def package_dirs() -> dict[str, Path]:
     """Dotted name -> folder of every listed package (``package-dir`` applied)."""
     mapped = SETUPTOOLS.get("package-dir", {})
-    return {name: REPO / mapped.get(name, name.replace(".", "/"))
-            for name in SETUPTOOLS["packages"]}
+
+    def folder(name: str) -> Path:
+        # setuptools maps a package under a mapped parent into the parent's folder
+        parts = name.split(".")
+        for k in range(len(parts), 0, -1):
+            parent = ".".join(parts[:k])
+            if parent in mapped:
+                return REPO.joinpath(mapped[parent], *parts[k:])
+        return REPO.joinpath(*parts)
+
+    return {name: folder(name) for name in SETUPTOOLS["packages"]}
 
 
 def folders_with_python(root: Path):
@@ -96,7 +105,7 @@ def test_the_wheel_installs_no_top_level_package_but_ikbench(tmp_path):
     shipped = {n for n in names if n.endswith(".py")}
     expected = {f"{name.replace('.', '/')}/{path.name}"
                 for name, folder in package_dirs().items() for path in folder.glob("*.py")}
-    assert "ikbench/baselines/trac_ik.py" in expected
+    assert "ikbench/baselines/libraries/trac_ik.py" in expected
     assert shipped == expected
 
 

@@ -7,7 +7,7 @@ import subprocess
 
 import pytest
 
-from ikbench import provenance
+from ikbench.core import provenance
 
 
 @pytest.fixture()

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from ikbench.paper.comparison import BASELINE, OURS, evaluate_runs, load_runs
-from ikbench.studies.report import TABLE_COLUMNS
+from ikbench.render.run_report import TABLE_COLUMNS
 from tests.conftest import REPO
 
 RESULTS = REPO / "results"
@@ -103,7 +103,7 @@ def test_committed_comparison_is_reproduced_from_its_trajectories():
 
 
 def test_readme_compare_table_is_generated_from_the_committed_leaderboard():
-    from ikbench.studies.compare_report import README_MARKERS, readme_table
+    from ikbench.render.leaderboard import README_MARKERS, readme_table
 
     board = pd.read_csv(RESULTS / "compare" / "leaderboard.csv")
     text = (RESULTS.parent / "README.md").read_text()
@@ -132,7 +132,7 @@ def test_readme_command_writes_its_compare_table_from_the_committed_leaderboard(
     import subprocess
     import sys
 
-    from ikbench.studies.compare_report import README_MARKERS
+    from ikbench.render.leaderboard import README_MARKERS
 
     text = (REPO / "README.md").read_text(encoding="utf-8")
     argv = shlex.split(readme_table_command(text))
@@ -154,7 +154,7 @@ def test_readme_states_no_measured_figure_outside_its_generated_table():
     links to the results (a retyped figure would drift from them)."""
     import re
 
-    from ikbench.studies.compare_report import README_MARKERS
+    from ikbench.render.leaderboard import README_MARKERS
 
     text = (REPO / "README.md").read_text(encoding="utf-8")
     start, end = README_MARKERS

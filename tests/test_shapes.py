@@ -253,7 +253,7 @@ def test_cli_spline_run_writes_shape_outputs(robot, tmp_path, capsys):
     import pandas as pd
 
     from ikbench.cli import main
-    from ikbench.studies.report import SHAPE_TABLE_COLUMNS
+    from ikbench.render.run_report import SHAPE_TABLE_COLUMNS
 
     tip = robot.fk(PAPER_START).point_mm[0]
     control = tip + np.array([[0, 0, 0], [0, -40, 30], [0, -80, 0], [0, -120, 30.0]])

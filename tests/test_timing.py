@@ -237,7 +237,7 @@ def test_limits_of_a_robot_without_a_stated_acceleration_say_so():
 @needs_toppra
 def test_viewer_and_animation_play_the_chosen_timing(tmp_path):
     from ikbench.core.task import line_tasks
-    from ikbench.studies.animation import render_frames
+    from ikbench.render.animation import render_frames
     from ikbench.viewer.folders import load_runs
 
     robot, runs = load_runs([REPO / "results" / "ours"])

@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from ikbench import load_robot, load_targets
-from ikbench.baselines import pyroki_trajopt
-from ikbench.baselines._chain import contract_step, goals_of
-from ikbench.baselines.drake_ik import pose_metric
-from ikbench.baselines.pyroki_trajopt import pointing_weights
+from ikbench.baselines._common.chain import contract_step, goals_of
+from ikbench.baselines.libraries import pyroki_trajopt
+from ikbench.baselines.libraries.drake_ik import pose_metric
+from ikbench.baselines.libraries.pyroki_trajopt import pointing_weights
 from ikbench.core.contract import contract_for, judge
 from ikbench.core.metrics import contract_metrics
 from ikbench.core.task import line_task, line_tasks

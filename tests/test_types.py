@@ -1,6 +1,6 @@
 """Every layer type-checks (mypy over ikbench/ and baselines/, configured in pyproject.toml),
 the package says so (py.typed), ``Method`` is abstract, and the module paths of ikbench 0.1
-are plain modules (no import hook)."""
+are retired."""
 
 from __future__ import annotations
 
@@ -14,16 +14,11 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 
-#: Module path of ikbench 0.1 -> the module it is now.
-MOVED = {
-    **{f"ikbench.{m}": f"ikbench.core.{m}" for m in (
-        "errors", "io", "provenance", "robot", "kinematics", "task", "shapes", "letters",
-        "targets", "losses", "metrics", "trajectory")},
-    **{f"ikbench.{m}": f"ikbench.studies.{m}" for m in (
-        "run", "report", "ablation", "sweep", "bench", "batch")},
-    "ikbench.compare": "ikbench.paper.comparison", "ikbench.reproduce": "ikbench.paper.reproduce",
-    "ikbench.commands": "ikbench.cli.commands",
-}
+#: Module paths of ikbench 0.1, kept by shims until 0.3.0.
+RETIRED = [f"ikbench.{m}" for m in (
+    "errors", "io", "provenance", "robot", "kinematics", "task", "shapes", "letters", "targets",
+    "losses", "metrics", "trajectory", "run", "report", "ablation", "sweep", "bench", "batch",
+    "compare", "reproduce", "commands")]
 
 
 @pytest.mark.skipif(shutil.which("mypy") is None and not (Path(sys.executable).parent / "mypy")
@@ -67,23 +62,18 @@ def test_method_is_abstract():
         cls()
 
 
-def test_old_module_paths_give_the_moved_module():
-    # in a fresh interpreter: ``import ikbench.run`` binds ``ikbench.run`` to the module (as
-    # the import hook of 0.1 did), which would shadow the function ``ikbench.run`` here
-    code = ("import importlib, sys; moved = dict(a.split('=') for a in sys.argv[1:]); "
-            "bad = [o for o, n in moved.items() "
-            "if importlib.import_module(o) is not importlib.import_module(n)]; "
-            "assert not bad, bad")
-    proc = subprocess.run([sys.executable, "-c", code, *(f"{o}={n}" for o, n in MOVED.items())],
-                          cwd=REPO, capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stderr
-
-
-def test_no_import_hook():
-    code = ("import sys; before = list(sys.meta_path); import ikbench, ikbench.compare; "
-            "from ikbench.compare import compare; import ikbench.paper.comparison as c; "
-            "assert ikbench.compare is c and compare is c.compare; "
-            "assert sys.meta_path == before, sys.meta_path")
-    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
-                          text=True)
+def test_the_retired_module_paths_are_gone():
+    """The 0.1 module paths (``ikbench.run``, ``ikbench.compare``, ...) were retired in 0.3.0
+    (CHANGELOG): only ``__init__`` and ``__main__`` stand at the package root, and the public
+    names are attributes of ``ikbench`` (``ikbench.run`` is the function)."""
+    root = sorted(p.name for p in (REPO / "ikbench").glob("*.py"))
+    assert root == ["__init__.py", "__main__.py"], root
+    code = ("import importlib, sys, ikbench; missing = []\n"
+            "for old in sys.argv[1:]:\n"
+            "    try: importlib.import_module(old)\n"
+            "    except ModuleNotFoundError: missing.append(old)\n"
+            "assert missing == sys.argv[1:], set(sys.argv[1:]) - set(missing)\n"
+            "assert callable(ikbench.run) and not hasattr(ikbench.run, '__path__')")
+    proc = subprocess.run([sys.executable, "-c", code, *RETIRED], cwd=REPO,
+                          capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr

@@ -16,7 +16,7 @@ from ikbench.core.errors import InputError
 from ikbench.core.obstacles import box, sphere
 from ikbench.core.problems import load_problem
 from ikbench.core.task import Task
-from ikbench.studies.arm_plots import colliding_waypoints
+from ikbench.render.arm_plots import colliding_waypoints
 from ikbench.studies.run import obstacles_record
 from ikbench.viewer.folders import load_runs
 

@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from ikbench.core.robot import Robot
     from ikbench.core.targets import Targets
     from ikbench.methods.base import Method
-    from ikbench.studies.executors import Executor
+    from ikbench.runtime.executors import Executor
 
 #: A method class's own type (method_from_args returns an instance of the class it gets).
 M = TypeVar("M", bound="Method")
@@ -171,13 +171,13 @@ def add_executor_arguments(parser: argparse.ArgumentParser) -> None:
 
 def check_executor_args(args: argparse.Namespace) -> None:
     """Validate ``--executor`` / ``--ray-address`` (no heavy imports; Ray not started)."""
-    from ikbench.studies.executors import check_executor
+    from ikbench.runtime.executors import check_executor
 
     check_executor(args.executor, args.ray_address)
 
 
 def executor_from_args(args: argparse.Namespace) -> Executor:
     """The executor of ``--executor`` / ``--ray-address`` (starts or joins Ray)."""
-    from ikbench.studies.executors import get_executor
+    from ikbench.runtime.executors import get_executor
 
     return get_executor(args.executor, args.ray_address)

@@ -56,14 +56,17 @@ BUILTIN = (
     Entry("sequential-ik", "ikbench.baselines.sequential_ik:SequentialIK", ("pinocchio",)),
     Entry("sequential-ik-walk", "ikbench.baselines.sequential_ik:SequentialIKWalk", ("pinocchio",)),
     # other kinematics libraries (baselines/, installed with the [libs] extra)
-    Entry("ikpy", "ikbench.baselines.ikpy_ik:IkpyIK", ("ikpy",)),
-    Entry("ikpy-walk", "ikbench.baselines.ikpy_ik:IkpyWalk", ("ikpy",)),
-    Entry("pink", "ikbench.baselines.pink_ik:PinkIK", ("pink", "qpsolvers", "daqp")),
-    Entry("trac-ik", "ikbench.baselines.trac_ik:TracIK", ("pytracik",)),
-    Entry("mink", "ikbench.baselines.mink_ik:MinkIK", ("mink", "mujoco", "qpsolvers", "daqp")),
-    Entry("drake-ik", "ikbench.baselines.drake_ik:DrakeIK", ("pydrake",)),
-    Entry("drake-trajopt", "ikbench.baselines.drake_trajopt:DrakeTrajopt", ("pydrake",)),
-    Entry("pyroki", "ikbench.baselines.pyroki_trajopt:PyrokiTrajopt", ("pyroki", "jax", "jaxls")),
+    Entry("ikpy", "ikbench.baselines.libraries.ikpy_ik:IkpyIK", ("ikpy",)),
+    Entry("ikpy-walk", "ikbench.baselines.libraries.ikpy_ik:IkpyWalk", ("ikpy",)),
+    Entry("pink", "ikbench.baselines.libraries.pink_ik:PinkIK", ("pink", "qpsolvers", "daqp")),
+    Entry("trac-ik", "ikbench.baselines.libraries.trac_ik:TracIK", ("pytracik",)),
+    Entry("mink", "ikbench.baselines.libraries.mink_ik:MinkIK",
+          ("mink", "mujoco", "qpsolvers", "daqp")),
+    Entry("drake-ik", "ikbench.baselines.libraries.drake_ik:DrakeIK", ("pydrake",)),
+    Entry("drake-trajopt", "ikbench.baselines.libraries.drake_trajopt:DrakeTrajopt",
+          ("pydrake",)),
+    Entry("pyroki", "ikbench.baselines.libraries.pyroki_trajopt:PyrokiTrajopt",
+          ("pyroki", "jax", "jaxls")),
 )
 
 

@@ -6,11 +6,11 @@ reports (Table 1 beside ``ours`` on the paper's targets, Table 2 beside the base
 ablation claims), lazily, without importing anything heavy.
 """
 
-from ikbench.studies.sections import add_report_section
+from ikbench.render.sections import add_report_section
 
 
 def _run_section(**context) -> list[str]:
-    from ikbench.paper.sections import run_section
+    from ikbench.paper.report_tables import run_section
 
     return run_section(**context)
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import pandas as pd
 
+from ikbench.render.run_report import markdown_table
 from ikbench.studies.ablation import FULL, VariantMeans
-from ikbench.studies.report import markdown_table
 
 #: A figure this many times the full loss's is "devastating".
 DEVASTATING_FACTOR = 10.0

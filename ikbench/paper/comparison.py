@@ -42,7 +42,7 @@ from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_savefig, atomic_write_text
 from ikbench.core.metrics import pointing_deviations_deg, trajectory_metrics
 from ikbench.paper.values import PAPER_STEPS, accuracy_beside_paper, paper_values
-from ikbench.studies.report import markdown_table
+from ikbench.render.run_report import markdown_table
 from ikbench.studies.run import RESERVED_NAMES, robot_from_record
 
 if TYPE_CHECKING:
@@ -780,7 +780,7 @@ def table2_task_line(scheme: str | None) -> str:
 def plot_pointing_per_step(deviations: dict[tuple[str, str], np.ndarray], tasks: Sequence[Task],
                            methods: list[str]) -> Figure:
     """Pointing deviation [deg] per step, one panel per trajectory, one line per method."""
-    from ikbench.studies.report import _matplotlib
+    from ikbench.render.run_report import _matplotlib
 
     plt = _matplotlib()
     cols = min(4, len(tasks))

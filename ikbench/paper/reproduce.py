@@ -47,8 +47,8 @@ from ikbench.core.provenance import provenance
 from ikbench.methods.registry import get_method, method_status
 from ikbench.paper.ablation_claims import check_claims, claims_table
 from ikbench.paper.values import paper_values, table1_comparison
+from ikbench.render.run_report import markdown_table
 from ikbench.studies.ablation import FULL, SUMMARY_METRICS, ablate
-from ikbench.studies.report import markdown_table
 from ikbench.studies.run import run
 
 DEFAULT_OUTPUT = "results"

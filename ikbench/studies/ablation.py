@@ -52,9 +52,10 @@ from ikbench.core.trajectory import (
 )
 from ikbench.methods.base import Method
 from ikbench.methods.registry import available_methods, get_method
-from ikbench.studies.harness import Progress, solve_tasks
-from ikbench.studies.report import TABLE_COLUMNS, _matplotlib, markdown_table, report_sections
-from ikbench.studies.run import DEFAULT_OUTPUT, TRAJECTORY_FILE, evaluate, robot_record
+from ikbench.render.run_report import TABLE_COLUMNS, _matplotlib, markdown_table, report_sections
+from ikbench.runtime.harness import Progress, solve_tasks
+from ikbench.runtime.record import TRAJECTORY_FILE
+from ikbench.studies.run import DEFAULT_OUTPUT, evaluate, robot_record
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -65,7 +66,8 @@ EACH = "each"
 FULL = "full"
 #: The folder names of variants (:attr:`Variant.name`): ``full``, ``no-L1``, ``no-L2-L5``...
 VARIANT_FOLDER = re.compile(r"full|no-L[0-9](-L[0-9])*")
-#: Columns of table.csv after ``variant, dropped`` and :data:`ikbench.studies.report.TABLE_COLUMNS`.
+#: Columns of table.csv after ``variant, dropped`` and
+# :data:`ikbench.render.run_report.TABLE_COLUMNS`.
 EXTRA_COLUMNS = ["converged", "hit_cap", "paper_loss", "mean_sq_joint_step_deg2",
                  "max_joint_step_deg", "mean_sq_jerk_deg2", "velocity_sign_changes",
                  "joint_interpolation_distance_deg"]

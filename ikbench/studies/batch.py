@@ -42,9 +42,9 @@ from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import line_task
-from ikbench.studies.executors import Executor, LocalExecutor
-from ikbench.studies.parallel import solve_parts
-from ikbench.studies.report import markdown_table
+from ikbench.render.run_report import markdown_table
+from ikbench.runtime.executors import Executor, LocalExecutor
+from ikbench.runtime.parallel import solve_parts
 
 if TYPE_CHECKING:
     from ikbench.core.task import Task
@@ -208,7 +208,7 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
         line_tolerance_mm / end_tolerance_mm: the tolerance: mean line distance and end point
             error below these.
         progress: progress lines on stderr.
-        executor: where the solves and metrics run (:mod:`ikbench.studies.executors`;
+        executor: where the solves and metrics run (:mod:`ikbench.runtime.executors`;
             default: one batched call per setting in this process); the per-trajectory
             numbers do not depend on it.
     """

@@ -35,7 +35,7 @@ from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import line_tasks
 from ikbench.methods.registry import get_method
-from ikbench.studies.report import markdown_table
+from ikbench.render.run_report import markdown_table
 
 if TYPE_CHECKING:
     from ikbench.core.task import Task

@@ -29,7 +29,7 @@ from ikbench.core.metrics import frame_metrics
 from ikbench.core.problems import BENCHMARK, load_problem, resolve_problems
 from ikbench.methods.base import Method
 from ikbench.methods.registry import available_methods, get_method
-from ikbench.studies.harness import Outcome, Progress, solve_tasks
+from ikbench.runtime.harness import Outcome, Progress, solve_tasks
 
 DEFAULT_SEEDS = (1, 2, 3)
 #: Seeds are integers in [0, 2^63) (numpy's and torch's generators).
@@ -198,38 +198,10 @@ def _row(problem, robot, task, method, seed, outcome) -> dict:
             "time_to_valid_s": outcome.wall_s if metrics["valid"] else np.nan}
 
 
-def summarise(table: pd.DataFrame) -> pd.DataFrame:
-    """One row per problem x method: runs, valid runs, the median (and range) time to a valid
-    solution over the valid runs, the worst errors and joint change, the median path length."""
-    rows = []
-    for (problem, method), group in table.groupby(["problem", "method"], sort=False):
-        valid = group[group["valid"].astype(bool)]
-        times = valid["time_to_valid_s"]
-        rows.append({
-            "problem": problem, "method": method, "runs": len(group), "valid_runs": len(valid),
-            "time_to_valid_median_s": times.median() if len(valid) else np.nan,
-            "time_to_valid_min_s": times.min() if len(valid) else np.nan,
-            "time_to_valid_max_s": times.max() if len(valid) else np.nan,
-            "position_error_max_mm": group["position_error_max_mm"].max(),
-            "rotation_error_max_deg": group["rotation_error_max_deg"].max(),
-            "max_joint_change_deg": group["max_joint_change_deg"].max(),
-            "max_joint_change_mm": group["max_joint_change_mm"].max(),
-            "joint_path_length_median_deg": group["joint_path_length_deg"].median(),
-            "env_collision_runs": int((group["env_collisions"].fillna(0) > 0).sum()),
-            "self_collision_runs": int((group["self_collisions"].fillna(0) > 0).sum()),
-            "min_clearance_median_mm": group["min_clearance_mm"].median(),
-            "avoids_obstacles": bool(group["avoids_obstacles"].iloc[0]),
-            "failed_criteria": ", ".join(sorted({c for text in group["failed_criteria"]
-                                                 .fillna("") for c in str(text).split(",")
-                                                 if c})),
-        })
-    return pd.DataFrame(rows)
-
-
 def write(result: CartesianResult, output: str | Path, command: str = "",
           trajectories: str = "first") -> Path:
     """Write ``OUTPUT/cartesian/`` whole (see :mod:`.cartesian_report`); return the folder.
     ``trajectories``: ``first`` (the first seed's trajectory CSVs) or ``all``."""
-    from ikbench.studies.cartesian_report import write_folder
+    from ikbench.render.cartesian_report import write_folder
 
     return write_folder(result, Path(output) / FOLDER, command, trajectories)

@@ -3,7 +3,7 @@
 Every method receives the same line tasks with the same :class:`~ikbench.core.contract.
 Contract` (``Task.contract``): fixed start and touch poses, the line, pointing over its judged
 part, the speed limits, the tolerances. :func:`compare` solves each task alone ``repeat``
-times per method through the study harness (:mod:`ikbench.studies.harness`: its clock,
+times per method through the study harness (:mod:`ikbench.runtime.harness`: its clock,
 failures kept as rows); a method that batches (ours-lm) also solves all tasks in one call per
 round, and that share is its own column. Each method's last repetition is written as a run
 folder (``DIR/compare/<method>/``, as ``ikbench run`` writes it), and every criterion is
@@ -25,7 +25,7 @@ and the tables are exactly those of an obstacle-free comparison.
 Output ``DIR/compare/``: ``results.csv`` (long form: one row per method, robot, task and
 trajectory, one ``ok_<criterion>`` column per criterion, ``success`` for the paper's track and
 ``success_touch`` for the touch-pose-only track), ``leaderboard.md`` / ``leaderboard.csv``
-(one table per track, :mod:`ikbench.studies.compare_report`), ``pareto.png`` (with ours-lm's
+(one table per track, :mod:`ikbench.render.leaderboard`), ``pareto.png`` (with ours-lm's
 weight sweep, ``pareto_sweep.csv``), ``run.json`` (the contract, settings, library versions,
 machine) and the per-method folders.
 """
@@ -59,8 +59,8 @@ from ikbench.core.task import Task, line_tasks
 from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.methods.base import Method
 from ikbench.methods.registry import method_status
-from ikbench.studies.executors import Executor, LocalExecutor, portable_robot
-from ikbench.studies.harness import Outcome, Progress, describe, solve_tasks
+from ikbench.runtime.executors import Executor, LocalExecutor, portable_robot
+from ikbench.runtime.harness import Outcome, Progress, describe, solve_tasks
 from ikbench.studies.run import write_run
 
 #: The default tolerances (kept under their old name; the contract states them).
@@ -192,7 +192,7 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
             else the first method).
         progress: progress lines on stderr.
         solvers: configured methods by name, replacing the defaults.
-        executor: where the methods run (:mod:`ikbench.studies.executors`; default this
+        executor: where the methods run (:mod:`ikbench.runtime.executors`; default this
             process). Compare times only from runs with one method per machine at a time.
         contract: the task contract (default :func:`ikbench.core.contract.contract_for` the
             robot with ``tolerances``, ``pointing`` and ``duration_s``).
@@ -208,7 +208,7 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
         A :class:`CompareResult`.
 
     Raises:
-        ikbench.studies.harness.Interrupted: Ctrl-C while solving (nothing written).
+        ikbench.runtime.harness.Interrupted: Ctrl-C while solving (nothing written).
     """
     names = parse_methods(methods)
     repeat = check_repeat(repeat)
@@ -225,7 +225,7 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
                                        executor, warmup, repeat, log)
     sweep_frame = (ours_lm_sweep(robot, tasks, contract, solvers or {})
                    if sweep and "ours-lm" in built else None)
-    from ikbench.studies import compare_report as report
+    from ikbench.render import leaderboard as report
 
     record = _record(names, reference, repeat, warmup, robot, targets, contract, built, rows)
     results = pd.DataFrame(rows)
@@ -306,7 +306,7 @@ def _write_tables(folder: Path, results: pd.DataFrame, board: pd.DataFrame, reco
                   contract: Contract, sweep_frame: pd.DataFrame | None) -> None:
     """Write results.csv, leaderboard.csv / .md, pareto_sweep.csv (with a sweep), pareto.png
     and run.json into ``folder`` (the method folders are :func:`measure`'s)."""
-    from ikbench.studies import compare_report as report
+    from ikbench.render import leaderboard as report
 
     atomic_write_csv(folder / "results.csv", results, float_format="%.10g")
     atomic_write_csv(folder / "leaderboard.csv", board, float_format="%.6g")

@@ -46,6 +46,8 @@ from ikbench.core.losses import TERMS, parse_weights
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
+from ikbench.runtime.executors import SCALE_EXTRA, Executor, LocalExecutor, portable_robot
+from ikbench.runtime.parallel import gpus_for
 from ikbench.studies.batch import WorkspaceFilter, check_seed
 from ikbench.studies.dataset_shard import (
     FORMAT,
@@ -55,8 +57,6 @@ from ikbench.studies.dataset_shard import (
     build_shard,
     pipelined,
 )
-from ikbench.studies.executors import SCALE_EXTRA, Executor, LocalExecutor, portable_robot
-from ikbench.studies.parallel import gpus_for
 
 if TYPE_CHECKING:
     from ikbench.methods.ours_lm.solver import LMSettings

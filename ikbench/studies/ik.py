@@ -5,9 +5,9 @@ configurations drawn uniformly within the joint limits (continuous joints: +-180
 so every target is reachable. Each method starts from a stated initial pose: ``random`` (drawn
 uniformly, seeded, independent of the target) or ``nearby`` (the target's own configuration
 moved by up to ``perturb_deg`` per joint, the tracking case). Every library solves the same
-targets from the same initial poses (:mod:`ikbench.baselines.single_pose`), one call per target
-timed here with ``time.perf_counter`` around the call (set-up untimed), an exception being a failed
-row; a batched method solves all targets in one call and each target gets its share of the
+targets from the same initial poses (:mod:`ikbench.baselines._common.single_pose`), one call per
+target timed here with ``time.perf_counter`` around the call (set-up untimed), an exception being a
+failed row; a batched method solves all targets in one call and each target gets its share of the
 time (``batched_time_per_ik_s``). Success is judged here, never taken from the library: FK of
 the answer through Pinocchio within ``tolerance_mm`` and ``tolerance_deg`` (position only for
 ``kind="position"``) and within the joint limits.
@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Iterable, Sequence
-from dataclasses import asdict, dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -29,7 +29,7 @@ import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError
-from ikbench.studies.harness import Progress, describe
+from ikbench.runtime.harness import Progress, describe
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -128,7 +128,7 @@ def check_memory(count: int, methods: int) -> None:
 def parse_methods(text: str | Sequence[str] | None, kind: str = "pose") -> list[str]:
     """Method names (comma-separated or a list); None: every installed one that takes
     ``kind`` targets. InputError for unknown, missing or unsuitable ones."""
-    from ikbench.baselines.single_pose import SOLVERS
+    from ikbench.baselines._common.single_pose import SOLVERS
 
     if text is None:
         return [n for n, c in SOLVERS.items() if c.available() and kind in c.kinds]
@@ -196,7 +196,7 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
         methods: method names; None: every installed one (:func:`parse_methods`).
         progress: progress lines on stderr.
     """
-    from ikbench.baselines.single_pose import SOLVERS
+    from ikbench.baselines._common.single_pose import SOLVERS
 
     started = time.perf_counter()
     load = load_average()
@@ -293,51 +293,6 @@ def _rows(robot, name, targets, count, settings, poses, times, iterations, libra
         "iterations": iterations})
 
 
-def summarise(table: pd.DataFrame) -> pd.DataFrame:
-    """One row per method: targets, successes, success %, per-IK time median / p95 / max
-    [ms] (batched methods: their share, in their own column), errors of the successes,
-    joint distance, iterations, failed calls."""
-    rows = []
-    for method, g in table.groupby("method", sort=False):
-        ok = g[g["success"].astype(bool)]
-        batched = bool(np.isfinite(g["batched_time_per_ik_s"]).any())
-        times = g["time_s"] * 1000.0
-        rows.append({
-            "method": method, "targets": len(g), "solved": len(ok),
-            "success_pct": 100.0 * len(ok) / len(g),
-            "time_median_ms": np.nan if batched else times.median(),
-            "time_p95_ms": np.nan if batched else times.quantile(0.95),
-            "time_max_ms": np.nan if batched else times.max(),
-            "batched_time_per_ik_ms": g["batched_time_per_ik_s"].iloc[0] * 1000.0
-            if batched else np.nan,
-            "position_error_median_mm": ok["position_error_mm"].median(),
-            "rotation_error_median_deg": ok["rotation_error_deg"].median(),
-            "joint_distance_median_deg": ok["joint_distance_deg"].median(),
-            "iterations_median": g["iterations"].median(),
-            "failed_calls": int((g["failure"].fillna("") != "").sum()),
-        })
-    return pd.DataFrame(rows)
-
-
-def success_curve(table: pd.DataFrame, kind: str, ratio_deg_per_mm: float,
-                  tolerances_mm: Iterable[float]) -> pd.DataFrame:
-    """Success rate [%] per method at each position tolerance (rotation tolerance scaled
-    alike: ``ratio_deg_per_mm`` x it), within the limits; one column per method."""
-    out = {}
-    for method, g in table.groupby("method", sort=False):
-        p = g["position_error_mm"].to_numpy()
-        r = g["rotation_error_deg"].to_numpy()
-        inside = g["within_limits"].to_numpy(dtype=bool)
-        rates = []
-        for tol in tolerances_mm:
-            ok = inside & (p <= tol)
-            if kind == "pose":
-                ok &= r <= tol * ratio_deg_per_mm
-            rates.append(100.0 * ok.mean())
-        out[method] = rates
-    return pd.DataFrame(out, index=pd.Index(list(tolerances_mm), name="tolerance_mm"))
-
-
 def load_average() -> tuple | None:
     """The machine's 1, 5 and 15 min load averages (other jobs slow every timing), or None
     where the platform has none."""
@@ -356,11 +311,6 @@ def write(result: IKResult, output: str | Path, command: str = "") -> Path:
     """Write ``OUTPUT/ik/<robot>/`` whole (:mod:`.ik_report`); return the folder."""
     from pathlib import Path
 
-    from ikbench.studies.ik_report import write_folder
+    from ikbench.render.ik_report import write_folder
 
     return write_folder(result, Path(output) / FOLDER / robot_slug(result.robot), command)
-
-
-def settings_record(settings: IKSettings) -> dict:
-    """The settings as a JSON-able dict."""
-    return asdict(settings)

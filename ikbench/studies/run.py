@@ -6,7 +6,7 @@ Output layout under ``output/<name>/`` (``name`` defaults to the method's name, 
 solver figures, failures), ``run.json`` (method, robot, settings, versions, the files
 written, the tasks' obstacles where they have any: :func:`obstacles_record`),
 ``trajectories_3d.png``, ``pointing_error.png``, ``animation.gif`` (the arm playing every
-trajectory, :mod:`ikbench.studies.animation`; ``animation=False`` skips it) and ``report.md``.
+trajectory, :mod:`ikbench.render.animation`; ``animation=False`` skips it) and ``report.md``.
 
 The folder is replaced whole or not at all (:func:`ikbench.core.io.staged_folder`): files
 an earlier run wrote there and this one does not are gone, files it did not write (notes,
@@ -23,7 +23,6 @@ figure is ``shapes.png``.
 from __future__ import annotations
 
 import json
-import re
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -53,9 +52,8 @@ from ikbench.core.trajectory import (
 )
 from ikbench.methods.base import Method
 from ikbench.methods.registry import get_method
-from ikbench.studies.animation import ANIMATION_FILE, write_animation
-from ikbench.studies.harness import Interrupted, Outcome, Progress, solve_tasks
-from ikbench.studies.report import (
+from ikbench.render.animation import write_animation
+from ikbench.render.run_report import (
     FRAME_TABLE_COLUMNS,
     SHAPE_TABLE_COLUMNS,
     TABLE_COLUMNS,
@@ -65,6 +63,8 @@ from ikbench.studies.report import (
     plot_trajectories_3d,
     report_sections,
 )
+from ikbench.runtime.harness import Interrupted, Outcome, Progress, solve_tasks
+from ikbench.runtime.record import ANIMATION_FILE, RUN_FILES, files_written_by
 
 if TYPE_CHECKING:
     from ikbench.core.problems import CartesianProblem
@@ -74,14 +74,6 @@ DEFAULT_OUTPUT = "runs"
 #: Folders other commands write into an output directory; no method run may take them.
 RESERVED_NAMES = ("ablation", "sweep", "batch", "letters", "compare", "cartesian", "dataset",
                   "scale")
-#: A trajectory CSV that a run writes (``trajectory_<id>.csv``).
-TRAJECTORY_FILE = re.compile(r"trajectory_(.+)\.csv")
-#: The files every run folder holds besides its trajectories and figures.
-RUN_FILES = ("table.csv", "details.csv", "run.json", "report.md")
-#: Figures a run may write (older runs' too).
-RUN_FIGURES = ("trajectories_3d.png", "pointing_error.png", "shapes.png", ANIMATION_FILE)
-
-
 def check_name(name: str) -> str:
     """``name`` if it can name a run's folder; InputError naming what is allowed otherwise.
 
@@ -97,28 +89,13 @@ def check_name(name: str) -> str:
     return name
 
 
-def files_written_by(folder: Path) -> set[str]:
-    """The files (relative names) the run in ``folder`` wrote, from its run.json: the
-    ``files`` list, or for older runs the standard files and its trajectories' CSVs."""
-    try:
-        record = json.loads((Path(folder) / "run.json").read_text())
-    except (OSError, ValueError):
-        return set()
-    if not isinstance(record, dict):
-        return set()
-    if isinstance(record.get("files"), list):
-        return {str(f) for f in record["files"]}
-    ids = record.get("trajectories") or []
-    return {*RUN_FILES, *RUN_FIGURES, *(f"trajectory_{i}.csv" for i in ids)}
-
-
 def evaluate(robot: Robot, outcomes: Sequence[Outcome], method_dir: Path, method_name: str
              ) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, np.ndarray]]:
     """Metrics of the written trajectories: returns (table, details, points_by_id).
 
     Line tasks get :func:`ikbench.core.metrics.trajectory_metrics` and the Table 1/2 columns;
     tasks with a target curve :func:`ikbench.core.metrics.shape_metrics` and
-    :data:`ikbench.studies.report.SHAPE_TABLE_COLUMNS`. A failed solve gets a row of NaN and
+    :data:`ikbench.render.run_report.SHAPE_TABLE_COLUMNS`. A failed solve gets a row of NaN and
     its failure in details.
     """
     shaped = any(o.task.curve is not None for o in outcomes)
@@ -308,8 +285,8 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
             (:mod:`ikbench.core.timing`; the trajectory files are not retimed).
 
     Returns:
-        The table (one row per trajectory, columns :data:`ikbench.studies.report.TABLE_COLUMNS`,
-        or :data:`ikbench.studies.report.SHAPE_TABLE_COLUMNS` for shapes other than the line).
+        The table (one row per trajectory, columns :data:`ikbench.render.run_report.TABLE_COLUMNS`,
+        or :data:`ikbench.render.run_report.SHAPE_TABLE_COLUMNS` for shapes other than the line).
 
     Raises:
         Interrupted: Ctrl-C while solving (after writing what was solved, if anything).
@@ -403,7 +380,7 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
         poses = {t.name: read_trajectory_poses(tmp / f"trajectory_{t.name}.csv", robot)
                  for t in solved}
         if solved and solved[0].goal_rotations is not None:
-            from ikbench.studies.pose_paths import plot_pose_path, reached
+            from ikbench.render.pose_paths import plot_pose_path, reached
 
             for outcome in outcomes:
                 if outcome.solution is not None:

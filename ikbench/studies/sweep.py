@@ -42,9 +42,9 @@ from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import build_tasks, letter_start_pose, parse_shape
-from ikbench.studies.executors import Executor, LocalExecutor
-from ikbench.studies.parallel import solve_parts
-from ikbench.studies.report import markdown_table
+from ikbench.render.run_report import markdown_table
+from ikbench.runtime.executors import Executor, LocalExecutor
+from ikbench.runtime.parallel import solve_parts
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -214,7 +214,7 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
         lm_settings: ours-lm settings (their weights are replaced by the grid's).
         progress: progress lines on stderr.
         robot: the robot or its name/config/URDF (default NICO's right arm).
-        executor: where the solve runs (:mod:`ikbench.studies.executors`; default: one
+        executor: where the solve runs (:mod:`ikbench.runtime.executors`; default: one
             batched call in this process); the numbers do not depend on it.
         method: ``ours-lm`` (the paper's objective) or ``ours-exact`` (the path and poses
             exact; the grid may hold only c1, the pointing weight, and c6, the smoothness

@@ -36,9 +36,9 @@ from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import line_tasks
+from ikbench.render.run_report import markdown_table
 from ikbench.studies.batch import sample_touch_poses
 from ikbench.studies.dataset_shard import line_tasks as sampled_line_tasks
-from ikbench.studies.report import markdown_table
 
 DEFAULT_BATCHES = (7, 1000, 10_000, 100_000)
 DEFAULT_DTYPES = ("float64", "float32")

@@ -161,9 +161,9 @@ def add_obstacles(server: viser.ViserServer, obstacles: Sequence[Obstacle],
     """Add a task's obstacles to a viser scene (translucent brown; base frame [mm] -> the
     URDF's root [m]): boxes with ``add_box``, spheres with ``add_icosphere``, capsules and
     a half-space's surface (a square around ``around_mm`` (N, 3) [mm], base frame: e.g. the
-    goal path; :func:`ikbench.studies.arm_plots.halfspace_patch`) with ``add_mesh_simple``.
+    goal path; :func:`ikbench.render.arm_plots.halfspace_patch`) with ``add_mesh_simple``.
     Returns the handles, one per obstacle."""
-    from ikbench.studies.arm_plots import halfspace_patch
+    from ikbench.render.arm_plots import halfspace_patch
 
     R_root = np.asarray(T_root_base, dtype=float)[:3, :3]
     style: dict[str, Any] = {"color": OBSTACLE_COLOR, "opacity": OBSTACLE_OPACITY}
@@ -196,9 +196,9 @@ def add_obstacles(server: viser.ViserServer, obstacles: Sequence[Obstacle],
 def colliding_tips_m(robot: Robot, poses: npt.ArrayLike, tip_mm: np.ndarray,
                      obstacles: Sequence[Obstacle], T_root_base: np.ndarray) -> np.ndarray:
     """(K, 3) [m, URDF root] the end points of the waypoints where poses (N, dof) collide
-    with an obstacle or the robot itself (:func:`ikbench.studies.arm_plots.
+    with an obstacle or the robot itself (:func:`ikbench.render.arm_plots.
     colliding_waypoints`); empty without obstacles, collision model or collision."""
-    from ikbench.studies.arm_plots import colliding_waypoints
+    from ikbench.render.arm_plots import colliding_waypoints
 
     colliding = colliding_waypoints(robot, poses, obstacles)
     if colliding is None or not colliding.any():

@@ -39,7 +39,7 @@ from viser.extras import ViserUrdf
 
 from ikbench.core.errors import InputError
 from ikbench.core.robot import Robot
-from ikbench.studies.arm_plots import frame_labels
+from ikbench.render.arm_plots import frame_labels
 from ikbench.viewer import scene as sc
 from ikbench.viewer.folders import ViewRun
 from ikbench.viewer.gui import SPEEDS, add_gui

@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
     set_threads(args.threads)
     result = cartesian(problems, names, seeds, options, progress=not args.quiet)
     write(result, args.output, command_line(args, problems, seeds), args.trajectories)
-    from ikbench.studies.cartesian import summarise
+    from ikbench.render.cartesian_report import summarise
 
     summary = summarise(result.table)
     print(summary[["problem", "method", "valid_runs", "runs", "time_to_valid_median_s",

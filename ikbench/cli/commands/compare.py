@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     targets = with_obstacles(targets, args.obstacles, robot)
     check_folder_writable(Path(args.output) / "compare")
     set_threads(args.threads)
-    from ikbench.studies.harness import Interrupted
+    from ikbench.runtime.harness import Interrupted
 
     try:
         result = compare(names, robot=robot, targets=targets, repeat=args.repeat,

@@ -95,13 +95,13 @@ def run(args: argparse.Namespace) -> int:
 
     from ikbench.cli.options import robot_from_args
     from ikbench.core.io import check_folder_writable
+    from ikbench.render.ik_report import summarise
     from ikbench.studies.ik import (
         FOLDER,
         IKSettings,
         parse_methods,
         robot_slug,
         run_ik,
-        summarise,
         write,
     )
 

@@ -133,7 +133,7 @@ def _write_figure(path, robot, plan, args, config) -> None:
     from ikbench.core.io import atomic_savefig
     from ikbench.core.timing_topp import toppra_available
     from ikbench.hw.limits import timing_limits
-    from ikbench.studies.timing_plot import plot_timings, timings_of
+    from ikbench.render.timing_plot import plot_timings, timings_of
 
     limits = (plan.timed.limits if plan.timed is not None and plan.timed.limits is not None
               else timing_limits(robot, config, args.max_velocity, args.max_acceleration))

@@ -186,7 +186,7 @@ def solve_write_report(solver: Method, robot: Robot, targets: Targets, tasks: Se
     """Solve, write the run folder and print its table; 130 after Ctrl-C."""
     import sys
 
-    from ikbench.studies.harness import Interrupted
+    from ikbench.runtime.harness import Interrupted
     from ikbench.studies.run import solve_and_write
 
     try:

@@ -1,0 +1,136 @@
+"""What the library methods share: checks before any solve, the conversion of a library's
+result to a :class:`~ikbench.methods.base.Solution` in pose units, the method's own timer.
+
+A library method implements :meth:`LibraryMethod.solve_chain` on the chain and goals in URDF
+units (:mod:`ikbench.baselines._common.chain`) and returns a :class:`ChainResult`; everything else
+is here.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+
+from ikbench.baselines._common.chain import Chain, Goals, chain_of, goals_of, poses_from_urdf
+from ikbench.baselines._common.chain import require_touch_and_start as _require_both
+from ikbench.baselines._common.track import plan_track, require_start_and_touch
+from ikbench.baselines._common.walk import Walk
+from ikbench.core.errors import InputError
+from ikbench.methods.base import Method, Solution
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.core.task import Task
+    from ikbench.methods.base import Progress
+
+
+@dataclass
+class ChainResult:
+    """A library's trajectory in URDF units.
+
+    Attributes:
+        q: (N, dof) joint values [rad, m], within the chain's limits.
+        iterations: the library's iterations (what they count: ``info["iterations_are"]``).
+        converged: the library's own success criterion held (every point, or the whole path).
+        info: flat figures for details.csv (numbers and strings).
+    """
+
+    q: np.ndarray
+    iterations: int
+    converged: bool
+    info: dict = field(default_factory=dict)
+
+    @classmethod
+    def from_walk(cls, walk: Walk, **info: object) -> ChainResult:
+        """The result of a sequential walk (:func:`ikbench.baselines._common.walk.walk_back`)."""
+        return cls(walk.q, walk.iterations, not walk.failed, {**walk.info(), **info})
+
+
+class LibraryMethod(Method):
+    """Base class of the methods in ``baselines/`` that call another kinematics library.
+
+    Class attributes (besides :class:`~ikbench.methods.base.Method`'s):
+        supports_frames: True when the library takes full 6-D goal frames
+            (``task.goal_rotations``); otherwise such tasks are refused before any solve.
+        whole_path: True for trajectory optimisers (the start and touch poses are both
+            fixed; the result's rows are returned as solved, row n included); False for the
+            sequential walks (row n is the touch pose exactly).
+        loads_urdf: True when the library parses the URDF itself (the chain's URDF text
+            from :func:`ikbench.baselines._common.chain.chain_urdf_text`, locked joints folded into
+            fixed ones).
+    """
+
+    library: ClassVar[str] = ""
+    requires_touch_pose: ClassVar[bool] = True
+    supports_frames: ClassVar[bool] = False
+    whole_path: ClassVar[bool] = False
+    loads_urdf: ClassVar[bool] = True
+
+    @property
+    def scheme(self) -> str:
+        """``track`` (from the start pose onto the touch pose,
+        :mod:`ikbench.baselines._common.track`), ``walk`` (back from the touch pose,
+        :mod:`ikbench.baselines._common.walk`) or ``whole-path`` (trajectory optimisers)."""
+        if self.whole_path:
+            return "whole-path"
+        return str(getattr(self.settings, "scheme", "walk"))
+
+    def tracks(self, task: Task) -> bool:
+        """True when ``task`` is solved by the tracking scheme (a pose path is always
+        walked forward from the home pose: it has no start pose to track from)."""
+        return self.scheme == "track" and getattr(task, "goal_rotations", None) is None
+
+    def fixed_poses(self) -> frozenset[str]:
+        """Both poses for trajectory optimisers and the tracking scheme; the walk keeps only
+        the touch pose (its start pose is wherever the walk ends up)."""
+        if self.scheme == "walk":
+            return frozenset({"touch_pose"})
+        return frozenset({"start_pose", "touch_pose"})
+
+    def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
+        """Refuse, before any solve: tasks without the poses the method fixes, 6-D goal frames
+        the library cannot take, locked joints, robots the library cannot model
+        (:meth:`check_robot`)."""
+        for task in tasks:
+            if self.whole_path:
+                _require_both(task, self.name)
+            elif self.tracks(task):
+                require_start_and_touch(task, self.name)
+            if getattr(task, "goal_rotations", None) is not None and not self.supports_frames:
+                raise InputError(f"trajectory {task.name!r}: --method {self.name} takes goal "
+                                 "points and pointing directions, not 6-D goal frames")
+        super().check_tasks(robot, tasks)
+        self.check_robot(robot)
+
+    def check_robot(self, robot: Robot) -> None:
+        """InputError when the library cannot model this robot (default: it can)."""
+
+    def prepare(self, robot: Robot) -> None:
+        """Untimed: build the chain in URDF units (parses the URDF once)."""
+        chain_of(robot)
+
+    def solve_chain(self, robot: Robot, chain: Chain,
+                    goals: Goals) -> ChainResult:  # pragma: no cover
+        """Solve one task in URDF units (implemented by each library method); ``robot`` for
+        methods that work on the robot's own model (pink: its Pinocchio model)."""
+        raise NotImplementedError
+
+    def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
+        """Solve ``task`` with the library; poses in the robot's pose units."""
+        started = time.perf_counter()
+        goals = goals_of(robot, task)
+        if self.tracks(task):
+            goals = replace(goals, track=plan_track(robot, task, goals))
+        result = self.solve_chain(robot, chain_of(robot), goals)
+        poses = poses_from_urdf(robot, result.q)
+        if not self.whole_path and task.end_pose_deg is not None:
+            poses[-1] = task.end_pose_deg  # the walk's start / the track's end, as given
+        if self.tracks(task):
+            poses[0] = task.start_pose_deg  # the track's start, exactly as given
+        return Solution(poses_deg=poses, iterations=int(result.iterations),
+                        duration_s=time.perf_counter() - started, loss=None,
+                        converged=bool(result.converged), info=dict(result.info))

@@ -1,0 +1,518 @@
+"""mink (PyPI ``mink``, on MuJoCo): pink's differential-IK scheme on a MuJoCo model of the URDF.
+
+Loading: ``mujoco.MjSpec.from_string(urdf)`` on the chain's URDF text. MuJoCo's URDF importer
+fuses static bodies (``spec.compiler.fusestatic`` is True after parsing a URDF), which would
+merge the fixed end link into its parent: it is set False, so every link stays a body. MuJoCo
+refuses massless moving bodies, and URDFs written for kinematics have no ``<inertial>``:
+``compiler.boundmass`` / ``boundinertia`` give them a negligible mass (kinematics does not
+depend on it). A site on the end body, its z-axis on the pointing axis
+(``body.add_site(name, pos, quat)``), is the frame P the tasks act on; ``spec.compile()``.
+The chain's limits replace ``model.jnt_range`` (continuous joints stay unlimited); goals are
+turned from the base body's frame into MuJoCo's world frame.
+
+Two schemes, as pink's (:mod:`ikbench.baselines.libraries.pink_ik`): **track** (``--scheme track``,
+the default: from the start pose along the goal points onto the touch pose,
+:mod:`ikbench.baselines._common.track`) and **walk** (``--scheme walk``: back from the touch pose,
+the start pose free; also every 6-D pose path). Both call ``mink.Configuration(model, q)``,
+``mink.solve_ik(configuration, tasks, dt, qp_solver, damping=..., limits=limits)`` with
+``mink.ConfigurationLimit(model, gain)`` among the limits, and ``configuration.integrate(v, dt)`` /
+``update(q)``; the pointing is
+``mink.FrameTask(site, "site", position_cost, orientation_cost=[w, w, 0])`` with
+``set_target(mink.SE3.from_rotation_and_translation(...))`` or, with
+``--mink-pointing-task axis-align``, ``mink.AxisAlignTask(site, "site", axis=z)`` (rank 2, roll
+free) beside a position-only FrameTask.
+
+Track, per step i (forward from the start pose, warm-started at the step before moved on by
+the last segment's motion): the FrameTask at the goal point (``track_position_cost``) and the
+scheduled pointing direction (the rotation nearest P's with that z-axis; orientation cost 0
+when the task asks no pointing), ``mink.PostureTask(model, cost=posture_cost * weights)`` with
+``set_target(posture[i])`` (the start-to-touch interpolation, every pose unit weighted alike:
+:func:`ikbench.baselines._common.diffik.posture_weights`), and a speed box (a ``mink.Limit``
+returning a ``mink.Constraint``, :class:`ikbench.baselines._common.diffik.SpeedBox`: every joint
+within ``speed_fraction`` of the contract's largest change per segment from step i-1 and within
+(n - i) such changes of the touch pose); QP steps until the position error is below
+``tolerance`` and the last step moved no joint more than ``stall``, at most ``max_steps``. A
+step is converged when the site's position (MuJoCo's FK) is within ``tolerance``. Defaults
+as pink's (position cost 1000 /m, orientation cost 0.1 /rad, posture cost 0.01 /rad, speed
+fraction 0.95, stall 1e-4 rad; the reasons are given there).
+
+Walk, per goal point: the scheme of :mod:`ikbench.baselines._common.diffik` (the FrameTask, all
+three orientation costs for 6-D goals, and the ConfigurationLimit only). Defaults as pink's except
+the limit gain: mink's own default 0.95 (both schemes). ``iterations`` counts QP solves.
+
+**Obstacles** (a task with ``obstacles``; without them nothing here changes): the model is
+compiled again with the collision geometry (:func:`mink_scene_model`): each robot capsule a
+``mjGEOM_CAPSULE`` geom on its link's body (``body.add_geom(type, size=[radius], fromto=[a,
+b])``), each obstacle a geom on the world body (``mjGEOM_BOX`` / ``SPHERE`` / ``CAPSULE``;
+a half-space as a large box), placed from the base frame into MuJoCo's world. Among the
+limits, ``mink.CollisionAvoidanceLimit(model, geom_pairs, gain=--mink-collision-gain,
+minimum_distance_from_collisions=--mink-clearance, collision_detection_distance=clearance +
+--mink-detection)``: per QP step and geom pair within the detection distance, the normal
+velocity of the witness points (``mj_geomDistance``) keeps the pair from closing more than
+gain (d - clearance). The pairs are given explicitly (each robot capsule that moves with a
+joint against each obstacle; the capsules of each of the collision model's self pairs):
+mink's own pair filter drops a body's pairs with its parent's weld, which would drop every
+obstacle pair of the first link (the obstacles sit on the world body). In the walk, a point
+whose warm start overlaps (the home pose a pose path's walk starts from may) is first solved
+without the limit and then, if that pose is clear, with it from there
+(``started_inside_points``); a QP the limit
+makes infeasible (``NoSolutionFound``) leaves the point unsolved.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ikbench.baselines._common.chain import Chain, Goals
+from ikbench.baselines._common.collision import (
+    AvoidsObstacles,
+    Scene,
+    current_obstacles,
+    no_avoidance_reason,
+    scene_info,
+    scene_of,
+)
+from ikbench.baselines._common.diffik import (
+    SpeedBox,
+    converge,
+    errors,
+    orientation_costs,
+    posture_weights,
+    settle,
+    target_rotation,
+    track_errors,
+    track_orientation_costs,
+    track_target_rotation,
+)
+from ikbench.baselines._common.geometry import frame_with_z_on
+from ikbench.baselines._common.method import ChainResult, LibraryMethod
+from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
+from ikbench.baselines._common.walk import PointResult, walk_back
+from ikbench.baselines.libraries.pink_ik import check_qp_solver
+from ikbench.core.errors import InputError
+from ikbench.methods.base import check_choice, check_positive, option
+
+if TYPE_CHECKING:
+    from ikbench.baselines._common.track import TrackPlan
+    from ikbench.core.robot import Robot
+
+SITE = "ikbench_pointing_site"
+POINTING_TASKS = ("frame", "axis-align")
+_MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+@dataclass
+class MinkSettings:
+    """Settings of mink's track and walk (see the module docstring)."""
+
+    scheme: str = option("track", flag="scheme", choices=SCHEMES, help=SCHEME_HELP)
+    pointing_task: str = option("frame", flag="mink-pointing-task", choices=POINTING_TASKS,
+                                help="frame (FrameTask, roll cost 0) or axis-align "
+                                "(AxisAlignTask beside a position-only FrameTask)")
+    dt: float = option(1.0, flag="mink-dt", unit="s",
+                       help="integration step of the QP velocity (1 with gain 1: a full "
+                       "Gauss-Newton step)")
+    damping: float = option(1e-6, flag="mink-damping",
+                            help="Levenberg-Marquardt damping of the QP (solve_ik's damping)")
+    position_cost: float = option(1.0, flag="mink-position-cost", unit="1/m",
+                                  help="FrameTask position cost")
+    orientation_cost: float = option(0.1, flag="mink-orientation-cost", unit="1/rad",
+                                     help="cost of the pointing axis's tilt (roll free)")
+    limit_gain: float = option(0.95, flag="mink-limit-gain",
+                               help="ConfigurationLimit gain in (0, 1]")
+    qp_solver: str = option("daqp", flag="mink-qp-solver", help="qpsolvers backend")
+    tolerance: float = option(1e-6, flag="mink-tolerance", unit="m, rad",
+                              help="stop a point when position and pointing errors are below")
+    max_steps: int = option(100, flag="mink-max-steps", help="QP steps per goal point at most")
+    track_position_cost: float = option(
+        1000.0, flag="mink-track-position-cost", unit="1/m",
+        help="scheme track: FrameTask position cost (the goal point is the hard goal; the "
+        "pointing and posture costs are small against it)")
+    posture_cost: float = option(0.01, flag="mink-posture-cost", unit="1/rad",
+                                 help="scheme track: PostureTask cost towards the start-to-touch "
+                                 "posture (per pose unit: a motor degree for NICO)")
+    speed_fraction: float = option(
+        0.95, flag="mink-speed-fraction",
+        help="scheme track: each step moves every joint by at most this fraction of the "
+        "contract's speed-limit step and keeps the touch pose within reach at that speed (a "
+        "QP box constraint); 0: no box")
+    stall: float = option(1e-4, flag="mink-stall", unit="rad, m",
+                          help="scheme track: a step ends once the position is within the "
+                          "tolerance and the last QP step moved no joint more than this")
+    clearance: float = option(5.0, flag="mink-clearance", unit="mm",
+                              help="tasks with obstacles: CollisionAvoidanceLimit's "
+                              "minimum_distance_from_collisions, kept between the robot's "
+                              "capsules and the obstacles and between self pairs")
+    detection: float = option(200.0, flag="mink-detection", unit="mm",
+                              help="tasks with obstacles: pairs closer than clearance + this "
+                              "enter the QP (collision_detection_distance - clearance)")
+    collision_gain: float = option(0.5, flag="mink-collision-gain",
+                                   help="tasks with obstacles: CollisionAvoidanceLimit's gain "
+                                   "in (0, 1]")
+
+    def __post_init__(self):
+        check_choice(self, "scheme", SCHEMES)
+        check_choice(self, "pointing_task", POINTING_TASKS)
+        check_positive(self, "dt", "position_cost", "track_position_cost", "limit_gain",
+                       "tolerance", "stall")
+        check_positive(self, "max_steps", integer=True)
+        if (self.limit_gain > 1 or self.damping < 0 or self.orientation_cost < 0
+                or self.posture_cost < 0 or not 0 <= self.speed_fraction <= 1):
+            raise InputError("--mink-limit-gain must be in (0, 1], --mink-speed-fraction in "
+                             "[0, 1], --mink-damping, --mink-orientation-cost and "
+                             "--mink-posture-cost >= 0")
+        if not (self.clearance >= 0 and self.detection > 0 and 0 < self.collision_gain <= 1):
+            raise InputError("--mink-clearance must be >= 0 [mm], --mink-detection > 0 [mm] "
+                             "and --mink-collision-gain in (0, 1]")
+        self.max_steps = int(self.max_steps)
+        check_qp_solver(self, "qp_solver")
+
+
+@dataclass(frozen=True)
+class MinkModel:
+    """The compiled MuJoCo model and how the chain maps onto it.
+
+    Attributes:
+        model: ``mujoco.MjModel`` with the site P.
+        qpos: (dof,) qpos address of each chain joint.
+        R_EP: (3, 3) end frame -> P.
+        R_wb, p_wb: (3, 3), (3,) the base body in MuJoCo's world frame [m].
+    """
+
+    model: Any
+    qpos: np.ndarray
+    R_EP: np.ndarray
+    R_wb: np.ndarray
+    p_wb: np.ndarray
+
+
+def mink_model(chain: Chain) -> MinkModel:
+    """The chain's :class:`MinkModel` (cached per chain)."""
+    if chain in _MODELS:
+        return _MODELS[chain]
+    _MODELS[chain] = _compile(chain)
+    return _MODELS[chain]
+
+
+_SCENE_MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def mink_scene_model(chain: Chain, scene: Scene) -> MinkModel:
+    """The chain's :class:`MinkModel` with the collision geometry of ``scene``
+    (:class:`ikbench.baselines._common.collision.Scene`; see the module docstring), cached per
+    chain and scene."""
+    cache = _SCENE_MODELS.setdefault(chain, {})
+    if scene.key not in cache:
+        cache[scene.key] = _compile(chain, scene, mink_model(chain))
+    return cache[scene.key]
+
+
+def _add_geoms(spec, scene, plain: MinkModel) -> None:
+    """The scene's capsules on their links' bodies, its obstacles on the world body."""
+    import mujoco
+
+    types = {"capsule": mujoco.mjtGeom.mjGEOM_CAPSULE, "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
+             "box": mujoco.mjtGeom.mjGEOM_BOX}
+    for shape in scene.links:
+        a, b = shape.ends_m()
+        spec.body(shape.link).add_geom(name=shape.name, type=types["capsule"],
+                                       size=[shape.radius_m, 0.0, 0.0],
+                                       fromto=[*map(float, a), *map(float, b)])
+    for shape in scene.obstacles:
+        R = plain.R_wb @ shape.rotation
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, np.ascontiguousarray(R).reshape(9))
+        if shape.kind == "box":
+            size = [*map(float, 0.5 * shape.size_m)]
+        else:  # sphere: radius; capsule: radius, half length
+            size = [shape.radius_m, 0.5 * shape.length_m, 0.0]
+        spec.worldbody.add_geom(name=shape.name, type=types[shape.kind], size=size,
+                                pos=[*map(float, plain.R_wb @ shape.center_m + plain.p_wb)],
+                                quat=list(quat))
+
+
+def _compile(chain: Chain, scene=None, plain: MinkModel | None = None) -> MinkModel:
+    """Compile the chain's model (with ``scene``'s geoms when given; ``plain``: the model
+    without them, for the base's pose in the world)."""
+    import mujoco
+
+    spec = mujoco.MjSpec.from_string(chain.urdf_text)
+    spec.compiler.fusestatic = False
+    spec.compiler.boundmass = 1e-6
+    spec.compiler.boundinertia = 1e-12
+    R_EP = frame_with_z_on(chain.pointing_axis)
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(R_EP).reshape(9))
+    spec.body(chain.end_frame).add_site(name=SITE, pos=[0.0, 0.0, 0.0], quat=list(quat))
+    if scene is not None:
+        assert plain is not None
+        _add_geoms(spec, scene, plain)
+    model = spec.compile()
+    if model.nq != chain.dof:
+        raise ValueError(f"MuJoCo's model has {model.nq} coordinates, the chain {chain.dof}")
+    for k, name in enumerate(chain.joint_names):
+        j = model.joint(name).id
+        limited = bool(np.isfinite(chain.lower[k]))
+        model.jnt_limited[j] = limited
+        model.jnt_range[j] = [chain.lower[k], chain.upper[k]] if limited else [0.0, 0.0]
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    base = model.body(chain.base_link).id
+    qpos = np.array([model.joint(name).qposadr[0] for name in chain.joint_names])
+    return MinkModel(model, qpos, R_EP, data.xmat[base].reshape(3, 3).copy(),
+                     data.xpos[base].copy())
+
+
+def collision_limit(m: MinkModel, scene: Scene, settings: MinkSettings) -> Any:
+    """``mink.CollisionAvoidanceLimit`` on the scene's pairs (see the module docstring)."""
+    import mink
+
+    model = m.model
+    moving = {s.link for s in scene.links if model.body_weldid[model.body(s.link).id] != 0}
+    pairs = sorted({tuple(sorted((model.geom(a.name).id, model.geom(b.name).id)))
+                    for a, b in scene.pairs(moving)})
+
+    class Limit(mink.CollisionAvoidanceLimit):
+        """mink's limit on exactly these geom pairs (its own filter bypassed)."""
+
+        def _construct_geom_id_pairs(self, geom_pairs):
+            return [tuple(p) for p in geom_pairs]
+
+    clearance = settings.clearance / 1000.0
+    return Limit(model, pairs, gain=settings.collision_gain,
+                 minimum_distance_from_collisions=clearance,
+                 collision_detection_distance=clearance + settings.detection / 1000.0)
+
+
+def penetrating(m: MinkModel, limit: Any, q_chain: np.ndarray) -> bool:
+    """True when a pair of ``limit`` overlaps at ``q_chain`` (``mj_geomDistance``)."""
+    import mujoco
+
+    data = mujoco.MjData(m.model)
+    data.qpos[m.qpos] = q_chain
+    mujoco.mj_kinematics(m.model, data)
+    fromto = np.zeros(6)
+    return any(mujoco.mj_geomDistance(m.model, data, a, b, 0.0, fromto) < 0.0
+               for a, b in limit.geom_id_pairs)
+
+
+def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings,
+                scene: Scene | None = None) -> ChainResult:
+    """The mink walk in URDF units (see the module docstring; ``scene``: the obstacles and
+    capsules to keep apart, or None)."""
+    import mink
+    from mink.exceptions import NoSolutionFound
+
+    m = mink_model(chain) if scene is None else mink_scene_model(chain, scene)
+    model, site = m.model, m.model.site(SITE).id
+    # the goals in MuJoCo's world frame
+    world = Goals(goals.points_m @ m.R_wb.T + m.p_wb, goals.directions @ m.R_wb.T,
+                  None if goals.rotations is None else m.R_wb @ goals.rotations, None, None)
+    axis_align = settings.pointing_task == "axis-align" and goals.rotations is None
+    frame_task = mink.FrameTask(SITE, "site", position_cost=settings.position_cost,
+                                orientation_cost=0.0 if axis_align else
+                                orientation_costs(goals, settings.orientation_cost))
+    tasks: list[Any] = [frame_task]
+    if axis_align:
+        align = mink.AxisAlignTask(SITE, "site", axis=(0.0, 0.0, 1.0),
+                                   cost=settings.orientation_cost)
+        tasks.append(align)
+    plain_limits = [mink.ConfigurationLimit(model, gain=settings.limit_gain)]
+    limits = plain_limits
+    avoid = None if scene is None else collision_limit(m, scene, settings)
+    if avoid is not None:
+        limits = [*plain_limits, avoid]
+    entered: list[int] = []
+
+    def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
+        if avoid is None:
+            return run(i, q_warm, limits)
+        spent = 0
+        if penetrating(m, avoid, q_warm):
+            # the limit cannot lead out of an obstacle (the walk's first warm start, the home
+            # pose, may be inside one): reach the goal without it first
+            q_free, spent, _ = run(i, q_warm, plain_limits)
+            entered.append(i)
+            if not penetrating(m, avoid, q_free):  # else: stay, not deeper inside
+                q_warm = q_free
+        try:
+            q, steps, ok = run(i, q_warm, limits)
+        except NoSolutionFound:  # the limit's QP is infeasible here
+            q, steps, ok = q_warm, 0, False
+        return PointResult(q, spent + steps, ok)
+
+    def run(i: int, q_warm: np.ndarray, limits: list) -> PointResult:
+        q0 = np.zeros(model.nq)
+        q0[m.qpos] = q_warm
+        configuration = mink.Configuration(model, q0)
+        if axis_align:
+            align.set_target(world.directions[i])
+
+        def frame():
+            data = configuration.data
+            return data.site_xpos[site].copy(), data.site_xmat[site].reshape(3, 3).copy()
+
+        def step():
+            p_P, R_P = frame()
+            R = R_P if axis_align else target_rotation(world, i, R_P, m.R_EP)
+            frame_task.set_target(mink.SE3.from_rotation_and_translation(
+                mink.SO3.from_matrix(R), world.points_m[i]))
+            v = mink.solve_ik(configuration, tasks, settings.dt, settings.qp_solver,
+                              damping=settings.damping, limits=limits)
+            q = configuration.integrate(v, settings.dt)
+            q[m.qpos] = chain.clip(q[m.qpos])
+            configuration.update(q)
+
+        def measure():
+            p_P, R_P = frame()
+            return errors(world, i, p_P, R_P, m.R_EP)
+
+        steps, ok = converge(measure, step, settings.tolerance, settings.max_steps)
+        return PointResult(configuration.q[m.qpos].copy(), steps, ok)
+
+    walk = walk_back(solve_point, chain, goals)
+    return ChainResult.from_walk(walk, qp_solver=settings.qp_solver,
+                                 pointing_task=settings.pointing_task,
+                                 iterations_are="QP solves (mink.solve_ik calls)",
+                                 **({} if avoid is None else
+                                    {"started_inside_points": len(entered)}))
+
+
+def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: MinkSettings,
+                step: np.ndarray | None = None, scene: Scene | None = None) -> ChainResult:
+    """mink's track from the start pose onto the touch pose (``plan``: a
+    :class:`ikbench.baselines._common.track.TrackPlan`; ``step``: (dof,) the contract's largest
+    joint change per segment [rad, m], or None: no speed box). See the module docstring."""
+    import mink
+    from mink.exceptions import NoSolutionFound
+
+    m = mink_model(chain) if scene is None else mink_scene_model(chain, scene)
+    model, site = m.model, m.model.site(SITE).id
+    # the plan in MuJoCo's world frame
+    world = replace(plan, points_m=plan.points_m @ m.R_wb.T + m.p_wb,
+                    directions=None if plan.directions is None else plan.directions @ m.R_wb.T)
+    axis_align = settings.pointing_task == "axis-align" and world.directions is not None
+    frame_task = mink.FrameTask(SITE, "site", position_cost=settings.track_position_cost,
+                                orientation_cost=0.0 if axis_align else
+                                track_orientation_costs(world, settings.orientation_cost))
+    weights = np.zeros(model.nv)
+    weights[m.qpos] = posture_weights(robot)  # hinge / slide joints: dof address = qpos
+    posture_task = mink.PostureTask(model, cost=settings.posture_cost * weights)
+    tasks: list[Any] = [frame_task, posture_task]
+    if axis_align:
+        align = mink.AxisAlignTask(SITE, "site", axis=(0.0, 0.0, 1.0),
+                                   cost=settings.orientation_cost)
+        tasks.append(align)
+    limits: list[Any] = [mink.ConfigurationLimit(model, gain=settings.limit_gain)]
+    if scene is not None:
+        limits.append(collision_limit(m, scene, settings))
+    box = None
+    if step is not None and settings.speed_fraction > 0:
+        box = SpeedBox(settings.speed_fraction * step, plan.q_touch, len(plan) - 1, chain.lower,
+                       chain.upper, settings.limit_gain)
+
+        class SpeedLimit(mink.Limit):
+            """The speed box (:class:`ikbench.baselines._common.diffik.SpeedBox`) as a mink
+            limit."""
+
+            def compute_qp_inequalities(self, configuration, dt):
+                G, h = box.inequalities(configuration.q[m.qpos])
+                if not len(h):
+                    return mink.Constraint()
+                G_full = np.zeros((len(h), model.nv))
+                G_full[:, m.qpos] = G
+                return mink.Constraint(G=G_full, h=h)
+
+        limits.append(SpeedLimit())
+    previous: dict[str, Any] = {"q": None}
+    q_full = np.zeros(model.nq)
+    configuration = mink.Configuration(model)
+
+    def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
+        q0 = q_warm
+        if box is not None:
+            box.set_step(i, q_warm)
+        # the last segment's motion again; not with obstacles: the barrier acts on QP steps
+        # only, and a warm start moved on without it may start inside an obstacle
+        if previous["q"] is not None and scene is None:
+            q0 = q_warm + (q_warm - previous["q"])
+            q0 = chain.clip(box.clip(q0) if box is not None else q0)
+        previous["q"] = q_warm
+        q_full[m.qpos] = q0
+        configuration.update(q_full)
+        q_full[m.qpos] = plan.posture[i]
+        posture_task.set_target(q_full)
+        if axis_align:
+            assert world.directions is not None  # axis_align needs them
+            align.set_target(world.directions[i])
+
+        def frame():
+            data = configuration.data
+            return data.site_xpos[site].copy(), data.site_xmat[site].reshape(3, 3).copy()
+
+        def step_once() -> float:
+            _, R_P = frame()
+            R = R_P if axis_align else track_target_rotation(world, i, R_P)
+            frame_task.set_target(mink.SE3.from_rotation_and_translation(
+                mink.SO3.from_matrix(R), world.points_m[i]))
+            v = mink.solve_ik(configuration, tasks, settings.dt, settings.qp_solver,
+                              damping=settings.damping, limits=limits)
+            q_before = configuration.q[m.qpos].copy()
+            q = configuration.integrate(v, settings.dt)
+            q[m.qpos] = chain.clip(q[m.qpos])
+            configuration.update(q)
+            return float(np.max(np.abs(q[m.qpos] - q_before)))
+
+        def measure():
+            p_P, R_P = frame()
+            return track_errors(world, i, p_P, R_P)
+
+        try:
+            steps, ok = settle(measure, step_once, settings.tolerance, settings.stall,
+                               settings.max_steps)
+        except NoSolutionFound:
+            steps, ok = 0, False
+        return PointResult(configuration.q[m.qpos].copy(), steps, ok)
+
+    walk = track(solve_point, chain, plan)
+    return ChainResult.from_walk(walk, qp_solver=settings.qp_solver, scheme="track",
+                                 pointing_task=settings.pointing_task,
+                                 speed_box=box is not None,
+                                 iterations_are="QP solves (mink.solve_ik calls)")
+
+
+class MinkIK(AvoidsObstacles, LibraryMethod):
+    """mink's QP differential IK on MuJoCo, tracking from the start pose onto the touch pose
+    (or walked back from the touch pose: ``--scheme walk``)."""
+
+    name = "mink"
+    description = ("library: mink QP differential IK on MuJoCo (the URDF loaded by MuJoCo) "
+                   "tracking the goal points from the start pose (frame task + posture task, "
+                   "joint limits and speed limits as QP constraints), landing on the touch "
+                   "pose (--scheme walk: walked back from the touch pose); with obstacles, "
+                   "CollisionAvoidanceLimit on capsule geoms and the obstacles")
+    library = "mink"
+    Settings = MinkSettings
+    supports_frames = True
+
+    def prepare(self, robot: Robot) -> None:
+        """Untimed: MuJoCo parses and compiles the URDF."""
+        from ikbench.baselines._common.chain import chain_of
+
+        mink_model(chain_of(robot))
+
+    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
+        obstacles = current_obstacles()
+        scene = scene_of(robot, obstacles)
+        if goals.track is not None:
+            result = solve_track(robot, chain, goals.track, self.settings, goals.max_step,
+                                 scene)
+        else:
+            result = solve_chain(chain, goals, self.settings, scene)
+        result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
+                                      self.settings.clearance))
+        return result

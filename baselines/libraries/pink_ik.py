@@ -1,0 +1,447 @@
+"""pink (PyPI ``pin-pink``): QP differential IK on Pinocchio, tracking the goal points from the
+start pose onto the touch pose (``--scheme track``, the default) or walked back from the touch
+pose (``--scheme walk``, the authors' scheme).
+
+pink works on the robot's own Pinocchio model (:meth:`ikbench.core.robot.Robot.pinocchio_fk`:
+the chain only, the base link as world frame), copied once per robot with the chain's limits
+and an extra operational frame P on the end frame whose z-axis is the pointing axis
+(``model.addFrame(pinocchio.Frame(..., OP_FRAME))``). Both schemes call pink the same way:
+``pink.Configuration(model, data, q)``, ``pink.solve_ik(configuration, tasks, dt,
+solver=qp_solver, damping=damping, limits=limits)``, ``configuration.integrate(v, dt)`` and
+``configuration.update(q)``, with ``pink.limits.ConfigurationLimit(model, config_limit_gain)``
+among the limits: the joint limits are QP constraints ``q_min - q <= v dt <= q_max - q``
+(scaled by the gain), so no step leaves them. pink's frame error is P's body twist
+log(T_P^-1 T_target), so a zero orientation cost on P's z frees the roll.
+
+**Track** (:mod:`ikbench.baselines._common.track`; tasks with a start and a touch pose and no 6-D
+goal frames). Row 0 is the start pose, row n the touch pose; steps 1 .. n-1 are solved forward, each
+from the step before moved on by the last segment's motion (a constant-speed warm start).
+Per step i, QP steps of
+
+- ``pink.tasks.FrameTask(P, position_cost=track_position_cost, orientation_cost=[w, w, 0])``
+  with ``set_target(pinocchio.SE3(R, p_i))``: p_i the goal point, R the rotation nearest P's
+  whose z-axis is the scheduled pointing direction (orientation cost 0: position only, when
+  the task asks no pointing);
+- ``pink.tasks.PostureTask(cost=posture_cost * weights)`` with ``set_target(posture[i])``,
+  the start-to-touch interpolation; the weights make every pose unit cost alike (NICO: a motor
+  degree; its wrist and finger motors turn their joints only 0.5 and 0.22 URDF degree per
+  motor degree), :func:`ikbench.baselines._common.diffik.posture_weights`;
+- a speed box (a ``pink.limits.Limit`` beside the ConfigurationLimit,
+  :class:`ikbench.baselines._common.diffik.SpeedBox`): every joint moves at most ``speed_fraction``
+  of the contract's largest change per segment from step i-1, and stays within (n - i) such changes
+  of the touch pose, so the arm lands on it without a jump,
+
+until the position error is below ``tolerance`` and the last QP step moved no joint more than
+``stall`` (the scheduled pointing may be slightly out of reach: the weighted optimum is
+taken), at most ``max_steps``. A step is reported converged when P's position, by pink's FK,
+is within ``tolerance``. Defaults and why: position cost 1000 /m against orientation cost
+0.1 /rad and posture cost 0.01 /rad (the goal point is the hard goal, kept to ~1e-9 m even
+where the pointing or the posture cannot be met; the posture only resolves the arm's
+redundancy, strong enough to keep the arm near the path onto the touch pose, weak enough to
+leave the pointing a few degrees from its schedule at most), speed fraction 0.95 (a margin
+to the contract's limit), stall 1e-4 rad (2-4 QP solves per step, ~40-70 ms per 50-step
+trajectory).
+
+**Walk** (:mod:`ikbench.baselines._common.walk`; also every 6-D pose path). Per goal point the
+scheme of
+:mod:`ikbench.baselines._common.diffik`: ``FrameTask(P, position_cost, orientation_cost=[w, w,
+0])`` (all three for 6-D goals) and the ConfigurationLimit only. Defaults: dt 1 s with task gain 1
+(a full damped Gauss-Newton step per QP), damping 1e-6 (the 7-DoF arm is redundant: a
+positive-definite QP Hessian, minimum-norm steps), position cost 1 /m and orientation cost
+0.1 /rad (they compete only where a goal is unreachable), limit gain 0.5 (pink's default), QP
+solver daqp (qpsolvers backend, deterministic), tolerance 1e-6 m / rad, at most 100 steps per
+point. Both schemes share dt, damping, orientation cost, limit gain, QP solver, tolerance and
+max steps. ``iterations`` counts QP solves.
+
+**Obstacles** (a task with ``obstacles``; without them nothing here changes): a Pinocchio
+``GeometryModel`` on the same model holds the robot's capsules (``coal.Capsule`` on their
+links' joints, as :mod:`ikbench.core.collision` places them) and the obstacles (on the
+universe joint; a half-space as a large box), with a ``CollisionPair`` for each robot-obstacle
+pair whose capsule moves with some joint and for the capsules of each of the collision
+model's self pairs; ``pink.Configuration(model, data, q, collision_model=geometry,
+collision_data=geometry_data)`` computes their distances on every update (coal), and
+``pink.barriers.SelfCollisionBarrier(n_collision_pairs=all pairs, gain=--pink-barrier-gain,
+safe_displacement_gain=0, d_min=--pink-clearance)`` goes to ``solve_ik(...,
+barriers=[barrier])``: every QP step keeps J_d dq >= -gain (d - d_min) for each pair (pink's
+control-barrier condition; its safe-displacement term is off, as it divides by |J|^2, zero
+for pairs no joint moves). The barrier only slows the approach; a warm start already inside
+an obstacle is not pushed out reliably (pink's gradient of a penetrating pair points along the
+witness points, which reverse inside). So, in the walk, a point whose warm start overlaps (the
+home pose the walk of a pose path starts from may: CppFlow's panda problems) is first solved
+without the barrier and then, if that pose is clear, with it from there
+(``started_inside_points`` counts them); a QP
+the barrier makes infeasible (pink's ``NoSolutionFound``) leaves the point unsolved.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ikbench.baselines._common.chain import Chain, Goals
+from ikbench.baselines._common.collision import (
+    AvoidsObstacles,
+    Scene,
+    current_obstacles,
+    no_avoidance_reason,
+    scene_info,
+    scene_of,
+)
+from ikbench.baselines._common.diffik import (
+    SpeedBox,
+    converge,
+    errors,
+    orientation_costs,
+    posture_weights,
+    settle,
+    target_rotation,
+    track_errors,
+    track_orientation_costs,
+    track_target_rotation,
+)
+from ikbench.baselines._common.geometry import frame_with_z_on
+from ikbench.baselines._common.method import ChainResult, LibraryMethod
+from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
+from ikbench.baselines._common.walk import PointResult, walk_back
+from ikbench.core.errors import InputError
+from ikbench.methods.base import check_choice, check_positive, option
+
+if TYPE_CHECKING:
+    from ikbench.baselines._common.track import TrackPlan
+    from ikbench.core.robot import Robot
+
+POINTING_FRAME = "ikbench_pointing_frame"
+_MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def check_qp_solver(settings: object, field_name: str) -> None:
+    """InputError naming the flag when the qpsolvers backend is not installed."""
+    import qpsolvers
+
+    value = getattr(settings, field_name)
+    if value not in qpsolvers.available_solvers:
+        from ikbench.methods.base import flag_of
+
+        raise InputError(f"{flag_of(settings, field_name)}: {value!r} is not an installed "
+                         f"qpsolvers backend; installed: {', '.join(qpsolvers.available_solvers)}")
+
+
+@dataclass
+class PinkSettings:
+    """Settings of pink's track and walk (see the module docstring)."""
+
+    scheme: str = option("track", flag="scheme", choices=SCHEMES, help=SCHEME_HELP)
+    dt: float = option(1.0, flag="pink-dt", unit="s",
+                       help="integration step of the QP velocity (1 with gain 1: a full "
+                       "Gauss-Newton step)")
+    damping: float = option(1e-6, flag="pink-damping",
+                            help="Tikhonov damping of the QP (solve_ik's damping)")
+    position_cost: float = option(1.0, flag="pink-position-cost", unit="1/m",
+                                  help="FrameTask position cost")
+    orientation_cost: float = option(0.1, flag="pink-orientation-cost", unit="1/rad",
+                                     help="FrameTask orientation cost on the pointing axis's "
+                                     "tilt (roll free)")
+    limit_gain: float = option(0.5, flag="pink-limit-gain",
+                               help="ConfigurationLimit gain in (0, 1]")
+    qp_solver: str = option("daqp", flag="pink-qp-solver", help="qpsolvers backend")
+    tolerance: float = option(1e-6, flag="pink-tolerance", unit="m, rad",
+                              help="stop a point when position and pointing errors are below")
+    max_steps: int = option(100, flag="pink-max-steps", help="QP steps per goal point at most")
+    track_position_cost: float = option(
+        1000.0, flag="pink-track-position-cost", unit="1/m",
+        help="scheme track: FrameTask position cost (the goal point is the hard goal; the "
+        "pointing and posture costs are small against it)")
+    posture_cost: float = option(0.01, flag="pink-posture-cost", unit="1/rad",
+                                 help="scheme track: PostureTask cost towards the start-to-touch "
+                                 "posture (per pose unit: a motor degree for NICO)")
+    speed_fraction: float = option(
+        0.95, flag="pink-speed-fraction",
+        help="scheme track: each step moves every joint by at most this fraction of the "
+        "contract's speed-limit step and keeps the touch pose within reach at that speed (a "
+        "QP box constraint); 0: no box")
+    stall: float = option(1e-4, flag="pink-stall", unit="rad, m",
+                          help="scheme track: a step ends once the position is within the "
+                          "tolerance and the last QP step moved no joint more than this")
+    clearance: float = option(5.0, flag="pink-clearance", unit="mm",
+                              help="tasks with obstacles: SelfCollisionBarrier's d_min, the "
+                              "least distance kept between the robot's capsules and the "
+                              "obstacles and between self pairs")
+    barrier_gain: float = option(0.5, flag="pink-barrier-gain",
+                                 help="tasks with obstacles: SelfCollisionBarrier's gain (the "
+                                 "fraction of the distance above d_min a QP step may close)")
+
+    def __post_init__(self):
+        check_choice(self, "scheme", SCHEMES)
+        check_positive(self, "dt", "position_cost", "track_position_cost", "limit_gain",
+                       "tolerance", "stall")
+        check_positive(self, "max_steps", integer=True)
+        if (self.limit_gain > 1 or self.damping < 0 or self.orientation_cost < 0
+                or self.posture_cost < 0 or not 0 <= self.speed_fraction <= 1):
+            raise InputError("--pink-limit-gain must be in (0, 1], --pink-speed-fraction in "
+                             "[0, 1], --pink-damping, --pink-orientation-cost and "
+                             "--pink-posture-cost >= 0")
+        if not (self.clearance >= 0 and 0 < self.barrier_gain <= 1):
+            raise InputError("--pink-clearance must be >= 0 [mm] and --pink-barrier-gain in "
+                             "(0, 1]")
+        self.max_steps = int(self.max_steps)
+        check_qp_solver(self, "qp_solver")
+
+
+def pink_model(robot: Robot, chain: Chain) -> tuple[Any, np.ndarray]:
+    """A copy of the robot's Pinocchio model with the chain's limits and the frame P."""
+    if robot in _MODELS:
+        return _MODELS[robot]
+    import pinocchio as pin
+
+    model = pin.Model(robot.pinocchio_fk().model)
+    model.lowerPositionLimit = np.where(np.isfinite(chain.lower), chain.lower,
+                                        model.lowerPositionLimit)
+    model.upperPositionLimit = np.where(np.isfinite(chain.upper), chain.upper,
+                                        model.upperPositionLimit)
+    R_EP = frame_with_z_on(chain.pointing_axis)
+    end = model.frames[model.getFrameId(chain.end_frame)]
+    model.addFrame(pin.Frame(POINTING_FRAME, end.parentJoint,
+                             end.placement * pin.SE3(R_EP, np.zeros(3)), pin.FrameType.OP_FRAME))
+    _MODELS[robot] = (model, R_EP)
+    return _MODELS[robot]
+
+
+class Avoidance:
+    """The collision geometry and the barrier of a scene (see the module docstring)."""
+
+    def __init__(self, model: Any, root_link: str, scene: Scene, settings: PinkSettings
+                 ) -> None:
+        import coal
+        import pinocchio as pin
+        from pink.barriers import SelfCollisionBarrier
+
+        geometry = pin.GeometryModel()
+        root = model.frames[model.getFrameId(root_link)].placement
+        index = {}
+        for shape in scene.links:
+            fid = model.getFrameId(shape.link)
+            frame = model.frames[fid]
+            placement = frame.placement if frame.parentJoint else root.actInv(frame.placement)
+            index[shape.name] = geometry.addGeometryObject(pin.GeometryObject(
+                shape.name, frame.parentJoint, fid,
+                placement * pin.SE3(shape.rotation, shape.center_m), _coal(coal, shape)))
+        for shape in scene.obstacles:
+            index[shape.name] = geometry.addGeometryObject(pin.GeometryObject(
+                shape.name, 0, 0, pin.SE3(shape.rotation, shape.center_m),
+                _coal(coal, shape)))
+        moving = {s.link for s in scene.links
+                  if model.frames[model.getFrameId(s.link)].parentJoint}
+        for a, b in scene.pairs(moving):
+            geometry.addCollisionPair(pin.CollisionPair(index[a.name], index[b.name]))
+        self.geometry = geometry
+        self.data = pin.GeometryData(geometry)
+        self.pairs = len(geometry.collisionPairs)
+        self.barriers = [SelfCollisionBarrier(self.pairs, gain=settings.barrier_gain,
+                                              safe_displacement_gain=0.0,
+                                              d_min=settings.clearance / 1000.0)]
+
+    def configuration(self, model: Any, data: Any, q: np.ndarray) -> Any:
+        """``pink.Configuration`` with the collision model (distances on each update)."""
+        import pink
+
+        return pink.Configuration(model, data, q, collision_model=self.geometry,
+                                  collision_data=self.data)
+
+    def penetrating(self, model: Any, data: Any, q: np.ndarray) -> bool:
+        """True when a pair overlaps at ``q`` (coal's distances)."""
+        configuration = self.configuration(model, data, q)
+        results = configuration.collision_data.distanceResults
+        return any(r.min_distance < 0.0 for r in results)
+
+
+def _coal(coal, shape):
+    if shape.kind == "capsule":
+        return coal.Capsule(shape.radius_m, shape.length_m)
+    if shape.kind == "sphere":
+        return coal.Sphere(shape.radius_m)
+    return coal.Box(*map(float, shape.size_m))
+
+
+def solve_chain(robot: Robot, chain: Chain, goals: Goals, settings: PinkSettings,
+                scene: Scene | None = None) -> ChainResult:
+    """The pink walk in URDF units (see the module docstring)."""
+    import pink
+    import pinocchio as pin
+    from pink.exceptions import NoSolutionFound
+    from pink.limits import ConfigurationLimit
+    from pink.tasks import FrameTask
+
+    model, R_EP = pink_model(robot, chain)
+    data = model.createData()
+    avoid = None if scene is None else Avoidance(model, robot.root_link, scene, settings)
+    task = FrameTask(POINTING_FRAME, position_cost=settings.position_cost,
+                     orientation_cost=orientation_costs(goals, settings.orientation_cost))
+    limits = [ConfigurationLimit(model, config_limit_gain=settings.limit_gain)]
+    lower, upper = model.lowerPositionLimit, model.upperPositionLimit
+    barriers = {} if avoid is None else {"barriers": avoid.barriers}
+
+    def run(i: int, q_warm: np.ndarray, barriers: dict) -> PointResult:
+        configuration = (pink.Configuration(model, data, q_warm) if avoid is None or not barriers
+                         else avoid.configuration(model, data, q_warm))
+
+        def frame():
+            T = configuration.get_transform_frame_to_world(POINTING_FRAME)
+            return T.translation, T.rotation
+
+        def step():
+            p_P, R_P = frame()
+            task.set_target(pin.SE3(target_rotation(goals, i, R_P, R_EP), goals.points_m[i]))
+            v = pink.solve_ik(configuration, [task], settings.dt, solver=settings.qp_solver,
+                              damping=settings.damping, limits=limits, **barriers)
+            configuration.update(np.clip(configuration.integrate(v, settings.dt), lower, upper))
+
+        def measure():
+            p_P, R_P = frame()
+            return errors(goals, i, p_P, R_P, R_EP)
+
+        steps, ok = converge(measure, step, settings.tolerance, settings.max_steps)
+        return PointResult(configuration.q.copy(), steps, ok)
+
+    def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
+        if avoid is None:
+            return run(i, q_warm, {})
+        spent = 0
+        if avoid.penetrating(model, data, q_warm):
+            # the barrier cannot start inside an obstacle (the walk's first warm start, the
+            # home pose, may be): reach the goal without it first
+            q_free, spent, _ = run(i, q_warm, {})
+            entered.append(i)
+            if not avoid.penetrating(model, data, q_free):  # else: stay, not deeper inside
+                q_warm = q_free
+        try:
+            q, steps, ok = run(i, q_warm, barriers)
+        except NoSolutionFound:  # the barrier's QP is infeasible here
+            q, steps, ok = q_warm, 0, False
+        return PointResult(q, spent + steps, ok)
+
+    entered: list[int] = []
+    walk = walk_back(solve_point, chain, goals)
+    return ChainResult.from_walk(walk, qp_solver=settings.qp_solver,
+                                 iterations_are="QP solves (pink.solve_ik calls)",
+                                 **({} if avoid is None else
+                                    {"started_inside_points": len(entered)}))
+
+
+def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: PinkSettings,
+                step: np.ndarray | None = None, scene: Scene | None = None) -> ChainResult:
+    """pink's track from the start pose onto the touch pose (``plan``: a
+    :class:`ikbench.baselines._common.track.TrackPlan`; ``step``: (dof,) the contract's largest
+    joint change per segment [rad, m], or None: no speed box). See the module docstring."""
+    import pink
+    import pinocchio as pin
+    from pink.exceptions import NoSolutionFound
+    from pink.limits import ConfigurationLimit, Limit
+    from pink.tasks import FrameTask, PostureTask
+
+    model, _ = pink_model(robot, chain)
+    data = model.createData()
+    avoid = None if scene is None else Avoidance(model, robot.root_link, scene, settings)
+    barriers = {} if avoid is None else {"barriers": avoid.barriers}
+    lower, upper = model.lowerPositionLimit, model.upperPositionLimit
+    frame_task = FrameTask(POINTING_FRAME, position_cost=settings.track_position_cost,
+                           orientation_cost=track_orientation_costs(plan,
+                                                                    settings.orientation_cost))
+    posture_task = PostureTask(cost=settings.posture_cost * posture_weights(robot))
+    tasks = [frame_task, posture_task]
+    limits: list = [ConfigurationLimit(model, config_limit_gain=settings.limit_gain)]
+    box = None
+    if step is not None and settings.speed_fraction > 0:
+        box = SpeedBox(settings.speed_fraction * step, plan.q_touch, len(plan) - 1, lower,
+                       upper, settings.limit_gain)
+
+        class SpeedLimit(Limit):
+            """The speed box (:class:`ikbench.baselines._common.diffik.SpeedBox`) as a pink
+            limit."""
+
+            def compute_qp_inequalities(self, configuration, dt):
+                G, h = box.inequalities(configuration.q)
+                return (G, h) if len(h) else None
+
+        limits.append(SpeedLimit())
+    previous: dict[str, Any] = {"q": None}
+
+    def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
+        q0 = q_warm
+        if box is not None:
+            box.set_step(i, q_warm)
+        # the last segment's motion again; not with obstacles: the barrier acts on QP steps
+        # only, and a warm start moved on without it may start inside an obstacle
+        if previous["q"] is not None and scene is None:
+            q0 = q_warm + (q_warm - previous["q"])
+            q0 = np.clip(box.clip(q0) if box is not None else q0, lower, upper)
+        previous["q"] = q_warm
+        configuration = (pink.Configuration(model, data, q0) if avoid is None
+                         else avoid.configuration(model, data, q0))
+        posture_task.set_target(plan.posture[i])
+
+        def frame():
+            T = configuration.get_transform_frame_to_world(POINTING_FRAME)
+            return T.translation, T.rotation
+
+        def step_once() -> float:
+            _, R_P = frame()
+            frame_task.set_target(pin.SE3(track_target_rotation(plan, i, R_P),
+                                          plan.points_m[i]))
+            v = pink.solve_ik(configuration, tasks, settings.dt, solver=settings.qp_solver,
+                              damping=settings.damping, limits=limits, **barriers)
+            q_before = configuration.q.copy()
+            configuration.update(np.clip(configuration.integrate(v, settings.dt), lower, upper))
+            return float(np.max(np.abs(configuration.q - q_before)))
+
+        def measure():
+            p_P, R_P = frame()
+            return track_errors(plan, i, p_P, R_P)
+
+        try:
+            steps, ok = settle(measure, step_once, settings.tolerance, settings.stall,
+                               settings.max_steps)
+        except NoSolutionFound:
+            steps, ok = 0, False
+        return PointResult(configuration.q.copy(), steps, ok)
+
+    walk = track(solve_point, chain, plan)
+    return ChainResult.from_walk(walk, qp_solver=settings.qp_solver, scheme="track",
+                                 speed_box=box is not None,
+                                 iterations_are="QP solves (pink.solve_ik calls)")
+
+
+class PinkIK(AvoidsObstacles, LibraryMethod):
+    """pink's QP differential IK, tracking from the start pose onto the touch pose (or walked
+    back from the touch pose: ``--scheme walk``)."""
+
+    name = "pink"
+    description = ("library: pink QP differential IK on Pinocchio tracking the goal points "
+                   "from the start pose (frame task + posture task, joint limits and speed "
+                   "limits as QP constraints), landing on the touch pose (--scheme walk: "
+                   "walked back from the touch pose); with obstacles, SelfCollisionBarrier "
+                   "on the robot's capsules and the obstacles")
+    library = "pin-pink"
+    Settings = PinkSettings
+    supports_frames = True
+    loads_urdf = False  # the robot's own Pinocchio model
+
+    def prepare(self, robot: Robot) -> None:
+        """Untimed: the model copy with the pointing frame."""
+        from ikbench.baselines._common.chain import chain_of
+
+        pink_model(robot, chain_of(robot))
+
+    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
+        obstacles = current_obstacles()
+        scene = scene_of(robot, obstacles)
+        if goals.track is not None:
+            result = solve_track(robot, chain, goals.track, self.settings, goals.max_step,
+                                 scene)
+        else:
+            result = solve_chain(robot, chain, goals, self.settings, scene)
+        result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
+                                      self.settings.clearance))
+        return result

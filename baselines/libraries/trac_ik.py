@@ -1,0 +1,239 @@
+"""TRAC-IK (PyPI ``pytracik``): one exact 6-D IK per goal point, warm-started: tracked from the
+start pose onto the touch pose (``scheme`` track, the default) or walked back from the touch
+pose (walk, :mod:`ikbench.baselines._common.walk`).
+
+pytracik 0.0.3 ships only its compiled binding (module ``pytracik``; the ``trac_ik`` Python
+wrapper of its README is not in the wheel; source: github.com/chenhaox/pytracik
+``src/pytracik.cpp``). The calls:
+
+- ``pytracik.TRAC_IK(base_link, end_frame, urdf_text, timeout_s, eps, SolveType)``: KDL chain
+  from the URDF, solver;
+- ``pytracik.set_joint_limits(solver, lower, upper)``: the chain's limits. Needed: its URDF
+  parser stores limits in single precision (pi becomes 3.1415927 > pi), which would let
+  solutions leave the limits by ~1e-7 rad. Continuous joints get +-FLT_MAX, which TRAC-IK
+  reads as "continuous";
+- ``pytracik.ik(solver, seed, x, y, z, qx, qy, qz, qw)`` -> ``[rc, q...]`` (rc >= 0: solved);
+- ``pytracik.fk(solver, q)`` -> 4x4 end frame in the base frame.
+
+Pointing goals with an exact-pose solver: the binding calls ``CartToJnt`` without TRAC-IK's
+tolerance twist (which could free the roll), so every solve asks for a full rotation. Goal i
+asks for the warm start's end-frame rotation tilted by the smallest angle that puts the pointing
+axis on the goal direction (the roll carried over from the previous pose). When TRAC-IK finds
+no solution for that roll, the roll is swept about the goal direction (+-1, +-2, ... deg up to
++-60 deg by default) and the first success kept; near the start of some NICO lines only a few
+degrees of roll are reachable. A point with no solution keeps its warm start and counts as not
+converged. 6-D goal frames are solved as given. A returned solution counts as solved only when
+``pytracik.fk`` puts it within the tolerance asked: TRAC-IK bounds every component of the
+pose-error twist by ``eps`` in its own frame, so position [m] and rotation angle [rad] within
+sqrt(3) eps (:data:`FK_CHECK`).
+
+The track (:mod:`ikbench.baselines._common.track`): row 0 is the start pose, row n the touch pose;
+step i asks for the plan's point and scheduled pointing direction, the rotation built as above. When
+the task asks no pointing, position only is impossible with an exact-pose solver: the step asks
+for the task's own goal direction (not judged; roll swept as above) and, when none of those
+rotations is solved, for the warm start's rotation itself. TRAC-IK has no posture term: its
+redundancy resolution is SolveType ``Distance`` (default here; the solution nearest the seed
+among those found within the timeout), and the seed of step i is the warm start moved
+``posture_seed`` of the way toward the plan's posture pose (start to touch pose, linearly),
+the only way to steer it toward the touch pose. Nothing bounds a step's joint change: on NICO
+the 1-D self-motion left by the 6-D pose (wrist and finger about parallel axes, and the carried
+roll) drifts away from the touch pose, and the last segment jumps onto it.
+
+Not deterministic: each ``CartToJnt`` races a KDL Newton thread and an NLopt thread against a
+wall-clock timeout with random restarts and returns the best solution found when the race
+ends, so identical inputs can give slightly different joints (about 1 solve in 200 here).
+``iterations`` counts ``pytracik.ik`` calls (TRAC-IK reports no iteration count).
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ikbench.baselines._common.chain import Chain, Goals
+from ikbench.baselines._common.geometry import (
+    closest_rotation_with_axis,
+    quaternion_xyzw,
+    rotation_about,
+    rotation_angle_rad,
+)
+from ikbench.baselines._common.method import ChainResult, LibraryMethod
+from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
+from ikbench.baselines._common.walk import PointResult, walk_back
+from ikbench.core.errors import InputError
+from ikbench.methods.base import check_choice, check_positive, option
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+
+SOLVE_TYPES = ("Speed", "Distance", "Manip1", "Manip2")
+#: What TRAC-IK takes as the limits of a continuous joint (it tests against FLT_MAX).
+CONTINUOUS = float(np.finfo(np.float32).max)
+#: A solution counts as solved when its FK position error [m] and rotation error [rad] are
+#: both within this many times ``eps``: TRAC-IK bounds every component of the error twist by
+#: eps in its own frame, so both norms are within sqrt(3) eps in any frame.
+FK_CHECK = float(np.sqrt(3.0))
+_SOLVERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+@dataclass
+class TracIKSettings:
+    """Settings of TRAC-IK's track and walk (see the module docstring)."""
+
+    scheme: str = option("track", flag="scheme", choices=SCHEMES, help=SCHEME_HELP)
+    timeout: float = option(0.005, flag="tracik-timeout", unit="s",
+                            help="TRAC-IK's time limit per solve")
+    eps: float = option(5e-7, flag="tracik-eps", unit="m, rad",
+                        help="stop when every component of the pose-error twist is below")
+    solve_type: str = option("Distance", flag="tracik-solve-type", choices=SOLVE_TYPES,
+                             help="TRAC-IK's SolveType: Distance returns the solution nearest "
+                             "the seed found within the timeout, Speed the first one, Manip1 / "
+                             "Manip2 the most manipulable one")
+    roll_step: float = option(1.0, flag="tracik-roll-step", unit="deg",
+                              help="roll sweep step when a point has no solution")
+    roll_max: float = option(60.0, flag="tracik-roll-max", unit="deg",
+                             help="largest roll change tried (0: no sweep)")
+    posture_seed: float = option(0.5, flag="tracik-posture-seed",
+                                 help="scheme track: TRAC-IK's seed (the pose its Distance "
+                                 "mode returns the solution nearest to) is the warm start "
+                                 "moved this fraction toward the step's posture pose (start "
+                                 "to touch pose, linearly); 0: the warm start")
+
+    def __post_init__(self):
+        check_positive(self, "timeout", "eps", "roll_step")
+        check_choice(self, "scheme", SCHEMES)
+        check_choice(self, "solve_type", SOLVE_TYPES)
+        if not (np.isfinite(self.posture_seed) and 0 <= self.posture_seed <= 1):
+            raise InputError(f"--tracik-posture-seed: {self.posture_seed!r} must be in [0, 1]")
+        if not 0 <= self.roll_max <= 180:
+            raise InputError(f"--tracik-roll-max: {self.roll_max!r} must be in [0, 180] deg")
+
+    def rolls_rad(self) -> list[float]:
+        """0, +step, -step, +2 step, ... up to +-roll_max [rad]."""
+        count = int(np.floor(self.roll_max / self.roll_step + 1e-9))
+        rolls = [0.0]
+        for k in range(1, count + 1):
+            rolls += [np.radians(k * self.roll_step), -np.radians(k * self.roll_step)]
+        return rolls
+
+
+def tracik_solver(chain: Chain, settings: TracIKSettings) -> Any:
+    """The TRAC-IK solver of ``chain`` (cached per chain and timeout, eps, solve type)."""
+    key = (settings.timeout, settings.eps, settings.solve_type)
+    cached = _SOLVERS.setdefault(chain, {})
+    if key in cached:
+        return cached[key]
+    import pytracik
+
+    solver = pytracik.TRAC_IK(chain.base_link, chain.end_frame, chain.urdf_text,
+                              float(settings.timeout), float(settings.eps),
+                              getattr(pytracik.SolveType, settings.solve_type))
+    if pytracik.get_num_joints(solver) != chain.dof:
+        raise ValueError(f"TRAC-IK's chain {chain.base_link} -> {chain.end_frame} has "
+                         f"{pytracik.get_num_joints(solver)} joints, the robot {chain.dof}")
+    set_limits(solver, chain.lower, chain.upper)
+    cached[key] = solver
+    return solver
+
+
+def set_limits(solver: Any, lower: npt.ArrayLike, upper: npt.ArrayLike) -> None:
+    """TRAC-IK's joint limits [rad, m]; infinite ones (continuous joints) as +-FLT_MAX."""
+    import pytracik
+
+    lower = np.where(np.isfinite(lower), lower, -CONTINUOUS)
+    upper = np.where(np.isfinite(upper), upper, CONTINUOUS)
+    pytracik.set_joint_limits(solver, [float(v) for v in lower], [float(v) for v in upper])
+
+
+def solve_chain(chain: Chain, goals: Goals, settings: TracIKSettings) -> ChainResult:
+    """TRAC-IK in URDF units: the tracking scheme when ``goals.track`` is set, else the walk
+    (see the module docstring)."""
+    import pytracik
+
+    solver = tracik_solver(chain, settings)
+    rolls = settings.rolls_rad()
+    plan = goals.track
+    swept, off = [], []
+
+    def solve_pose(i: int, seed: np.ndarray, point, candidates, q_warm) -> PointResult:
+        """The first candidate rotation TRAC-IK solves at ``point`` from ``seed``, checked by
+        FK; none solved: ``q_warm``, not ok."""
+        x, y, z = (float(v) for v in point)
+        seed = np.ascontiguousarray(seed, dtype=float)
+        for k, rotation in enumerate(candidates):
+            out = pytracik.ik(solver, seed, x, y, z, *quaternion_xyzw(rotation))
+            if out[0] >= 0:
+                q = np.asarray(out[1:], dtype=float)
+                if k:
+                    swept.append(i)
+                ok = pose_error(solver, q, point, rotation) <= FK_CHECK * settings.eps
+                if not ok:
+                    off.append(i)
+                return PointResult(q, k + 1, ok)
+        return PointResult(q_warm, len(candidates), False)
+
+    def pointing_candidates(q_warm: np.ndarray, direction) -> list[np.ndarray]:
+        """The warm start's rotation tilted onto ``direction``, then rolled about it."""
+        R_warm = np.asarray(pytracik.fk(solver, np.ascontiguousarray(q_warm)))[:3, :3]
+        tilted = closest_rotation_with_axis(R_warm, chain.pointing_axis, direction)
+        return [rotation_about(direction, r) @ tilted for r in rolls]
+
+    def walk_point(i: int, q_warm: np.ndarray) -> PointResult:
+        candidates = ([goals.rotations[i]] if goals.rotations is not None
+                      else pointing_candidates(q_warm, goals.directions[i]))
+        return solve_pose(i, q_warm, goals.points_m[i], candidates, q_warm)
+
+    def track_point(i: int, q_warm: np.ndarray) -> PointResult:
+        candidates = pointing_candidates(q_warm, goals.directions[i] if plan.directions is None
+                                         else plan.directions[i])
+        if plan.directions is None:  # no pointing asked: else the warm start's rotation
+            candidates.append(np.asarray(pytracik.fk(solver, np.ascontiguousarray(q_warm)))
+                              [:3, :3])
+        seed = chain.clip(q_warm + settings.posture_seed * (plan.posture[i] - q_warm))
+        return solve_pose(i, seed, plan.points_m[i], candidates, q_warm)
+
+    walk = track(track_point, chain, plan) if plan is not None else \
+        walk_back(walk_point, chain, goals)
+    return ChainResult.from_walk(walk, points_roll_swept=len(swept),
+                                 points_fk_off=len(off), solve_type=settings.solve_type,
+                                 scheme="track" if plan is not None else "walk",
+                                 iterations_are="pytracik.ik calls (TRAC-IK reports no "
+                                 "iteration count)")
+
+
+def pose_error(solver: Any, q: npt.ArrayLike, point: npt.ArrayLike, rotation: np.ndarray
+               ) -> float:
+    """The larger of the position error [m] and the rotation error [rad] of ``q`` against the
+    pose (``point``, ``rotation``), by ``pytracik.fk``."""
+    import pytracik
+
+    T = np.asarray(pytracik.fk(solver, np.ascontiguousarray(q, dtype=float)))
+    return max(float(np.linalg.norm(T[:3, 3] - np.asarray(point, dtype=float))),
+               rotation_angle_rad(T[:3, :3], rotation))
+
+
+class TracIK(LibraryMethod):
+    """TRAC-IK per point (exact 6-D, roll carried over), tracked from the start pose onto the
+    touch pose (scheme track) or walked back from the touch pose (walk)."""
+
+    name = "trac-ik"
+    description = ("library: TRAC-IK (pytracik) per point, the roll carried over from the "
+                   "previous pose, SolveType Distance, tracked from the start pose onto the "
+                   "touch pose (--scheme walk: back from it); not bit-deterministic (threads "
+                   "race a timeout)")
+    library = "pytracik"
+    Settings = TracIKSettings
+    supports_frames = True
+
+    def prepare(self, robot: Robot) -> None:
+        """Untimed: KDL parses the URDF, TRAC-IK builds its solvers."""
+        from ikbench.baselines._common.chain import chain_of
+
+        tracik_solver(chain_of(robot), self.settings)
+
+    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
+        return solve_chain(chain, goals, self.settings)

@@ -1,0 +1,314 @@
+"""The leaderboard of ``ikbench compare``: one table per track, the contract above each, and
+``pareto.png``.
+
+Every figure comes from ``results.csv`` (:func:`ikbench.studies.compare.compare`), itself
+measured from the trajectory CSVs. A row per method and track: how many trajectories met
+each criterion and all of them, the worst pose errors, line distance (mean and max), pointing
+(all steps and the judged part), the largest joint step and the speed limit's use, jerk, the
+time of one trajectory solved alone (median, min-max over repetitions and trajectories), the
+batched time per trajectory where the method batches, and the ratio to the reference method's
+single-trajectory time in the same run. When the tasks carry obstacles (``Contract.obstacles``)
+each row also counts the trajectories free of collisions (``collisions_count``), the smallest
+clearance to the obstacles and whether the method avoids obstacles; the header lists the
+obstacles. Without obstacles the tables are exactly as before.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from ikbench.core.contract import TRACK_TITLES, Contract
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from matplotlib.figure import Figure
+
+#: Criterion -> its short column title.
+CRITERION_TITLES = {"start_pose": "start", "end_pose": "touch", "limits": "limits",
+                    "speed": "speed", "line": "line", "pointing": "pointing",
+                    "collisions": "no collision"}
+
+
+def leaderboard(results: pd.DataFrame, reference: str, contract: Contract) -> pd.DataFrame:
+    """One row per track and method (tracks: the contract's and ``touch``)."""
+    tracks = list(dict.fromkeys([contract.track, "touch"]))
+    ref = results[results["method"] == reference]["time_median_s"].median()
+    rows = []
+    for track in tracks:
+        judged = contract.with_track(track)
+        success = "success" if track == contract.track else "success_touch"
+        for name, group in results.groupby("method", sort=False):
+            rows.append(_board_row(name, group, track, judged, success, ref))
+    return pd.DataFrame(rows)
+
+
+def _board_row(name, group, track, judged: Contract, success: str, ref) -> dict:
+    solved = group[group["ok_solved"] == True]  # noqa: E712 (object column)
+    count = len(group)
+    status = sorted(set(group["status"].astype(str)))
+    if track != "paper":  # the walk honours the touch-pose-only track
+        status = sorted({"solved" if s.startswith("does not honour") else s for s in status})
+    row = {"track": track, "method": name, "library": group["library"].iloc[0],
+           "version": group["library_version"].iloc[0],
+           "scheme": group["scheme"].dropna().iloc[0] if group["scheme"].notna().any() else "",
+           "status": "; ".join(status), "trajectories": count,
+           "success_count": int(group[success].astype(bool).sum()),
+           "success": float(group[success].astype(bool).mean()) if count else 0.0}
+    for criterion in judged.criterion_names():
+        if criterion in judged.criteria():
+            row[f"{criterion}_count"] = int((group[f"ok_{criterion}"] == True).sum())  # noqa
+        else:
+            row[f"{criterion}_count"] = np.nan
+
+    def agg(column, how):
+        values = solved[column].astype(float).dropna()
+        return float(getattr(values, how)()) if len(values) else np.nan
+
+    row.update(start_pose_error_max_deg=agg("start_pose_error_deg", "max"),
+               end_pose_error_max_deg=agg("end_pose_error_deg", "max"),
+               line_distance_mean_mm=agg("line_distance_mean_mm", "median"),
+               line_distance_max_mm=agg("line_distance_max_mm", "max"),
+               pointing_deviation_mean_deg=agg("pointing_deviation_mean_deg", "median"),
+               pointing_deviation_judged_mean_deg=agg("pointing_deviation_judged_mean_deg",
+                                                      "median"),
+               max_joint_step_deg=agg("max_joint_step_deg", "max"),
+               speed_limit_use=agg("speed_limit_use", "max"),
+               mean_sq_jerk_deg2=agg("mean_sq_jerk_deg2", "median"),
+               time_median_s=agg("time_median_s", "median"),
+               time_min_s=agg("time_min_s", "min"), time_max_s=agg("time_max_s", "max"),
+               time_batched_s=agg("time_batched_s", "median"))
+    row["time_vs_reference"] = (row["time_median_s"] / ref if ref and ref > 0
+                                else np.nan)
+    row["note"] = "" if len(solved) else str(group["failure"].iloc[0])
+    if judged.obstacles:  # after every obstacle-free column, so those stay as they were
+        row.update(min_clearance_mm=agg("min_clearance_mm", "min"),
+                   avoids_obstacles=bool(group["avoids_obstacles"].astype(bool).any()))
+    return row
+
+
+def fmt(value: float | None, digits: int = 3) -> str:
+    """A number in a precision that shows differences: 3 significant digits, scientific
+    below 1e-3 (5.6e-05, not 0.000); NaN as an empty cell."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    value = float(value)
+    if value == 0:
+        return "0"
+    if abs(value) < 1e-3 or abs(value) >= 1e5:
+        return f"{value:.{digits - 1}e}"
+    return f"{value:.{digits}g}" if abs(value) < 10 ** digits else f"{value:.0f}"
+
+
+def _table(board: pd.DataFrame, reference: str, judged: Contract) -> list[str]:
+    criteria = judged.criteria()
+    head = (["method", "library", "scheme", "status", "success"]
+            + [CRITERION_TITLES[c] for c in criteria]
+            + ["start err [deg]", "touch err [deg]", "line mean [mm]", "line max [mm]",
+               "pointing all [deg]", "pointing judged [deg]", "max step [deg]",
+               "speed use", "jerk [deg^2]", "time single [s] median (min-max)",
+               "time batched [s]", f"x {reference}"]
+            + (["min clearance [mm]", "avoids obstacles"] if judged.obstacles else []))
+    lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
+    for _, row in board.iterrows():
+        n = int(row["trajectories"])
+        cells = [row["method"], f"{row['library']} {row['version'] or ''}".strip(),
+                 str(row["scheme"]), str(row["status"]),
+                 f"**{int(row['success_count'])}/{n}**"]
+        cells += [f"{int(row[f'{c}_count'])}/{n}" if not pd.isna(row[f"{c}_count"]) else ""
+                  for c in criteria]
+        time = (f"{fmt(row['time_median_s'])} ({fmt(row['time_min_s'])}-"
+                f"{fmt(row['time_max_s'])})" if not pd.isna(row["time_median_s"]) else "")
+        cells += [fmt(row["start_pose_error_max_deg"]), fmt(row["end_pose_error_max_deg"]),
+                  fmt(row["line_distance_mean_mm"]), fmt(row["line_distance_max_mm"]),
+                  fmt(row["pointing_deviation_mean_deg"]),
+                  fmt(row["pointing_deviation_judged_mean_deg"]),
+                  fmt(row["max_joint_step_deg"]), fmt(row["speed_limit_use"]),
+                  fmt(row["mean_sq_jerk_deg2"]), time, fmt(row["time_batched_s"]),
+                  fmt(row["time_vs_reference"])]
+        if judged.obstacles:
+            cells += [fmt(row["min_clearance_mm"]),
+                      "yes" if row["avoids_obstacles"] else "no"]
+        if row["note"]:
+            cells[3] += f": {row['note'][:120]}"
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def leaderboard_markdown(board: pd.DataFrame, record: dict, contract: Contract) -> str:
+    """leaderboard.md: per track, the contract in words, then the table."""
+    steps = record["steps"]
+    unit = "motor deg" if record["robot"].get("pose_unit", "").startswith("motor") else "deg"
+    lines = [f"# Leaderboard: {record['robot']['name']}, targets {record['targets']}", "",
+             f"{len(record['trajectories'])} trajectories (n = {steps}). Every method "
+             "receives the same task contract (`Task.contract`) and is judged by "
+             "`ikbench.core.metrics.contract_metrics` from the trajectory CSVs it wrote; "
+             "success is never what a method reports. Counts: trajectories meeting each "
+             "criterion. Errors are the worst over the trajectories (pose errors, line max, "
+             "max step, speed use) or the median (line mean, pointing, jerk). Time single: "
+             "one trajectory solved alone, timed by the study harness, median over "
+             f"{record['repeat']} repetitions then over the trajectories (min-max over both); "
+             "time batched: a batching method's share of one call that solves all "
+             f"trajectories; x {record['reference']}: time single over "
+             f"`{record['reference']}`'s, measured in the same run. Speed use: the largest "
+             "joint step over the step the speed limit allows (1 = at the limit).", ""]
+    if record.get("obstacles"):
+        lines += _obstacles_paragraph(record["obstacles"])
+    for track in dict.fromkeys(board["track"]):
+        judged = contract.with_track(track)
+        lines += [f"## Track `{track}`: {TRACK_TITLES[track]}", "",
+                  judged.describe(steps, unit), "",
+                  *_table(board[board["track"] == track], record["reference"], judged), ""]
+    lines += [f"Machine: {record['cpu']} ({record['cpu_count']} cores); libraries: "
+              + ", ".join(f"{k} {v}" for k, v in record["libraries"].items())
+              + f"; ikbench git {record['git_revision']}.", ""]
+    return "\n".join(lines)
+
+
+def _obstacles_paragraph(obstacles: dict) -> list[str]:
+    """The header lines naming the obstacles (run.json's ``obstacles``)."""
+    from ikbench.core.obstacles import parse_obstacles
+
+    items = parse_obstacles(obstacles["items"], "run.json")
+    return [f"Obstacles ({obstacles['source']}), on every task: "
+            + "; ".join(o.describe() for o in items) + ". Collisions are judged with the "
+            "robot's collision model (docs/collisions.md): \"no collision\" counts the "
+            "trajectories with no waypoint in collision with an obstacle or with the robot "
+            "itself; min clearance is the smallest signed distance to an obstacle [mm] "
+            "(negative: a penetration). Methods that do not avoid obstacles still solve the "
+            "tasks; a collision fails their row.", ""]
+
+
+def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Contract
+                ) -> Figure:
+    """Two panels: time vs line distance (max), and line distance vs pointing (judged part)
+    with ours-lm's weight sweep as a curve; one colour per library."""
+    from ikbench.render.run_report import _matplotlib
+
+    plt = _matplotlib()
+    fig, (ax_t, ax_p) = plt.subplots(1, 2, figsize=(13, 7.0))
+    solved = results[results["ok_solved"] == True]  # noqa: E712
+    libraries = list(dict.fromkeys(solved["library"]))
+    colors = plt.cm.tab10(np.linspace(0, 1, 10))
+    markers = "osD^v<>pPX*h"
+    floor = 1e-7
+    for k, (name, group) in enumerate(solved.groupby("method", sort=False)):
+        color = colors[libraries.index(group["library"].iloc[0]) % 10]
+        marker = markers[k % len(markers)]
+        line = group["line_distance_max_mm"].astype(float).clip(lower=floor)
+        met = group["success"].astype(bool).sum()
+        label = f"{name} ({met}/{len(group)} meet the {contract.track} contract)"
+        ax_t.scatter(group["time_median_s"], line, color=color, marker=marker, s=22,
+                     alpha=0.45)
+        ax_t.scatter(group["time_median_s"].median(), line.median(), color=color,
+                     marker=marker, s=120, edgecolor="k", label=label)
+        if contract.pointing:
+            ax_p.scatter(line.median(), group["pointing_deviation_judged_mean_deg"].median(),
+                         color=color, marker=marker, s=120, edgecolor="k", label=name)
+    if sweep is not None and len(sweep):
+        ax_p.plot(sweep["line_distance_max_mm"].clip(lower=floor),
+                  sweep["pointing_deviation_judged_mean_deg"], "-o", color="0.3", ms=4,
+                  label="ours-lm weight sweep (c0)")
+        for k, (_, row) in enumerate(sweep.iterrows()):
+            if k % 2:  # every other label: they would overlap
+                continue
+            ax_p.annotate(f"c0={row['c0']:g}", (max(row["line_distance_max_mm"], floor),
+                                                row["pointing_deviation_judged_mean_deg"]),
+                          fontsize=7, xytext=(0, -11), textcoords="offset points",
+                          ha="center")
+    tol = contract.tolerances
+    for ax in (ax_t, ax_p):
+        ax.grid(alpha=0.3, which="both")
+    ax_t.axhline(tol["line_distance_max_mm"], color="r", ls="--", lw=0.8,
+                 label=f"line tolerance {tol['line_distance_max_mm']:g} mm")
+    ax_t.set_xscale("log")
+    ax_t.set_yscale("log")
+    ax_t.set_xlabel("time to solve one trajectory alone [s] (median over repetitions)")
+    ax_t.set_ylabel("largest distance from the line [mm]")
+    ax_t.set_title("Time vs accuracy (small: per trajectory; large: median)", fontsize=10)
+    ax_t.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.14), ncol=2,
+                frameon=False)
+    ax_p.set_xscale("log")
+    ax_p.set_xlabel("largest distance from the line [mm] (median over trajectories)")
+    ax_p.set_ylabel("pointing deviation, judged part [deg] (median)")
+    ax_p.axvline(tol["line_distance_max_mm"], color="r", ls="--", lw=0.8)
+    if contract.pointing:
+        ax_p.axhline(tol["pointing_judged_mean_deg"], color="r", ls="--", lw=0.8)
+    ax_p.set_title("Line vs pointing: the libraries and ours-lm's weight trade-off\n"
+                   "(lower left is better; dashed: the tolerances)", fontsize=10)
+    ax_p.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.14), ncol=3,
+                frameon=False)
+    fig.tight_layout()
+    return fig
+
+
+#: Markers around the table in README.md that :func:`readme_table` writes (tested equal).
+README_MARKERS = ("<!-- compare-table:start -->", "<!-- compare-table:end -->")
+
+
+def readme_table(board: pd.DataFrame, reference: str = "ours-lm") -> str:
+    """The compact table README.md shows, from ``leaderboard.csv``'s rows of the paper's
+    track: success per criterion, time single and its ratio, line distance, pointing in the
+    judged part, largest step."""
+    rows = board[board["track"] == "paper"]
+    head = ["method", "scheme", "success", "start", "touch", "speed", "line", "pointing",
+            "time single [s]", f"x {reference}", "line max [mm]", "pointing judged [deg]",
+            "max step [deg]"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
+    for _, row in rows.iterrows():
+        n = int(row["trajectories"])
+
+        def count(criterion, row=row, n=n):
+            value = row.get(f"{criterion}_count")
+            return "" if pd.isna(value) else f"{int(value)}/{n}"
+
+        lines.append("| " + " | ".join([
+            str(row["method"]), str(row["scheme"]) if not pd.isna(row["scheme"]) else "",
+            f"**{int(row['success_count'])}/{n}**", count("start_pose"), count("end_pose"),
+            count("speed"), count("line"), count("pointing"), fmt(row["time_median_s"]),
+            fmt(row["time_vs_reference"]), fmt(row["line_distance_max_mm"]),
+            fmt(row["pointing_deviation_judged_mean_deg"]),
+            fmt(row["max_joint_step_deg"])]) + " |")
+    return "\n".join(lines)
+
+
+def write_readme_table(readme: str | Path, leaderboard_csv: str | Path) -> None:
+    """Replace the table between :data:`README_MARKERS` in ``readme`` by :func:`readme_table`
+    of ``leaderboard_csv`` (``python -c "from ikbench.render.leaderboard import
+    write_readme_table as w; w('README.md', 'results/compare/leaderboard.csv')"``)."""
+    from pathlib import Path
+
+    from ikbench.core.io import atomic_write_text
+
+    path = Path(readme)
+    text = path.read_text(encoding="utf-8")
+    start, end = README_MARKERS
+    head, rest = text.split(start, 1)
+    _, tail = rest.split(end, 1)
+    table = readme_table(pd.read_csv(leaderboard_csv))
+    atomic_write_text(path, f"{head}{start}\n{table}\n{end}{tail}")
+
+
+def render(folder: str | Path) -> None:
+    """Write ``leaderboard.md``, ``leaderboard.csv`` and ``pareto.png`` of a compare folder
+    again from its ``results.csv``, ``pareto_sweep.csv`` and ``run.json`` (nothing is solved:
+    for a change of presentation only)."""
+    import json
+    from pathlib import Path
+
+    from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text
+
+    folder = Path(folder)
+    record = json.loads((folder / "run.json").read_text(encoding="utf-8"))
+    contract = Contract.from_dict(record["contract"])
+    results = pd.read_csv(folder / "results.csv", dtype={"trajectory": str})
+    sweep_path = folder / "pareto_sweep.csv"
+    sweep = pd.read_csv(sweep_path) if sweep_path.exists() else None
+    board = leaderboard(results, record["reference"], contract)
+    atomic_write_csv(folder / "leaderboard.csv", board, float_format="%.6g")
+    atomic_write_text(folder / "leaderboard.md", leaderboard_markdown(board, record, contract))
+    atomic_savefig(folder / "pareto.png", plot_pareto(results, sweep, contract))
