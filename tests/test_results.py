@@ -102,61 +102,16 @@ def test_committed_comparison_is_reproduced_from_its_trajectories():
     assert len(winners) >= 4 and len({library[m] for m in winners}) >= 3, winners
 
 
-def test_readme_compare_table_is_generated_from_the_committed_leaderboard():
-    from ikbench.render.leaderboard import README_MARKERS, readme_table
-
-    board = pd.read_csv(RESULTS / "compare" / "leaderboard.csv")
-    text = (RESULTS.parent / "README.md").read_text()
-    start, end = README_MARKERS
-    block = text[text.index(start) + len(start):text.index(end)].strip()
-    assert block == readme_table(board)
-
-
-#: The comment line before README's code block that rewrites its compare table.
-README_TABLE_COMMAND = "<!-- readme:compare-table-command -->"
 #: A measured figure: a number and a unit of time, length, angle, share or ratio.
 FIGURE = r"\d+(?:\.\d+)?\s*(?:ms|s|min|h|mm|cm|m|deg|°|%|x)(?![\w])"
 
 
-def readme_table_command(text: str) -> str:
-    """The shell command in the code block after :data:`README_TABLE_COMMAND`."""
-    block = text.split(README_TABLE_COMMAND, 1)[1].split("```", 2)[1]
-    return block.strip()
-
-
-def test_readme_command_writes_its_compare_table_from_the_committed_leaderboard(tmp_path):
-    """README's documented command rewrites the table between the markers from results/:
-    run on a copy whose table is stale, it gives back the committed README exactly."""
-    import re
-    import shlex
-    import subprocess
-    import sys
-
-    from ikbench.render.leaderboard import README_MARKERS
-
-    text = (REPO / "README.md").read_text(encoding="utf-8")
-    argv = shlex.split(readme_table_command(text))
-    assert argv[0] == ".venv/bin/python" and argv[1] == "-c", argv
-    start, end = README_MARKERS
-    stale = re.sub(f"{re.escape(start)}.*{re.escape(end)}", f"{start}\n| stale |\n{end}", text,
-                   flags=re.S)
-    assert stale != text
-    (tmp_path / "README.md").write_text(stale, encoding="utf-8")
-    (tmp_path / "results" / "compare").mkdir(parents=True)
-    board = (RESULTS / "compare" / "leaderboard.csv").read_bytes()
-    (tmp_path / "results" / "compare" / "leaderboard.csv").write_bytes(board)
-    subprocess.run([sys.executable, "-c", argv[2]], cwd=tmp_path, check=True, timeout=120)
-    assert (tmp_path / "README.md").read_text(encoding="utf-8") == text
-
-
-def test_readme_states_no_measured_figure_outside_its_generated_table():
-    """Measurements in README come from results/ through the generated table; elsewhere it
+def test_readme_states_no_measured_figure_outside_its_generated_blocks():
+    """Measurements in README come from results/ through generated blocks; elsewhere it
     links to the results (a retyped figure would drift from them)."""
     import re
 
-    from ikbench.render.leaderboard import README_MARKERS
+    from ikbench.render.blocks import BLOCK
 
-    text = (REPO / "README.md").read_text(encoding="utf-8")
-    start, end = README_MARKERS
-    outside = text[:text.index(start)] + text[text.index(end):]
-    assert re.findall(FIGURE, outside) == []
+    text = BLOCK.sub("", (REPO / "README.md").read_text(encoding="utf-8"))
+    assert re.findall(FIGURE, text) == []

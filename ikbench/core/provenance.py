@@ -5,7 +5,9 @@ from __future__ import annotations
 import datetime
 import os
 import platform
+import shlex
 import subprocess
+import sys
 from collections.abc import Iterable
 from importlib import metadata
 from pathlib import Path
@@ -35,27 +37,57 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
-def git_revision() -> str | None:
-    """The checkout's commit, with ``-dirty`` if code is modified; None outside git.
+def _git(*args: str) -> str:
+    return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True,
+                          timeout=10).stdout.strip()
+
+
+def git_state() -> tuple[str, bool] | None:
+    """(the checkout's full commit hash, whether the code is unmodified), or None outside a
+    git checkout (an installed wheel).
 
     Changes under ``results*/`` do not count: regenerating the committed results changes only
-    them, and the code that produced them is still the commit named.
+    them, and the code that produced them is still the commit named. Untracked files do not
+    count either (a new file changes nothing until something imports it, and the tests that
+    would are tracked).
     """
-    def git(*args):
-        return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True,
-                              timeout=10).stdout.strip()
-
     if not (REPO / ".git").exists():  # an installed wheel, not a checkout
         return None
     try:
-        rev = git("rev-parse", "--short=12", "HEAD")
-        changed = git("status", "--porcelain", "--untracked-files=no", "--", ".",
-                      ":(exclude,glob)results*/**")
+        commit = _git("rev-parse", "HEAD")
+        changed = _git("status", "--porcelain", "--untracked-files=no", "--", ".",
+                       ":(exclude,glob)results*/**")
     except (OSError, subprocess.SubprocessError):
         return None
-    if not rev:
+    if not commit:
         return None
-    return rev + ("-dirty" if changed else "")
+    return commit, not changed
+
+
+def git_revision() -> str | None:
+    """The checkout's commit (12 hex digits), with ``-dirty`` if code is modified; None
+    outside git (see :func:`git_state`)."""
+    state = git_state()
+    if state is None:
+        return None
+    return state[0][:12] + ("" if state[1] else "-dirty")
+
+
+def load_average() -> list[float] | None:
+    """The machine's 1, 5 and 15 min load averages (other jobs slow every timing), or None
+    where the platform has none."""
+    try:
+        return [round(v, 2) for v in os.getloadavg()]
+    except (OSError, AttributeError):
+        return None
+
+
+def command_line() -> str:
+    """The command that is running, as a reader would type it (``ikbench compare ...``)."""
+    program = Path(sys.argv[0]).name if sys.argv and sys.argv[0] else ""
+    if program in ("ikbench", "__main__.py"):  # the console script or python -m ikbench.cli
+        return shlex.join(["ikbench", *sys.argv[1:]])
+    return shlex.join(["python", *sys.argv])
 
 
 def library_versions(names: Iterable[str]) -> dict[str, str | None]:
@@ -71,6 +103,7 @@ def provenance(extra: Iterable[str] = ()) -> dict[str, Any]:
     """
     import torch
 
+    state = git_state()
     return {
         "created_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "python": platform.python_version(),
@@ -78,6 +111,10 @@ def provenance(extra: Iterable[str] = ()) -> dict[str, Any]:
         "cpu": cpu_model(),
         "cpu_count": os.cpu_count(),
         "torch_threads": torch.get_num_threads(),
-        "git_revision": git_revision(),
+        "git_revision": (state[0][:12] + ("" if state[1] else "-dirty")) if state else None,
+        "git_commit": state[0] if state else None,
+        "git_clean": state[1] if state else None,
+        "load_average": load_average(),
+        "command_line": command_line(),
         "packages": library_versions(dict.fromkeys([*PACKAGES, *extra])),
     }

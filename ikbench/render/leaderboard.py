@@ -246,10 +246,6 @@ def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Con
     return fig
 
 
-#: Markers around the table in README.md that :func:`readme_table` writes (tested equal).
-README_MARKERS = ("<!-- compare-table:start -->", "<!-- compare-table:end -->")
-
-
 def readme_table(board: pd.DataFrame, reference: str = "ours-lm") -> str:
     """The compact table README.md shows, from ``leaderboard.csv``'s rows of the paper's
     track: success per criterion, time single and its ratio, line distance, pointing in the
@@ -274,23 +270,6 @@ def readme_table(board: pd.DataFrame, reference: str = "ours-lm") -> str:
             fmt(row["pointing_deviation_judged_mean_deg"]),
             fmt(row["max_joint_step_deg"])]) + " |")
     return "\n".join(lines)
-
-
-def write_readme_table(readme: str | Path, leaderboard_csv: str | Path) -> None:
-    """Replace the table between :data:`README_MARKERS` in ``readme`` by :func:`readme_table`
-    of ``leaderboard_csv`` (``python -c "from ikbench.render.leaderboard import
-    write_readme_table as w; w('README.md', 'results/compare/leaderboard.csv')"``)."""
-    from pathlib import Path
-
-    from ikbench.core.io import atomic_write_text
-
-    path = Path(readme)
-    text = path.read_text(encoding="utf-8")
-    start, end = README_MARKERS
-    head, rest = text.split(start, 1)
-    _, tail = rest.split(end, 1)
-    table = readme_table(pd.read_csv(leaderboard_csv))
-    atomic_write_text(path, f"{head}{start}\n{table}\n{end}{tail}")
 
 
 def render(folder: str | Path) -> None:

@@ -36,12 +36,41 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--quick", action="store_true",
                         help="pipeline check on a reduced configuration: trajectory 1, n = 10, "
                         "at most 100 iterations (seconds, not the paper's numbers)")
+    every = parser.add_argument_group(
+        "every results folder (--all)",
+        "Regenerate every committed results folder, one study per process, from a clean "
+        "commit: the plan (each study, its command, its expected time) is printed first; a "
+        "study already made at this commit is skipped (resumable); README.md's and docs/'s "
+        "generated blocks are rendered again at the end. See docs/results-at-a-glance.md.")
+    every.add_argument("--all", action="store_true",
+                       help="run every study of the plan (the paper's reproduction is one)")
+    every.add_argument("--only", default=None, metavar="STUDY[,STUDY...]",
+                       help="with --all: only these studies (--plan lists them)")
+    every.add_argument("--plan", action="store_true",
+                       help="print the plan and what would be skipped; run nothing")
+    every.add_argument("--force", action="store_true",
+                       help="with --all: run studies already made at this commit again")
+    every.add_argument("--allow-dirty", action="store_true",
+                       help="with --all: run from a tree with modified code (recorded; the "
+                       "committed results must come from a clean tree)")
+    every.add_argument("--docs", action="store_true",
+                       help="only render README.md's and docs/'s generated blocks again from "
+                       "results/ (no solving)")
     add_threads_and_quiet(parser)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from ikbench.cli.options import check_threads, set_threads
+
+    if args.docs:
+        return render_docs()
+    if args.all or args.plan:
+        return run_all(args)
+    if args.only or args.force or args.allow_dirty:
+        from ikbench.core.errors import InputError
+
+        raise InputError("--only, --force and --allow-dirty go with --all (or --plan)")
     from ikbench.paper.reproduce import reproduce
 
     check_threads(args.threads)
@@ -50,4 +79,27 @@ def run(args: argparse.Namespace) -> int:
     width = max(map(len, times))
     for stage, seconds in times.items():
         print(f"{stage:<{width}} {seconds:8.1f} s")
+    return 0
+
+
+def run_all(args: argparse.Namespace) -> int:
+    """``reproduce --all`` / ``--plan``: the regeneration plan (:mod:`ikbench.paper.regenerate`)."""
+    from ikbench.paper.regenerate import regenerate
+
+    only = [s.strip() for s in args.only.split(",") if s.strip()] if args.only else None
+    times = regenerate(args.output or "results", only=only, force=args.force,
+                       allow_dirty=args.allow_dirty, dry_run=args.plan)
+    for study, seconds in times.items():
+        print(f"{study:<16} {seconds / 60:6.1f} min")
+    return 0
+
+
+def render_docs() -> int:
+    """``reproduce --docs``: render every generated block of README.md and docs/ again."""
+    from ikbench.core.provenance import REPO
+    from ikbench.render.blocks import documents, render_files
+
+    changed = render_files(documents(REPO), REPO)
+    print("rendered: " + (", ".join(str(p.relative_to(REPO)) for p in changed) or "nothing "
+                          "changed"))
     return 0

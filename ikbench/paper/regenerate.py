@@ -1,0 +1,212 @@
+"""Every committed results folder from one clean commit by one command (``reproduce --all``).
+
+:data:`STUDIES` is the plan: each study's name, the command that makes it (an ``ikbench``
+command line or a benchmark script), what it writes under the results directory, and the
+time it took when last measured here. :func:`regenerate` prints the plan first, then runs each
+study in its own process (so one study's imports, caches and threads cannot change another's
+timing), streams its progress, and records each finished study in
+``RESULTS/regenerated.json`` (commit, clean tree, wall time, load). It is resumable: a study
+already made at this commit is skipped unless ``force``; a dirty tree is refused unless
+``allow_dirty`` (then recorded as such, and the provenance test refuses the results). After
+the studies, every generated block of README.md and docs/ is rendered again
+(:mod:`ikbench.render.blocks`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from ikbench.core.errors import InputError
+from ikbench.core.io import atomic_write_text
+from ikbench.core.provenance import REPO, git_state, load_average
+from ikbench.render.blocks import documents, render_files
+
+#: The record of finished studies, in the results directory.
+RECORD = "regenerated.json"
+
+
+@dataclass(frozen=True)
+class Study:
+    """One results folder (or file set) and the command that makes it.
+
+    Attributes:
+        name: the study's name (``--only`` takes these).
+        argv: the command, ``ikbench`` arguments (or ``python SCRIPT`` arguments when
+            ``script``), with ``{out}`` standing for the results directory.
+        writes: what it writes, relative to the results directory.
+        minutes: the wall time it took when last measured on the 2-core machine [min].
+        script: a script under the repository (benchmarks/) instead of an ikbench command.
+    """
+
+    name: str
+    argv: tuple[str, ...]
+    writes: tuple[str, ...]
+    minutes: float
+    script: str = ""
+
+    def command(self, out: Path) -> list[str]:
+        """The command line to run, for the results directory ``out``."""
+        args = [a.replace("{out}", str(out)) for a in self.argv]
+        if self.script:
+            return [sys.executable, str(REPO / self.script), *args]
+        return [sys.executable, "-m", "ikbench.cli", *args]
+
+    def shown(self, out: Path) -> str:
+        """The command as a reader would type it."""
+        args = [a.replace("{out}", str(out)) for a in self.argv]
+        head = ["python", self.script] if self.script else ["ikbench"]
+        return shlex.join([*head, *args])
+
+
+COMPARE_METHODS = ("ours-lm,ours-exact,sequential-ik,ikpy,pink,trac-ik,mink,drake-ik,"
+                   "drake-trajopt,pyroki,sequential-ik-walk,ikpy-walk")
+CARTESIAN_METHODS = "ours,ours-lm,sequential-ik,ikpy,pink,trac-ik,mink,drake-ik,drake-trajopt"
+OBSTACLE_PROBLEMS = ("panda__1cube,panda__2cubes,panda__flappy_bird,fetch_arm__circle,"
+                     "fetch_arm__s,fetch_arm__square,fetch__circle,fetch__s,fetch__square")
+#: The plan, in the order it runs (cheap and foundational first).
+STUDIES: tuple[Study, ...] = (
+    Study("paper", ("reproduce", "--output", "{out}"),
+          ("README.md", "report.md", "pointing_deviation_per_step.png", "ours",
+           "sequential-ik", "sequential-ik-pointing", "sequential-ik-position", "ikpy",
+           "ours-init-interpolation", "ablation"), 5.0),
+    Study("compare", ("compare", "--methods", COMPARE_METHODS, "--output", "{out}"),
+          ("compare",), 12.0),
+    Study("bench", ("bench", "--output", "{out}"),
+          ("benchmark.csv", "benchmark.json", "benchmark.md", "benchmark_runs.csv"), 3.0),
+    Study("exact-benchmark", ("bench", "--methods", "ours-lm,ours-exact,drake-trajopt,pyroki",
+                              "--repeat", "5", "--output", "{out}/exact_benchmark"),
+          ("exact_benchmark",), 4.0),
+    Study("throughput", ("bench", "--device", "cpu", "--output", "{out}/scale"),
+          ("scale",), 4.0),
+    Study("sweep", ("sweep", "--output", "{out}/sweep"), ("sweep",), 3.0),
+    Study("batch", ("batch", "--output", "{out}/batch"), ("batch",), 2.0),
+    Study("letters", ("letters", "P,A,S,X", "--output", "{out}/letters"),
+          ("letters/ours",), 3.0),
+    Study("letters-sweep", ("sweep", "--shape", "letter:P", "--weight", "c0=1,10,100,1000",
+                            "--weight", "c1=10,50,200", "--output", "{out}/letters/sweep"),
+          ("letters/sweep",), 3.0),
+    Study("cartesian", ("cartesian", "--problems", "cppflow", "--methods", CARTESIAN_METHODS,
+                        "--seeds", "1,2,3", "--trajectories", "all", "--output", "{out}"),
+          ("cartesian",), 30.0),
+    Study("obstacles", ("cartesian", "--problems", OBSTACLE_PROBLEMS, "--methods", "ours-lm",
+                        "--seeds", "1,2,3,4,5", "--trajectories", "all", "--output",
+                        "{out}/obstacles"), ("obstacles",), 10.0),
+    Study("obstacles-all", ("cartesian", "--problems", OBSTACLE_PROBLEMS, "--seeds", "1",
+                            "--trajectories", "all", "--output", "{out}/obstacles_all"),
+          ("obstacles_all",), 20.0),
+    Study("ik-panda", ("ik", "--robot", "example-robot-data:panda", "--count", "10000",
+                       "--output", "{out}"), ("ik/panda",), 15.0),
+    Study("ik-ur5", ("ik", "--robot", "example-robot-data:ur5", "--count", "10000",
+                     "--output", "{out}"), ("ik/ur5",), 15.0),
+    Study("ik-xarm7", ("ik", "--robot", "example-robot-data:xarm7", "--count", "10000",
+                       "--output", "{out}"), ("ik/xarm7",), 15.0),
+    Study("ik-fetch", ("ik", "--robot", "fetch_arm", "--count", "10000", "--output", "{out}"),
+          ("ik/fetch_arm",), 15.0),
+    Study("ours-speed", ("--output", "{out}/ours_speed.csv"), ("ours_speed.csv",), 2.0,
+          script="benchmarks/ours_speed.py"),
+)
+
+
+def plan(only: Sequence[str] | None = None) -> list[Study]:
+    """The studies to run (all, or those named in ``only``, in plan order); InputError naming
+    an unknown name and the known ones."""
+    if not only:
+        return list(STUDIES)
+    names = [s.name for s in STUDIES]
+    unknown = [n for n in only if n not in names]
+    if unknown:
+        raise InputError(f"--only: {', '.join(unknown)} is not a study; studies: "
+                         f"{', '.join(names)}")
+    return [s for s in STUDIES if s.name in only]
+
+
+def read_record(out: Path) -> dict:
+    """``OUT/regenerated.json`` (study -> what made it), empty when absent or unreadable."""
+    try:
+        record = json.loads((out / RECORD).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return record if isinstance(record, dict) else {}
+
+
+def regenerate(output: str | Path = "results", only: Sequence[str] | None = None,
+               force: bool = False, allow_dirty: bool = False, dry_run: bool = False,
+               say: Callable[[str], None] | None = None,
+               runner: Callable[[list[str]], int] | None = None) -> dict[str, float]:
+    """Run the plan (see the module docstring); return the wall time [s] of each study run.
+
+    Args:
+        output: the results directory.
+        only: study names to run (default all).
+        force: run studies already made at this commit again.
+        allow_dirty: run from a tree with modified code (recorded as dirty).
+        dry_run: print the plan and what would be skipped; run nothing.
+        say: where progress lines go (default stderr).
+        runner: runs one command and returns its exit code (default: a subprocess whose
+            output streams through).
+
+    Raises:
+        InputError: an unknown study, or a dirty tree without ``allow_dirty``, or a study
+            that failed (its name and exit code).
+    """
+    say = say or (lambda text: print(text, file=sys.stderr, flush=True))
+    runner = runner or _run
+    out = Path(output)
+    studies = plan(only)
+    state = git_state()
+    commit, clean = state if state else (None, False)
+    if not clean and not allow_dirty and not dry_run:
+        raise InputError("the checkout has modified code (git status): commit it first, or "
+                         "pass --allow-dirty (the results will say so and the provenance "
+                         "test will refuse them)")
+    record = read_record(out)
+    total = sum(s.minutes for s in studies)
+    say(f"plan: {len(studies)} studies into {out}/ at commit {str(commit)[:12]}"
+        f"{'' if clean else ' (modified tree)'}, about {total:.0f} min when last measured:")
+    for s in studies:
+        done = record.get(s.name, {})
+        skip = not force and done.get("commit") == commit and done.get("clean") == clean \
+            and commit is not None
+        say(f"  {s.name:<16} {s.minutes:5.1f} min  {s.shown(out)}"
+            f"{'   (made at this commit: skipped)' if skip else ''}")
+    times: dict[str, float] = {}
+    if dry_run:
+        return times
+    for k, s in enumerate(studies):
+        done = record.get(s.name, {})
+        if not force and commit is not None and done.get("commit") == commit \
+                and done.get("clean") == clean:
+            continue
+        say(f"[{k + 1}/{len(studies)}] {s.name}: {s.shown(out)}")
+        load_start = load_average()
+        started = time.perf_counter()
+        code = runner(s.command(out))
+        wall = time.perf_counter() - started
+        if code != 0:
+            raise InputError(f"study {s.name} failed (exit code {code}): {s.shown(out)}")
+        times[s.name] = wall
+        record[s.name] = {"command": s.shown(out), "commit": commit, "clean": clean,
+                          "wall_s": round(wall, 1), "load_start": load_start,
+                          "load_end": load_average(), "writes": list(s.writes)}
+        out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(out / RECORD, json.dumps(record, indent=2) + "\n")
+        say(f"[{k + 1}/{len(studies)}] {s.name} done in {wall / 60:.1f} min")
+    changed = render_files(documents(REPO), REPO) if out.resolve() == (REPO / "results") \
+        .resolve() else []
+    say(f"generated blocks re-rendered: {', '.join(str(p.relative_to(REPO)) for p in changed)}"
+        if changed else "generated blocks: all current")
+    return times
+
+
+def _run(argv: list[str]) -> int:
+    """Run one study's command with its output streaming through."""
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.run(argv, cwd=REPO, env=env).returncode

@@ -1,0 +1,251 @@
+"""Generated blocks: every measured figure in README.md and docs/ rendered from a results file.
+
+A block is a pair of HTML comments around text that a renderer writes from a committed results
+file::
+
+    <!-- generated: table results/compare/leaderboard.csv columns=method,success_count -->
+    | method | success_count |
+    ...
+    <!-- /generated -->
+
+The opening comment names the renderer, the source file (relative to the repository root) and
+the renderer's options (``key=value``; quote a value with spaces: ``columns="a:A b"``).
+:func:`render_text` rewrites every block of a text; :func:`check_files` says which blocks differ
+from a fresh render (the test suite runs it, so a retyped or stale figure fails). Blocks may stand
+inline in a sentence (``value``) or on lines of their own (``table``, ``provenance``, and the named
+renderers).
+
+Renderers (:data:`RENDERERS`):
+
+- ``table SOURCE [where=COL:VALUE[;COL:VALUE]] [columns=COL[:Header],...] [digits=N]``: a
+  Markdown table of a CSV's rows (rows where each COL equals VALUE as text), followed by the
+  provenance line of the folder's run record.
+- ``value SOURCE column=COL [where=...] [format=.3g] [unit=ms] [scale=1000]``: one cell (the
+  single row the filter leaves), formatted, with its unit.
+- ``provenance SOURCE``: "measured at commit C (clean) on CPU, N cores, load L, DATE", from the
+  JSON record beside the source (run.json, benchmark.json, throughput.json, ...).
+- ``compare-table SOURCE [reference=ours-lm]``: README's leaderboard of a compare folder's
+  ``leaderboard.csv`` (:func:`ikbench.render.leaderboard.readme_table`), then its provenance.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import shlex
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from ikbench.core.errors import InputError
+from ikbench.render.leaderboard import readme_table
+
+#: ``<!-- generated: RENDERER SOURCE OPTIONS -->`` ... ``<!-- /generated -->``
+BLOCK = re.compile(r"(<!-- generated: (?P<spec>[^>]*?) -->)(?P<body>.*?)(<!-- /generated -->)",
+                   re.S)
+#: JSON records a results folder may hold, in the order they are looked for.
+RECORDS = ("run.json", "benchmark.json", "throughput.json", "batch.json", "sweep.json",
+           "manifest.json")
+
+#: renderer name -> function(source path, options, repo root) -> text
+Renderer = Callable[[Path, dict[str, str], Path], str]
+RENDERERS: dict[str, Renderer] = {}
+
+
+@dataclass(frozen=True)
+class Block:
+    """One generated block of a file."""
+
+    file: Path
+    renderer: str
+    source: str
+    options: dict[str, str]
+    body: str
+    line: int
+
+
+def register(name: str, renderer: Renderer) -> None:
+    """Add a named renderer (``name SOURCE OPTIONS`` in a block's opening comment)."""
+    RENDERERS[name] = renderer
+
+
+def parse_spec(spec: str, where: str = "") -> tuple[str, str, dict[str, str]]:
+    """(renderer, source, options) of an opening comment's text; InputError naming ``where``
+    when it is malformed."""
+    try:
+        words = shlex.split(spec)
+    except ValueError as exc:
+        raise InputError(f"{where}: cannot read {spec!r}: {exc}") from None
+    if len(words) < 2:
+        raise InputError(f"{where}: a generated block needs 'RENDERER SOURCE', got {spec!r}")
+    options = {}
+    for word in words[2:]:
+        key, sep, value = word.partition("=")
+        if not sep:
+            raise InputError(f"{where}: option {word!r} is not key=value")
+        options[key] = value
+    if words[0] not in RENDERERS:
+        raise InputError(f"{where}: renderer {words[0]!r} is unknown; known: "
+                         f"{', '.join(sorted(RENDERERS))}")
+    return words[0], words[1], options
+
+
+def blocks(path: Path) -> list[Block]:
+    """Every generated block of the file at ``path``."""
+    text = path.read_text(encoding="utf-8")
+    out = []
+    for match in BLOCK.finditer(text):
+        line = text.count("\n", 0, match.start()) + 1
+        renderer, source, options = parse_spec(match["spec"], f"{path}:{line}")
+        out.append(Block(path, renderer, source, options, match["body"], line))
+    return out
+
+
+def render_block(block: Block, root: Path) -> str:
+    """The block's body as its renderer writes it now (inline blocks stay on their line)."""
+    source = root / block.source
+    if not source.exists():
+        raise InputError(f"{block.file}:{block.line}: source {block.source} does not exist")
+    text = RENDERERS[block.renderer](source, block.options, root)
+    return text if "\n" not in text else f"\n{text}\n"
+
+
+def render_text(text: str, root: Path, where: str = "") -> str:
+    """``text`` with every block rendered afresh."""
+    def replace(match: re.Match) -> str:
+        line = text.count("\n", 0, match.start()) + 1
+        renderer, source, options = parse_spec(match["spec"], f"{where}:{line}")
+        body = render_block(Block(Path(where), renderer, source, options, "", line), root)
+        return f"{match[1]}{body}{match[4]}"
+
+    return BLOCK.sub(replace, text)
+
+
+def render_files(paths: Iterable[Path], root: Path) -> list[Path]:
+    """Rewrite every block of ``paths``; return the files that changed."""
+    from ikbench.core.io import atomic_write_text
+
+    changed = []
+    for path in paths:
+        text = path.read_text(encoding="utf-8")
+        new = render_text(text, root, str(path))
+        if new != text:
+            atomic_write_text(path, new)
+            changed.append(path)
+    return changed
+
+
+def check_files(paths: Iterable[Path], root: Path) -> list[str]:
+    """One line per block whose text differs from a fresh render (empty: all current)."""
+    stale = []
+    for path in paths:
+        for block in blocks(path):
+            if block.body != render_block(block, root):
+                stale.append(f"{path.relative_to(root)}:{block.line}: {block.renderer} "
+                             f"{block.source} differs from a fresh render")
+    return stale
+
+
+def documents(root: Path) -> list[Path]:
+    """README.md and every page of docs/: the files whose blocks are rendered."""
+    return [root / "README.md", *sorted((root / "docs").glob("*.md"))]
+
+
+# ----- the generic renderers -----------------------------------------------------------------
+def _rows(source: Path, options: dict[str, str]) -> pd.DataFrame:
+    frame = pd.read_csv(source, dtype=str, keep_default_na=False)
+    for condition in filter(None, options.get("where", "").split(";")):
+        column, _, value = condition.partition(":")
+        if column not in frame.columns:
+            raise InputError(f"{source}: where={condition!r}: no column {column!r}")
+        frame = frame[frame[column] == value]
+    return frame
+
+
+def _number(text: str, digits: int) -> str:
+    try:
+        value = float(text)
+    except ValueError:
+        return text
+    if math.isnan(value):
+        return ""
+    if value == int(value) and abs(value) < 1e15:
+        return str(int(value))
+    return f"{value:.{digits}g}"
+
+
+def render_table(source: Path, options: dict[str, str], root: Path) -> str:
+    """A Markdown table of a CSV's rows (see the module docstring), then its provenance."""
+    frame = _rows(source, options)
+    digits = int(options.get("digits", "3"))
+    spec = [c.partition(":") for c in options.get("columns", "").split(",") if c] or \
+        [(c, "", "") for c in frame.columns]
+    missing = [c for c, _, _ in spec if c not in frame.columns]
+    if missing:
+        raise InputError(f"{source}: columns {missing} are not in the file")
+    head = [h or c for c, _, h in spec]
+    lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
+    for _, row in frame.iterrows():
+        lines.append("| " + " | ".join(_number(row[c], digits) for c, _, _ in spec) + " |")
+    return "\n".join(lines) + "\n\n" + render_provenance(source, {}, root)
+
+
+def render_value(source: Path, options: dict[str, str], root: Path) -> str:
+    """One cell of a CSV, formatted, with its unit (see the module docstring)."""
+    frame = _rows(source, options)
+    column = options.get("column")
+    if column not in frame.columns:
+        raise InputError(f"{source}: column={column!r} is not in the file")
+    if len(frame) != 1:
+        raise InputError(f"{source}: where={options.get('where')!r} leaves {len(frame)} rows, "
+                         "not one")
+    value = float(frame[column].iloc[0]) * float(options.get("scale", "1"))
+    unit = options.get("unit", "")
+    return f"{value:{options.get('format', '.3g')}}" + (f" {unit}" if unit else "")
+
+
+def record_of(source: Path) -> dict[str, Any]:
+    """The JSON run record beside ``source`` (a file or folder): the first of :data:`RECORDS`
+    in its folder or the folders above it within results/."""
+    folder = source if source.is_dir() else source.parent
+    for candidate in [folder, *folder.parents]:
+        for name in RECORDS:
+            if (candidate / name).is_file():
+                record = json.loads((candidate / name).read_text(encoding="utf-8"))
+                return record.get("provenance", record) if isinstance(record, dict) else {}
+        if candidate.name == "results" or (candidate / ".git").exists():
+            break
+    raise InputError(f"{source}: no run record ({', '.join(RECORDS)}) beside it")
+
+
+def render_provenance(source: Path, options: dict[str, str], root: Path) -> str:
+    """"Measured at commit C on CPU (N logical CPUs), load L, DATE; from SOURCE." """
+    record = record_of(source)
+    commit = record.get("git_commit") or record.get("git_revision") or "unknown commit"
+    clean = record.get("git_clean")
+    state = "" if clean is None else (", clean tree" if clean else ", modified tree")
+    load = record.get("load_average")
+    load_text = f", load {', '.join(f'{v:g}' for v in load)}" if load else ""
+    date = str(record.get("created_utc", ""))[:10]
+    relative = source.relative_to(root) if source.is_relative_to(root) else source
+    return (f"*Measured at commit {str(commit)[:12]}{state} on {record.get('cpu', '?')} "
+            f"({record.get('cpu_count', '?')} logical CPUs){load_text}, {date}; from "
+            f"`{relative}`.*")
+
+
+def render_compare_table(source: Path, options: dict[str, str], root: Path) -> str:
+    """README's leaderboard (:func:`ikbench.render.leaderboard.readme_table`) of a compare
+    folder's ``leaderboard.csv``, then its provenance."""
+    board = pd.read_csv(source)
+    return readme_table(board, options.get("reference", "ours-lm")) + "\n\n" + \
+        render_provenance(source, {}, root)
+
+
+register("table", render_table)
+register("compare-table", render_compare_table)
+register("value", render_value)
+register("provenance", render_provenance)

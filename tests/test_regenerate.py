@@ -1,0 +1,59 @@
+"""``ikbench reproduce --all`` (ikbench.paper.regenerate): the plan, resuming, a dirty tree."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from ikbench.core.errors import InputError
+from ikbench.paper import regenerate as regen
+
+
+@pytest.fixture
+def clean(monkeypatch):
+    monkeypatch.setattr(regen, "git_state", lambda: ("a" * 40, True))
+    monkeypatch.setattr(regen, "render_files", lambda paths, root: [])
+
+
+def test_every_committed_results_folder_has_a_study():
+    """Each folder and file of results/ (but the record itself) is written by a study."""
+    written = {w.split("/")[0] for s in regen.STUDIES for w in s.writes}
+    here = {p.name for p in (regen.REPO / "results").iterdir()} - {regen.RECORD}
+    assert here <= written, sorted(here - written)
+
+
+def test_the_plan_runs_each_study_once_and_resumes(tmp_path, clean):
+    ran, lines = [], []
+    times = regen.regenerate(tmp_path, only=["sweep", "batch"], say=lines.append,
+                             runner=lambda argv: ran.append(argv) or 0)
+    assert list(times) == ["sweep", "batch"] and len(ran) == 2
+    assert ran[0][-3:] == ["sweep", "--output", f"{tmp_path}/sweep"]
+    assert lines[0].startswith("plan: 2 studies")
+    record = json.loads((tmp_path / regen.RECORD).read_text())
+    assert record["sweep"]["commit"] == "a" * 40 and record["sweep"]["clean"] is True
+    assert record["sweep"]["command"] == f"ikbench sweep --output {tmp_path}/sweep"
+    ran.clear()
+    assert regen.regenerate(tmp_path, only=["sweep", "batch"], say=lines.append,
+                            runner=lambda argv: ran.append(argv) or 0) == {}
+    assert ran == [] and any("made at this commit: skipped" in line for line in lines)
+    regen.regenerate(tmp_path, only=["sweep"], force=True, say=lines.append,
+                     runner=lambda argv: ran.append(argv) or 0)
+    assert len(ran) == 1
+
+
+def test_a_failed_study_stops_the_run_and_is_not_recorded(tmp_path, clean):
+    with pytest.raises(InputError, match="study sweep failed .exit code 3."):
+        regen.regenerate(tmp_path, only=["sweep", "batch"], say=lambda text: None,
+                         runner=lambda argv: 3)
+    assert regen.read_record(tmp_path) == {}
+
+
+def test_a_dirty_tree_is_refused_unless_allowed(tmp_path, monkeypatch, clean):
+    monkeypatch.setattr(regen, "git_state", lambda: ("b" * 40, False))
+    with pytest.raises(InputError, match="--allow-dirty"):
+        regen.regenerate(tmp_path, only=["sweep"], say=lambda text: None,
+                         runner=lambda argv: 0)
+    regen.regenerate(tmp_path, only=["sweep"], allow_dirty=True, say=lambda text: None,
+                     runner=lambda argv: 0)
+    assert regen.read_record(tmp_path)["sweep"]["clean"] is False
