@@ -261,6 +261,14 @@ class Method(abc.ABC):
     def prepare(self, robot: Robot) -> None:  # noqa: B027  (an optional hook, empty by default)
         """Untimed set-up before the first solve (e.g. build the kinematics)."""
 
+    def runtime(self) -> dict[str, Any]:
+        """What actually runs the solves, recorded beside every result and shown in the
+        leaderboards' headers: ``backend`` (the library, or for ikbench's own methods the
+        solver that the settings choose on this machine: ``numba``, ``numpy``, ``torch
+        (cpu, float32)``) and ``threads`` where the backend uses several. Default: the
+        method's library."""
+        return {"backend": self.library}
+
     def fixed_poses(self) -> frozenset[str]:
         """The poses this method's scheme keeps fixed (``start_pose``, ``touch_pose``): a
         task contract that fixes a pose the method does not keep is not honoured, and its rows

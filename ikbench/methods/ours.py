@@ -34,7 +34,7 @@ import math
 import statistics
 import time
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -230,6 +230,13 @@ class Ours(Method):
     Settings = AdamSettings
     bench_rounds = 3  # tens of seconds per round on the paper's seven targets
     supports_frames = True  # 6-D pose paths: ikbench.methods.ours_frames
+
+    def runtime(self) -> dict[str, Any]:
+        """Adam on torch on the CPU, in the settings' precision, on torch's threads."""
+        import torch
+
+        return {"backend": f"torch (cpu, {self.settings.dtype})",
+                "threads": torch.get_num_threads()}
 
     def settings_for(self, task: Task) -> AdamSettings:
         """The settings for one task, with its complete weights (see :func:`resolve_weights`)."""

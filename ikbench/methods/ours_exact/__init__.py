@@ -43,6 +43,7 @@ from ikbench.methods.base import (
 )
 from ikbench.methods.ours_exact.problem import TERMS, ExactProblem
 from ikbench.methods.ours_exact.sqp import RESTORATIONS, SQPResult, solve
+from ikbench.methods.ours_lm import OursLM
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -151,6 +152,12 @@ class OursExact(Method):
                      restorations=0 if from_lm else RESTORATIONS,
                      max_iterations=s.max_iterations, tolerance=s.tolerance,
                      feasibility_tolerance=s.feasibility_tolerance)
+
+    def runtime(self) -> dict[str, Any]:
+        """The SQP runs on numpy (LAPACK's banded solver); 6-D pose paths without fixed poses
+        start from ours-lm's solution, whose backend is named too."""
+        return {"backend": "numpy", "threads": 1,
+                "initial_solution": OursLM().runtime()["backend"]}
 
     def prepare(self, robot: Robot) -> None:
         robot.chain_kinematics().frames(np.zeros((1, robot.dof)))
@@ -336,7 +343,7 @@ def initial_trajectories(robot: Robot, tasks: Sequence[Task], settings: ExactSet
         if not lm and not ok:
             raise InputError(f"trajectory {task.name!r}: --exact-init interpolation needs a "
                              "start and a touch pose; use --exact-init ours-lm or auto")
-    from ikbench.methods.ours_lm import OursLM, initial_poses
+    from ikbench.methods.ours_lm import initial_poses
 
     out: Any = (initial_poses(robot, tasks) if not tasks[0].has_frames or not any(use_lm)
                 else None)

@@ -24,13 +24,18 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ikbench.core.losses import TERMS, format_weights, resolve_weights
 from ikbench.methods.base import Method, Solution
-from ikbench.methods.ours_lm.devices import BACKENDS, cpu_backend
+from ikbench.methods.ours_lm.devices import (
+    BACKENDS,
+    cpu_backend,
+    numba_threads,
+    torch_threads,
+)
 from ikbench.methods.ours_lm.problem import Evaluation, Problem, evaluate
 from ikbench.methods.ours_lm.solver import (
     KINEMATICS,
@@ -68,6 +73,17 @@ class OursLM(Method):
     def settings_for(self, task: Task) -> LMSettings:
         """The settings for one task, with its complete weights."""
         return replace(self.settings, weights=resolve_weights(self.settings.weights, task))
+
+    def runtime(self) -> dict[str, Any]:
+        """The solver these settings run here (see :func:`.devices.cpu_backend`): numba or
+        numpy on the CPU, or the torch backend on ``--device``; and its threads."""
+        s = self.settings
+        if s.device is not None:
+            return {"backend": f"torch ({s.device}, {s.dtype})", "threads": torch_threads()}
+        backend = cpu_backend(s)
+        if backend == "numba":
+            return {"backend": "numba", "threads": s.threads or numba_threads()}
+        return {"backend": "numpy", "threads": 1}
 
     def prepare(self, robot: Robot) -> None:
         if self.settings.device is not None:  # the torch backend's kinematics on its device

@@ -104,6 +104,22 @@ def numba_installed() -> bool:
         return False
 
 
+def numba_threads() -> int:
+    """The threads numba runs on at most (``NUMBA_NUM_THREADS``; all cores by default),
+    without importing numba."""
+    import os
+
+    value = os.environ.get("NUMBA_NUM_THREADS", "")
+    return int(value) if value.isdigit() and int(value) > 0 else (os.cpu_count() or 1)
+
+
+def torch_threads() -> int:
+    """torch's intra-op threads (imports torch: only for the torch backend)."""
+    import torch
+
+    return torch.get_num_threads()
+
+
 def cpu_backend(settings: LMSettings) -> str:
     """The CPU solver the settings run: ``"numpy"`` or ``"numba"`` (``--device`` None).
 
