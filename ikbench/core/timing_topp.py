@@ -1,6 +1,6 @@
 """Time-optimal timing within joint velocity and acceleration limits (TOPP-RA, ``toppra``).
 
-The path is :func:`ikbench.core.timing.spline` (a cubic spline through the solved poses over
+The path is :func:`ikbench.core.timed_path.spline` (a cubic spline through the solved poses over
 the fingertip's cumulative chord length s). TOPP-RA (Pham & Pham 2018) finds the fastest
 path speed s_dot(s) from rest to rest such that at every grid point
 
@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from ikbench.core.errors import InputError
-from ikbench.core.timing import Limits, TimedPath, path_parameter, spline
+from ikbench.core.timed_path import Limits, TimedPath, path_parameter, spline
 
 #: Grid points per segment between solved poses (the solved poses are grid points).
 GRID_PER_SEGMENT = 8

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 import numpy as np
 
 from ikbench.core.errors import InputError
+from ikbench.methods.registry import available_methods
 
 if TYPE_CHECKING:  # the robot module imports pinocchio: for type checkers only
     from ikbench.core.robot import Robot
@@ -295,8 +296,6 @@ class Method(abc.ABC):
         """Raise InputError before any solve if a task cannot be solved by this method."""
         for task in tasks:
             if getattr(task, "goal_rotations", None) is not None and not self.supports_frames:
-                from ikbench.methods.registry import available_methods
-
                 able = [name for name, cls in available_methods().items() if cls.supports_frames]
                 raise InputError(
                     f"trajectory {task.name!r}: --method {self.name} cannot follow goal frames "
@@ -304,8 +303,6 @@ class Method(abc.ABC):
         if self.requires_touch_pose:
             for task in tasks:
                 if task.end_pose_deg is None and getattr(task, "goal_rotations", None) is None:
-                    from ikbench.methods.registry import available_methods
-
                     planners = [f"--method {name}" for name, cls in available_methods().items()
                                 if not cls.requires_touch_pose]
                     raise InputError(

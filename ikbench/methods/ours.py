@@ -36,9 +36,6 @@ import time
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from ikbench.core.errors import InputError
 from ikbench.core.losses import (
     PAPER_WEIGHTS_TEXT,
     LossGoals,
@@ -57,9 +54,10 @@ from ikbench.methods.base import (
     check_seed,
     option,
 )
+from ikbench.methods.ours_frames import optimise_frames
+from ikbench.methods.ours_init import INITS, initial_logits
 
 if TYPE_CHECKING:
-    import torch
     from torch import Tensor
 
     from ikbench.core.robot import Robot
@@ -67,11 +65,6 @@ if TYPE_CHECKING:
 
 DTYPES = ("float32", "float64")
 STOPS = ("paper", "none")
-#: Logit clamp used when mapping the initial poses back through the sigmoid.
-LOGIT_EPS = 1e-6
-
-
-INITS = ("random", "interpolation")
 
 
 @dataclass
@@ -123,36 +116,6 @@ class AdamSettings:
         check_weights(self.weights)
 
 
-
-
-def initial_logits(robot: Robot, task: Task, dtype: torch.dtype, init: str = "random",
-                   seed: int = 0) -> Tensor:
-    """Initial logits (n+1, dof): seeded uniform +-1/sqrt(n+1), or the joint interpolation.
-
-    The interpolation runs from the task's start to its end pose; a task that pins neither
-    (a letter) starts with every pose at its reference pose.
-    """
-    import torch
-
-    if init == "random":
-        generator = torch.Generator().manual_seed(seed)
-        bound = 1.0 / math.sqrt(task.steps + 1)
-        unit = torch.rand(task.steps + 1, robot.dof, generator=generator, dtype=torch.float64)
-        return ((unit * 2.0 - 1.0) * bound).to(dtype)
-
-    if init != "interpolation":
-        raise InputError(f"--init: {init!r} is not one of {', '.join(INITS)}")
-    lo, hi = robot.sample_lower, robot.sample_upper  # continuous joints: +-180 deg
-    t = np.linspace(0.0, 1.0, task.steps + 1)[:, None]
-    if task.start_pose_deg is not None and task.end_pose_deg is not None:
-        poses = task.start_pose_deg + t * (task.end_pose_deg - task.start_pose_deg)
-    elif task.reference_pose_deg is not None:
-        poses = task.reference_pose_deg + 0.0 * t
-    else:
-        raise InputError(f"trajectory {task.name!r}: ours --init interpolation needs a start "
-                         "and an end pose or a reference pose")
-    unit = np.clip((poses - lo) / (hi - lo), LOGIT_EPS, 1.0 - LOGIT_EPS)
-    return torch.tensor(np.log(unit / (1.0 - unit)), dtype=dtype)
 
 
 def optimise(robot: Robot, task: Task, settings: AdamSettings, progress: Progress | None = None,
@@ -251,7 +214,5 @@ class Ours(Method):
 
     def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         if task.goal_rotations is not None:
-            from ikbench.methods.ours_frames import optimise_frames
-
             return optimise_frames(robot, task, self.settings_for(task), progress)
         return optimise(robot, task, self.settings_for(task), progress)

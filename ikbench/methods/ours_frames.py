@@ -33,6 +33,7 @@ from ikbench.core.validity import (
     MAX_ROTATION_ERROR_DEG,
 )
 from ikbench.methods.base import Progress, Solution
+from ikbench.methods.ours_init import initial_logits
 
 if TYPE_CHECKING:
     from torch import Tensor
@@ -82,8 +83,6 @@ def optimise_frames(robot: Robot, task: Task, settings: AdamSettings,
                     progress: Progress | None = None) -> Solution:
     """Adam on a 6-D pose path (see the module docstring); ``settings``: ``AdamSettings``."""
     import torch
-
-    from ikbench.methods.ours import initial_logits
 
     weights = resolve_weights(settings.weights, task)
     dtype = {"float32": torch.float32, "float64": torch.float64}[settings.dtype]

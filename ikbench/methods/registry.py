@@ -19,13 +19,15 @@ import importlib
 import importlib.util
 from dataclasses import dataclass
 from importlib import metadata
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Method
+
+if TYPE_CHECKING:  # the registry holds method classes; base.Method asks it for alternatives
+    from ikbench.methods.base import Method
 
 #: A method class (:func:`register` returns the class it is given).
-M = TypeVar("M", bound=Method)
+M = TypeVar("M", bound="Method")
 
 ENTRY_POINT_GROUP = "ikbench.methods"
 LIBS_EXTRA = "pip install 'ikbench[libs]'"
