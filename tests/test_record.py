@@ -1,5 +1,5 @@
 """One run record: run.json written and read by :mod:`ikbench.runtime.record`, old files too;
-a run folder written whole."""
+a run folder written whole; compare's in-memory verdicts equal what its files recompute to."""
 
 from __future__ import annotations
 
@@ -12,8 +12,12 @@ import pandas as pd
 import pytest
 
 import ikbench
+from ikbench.core.contract import contract_for, judge
 from ikbench.core.errors import InputError
+from ikbench.core.metrics import contract_metrics
+from ikbench.core.task import line_tasks
 from ikbench.core.trajectory import read_trajectory_poses, write_trajectory_csv
+from ikbench.render.leaderboard import render
 from ikbench.runtime.record import (
     LAYOUTS,
     RunFolder,
@@ -21,6 +25,12 @@ from ikbench.runtime.record import (
     TrajectoryFile,
     files_written_by,
     robot_from_record,
+)
+from ikbench.studies.compare import (
+    CONTRACT_METRICS,
+    CompareSpec,
+    compare,
+    run_comparison,
 )
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
@@ -114,3 +124,61 @@ def test_a_run_folder_is_written_whole_and_reads_back(tmp_path, robot):
     in_memory = ikbench.run("ours-lm", only="1,3", steps=6, output=None, progress=False)
     columns = [c for c in table.columns if "duration" not in c]
     pd.testing.assert_frame_equal(in_memory[columns], table[columns])
+
+
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory):
+    """ours-lm and sequential-ik compared on trajectories 1 and 3 (n = 6), written."""
+    out = tmp_path_factory.mktemp("compare")
+    result = compare(["ours-lm", "sequential-ik"], only="1,3", steps=6, repeat=1, warmup=0,
+                     output=out, progress=False, sweep=False)
+    return out / "compare", result
+
+
+def test_compare_judges_in_memory_what_its_written_files_recompute_to(compared, robot,
+                                                                       paper_targets):
+    root, result = compared
+    contract = contract_for(robot)
+    touch = contract.with_track("touch")
+    tasks = {t.name: t for t in line_tasks(robot, paper_targets.select("1,3").with_steps(6),
+                                           contract)}
+    verdicts = result.results.set_index(["method", "trajectory"])
+    assert len(verdicts) == 4
+    for (method, trajectory), row in verdicts.iterrows():
+        poses = RunFolder(root / method).read_poses(trajectory, robot)
+        figures = contract_metrics(robot, tasks[trajectory], poses, contract)
+        for column in CONTRACT_METRICS:
+            assert row[column] == figures[column], (method, trajectory, column)  # exact
+        paper, touched = judge(contract, figures), judge(touch, figures)
+        for name, ok in paper.items():
+            assert row[f"ok_{name}"] == ok
+        honours = not str(row["status"]).startswith("does not honour")
+        assert bool(row["success"]) == (honours and all(paper.values()))
+        assert bool(row["success_touch"]) == all(touched.values())
+    written = pd.read_csv(root / "results.csv", dtype={"trajectory": str})
+    assert written["success"].tolist() == result.results["success"].tolist()
+
+
+def test_compare_spec_runs_without_writing_and_judges_alike(compared, robot, paper_targets):
+    root, result = compared
+    contract = contract_for(robot)
+    targets = paper_targets.select("1,3").with_steps(6)
+    spec = CompareSpec(["ours-lm", "sequential-ik"], robot, targets,
+                       line_tasks(robot, targets, contract), contract, "ours-lm", repeat=1,
+                       warmup=0, sweep=False, progress=False)
+    again = run_comparison(spec)
+    assert "total_wall_time_s" not in again.record  # nothing written, no total time
+    judged = [c for c in result.results.columns if c.startswith(("ok_", "success"))
+              or c in CONTRACT_METRICS]
+    pd.testing.assert_frame_equal(again.results[judged], result.results[judged])
+    record = RunFolder(root).read_record()
+    assert record.kind == "compare" and record.methods == ["ours-lm", "sequential-ik"]
+    assert record.study["repeat"] == 1 and record.total_wall_time_s is not None
+
+
+def test_the_compare_report_renders_again_from_the_folder(compared):
+    root, _ = compared
+    before = (root / "leaderboard.md").read_text()
+    (root / "leaderboard.md").unlink()
+    render(root)
+    assert (root / "leaderboard.md").read_text() == before
