@@ -9,22 +9,34 @@ import pandas as pd
 import pytest
 
 from ikbench.cli import main
-from ikbench.paper.comparison import (
+from ikbench.paper.baseline_claims import (
     BASELINE,
     BASELINE_WALK,
     OURS,
     check_claims,
-    compare,
-    evaluate_runs,
-    load_runs,
     pointing_tradeoff_note,
-    table2_comparison,
-    write_comparison_report,
 )
+from ikbench.paper.baseline_runs import (
+    MethodRun,
+    baseline_names,
+    evaluate_runs,
+    ikpy_table2_run,
+    load_comparison,
+    load_runs,
+    table2_run,
+)
+from ikbench.paper.comparison import modes_table, table2_comparison, write_comparison_report
 from ikbench.paper.values import paper_values
+from ikbench.runtime.record import RunRecord
 from tests.conftest import PAPER_START
 
 TOUCH_1 = [33, 39, 25, 134, 102, 77, -168]
+
+
+def _modes(result):
+    """The report's modes table of a loaded comparison."""
+    return modes_table(result.frame, result.runs, result.targets.steps, result.targets.is_paper)
+
 #: The task each scheme solved, as the report labels its runs.
 WALK = "walk from the touch pose: touch-pose-only task"
 TRACK = "track from the start pose: the paper's task"
@@ -266,7 +278,7 @@ def test_ikpy_runs_are_baseline_runs_with_their_own_table2(ikpy_runs, tmp_path):
     assert f"## Beside the paper's Table 2: ikpy (ikpy-walk, --ikpy-orientation position; " \
         f"{WALK}), the authors' call" in text
     assert "their library (ikpy) and their call" in text.split("the authors' call")[1]
-    rows = compare(ikpy_runs).modes_table().set_index("run")
+    rows = _modes(load_comparison(ikpy_runs)).set_index("run")
     assert rows.loc["ikpy", "orientation"] == "position"
     assert rows.loc["ikpy", "method"] == "ikpy-walk"
     details = pd.read_csv(ikpy_runs / "ikpy" / "details.csv")
@@ -277,12 +289,12 @@ def test_ikpy_runs_are_baseline_runs_with_their_own_table2(ikpy_runs, tmp_path):
     alone = tmp_path / "alone"
     for name in (OURS, "ikpy"):
         shutil.copytree(ikpy_runs / name, alone / name)
-    assert compare(alone).baselines == ["ikpy"]
+    assert load_comparison(alone).baselines == ["ikpy"]
 
 
 def test_modes_table_figures_come_from_the_runs(mode_runs):
-    result = compare(mode_runs)
-    table = result.modes_table().set_index("run")
+    result = load_comparison(mode_runs)
+    table = _modes(result).set_index("run")
     frame = result.frame.set_index("method")
     for name in ("sequential-ik", "sequential-ik-pointing", "sequential-ik-position"):
         row = frame.loc[name]
@@ -371,9 +383,7 @@ def scheme_runs(small_runs, tmp_path_factory):
 
 
 def test_report_states_the_task_each_baseline_run_solved(scheme_runs):
-    from ikbench.paper.comparison import ikpy_table2_run, table2_run
-
-    result = compare(scheme_runs)
+    result = load_comparison(scheme_runs)
     runs = result.runs
     assert json.loads((scheme_runs / BASELINE / "run.json").read_text())["settings"][
         "settings"]["scheme"] == "track"
@@ -403,7 +413,7 @@ def test_report_states_the_task_each_baseline_run_solved(scheme_runs):
     assert "the walks from the touch pose (touch-pose-only task" in note
     assert "the tracks from the start pose (the paper's task" in note
     # the modes table: a column for the task solved
-    rows = result.modes_table().set_index("run")["task solved"]
+    rows = _modes(result).set_index("run")["task solved"]
     assert rows[BASELINE_WALK].startswith("touch-pose-only")
     assert rows[BASELINE].startswith("the paper's task")
     # Table 2 is the walk, and says so
@@ -417,10 +427,9 @@ def test_report_states_the_task_each_baseline_run_solved(scheme_runs):
 
 
 def test_scheme_of_a_run_and_old_folders_are_walks():
-    from ikbench.paper.comparison import MethodRun, baseline_names, ikpy_table2_run, table2_run
-
     def made(name, method, **settings):
-        return MethodRun(name, {"method": method, "settings": {"settings": settings}}, {}, {})
+        return MethodRun(name, RunRecord.from_dict(
+            {"method": method, "settings": {"settings": settings}}), {}, {})
 
     runs = {r.name: r for r in [
         made("ours", "ours", init="random"),

@@ -12,7 +12,8 @@ import json
 import pandas as pd
 import pytest
 
-from ikbench.paper.comparison import BASELINE, OURS, evaluate_runs, load_runs
+from ikbench.paper.baseline_claims import BASELINE, OURS
+from ikbench.paper.baseline_runs import evaluate_runs, load_runs
 from ikbench.render.run_report import TABLE_COLUMNS
 from tests.conftest import REPO
 

@@ -208,7 +208,7 @@ def test_sequential_ik_walks_from_the_touch_pose_to_the_start_point(tmp_path, ar
 def test_a_run_reloads_its_robot_and_refuses_a_changed_urdf(tmp_path, arm):
     import shutil
 
-    from ikbench.studies.run import robot_from_record
+    from ikbench.runtime.record import robot_from_record
 
     urdf = tmp_path / "copy.urdf"
     shutil.copy(URDF, urdf)

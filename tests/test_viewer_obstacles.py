@@ -17,7 +17,7 @@ from ikbench.core.obstacles import box, sphere
 from ikbench.core.problems import load_problem
 from ikbench.core.task import Task
 from ikbench.render.arm_plots import colliding_waypoints
-from ikbench.studies.run import obstacles_record
+from ikbench.runtime.record import obstacles_entry
 from ikbench.viewer.folders import load_runs
 
 TID = "panda__1cube"
@@ -68,9 +68,9 @@ def _task(name: str, obstacles) -> Task:
 
 def test_run_json_records_one_list_per_run_or_per_trajectory_and_nothing_without():
     cube, ball = box("cube", [0, 0, 500], [100, 100, 100]), sphere("ball", [0, 300, 0], 50)
-    assert obstacles_record([_task("1", ()), _task("2", ())]) is None
-    assert obstacles_record([_task("1", [cube]), _task("2", [cube])]) == [cube.to_dict()]
-    assert obstacles_record([_task("1", [cube]), _task("2", [ball]), _task("3", ())]) == {
+    assert obstacles_entry([_task("1", ()), _task("2", ())]) is None
+    assert obstacles_entry([_task("1", [cube]), _task("2", [cube])]) == [cube.to_dict()]
+    assert obstacles_entry([_task("1", [cube]), _task("2", [ball]), _task("3", ())]) == {
         "1": [cube.to_dict()], "2": [ball.to_dict()]}
 
 

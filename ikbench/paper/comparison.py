@@ -1,102 +1,63 @@
-"""Methods side by side, and the paper's claims about its baseline checked with numbers.
+"""``ikbench report DIR``: methods side by side, and the paper's claims about its baseline
+checked with numbers, as report.md and a figure.
 
-``ikbench report DIR`` (:func:`write_comparison_report`) reads every run folder that
-``ikbench run --output DIR [--name NAME]`` wrote (``DIR/<name>/run.json`` +
-``trajectory_<id>.csv``; the folders of other commands, :data:`ikbench.studies.run.RESERVED_NAMES`,
-and folders without trajectories are not runs), recomputes every figure with
-:mod:`ikbench.core.metrics` from the trajectory CSVs (only the solver's own duration and iteration
-count come from ``table.csv``, the count of points that missed the IK tolerance from
-``details.csv``), and writes ``DIR/report.md`` and ``DIR/pointing_deviation_per_step.png``.
+:func:`write_comparison_report` loads and measures every run folder of ``DIR``
+(:func:`ikbench.paper.baseline_runs.load_comparison`), judges the paper's claims about its
+traditional baseline for every baseline run against ``ours``
+(:func:`ikbench.paper.baseline_claims.check_claims`) and writes ``DIR/report.md`` and
+``DIR/pointing_deviation_per_step.png``. This module renders: the tables and sentences of the
+report (also used by ``ikbench reproduce``'s results/README.md), the notes on the paper's
+Table 2, the figure.
 
-The paper (Section "Results") says of its traditional baseline: generation is much faster,
-the pointing vector is much worse, the start pose varies significantly (constant with ours),
-and the fluency is comparable. :func:`check_claims` turns each into a measured ratio and a
-stated threshold (:data:`FASTER_FACTOR`, ...), with a verdict *holds* / *does not hold*, for
-every baseline run against the folder ``ours``. Baseline runs are the folders whose run.json
-names a method of the families :data:`METHOD_FAMILIES`: ``sequential-ik`` /
-``sequential-ik-walk`` (e.g. one per ``--orientation`` mode) and ``ikpy`` / ``ikpy-walk``,
-the authors' own library (``ikpy-walk --ikpy-orientation position`` is the call they made for
-Table 2).
-
-Every baseline run states the task it solved, from its scheme (run.json's settings
-``scheme``; folders written before the schemes existed have none and are walks):
-:data:`SCHEME_TASKS`. The paper's baseline walked back from the touch pose (the start pose is
-wherever the walk ends: a touch-pose-only task); a ``track`` run starts at the recorded start
-pose and lands on the touch pose (the paper's own task, Sec. 3). The paper's claim that the
-baseline's start pose varies is a property of the walk; the report checks it on every run and
-says what it shows for each scheme.
+The paper's claim that the baseline's start pose varies is a property of the walk; the report
+checks it on every run and says what it shows for each scheme
+(:data:`ikbench.paper.baseline_claims.SCHEME_TASKS`).
 """
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
-from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_savefig, atomic_write_text
-from ikbench.core.metrics import pointing_deviations_deg, trajectory_metrics
+from ikbench.paper.baseline_claims import (
+    BASELINE,
+    BASELINE_WALK,
+    DEFAULT_SCHEME,
+    IKPY,
+    IKPY_MODES,
+    IKPY_WALK,
+    METHOD_FAMILIES,
+    ORIENTATION_MODES,
+    OURS,
+    SCHEME_ORDER,
+    SCHEME_TASKS,
+    check_claims,
+    pointing_tradeoff_note,
+    task_text,
+)
+from ikbench.paper.baseline_runs import (
+    MethodRun,
+    baseline_names,
+    ikpy_table2_run,
+    load_comparison,
+    pointing_per_step,
+    table2_run,
+)
 from ikbench.paper.values import PAPER_STEPS, accuracy_beside_paper, paper_values
-from ikbench.render.run_report import markdown_table
-from ikbench.studies.run import RESERVED_NAMES, robot_from_record
+from ikbench.render.run_report import _matplotlib, markdown_table
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from ikbench.core.robot import Robot
-    from ikbench.core.targets import Targets
     from ikbench.core.task import Task
 
-OURS, BASELINE = "ours", "sequential-ik"
-#: The paper authors' own baseline library; its runs are baseline runs too.
-IKPY = "ikpy"
-#: The walk variants of the baselines (the paper's Table 2 scheme: back from the touch pose).
-BASELINE_WALK, IKPY_WALK = "sequential-ik-walk", "ikpy-walk"
-#: Baseline method -> its family (the registered methods that share options and modes).
-METHOD_FAMILIES = {BASELINE: BASELINE, BASELINE_WALK: BASELINE, IKPY: IKPY, IKPY_WALK: IKPY}
-#: The scheme of a baseline run whose run.json records none (written before the schemes:
-#: every such sequential-ik and ikpy run walked back from the touch pose).
-DEFAULT_SCHEME = "walk"
-#: Scheme -> (how the run solved it, the task it solved) in words.
-SCHEME_TASKS = {
-    "walk": ("walk from the touch pose", "touch-pose-only task: the start pose is free"),
-    "track": ("track from the start pose", "the paper's task: start and touch poses fixed"),
-}
-#: The schemes in report order (the paper's Table 2 scheme first).
-SCHEME_ORDER = ("walk", "track")
 REPORT_NAME = "report.md"
 FIGURE_NAME = "pointing_deviation_per_step.png"
-#: "much faster": the median duration of ours is at least this many times the baseline's.
-FASTER_FACTOR = 10.0
-#: "much worse": the baseline's mean pointing deviation is at least this many times ours.
-WORSE_FACTOR = 2.0
-#: "constant" start pose: within this many motor degrees of the recorded start pose p^s.
-CONSTANT_START_DEG = 1.0
-#: "varies": the baseline's median start-pose error is at least this many times ours' largest.
-VARIES_FACTOR = 10.0
-#: "comparable" fluency: the baseline's median figure is within this factor of ours (either way).
-COMPARABLE_FACTOR = 2.0
-#: The baseline's orientation modes, in report order, and what each solves per point.
-ORIENTATION_MODES = {
-    "frame": "goal point, line direction and a fixed roll, the full frame (the paper's text; "
-             f"the default of `{BASELINE_WALK}`, and Table 2)",
-    "pointing": "goal point and pointing direction, roll free",
-    "position": "goal point only (what the authors' ikpy call solved)",
-}
-#: ikpy's modes (``--ikpy-orientation``), in report order.
-IKPY_MODES = {
-    "position": "goal point only, by the authors' own call (ikpy's inverse_kinematics_frame "
-                f"without orientation_mode; walked, `{IKPY_WALK}`: Table 2 as they ran it)",
-    "pointing": "goal point and pointing axis (ikpy's orientation_mode), roll free",
-}
-#: The baseline method families in report order: the option naming their mode, and their modes.
-BASELINE_METHODS = {BASELINE: ("--orientation", ORIENTATION_MODES),
-                    IKPY: ("--ikpy-orientation", IKPY_MODES)}
 PAPER_BASELINE_NOTE = (
     "The paper's baseline is not this one: the authors solved it with ikpy on a *different* "
     "NICO URDF (other joint conventions; ikbench/paper/data/reference/README.md), so only its "
@@ -120,470 +81,6 @@ TABLE2_UNITS_NOTE = (
     "by a factor of ten, see ikbench/paper/data/reference/README.md), so they are shown here "
     "x 10, in mm. *Start point variation* is |P_0 - P_s|, the distance of the trajectory's "
     "first point from the recorded start point.")
-
-
-@dataclass
-class MethodRun:
-    """One run folder read back from disk.
-
-    Attributes:
-        name: the folder's name (``sequential-ik-position``); how the reports call the run.
-        record: its run.json.
-        poses: trajectory id -> (n+1, dof) poses [motor deg] read from the CSVs.
-        solver: trajectory id -> {"duration_s", "iterations"} from table.csv.
-        details: its details.csv (None when missing or unreadable).
-    """
-
-    name: str
-    record: dict
-    poses: dict
-    solver: dict
-    details: pd.DataFrame | None = None
-
-    @property
-    def method(self) -> str:
-        """The registered method that produced the run (run.json's ``method``)."""
-        return str(self.record.get("method") or self.name)
-
-    @property
-    def family(self) -> str:
-        """The baseline family of the method (``sequential-ik`` for ``sequential-ik-walk``,
-        ``ikpy`` for ``ikpy-walk``), else the method itself."""
-        return METHOD_FAMILIES.get(self.method, self.method)
-
-    @property
-    def is_baseline(self) -> bool:
-        """Whether the run is one of the paper's baseline families (:data:`BASELINE_METHODS`)."""
-        return self.family in BASELINE_METHODS
-
-    @property
-    def orientation(self) -> str | None:
-        """The baseline's ``--orientation`` mode from run.json (None for other methods)."""
-        mode = run_settings(self.record).get("orientation")
-        return str(mode) if mode is not None else None
-
-    @property
-    def scheme(self) -> str | None:
-        """``walk`` or ``track``: run.json's settings ``scheme``; a baseline run that records
-        none is a walk (:data:`DEFAULT_SCHEME`); None for other methods without one."""
-        return scheme_of(self.method, self.record)
-
-    @property
-    def task(self) -> str:
-        """The task the run solved, in words: ``walk from the touch pose (touch-pose-only
-        task: the start pose is free)`` or ``track from the start pose (the paper's task:
-        start and touch poses fixed)``; "" when the run has no scheme."""
-        return task_text(self.scheme)
-
-    @property
-    def mode_flag(self) -> str:
-        """The option naming the run's mode: ``--orientation`` or ``--ikpy-orientation``."""
-        return BASELINE_METHODS.get(self.family, ("--orientation",))[0]
-
-    @property
-    def description(self) -> str:
-        """``sequential-ik-walk, --orientation position; walk from the touch pose:
-        touch-pose-only task``: the method (when not the folder's name), the mode and the
-        task solved; "" when none applies."""
-        parts = [] if self.method == self.name else [self.method]
-        if self.orientation:
-            parts.append(f"{self.mode_flag} {self.orientation}")
-        text = ", ".join(parts)
-        if self.scheme:
-            text += ("; " if text else "") + task_text(self.scheme, short=True)
-        return text
-
-    @property
-    def label(self) -> str:
-        """``sequential-ik-position (sequential-ik-walk, --orientation position; walk from the
-        touch pose: touch-pose-only task)`` or the name (:attr:`description`)."""
-        return f"{self.name} ({self.description})" if self.description else self.name
-
-
-def run_settings(record: dict) -> dict:
-    """The method's settings from a run.json (``{"settings": {...}}`` or flat), or {}."""
-    settings = record.get("settings") or {}
-    settings = settings.get("settings", settings) if isinstance(settings, dict) else {}
-    return settings if isinstance(settings, dict) else {}
-
-
-def scheme_of(method: str, record: dict) -> str | None:
-    """A run's scheme from its run.json: the settings' ``scheme``, else ``walk`` for the
-    baseline families (runs written before the schemes all walked), else None."""
-    scheme = run_settings(record).get("scheme")
-    if scheme is not None:
-        return str(scheme)
-    return DEFAULT_SCHEME if METHOD_FAMILIES.get(method, method) in BASELINE_METHODS else None
-
-
-def task_text(scheme: str | None, short: bool = False) -> str:
-    """The task a scheme solves, in words (:data:`SCHEME_TASKS`): ``walk from the touch pose
-    (touch-pose-only task: the start pose is free)``; with ``short`` ``walk from the touch
-    pose: touch-pose-only task``; "" for None, the scheme itself when unknown."""
-    if scheme is None:
-        return ""
-    if scheme not in SCHEME_TASKS:
-        return f"scheme {scheme}"
-    how, task = SCHEME_TASKS[scheme]
-    return f"{how}: {task.split(':')[0]}" if short else f"{how} ({task})"
-
-
-def _read_record(folder: Path) -> dict:
-    try:
-        record = json.loads((folder / "run.json").read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"report: cannot read {folder / 'run.json'}: {exc}") from None
-    if not isinstance(record, dict):
-        raise InputError(f"report: {folder / 'run.json'} is not a JSON object")
-    return record
-
-
-def _method_folders(output_dir: Path) -> list[Path]:
-    """The run folders of ``output_dir``: a run.json naming a method and its trajectories,
-    and trajectory CSVs beside it; the folders of other commands are skipped by name."""
-    folders = []
-    for path in sorted(output_dir.glob("*/run.json")):
-        folder = path.parent
-        if folder.name in RESERVED_NAMES or not any(folder.glob("trajectory_*.csv")):
-            continue
-        record = _read_record(folder)
-        if isinstance(record.get("method"), str) and isinstance(record.get("trajectories"),
-                                                                list):
-            folders.append(folder)
-    return folders
-
-
-def load_method_run(folder: Path, robot: Robot) -> MethodRun:
-    """Read run.json, the trajectory CSVs, the solver columns of table.csv and details.csv."""
-    from ikbench.core.trajectory import read_trajectory_poses
-
-    record = _read_record(folder)
-    try:
-        table = pd.read_csv(folder / "table.csv", dtype={"trajectory": str})
-    except (OSError, ValueError) as exc:
-        raise InputError(f"report: cannot read {folder}: {exc}") from None
-    try:
-        details = pd.read_csv(folder / "details.csv", dtype={"trajectory": str})
-    except (OSError, ValueError):
-        details = None
-    ids = [str(i) for i in record.get("trajectories", [])]
-    poses, solver = {}, {}
-    for tid in ids:
-        poses[tid] = read_trajectory_poses(folder / f"trajectory_{tid}.csv", robot)
-        row = table[table["trajectory"] == tid]
-        solver[tid] = {"duration_s": float(row["duration_s"].iloc[0]) if len(row) else np.nan,
-                       "iterations": float(row["iterations"].iloc[0]) if len(row) else np.nan}
-    return MethodRun(folder.name, record, poses, solver, details)
-
-
-def baseline_names(runs: dict) -> list[str]:
-    """The baseline runs (method families :data:`BASELINE_METHODS`) in report order: by
-    family, then by scheme (the walk, the paper's Table 2, first), then by mode
-    (:data:`ORIENTATION_MODES`, :data:`IKPY_MODES`), the folder named after the family first
-    within a mode."""
-    families = list(BASELINE_METHODS)
-
-    def key(name):
-        run = runs[name]
-        modes = list(BASELINE_METHODS[run.family][1])
-        mode, scheme = run.orientation, run.scheme
-        return (families.index(run.family),
-                SCHEME_ORDER.index(scheme) if scheme in SCHEME_ORDER else len(SCHEME_ORDER),
-                modes.index(mode) if mode in modes else len(modes), name != run.family, name)
-
-    return sorted((n for n, r in runs.items() if r.is_baseline), key=key)
-
-
-def table2_run(runs: dict) -> str:
-    """The baseline run set beside the paper's Table 2: the first walk of the
-    ``sequential-ik`` family in ``frame`` mode (the folder ``sequential-ik`` when it is
-    one), else the first baseline walk, else the first baseline run."""
-    names = baseline_names(runs)
-    return next((n for n in names if runs[n].family == BASELINE and runs[n].scheme == "walk"
-                 and runs[n].orientation == "frame"),
-                next((n for n in names if runs[n].scheme == "walk"), names[0]))
-
-
-def ikpy_table2_run(runs: dict) -> str | None:
-    """The run of the authors' call beside the paper's Table 2: the first walk of the
-    ``ikpy`` family in ``position`` mode, or None."""
-    return next((n for n in baseline_names(runs) if runs[n].family == IKPY
-                 and runs[n].scheme == "walk" and runs[n].orientation == "position"), None)
-
-
-def load_runs(output_dir: str | Path) -> tuple[dict[str, MethodRun], list[Task], Targets]:
-    """Every run in ``output_dir`` and the shared tasks; InputError if unusable.
-
-    Returns:
-        (runs: folder name -> MethodRun in report order (``ours``, the baseline runs, the
-        others by name), tasks: the tasks of the trajectories all runs share, targets)
-    """
-    from ikbench.core.targets import load_targets
-    from ikbench.core.task import line_tasks
-
-    output_dir = Path(output_dir)
-    if not output_dir.is_dir():
-        raise InputError(f"report: {str(output_dir)!r} is not a directory; give the --output "
-                         "directory of `ikbench run`")
-    folders = _method_folders(output_dir)
-    names = [f.name for f in folders]
-    methods = {f.name: _read_record(f).get("method") for f in folders}
-    baselines = set(methods.values()) & set(METHOD_FAMILIES)
-    missing = [m for m, ok in ((OURS, OURS in names), (BASELINE, bool(baselines))) if not ok]
-    if missing:
-        raise InputError(
-            f"report: {str(output_dir)!r} has no {' or '.join(missing)} results (method folders "
-            f"found: {', '.join(names) or 'none'}); run `ikbench run --method "
-            f"{missing[0]} --output {output_dir}` first")
-    robot = robot_from_record(_read_record(output_dir / OURS))
-    runs = {f.name: load_method_run(f, robot) for f in folders}
-    shaped = [n for n, r in runs.items() if r.record.get("shape", "line") != "line"]
-    if shaped:
-        raise InputError(f"report: compares line runs (touch poses) only; {', '.join(shaped)} "
-                         f"in {str(output_dir)!r} drew another shape")
-    turned = [n for n, r in runs.items() if r.record.get("direction") is not None]
-    if turned:
-        raise InputError(f"report: compares runs pointing along the line only; "
-                         f"{', '.join(turned)} in {str(output_dir)!r} used --direction")
-    keys = {name: (str(r.record.get("targets")), r.record.get("steps"),
-                   tuple(r.record.get("start_pose_deg") or ())) for name, r in runs.items()}
-    if len(set(keys.values())) > 1:
-        raise InputError("report: the method folders were run on different targets, steps or "
-                         "start poses: " + "; ".join(f"{n}: targets {t}, n = {s}, start {p}"
-                                                     for n, (t, s, p) in keys.items()))
-    source, steps, start = keys[OURS]
-    shared = [t for t in runs[OURS].poses if all(t in r.poses for r in runs.values())]
-    if not shared:
-        raise InputError("report: the method folders share no trajectory id")
-    targets = load_targets(source, robot).select(shared).with_steps(int(steps or 0))
-    if start:  # the run's own start pose (--start-pose may have replaced the file's)
-        targets = replace(targets, start_pose_deg=np.asarray(start, dtype=float))
-    order = [OURS, *baseline_names(runs)]
-    order += sorted(n for n in runs if n not in order)
-    return {n: runs[n] for n in order}, line_tasks(robot, targets), targets
-
-
-def evaluate_runs(runs: dict[str, MethodRun], tasks: Sequence[Task]) -> pd.DataFrame:
-    """One row per (trajectory, run): solver figures + :func:`trajectory_metrics`."""
-    robot = robot_from_record(next(iter(runs.values())).record)
-    rows = []
-    for task in tasks:
-        for name, run in runs.items():
-            poses = run.poses[task.name]
-            if len(poses) != task.steps + 1:
-                raise InputError(f"report: {name}/trajectory_{task.name}.csv has {len(poses)} "
-                                 f"poses; run.json says n = {task.steps}")
-            metrics = trajectory_metrics(robot, task, poses)
-            rows.append({"trajectory": task.name, "method": name, **run.solver[task.name],
-                         **metrics, "start_point_mm": robot.fk(poses[0]).point_mm[0],
-                         **_missed(run, task.name)})
-    return pd.DataFrame(rows)
-
-
-def _missed(run: MethodRun, trajectory: str) -> dict:
-    """Points that missed the IK tolerance and points solved, from details.csv (NaN if none)."""
-    details = run.details
-    if details is None or "points_not_converged" not in details.columns:
-        return {"points_not_converged": np.nan, "points_solved": np.nan}
-    row = details[details["trajectory"] == trajectory]
-    if not len(row):
-        return {"points_not_converged": np.nan, "points_solved": np.nan}
-    solved = row["points_solved"].iloc[0] if "points_solved" in row else np.nan
-    return {"points_not_converged": float(row["points_not_converged"].iloc[0]),
-            "points_solved": float(solved)}
-
-
-def pointing_per_step(runs: dict[str, MethodRun], tasks: Sequence[Task]
-                      ) -> dict[tuple[str, str], np.ndarray]:
-    """(run, trajectory id) -> (n+1,) pointing deviation [deg] of each pose."""
-    robot = robot_from_record(next(iter(runs.values())).record)
-    return {(name, task.name): pointing_deviations_deg(robot.fk(run.poses[task.name]).direction,
-                                                       task.goal_directions)
-            for name, run in runs.items() for task in tasks}
-
-
-def summarise(frame: pd.DataFrame, runs: dict) -> pd.DataFrame:
-    """Per-run summary over the trajectories (medians unless the column says otherwise)."""
-    rows = []
-    for name, run in runs.items():
-        sub = frame[frame["method"] == name]
-        start_poses = np.stack([run.poses[t][0] for t in sub["trajectory"]])
-        start_points = np.stack(sub["start_point_mm"].to_numpy())
-        missed = sub.get("points_not_converged", pd.Series(np.nan, index=sub.index))
-        solved = sub.get("points_solved", pd.Series(np.nan, index=sub.index))
-        rows.append({
-            "method": name,
-            "median duration [s]": sub["duration_s"].median(),
-            "median iterations": sub["iterations"].median(),
-            "mean line distance [mm]": sub["line_distance_mean_mm"].mean(),
-            "mean pointing deviation [deg]": sub["pointing_deviation_mean_deg"].mean(),
-            "max |P_0 - P_s| [mm]": sub["start_point_error_mm"].max(),
-            "max |p_0 - p^s| [deg]": sub["start_pose_error_deg"].max(),
-            "median |p_0 - p^s| [deg]": sub["start_pose_error_deg"].median(),
-            "start pose spread [deg]": float(np.max(np.ptp(start_poses, axis=0))),
-            "start point spread [mm]": float(np.max(np.linalg.norm(
-                start_points[:, None] - start_points[None], axis=-1))),
-            "max |P_n - P_e| [mm]": sub["end_point_error_mm"].max(),
-            "median mean sq. joint step [deg^2]": sub["mean_sq_joint_step_deg2"].median(),
-            "median mean sq. jerk [deg^2]": sub["mean_sq_jerk_deg2"].median(),
-            "median max joint step [deg]": sub["max_joint_step_deg"].median(),
-            "median velocity sign changes": sub["velocity_sign_changes"].median(),
-            "points missing the IK tolerance": missed.sum(min_count=1),
-            "points solved": solved.sum(min_count=1),
-        })
-    return pd.DataFrame(rows)
-
-
-def _missing_text(row, name: str) -> str:
-    """``sequential-ik: 197 of 350 points missed the IK tolerance`` or "" when unknown."""
-    missed = row.get("points missing the IK tolerance", np.nan)
-    solved = row.get("points solved", np.nan)
-    if pd.isna(missed):
-        return ""
-    of = f" of {solved:.0f}" if not pd.isna(solved) else ""
-    return f"{name}: {missed:.0f}{of} points missed the IK tolerance"
-
-
-def check_claims(summary: pd.DataFrame, baseline: str = BASELINE,
-                 reference: str = OURS, scheme: str | None = None) -> pd.DataFrame:
-    """The paper's four claims about its baseline, each with numbers and a verdict.
-
-    Args:
-        summary: :func:`summarise` output (one row per run, column ``method``).
-        baseline: the baseline run's name (folder) in ``summary``.
-        reference: the run of the paper's method (``ours``).
-        scheme: the baseline run's scheme (``walk`` / ``track``, :attr:`MethodRun.scheme`):
-            the start-pose claim says what it shows for it (a property of the walk; a track
-            starts at the recorded start pose by construction). None: not stated.
-    """
-    ours = summary.set_index("method").loc[reference]
-    base = summary.set_index("method").loc[baseline]
-    o, b = reference, baseline
-
-    def ratio(a, c):
-        return float(a) / float(c) if c else float("inf")
-
-    speed = ratio(ours["median duration [s]"], base["median duration [s]"])
-    pointing = ratio(base["mean pointing deviation [deg]"], ours["mean pointing deviation [deg]"])
-    start = ratio(base["median |p_0 - p^s| [deg]"], ours["max |p_0 - p^s| [deg]"])
-    step = ratio(base["median mean sq. joint step [deg^2]"],
-                 ours["median mean sq. joint step [deg^2]"])
-    jerk = ratio(base["median mean sq. jerk [deg^2]"], ours["median mean sq. jerk [deg^2]"])
-
-    def comparable(r):
-        return 1.0 / COMPARABLE_FACTOR <= r <= COMPARABLE_FACTOR
-
-    line = ""
-    if "mean line distance [mm]" in base and "mean line distance [mm]" in ours:
-        line = (f"; meanwhile mean line distance: {o} {ours['mean line distance [mm]']:.2f} mm, "
-                f"{b} {base['mean line distance [mm]']:.2f} mm")
-    missing = _missing_text(base, b)
-    claims = [
-        ("sequential generation is much faster",
-         f"median duration: {o} {ours['median duration [s]']:.3g} s, {b} "
-         f"{base['median duration [s]']:.3g} s; ratio {o} / {b} = {speed:.0f}",
-         f"ratio >= {FASTER_FACTOR:g}", speed >= FASTER_FACTOR),
-        ("its pointing deviation is much worse",
-         f"mean pointing deviation: {o} {ours['mean pointing deviation [deg]']:.2f} deg, "
-         f"{b} {base['mean pointing deviation [deg]']:.2f} deg; ratio {b} / {o} = "
-         f"{pointing:.2f}{line}" + (f"; {missing}" if missing else ""),
-         f"ratio >= {WORSE_FACTOR:g}", pointing >= WORSE_FACTOR),
-        ("its start pose varies, while ours is constant" + START_CLAIM_NOTES.get(scheme or "", ""),
-         f"|p_0 - p^s| [motor deg]: {o} max {ours['max |p_0 - p^s| [deg]']:.3f}, "
-         f"{b} median {base['median |p_0 - p^s| [deg]']:.2f} (ratio {start:.0f}); "
-         f"spread of start poses over the trajectories: {o} "
-         f"{ours['start pose spread [deg]']:.3f} deg, {b} "
-         f"{base['start pose spread [deg]']:.2f} deg; of start points: {o} "
-         f"{ours['start point spread [mm]']:.2f} mm, {b} "
-         f"{base['start point spread [mm]']:.2f} mm; max |P_0 - P_s|: {o} "
-         f"{ours['max |P_0 - P_s| [mm]']:.2f} mm, {b} "
-         f"{base['max |P_0 - P_s| [mm]']:.2f} mm",
-         f"{o} max <= {CONSTANT_START_DEG:g} deg and {b} median >= "
-         f"{VARIES_FACTOR:g} x {o} max",
-         ours["max |p_0 - p^s| [deg]"] <= CONSTANT_START_DEG and start >= VARIES_FACTOR),
-        ("the fluency is comparable",
-         f"median mean squared joint step: {o} "
-         f"{ours['median mean sq. joint step [deg^2]']:.2f}, {b} "
-         f"{base['median mean sq. joint step [deg^2]']:.2f} deg^2 (ratio {step:.2f}); median "
-         f"mean squared jerk: {o} {ours['median mean sq. jerk [deg^2]']:.3f}, {b} "
-         f"{base['median mean sq. jerk [deg^2]']:.3f} deg^2 (ratio {jerk:.2f})",
-         f"both ratios within 1/{COMPARABLE_FACTOR:g} .. {COMPARABLE_FACTOR:g}",
-         comparable(step) and comparable(jerk)),
-    ]
-    return pd.DataFrame(
-        [{"paper's claim": c, "measured": m, "criterion": k,
-          "verdict": "holds" if ok else "does not hold"} for c, m, k, ok in claims])
-
-
-#: What the start-pose claim is about for each scheme (appended to the claim).
-START_CLAIM_NOTES = {
-    "walk": " (a property of the walk: this run walked from the touch pose, a touch-pose-only "
-            "task, so its start pose is wherever the walk ends)",
-    "track": " (this run tracked from the start pose, the paper's task: it starts at the "
-             "recorded start pose by construction, so the claim cannot hold here: it describes "
-             "the walk, not point-by-point IK as such)",
-}
-
-
-def start_pose_note(summary: pd.DataFrame, runs: dict) -> str:
-    """A sentence on the start-pose claim over every baseline run: how far the walks' start
-    poses are from p^s, against the track runs' (medians of |p_0 - p^s|, motor deg), and
-    what that means; "" without baseline runs."""
-    rows = summary.set_index("method")
-    names = [n for n in baseline_names(runs) if n in rows.index]
-    by_scheme = {scheme: [n for n in names if runs[n].scheme == scheme]
-                 for scheme in SCHEME_ORDER}
-    if not names:
-        return ""
-
-    def figures(group):
-        return ", ".join(f"`{n}` {rows.loc[n, 'median |p_0 - p^s| [deg]']:.2f}" for n in group)
-
-    parts = []
-    if by_scheme["walk"]:
-        parts.append(f"the walks from the touch pose ({SCHEME_TASKS['walk'][1]}) start "
-                     f"{figures(by_scheme['walk'])} motor deg from p^s (median |p_0 - p^s|)")
-    if by_scheme["track"]:
-        parts.append(f"the tracks from the start pose ({SCHEME_TASKS['track'][1]}) start "
-                     f"{figures(by_scheme['track'])} motor deg from it")
-    text = "The start-pose claim is about the walk the paper's baseline made: " + \
-        "; ".join(parts) + "."
-    if by_scheme["walk"] and by_scheme["track"]:
-        text += (" The start pose varies because the walk leaves it free, not because the "
-                 "IK is solved point by point: tracked from the start pose, the same "
-                 "point-by-point IK starts at the recorded start pose, by construction.")
-    elif by_scheme["walk"]:
-        text += (" A track run (`sequential-ik` or `ikpy`, scheme track: the paper's task) "
-                 "starts at the recorded start pose by construction.")
-    else:
-        text += (" No walk is in this folder: the paper's baseline walked back from the "
-                 "touch pose (`sequential-ik-walk`, `ikpy-walk`), where the start pose is "
-                 "free.")
-    return text
-
-
-def pointing_tradeoff_note(summary: pd.DataFrame, baseline: str = BASELINE,
-                           reference: str = OURS) -> str:
-    """A plain sentence when the baseline points better than ours only by leaving the line
-    (its mean line distance at least :data:`WORSE_FACTOR` x ours), else ""."""
-    rows = summary.set_index("method")
-    ours, base = rows.loc[reference], rows.loc[baseline]
-    if "mean line distance [mm]" not in rows.columns:
-        return ""
-    ours_line, base_line = ours["mean line distance [mm]"], base["mean line distance [mm]"]
-    better_pointing = (base["mean pointing deviation [deg]"]
-                       < WORSE_FACTOR * ours["mean pointing deviation [deg]"])
-    if not (better_pointing and base_line >= WORSE_FACTOR * max(ours_line, 1e-12)):
-        return ""
-    missing = _missing_text(base, f"`{baseline}`")
-    return (f"Why the pointing claim fails for `{baseline}`: damped least squares weighs "
-            "metres against radians, and where the target cannot be reached it keeps the "
-            f"orientation and gives up the position. Its mean line distance is "
-            f"{base_line:.2f} mm against {ours_line:.2f} mm for `{reference}` "
-            f"({base_line / max(ours_line, 1e-12):.0f}x)"
-            + (f" and {missing.split(': ', 1)[1]}" if missing else "")
-            + ": it points along the line without following it, so its small pointing "
-            "deviation is not a like-for-like win.")
 
 
 def claims_lines(summary: pd.DataFrame, runs: dict, frame: pd.DataFrame | None = None,
@@ -636,6 +133,43 @@ def claims_lines(summary: pd.DataFrame, runs: dict, frame: pd.DataFrame | None =
                           + ", ".join(parts) + ".", ""]
     note = start_pose_note(summary, runs)
     return lines + ([note, ""] if note else [])
+
+
+def start_pose_note(summary: pd.DataFrame, runs: dict) -> str:
+    """A sentence on the start-pose claim over every baseline run: how far the walks' start
+    poses are from p^s, against the track runs' (medians of |p_0 - p^s|, motor deg), and
+    what that means; "" without baseline runs."""
+    rows = summary.set_index("method")
+    names = [n for n in baseline_names(runs) if n in rows.index]
+    by_scheme = {scheme: [n for n in names if runs[n].scheme == scheme]
+                 for scheme in SCHEME_ORDER}
+    if not names:
+        return ""
+
+    def figures(group):
+        return ", ".join(f"`{n}` {rows.loc[n, 'median |p_0 - p^s| [deg]']:.2f}" for n in group)
+
+    parts = []
+    if by_scheme["walk"]:
+        parts.append(f"the walks from the touch pose ({SCHEME_TASKS['walk'][1]}) start "
+                     f"{figures(by_scheme['walk'])} motor deg from p^s (median |p_0 - p^s|)")
+    if by_scheme["track"]:
+        parts.append(f"the tracks from the start pose ({SCHEME_TASKS['track'][1]}) start "
+                     f"{figures(by_scheme['track'])} motor deg from it")
+    text = "The start-pose claim is about the walk the paper's baseline made: " + \
+        "; ".join(parts) + "."
+    if by_scheme["walk"] and by_scheme["track"]:
+        text += (" The start pose varies because the walk leaves it free, not because the "
+                 "IK is solved point by point: tracked from the start pose, the same "
+                 "point-by-point IK starts at the recorded start pose, by construction.")
+    elif by_scheme["walk"]:
+        text += (" A track run (`sequential-ik` or `ikpy`, scheme track: the paper's task) "
+                 "starts at the recorded start pose by construction.")
+    else:
+        text += (" No walk is in this folder: the paper's baseline walked back from the "
+                 "touch pose (`sequential-ik-walk`, `ikpy-walk`), where the start pose is "
+                 "free.")
+    return text
 
 
 def _range(values, digits: int = 2) -> str:
@@ -693,8 +227,6 @@ def modes_table(frame: pd.DataFrame, runs: dict, steps: int, paper: bool = False
             "start point variation [mm]": _range([r["start_point_variation_printed"] * scale
                                                   for r in p], 0)})
     return pd.DataFrame(rows)
-
-
 #: The modes table's "task solved" cells: per scheme, for ``ours`` and the paper's row.
 TASK_CELLS = {
     "walk": "touch-pose-only (walk from the touch pose; the start pose is free)",
@@ -780,7 +312,6 @@ def table2_task_line(scheme: str | None) -> str:
 def plot_pointing_per_step(deviations: dict[tuple[str, str], np.ndarray], tasks: Sequence[Task],
                            methods: list[str]) -> Figure:
     """Pointing deviation [deg] per step, one panel per trajectory, one line per method."""
-    from ikbench.render.run_report import _matplotlib
 
     plt = _matplotlib()
     cols = min(4, len(tasks))
@@ -807,12 +338,11 @@ def plot_pointing_per_step(deviations: dict[tuple[str, str], np.ndarray], tasks:
 
 
 def _settings_line(run: MethodRun) -> str:
-    settings = run.record.get("settings", {})
-    settings = settings.get("settings", settings) if isinstance(settings, dict) else settings
-    text = ", ".join(f"{k}={v}" for k, v in settings.items()
-                     if not isinstance(v, dict)) if isinstance(settings, dict) else str(settings)
-    return (f"| {run.name} | {run.method} | {text} | {run.record.get('created_utc', '')} | "
-            f"{run.record.get('cpu', '')} | {run.record.get('git_revision', '')} |")
+    text = ", ".join(f"{k}={v}" for k, v in run.record.method_settings().items()
+                     if not isinstance(v, dict))
+    machine = run.record.provenance
+    return (f"| {run.name} | {run.method} | {text} | {machine.get('created_utc', '')} | "
+            f"{machine.get('cpu', '')} | {machine.get('git_revision', '')} |")
 
 
 def _side_by_side(frame: pd.DataFrame) -> pd.DataFrame:
@@ -846,49 +376,6 @@ def escaped_table(frame: pd.DataFrame, digits: dict | None = None) -> str:
     return markdown_table(safe, {escape(k): v for k, v in (digits or {}).items()})
 
 
-@dataclass
-class Comparison:
-    """Every run of an output directory, measured and judged (:func:`compare`).
-
-    Attributes:
-        runs: folder name -> :class:`MethodRun`, in report order.
-        tasks: the shared tasks.
-        targets: their targets.
-        frame: :func:`evaluate_runs` (one row per trajectory and run).
-        summary: :func:`summarise` (one row per run).
-    """
-
-    runs: dict[str, MethodRun]
-    tasks: list[Task]
-    targets: Targets
-    frame: pd.DataFrame
-    summary: pd.DataFrame
-
-    @property
-    def baselines(self) -> list[str]:
-        """The baseline runs, in report order (:func:`baseline_names`)."""
-        return baseline_names(self.runs)
-
-    def claims(self, baseline: str) -> pd.DataFrame:
-        """:func:`check_claims` of one baseline run against ``ours``."""
-        return check_claims(self.summary, baseline)
-
-    def claims_lines(self, level: int = 3) -> list[str]:
-        """:func:`claims_lines` for every baseline run."""
-        return claims_lines(self.summary, self.runs, self.frame, level)
-
-    def modes_table(self) -> pd.DataFrame:
-        """:func:`modes_table` with the paper's row on the paper's targets."""
-        return modes_table(self.frame, self.runs, self.targets.steps, self.targets.is_paper)
-
-
-def compare(output_dir: str | Path) -> Comparison:
-    """Load, measure and summarise every run in ``output_dir`` (see :func:`load_runs`)."""
-    runs, tasks, targets = load_runs(output_dir)
-    frame = evaluate_runs(runs, tasks)
-    return Comparison(runs, tasks, targets, frame, summarise(frame, runs))
-
-
 def _run_table2(frame: pd.DataFrame, runs: dict, name: str, steps: int,
                 suffix: str = "") -> list[str]:
     """:func:`table2_section` of the run ``name``."""
@@ -914,7 +401,7 @@ def write_comparison_report(output_dir: str | Path) -> Path:
             not match (targets, n, trajectory ids).
     """
     output_dir = Path(output_dir)
-    result = compare(output_dir)
+    result = load_comparison(output_dir)
     runs, tasks, targets, frame = result.runs, result.tasks, result.targets, result.frame
     atomic_savefig(output_dir / FIGURE_NAME,
                    plot_pointing_per_step(pointing_per_step(runs, tasks), tasks, list(runs)))
@@ -932,10 +419,11 @@ def write_comparison_report(output_dir: str | Path) -> Path:
         "Durations are each solver's own wall time as recorded by its run; compare them only "
         "between runs on the same machine under similar load.", "",
         "## The paper's claims about its traditional baseline, checked", "",
-        *result.claims_lines(level=3),
+        *claims_lines(result.summary, runs, frame, level=3),
         "## The baseline's orientation modes", "",
         "Each baseline run with the task it solved (its scheme), beside `ours`:", "",
-        escaped_table(result.modes_table()), "", MODES_NOTE, "",
+        escaped_table(modes_table(frame, runs, targets.steps, targets.is_paper)), "",
+        MODES_NOTE, "",
         "## Summary over the trajectories", "",
         escaped_table(result.summary, {"median duration [s]": 4, "median iterations": 0,
                                 "max |p_0 - p^s| [deg]": 3, "median |p_0 - p^s| [deg]": 3,

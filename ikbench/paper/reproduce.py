@@ -370,13 +370,15 @@ def write_results_readme(output: str | Path, times: dict[str, float], quick: boo
         quick: whether the quick configuration produced the results.
         comparison: the comparison report's path.
     """
+    from ikbench.paper.baseline_runs import load_comparison
     from ikbench.paper.comparison import (
         FIGURE_NAME,
         MODES_NOTE,
         PAPER_BASELINE_NOTE,
         TABLE2_UNITS_NOTE,
-        compare,
+        claims_lines,
         escaped_table,
+        modes_table,
         table2_comparison,
     )
 
@@ -388,7 +390,7 @@ def write_results_readme(output: str | Path, times: dict[str, float], quick: boo
     ablation = _read(output, "ablation/table.csv")
     summary = _read(output, "ablation/summary.csv")
     claims = check_claims(ablation)
-    measured = compare(output)
+    measured = load_comparison(output)
     record = provenance()
     command = "ikbench reproduce" + (" --quick" if quick else "")
     lines = [
@@ -428,14 +430,16 @@ def write_results_readme(output: str | Path, times: dict[str, float], quick: boo
            if AUTHORS_STAGE in times else "")
         + f", all walks from the touch pose (touch-pose-only task), beside `{OURS}` and the "
         "paper's Table 2:", "",
-        escaped_table(measured.modes_table()), "", MODES_NOTE, "",
+        escaped_table(modes_table(measured.frame, measured.runs, measured.targets.steps,
+                                  measured.targets.is_paper)), "", MODES_NOTE, "",
         "## Comparison with the baseline", "",
         f"The paper's claims about its baseline, checked for each mode and stating the task "
         f"each run solved (from "
         f"[{comparison}]({comparison}), `ikbench.paper.comparison`, which also has the runs "
         "side by "
         "side per trajectory).", "",
-        *measured.claims_lines(level=3), f"![pointing deviation per step]({figure})", "",
+        *claims_lines(measured.summary, measured.runs, measured.frame, level=3),
+        f"![pointing deviation per step]({figure})", "",
         "## Ablation of the loss terms", "", claims_table(claims), "",
         markdown_table(summary[["variant", "trajectories", "hit_cap", *SUMMARY_COLUMNS]]
                        .rename(columns={"hit_cap": "runs at cap", **SUMMARY_METRICS}),

@@ -12,7 +12,6 @@ reached paths of every method's first seed, per-waypoint errors), ``report.md`` 
 from __future__ import annotations
 
 import csv
-import json
 import math
 from collections.abc import Iterable
 from pathlib import Path
@@ -28,7 +27,7 @@ from ikbench.core.trajectory import write_trajectory_csv
 from ikbench.core.validity import SOURCE, describe
 from ikbench.render.pose_paths import plot_pose_path, reached
 from ikbench.render.run_report import markdown_table
-from ikbench.runtime.record import files_written_by
+from ikbench.runtime.record import RECORD_FILE, RunRecord, files_written_by, jsonable
 
 #: The study's result (:class:`ikbench.studies.cartesian.CartesianResult`): render takes
 #: it as it comes, without importing the study (render is below the studies).
@@ -106,17 +105,18 @@ def write_folder(result: StudyResult, folder: Path, command: str = "",
                 f"and reached paths, seed {result.seeds[0]}", robot))
             figures[problem] = file
             files.append(file)
-        record = {"command": command, "problems": {p: str(v[2].source.name)
-                                                    for p, v in result.problems.items()},
-                  "methods": result.methods, "seeds": list(result.seeds),
-                  "settings": json.loads(json.dumps(result.settings, default=_jsonable)),
-                  "options": result.options, "validity": describe(),
-                  "validity_source": SOURCE, "wall_time_s": result.wall_s,
-                  "files": sorted([*files, "report.md", "run.json"]),
-                  **provenance(extra=tuple(_libraries(result.methods)))}
-        atomic_write_text(tmp / "run.json", json.dumps(record, indent=2) + "\n")
+        record = RunRecord(
+            kind="cartesian", command=command, methods=result.methods,
+            settings=jsonable(result.settings),
+            files=sorted([*files, "report.md", RECORD_FILE]),
+            provenance=provenance(extra=tuple(_libraries(result.methods))),
+            study={"problems": {p: str(v[2].source.name) for p, v in result.problems.items()},
+                   "seeds": list(result.seeds), "options": result.options,
+                   "validity": describe(), "validity_source": SOURCE,
+                   "wall_time_s": result.wall_s})
+        atomic_write_text(tmp / RECORD_FILE, record.to_json())
         atomic_write_text(tmp / "report.md", report(result, summary, published, figures,
-                                                    reach, record))
+                                                    reach, record.to_dict()))
     return folder
 
 
@@ -124,14 +124,6 @@ def _libraries(methods) -> list[str]:
     from ikbench.methods.registry import get_method
 
     return sorted({get_method(m).library for m in methods})
-
-
-def _jsonable(value):
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if hasattr(value, "__dict__"):
-        return vars(value)
-    return str(value)
 
 
 def _reach_notes(result, table) -> dict[str, str]:

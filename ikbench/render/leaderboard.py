@@ -276,18 +276,19 @@ def render(folder: str | Path) -> None:
     """Write ``leaderboard.md``, ``leaderboard.csv`` and ``pareto.png`` of a compare folder
     again from its ``results.csv``, ``pareto_sweep.csv`` and ``run.json`` (nothing is solved:
     for a change of presentation only)."""
-    import json
     from pathlib import Path
 
     from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text
+    from ikbench.runtime.record import RunFolder
 
     folder = Path(folder)
-    record = json.loads((folder / "run.json").read_text(encoding="utf-8"))
-    contract = Contract.from_dict(record["contract"])
+    record = RunFolder(folder).read_record("leaderboard")
+    contract = Contract.from_dict(record.study["contract"])
     results = pd.read_csv(folder / "results.csv", dtype={"trajectory": str})
     sweep_path = folder / "pareto_sweep.csv"
     sweep = pd.read_csv(sweep_path) if sweep_path.exists() else None
-    board = leaderboard(results, record["reference"], contract)
+    board = leaderboard(results, record.study["reference"], contract)
     atomic_write_csv(folder / "leaderboard.csv", board, float_format="%.6g")
-    atomic_write_text(folder / "leaderboard.md", leaderboard_markdown(board, record, contract))
+    atomic_write_text(folder / "leaderboard.md",
+                      leaderboard_markdown(board, record.to_dict(), contract))
     atomic_savefig(folder / "pareto.png", plot_pareto(results, sweep, contract))

@@ -19,7 +19,6 @@ ablation there are replaced; other files in it are kept.
 
 from __future__ import annotations
 
-import json
 import re
 import sys
 import time
@@ -33,29 +32,26 @@ import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError, SolverError
-from ikbench.core.io import (
-    atomic_savefig,
-    atomic_write_csv,
-    atomic_write_text,
-    check_folder_writable,
-    staged_folder,
-)
+from ikbench.core.io import check_folder_writable
 from ikbench.core.losses import PAPER_WEIGHTS, TERM_DESCRIPTIONS, TERMS, objective, parse_terms
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import line_tasks
-from ikbench.core.trajectory import (
-    DEFAULT_DURATION_S,
-    read_trajectory_poses,
-    write_trajectory_csv,
-)
+from ikbench.core.trajectory import DEFAULT_DURATION_S
 from ikbench.methods.base import Method
 from ikbench.methods.registry import available_methods, get_method
 from ikbench.render.run_report import TABLE_COLUMNS, _matplotlib, markdown_table, report_sections
 from ikbench.runtime.harness import Progress, solve_tasks
-from ikbench.runtime.record import TRAJECTORY_FILE
-from ikbench.studies.run import DEFAULT_OUTPUT, evaluate, robot_record
+from ikbench.runtime.record import (
+    TRAJECTORY_FILE,
+    RunFolder,
+    RunRecord,
+    RunStage,
+    jsonable,
+    robot_entry,
+)
+from ikbench.studies.run import DEFAULT_OUTPUT, evaluate, trajectory_files
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -259,37 +255,39 @@ def ablate(drops: str | list[str], method: str, *,
         if failed:
             raise SolverError(f"ablation {variant.name}: trajectory {failed[0].task.name} "
                               f"failed: {failed[0].failure}")
-    with staged_folder(root, keep=_not_ablation_output) as tmp:
+    with RunFolder(root).staged(keep=_not_ablation_output) as stage:
         tables, poses = [], {}
         for variant, solver in zip(variants, solvers):
             table, poses[variant.name] = _write_variant(robot, solver, variant,
-                                                        outcomes[variant.name],
-                                                        tmp / variant.name, duration_s)
+                                                        outcomes[variant.name], stage,
+                                                        duration_s)
             tables.append(table)
             _say(f"variant {variant.name}: {int(table['iterations'].sum())} iterations, "
                  f"{int(table['hit_cap'].sum())} of {len(table)} hit the cap, "
                  f"{table['duration_s'].sum():.1f} s", progress)
         table = pd.concat(tables, ignore_index=True)
         summary = summarize(table)
-        atomic_write_csv(tmp / "table.csv", table, float_format="%.10g")
-        atomic_write_csv(tmp / "summary.csv", summary, float_format="%.10g")
-        record = {"method": cls.name, "robot": robot_record(robot),
-                  "targets": targets.source, "trajectories": targets.ids,
-                  "steps": targets.steps, "figure_trajectory": figure_trajectory,
-                  "variants": {v.name: {"dropped": list(v.dropped), "settings": _settings(s)}
-                               for v, s in zip(variants, solvers)},
-                  "total_wall_time_s": time.perf_counter() - started,
-                  **provenance(extra=(cls.library,))}
-        atomic_write_text(tmp / "run.json", json.dumps(record, indent=2) + "\n")
+        stage.csv("table.csv", table)
+        stage.csv("summary.csv", summary)
+        record = RunRecord(
+            kind="ablation", method=cls.name, robot=robot_entry(robot),
+            targets=targets.source, trajectories=targets.ids, steps=targets.steps,
+            total_wall_time_s=time.perf_counter() - started,
+            provenance=provenance(extra=(cls.library,)),
+            study={"figure_trajectory": figure_trajectory,
+                   "variants": {v.name: {"dropped": list(v.dropped),
+                                         "settings": jsonable({"settings": s.settings})}
+                                for v, s in zip(variants, solvers)}})
+        stage.record(record)
         task = tasks[targets.ids.index(figure_trajectory)]
         shown = {v.name: poses[v.name][task.name] for v in variants}
         title = f"{cls.name}, trajectory {figure_trajectory}"
-        atomic_savefig(tmp / "metrics.png", plot_metrics(table))
-        atomic_savefig(tmp / "trajectories_3d.png", plot_variants_3d(robot, task, shown, title))
-        atomic_savefig(tmp / "joints.png", plot_joints(robot, task, shown, title))
+        stage.figure("metrics.png", plot_metrics(table))
+        stage.figure("trajectories_3d.png", plot_variants_3d(robot, task, shown, title))
+        stage.figure("joints.png", plot_joints(robot, task, shown, title))
         by_joint = joint_interpolation_by_joint(robot, tasks, poses)
-        atomic_write_text(tmp / "report.md",
-                          ablation_report(table, summary, variants, record, by_joint))
+        stage.text("report.md", ablation_report(table, summary, variants, record.to_dict(),
+                                                by_joint))
     _say(f"written to {root}/ in {time.perf_counter() - started:.1f} s", progress)
     return table
 
@@ -308,17 +306,18 @@ def _not_ablation_output(rel: Path) -> bool:
                 and TRAJECTORY_FILE.fullmatch(rel.name))
 
 
-def _write_variant(robot, solver, variant: Variant, outcomes, folder: Path,
-                   duration_s) -> tuple[pd.DataFrame, dict]:
-    """Write the CSVs, measure them; returns (table rows, {id: poses read back})."""
-    for outcome in outcomes:
-        write_trajectory_csv(folder / f"trajectory_{outcome.task.name}.csv", robot,
-                             outcome.solution.poses_deg, duration_s)
-    table, details, _ = evaluate(robot, outcomes, folder, solver.name)
+def _write_variant(robot: Robot, solver: Method, variant: Variant, outcomes: list,
+                   stage: RunStage, duration_s: float) -> tuple[pd.DataFrame, dict]:
+    """Write the variant's CSVs into its subfolder of ``stage``, measure them as written;
+    returns (table rows, {id: poses read back})."""
+    files = trajectory_files(robot, outcomes, duration_s)
+    for file in files.values():
+        stage.trajectory(file, variant.name)
+    table, details, _ = evaluate(robot, outcomes, files, solver.name)
     poses, extra = {}, []
     for outcome in outcomes:
         task, solution = outcome.task, outcome.solution
-        poses[task.name] = read_trajectory_poses(folder / f"trajectory_{task.name}.csv", robot)
+        poses[task.name] = files[task.name].poses
         extra.append({
             "hit_cap": bool(solution.info.get("hit_cap", not solution.converged)),
             "paper_loss": objective(robot, task, poses[task.name])[0],
@@ -330,12 +329,6 @@ def _write_variant(robot, solver, variant: Variant, outcomes, folder: Path,
                         **{c: details[c] for c in EXTRA_COLUMNS if c not in extra},
                         **{c: extra[c] for c in extra})
     return rows[["variant", "dropped", *TABLE_COLUMNS, *EXTRA_COLUMNS]], poses
-
-
-def _settings(solver) -> dict:
-    """The solver's settings, JSON-able (run.json's ``{"settings": {...}}`` form)."""
-    settings = {"settings": solver.settings}
-    return json.loads(json.dumps(settings, default=lambda v: getattr(v, "__dict__", str(v))))
 
 
 def summarize(table: pd.DataFrame) -> pd.DataFrame:

@@ -5,10 +5,13 @@ Contract` (``Task.contract``): fixed start and touch poses, the line, pointing o
 part, the speed limits, the tolerances. :func:`compare` solves each task alone ``repeat``
 times per method through the study harness (:mod:`ikbench.runtime.harness`: its clock,
 failures kept as rows); a method that batches (ours-lm) also solves all tasks in one call per
-round, and that share is its own column. Each method's last repetition is written as a run
-folder (``DIR/compare/<method>/``, as ``ikbench run`` writes it), and every criterion is
-measured by :func:`ikbench.core.metrics.contract_metrics` from the trajectory CSVs written and
-judged by :func:`ikbench.core.contract.judge` - success is never what the method reports.
+round, and that share is its own column. Each method's last repetition is serialised as its
+trajectory CSVs (:class:`ikbench.runtime.record.TrajectoryFile`: the text and the poses read
+back from it), every criterion is measured from those poses by
+:func:`ikbench.core.metrics.contract_metrics` and judged by :func:`ikbench.core.contract.judge`
+- success is never what the method reports, and it is what the written CSVs recompute to. The
+same text is written as a run folder (``DIR/compare/<method>/``, as ``ikbench run`` writes it).
+Inside, :func:`compare` builds one :class:`CompareSpec` and runs it (:func:`run_comparison`).
 
 Two tracks are judged from the same trajectories: ``paper`` (the contract as given: start and
 touch poses fixed) and ``touch`` (touch pose only). A method whose scheme does not keep a
@@ -32,10 +35,9 @@ machine) and the per-method folders.
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -50,18 +52,25 @@ from ikbench.core.contract import (
     judge,
 )
 from ikbench.core.errors import IkbenchError, InputError
-from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text, staged_folder
 from ikbench.core.metrics import contract_metrics
 from ikbench.core.provenance import library_versions, provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import Task, line_tasks
-from ikbench.core.trajectory import read_trajectory_poses
+from ikbench.core.trajectory import DEFAULT_DURATION_S
 from ikbench.methods.base import Method
-from ikbench.methods.registry import method_status
+from ikbench.methods.registry import get_method, method_status
+from ikbench.render.leaderboard import leaderboard, leaderboard_markdown, plot_pareto
 from ikbench.runtime.executors import Executor, LocalExecutor, portable_robot
 from ikbench.runtime.harness import Outcome, Progress, describe, solve_tasks
-from ikbench.studies.run import write_run
+from ikbench.runtime.record import (
+    RunFolder,
+    RunRecord,
+    RunStage,
+    TrajectoryFile,
+    keep_nothing,
+)
+from ikbench.studies.run import trajectory_files, write_run
 
 #: The default tolerances (kept under their old name; the contract states them).
 TOLERANCES = DEFAULT_TOLERANCES
@@ -165,14 +174,50 @@ def with_obstacles(targets: Targets, obstacles: str | Path | Sequence | None,
     return targets
 
 
+@dataclass(frozen=True)
+class CompareSpec:
+    """A comparison, validated: what :func:`compare` builds from its keywords and
+    :func:`run_comparison` runs.
+
+    Attributes:
+        methods: registered method names, in order (available or not).
+        robot: the robot.
+        targets: the targets (with the obstacles every task gets).
+        tasks: the line tasks, each carrying :attr:`contract`.
+        contract: the task contract (the ``paper`` track; ``touch`` is judged beside it).
+        reference: the method the time ratios are against.
+        repeat: timed solves of each task alone per method.
+        warmup: untimed rounds before.
+        solvers: configured methods by name, replacing the defaults.
+        executor: where the methods run.
+        sweep: solve ours-lm's weight sweep for pareto.png (when ours-lm is compared).
+        output: the results directory (``output/compare/``); None writes nothing.
+        progress: progress lines on stderr.
+    """
+
+    methods: list[str]
+    robot: Robot
+    targets: Targets
+    tasks: list[Task]
+    contract: Contract
+    reference: str
+    repeat: int = 5
+    warmup: int = 1
+    solvers: dict[str, Method] = field(default_factory=dict)
+    executor: Executor = field(default_factory=LocalExecutor)
+    sweep: bool = True
+    output: Path | None = None
+    progress: bool = True
+
+
 def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
             targets: str | Path | Targets | None = None, only: str | None = None,
             steps: int | None = None, repeat: int = 5, warmup: int = 1,
             output: str | Path | None = "runs",
             reference: str | None = None, progress: bool = True,
-            solvers: dict[str, Method] | None = None, executor=None,
+            solvers: dict[str, Method] | None = None, executor: Executor | None = None,
             contract: Contract | None = None, tolerances: str | dict | None = None,
-            pointing: str | bool = "auto", duration_s: float = 2.0,
+            pointing: str | bool = "auto", duration_s: float = DEFAULT_DURATION_S,
             sweep: bool = True,
             obstacles: str | Path | Sequence | None = None) -> CompareResult:
     """Run every method on every task ``repeat`` times; write ``output/compare/``.
@@ -217,34 +262,38 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
     contract = contract or contract_for(robot, tolerances=tolerances, pointing=pointing,
                                         duration_s=duration_s)
     contract = replace(contract, obstacles=bool(targets.obstacles))
-    tasks = line_tasks(robot, targets, contract)
-    reference = _reference_method(reference, names)
-    log = Progress("compare", enabled=progress)
+    return run_comparison(CompareSpec(
+        names, robot, targets, line_tasks(robot, targets, contract), contract,
+        _reference_method(reference, names), repeat, warmup, dict(solvers or {}),
+        executor or LocalExecutor(), sweep, None if output is None else Path(output),
+        progress))
+
+
+def run_comparison(spec: CompareSpec) -> CompareResult:
+    """Solve, measure and judge ``spec`` in memory; write ``spec.output/compare/`` (unless
+    ``spec.output`` is None) from the same serialised trajectories it judged."""
+    log = Progress("compare", enabled=spec.progress)
     started = time.perf_counter()
-    rows, built, last = _solve_methods(names, robot, targets, tasks, contract, solvers or {},
-                                       executor, warmup, repeat, log)
-    sweep_frame = (ours_lm_sweep(robot, tasks, contract, solvers or {})
-                   if sweep and "ours-lm" in built else None)
-    from ikbench.render import leaderboard as report
-
-    record = _record(names, reference, repeat, warmup, robot, targets, contract, built, rows)
-    results = pd.DataFrame(rows)
-    if output is None:
-        import tempfile
-
-        with tempfile.TemporaryDirectory() as tmp:
-            results = measure(results, built, robot, targets, tasks, contract, last, Path(tmp),
-                              animation=False)
-        board = report.leaderboard(results, reference, contract)
-        return CompareResult(results, board, record, contract)
-    root = Path(output) / "compare"
-    with staged_folder(root) as tmp:
-        results = measure(results, built, robot, targets, tasks, contract, last, tmp)
-        board = report.leaderboard(results, reference, contract)
-        record["total_wall_time_s"] = time.perf_counter() - started
-        _write_tables(tmp, results, board, record, contract, sweep_frame)
+    rows, built, last = _solve_methods(spec, log)
+    sweep_frame = (ours_lm_sweep(spec.robot, spec.tasks, spec.contract, spec.solvers)
+                   if spec.sweep and "ours-lm" in built else None)
+    files = {name: trajectory_files(spec.robot, outcomes, spec.contract.duration_s)
+             for name, outcomes in last.items()}
+    results = measure(spec, pd.DataFrame(rows), built, files)
+    board = leaderboard(results, spec.reference, spec.contract)
+    record = _record(spec, built, rows)
+    if spec.output is None:
+        return CompareResult(results, board, record.to_dict(), spec.contract)
+    root = spec.output / "compare"
+    with RunFolder(root).staged(keep=keep_nothing) as stage:
+        for name, outcomes in last.items():
+            write_run(built[name], spec.robot, spec.targets, outcomes, stage.path / name,
+                      {"shape": "line", "name": name, "duration_s": spec.contract.duration_s},
+                      trajectories=files[name])
+        record.total_wall_time_s = time.perf_counter() - started
+        _write_tables(stage, results, board, record, spec.contract, sweep_frame)
     log.say(f"written to {root}/ in {time.perf_counter() - started:.1f} s")
-    return CompareResult(results, board, record, contract)
+    return CompareResult(results, board, record.to_dict(), spec.contract)
 
 
 def _reference_method(reference: str | None, names: list[str]) -> str:
@@ -257,94 +306,93 @@ def _reference_method(reference: str | None, names: list[str]) -> str:
     return reference
 
 
-def _solve_methods(names: list[str], robot: Robot, targets: Targets, tasks: list[Task],
-                   contract: Contract, solvers: dict[str, Method], executor: Executor | None,
-                   warmup: int, repeat: int, log: Progress
+def _solve_methods(spec: CompareSpec, log: Progress
                    ) -> tuple[list[dict], dict[str, Method], dict[str, list[Outcome]]]:
-    """Build the methods and time each one on ``executor`` (:func:`solve_method`).
+    """Build the methods and time each one on the spec's executor (:func:`solve_method`).
 
     Returns:
         (rows of results.csv so far: one per method and task, unmeasured; the methods built,
         by name; each built method's last repetition, its outcomes by task, by name).
     """
-    rows, built = _build(names, robot, targets, tasks, solvers, log)
-    executor = executor or LocalExecutor()
-    portable = robot if executor.workers == 1 else portable_robot(robot)
-    work = [(name, solver, portable, tasks, warmup, repeat) for name, solver in built.items()]
-    log.say(f"solving {len(tasks)} trajectories with {len(built)} method(s), each trajectory "
-            f"alone, {warmup} warm-up + {repeat} timed round(s) ({executor.name} executor)")
+    rows, built = _build(spec, log)
+    executor = spec.executor
+    portable = spec.robot if executor.workers == 1 else portable_robot(spec.robot)
+    work = [(name, solver, portable, spec.tasks, spec.warmup, spec.repeat)
+            for name, solver in built.items()]
+    log.say(f"solving {len(spec.tasks)} trajectories with {len(built)} method(s), each "
+            f"trajectory alone, {spec.warmup} warm-up + {spec.repeat} timed round(s) "
+            f"({executor.name} executor)")
     last = {}
     for (name, solver), (single, batched) in zip(built.items(),
                                                  executor.map(solve_method, work)):
         last[name] = single[-1]
-        rows += _timed_rows(name, solver, robot, targets, contract, single, batched, repeat)
-        median_s = np.median([r["time_median_s"] for r in rows[-len(tasks):]])
-        log.say(f"{name}: {repeat} x {len(tasks)} trajectories solved alone, median "
+        rows += _timed_rows(spec, name, solver, single, batched)
+        median_s = np.median([r["time_median_s"] for r in rows[-len(spec.tasks):]])
+        log.say(f"{name}: {spec.repeat} x {len(spec.tasks)} trajectories solved alone, median "
                 f"{median_s:.4f} s per trajectory")
     return rows, built, last
 
 
-def _record(names: list[str], reference: str, repeat: int, warmup: int, robot: Robot,
-            targets: Targets, contract: Contract, built: dict[str, Method],
-            rows: list[dict]) -> dict:
+def _record(spec: CompareSpec, built: dict[str, Method], rows: list[dict]) -> RunRecord:
     """What run.json records: the methods and settings, the robot, targets and contract,
     each method's scheme, the libraries' versions, the provenance and any obstacles."""
-    record = {"methods": names, "reference": reference, "repeat": repeat, "warmup": warmup,
-              "robot": robot.describe(), "targets": targets.source,
-              "trajectories": targets.ids, "steps": targets.steps,
-              "contract": contract.to_dict(), "tolerances": dict(contract.tolerances),
-              "schemes": {name: solver.scheme_label() for name, solver in built.items()},
-              "libraries": library_versions(sorted({r["library"] for r in rows if r["library"]})),
-              **provenance()}
-    if targets.obstacles:
-        record["obstacles"] = {"source": targets.obstacles_source,
-                               "items": [o.to_dict() for o in targets.obstacles]}
-    return record
+    targets, contract = spec.targets, spec.contract
+    obstacles = ({"source": targets.obstacles_source,
+                  "items": [o.to_dict() for o in targets.obstacles]}
+                 if targets.obstacles else None)
+    return RunRecord(
+        kind="compare", methods=list(spec.methods), robot=spec.robot.describe(),
+        targets=targets.source, trajectories=targets.ids, steps=targets.steps,
+        obstacles=obstacles, provenance=provenance(),
+        study={"reference": spec.reference, "repeat": spec.repeat, "warmup": spec.warmup,
+               "contract": contract.to_dict(), "tolerances": dict(contract.tolerances),
+               "schemes": {name: solver.scheme_label() for name, solver in built.items()},
+               "libraries": library_versions(sorted({r["library"] for r in rows
+                                                     if r["library"]}))})
 
 
-def _write_tables(folder: Path, results: pd.DataFrame, board: pd.DataFrame, record: dict,
-                  contract: Contract, sweep_frame: pd.DataFrame | None) -> None:
+def _write_tables(stage: RunStage, results: pd.DataFrame, board: pd.DataFrame,
+                  record: RunRecord, contract: Contract, sweep_frame: pd.DataFrame | None
+                  ) -> None:
     """Write results.csv, leaderboard.csv / .md, pareto_sweep.csv (with a sweep), pareto.png
-    and run.json into ``folder`` (the method folders are :func:`measure`'s)."""
-    from ikbench.render import leaderboard as report
-
-    atomic_write_csv(folder / "results.csv", results, float_format="%.10g")
-    atomic_write_csv(folder / "leaderboard.csv", board, float_format="%.6g")
-    atomic_write_text(folder / "leaderboard.md", report.leaderboard_markdown(board, record,
-                                                                             contract))
+    and run.json (the method folders are :func:`ikbench.studies.run.write_run`'s)."""
+    stage.csv("results.csv", results, float_format="%.10g")
+    stage.csv("leaderboard.csv", board, float_format="%.6g")
+    stage.text("leaderboard.md", leaderboard_markdown(board, record.to_dict(), contract))
     if sweep_frame is not None:
-        atomic_write_csv(folder / "pareto_sweep.csv", sweep_frame, float_format="%.8g")
-    atomic_savefig(folder / "pareto.png", report.plot_pareto(results, sweep_frame, contract))
-    atomic_write_text(folder / "run.json", json.dumps(record, indent=2) + "\n")
+        stage.csv("pareto_sweep.csv", sweep_frame, float_format="%.8g")
+    stage.figure("pareto.png", plot_pareto(results, sweep_frame, contract))
+    stage.record(record)
 
 
-def _build(names, robot, targets, tasks, solvers, log) -> tuple[list[dict], dict]:
+def _build(spec: CompareSpec, log: Progress) -> tuple[list[dict], dict[str, Method]]:
     """Rows for the methods that cannot run (unavailable, refused) and the others built."""
     status = method_status()
     rows, built = [], {}
-    for k, name in enumerate(names):
+    for k, name in enumerate(spec.methods):
         cls = status[name].cls
         if cls is None:
-            log.say(f"{name} ({k + 1}/{len(names)}): unavailable: {status[name].reason}")
-            rows += [_row(name, "", robot, targets, task, "unavailable", status[name].reason)
-                     for task in tasks]
+            log.say(f"{name} ({k + 1}/{len(spec.methods)}): unavailable: "
+                    f"{status[name].reason}")
+            rows += [_row(spec, name, "", task, "unavailable", status[name].reason)
+                     for task in spec.tasks]
             continue
         try:
-            solver = solvers.get(name) or cls()
-            solver.check_tasks(robot, tasks)
+            solver = spec.solvers.get(name) or cls()
+            solver.check_tasks(spec.robot, spec.tasks)
         except IkbenchError as exc:  # a method that cannot take these tasks is a row too
-            rows += [_row(name, cls.library, robot, targets, task, "refused", str(exc))
-                     for task in tasks]
+            rows += [_row(spec, name, cls.library, task, "refused", str(exc))
+                     for task in spec.tasks]
             continue
         except Exception as exc:  # a bug in the method: a failed row, not "refused"
-            rows += [_row(name, cls.library, robot, targets, task, "failed", describe(exc))
-                     for task in tasks]
+            rows += [_row(spec, name, cls.library, task, "failed", describe(exc))
+                     for task in spec.tasks]
             continue
         built[name] = solver
     return rows, built
 
 
-def solve_method(job) -> tuple[list, list]:
+def solve_method(job: tuple) -> tuple[list, list]:
     """``warmup + repeat`` rounds of one method (in a worker): each task solved alone, and,
     for a batched method, all tasks in one call too. Returns the timed rounds (single, each a
     list of outcomes; batched, likewise, empty for methods that do not batch)."""
@@ -358,18 +406,19 @@ def solve_method(job) -> tuple[list, list]:
     return single[warmup:], batched[warmup:]
 
 
-def _timed_rows(name, solver, robot, targets, contract, single, batched, repeat) -> list[dict]:
-    missing = [pose for pose in contract.fixed_poses if pose not in solver.fixed_poses()]
+def _timed_rows(spec: CompareSpec, name: str, solver: Method, single: list, batched: list
+                ) -> list[dict]:
+    """One row per task of a method's timed rounds: status, times, iterations, scheme."""
+    missing = [pose for pose in spec.contract.fixed_poses if pose not in solver.fixed_poses()]
     rows = []
     for j, outcome in enumerate(single[-1]):
         times = [run[j].wall_s for run in single]
         status = "failed" if not outcome.ok else (
             f"does not honour: {', '.join(p.replace('_', ' ') for p in missing)}"
             if missing else "solved")
-        row = _row(name, solver.library, robot, targets, outcome.task, status,
-                   outcome.failure or "")
+        row = _row(spec, name, solver.library, outcome.task, status, outcome.failure or "")
         row.update(time_median_s=float(np.median(times)), time_min_s=float(min(times)),
-                   time_max_s=float(max(times)), repetitions=repeat,
+                   time_max_s=float(max(times)), repetitions=spec.repeat,
                    iterations=outcome.solution.iterations if outcome.ok else np.nan,
                    scheme=solver.scheme_label(),
                    fixed_poses=" ".join(sorted(solver.fixed_poses())),
@@ -379,30 +428,22 @@ def _timed_rows(name, solver, robot, targets, contract, single, batched, repeat)
     return rows
 
 
-def _row(method, library, robot, targets, task, status, failure) -> dict:
+def _row(spec: CompareSpec, method: str, library: str, task: Task, status: str,
+         failure: str) -> dict:
     version = library_versions([library]).get(library) if library else None
     return {"method": method, "library": library, "library_version": version,
-            "robot": robot.name, "task": targets.source, "trajectory": task.name,
+            "robot": spec.robot.name, "task": spec.targets.source, "trajectory": task.name,
             "status": status, "failure": failure, "repetitions": 0}
 
 
-def measure(results, built, robot, targets, tasks, contract, last, folder: Path,
-            animation: bool = True) -> pd.DataFrame:
-    """Write each method's run folder (its last repetition; the animation unless
-    ``animation`` is False), measure every trajectory from the CSV written and judge it on
-    both tracks."""
-    by_name = {t.name: t for t in tasks}
-    figures = {}
-    for name, outcomes in last.items():
-        write_run(built[name], robot, targets, outcomes, folder / name,
-                  {"shape": "line", "name": name, "duration_s": contract.duration_s},
-                  animation)
-        for outcome in outcomes:
-            if outcome.ok:
-                poses = read_trajectory_poses(
-                    folder / name / f"trajectory_{outcome.task.name}.csv", robot)
-                figures[name, outcome.task.name] = contract_metrics(
-                    robot, by_name[outcome.task.name], poses, contract)
+def measure(spec: CompareSpec, results: pd.DataFrame, built: dict[str, Method],
+            files: dict[str, dict[str, TrajectoryFile]]) -> pd.DataFrame:
+    """Measure every trajectory as its file holds it (``files``: by method, by trajectory,
+    :func:`ikbench.studies.run.trajectory_files`) and judge it on both tracks."""
+    contract = spec.contract
+    by_name = {t.name: t for t in spec.tasks}
+    figures = {(name, tid): contract_metrics(spec.robot, by_name[tid], file.poses, contract)
+               for name, method_files in files.items() for tid, file in method_files.items()}
     columns = ("within_limits", *METRICS, *CONTRACT_METRICS,
                *(COLLISION_METRICS if contract.obstacles else ()))
     status = method_status()
@@ -413,7 +454,7 @@ def measure(results, built, robot, targets, tasks, contract, last, folder: Path,
         if contract.obstacles:
             cls = built[row["method"]] if row["method"] in built else \
                 status[row["method"]].cls if row["method"] in status else None
-            avoids = avoids_obstacles(cls, tasks)
+            avoids = avoids_obstacles(cls, spec.tasks)
             out.update(obstacles=len(by_name[row["trajectory"]].obstacles),
                        avoids_obstacles=avoids)
             if (measured.get("env_collisions") or 0) > 0 and not avoids \
@@ -448,12 +489,11 @@ def judge_rows(results: pd.DataFrame, contract: Contract, touch: Contract) -> pd
 SWEEP_C0 = (0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0)
 
 
-def ours_lm_sweep(robot, tasks, contract, solvers) -> pd.DataFrame:
+def ours_lm_sweep(robot: Robot, tasks: Sequence[Task], contract: Contract,
+                  solvers: dict[str, Method]) -> pd.DataFrame:
     """ours-lm solved at each c0 of :data:`SWEEP_C0` (one batched call each): the medians over
     the tasks of the line distance (max), pointing (judged mean) and the share meeting the
     contract."""
-    from ikbench.methods.registry import get_method
-
     base = solvers.get("ours-lm")
     cls = type(base) if base is not None else get_method("ours-lm")
     rows = []

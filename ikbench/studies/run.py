@@ -3,12 +3,12 @@
 ``run(method, ...)`` is what ``ikbench run`` calls; it returns the table as a DataFrame.
 Output layout under ``output/<name>/`` (``name`` defaults to the method's name, e.g. ``ours``):
 ``trajectory_<id>.csv``, ``table.csv`` (the Table 1/2 columns), ``details.csv`` (smoothness,
-solver figures, failures), ``run.json`` (method, robot, settings, versions, the files
-written, the tasks' obstacles where they have any: :func:`obstacles_record`),
+solver figures, failures), ``run.json`` (:class:`ikbench.runtime.record.RunRecord`: method,
+robot, settings, versions, the files written, the tasks' obstacles where they have any),
 ``trajectories_3d.png``, ``pointing_error.png``, ``animation.gif`` (the arm playing every
 trajectory, :mod:`ikbench.render.animation`; ``animation=False`` skips it) and ``report.md``.
 
-The folder is replaced whole or not at all (:func:`ikbench.core.io.staged_folder`): files
+The folder is replaced whole or not at all (:meth:`ikbench.runtime.record.RunFolder.staged`): files
 an earlier run wrote there and this one does not are gone, files it did not write (notes,
 ``ikbench plan``'s ``*.plan.csv``) are kept. The study harness times every solve and keeps a
 failed solve as a row (NaN figures, the failure in details.csv); Ctrl-C while solving writes
@@ -22,7 +22,7 @@ figure is ``shapes.png``.
 
 from __future__ import annotations
 
-import json
+import time
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -33,23 +33,13 @@ import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError
-from ikbench.core.io import (
-    atomic_savefig,
-    atomic_write_csv,
-    atomic_write_text,
-    check_folder_writable,
-    staged_folder,
-)
+from ikbench.core.io import check_folder_writable
 from ikbench.core.metrics import frame_metrics, shape_metrics, trajectory_metrics
 from ikbench.core.provenance import provenance
-from ikbench.core.robot import Robot, as_robot, load_robot
+from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import ID_PATTERN, Targets, load_targets
 from ikbench.core.task import Task, build_tasks, parse_shape
-from ikbench.core.trajectory import (
-    DEFAULT_DURATION_S,
-    read_trajectory_poses,
-    write_trajectory_csv,
-)
+from ikbench.core.trajectory import DEFAULT_DURATION_S
 from ikbench.methods.base import Method
 from ikbench.methods.registry import get_method
 from ikbench.render.animation import write_animation
@@ -64,7 +54,16 @@ from ikbench.render.run_report import (
     report_sections,
 )
 from ikbench.runtime.harness import Interrupted, Outcome, Progress, solve_tasks
-from ikbench.runtime.record import ANIMATION_FILE, RUN_FILES, files_written_by
+from ikbench.runtime.record import (
+    ANIMATION_FILE,
+    RUN_FILES,
+    RunFolder,
+    RunRecord,
+    TrajectoryFile,
+    jsonable,
+    obstacles_entry,
+    robot_entry,
+)
 
 if TYPE_CHECKING:
     from ikbench.core.problems import CartesianProblem
@@ -89,9 +88,10 @@ def check_name(name: str) -> str:
     return name
 
 
-def evaluate(robot: Robot, outcomes: Sequence[Outcome], method_dir: Path, method_name: str
-             ) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, np.ndarray]]:
-    """Metrics of the written trajectories: returns (table, details, points_by_id).
+def evaluate(robot: Robot, outcomes: Sequence[Outcome], trajectories: dict[str, TrajectoryFile],
+             method_name: str) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, np.ndarray]]:
+    """Metrics of the trajectories as their files hold them (:func:`trajectory_files`):
+    returns (table, details, points_by_id).
 
     Line tasks get :func:`ikbench.core.metrics.trajectory_metrics` and the Table 1/2 columns;
     tasks with a target curve :func:`ikbench.core.metrics.shape_metrics` and
@@ -116,7 +116,7 @@ def evaluate(robot: Robot, outcomes: Sequence[Outcome], method_dir: Path, method
                             "converged": False, "within_limits": np.nan,
                             "failure": outcome.failure})
             continue
-        poses = read_trajectory_poses(method_dir / f"trajectory_{task.name}.csv", robot)
+        poses = trajectories[task.name].poses
         metrics = measure(robot, task, poses)
         if framed:
             metrics["time_to_valid_s"] = solution.duration_s if metrics["valid"] else np.nan
@@ -134,41 +134,6 @@ def evaluate(robot: Robot, outcomes: Sequence[Outcome], method_dir: Path, method
                         **extra, "method_duration_s": solution.duration_s,
                         "harness_wall_s": outcome.wall_s, **solution.info, "failure": ""})
     return pd.DataFrame(rows, columns=columns), pd.DataFrame(details), points_by_id
-
-
-def robot_record(robot: Robot) -> dict:
-    """How run.json names the robot: enough to load it again (:func:`robot_from_record`).
-    A shipped robot by its name (not the path of the machine that wrote the run), any other
-    by its config or URDF path."""
-    from ikbench.core.robot import shipped_robots
-
-    config = robot.config.get("config_path")
-    spec = config if config else str(robot.urdf_path)
-    shipped = shipped_robots().get(robot.name)
-    if config and shipped is not None and Path(config).resolve() == shipped.resolve():
-        spec = robot.name
-    return {**robot.describe(), "spec": spec}
-
-
-def robot_from_record(record: dict) -> Robot:
-    """The robot a run.json names (NICO for runs written before robots were recorded).
-
-    Raises:
-        InputError: the robot cannot be loaded, or its URDF changed since the run.
-    """
-    entry = record.get("robot")
-    if not isinstance(entry, dict):
-        return load_robot()
-    from ikbench.core.robot import shipped_robots
-
-    name, spec = entry.get("name"), entry.get("spec")
-    if name in shipped_robots():
-        spec = name
-    robot = load_robot(str(spec), entry.get("end_frame"))
-    if entry.get("urdf_sha256") and entry["urdf_sha256"] != robot.urdf_sha256:
-        raise InputError(f"the URDF of robot {name!r} ({robot.urdf_path}) changed since this "
-                         "run was written (sha256 differs); rerun it")
-    return robot
 
 
 def prepare(method: str | Method, *, robot: Robot | str | None = None,
@@ -264,7 +229,7 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
         only: comma-separated trajectory ids to keep (``"1,3"``).
         steps: number of segments n (default: the targets file's).
         output: output directory (the run writes to ``output/<name>/``); None writes
-            nothing and returns the table computed in a temporary directory.
+            nothing and returns the table measured in memory.
         duration_s: movement duration T [s] for the ``time_s`` column.
         options: the method's settings as keywords (when ``method`` is a name).
         progress: print progress to stderr.
@@ -311,11 +276,8 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
         record = {"shape": shape, "direction": direction, "duration_s": duration_s,
                   "size_mm": size_mm, "timing": timing}
     if output is None:
-        import tempfile
-
-        with tempfile.TemporaryDirectory() as tmp:
-            return solve_and_write(solver, robot, targets, tasks, Path(tmp) / "run",
-                                   record, progress, animation=False)
+        return solve_and_write(solver, robot, targets, tasks, None, record, progress,
+                               animation=False)
     folder = Path(output) / (name or solver.name)
     check_folder_writable(folder)  # before the solve, not after minutes of it
     return solve_and_write(solver, robot, targets, tasks, folder, {**record, "name": name},
@@ -334,70 +296,73 @@ def check_problem_options(**given: Any) -> None:
 
 
 def solve_and_write(solver: Method, robot: Robot, targets: Targets, tasks: Sequence[Task],
-                    folder: Path,
-                    record: dict, progress: bool = True, animation: bool = True) -> pd.DataFrame:
-    """Solve ``tasks`` through the harness and write the run folder (see the module doc)."""
-    import time
+                    folder: Path | None, record: dict, progress: bool = True,
+                    animation: bool = True) -> pd.DataFrame:
+    """Solve ``tasks`` through the harness and write the run folder (see the module doc;
+    ``folder`` None: write nothing, return the table measured in memory).
 
+    Args:
+        record: the run's options as run.json records them: ``shape``, ``direction``,
+            ``duration_s``, ``size_mm``, ``timing``, ``name``, a problem's ``problem`` and
+            ``problem_name``.
+    """
     started = time.perf_counter()
     interrupted = False
     try:
-        outcomes = solve_tasks(solver, robot, tasks, Progress(folder.name, enabled=progress))
+        outcomes = solve_tasks(solver, robot, tasks,
+                               Progress(folder.name if folder else "run", enabled=progress))
     except Interrupted as stop:
         if not stop.outcomes:
             raise
         outcomes, interrupted = stop.outcomes, True
-    table = write_run(solver, robot, targets, outcomes, folder, {
-        **record, "name": folder.name, "interrupted": interrupted,
-        "total_wall_time_s": time.perf_counter() - started}, animation)
+    if folder is None:
+        files = trajectory_files(robot, outcomes, record.get("duration_s", DEFAULT_DURATION_S))
+        table = evaluate(robot, outcomes, files, solver.name)[0]
+    else:
+        table = write_run(solver, robot, targets, outcomes, folder, {
+            **record, "name": folder.name, "interrupted": interrupted,
+            "total_wall_time_s": time.perf_counter() - started}, animation)
     if interrupted:
         raise Interrupted(outcomes)
     return table
 
 
+def trajectory_files(robot: Robot, outcomes: Sequence[Outcome], duration_s: float
+                     ) -> dict[str, TrajectoryFile]:
+    """The trajectory CSVs of the solved outcomes, by trajectory id, serialised in memory
+    (:class:`ikbench.runtime.record.TrajectoryFile`: text and poses read back; pose paths
+    with their end-frame orientation)."""
+    return {o.task.name: TrajectoryFile.of(robot, o.task.name, o.solution.poses_deg, duration_s,
+                                           quaternion=o.task.goal_rotations is not None)
+            for o in outcomes if o.solution is not None}
+
+
 def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Outcome],
-              folder: Path, record: dict, animation: bool = True) -> pd.DataFrame:
+              folder: Path, record: dict, animation: bool = True,
+              trajectories: dict[str, TrajectoryFile] | None = None) -> pd.DataFrame:
     """Write a run folder whole (trajectories, tables, run.json, figures, animation unless
-    ``animation`` is False, report)."""
+    ``animation`` is False, report); return its table.
+
+    Args:
+        record: the run's options (:func:`solve_and_write`), ``interrupted`` and
+            ``total_wall_time_s``.
+        trajectories: the outcomes' :func:`trajectory_files` when the caller has them.
+    """
     tasks = [o.task for o in outcomes]
     duration_s = record.get("duration_s", DEFAULT_DURATION_S)
-    previous = files_written_by(folder)
-    with staged_folder(folder, keep=lambda rel: str(rel) not in previous) as tmp:
-        written = []
-        for outcome in outcomes:
-            if outcome.solution is not None:
-                file = f"trajectory_{outcome.task.name}.csv"
-                write_trajectory_csv(tmp / file, robot, outcome.solution.poses_deg, duration_s,
-                                     quaternion=outcome.task.goal_rotations is not None)
-                written.append(file)
-        table, details, points = evaluate(robot, outcomes, tmp, solver.name)
-        atomic_write_csv(tmp / "table.csv", table, float_format="%.10g")
-        atomic_write_csv(tmp / "details.csv", details, float_format="%.10g")
-        settings = {"settings": solver.settings_for(tasks[0])}
+    files = trajectory_files(robot, outcomes, duration_s) if trajectories is None \
+        else trajectories
+    with RunFolder(folder).staged() as stage:
+        for file in files.values():
+            stage.trajectory(file)
+        table, details, points = evaluate(robot, outcomes, files, solver.name)
+        stage.csv("table.csv", table)
+        stage.csv("details.csv", details)
         solved = [o.task for o in outcomes if o.ok]
         title = f"{solver.name}: {solver.description}"
-        figures: list[tuple[str, str, Any]] = []
-        poses = {t.name: read_trajectory_poses(tmp / f"trajectory_{t.name}.csv", robot)
-                 for t in solved}
-        if solved and solved[0].goal_rotations is not None:
-            from ikbench.render.pose_paths import plot_pose_path, reached
-
-            for outcome in outcomes:
-                if outcome.solution is not None:
-                    task = outcome.task
-                    curve = reached(robot, task, outcome.solution.poses_deg)
-                    figures.append((f"pose path {task.name}", f"pose_path_{task.name}.png",
-                                    plot_pose_path(task, {solver.name: curve},
-                                                   f"{task.name}: {title}", robot)))
-        elif solved and solved[0].curve is None:
-            figures = [("trajectories", "trajectories_3d.png",
-                        plot_trajectories_3d(solved, points, title, robot, poses)),
-                       ("criterion 2", "pointing_error.png",
-                        plot_pointing_error(solved, points, title))]
-        elif solved:
-            figures = [("shapes", "shapes.png", plot_shapes(solved, points, title))]
+        figures = _figures(solver, robot, outcomes, files, points, title)
         for _, file, figure in figures:
-            atomic_savefig(tmp / file, figure)
+            stage.figure(file, figure)
         if animation and solved:
             timing = record.get("timing", "constant")
             limits = None
@@ -405,83 +370,89 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
                 from ikbench.hw.limits import timing_limits
 
                 limits = timing_limits(robot)
-            write_animation(tmp / ANIMATION_FILE, robot, solved, poses, title, duration_s,
+            write_animation(stage.path / ANIMATION_FILE, robot, solved,
+                            {t.name: files[t.name].poses for t in solved}, title, duration_s,
                             timing=timing, limits=limits)
             figures.append(("animation: the arm playing each trajectory", ANIMATION_FILE, None))
-        files = sorted([*written, *RUN_FILES, *(file for _, file, _ in figures)])
-        full = {"method": solver.name, "name": record.get("name") or solver.name,
-                "library": solver.library, "robot": robot_record(robot),
-                "targets": targets.source, "trajectories": [t.name for t in tasks],
-                "failed": [o.task.name for o in outcomes if not o.ok],
-                "steps": tasks[0].steps, "shape": record.get("shape", "line"),
-                "direction": record.get("direction"), "size_mm": record.get("size_mm"),
-                "start_pose_deg": targets.start_pose_deg.tolist(),
-                # weights a task asks for (letters); ours applies --weights changes on top
-                # and details.csv names the weights each trajectory was solved with
-                "task_default_weights": tasks[0].default_weights,
-                "duration_s": duration_s, "interrupted": bool(record.get("interrupted")),
-                "settings": json.loads(json.dumps(settings, default=_jsonable)),
-                "total_wall_time_s": record.get("total_wall_time_s"),
-                "files": files, **provenance(extra=(solver.library,)),
-                **{k: record[k] for k in ("problem", "problem_name") if k in record}}
-        shapes = obstacles_record(tasks)
-        if shapes:  # a run without obstacles writes run.json as before
-            full["obstacles"] = shapes
-        atomic_write_text(tmp / "run.json", json.dumps(full, indent=2) + "\n")
-        atomic_write_text(tmp / "report.md", method_report(
+        full = RunRecord(
+            kind="run", method=solver.name, name=record.get("name") or solver.name,
+            library=solver.library, robot=robot_entry(robot), targets=targets.source,
+            trajectories=[t.name for t in tasks],
+            failed=[o.task.name for o in outcomes if not o.ok], steps=tasks[0].steps,
+            shape=record.get("shape", "line"), direction=record.get("direction"),
+            size_mm=record.get("size_mm"), start_pose_deg=targets.start_pose_deg.tolist(),
+            # weights a task asks for (letters); ours applies --weights changes on top
+            # and details.csv names the weights each trajectory was solved with
+            task_default_weights=tasks[0].default_weights, duration_s=duration_s,
+            interrupted=bool(record.get("interrupted")),
+            settings=jsonable({"settings": solver.settings_for(tasks[0])}),
+            total_wall_time_s=record.get("total_wall_time_s"),
+            files=sorted({*stage.files, *RUN_FILES, *(file for _, file, _ in figures)}),
+            provenance=provenance(extra=(solver.library,)), problem=record.get("problem"),
+            problem_name=record.get("problem_name"), obstacles=obstacles_entry(tasks))
+        stage.record(full)
+        stage.text("report.md", method_report(
             solver, table, details, targets, full,
             {caption: file for caption, file, _ in figures}))
     return table
 
 
-def obstacles_record(tasks: Sequence[Task]) -> list | dict | None:
-    """How run.json records the tasks' obstacles (``Obstacle.to_dict`` items, base frame,
-    mm): one list when every task has the same ones (a problem's), else a mapping from
-    trajectory id to its list (tasks without obstacles left out); None when no task has any.
-    :func:`ikbench.viewer.folders.load_runs` reads it back."""
-    items = {t.name: [o.to_dict() for o in t.obstacles] for t in tasks}
-    if not any(items.values()):
-        return None
-    lists = list(items.values())
-    if all(entry == lists[0] for entry in lists):
-        return lists[0]
-    return {name: entry for name, entry in items.items() if entry}
+def _figures(solver: Method, robot: Robot, outcomes: Sequence[Outcome],
+             files: dict[str, TrajectoryFile], points: dict[str, np.ndarray], title: str
+             ) -> list[tuple[str, str, Any]]:
+    """A run's figures: (caption, file, figure) of its pose paths (tasks with goal frames),
+    its lines (trajectories_3d.png, pointing_error.png) or its shapes."""
+    solved = [o.task for o in outcomes if o.ok]
+    if not solved:
+        return []
+    if solved[0].goal_rotations is not None:
+        from ikbench.render.pose_paths import plot_pose_path, reached
 
-
-def _jsonable(value):
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if hasattr(value, "__dict__"):
-        return vars(value)
-    return str(value)
+        figures: list[tuple[str, str, Any]] = []
+        for outcome in outcomes:
+            if outcome.solution is not None:
+                task = outcome.task
+                curve = reached(robot, task, outcome.solution.poses_deg)
+                figures.append((f"pose path {task.name}", f"pose_path_{task.name}.png",
+                                plot_pose_path(task, {solver.name: curve},
+                                               f"{task.name}: {title}", robot)))
+        return figures
+    if solved[0].curve is None:
+        poses = {t.name: files[t.name].poses for t in solved}
+        return [("trajectories", "trajectories_3d.png",
+                 plot_trajectories_3d(solved, points, title, robot, poses)),
+                ("criterion 2", "pointing_error.png",
+                 plot_pointing_error(solved, points, title))]
+    return [("shapes", "shapes.png", plot_shapes(solved, points, title))]
 
 
 def method_report(solver: Method, table: pd.DataFrame, details: pd.DataFrame, targets: Targets,
-                  record: dict, figures: dict | None = None) -> str:
+                  record: RunRecord, figures: dict | None = None) -> str:
     """report.md of one method's run; ``figures`` maps captions to the PNG names written."""
     figures = {"trajectories": "trajectories_3d.png",
                "criterion 2": "pointing_error.png"} if figures is None else figures
-    shape = record.get("shape", "line")
+    shape = record.shape
     where = (f"Targets: {targets.source}" if shape == "line" else
-             f"Shape: {shape}, start pose {record['start_pose_deg']}")
-    if record.get("problem"):
-        where = (f"Problem: {record['problem']}, a 6-D pose path in CppFlow's format (no "
+             f"Shape: {shape}, start pose {record.start_pose_deg}")
+    if record.problem:
+        where = (f"Problem: {record.problem}, a 6-D pose path in CppFlow's format (no "
                  "start pose given)")
-    name = record.get("name") or solver.name
+    name = record.name or solver.name
     heading = solver.name if name == solver.name else f"{name} ({solver.name})"
-    robot = record.get("robot") or {}
+    robot = record.robot or {}
+    machine = record.provenance
     lines = [f"# {heading}: {solver.description}", "",
              f"Robot: {robot.get('name', 'nico_right_arm')}. {where}; trajectories "
-             f"{', '.join(record['trajectories'])}; n = {record['steps']} segments. Produced "
-             f"by ikbench (git {record.get('git_revision')}) on {record['cpu']} "
-             f"({record['cpu_count']} cores), torch {record['packages']['torch']}.", ""]
-    if record.get("interrupted"):
+             f"{', '.join(record.trajectories or [])}; n = {record.steps} segments. Produced "
+             f"by ikbench (git {machine.get('git_revision')}) on {machine['cpu']} "
+             f"({machine['cpu_count']} cores), torch {machine['packages']['torch']}.", ""]
+    if record.interrupted:
         lines += ["**Interrupted (Ctrl-C)**: this folder holds only the trajectories solved "
                   "before the interruption.", ""]
-    if record.get("failed"):
-        lines += [f"**Failed solves**: {', '.join(record['failed'])} (their rows are empty; "
+    if record.failed:
+        lines += [f"**Failed solves**: {', '.join(record.failed)} (their rows are empty; "
                   "details.csv gives each failure).", ""]
-    units = ("the 6-D objective's (mm, deg)" if record.get("problem") else
+    units = ("the 6-D objective's (mm, deg)" if record.problem else
              "the paper's units (cm, motor degrees)")
     digits = {"loss": 3, "duration_s": 4, "iterations": 0, "time_to_valid_s": 4,
               "max_joint_change_deg": 3, "max_joint_change_mm": 3,
@@ -494,7 +465,7 @@ def method_report(solver: Method, table: pd.DataFrame, details: pd.DataFrame, ta
               "method_duration_s; harness_wall_s is the harness's time around the call, with "
               "per-call set-up and, for the first trajectory, library start-up).",
               "", markdown_table(table.drop(columns=["method"]), digits), ""]
-    if record.get("problem"):
+    if record.problem:
         from ikbench.core.validity import describe
 
         lines += ["Position error: distance of the end frame from its goal [mm]; rotation "

@@ -1,7 +1,8 @@
 """Run folders read back for the viewer: robot, trajectories, fingertip and goal paths.
 
-A run folder is what ``ikbench run`` (or ``letters``, ``compare``) writes: ``run.json`` names
-the robot (:func:`ikbench.studies.run.robot_from_record`) and the trajectories;
+A run folder is what ``ikbench run`` (or ``letters``, ``compare``) writes, read through
+:class:`ikbench.runtime.record.RunFolder`: ``run.json`` names the robot
+(:func:`ikbench.runtime.record.robot_from_record`) and the trajectories;
 ``trajectory_<id>.csv`` holds the poses and ``time_s``. Fingertip paths are recomputed from
 the poses (FK). Goal paths are rebuilt from run.json where it allows: line tasks from the
 recorded targets, start pose and n (as ``ikbench report`` does), other shapes from the
@@ -9,15 +10,14 @@ recorded shape, start pose, n, direction and letter size; when that fails (e.g. 
 file is not found from here) a line run falls back to the straight line between each
 trajectory's first and last fingertip points, and another shape shows no goal.
 :attr:`ViewRun.goal_source` says which. Obstacles come from run.json's ``obstacles``
-(:func:`ikbench.studies.run.obstacles_record`: one list for every trajectory, or one per
-trajectory id); a run folder written without them has none.
+(:meth:`ikbench.runtime.record.RunRecord.trajectory_obstacles`: one list for every trajectory,
+or one per trajectory id); a run folder written without them has none.
 """
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -25,6 +25,9 @@ import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.core.robot import Robot
+from ikbench.core.task import Task, build_tasks
+from ikbench.core.trajectory import DEFAULT_DURATION_S
+from ikbench.runtime.record import RunFolder, RunRecord, robot_from_record
 
 if TYPE_CHECKING:
     from ikbench.core.timing import Limits
@@ -109,20 +112,18 @@ def check_folders(folders: Iterable[str | Path]) -> list[Path]:
     if not paths:
         raise InputError("view: give at least one run folder (e.g. results/ours)")
     for path in paths:
-        if not (path / "run.json").is_file():
+        if not RunFolder(path).has_record:
             what = "does not exist" if not path.exists() else "has no run.json"
             raise InputError(f"view: {str(path)!r} {what}; give folders written by ikbench "
                              "run (OUTPUT/NAME/ with run.json and trajectory_<id>.csv)")
     return paths
 
 
-def _record(folder: Path) -> dict:
-    try:
-        record = json.loads((folder / "run.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise InputError(f"view: cannot read {folder / 'run.json'}: {exc}") from None
-    if not isinstance(record, dict) or not isinstance(record.get("trajectories"), list):
-        raise InputError(f"view: {folder / 'run.json'} names no trajectories")
+def _record(folder: Path) -> RunRecord:
+    run = RunFolder(folder)
+    record = run.read_record("view")
+    if record.trajectories is None:
+        raise InputError(f"view: {run.record_path} names no trajectories")
     return record
 
 
@@ -138,8 +139,6 @@ def load_runs(folders: Iterable[str | Path]) -> tuple[Robot, list[ViewRun]]:
         InputError: a folder is not a run folder, holds no readable trajectory, or the runs
             do not share the robot.
     """
-    from ikbench.studies.run import robot_from_record
-
     paths = check_folders(folders)
     robot, runs = None, []
     for path in paths:
@@ -160,63 +159,34 @@ def load_runs(folders: Iterable[str | Path]) -> tuple[Robot, list[ViewRun]]:
     return robot, runs
 
 
-def _load_run(folder: Path, record: dict, robot: Robot) -> ViewRun:
-    from ikbench.core.trajectory import read_trajectory_csv
-
+def _load_run(folder: Path, record: RunRecord, robot: Robot) -> ViewRun:
+    run = RunFolder(folder)
+    ids = record.trajectories or []
     trajectories = {}
-    for tid in map(str, record["trajectories"]):
-        file = folder / f"trajectory_{tid}.csv"
-        if not file.is_file():  # a failed solve writes no trajectory
+    for tid in ids:
+        if not run.trajectory_path(tid).is_file():  # a failed solve writes no trajectory
             continue
-        frame = read_trajectory_csv(file, robot)
+        frame = run.read_trajectory(tid, robot)
         poses = frame[list(robot.joint_names)].to_numpy(dtype=float)
         duration = float(frame["time_s"].iloc[-1]) if "time_s" in frame else float(
-            record.get("duration_s") or 2.0)
+            record.duration_s or DEFAULT_DURATION_S)
         trajectories[tid] = ViewTrajectory(tid, poses, duration, robot.fk(poses).point_mm)
     if not trajectories:
         raise InputError(f"view: {folder} holds no trajectory CSV of run.json's trajectories "
-                         f"({', '.join(map(str, record['trajectories'])) or 'none'})")
+                         f"({', '.join(ids) or 'none'})")
     source = _add_goals(robot, record, trajectories)
-    shared = _add_obstacles(folder, record, trajectories)
-    method, name = str(record.get("method", folder.name)), folder.name
+    shared, own = record.trajectory_obstacles(list(trajectories),
+                                              f"view: {run.record_path} obstacles")
+    for tid, traj in trajectories.items():
+        traj.obstacles = own[tid]
+    method, name = record.method or folder.name, folder.name
     return ViewRun(folder, name if method == name else f"{name} ({method})", trajectories,
                    source, shared)
 
 
-def _add_obstacles(folder: Path, record: dict, trajectories: dict) -> tuple:
-    """Set each trajectory's obstacles from run.json's ``obstacles``; return those every
-    trajectory shares (a list, or ``ikbench compare``'s ``{"source", "items"}``: all of
-    them; a mapping by trajectory id: none).
-
-    Raises:
-        InputError: the entry is not a list or a mapping of obstacle lists.
-    """
-    from ikbench.core.obstacles import parse_obstacles
-
-    entry = record.get("obstacles")
-    where = f"view: {folder / 'run.json'} obstacles"
-    if not entry:  # older run folders, runs without obstacles
-        return ()
-    if isinstance(entry, dict) and isinstance(entry.get("source"), str) and set(entry) == {
-            "source", "items"}:  # ikbench compare's record: {"source": ..., "items": [...]}
-        entry = entry["items"]
-    if isinstance(entry, list):
-        shared = parse_obstacles(entry, where)
-        for traj in trajectories.values():
-            traj.obstacles = shared
-        return shared
-    if not isinstance(entry, dict):
-        raise InputError(f"{where}: expected a list of obstacles or a mapping from "
-                         f"trajectory id to one, got {type(entry).__name__}")
-    for tid, traj in trajectories.items():
-        if entry.get(tid):
-            traj.obstacles = parse_obstacles(entry[tid], f"{where} of trajectory {tid}")
-    return ()
-
-
-def _add_goals(robot: Robot, record: dict, trajectories: dict) -> str:
+def _add_goals(robot: Robot, record: RunRecord, trajectories: dict) -> str:
     """Set each trajectory's goal path; return where it came from."""
-    shape = str(record.get("shape") or "line")
+    shape = str(record.shape or "line")
     try:
         tasks = {t.name: t for t in _tasks(robot, record, list(trajectories))}
     except (InputError, OSError, KeyError, TypeError, ValueError) as exc:
@@ -232,25 +202,21 @@ def _add_goals(robot: Robot, record: dict, trajectories: dict) -> str:
         goal, down = task.goal_points_mm, np.asarray(task.pen_down, dtype=bool)
         keep = down[:-1] & down[1:]
         traj.goal_mm, traj.goal_segments_mm = goal, np.stack([goal[:-1], goal[1:]], 1)[keep]
-    size = "" if shape.split(":")[0] != "letter" or "size_mm" in record else (
+    size = "" if shape.split(":")[0] != "letter" or "size_mm" not in record.absent else (
         "; letter size not recorded, the default 300 mm assumed")
-    return f"goal: rebuilt from run.json (shape {shape}, targets {record.get('targets')}{size})"
+    return f"goal: rebuilt from run.json (shape {shape}, targets {record.targets}{size})"
 
 
-def _tasks(robot: Robot, record: dict, ids: list[str]):
+def _tasks(robot: Robot, record: RunRecord, ids: list[str]) -> list[Task]:
     """The run's tasks, rebuilt from run.json (see the module doc)."""
-    from ikbench.core.targets import load_targets
-    from ikbench.core.task import build_tasks
-
-    shape = str(record.get("shape") or "line")
-    targets = load_targets(record.get("targets"), robot)
-    start = record.get("start_pose_deg")
-    if start:
-        targets = replace(targets, start_pose_deg=np.asarray(start, dtype=float))
+    shape = str(record.shape or "line")
+    targets = record.run_targets(robot)
     if shape == "line":
         targets = targets.select(ids)
-    tasks = build_tasks(robot, targets, shape, int(record["steps"]), record.get("size_mm"),
-                        record.get("direction"))
+    if record.steps is None:
+        raise KeyError("steps")
+    tasks = build_tasks(robot, targets, shape, int(record.steps), record.size_mm,
+                        record.direction)
     missing = [i for i in ids if i not in {t.name for t in tasks}]
     if missing:
         raise InputError(f"trajectories {', '.join(missing)} are not tasks of the targets")
