@@ -80,7 +80,8 @@ def test_the_compiled_lm_equals_solve_poses_step_for_step(name, kind, iterations
     initial = random_initials(robot, (8,), 12)
     ref = solve_poses(robot, points, rotations, initial, position_only=kind == "position",
                       max_iterations=iterations, **SAME)
-    lm = SinglePoseLM(robot, kind, max_iterations=iterations, damping=1e-3, **SAME)
+    lm = SinglePoseLM(robot, kind, max_iterations=iterations, damping=1e-3, abandon=(0, 0.0),
+                      **SAME)
     out = [lm.solve(points[i], rotations[i], initial[i:i + 1], np.inf) for i in range(8)]
     poses = np.array([o.pose for o in out])
     if kind == "position":
@@ -104,7 +105,7 @@ def test_restarts_match_solve_poses_random_rows(panda):
         ref = solve_poses(panda, points[i:i + 1], rotations[i:i + 1], initial[i:i + 1],
                           max_iterations=7, restarts=2, seed=5, **settings)
         rows = np.vstack([initial[i:i + 1], random_initials(panda, (2,), 5)])
-        lm = SinglePoseLM(panda, max_iterations=7, damping=1e-3, **settings)
+        lm = SinglePoseLM(panda, max_iterations=7, damping=1e-3, abandon=(0, 0.0), **settings)
         out = lm.solve(points[i], rotations[i], rows, np.inf)
         assert ref.restarts[0] == 2 and out.attempts == 3
         assert out.iterations == ref.iterations[0]
@@ -179,10 +180,19 @@ def test_the_deadline_stops_a_search_that_would_run_on(panda):
 
 
 def test_the_iteration_cap_holds_over_restarts(panda):
-    lm = SinglePoseLM(panda, restart_after=5, max_iterations=23)
+    lm = SinglePoseLM(panda, restart_after=5, max_iterations=23, abandon=(0, 0.0))
     rows = random_initials(panda, (50,), 81)
     out = lm.solve(np.array([5000.0, 0.0, 0.0]), np.eye(3), rows, np.inf)
     assert out.iterations == 23 and out.attempts == 5 and not out.success
+
+
+def test_an_attempt_far_off_after_t_iterations_restarts(panda):
+    far = np.array([5000.0, 0.0, 0.0])  # 5 m: |r| stays above 1 000 tolerances
+    rows = random_initials(panda, (50,), 82)
+    early = SinglePoseLM(panda, restart_after=1000, max_iterations=30, abandon=(3, 1000.0))
+    assert early.solve(far, np.eye(3), rows, np.inf).attempts == 11
+    never = SinglePoseLM(panda, restart_after=1000, max_iterations=30, abandon=(0, 0.0))
+    assert never.solve(far, np.eye(3), rows, np.inf).attempts == 1
 
 
 @pytest.mark.parametrize("kind", ["pose", "position"])
@@ -207,6 +217,8 @@ def test_bad_input_names_the_problem(panda):
         SinglePoseLM(panda, kind="orientation")
     with pytest.raises(InputError, match="restart_after"):
         SinglePoseLM(panda, restart_after=0)
+    with pytest.raises(InputError, match="abandon"):
+        SinglePoseLM(panda, abandon=(2.5, 10.0))
     lm = SinglePoseLM(panda)
     starts = random_initials(panda, (2,), 0)
     with pytest.raises(InputError, match="rotation"):

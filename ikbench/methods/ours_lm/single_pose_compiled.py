@@ -12,16 +12,18 @@ into the limits, accepted when |r|^2 drops (lambda / 3, at least 1e-9) or reject
 
 Restarts: the caller passes the starts ``initials`` (A, dof) [pose units], the protocol's
 seeded sequence (:func:`random_initials`); attempt 1 runs from row 0, and an attempt that is
-stuck (lambda above :data:`.single_pose.STALLED`, or ``restart_after`` iterations since its
-start without success) restarts from the next row; the last row's attempt runs until it
-stalls. A call ends at success, a stalled last attempt, ``max_iterations`` (all attempts
+stuck (lambda above :data:`.single_pose.STALLED`, ``restart_after`` iterations since its
+start without success, or, ``abandon = (t, h)``, |r| still above h after t iterations: far
+off, it would rarely succeed) restarts from the next row; the last row's attempt runs until
+it stalls. A call ends at success, a stalled last attempt, ``max_iterations`` (all attempts
 together) or the deadline, ``budget_s`` after the call entered the compiled code: the
 monotonic clock is read before every iteration (:func:`.single_pose_kernels.monotonic_s`,
 ~30 ns). With every setting the same and the rows the reference's random draws, the loop is
 :func:`.single_pose.solve_poses` step for step (its ``restarts`` = A - 1).
 
 The defaults differ from :func:`.single_pose.solve_poses`' where measurements said so
-(:data:`RESTART_AFTER`, :data:`MAX_STEP`, :data:`DAMPING`; ``benchmarks/ik_per_call.py``).
+(:data:`RESTART_AFTER`, :data:`MAX_STEP`, :data:`DAMPING`, :data:`ABANDON`); ``abandon=(0,
+0.0)`` turns the early restart off, as the reference has none.
 
 Per call (:meth:`SinglePoseLM.solve`): four arrays for numba to type (~0.1 us each: the
 chain, limits and settings travel as one packed array, :func:`.compiled_chain.pack`), the
@@ -49,10 +51,13 @@ if TYPE_CHECKING:
     from ikbench.core.robot import Robot
 
 KINDS = ("pose", "position")
-#: Defaults tuned on Panda, UR5, xArm7 and Fetch from random starts (1 000 targets each, seed
-#: 1, 5 ms budget; mean time per call over max_step 30..120, damping 1e-3..0.1, restart_after
-#: 8..20): against solve_poses' 30 / 1e-3 / 25 the mean time fell by 20-40 %.
-RESTART_AFTER, MAX_STEP, DAMPING = 12, 90.0, 0.1
+#: Defaults tuned on Panda, UR5, xArm7 and Fetch from random starts (1 000-1 500 targets each,
+#: seeds 1 and 2, not the benchmark's; 5 ms budget). max_step, damping: the mean time per
+#: call over 30..120 x 1e-3..0.1 x restart_after 8..20 fell 20-40 % against solve_poses'
+#: 30 / 1e-3. The early restart (|r| > 100 after 6 iterations, e.g. 100 mm or 50 deg off):
+#: 20-35 % fewer iterations per target on all four, 100 % success kept; restart_after 14
+#: with it (12 left one UR5 target of 1 500 unsolved in 5 ms).
+RESTART_AFTER, MAX_STEP, DAMPING, ABANDON = 14, 90.0, 0.1, (6, 100.0)
 #: The wall-clock budget of one target [s] (TRAC-IK's default timeout).
 BUDGET_S = 0.005
 
@@ -102,12 +107,15 @@ class SinglePoseLM:
         restart_after: iterations after a (re)start without success before the next row.
         max_step: the largest joint step of one iteration [pose units].
         damping: lambda at every (re)start.
+        abandon: (t, h): an attempt whose |r| (errors in tolerances) is above h after t
+            iterations restarts; t = 0: never.
     """
 
     def __init__(self, robot: Robot, kind: str = "pose",
                  tolerance: tuple[float, float] = (1.0, 0.5), stop: float = 1e-3,
                  max_iterations: int = 100_000, restart_after: int = RESTART_AFTER,
-                 max_step: float = MAX_STEP, damping: float = DAMPING) -> None:
+                 max_step: float = MAX_STEP, damping: float = DAMPING,
+                 abandon: tuple[int, float] = ABANDON) -> None:
         if kind not in KINDS:
             raise InputError(f"kind: {kind!r} is not one of {', '.join(KINDS)}")
         numbers = {"tolerance": min(tolerance), "stop": stop, "max_step": max_step,
@@ -116,10 +124,12 @@ class SinglePoseLM:
         for name, value in numbers.items():
             if not value > 0:
                 raise InputError(f"{name}: {value!r} must be > 0")
+        if len(abandon) != 2 or int(abandon[0]) != abandon[0] or min(abandon) < 0:
+            raise InputError(f"abandon: {abandon!r} must be (iterations >= 0, |r| >= 0)")
         self.robot, self.kind, self.dof = robot, kind, robot.dof
         settings = np.zeros((1, WIDTH))
-        settings[0, :8] = (tolerance[0], tolerance[1], stop, max_iterations, restart_after,
-                           kind == "position", max_step, damping)
+        settings[0, :10] = (tolerance[0], tolerance[1], stop, max_iterations, restart_after,
+                            kind == "position", max_step, damping, abandon[0], abandon[1])
         #: (dof + 2, WIDTH) the chain and limits (:func:`.compiled_chain.pack`), settings.
         self.spec = np.vstack([pack(Chain(robot), robot.lower, robot.upper), settings])
         self._identity = np.eye(3)

@@ -25,9 +25,11 @@ MIN_DAMPING, DIAGONAL_EPS = 1e-9, 1e-9
 #: Below this angle [rad] the series of the SO(3) log (as :func:`ikbench.core.rotations.so3_log`).
 SMALL_ANGLE = 1e-6
 #: Columns of the settings row: tolerances [mm, deg], stop, the iteration cap, restart_after,
-#: position only (1.0 / 0.0), the largest step [pose units], lambda at every (re)start.
+#: position only (1.0 / 0.0), the largest step [pose units], lambda at every (re)start, and
+#: the early restart: after ABANDON_AT iterations (0: never) an attempt whose |r| is still
+#: above ABANDON_ABOVE restarts.
 TOL_MM, TOL_DEG, STOP, MAX_ITERATIONS, RESTART_AFTER, POSITION_ONLY, MAX_STEP_COLUMN, \
-    DAMPING = range(8)
+    DAMPING, ABANDON_AT, ABANDON_ABOVE = range(10)
 
 CLOCK_MONOTONIC = getattr(time, "CLOCK_MONOTONIC", 1)
 #: libc's clock_gettime, bound by symbol name when the kernel is linked: cacheable, where a
@@ -112,6 +114,7 @@ def solve_target(spec, goal_mm, goal_r, initials, budget_s, pose, ws):
     stop = spec[k + 1, STOP]
     max_iterations = int(spec[k + 1, MAX_ITERATIONS])
     restart_after = int(spec[k + 1, RESTART_AFTER])
+    abandon_at, abandon_above = int(spec[k + 1, ABANDON_AT]), spec[k + 1, ABANDON_ABOVE]
     deadline = monotonic_s(timespec) + budget_s
     attempt = iterations = started = 0
     lam, cost = restart(spec, k, initials[0], goal_mm, goal_r, ws)
@@ -122,7 +125,9 @@ def solve_target(spec, goal_mm, goal_r, initials, budget_s, pose, ws):
             break
         if monotonic_s(timespec) >= deadline:
             break
-        slow = iterations - started >= restart_after
+        since = iterations - started
+        slow = since >= restart_after or (since == abandon_at > 0
+                                          and cost > abandon_above * abandon_above)
         if (lam > STALLED or slow) and attempt + 1 < initials.shape[0]:
             attempt += 1
             started = iterations
