@@ -28,9 +28,10 @@ The defaults differ from :func:`.single_pose.solve_poses`' where measurements sa
 Per call (:meth:`SinglePoseLM.solve`): four arrays for numba to type (~0.1 us each: the
 chain, limits and settings travel as one packed array, :func:`.compiled_chain.pack`), the
 scratch allocated once inside the kernel (:mod:`.single_pose_kernels`). :meth:`SinglePoseLM.
-solve_batch` deals the targets round-robin to numba threads (``prange``, GIL released), each
-target with its own deadline. numba is the ``[fast]`` extra; the first use compiles the
-kernels (~15 s), numba caches them (``__pycache__``).
+solve_batch` runs numba threads (``prange``, GIL released) that each take the next target
+from an atomic counter when done with one, each target with its own deadline. numba is the
+``[fast]`` extra; the first use compiles the kernels (~15 s), numba caches them
+(``__pycache__``).
 """
 
 from __future__ import annotations

@@ -14,6 +14,8 @@ import time
 
 import numpy as np
 from numba import njit, prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from ikbench.methods.ours_lm.compiled_chain import LOWER, UPPER, frame, frame_jacobian
 from ikbench.methods.ours_lm.single_pose import STALLED
@@ -43,6 +45,20 @@ def monotonic_s(timespec):
     """CLOCK_MONOTONIC [s]; ``timespec``: int64 (2,) scratch (tv_sec, tv_nsec)."""
     _clock_gettime(CLOCK_MONOTONIC, timespec.ctypes)
     return timespec[0] + 1e-9 * timespec[1]
+
+
+@intrinsic
+def fetch_add(typingctx, counter, value):
+    """``counter[0] += value`` as one atomic step (LLVM's atomicrmw); returns the old value.
+    ``counter``: int64 (1,). numba has no atomics on the CPU; this hands targets out."""
+    def codegen(context, builder, signature, args):
+        array_type = signature.args[0]
+        array = context.make_array(array_type)(context, builder, args[0])
+        pointer = cgutils.get_item_pointer(context, builder, array_type, array,
+                                           [context.get_constant(types.intp, 0)])
+        return builder.atomic_rmw("add", pointer, args[1], "seq_cst")
+
+    return types.int64(counter, types.int64), codegen
 
 
 @njit(cache=True)
@@ -92,16 +108,21 @@ def solve_frame(spec, frame_m, initials, budget_s):
 @njit(cache=True, parallel=True, nogil=True)
 def solve_many(spec, goal_mm, goal_r, initials, budget_s, poses, success, attempts,
                iterations, position_error_mm, rotation_error_deg, threads):
-    """B targets dealt round-robin to ``threads`` threads; results written per target."""
+    """B targets on ``threads`` threads, each taking the next target when it is done with
+    one (a shared atomic counter: a thread slowed by other work on its core takes fewer);
+    results written per target."""
     b = goal_mm.shape[0]
     check(spec, goal_mm[0], goal_r[0], initials[0])
-    for t in prange(threads):
+    counter = np.zeros(1, dtype=np.int64)
+    for _ in prange(threads):
         ws = workspace(spec.shape[0] - 2)
-        for m in range(t, b, threads):
+        m = fetch_add(counter, 1)
+        while m < b:
             out = solve_target(spec, goal_mm[m], goal_r[m], initials[m], budget_s, poses[m],
                                ws)
             success[m], attempts[m], iterations[m] = out[0], out[1], out[2]
             position_error_mm[m], rotation_error_deg[m] = out[3], out[4]
+            m = fetch_add(counter, 1)
 
 
 @njit(cache=True)
