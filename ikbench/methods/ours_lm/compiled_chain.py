@@ -12,7 +12,7 @@ w x (P - o_j) and w (revolute), w and 0 (prismatic), per pose unit (times dq_urd
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
@@ -20,6 +20,9 @@ from numba import njit
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
+
+#: The kernels' arrays (numba reads the types from the arguments, not from annotations).
+Array: TypeAlias = np.ndarray
 
 
 class Chain:
@@ -107,7 +110,7 @@ C4, C5, C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.1359647
 
 
 @njit(cache=True, inline="always")
-def sin_cos(angle):
+def sin_cos(angle: float) -> tuple[float, float]:
     """(sin, cos) of an angle [rad] of moderate size (|angle| < 1e5), within ~1 ulp of libm's:
     fdlibm's reduction to [-pi/4, pi/4] and its kernels, without branches (vectorisable;
     libm's sin and cos were most of the chain's time)."""
@@ -125,7 +128,8 @@ def sin_cos(angle):
 
 
 @njit(cache=True)
-def frame(spec, k, q, point, rotation, axes_world, origins, trig):
+def frame(spec: Array, k: int, q: Array, point: Array, rotation: Array, axes_world: Array,
+          origins: Array, trig: Array) -> None:
     """End frame of one pose: ``point`` (3,) [m] and ``rotation`` (3, 3) in the base frame,
     the joints' world axes ``axes_world`` (k, 3) and origins ``origins`` (k, 3) [m], written
     in place; ``q`` (k,) [pose units], ``spec``: :func:`pack`'s array, ``trig`` (k, 3)
@@ -184,7 +188,8 @@ def frame(spec, k, q, point, rotation, axes_world, origins, trig):
 
 
 @njit(cache=True)
-def frame_jacobian(spec, k, point, axes_world, origins, j_point, j_angular):
+def frame_jacobian(spec: Array, k: int, point: Array, axes_world: Array, origins: Array,
+                   j_point: Array, j_angular: Array) -> None:
     """The geometric Jacobian of :func:`frame`'s end point, world-aligned, per pose unit:
     ``j_point`` (3, k) [m / pose unit] and ``j_angular`` (3, k) [rad / pose unit], in place."""
     for j in range(k):

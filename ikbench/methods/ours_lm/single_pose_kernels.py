@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Any, TypeAlias
 
 import numpy as np
 from numba import njit, prange, types
@@ -33,25 +34,28 @@ SMALL_ANGLE = 1e-6
 TOL_MM, TOL_DEG, STOP, MAX_ITERATIONS, RESTART_AFTER, POSITION_ONLY, MAX_STEP_COLUMN, \
     DAMPING, ABANDON_AT, ABANDON_ABOVE = range(10)
 
+#: The kernels' arrays (numba reads the types from the arguments, not from annotations), and
+#: one thread's scratch (:func:`workspace`).
+Array: TypeAlias = np.ndarray
+Workspace: TypeAlias = tuple[np.ndarray, ...]
+
 CLOCK_MONOTONIC = getattr(time, "CLOCK_MONOTONIC", 1)
 #: libc's clock_gettime, bound by symbol name when the kernel is linked: cacheable, where a
 #: ctypes function pointer is a "dynamic global" that stops numba from caching the kernel.
-_clock_gettime = types.ExternalFunction("clock_gettime",
-                                        types.int32(types.int32, types.voidptr))
+_clock_gettime: Any = types.ExternalFunction("clock_gettime",
+                                             types.int32(types.int32, types.voidptr))
 
 
 @njit(cache=True)
-def monotonic_s(timespec):
+def monotonic_s(timespec: Array) -> float:
     """CLOCK_MONOTONIC [s]; ``timespec``: int64 (2,) scratch (tv_sec, tv_nsec)."""
     _clock_gettime(CLOCK_MONOTONIC, timespec.ctypes)
     return timespec[0] + 1e-9 * timespec[1]
 
 
-@intrinsic
-def fetch_add(typingctx, counter, value):
-    """``counter[0] += value`` as one atomic step (LLVM's atomicrmw); returns the old value.
-    ``counter``: int64 (1,). numba has no atomics on the CPU; this hands targets out."""
-    def codegen(context, builder, signature, args):
+def _fetch_add(typingctx: Any, counter: Any, value: Any) -> Any:
+    """numba's typing and code of :data:`fetch_add`."""
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
         array_type = signature.args[0]
         array = context.make_array(array_type)(context, builder, args[0])
         pointer = cgutils.get_item_pointer(context, builder, array_type, array,
@@ -61,8 +65,14 @@ def fetch_add(typingctx, counter, value):
     return types.int64(counter, types.int64), codegen
 
 
+#: ``fetch_add(counter, value)``: ``counter[0] += value`` as one atomic step (LLVM's
+#: atomicrmw), returning the old value; ``counter``: int64 (1,). numba has no atomics on the
+#: CPU; this hands the targets of a batch out to the threads.
+fetch_add: Any = intrinsic(_fetch_add)
+
+
 @njit(cache=True)
-def workspace(k):
+def workspace(k: int) -> Workspace:
     """One thread's scratch: q, trial, g, step (k,); r, r_trial (6,); phi, phi_trial,
     point (3,); jac (6, k); jtj, chol (k, k); rot (3, 3); axes, origins, trig (k, 3);
     j_point, j_angular (3, k); timespec int64 (2,)."""
@@ -73,7 +83,7 @@ def workspace(k):
 
 
 @njit(cache=True)
-def check(spec, goal_mm, goal_r, initials):
+def check(spec: Array, goal_mm: Array, goal_r: Array, initials: Array) -> None:
     """ValueError unless the goal is (3,) and (3, 3) and ``initials`` (A >= 1, k)."""
     if goal_mm.shape[0] != 3 or goal_r.shape[0] != 3 or goal_r.shape[1] != 3:
         raise ValueError("the goal point must be (3,) [mm] and the rotation (3, 3)")
@@ -82,7 +92,8 @@ def check(spec, goal_mm, goal_r, initials):
 
 
 @njit(cache=True, nogil=True)
-def solve_point(spec, goal_mm, goal_r, initials, budget_s):
+def solve_point(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, budget_s: float
+                ) -> tuple[Array, bool, int, int, float, float]:
     """One target: (pose (k,), success, attempts, iterations, position_error_mm,
     rotation_error_deg)."""
     check(spec, goal_mm, goal_r, initials)
@@ -93,7 +104,8 @@ def solve_point(spec, goal_mm, goal_r, initials, budget_s):
 
 
 @njit(cache=True, nogil=True)
-def solve_frame(spec, frame_m, initials, budget_s):
+def solve_frame(spec: Array, frame_m: Array, initials: Array, budget_s: float
+                ) -> tuple[Array, bool, int, int, float, float]:
     """:func:`solve_point` of a goal frame T_base_end (4, 4) [m]."""
     if frame_m.shape[0] < 3 or frame_m.shape[1] != 4:
         raise ValueError("the goal frame must be (4, 4) [m]")
@@ -106,8 +118,9 @@ def solve_frame(spec, frame_m, initials, budget_s):
 
 
 @njit(cache=True, parallel=True, nogil=True)
-def solve_many(spec, goal_mm, goal_r, initials, budget_s, poses, success, attempts,
-               iterations, position_error_mm, rotation_error_deg, threads):
+def solve_many(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, budget_s: float,
+               poses: Array, success: Array, attempts: Array, iterations: Array,
+               position_error_mm: Array, rotation_error_deg: Array, threads: int) -> None:
     """B targets on ``threads`` threads, each taking the next target when it is done with
     one (a shared atomic counter: a thread slowed by other work on its core takes fewer);
     results written per target."""
@@ -126,7 +139,8 @@ def solve_many(spec, goal_mm, goal_r, initials, budget_s, poses, success, attemp
 
 
 @njit(cache=True)
-def solve_target(spec, goal_mm, goal_r, initials, budget_s, pose, ws):
+def solve_target(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, budget_s: float,
+                 pose: Array, ws: Workspace) -> tuple[bool, int, int, float, float]:
     """The LM loop with restarts of one target; writes the pose (k,) to ``pose``; returns
     (success, attempts, iterations, position_error_mm, rotation_error_deg)."""
     q, trial, g, step, r, r_trial, phi, phi_trial = ws[:8]
@@ -177,7 +191,8 @@ def solve_target(spec, goal_mm, goal_r, initials, budget_s, pose, ws):
 
 
 @njit(cache=True)
-def restart(spec, k, start, goal_mm, goal_r, ws):
+def restart(spec: Array, k: int, start: Array, goal_mm: Array, goal_r: Array, ws: Workspace
+            ) -> tuple[float, float]:
     """Start from ``start`` clipped into the limits (q, r, phi, the Jacobian and normal
     equations of ``ws`` written); returns (lambda, cost)."""
     q, r, phi = ws[0], ws[4], ws[6]
@@ -189,7 +204,7 @@ def restart(spec, k, start, goal_mm, goal_r, ws):
 
 
 @njit(cache=True)
-def done(spec, k, r, stop):
+def done(spec: Array, k: int, r: Array, stop: float) -> bool:
     """Both errors below ``stop`` x the tolerances (the residual is scaled by them)."""
     if r[0] ** 2 + r[1] ** 2 + r[2] ** 2 >= stop * stop:
         return False
@@ -197,7 +212,8 @@ def done(spec, k, r, stop):
 
 
 @njit(cache=True)
-def residual(spec, k, q, goal_mm, goal_r, r, phi, ws):
+def residual(spec: Array, k: int, q: Array, goal_mm: Array, goal_r: Array, r: Array, phi: Array,
+             ws: Workspace) -> float:
     """FK of ``q`` (the frame in ``ws``) and the scaled residual ``r`` (6,) with
     phi = log(R_goal^T R) [rad] (3,) written; returns |r|^2."""
     point, rot, axes, origins, trig = ws[8], ws[12], ws[13], ws[14], ws[15]
@@ -224,7 +240,8 @@ def residual(spec, k, q, goal_mm, goal_r, r, phi, ws):
 
 
 @njit(cache=True)
-def so3_log(e00, e01, e02, e10, e11, e12, e20, e21, e22):
+def so3_log(e00: float, e01: float, e02: float, e10: float, e11: float, e12: float,
+            e20: float, e21: float, e22: float) -> tuple[float, float, float]:
     """log(E) [rad] as (x, y, z), angle in [0, pi] (:func:`ikbench.core.rotations.so3_log`,
     its branches near 0 and pi)."""
     v0, v1, v2 = 0.5 * (e21 - e12), 0.5 * (e02 - e20), 0.5 * (e10 - e01)
@@ -249,7 +266,7 @@ def so3_log(e00, e01, e02, e10, e11, e12, e20, e21, e22):
 
 
 @njit(cache=True)
-def linearise(spec, k, r, phi, ws):
+def linearise(spec: Array, k: int, r: Array, phi: Array, ws: Workspace) -> None:
     """The scaled residual's Jacobian (6, k) at the last :func:`residual`'s frame, then
     J^T J (k, k) and J^T r (k,), into ``ws``."""
     g, point, jac, jtj, rot, axes, origins, jp, ja = (ws[2], ws[8], ws[9], ws[10], ws[12],
@@ -288,7 +305,7 @@ def linearise(spec, k, r, phi, ws):
 
 
 @njit(cache=True)
-def right_jacobian_inverse(phi):
+def right_jacobian_inverse(phi: Array) -> tuple[float, ...]:
     """Jr^-1(phi) = I + K / 2 + c K^2 (K = [phi]_x), row-major as 9 numbers
     (:func:`ikbench.core.rotations.right_jacobian_inverse`: series below 1e-2 rad, the angle
     capped at 3 rad in the closed form)."""
@@ -307,7 +324,8 @@ def right_jacobian_inverse(phi):
 
 
 @njit(cache=True)
-def damped_step(jtj, g, lam, chol, step, k, max_step):
+def damped_step(jtj: Array, g: Array, lam: float, chol: Array, step: Array, k: int,
+                max_step: float) -> bool:
     """``step`` (k,) = -(J^T J + lam (diag(J^T J) + eps I))^-1 J^T r by Cholesky, then
     scaled to at most ``max_step`` [pose units]; False (step 0) when not positive definite."""
     for a in range(k):
