@@ -142,6 +142,17 @@ def per_call(robot, T, calls, block):
     return answers, times, iterations
 
 
+def overhead(lm, T, starts):
+    """Per-call times [s] of ours-lm with a zero budget: the call, one FK and Jacobian, no
+    iteration (what a call costs besides its iterations)."""
+    times = np.empty(len(T))
+    for i in range(len(T)):
+        start = time.perf_counter()
+        lm.solve(T[i], None, starts[i], 0.0)
+        times[i] = time.perf_counter() - start
+    return times
+
+
 def batched(lm, T, starts, budget_s, threads, repeat):
     """(targets per second of wall time and per CPU second of this process, medians over
     ``repeat``; the last run's poses). Other work on the cores shows as the gap."""
@@ -175,7 +186,12 @@ def run_robot(name, args, record):
         t = times[m] * 1e6
         summary.append({"robot": robot.name, "dof": robot.dof, "method": m,
                         "targets": args.count, "median_us": np.median(t), "mean_us": t.mean(),
-                        "p95_us": np.percentile(t, 95), "success": ok.mean()})
+                        "p95_us": np.percentile(t, 95), "success": ok.mean(),
+                        "mean_iterations": iterations[m].mean() if m != "trac-ik" else None})
+    t = overhead(lm, T, starts) * 1e6
+    summary.append({"robot": robot.name, "dof": robot.dof, "method": "ours-lm budget 0",
+                    "targets": args.count, "median_us": np.median(t), "mean_us": t.mean(),
+                    "p95_us": np.percentile(t, 95), "success": None})
     for threads in (1, 2):
         rate, per_cpu, poses = batched(lm, T, starts, budget_s, threads, args.repeat)
         ok = judge(robot, poses, T, tolerance)[0]
@@ -235,11 +251,13 @@ def _print(lines) -> None:
         if "median_us" in s:
             print(f"  {s['method']:>23}: median {s['median_us']:8.1f} us  mean "
                   f"{s['mean_us']:8.1f} us  p95 {s['p95_us']:8.1f} us  success "
-                  f"{s['success']:.4f}")
+                  f"{s['success'] if s['success'] is None else round(s['success'], 4)}")
         else:
             print(f"  {s['method']:>23}: {s['ik_per_s']:8.0f} IK/s ({s['ik_per_cpu_s']:.0f} "
                   f"per CPU second)  success {s['success']:.4f}")
     ratios = ", ".join(f"/ {m} {medians['ours-lm'] / medians[m]:.3f}" for m in METHODS[1:])
+    iterations = lines[0]["mean_iterations"]
+    print(f"  ours-lm: {iterations:.1f} iterations per target (mean)")
     print(f"  median ratios ours-lm {ratios}")
 
 
