@@ -15,8 +15,9 @@ Speed (one LM iteration of one trajectory of 51 poses, 7 joints: ~35 us of one c
 ~370 us in the numpy solver at a batch of 1 000): the loops over the joints have the joint
 count as a compile-time constant (the length of the tuple ``kt``: one compiled version per
 chain length), the rotation is kept in scalars, sine and cosine come from fdlibm's kernels
-without branches (:func:`_sin_cos`, within 1 ulp; libm's calls were most of the chain's
-time), and only accepted steps build the Gauss-Newton blocks.
+without branches (:func:`.compiled_chain.sin_cos`, within 1 ulp; libm's calls were most of
+the chain's time), and only accepted steps build the Gauss-Newton blocks. The chain's
+constants (:class:`.compiled_chain.Chain`) and the sine are shared with the single-pose IK.
 
 Threads: the trajectories are dealt round-robin to numba threads (``prange``): at most
 ``threads``, one per :data:`PER_THREAD` trajectories (:func:`thread_count`); a batch that
@@ -37,6 +38,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from ikbench.methods.ours_lm.compiled_chain import Chain, sin_cos
 from ikbench.methods.ours_lm.problem import CM_PER_M, Problem, Weights
 from ikbench.methods.ours_lm.solver import (
     BOUND_EPS_DEG,
@@ -55,46 +57,8 @@ if TYPE_CHECKING:
 
 #: A batch gets a second (third, ...) thread for every this many trajectories.
 PER_THREAD = 16
-
-
-class Chain:
-    """The chain's constants as plain arrays (k joints), for the compiled FK.
-
-    Attributes:
-        translations: (k, 3) joint placements [m].  rotations, rot_k, rot_k2: (k, 3, 3) the
-            placements' rotations R_j and R_j K_j, R_j K_j^2 (K_j the axis' cross matrix).
-        axes: (k, 3) joint axes (joint frame).  prismatic: (k,) bool.
-        map_scale, map_offset, map_si: (k,) q_urdf = (pose * scale + offset) * si.
-        urdf_per_unit: (k,) dq_urdf / dpose (the numpy chain's, for the Jacobians).
-        tip_translation: (3,) [m].  tip_axis: (3,) pointing axis in the last joint's frame.
-    """
-
-    def __init__(self, robot: Robot) -> None:
-        kin = robot.chain_kinematics()
-        k = kin.dof
-        self.translations = np.ascontiguousarray(kin.translations, dtype=float).reshape(k, 3)
-        self.rotations = np.ascontiguousarray(kin.rotations, dtype=float).reshape(k, 3, 3)
-        axes = np.ascontiguousarray(kin.axes, dtype=float).reshape(k, 3)
-        skew = np.zeros((k, 3, 3))
-        skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -axes[:, 2], axes[:, 1], -axes[:, 0]
-        skew -= skew.transpose(0, 2, 1)
-        self.rot_k = np.ascontiguousarray(self.rotations @ skew)
-        self.rot_k2 = np.ascontiguousarray(self.rotations @ skew @ skew)
-        self.axes = axes
-        self.prismatic = np.ascontiguousarray(kin.prismatic, dtype=np.bool_)
-        # q_urdf as Robot.to_urdf computes it: (pose * scale + offset) * si
-        si = np.asarray(robot._si_per_unit, dtype=float)
-        self.map_scale = np.asarray(robot.scale, dtype=float) * np.ones(k)
-        self.map_offset = np.asarray(robot.offset_deg, dtype=float) * np.ones(k)
-        self.map_si = si
-        self.urdf_per_unit = np.asarray(kin.urdf_per_unit, dtype=float)  # as the Jacobians
-        self.tip_translation = np.asarray(kin.tip_translation, dtype=float)
-        self.tip_axis = np.asarray(kin.tip_axis, dtype=float)
-
-    def arrays(self) -> tuple[np.ndarray, ...]:
-        return (self.translations, self.rotations, self.rot_k, self.rot_k2, self.axes,
-                self.prismatic, self.urdf_per_unit, self.map_scale, self.map_offset,
-                self.map_si, self.tip_translation, self.tip_axis)
+#: The chain's sine and cosine (:func:`.compiled_chain.sin_cos`), by its older name here.
+_sin_cos = sin_cos
 
 
 def solve_batch(robot: Robot, tasks: Sequence[Task], settings: LMSettings, weights: Weights,
@@ -312,34 +276,6 @@ def _residual_weights(c, n, k):
                      c[6] / ((n - 1) * k)])
 
 
-#: pi/2 in two parts (fdlibm's pio2_1, pio2_1t): k * PIO2_HI is exact for |k| < 2^20.
-PIO2_HI = 1.57079632673412561417e+00
-PIO2_LO = 6.07710050650619224932e-11
-#: fdlibm's minimax polynomials of sin and cos on [-pi/4, pi/4] (__kernel_sin, __kernel_cos).
-S1, S2, S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
-S4, S5, S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
-C1, C2, C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
-C4, C5, C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
-
-
-@njit(cache=True, inline="always")
-def _sin_cos(angle):
-    """(sin, cos) of an angle [rad] of moderate size (|angle| < 1e5), within ~1 ulp of libm's:
-    fdlibm's reduction to [-pi/4, pi/4] and its kernels, without branches (vectorisable;
-    libm's sin and cos were most of the chain's time)."""
-    quadrant = math.floor(angle * (2.0 / math.pi) + 0.5)
-    r = (angle - quadrant * PIO2_HI) - quadrant * PIO2_LO
-    z = r * r
-    sin_r = r + z * r * (S1 + z * (S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)))))
-    cos_r = 1.0 - (0.5 * z - z * z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6))))))
-    m = int(quadrant) & 3
-    sin_sign = 1.0 - 2.0 * ((m >> 1) & 1)
-    cos_sign = 1.0 - 2.0 * (((m + 1) >> 1) & 1)
-    if m & 1:
-        return sin_sign * cos_r, cos_sign * sin_r
-    return sin_sign * sin_r, cos_sign * cos_r
-
-
 @njit(cache=True)
 def _kinematics(x, chain, point, direc, jp, jd, w_axes, origins, kt, derivatives=True):
     """End point [cm], direction and (``derivatives``) their Jacobians per pose unit for
@@ -351,7 +287,7 @@ def _kinematics(x, chain, point, direc, jp, jd, w_axes, origins, kt, derivatives
     sines, versines = np.empty((n, k)), np.empty((n, k))
     for i in range(n):  # all angles first (a branch-free loop)
         for j in range(k):
-            sines[i, j], cosine = _sin_cos((x[i, j] * mscale[j] + moffset[j]) * msi[j])
+            sines[i, j], cosine = sin_cos((x[i, j] * mscale[j] + moffset[j]) * msi[j])
             versines[i, j] = 1.0 - cosine
     for i in range(n):  # the rotation (a..i, row-major) and position in scalars: registers
         a, b, c, d, e, f, g, h, o = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0

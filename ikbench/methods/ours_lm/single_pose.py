@@ -35,6 +35,8 @@ if TYPE_CHECKING:
 STALLED = 1e8
 #: Largest joint step [pose units] of one iteration.
 MAX_STEP = 30.0
+#: lambda at every (re)start.
+INITIAL_DAMPING = 1e-3
 
 
 @dataclass
@@ -68,7 +70,8 @@ def _residuals(frames, q, goal_mm, goal_R, scale, position_only: bool):
 def solve_poses(robot: Robot, goal_points_mm: npt.ArrayLike, goal_rotations: npt.ArrayLike,
                 initial: npt.ArrayLike, tolerance: tuple[float, float] = (1.0, 0.5),
                 position_only: bool = False, max_iterations: int = 100, stop: float = 1e-3,
-                restarts: int = 0, restart_after: int = 25, seed: int = 0) -> BatchIK:
+                restarts: int = 0, restart_after: int = 25, seed: int = 0,
+                max_step: float = MAX_STEP, initial_damping: float = INITIAL_DAMPING) -> BatchIK:
     """Solve B single-pose IK problems in one batch (see the module docstring).
 
     Args:
@@ -85,6 +88,8 @@ def solve_poses(robot: Robot, goal_points_mm: npt.ArrayLike, goal_rotations: npt
         restart_after: a target not done after this many iterations since its (re)start
             counts as stuck.
         seed: seed of the restarts' generator.
+        max_step: largest joint step of one iteration [pose units].
+        initial_damping: lambda at every (re)start.
     """
     frames = robot.chain_kinematics().frames
     lower = np.where(np.isfinite(robot.lower), robot.lower, -np.inf)
@@ -98,7 +103,7 @@ def solve_poses(robot: Robot, goal_points_mm: npt.ArrayLike, goal_rotations: npt
     iterations, used = np.zeros(b, dtype=int), np.zeros(b, dtype=int)
     started = np.zeros(b, dtype=int)
     converged = np.zeros(b, dtype=bool)
-    damping = np.full(b, 1e-3)
+    damping = np.full(b, float(initial_damping))
     r, J = _residuals(frames, q, goal_mm, goal_R, scale, position_only)
     cost = np.sum(r**2, axis=1)
     active = np.arange(b)
@@ -114,7 +119,7 @@ def solve_poses(robot: Robot, goal_points_mm: npt.ArrayLike, goal_rotations: npt
             used[again] += 1
             started[again] = iterations[again]
             q[again] = rng.uniform(robot.sample_lower, robot.sample_upper, (len(again), dof))
-            damping[again] = 1e-3
+            damping[again] = initial_damping
             r[again], J[again] = _residuals(frames, q[again], goal_mm[again], goal_R[again],
                                             scale, position_only)
             cost[again] = np.sum(r[again] ** 2, axis=1)
@@ -128,7 +133,7 @@ def solve_poses(robot: Robot, goal_points_mm: npt.ArrayLike, goal_rotations: npt
         diag = np.einsum("kii->ki", JtJ)[:, :, None] * eye + 1e-9 * eye
         H = JtJ + damping[active, None, None] * diag
         step = -np.linalg.solve(H, (Ja.swapaxes(-1, -2) @ ra[..., None]))[..., 0]
-        step *= np.minimum(1.0, MAX_STEP / np.maximum(np.abs(step).max(1), 1e-300))[:, None]
+        step *= np.minimum(1.0, max_step / np.maximum(np.abs(step).max(1), 1e-300))[:, None]
         trial = np.clip(q[active] + step, lower, upper)
         r_new, J_new = _residuals(frames, trial, goal_mm[active], goal_R[active], scale,
                                   position_only)

@@ -1,0 +1,243 @@
+"""Single-pose IK of ours-lm compiled with numba: one target a call with little Python in
+between, restarts and a wall-clock deadline inside the compiled loop, or many targets over
+threads.
+
+The method is :func:`.single_pose.solve_poses`' (the numpy reference) for one target: a
+projected Levenberg-Marquardt loop on ``r = [e_point / tol_mm, e_rot / tol_deg]`` (position
+error [mm] and the SO(3) log of R_goal^T R [deg], as :func:`.frames.errors_from_frames`; the
+position only for ``kind="position"``) with its exact Jacobian, ``(J^T J + lambda (diag(J^T
+J) + eps I)) dq = -J^T r`` (by Cholesky), the step scaled to at most ``max_step`` and clipped
+into the limits, accepted when |r|^2 drops (lambda / 3, at least 1e-9) or rejected (lambda
+* 4). Success: both errors below ``stop`` x the tolerances.
+
+Restarts: the caller passes the starts ``initials`` (A, dof) [pose units], the protocol's
+seeded sequence (:func:`random_initials`); attempt 1 runs from row 0, and an attempt that is
+stuck (lambda above :data:`.single_pose.STALLED`, ``restart_after`` iterations since its
+start without success, or, ``abandon = (t, h)``, |r| still above h after t iterations: far
+off, it would rarely succeed) restarts from the next row; the last row's attempt runs until
+it stalls. A call ends at success, a stalled last attempt, ``max_iterations`` (all attempts
+together) or the deadline, ``budget_s`` after the call entered the compiled code: the
+monotonic clock is read before every iteration (:func:`.single_pose_kernels.monotonic_s`,
+~30 ns). With every setting the same and the rows the reference's random draws, the loop is
+:func:`.single_pose.solve_poses` step for step (its ``restarts`` = A - 1).
+
+The defaults differ from :func:`.single_pose.solve_poses`' where measurements said so
+(:data:`RESTART_AFTER`, :data:`MAX_STEP`, :data:`DAMPING`, :data:`ABANDON`); ``abandon=(0,
+0.0)`` turns the early restart off, as the reference has none.
+
+Per call (:meth:`SinglePoseLM.solve`): four arrays for numba to type (~0.1 us each: the
+chain, limits and settings travel as one packed array, :func:`.compiled_chain.pack`), the
+scratch allocated once inside the kernel (:mod:`.single_pose_kernels`). :meth:`SinglePoseLM.
+solve_batch` runs numba threads (``prange``, GIL released) that each take the next target
+from an atomic counter when done with one, each target with its own deadline. numba is the
+``[fast]`` extra; the first use compiles the kernels (~15 s), numba caches them
+(``__pycache__``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, NamedTuple
+
+import numba
+import numpy as np
+
+from ikbench.core.errors import InputError
+from ikbench.methods.ours_lm import single_pose_kernels as kernels
+from ikbench.methods.ours_lm.compiled_chain import WIDTH, Chain, pack
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+
+    from ikbench.core.robot import Robot
+
+KINDS = ("pose", "position")
+#: Defaults tuned on Panda, UR5, xArm7 and Fetch from random starts (1 000-1 500 targets each,
+#: seeds 1 and 2, not the benchmark's; 5 ms budget). max_step, damping: the mean time per
+#: call over 30..120 x 1e-3..0.1 x restart_after 8..20 fell 20-40 % against solve_poses'
+#: 30 / 1e-3. The early restart (|r| > 100 after 6 iterations, e.g. 100 mm or 50 deg off):
+#: 20-35 % fewer iterations per target on all four, 100 % success kept; restart_after 14
+#: with it (12 left one UR5 target of 1 500 unsolved in 5 ms).
+RESTART_AFTER, MAX_STEP, DAMPING, ABANDON = 14, 90.0, 0.1, (6, 100.0)
+#: The wall-clock budget of one target [s] (TRAC-IK's default timeout).
+BUDGET_S = 0.005
+
+
+class PoseIK(NamedTuple):
+    """One target's answer (:meth:`SinglePoseLM.solve`).
+
+    Attributes:
+        pose: (dof,) the last pose [pose units], within the limits.
+        success: both errors fell below ``stop`` x the tolerances.
+        attempts: starts used (rows of ``initials``).
+        iterations: LM iterations, all attempts together.
+        position_error_mm, rotation_error_deg: the pose's errors (rotation: nan for
+            ``kind="position"``).
+    """
+
+    pose: np.ndarray
+    success: bool
+    attempts: int
+    iterations: int
+    position_error_mm: float
+    rotation_error_deg: float
+
+
+@dataclass
+class BatchPoseIK:
+    """B targets' answers (:meth:`SinglePoseLM.solve_batch`): the fields of :class:`PoseIK`
+    as arrays, poses (B, dof) [pose units] and the others (B,)."""
+
+    poses: np.ndarray
+    success: np.ndarray
+    attempts: np.ndarray
+    iterations: np.ndarray
+    position_error_mm: np.ndarray
+    rotation_error_deg: np.ndarray
+
+
+class SinglePoseLM:
+    """ours-lm's single-pose IK of one robot, compiled (see the module docstring).
+
+    Args:
+        robot: the robot (its chain, pose units and limits).
+        kind: ``"pose"`` (point and rotation) or ``"position"`` (the point only).
+        tolerance: (position [mm], rotation [deg]): the residual's scale.
+        stop: success when both errors are below ``stop`` x ``tolerance``.
+        max_iterations: LM iterations of one call at most (all attempts together).
+        restart_after: iterations after a (re)start without success before the next row.
+        max_step: the largest joint step of one iteration [pose units].
+        damping: lambda at every (re)start.
+        abandon: (t, h): an attempt whose |r| (errors in tolerances) is above h after t
+            iterations restarts; t = 0: never.
+    """
+
+    def __init__(self, robot: Robot, kind: str = "pose",
+                 tolerance: tuple[float, float] = (1.0, 0.5), stop: float = 1e-3,
+                 max_iterations: int = 100_000, restart_after: int = RESTART_AFTER,
+                 max_step: float = MAX_STEP, damping: float = DAMPING,
+                 abandon: tuple[int, float] = ABANDON) -> None:
+        if kind not in KINDS:
+            raise InputError(f"kind: {kind!r} is not one of {', '.join(KINDS)}")
+        numbers = {"tolerance": min(tolerance), "stop": stop, "max_step": max_step,
+                   "damping": damping, "max_iterations": max_iterations,
+                   "restart_after": restart_after}
+        for name, value in numbers.items():
+            if not value > 0:
+                raise InputError(f"{name}: {value!r} must be > 0")
+        if len(abandon) != 2 or int(abandon[0]) != abandon[0] or min(abandon) < 0:
+            raise InputError(f"abandon: {abandon!r} must be (iterations >= 0, |r| >= 0)")
+        self.robot, self.kind, self.dof = robot, kind, robot.dof
+        settings = np.zeros((1, WIDTH))
+        settings[0, :10] = (tolerance[0], tolerance[1], stop, max_iterations, restart_after,
+                            kind == "position", max_step, damping, abandon[0], abandon[1])
+        #: (dof + 2, WIDTH) the chain and limits (:func:`.compiled_chain.pack`), settings.
+        self.spec = np.vstack([pack(Chain(robot), robot.lower, robot.upper), settings])
+        self._identity = np.eye(3)
+
+    def solve(self, target: npt.ArrayLike, rotation: npt.ArrayLike | None,
+              initials: npt.ArrayLike, budget_s: float = BUDGET_S) -> PoseIK:
+        """Solve one target from the starts ``initials``.
+
+        Args:
+            target: the goal point (3,) [mm] in the base frame, or the goal end frame
+                T_base_end (4, 4) [m] (then ``rotation`` is None).
+            rotation: (3, 3) the goal rotation; None with a frame, or for
+                ``kind="position"``.
+            initials: (A, dof) starts [pose units], tried in order.
+            budget_s: wall-clock budget [s] (``inf``: none).
+
+        Float64 C-ordered arrays pass as they are; others are copied first.
+        """
+        target, starts = _f64(target), _f64(initials)
+        if starts.ndim != 2:
+            starts = starts.reshape(-1, self.dof)
+        if target.ndim == 2:
+            return PoseIK(*kernels.solve_frame(self.spec, target, starts, float(budget_s)))
+        if rotation is None or self.kind == "position":
+            if self.kind == "pose":
+                raise InputError("a point target needs its rotation (3, 3), or pass T (4, 4)")
+            rotation = self._identity
+        return PoseIK(*kernels.solve_point(self.spec, target, _f64(rotation), starts,
+                                           float(budget_s)))
+
+    def solve_batch(self, targets: npt.ArrayLike, rotations: npt.ArrayLike | None,
+                    initials: npt.ArrayLike, budget_s: float = BUDGET_S,
+                    threads: int | None = None) -> BatchPoseIK:
+        """Solve B targets on ``threads`` numba threads (None: all), each with its own
+        ``budget_s`` [s] from when its thread starts it.
+
+        Args:
+            targets: (B, 3) goal points [mm], or (B, 4, 4) goal frames [m] (``rotations``
+                None).
+            rotations: (B, 3, 3), or None (frames, or ``kind="position"``).
+            initials: (B, A, dof) each target's starts [pose units].
+        """
+        points, rot = self._goals(np.asarray(targets, dtype=float), rotations)
+        b = len(points)
+        starts = np.ascontiguousarray(initials, dtype=float)
+        if starts.ndim != 3 or starts.shape[0] != b or starts.shape[2] != self.dof \
+                or starts.shape[1] < 1:
+            raise InputError(f"initials: shape {starts.shape} is not ({b}, A, {self.dof})")
+        out = BatchPoseIK(np.empty((b, self.dof)), np.zeros(b, dtype=np.bool_),
+                          np.zeros(b, dtype=np.int64), np.zeros(b, dtype=np.int64),
+                          np.empty(b), np.empty(b))
+        if b == 0:
+            return out
+        count = max(1, min(threads or max_threads(), max_threads(), b))
+        previous = numba.get_num_threads()
+        numba.set_num_threads(count)
+        try:
+            kernels.solve_many(self.spec, points, rot, starts, float(budget_s), out.poses,
+                               out.success, out.attempts, out.iterations,
+                               out.position_error_mm, out.rotation_error_deg, count)
+        finally:
+            numba.set_num_threads(previous)
+        return out
+
+    def _goals(self, targets: np.ndarray, rotations: npt.ArrayLike | None
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """(points (B, 3) [mm], rotations (B, 3, 3)) of points or frames."""
+        if targets.ndim == 3:  # frames T (B, 4, 4) [m]
+            if targets.shape[1:] != (4, 4):
+                raise InputError(f"targets: frames must be (B, 4, 4), not {targets.shape}")
+            return (np.ascontiguousarray(targets[:, :3, 3] * 1000.0),
+                    np.ascontiguousarray(targets[:, :3, :3]))
+        points = np.ascontiguousarray(targets).reshape(-1, 3)
+        if rotations is None or self.kind == "position":
+            if self.kind == "pose":
+                raise InputError("point targets need their rotations (B, 3, 3), or pass "
+                                 "frames (B, 4, 4)")
+            return points, np.ascontiguousarray(np.broadcast_to(self._identity,
+                                                                (len(points), 3, 3)))
+        return points, np.ascontiguousarray(rotations, dtype=float).reshape(len(points), 3, 3)
+
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) every kernel, outside any timed region."""
+        pose = np.clip(np.zeros(self.dof), self.robot.sample_lower, self.robot.sample_upper)
+        T = self.robot.fk_transform(pose)[0]
+        self.solve(T[:3, 3] * 1000.0, np.ascontiguousarray(T[:3, :3]), pose[None], 0.0)
+        self.solve(T, None, pose[None], 0.0)
+        for threads in (1, 2):
+            self.solve_batch(T[None], None, pose[None, None], 0.0, threads)
+
+
+def random_initials(robot: Robot, shape: tuple[int, ...], seed: int | np.random.Generator
+                    ) -> np.ndarray:
+    """Starts (*shape, dof) [pose units] drawn uniformly within the limits (continuous
+    joints: +-180 deg), seeded: e.g. ``(A,)`` for :meth:`SinglePoseLM.solve`, ``(B, A)``
+    for :meth:`SinglePoseLM.solve_batch`."""
+    rng = np.random.default_rng(seed)
+    return rng.uniform(robot.sample_lower, robot.sample_upper, (*shape, robot.dof))
+
+
+def max_threads() -> int:
+    """The most threads numba runs (``NUMBA_NUM_THREADS``, by default the cores)."""
+    return int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
+
+
+def _f64(array: npt.ArrayLike) -> np.ndarray:
+    """``array`` itself when it is a C-ordered float64 ndarray (no copy), else a copy."""
+    if type(array) is np.ndarray and array.dtype == np.float64 and array.flags.c_contiguous:
+        return array
+    return np.ascontiguousarray(array, dtype=float)

@@ -1,0 +1,229 @@
+"""ours-lm's compiled single-pose IK: its FK and Jacobian against Pinocchio, its LM against
+the numpy reference (``solve_poses``) step for step, restarts in the given order, the budget,
+batched equal to one at a time (float64, seeded, no timed assertions)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ikbench.core.errors import InputError
+from ikbench.core.kinematics.chain import pinocchio_frames
+from ikbench.core.robot import load_robot
+from ikbench.core.rotations import geodesic_angle
+from ikbench.methods.ours_lm.single_pose import solve_poses
+
+pytest.importorskip("numba")
+
+from ikbench.methods.ours_lm import compiled_chain  # noqa: E402
+from ikbench.methods.ours_lm.single_pose_compiled import (  # noqa: E402
+    SinglePoseLM,
+    random_initials,
+)
+
+#: Settings both solvers get when they are compared step for step.
+SAME = {"restart_after": 25, "max_step": 30.0, "stop": 1e-3}
+
+
+@pytest.fixture(scope="module")
+def panda():
+    return load_robot("panda")
+
+
+@pytest.fixture(scope="module")
+def fetch():
+    return load_robot("fetch")
+
+
+def _targets(robot, count, seed):
+    """(configurations (B, dof), frames (B, 4, 4) [m], points (B, 3) [mm], rotations)."""
+    q = random_initials(robot, (count,), seed)
+    T = robot.fk_transform(q)
+    return q, T, T[:, :3, 3] * 1000.0, np.ascontiguousarray(T[:, :3, :3])
+
+
+def _errors(robot, poses, T):
+    """Position [mm] and rotation [deg] errors of poses (B, dof) by Pinocchio's FK."""
+    got = robot.fk_transform(poses)
+    return (np.linalg.norm(got[:, :3, 3] - T[:, :3, 3], axis=1) * 1000.0,
+            np.degrees(geodesic_angle(T[:, :3, :3], got[:, :3, :3])))
+
+
+@pytest.mark.parametrize("name", ["nico_right_arm", "panda", "fetch"])
+def test_compiled_frames_and_jacobians_equal_pinocchio(name):
+    """NICO has a motor map (scale, offset), Fetch a prismatic torso [mm] and continuous
+    rolls; poses reach beyond +-180 deg where a joint allows it."""
+    robot = load_robot(name)
+    rng = np.random.default_rng(3)
+    lower = np.where(np.isfinite(robot.lower), robot.lower, -400.0)
+    upper = np.where(np.isfinite(robot.upper), robot.upper, 400.0)
+    poses = rng.uniform(lower, upper, (40, robot.dof))
+    mine = compiled_chain.frames(robot, poses)
+    reference = pinocchio_frames(robot, poses)
+    numpy_chain = robot.chain_kinematics().frames(poses)
+    for a, b, c in zip(mine, reference, numpy_chain):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(a, c, rtol=0, atol=1e-13)
+    assert np.abs(mine[2]).max() > 1e-3  # the Jacobians are not all zero
+
+
+@pytest.mark.parametrize("name, kind", [("nico_right_arm", "pose"), ("panda", "pose"),
+                                        ("fetch", "pose"), ("nico_right_arm", "position"),
+                                        ("panda", "position")])
+@pytest.mark.parametrize("iterations", [1, 2, 5])
+def test_the_compiled_lm_equals_solve_poses_step_for_step(name, kind, iterations):
+    """Same poses after 1, 2, 5 iterations. For points the 7-joint arms have free directions
+    (Panda's last joint turns about the line through its hand) that only lambda (diag + 1e-9)
+    damps, where rounding noise steers the step: there the points are compared."""
+    robot = load_robot(name)
+    _, _, points, rotations = _targets(robot, 8, 11)
+    initial = random_initials(robot, (8,), 12)
+    ref = solve_poses(robot, points, rotations, initial, position_only=kind == "position",
+                      max_iterations=iterations, **SAME)
+    lm = SinglePoseLM(robot, kind, max_iterations=iterations, damping=1e-3, abandon=(0, 0.0),
+                      **SAME)
+    out = [lm.solve(points[i], rotations[i], initial[i:i + 1], np.inf) for i in range(8)]
+    poses = np.array([o.pose for o in out])
+    if kind == "position":
+        mine_mm = robot.fk_transform(poses)[:, :3, 3] * 1000.0
+        ref_mm = robot.fk_transform(ref.poses)[:, :3, 3] * 1000.0
+        assert np.abs(mine_mm - ref_mm).max() < 1e-9
+    else:
+        assert np.abs(poses - ref.poses).max() < 1e-9
+    assert np.array_equal([o.iterations for o in out], ref.iterations)
+    assert np.array_equal([o.success for o in out], ref.converged)
+    assert np.abs(poses - initial).max() > 1.0  # it moved
+
+
+def test_restarts_match_solve_poses_random_rows(panda):
+    """solve_poses' restarts draw rows from default_rng(seed); given those rows in order, the
+    compiled loop restarts at the same iterations from the same poses."""
+    _, _, points, rotations = _targets(panda, 3, 21)
+    initial = random_initials(panda, (3,), 22)
+    settings = {"restart_after": 2, "max_step": 30.0, "stop": 1e-3}
+    for i in range(3):
+        ref = solve_poses(panda, points[i:i + 1], rotations[i:i + 1], initial[i:i + 1],
+                          max_iterations=7, restarts=2, seed=5, **settings)
+        rows = np.vstack([initial[i:i + 1], random_initials(panda, (2,), 5)])
+        lm = SinglePoseLM(panda, max_iterations=7, damping=1e-3, abandon=(0, 0.0), **settings)
+        out = lm.solve(points[i], rotations[i], rows, np.inf)
+        assert ref.restarts[0] == 2 and out.attempts == 3
+        assert out.iterations == ref.iterations[0]
+        assert np.abs(out.pose - ref.poses[0]).max() < 1e-9
+
+
+@pytest.mark.parametrize("where", [1, 3])
+def test_restarts_take_the_given_rows_in_order(panda, where):
+    """Random rows with one iteration each cannot succeed; the target's own configuration at
+    row ``where`` does, so exactly ``where + 1`` rows are used."""
+    q, _, points, rotations = _targets(panda, 1, 31)
+    rows = random_initials(panda, (6,), 32)
+    rows[where] = q[0]
+    out = SinglePoseLM(panda, restart_after=1).solve(points[0], rotations[0], rows, np.inf)
+    assert out.success and out.attempts == where + 1
+    assert np.abs(out.pose - q[0]).max() < 1e-6
+
+
+@pytest.mark.parametrize("kind", ["pose", "position"])
+def test_solutions_are_within_tolerance_by_pinocchio(panda, fetch, kind):
+    for robot in (panda, fetch):
+        _, T, points, rotations = _targets(robot, 20, 41)
+        lm = SinglePoseLM(robot, kind)
+        starts = random_initials(robot, (20, 64), 42)
+        out = [lm.solve(points[i], rotations[i], starts[i], np.inf) for i in range(20)]
+        ok = np.array([o.success for o in out])
+        assert ok.mean() >= 0.95
+        poses = np.array([o.pose for o in out])[ok]
+        position_mm, rotation_deg = _errors(robot, poses, T[ok])
+        assert position_mm.max() < 1e-3  # stop x 1 mm
+        solved = [o for o, good in zip(out, ok) if good]
+        np.testing.assert_allclose([o.position_error_mm for o in solved], position_mm, rtol=0,
+                                   atol=1e-9)
+        if kind == "pose":
+            assert rotation_deg.max() < 0.5e-3
+            np.testing.assert_allclose([o.rotation_error_deg for o in solved], rotation_deg,
+                                       rtol=0, atol=1e-7)
+        else:
+            assert np.isnan(out[0].rotation_error_deg)
+        assert robot.within_limits(poses, tol_deg=0.0)
+
+
+def test_a_frame_target_equals_its_point_and_rotation(panda):
+    _, T, points, rotations = _targets(panda, 4, 51)
+    lm = SinglePoseLM(panda)
+    starts = random_initials(panda, (4, 16), 52)
+    for i in range(4):
+        a = lm.solve(T[i], None, starts[i], np.inf)
+        b = lm.solve(points[i], rotations[i], starts[i], np.inf)
+        assert np.array_equal(a.pose, b.pose) and a[1:] == b[1:]
+
+
+def test_a_zero_budget_returns_after_at_most_one_iteration(panda):
+    _, _, points, rotations = _targets(panda, 5, 61)
+    lm = SinglePoseLM(panda)
+    starts = random_initials(panda, (5, 100), 62)
+    for i in range(5):
+        out = lm.solve(points[i], rotations[i], starts[i], 0.0)
+        assert out.iterations <= 1 and out.attempts == 1 and not out.success
+    batch = lm.solve_batch(points, rotations, starts, 0.0, threads=2)
+    assert batch.iterations.max() <= 1 and not batch.success.any()
+
+
+def test_the_deadline_stops_a_search_that_would_run_on(panda):
+    """An unreachable point with 100 000 rows would take over a million iterations; a 20 ms
+    budget ends it long before the rows run out."""
+    lm = SinglePoseLM(panda, restart_after=12)
+    rows = random_initials(panda, (100_000,), 71)
+    out = lm.solve(np.array([5000.0, 0.0, 0.0]), np.eye(3), rows, 0.02)
+    assert not out.success and out.attempts < len(rows)
+    assert out.position_error_mm > 3000.0
+
+
+def test_the_iteration_cap_holds_over_restarts(panda):
+    lm = SinglePoseLM(panda, restart_after=5, max_iterations=23, abandon=(0, 0.0))
+    rows = random_initials(panda, (50,), 81)
+    out = lm.solve(np.array([5000.0, 0.0, 0.0]), np.eye(3), rows, np.inf)
+    assert out.iterations == 23 and out.attempts == 5 and not out.success
+
+
+def test_an_attempt_far_off_after_t_iterations_restarts(panda):
+    far = np.array([5000.0, 0.0, 0.0])  # 5 m: |r| stays above 1 000 tolerances
+    rows = random_initials(panda, (50,), 82)
+    early = SinglePoseLM(panda, restart_after=1000, max_iterations=30, abandon=(3, 1000.0))
+    assert early.solve(far, np.eye(3), rows, np.inf).attempts == 11
+    never = SinglePoseLM(panda, restart_after=1000, max_iterations=30, abandon=(0, 0.0))
+    assert never.solve(far, np.eye(3), rows, np.inf).attempts == 1
+
+
+@pytest.mark.parametrize("kind", ["pose", "position"])
+def test_batched_equals_one_at_a_time(panda, fetch, kind):
+    for robot in (panda, fetch):
+        _, T, points, rotations = _targets(robot, 12, 91)
+        lm = SinglePoseLM(robot, kind, max_iterations=400)
+        starts = random_initials(robot, (12, 8), 92)
+        batch = lm.solve_batch(points, rotations, starts, np.inf, threads=2)
+        frames = lm.solve_batch(T, None, starts, np.inf, threads=1)
+        single = [lm.solve(points[i], rotations[i], starts[i], np.inf) for i in range(12)]
+        assert np.array_equal(batch.poses, np.array([o.pose for o in single]))
+        assert np.array_equal(batch.success, [o.success for o in single])
+        assert np.array_equal(batch.attempts, [o.attempts for o in single])
+        assert np.array_equal(batch.iterations, [o.iterations for o in single])
+        assert np.array_equal(frames.poses, batch.poses)
+        assert batch.success.mean() >= 0.9
+
+
+def test_bad_input_names_the_problem(panda):
+    with pytest.raises(InputError, match="kind"):
+        SinglePoseLM(panda, kind="orientation")
+    with pytest.raises(InputError, match="restart_after"):
+        SinglePoseLM(panda, restart_after=0)
+    with pytest.raises(InputError, match="abandon"):
+        SinglePoseLM(panda, abandon=(2.5, 10.0))
+    lm = SinglePoseLM(panda)
+    starts = random_initials(panda, (2,), 0)
+    with pytest.raises(InputError, match="rotation"):
+        lm.solve(np.zeros(3), None, starts)
+    with pytest.raises(ValueError, match="initials"):
+        lm.solve(np.zeros(3), np.eye(3), np.zeros((2, 6)))
+    with pytest.raises(InputError, match="initials"):
+        lm.solve_batch(np.zeros((3, 3)), np.tile(np.eye(3), (3, 1, 1)), starts)
