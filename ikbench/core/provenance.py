@@ -95,6 +95,11 @@ def library_versions(names: Iterable[str]) -> dict[str, str | None]:
     return {name: _version(name) for name in names}
 
 
+#: The keys :func:`provenance` writes, in order.
+KEYS = ("created_utc", "python", "platform", "cpu", "cpu_count", "torch_threads", "git_revision",
+        "git_commit", "git_clean", "load_average", "command_line", "packages")
+
+
 def provenance(extra: Iterable[str] = ()) -> dict[str, Any]:
     """A JSON-able record of what produced a result.
 

@@ -163,10 +163,39 @@ def leaderboard_markdown(board: pd.DataFrame, record: dict, contract: Contract) 
         lines += [f"## Track `{track}`: {TRACK_TITLES[track]}", "",
                   judged.describe(steps, unit), "",
                   *_table(board[board["track"] == track], record["reference"], judged), ""]
+    lines += construction_notes(record)
     lines += [f"Machine: {record['cpu']} ({record['cpu_count']} cores); libraries: "
               + ", ".join(f"{k} {v}" for k, v in record["libraries"].items())
               + f"; ikbench git {record['git_revision']}.", ""]
     return "\n".join(lines)
+
+
+def construction_notes(record: dict) -> list[str]:
+    """The header's notes on what a row cannot fail and what runs it: the criteria a scheme
+    meets by construction, the methods whose trajectories are one result shown twice, and
+    each method's backend (``runtimes``; older run.json files have none of these)."""
+    schemes = record.get("schemes") or {}
+    track = [m for m, s in schemes.items() if str(s).startswith("track")]
+    walk = [m for m, s in schemes.items() if str(s).startswith("walk")]
+    lines = []
+    if track:
+        lines += [f"By construction: the track scheme ({', '.join(track)}) sets the first pose "
+                  "to the start pose and the last to the touch pose, so its start and touch "
+                  "criteria hold by construction; it is judged on the path between.", ""]
+    if walk:
+        lines += [f"By construction: the walk ({', '.join(walk)}) sets the last pose to the "
+                  "touch pose, so its touch criterion holds by construction.", ""]
+    for group in record.get("identical") or []:
+        lines += [f"Same trajectories: {' and '.join(group)} produced the same poses on every "
+                  "trajectory (within 1e-6 of a pose unit): one result shown "
+                  f"{len(group)} times.", ""]
+    runtimes = record.get("runtimes") or {}
+    if runtimes:
+        lines += ["Backends: " + "; ".join(
+            f"{m} {r.get('backend')}" + (f" ({r['threads']} thread{'s' * (r['threads'] != 1)})"
+                                         if r.get("threads") else "")
+            for m, r in runtimes.items()) + ".", ""]
+    return lines
 
 
 def _obstacles_paragraph(obstacles: dict) -> list[str]:

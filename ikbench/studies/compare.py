@@ -72,6 +72,8 @@ from ikbench.runtime.record import (
 )
 from ikbench.studies.run import trajectory_files, write_run
 
+#: Two methods' trajectories are the same when every pose agrees within this [pose units].
+IDENTICAL_TOLERANCE = 1e-6
 #: The default tolerances (kept under their old name; the contract states them).
 TOLERANCES = DEFAULT_TOLERANCES
 #: Metric columns of results.csv, from ikbench.core.metrics.contract_metrics.
@@ -281,7 +283,7 @@ def run_comparison(spec: CompareSpec) -> CompareResult:
              for name, outcomes in last.items()}
     results = measure(spec, pd.DataFrame(rows), built, files)
     board = leaderboard(results, spec.reference, spec.contract)
-    record = _record(spec, built, rows)
+    record = _record(spec, built, rows, last)
     if spec.output is None:
         return CompareResult(results, board, record.to_dict(), spec.contract)
     root = spec.output / "compare"
@@ -333,9 +335,11 @@ def _solve_methods(spec: CompareSpec, log: Progress
     return rows, built, last
 
 
-def _record(spec: CompareSpec, built: dict[str, Method], rows: list[dict]) -> RunRecord:
+def _record(spec: CompareSpec, built: dict[str, Method], rows: list[dict],
+            last: dict[str, list[Outcome]]) -> RunRecord:
     """What run.json records: the methods and settings, the robot, targets and contract,
-    each method's scheme, the libraries' versions, the provenance and any obstacles."""
+    each method's scheme and backend, the methods whose trajectories are the same, the
+    libraries' versions, the provenance and any obstacles."""
     targets, contract = spec.targets, spec.contract
     obstacles = ({"source": targets.obstacles_source,
                   "items": [o.to_dict() for o in targets.obstacles]}
@@ -347,8 +351,36 @@ def _record(spec: CompareSpec, built: dict[str, Method], rows: list[dict]) -> Ru
         study={"reference": spec.reference, "repeat": spec.repeat, "warmup": spec.warmup,
                "contract": contract.to_dict(), "tolerances": dict(contract.tolerances),
                "schemes": {name: solver.scheme_label() for name, solver in built.items()},
+               "runtimes": {name: solver.runtime() for name, solver in built.items()},
+               "identical": identical_methods(last),
                "libraries": library_versions(sorted({r["library"] for r in rows
                                                      if r["library"]}))})
+
+
+def identical_methods(last: dict[str, list[Outcome]], tolerance: float = IDENTICAL_TOLERANCE
+                      ) -> list[list[str]]:
+    """Groups of two or more methods whose trajectories are the same on every task (every pose
+    within ``tolerance`` [pose units]): they ran the same scheme on the same solver, so their
+    rows are one result shown twice (pink and mink: the shared tracking scheme over the same
+    QP)."""
+    def poses(outcomes: list[Outcome]) -> list[np.ndarray] | None:
+        if any(o.solution is None for o in outcomes):
+            return None
+        return [np.asarray(o.solution.poses_deg) for o in outcomes]  # type: ignore[union-attr]
+
+    solved = {name: p for name, outcomes in last.items() if (p := poses(outcomes)) is not None}
+    groups: list[list[str]] = []
+    for name, mine in solved.items():
+        for group in groups:
+            theirs = solved[group[0]]
+            if len(mine) == len(theirs) and all(
+                    a.shape == b.shape and np.max(np.abs(a - b)) <= tolerance
+                    for a, b in zip(mine, theirs)):
+                group.append(name)
+                break
+        else:
+            groups.append([name])
+    return [g for g in groups if len(g) > 1]
 
 
 def _write_tables(stage: RunStage, results: pd.DataFrame, board: pd.DataFrame,

@@ -386,7 +386,7 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
             task_default_weights=tasks[0].default_weights, duration_s=duration_s,
             interrupted=bool(record.get("interrupted")),
             settings=jsonable({"settings": solver.settings_for(tasks[0])}),
-            total_wall_time_s=record.get("total_wall_time_s"),
+            runtime=solver.runtime(), total_wall_time_s=record.get("total_wall_time_s"),
             files=sorted({*stage.files, *RUN_FILES, *(file for _, file, _ in figures)}),
             provenance=provenance(extra=(solver.library,)), problem=record.get("problem"),
             problem_name=record.get("problem_name"), obstacles=obstacles_entry(tasks))

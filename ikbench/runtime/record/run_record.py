@@ -21,6 +21,7 @@ import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.core.obstacles import Obstacle, parse_obstacles
+from ikbench.core.provenance import KEYS as provenance_keys
 from ikbench.core.robot import Robot, load_robot, shipped_robots
 from ikbench.core.targets import Targets, load_targets
 
@@ -31,19 +32,20 @@ if TYPE_CHECKING:
 PROVENANCE = "*provenance"
 #: The keys :func:`ikbench.core.provenance.provenance` writes (read back into
 #: :attr:`RunRecord.provenance`).
-PROVENANCE_KEYS = ("created_utc", "python", "platform", "cpu", "cpu_count", "torch_threads",
-                   "git_revision", "packages")
+PROVENANCE_KEYS = provenance_keys
 #: Each kind's run.json keys, in the order written; a key ending in ``?`` is left out when
 #: its value is None. A key that is no field of :class:`RunRecord` lives in its ``study``.
 LAYOUTS: dict[str, tuple[str, ...]] = {
     # one method's run folder: ikbench run, letters, compare's per-method folders
     "run": ("method", "name", "library", "robot", "targets", "trajectories", "failed", "steps",
             "shape", "direction", "size_mm", "start_pose_deg", "task_default_weights",
-            "duration_s", "interrupted", "settings", "total_wall_time_s", "files", PROVENANCE,
+            "duration_s", "interrupted", "settings", "runtime?", "total_wall_time_s", "files",
+            PROVENANCE,
             "problem?", "problem_name?", "obstacles?"),
     # ikbench compare's folder
     "compare": ("methods", "reference", "repeat", "warmup", "robot", "targets", "trajectories",
-                "steps", "contract", "tolerances", "schemes", "libraries", PROVENANCE,
+                "steps", "contract", "tolerances", "schemes", "runtimes?", "identical?",
+                "libraries", PROVENANCE,
                 "obstacles?", "total_wall_time_s?"),
     # ikbench ablate's folder
     "ablation": ("method", "robot", "targets", "trajectories", "steps", "figure_trajectory",
@@ -70,6 +72,9 @@ class RunRecord:
         methods: the methods a study ran (compare, cartesian).
         settings: the method's settings as written (``{"settings": {...}}``; see
             :meth:`method_settings`).
+        runtime: what ran the solves (:meth:`ikbench.methods.base.Method.runtime`: the
+            backend, numba / numpy / torch or the library, and its threads); None in older
+            files.
         robot: the robot as :func:`robot_entry` describes it (None: written before robots
             were recorded, NICO's right arm).
         targets: the task source: a targets file, ``paper``, a problem's robot targets.
@@ -90,7 +95,8 @@ class RunRecord:
         files: the files the run wrote (relative names), None for older runs.
         provenance: machine, versions, git revision, creation time.
         study: a study's own keys (compare: reference, repeat, warmup, contract, tolerances,
-            schemes, libraries; ablation: figure_trajectory, variants; ...) and keys this
+            schemes, runtimes, identical (groups of methods whose trajectories are equal),
+            libraries; ablation: figure_trajectory, variants; ...) and keys this
             version does not know.
         absent: the layout's keys (those always written) that the file read lacked: written
             before they were recorded, their fields hold defaults. Not written.
@@ -103,6 +109,7 @@ class RunRecord:
     library: str | None = None
     methods: list[str] | None = None
     settings: dict[str, Any] | None = None
+    runtime: dict[str, Any] | None = None
     robot: dict[str, Any] | None = None
     targets: str | None = None
     trajectories: list[str] | None = None
@@ -166,10 +173,12 @@ class RunRecord:
         kind = _kind_of(data)
         absent = frozenset(k for k in LAYOUTS[kind]
                            if k != PROVENANCE and not k.endswith("?")) - set(data)
-        return cls(kind=kind, **typed, absent=absent,
-                   provenance={k: data[k] for k in PROVENANCE_KEYS if k in data},
+        # the ik layout keeps provenance as one entry: its load_average is the study's own
+        flat = PROVENANCE in LAYOUTS[kind]
+        provenance = {k: data[k] for k in PROVENANCE_KEYS if k in data} if flat else {}
+        return cls(kind=kind, **typed, absent=absent, provenance=provenance,
                    study={k: v for k, v in data.items()
-                          if k not in typed and k not in PROVENANCE_KEYS})
+                          if k not in typed and k not in provenance})
 
     def method_settings(self) -> dict[str, Any]:
         """The method's settings (``{"settings": {...}}`` unwrapped, or flat), or {}."""
