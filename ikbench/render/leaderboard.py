@@ -248,6 +248,9 @@ def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Con
 
 #: Markers around the table in README.md that :func:`readme_table` writes (tested equal).
 README_MARKERS = ("<!-- compare-table:start -->", "<!-- compare-table:end -->")
+#: Markers around the Panda lines' table in docs/comparison.md (from
+#: ``results/panda/compare/leaderboard.csv``).
+PANDA_MARKERS = ("<!-- compare-panda-table:start -->", "<!-- compare-panda-table:end -->")
 
 
 def readme_table(board: pd.DataFrame, reference: str = "ours-lm") -> str:
@@ -276,17 +279,20 @@ def readme_table(board: pd.DataFrame, reference: str = "ours-lm") -> str:
     return "\n".join(lines)
 
 
-def write_readme_table(readme: str | Path, leaderboard_csv: str | Path) -> None:
-    """Replace the table between :data:`README_MARKERS` in ``readme`` by :func:`readme_table`
-    of ``leaderboard_csv`` (``python -c "from ikbench.render.leaderboard import
-    write_readme_table as w; w('README.md', 'results/compare/leaderboard.csv')"``)."""
+def write_readme_table(readme: str | Path, leaderboard_csv: str | Path,
+                       markers: tuple[str, str] = README_MARKERS) -> None:
+    """Replace the table between ``markers`` (default :data:`README_MARKERS`) in ``readme``
+    by :func:`readme_table` of ``leaderboard_csv`` (``python -c "from
+    ikbench.render.leaderboard import write_readme_table as w; w('README.md',
+    'results/compare/leaderboard.csv')"``; docs/comparison.md's Panda table: ``markers=``
+    :data:`PANDA_MARKERS`)."""
     from pathlib import Path
 
     from ikbench.core.io import atomic_write_text
 
     path = Path(readme)
     text = path.read_text(encoding="utf-8")
-    start, end = README_MARKERS
+    start, end = markers
     head, rest = text.split(start, 1)
     _, tail = rest.split(end, 1)
     table = readme_table(pd.read_csv(leaderboard_csv))
