@@ -378,7 +378,8 @@ def solve_point(residual: Residual | WeightedResidual, q0_rad: npt.ArrayLike,
             return PointResult(q, iterations, norm, True)
         if iterations >= settings.max_ik_iterations:
             return PointResult(q, iterations, norm, False)
-        posture = settings.posture_gain * (posture_rad - q) if use_posture else None
+        posture = (settings.posture_gain * (posture_rad - q)
+                   if use_posture and posture_rad is not None else None)
         dq = dls_step(residual.jacobian(q), e, settings.damping, q, lower, upper, posture)
         q_next = np.clip(q + settings.ik_step * dq, lower, upper)
         iterations += 1

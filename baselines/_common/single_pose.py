@@ -18,75 +18,28 @@ timeout; ours-lm restarts from seeded random poses, :mod:`ikbench.methods.ours_l
 
 from __future__ import annotations
 
-import importlib.util
 import warnings
-from typing import TYPE_CHECKING, ClassVar, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
-from ikbench.baselines._common.chain import chain_of
+from ikbench.baselines._common.pose_solver import (
+    LIBRARY_TOLERANCE,
+    MAX_STEPS,
+    PoseOut,
+    PoseSolver,
+    converge,
+)
+from ikbench.baselines.libraries.placo_ik import PlacoSolver
 
-if TYPE_CHECKING:
-    from ikbench.core.robot import Robot
+__all__ = ["LIBRARY_TOLERANCE", "MAX_STEPS", "PoseOut", "PoseSolver", "SOLVERS",
+           "available_solvers"]
 
-#: The libraries' own stopping tolerance [m, rad] (far below the study's mm and degrees).
-LIBRARY_TOLERANCE = 1e-6
-#: Iterations (QP steps, DLS steps) per solve at most.
-MAX_STEPS = 100
 #: TRAC-IK's defaults (trac_ik_lib: timeout 5 ms, eps 1e-5, SolveType Speed).
 TRACIK_TIMEOUT_S, TRACIK_EPS, TRACIK_SOLVE_TYPE = 0.005, 1e-5, "Speed"
 #: Drake: the orientation constraint's bound [rad] (0 would be degenerate) and SNOPT's
 #: feasibility tolerance.
 DRAKE_ANGLE_RAD, DRAKE_FEASIBILITY = 1e-6, 1e-9
-
-
-class PoseOut(NamedTuple):
-    """One library answer: q (dof,) [rad, m], iterations (what they count:
-    ``iterations_are``), ok (the library's own success claim; None when it makes none)."""
-
-    q: np.ndarray
-    iterations: int
-    ok: bool | None
-
-
-class PoseSolver:
-    """One library's single-pose IK (see the module docstring).
-
-    Class attributes:
-        name: the method's name (as in ``ikbench methods``).
-        library: PyPI distribution whose version is recorded.
-        modules: modules that must be importable.
-        kinds: the target kinds it takes (``pose``, ``position``).
-        deterministic: same input, same answer.
-        batched: solves all targets in one call (:meth:`solve_batch`) instead of one at a time.
-        iterations_are: what ``iterations`` counts.
-    """
-
-    name: ClassVar[str] = ""
-    library: ClassVar[str] = ""
-    modules: ClassVar[tuple[str, ...]] = ()
-    kinds: ClassVar[tuple[str, ...]] = ("pose", "position")
-    deterministic: ClassVar[bool] = True
-    batched: ClassVar[bool] = False
-    iterations_are: ClassVar[str] = "iterations"
-
-    def __init__(self, robot: Robot, kind: str = "pose") -> None:
-        self.robot = robot
-        self.kind = kind
-        self.chain = chain_of(robot)
-
-    @classmethod
-    def available(cls) -> bool:
-        """True when every module it needs can be imported (nothing is imported here)."""
-        return all(importlib.util.find_spec(m) is not None for m in cls.modules)
-
-    def prepare(self) -> None:
-        """Untimed set-up (models, compilation)."""
-
-    def solve(self, q_init: np.ndarray, point_m: np.ndarray,
-              rotation: np.ndarray) -> PoseOut:  # pragma: no cover - interface
-        raise NotImplementedError
 
 
 class DLSSolver(PoseSolver):
@@ -109,17 +62,6 @@ class DLSSolver(PoseSolver):
         residual = Residual(self.fk, self.data, mode, point_m, rotation)
         out = solve_point(residual, q_init, self.settings, self.chain.lower, self.chain.upper)
         return PoseOut(out.q_rad, out.iterations, out.converged)
-
-
-def _converge(measure, step) -> tuple[int, bool]:
-    """QP steps until both errors of ``measure()`` are below the library tolerance."""
-    for steps in range(MAX_STEPS + 1):
-        position, angle = measure()
-        if position < LIBRARY_TOLERANCE and angle < LIBRARY_TOLERANCE:
-            return steps, True
-        if steps < MAX_STEPS:
-            step()
-    return MAX_STEPS, False
 
 
 def _angle(a, b) -> float:
@@ -167,7 +109,7 @@ class PinkSolver(PoseSolver):
                               limits=limits)
             configuration.update(np.clip(configuration.integrate(v, 1.0), lower, upper))
 
-        steps, ok = _converge(measure, step)
+        steps, ok = converge(measure, step)
         return PoseOut(configuration.q.copy(), steps, ok)
 
 
@@ -212,7 +154,7 @@ class MinkSolver(PoseSolver):
             q[m.qpos] = self.chain.clip(q[m.qpos])
             configuration.update(q)
 
-        steps, ok = _converge(measure, step)
+        steps, ok = converge(measure, step)
         return PoseOut(configuration.q[m.qpos].copy(), steps, ok)
 
 
@@ -398,7 +340,7 @@ class OursLMSolver(PoseSolver):
 #: Every single-pose solver, in the leaderboard's order.
 SOLVERS: dict[str, type[PoseSolver]] = {cls.name: cls for cls in (
     OursLMSolver, TracIKSolver, DLSSolver, PinkSolver, MinkSolver, DrakeSolver, PyrokiSolver,
-    IkpySolver)}
+    IkpySolver, PlacoSolver)}
 
 
 def available_solvers() -> dict[str, type[PoseSolver]]:

@@ -69,6 +69,8 @@ BUILTIN = (
           ("pydrake",)),
     Entry("pyroki", "ikbench.baselines.libraries.pyroki_trajopt:PyrokiTrajopt",
           ("pyroki", "jax", "jaxls")),
+    Entry("rangedik", "ikbench.baselines.libraries.rangedik:RangedIK", ("relaxed_ik_lib",)),
+    Entry("placo", "ikbench.baselines.libraries.placo_ik:Placo", ("placo",)),
 )
 
 

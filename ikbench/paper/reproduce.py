@@ -90,7 +90,9 @@ OTHER_COMMANDS = {"benchmark": "ikbench bench --output results",
                   "cartesian": "ikbench cartesian --output results (speed.csv: python "
                                "benchmarks/cartesian_speed.py)",
                   "ours_speed": "python benchmarks/ours_speed.py",
-                  "scale": "ikbench bench --device cpu --output results/scale"}
+                  "scale": "ikbench bench --device cpu --output results/scale",
+                  "panda": "ikbench compare --robot panda --targets "
+                           "urdf/panda_lines.targets.json --methods all --output results/panda"}
 
 
 class ReproduceError(IkbenchError):
