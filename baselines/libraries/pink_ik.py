@@ -107,6 +107,7 @@ from ikbench.baselines._common.method import ChainResult, LibraryMethod
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
+from ikbench.core.kinematics.pinocchio_fk import link_frame_id
 from ikbench.methods.base import check_choice, check_positive, option
 
 if TYPE_CHECKING:
@@ -202,7 +203,7 @@ def pink_model(robot: Robot, chain: Chain) -> tuple[Any, np.ndarray]:
     model.upperPositionLimit = np.where(np.isfinite(chain.upper), chain.upper,
                                         model.upperPositionLimit)
     R_EP = frame_with_z_on(chain.pointing_axis)
-    end = model.frames[model.getFrameId(chain.end_frame)]
+    end = model.frames[link_frame_id(model, chain.end_frame)]
     model.addFrame(pin.Frame(POINTING_FRAME, end.parentJoint,
                              end.placement * pin.SE3(R_EP, np.zeros(3)), pin.FrameType.OP_FRAME))
     _MODELS[robot] = (model, R_EP)
@@ -219,7 +220,7 @@ class Avoidance:
         from pink.barriers import SelfCollisionBarrier
 
         geometry = pin.GeometryModel()
-        root = model.frames[model.getFrameId(root_link)].placement
+        root = model.frames[link_frame_id(model, root_link)].placement
         index = {}
         for shape in scene.links:
             fid = model.getFrameId(shape.link)
