@@ -64,6 +64,7 @@ from ikbench.baselines._common.exact_pose import (
 )
 from ikbench.baselines._common.geometry import quaternion_xyzw, rotation_angle_rad
 from ikbench.baselines._common.method import ChainResult, LibraryMethod
+from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES
 from ikbench.methods.base import check_choice, check_positive, option
 
@@ -202,3 +203,45 @@ class TracIK(LibraryMethod):
     def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         return solve_chain(chain, goals, self.settings)
 
+
+#: Single-pose IK: TRAC-IK's eps and SolveType (trac_ik_lib's defaults; its default timeout,
+#: 5 ms, is the protocol's default budget), and its timeout when the budget is unbounded.
+POSE_EPS, POSE_SOLVE_TYPE, POSE_UNBOUNDED_TIMEOUT_S = 1e-5, "Speed", 1.0
+
+
+class TracIKSolver(PoseSolver):
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`):
+    ``ik(solver, seed, x, y, z, qx, qy, qz, qw)`` from the first initial configuration, with
+    the budget as TRAC-IK's timeout (its own random restarts within it: it restarts itself,
+    from its own draws; the sequence's further rows are not used), eps 1e-5, Speed. Poses
+    only: the binding cannot free the rotation (no tolerance twist)."""
+
+    name, library, modules = "trac-ik", "pytracik", ("pytracik",)
+    kinds = ("pose",)
+    deterministic = False
+    restarts_itself = True
+    one_descent = False
+    iterations_are = "pytracik.ik calls (TRAC-IK reports no iteration count)"
+
+    def prepare(self) -> None:
+        timeout = self.budget_s if np.isfinite(self.budget_s) else POSE_UNBOUNDED_TIMEOUT_S
+        self.solver = tracik_solver(self.chain, TracIKSettings(
+            timeout=timeout, eps=POSE_EPS, solve_type=POSE_SOLVE_TYPE))
+
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
+        import pytracik
+
+        x, y, z = (float(v) for v in point_m)
+        out = pytracik.ik(self.solver, np.ascontiguousarray(q_init, dtype=float), x, y, z,
+                          *quaternion_xyzw(rotation))
+        ok = out[0] >= 0
+        return PoseOut(np.asarray(out[1:], dtype=float) if ok else np.asarray(q_init), 1, ok)
+
+    def solve_within(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
+                     budget_s: float) -> PoseOut:
+        """The first row, TRAC-IK's timeout the budget (set in :meth:`prepare`: ``budget_s``
+        must be the solver's)."""
+        if budget_s != self.budget_s:
+            raise ValueError(f"TRAC-IK's timeout is the budget it was built with, "
+                             f"{self.budget_s} s, not {budget_s} s")
+        return self.solve(initials[0], point_m, rotation)
