@@ -144,14 +144,14 @@ def protocol(result: StudyResult) -> str:
     """The protocol paragraph of the leaderboard: budget, initial configurations, restarts,
     times."""
     s = result.settings
-    budget = ("no wall-clock budget" if not np.isfinite(s.budget_ms)
-              else f"**{s.budget_ms:g} ms** of wall-clock time per target")
+    budget = ("no wall-clock budget (`--budget-ms inf`)" if not np.isfinite(s.budget_ms)
+              else f"a budget of **{s.budget_ms:g} ms** of wall-clock time per target")
     first = ("drawn uniformly within the limits, independent of the target" if s.init ==
              "random" else f"the target's configuration moved by up to {s.perturb_deg:g} deg "
              "per joint")
     itself = [m for m, f in result.methods.items() if f["restarts_itself"]]
     restarted = [m for m, f in result.methods.items() if not f["restarts_itself"]]
-    lines = [f"**Protocol**, the same for every method: a budget of {budget}; **initial "
+    lines = [f"**Protocol**, the same for every method: {budget}; **initial "
              f"configurations**: a seeded sequence per target, the same for every method "
              f"(row 0: `--init {s.init}`, {first}; rows 1, 2, ...: drawn uniformly within the "
              f"limits by target k's child of seed {s.seed}, `SeedSequence({s.seed}).spawn`); "
