@@ -79,6 +79,12 @@ from typing import TYPE_CHECKING, Any, NamedTuple, cast
 import numpy as np
 import numpy.typing as npt
 
+from ikbench.baselines._common.single_pose import (
+    LIBRARY_TOLERANCE,
+    MAX_STEPS,
+    PoseOut,
+    PoseSolver,
+)
 from ikbench.baselines._common.track import (
     SCHEME_HELP,
     SCHEMES,
@@ -703,3 +709,23 @@ class SequentialIKWalk(SequentialIK):
                    "authors' walk back from the touch pose (the start pose is free), 6-D frame "
                    "targets")
     Settings = WalkDLSSettings
+
+
+class DLSSolver(PoseSolver):
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`): the
+    damped least squares of :func:`solve_point` on Pinocchio, frame mode (position only for
+    points), until the error is below the library tolerance or 100 steps."""
+
+    name, library, modules = "sequential-ik", "pin", ("pinocchio",)
+    iterations_are = "DLS steps"
+
+    def prepare(self) -> None:
+        self.fk = self.robot.pinocchio_fk()
+        self.data = self.fk.model.createData()
+        self.settings = DLSSettings(tolerance=LIBRARY_TOLERANCE, max_ik_iterations=MAX_STEPS)
+
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
+        mode = "frame" if self.kind == "pose" else "position"
+        residual = Residual(self.fk, self.data, mode, point_m, rotation)
+        out = solve_point(residual, q_init, self.settings, self.chain.lower, self.chain.upper)
+        return PoseOut(out.q_rad, out.iterations, out.converged)

@@ -2,7 +2,9 @@
 
 Plant: ``MultibodyPlant(time_step=0)``, ``Parser(plant).AddModelsFromString(urdf, "urdf")``
 on the chain's URDF text, the URDF's root link welded to the world (``plant.WeldFrames``;
-Drake would give it a floating joint otherwise), ``plant.Finalize()``. Goals are expressed in
+Drake would give it a floating joint otherwise), ``plant.Finalize()``. Drake warns once per
+joint whose ``<dynamics>`` has a friction (it ignores joint friction, which kinematics do not
+use): those warnings become one line (:func:`add_urdf`). Goals are expressed in
 ``plant.GetFrameByName(base_link)``. The chain's joints are the plant's positions (the other
 joints are fixed in the text), mapped by ``joint.position_start()``.
 
@@ -28,6 +30,7 @@ plant context of the diagram's context.
 
 from __future__ import annotations
 
+import logging
 import weakref
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -77,6 +80,38 @@ class DrakeChain:
         return q
 
 
+class _Friction(logging.Filter):
+    """Holds back Drake's per-joint "non-zero value for the 'friction' attribute" warnings,
+    counting them."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.count = 0
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if "'friction' attribute" in record.getMessage():
+            self.count += 1
+            return False
+        return True
+
+
+def add_urdf(plant: Any, urdf_text: str) -> None:
+    """``Parser(plant).AddModelsFromString(urdf_text, "urdf")``, Drake's per-joint friction
+    warnings summarised in one line of the ``drake`` logger."""
+    from pydrake.multibody.parsing import Parser
+
+    logger = logging.getLogger("drake")
+    friction = _Friction()
+    logger.addFilter(friction)
+    try:
+        Parser(plant).AddModelsFromString(urdf_text, "urdf")
+    finally:
+        logger.removeFilter(friction)
+    if friction.count:
+        logger.warning(f"{friction.count} joint(s) of the URDF have a friction in <dynamics>; "
+                       "Drake's MultibodyPlant ignores joint friction (kinematics unaffected)")
+
+
 def urdf_root(urdf_text: str) -> str:
     """The URDF's root link (the one that is no joint's child)."""
     root = ET.fromstring(urdf_text)
@@ -89,11 +124,10 @@ def drake_chain(chain: Chain) -> DrakeChain:
     """The chain's :class:`DrakeChain` (cached per chain)."""
     if chain in _PLANTS:
         return _PLANTS[chain]
-    from pydrake.multibody.parsing import Parser
     from pydrake.multibody.plant import MultibodyPlant
 
     plant = MultibodyPlant(time_step=0.0)
-    Parser(plant).AddModelsFromString(chain.urdf_text, "urdf")
+    add_urdf(plant, chain.urdf_text)
     root = urdf_root(chain.urdf_text)
     if root != "world":  # a URDF link named world is Drake's world body already (UR, xArm)
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(root))
@@ -125,13 +159,12 @@ def drake_scene_chain(chain: Chain, scene: Scene) -> DrakeChain:
         Sphere,
     )
     from pydrake.math import RigidTransform, RotationMatrix
-    from pydrake.multibody.parsing import Parser
     from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, CoulombFriction
     from pydrake.systems.framework import DiagramBuilder
 
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, 0.0)
-    Parser(plant).AddModelsFromString(chain.urdf_text, "urdf")
+    add_urdf(plant, chain.urdf_text)
     root = urdf_root(chain.urdf_text)
     if root != "world":
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(root))

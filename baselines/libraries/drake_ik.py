@@ -78,6 +78,7 @@ from ikbench.baselines._common.drake import (
     solve,
 )
 from ikbench.baselines._common.method import ChainResult
+from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, speed_box, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
@@ -305,3 +306,41 @@ class DrakeIK(AvoidsObstacles, DrakeMethod):
         result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
                                       self.settings.clearance))
         return result
+
+
+#: Single-pose IK: the orientation constraint's bound [rad] (0 would be degenerate) and
+#: SNOPT's feasibility tolerance.
+POSE_ANGLE_RAD, POSE_FEASIBILITY = 1e-6, 1e-9
+
+
+class DrakeSolver(PoseSolver):
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`):
+    ``InverseKinematics`` with position and orientation constraints (position only for
+    points), the limits as a bounding box, a quadratic cost to the initial pose; SNOPT."""
+
+    name, library, modules = "drake-ik", "drake", ("pydrake",)
+    iterations_are = "solves (Drake reports no iteration count)"
+
+    def prepare(self) -> None:
+        self.drake = drake_chain(self.chain)
+        self.lower = self.drake.positions(self.chain.lower)
+        self.upper = self.drake.positions(self.chain.upper)
+
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
+        from pydrake.math import RotationMatrix
+        from pydrake.multibody.inverse_kinematics import InverseKinematics
+
+        d = self.drake
+        ik = InverseKinematics(d.plant, with_joint_limits=False)
+        q, prog = ik.q(), ik.get_mutable_prog()
+        point = np.asarray(point_m, dtype=float)
+        ik.AddPositionConstraint(d.end_frame, np.zeros(3), d.base_frame, point, point)
+        if self.kind == "pose":
+            ik.AddOrientationConstraint(d.base_frame, RotationMatrix(rotation), d.end_frame,
+                                        RotationMatrix(), POSE_ANGLE_RAD)
+        prog.AddBoundingBoxConstraint(self.lower, self.upper, q)
+        warm = np.clip(d.positions(q_init), self.lower, self.upper)
+        prog.AddQuadraticErrorCost(np.eye(len(warm)), warm, q)
+        set_tolerances(prog, POSE_FEASIBILITY, 1e-6)
+        result = solve(prog, None, warm)
+        return PoseOut(result.GetSolution(q)[d.index], 1, bool(result.is_success()))

@@ -66,6 +66,7 @@ import numpy.typing as npt
 from ikbench.baselines._common.chain import Chain, Goals, element_path
 from ikbench.baselines._common.geometry import angle_between_rad, rotation_angle_rad
 from ikbench.baselines._common.method import ChainResult, LibraryMethod
+from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, speed_box, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
@@ -315,3 +316,30 @@ class IkpyWalk(IkpyIK):
     description = ("library: ikpy inverse_kinematics_frame per point, the authors' walk back "
                    "from the touch pose (the start pose is free), position only (their call)")
     Settings = IkpyWalkSettings
+
+
+class IkpySolver(PoseSolver):
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`):
+    ``Chain.inverse_kinematics_frame`` (scipy least squares within the bounds),
+    ``orientation_mode="all"`` for poses, None (position only) for points."""
+
+    name, library, modules = "ikpy", "ikpy", ("ikpy",)
+    iterations_are = "ikpy calls (ikpy reports no iteration count)"
+    #: A start on a bound is moved this far inside (scipy's trf wants strictly feasible).
+    INSIDE = 1e-3
+
+    def prepare(self) -> None:
+        self.ik_chain, self.active = ikpy_chain(self.chain)
+
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
+        frame = np.eye(4)
+        frame[:3, :3], frame[:3, 3] = rotation, point_m
+        start = np.zeros(len(self.ik_chain.links))
+        start[self.active] = np.clip(q_init, self.chain.lower + self.INSIDE,
+                                     self.chain.upper - self.INSIDE)
+        kwargs = {"orientation_mode": "all"} if self.kind == "pose" else {}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            full = np.asarray(self.ik_chain.inverse_kinematics_frame(
+                target=frame, initial_position=start, **kwargs), dtype=float)
+        return PoseOut(full[self.active], 1, None)

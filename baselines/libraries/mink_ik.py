@@ -88,8 +88,9 @@ from ikbench.baselines._common.diffik import (
     track_orientation_costs,
     track_target_rotation,
 )
-from ikbench.baselines._common.geometry import frame_with_z_on
+from ikbench.baselines._common.geometry import frame_with_z_on, rotation_angle_rad
 from ikbench.baselines._common.method import ChainResult, LibraryMethod
+from ikbench.baselines._common.single_pose import PoseOut, PoseSolver, steps_to_tolerance
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.baselines.libraries.pink_ik import check_qp_solver
@@ -516,3 +517,46 @@ class MinkIK(AvoidsObstacles, LibraryMethod):
         result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
                                       self.settings.clearance))
         return result
+
+
+class MinkSolver(PoseSolver):
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`): a
+    FrameTask on the end site, ConfigurationLimit, daqp; dt 1 s (full steps) until both
+    errors are below the library tolerance or 100 QP steps."""
+
+    name, library, modules = "mink", "mink", ("mink", "mujoco", "qpsolvers", "daqp")
+    iterations_are = "QP solves (mink.solve_ik calls)"
+
+    def prepare(self) -> None:
+        self.m = mink_model(self.chain)
+
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
+        import mink
+
+        m, pose = self.m, self.kind == "pose"
+        site = m.model.site(SITE).id
+        goal_p = m.R_wb @ np.asarray(point_m, dtype=float) + m.p_wb  # MuJoCo's world frame
+        goal_R = m.R_wb @ rotation @ m.R_EP
+        task = mink.FrameTask(SITE, "site", position_cost=1.0,
+                              orientation_cost=1.0 if pose else 0.0)
+        task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(goal_R),
+                                                               goal_p))
+        limits = [mink.ConfigurationLimit(m.model, gain=0.95)]
+        q0 = np.zeros(m.model.nq)
+        q0[m.qpos] = self.chain.clip(q_init)
+        configuration = mink.Configuration(m.model, q0)
+
+        def measure() -> tuple[float, float]:
+            data = configuration.data
+            R = data.site_xmat[site].reshape(3, 3)
+            return (float(np.linalg.norm(data.site_xpos[site] - goal_p)),
+                    rotation_angle_rad(R, goal_R) if pose else 0.0)
+
+        def step() -> None:
+            v = mink.solve_ik(configuration, [task], 1.0, "daqp", damping=1e-6, limits=limits)
+            q = configuration.integrate(v, 1.0)
+            q[m.qpos] = self.chain.clip(q[m.qpos])
+            configuration.update(q)
+
+        steps, ok = steps_to_tolerance(measure, step)
+        return PoseOut(configuration.q[m.qpos].copy(), steps, ok)

@@ -102,11 +102,13 @@ from ikbench.baselines._common.diffik import (
     track_orientation_costs,
     track_target_rotation,
 )
-from ikbench.baselines._common.geometry import frame_with_z_on
+from ikbench.baselines._common.geometry import frame_with_z_on, rotation_angle_rad
 from ikbench.baselines._common.method import ChainResult, LibraryMethod
+from ikbench.baselines._common.single_pose import PoseOut, PoseSolver, steps_to_tolerance
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
+from ikbench.core.kinematics.pinocchio_fk import link_frame_id
 from ikbench.methods.base import check_choice, check_positive, option
 
 if TYPE_CHECKING:
@@ -202,7 +204,7 @@ def pink_model(robot: Robot, chain: Chain) -> tuple[Any, np.ndarray]:
     model.upperPositionLimit = np.where(np.isfinite(chain.upper), chain.upper,
                                         model.upperPositionLimit)
     R_EP = frame_with_z_on(chain.pointing_axis)
-    end = model.frames[model.getFrameId(chain.end_frame)]
+    end = model.frames[link_frame_id(model, chain.end_frame)]
     model.addFrame(pin.Frame(POINTING_FRAME, end.parentJoint,
                              end.placement * pin.SE3(R_EP, np.zeros(3)), pin.FrameType.OP_FRAME))
     _MODELS[robot] = (model, R_EP)
@@ -219,7 +221,7 @@ class Avoidance:
         from pink.barriers import SelfCollisionBarrier
 
         geometry = pin.GeometryModel()
-        root = model.frames[model.getFrameId(root_link)].placement
+        root = model.frames[link_frame_id(model, root_link)].placement
         index = {}
         for shape in scene.links:
             fid = model.getFrameId(shape.link)
@@ -445,3 +447,44 @@ class PinkIK(AvoidsObstacles, LibraryMethod):
         result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
                                       self.settings.clearance))
         return result
+
+
+class PinkSolver(PoseSolver):
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`): a
+    FrameTask on the end frame, ConfigurationLimit, daqp; dt 1 s (full steps) until both
+    errors are below the library tolerance or 100 QP steps."""
+
+    name, library, modules = "pink", "pin-pink", ("pink", "qpsolvers", "daqp")
+    iterations_are = "QP solves (pink.solve_ik calls)"
+
+    def prepare(self) -> None:
+        self.model, self.R_EP = pink_model(self.robot, self.chain)
+        self.data = self.model.createData()
+
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
+        import pink
+        import pinocchio as pin
+        from pink.limits import ConfigurationLimit
+        from pink.tasks import FrameTask
+
+        pose = self.kind == "pose"
+        task = FrameTask(POINTING_FRAME, position_cost=1.0, orientation_cost=1.0 if pose
+                         else 0.0)
+        goal_R = rotation @ self.R_EP
+        task.set_target(pin.SE3(goal_R, np.asarray(point_m, dtype=float)))
+        limits = [ConfigurationLimit(self.model, config_limit_gain=0.5)]
+        lower, upper = self.model.lowerPositionLimit, self.model.upperPositionLimit
+        configuration = pink.Configuration(self.model, self.data, np.clip(q_init, lower, upper))
+
+        def measure() -> tuple[float, float]:
+            T = configuration.get_transform_frame_to_world(POINTING_FRAME)
+            return (float(np.linalg.norm(T.translation - point_m)),
+                    rotation_angle_rad(T.rotation, goal_R) if pose else 0.0)
+
+        def step() -> None:
+            v = pink.solve_ik(configuration, [task], 1.0, solver="daqp", damping=1e-6,
+                              limits=limits)
+            configuration.update(np.clip(configuration.integrate(v, 1.0), lower, upper))
+
+        steps, ok = steps_to_tolerance(measure, step)
+        return PoseOut(configuration.q.copy(), steps, ok)

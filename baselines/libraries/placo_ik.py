@@ -55,7 +55,7 @@ from ikbench.baselines._common.chain import Chain, Goals, chain_of
 from ikbench.baselines._common.diffik import SpeedBox, posture_weights, settle
 from ikbench.baselines._common.geometry import angle_between_rad, rotation_angle_rad
 from ikbench.baselines._common.method import ChainResult, LibraryMethod
-from ikbench.baselines._common.pose_solver import PoseOut, PoseSolver, converge
+from ikbench.baselines._common.single_pose import PoseOut, PoseSolver, steps_to_tolerance
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, TrackPlan, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
@@ -341,5 +341,5 @@ class PlacoSolver(PoseSolver):
             solver.solve(True)
             model.robot.update_kinematics()
 
-        steps, ok = converge(measure, step)
+        steps, ok = steps_to_tolerance(measure, step)
         return PoseOut(model.get_q(chain), steps, ok)

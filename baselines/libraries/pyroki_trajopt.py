@@ -55,6 +55,7 @@ import numpy as np
 
 from ikbench.baselines._common.chain import Chain, Goals, contract_step
 from ikbench.baselines._common.method import ChainResult, LibraryMethod
+from ikbench.baselines._common.single_pose import MAX_STEPS, PoseOut, PoseSolver
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
@@ -354,3 +355,64 @@ def _speed_limited(task) -> bool:
     """True when the task's contract bounds the joint steps (a speed limit is known)."""
     contract = getattr(task, "contract", None)
     return contract is not None and contract.max_step(len(task.goal_points_mm) - 1) is not None
+
+
+class PyrokiSolver(PoseSolver):
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`):
+    ``pyroki.costs.pose_cost_analytic_jac`` (orientation weight 0 for points) and the limits
+    as jaxls inequality constraints, one jitted jaxls least-squares solve per target (compiled
+    in ``prepare``), 100 steps at most."""
+
+    name, library, modules = "pyroki", "almond-pyroki", ("pyroki", "jaxls", "jax")
+    iterations_are = "jaxls Levenberg-Marquardt steps"
+
+    def prepare(self) -> None:
+        import jax.numpy as jnp
+        import jaxlie
+
+        jax = _setup_jax()
+        robot, order, link, base = pyroki_robot(self.chain)
+        self.order, self.pk = order, robot
+        T_root_base = jaxlie.SE3(robot.forward_kinematics(jnp.zeros(self.chain.dof))[base])
+        self.T_root_base = T_root_base
+        lower = np.where(np.isfinite(self.chain.lower), self.chain.lower, -UNBOUNDED)[order]
+        upper = np.where(np.isfinite(self.chain.upper), self.chain.upper, UNBOUNDED)[order]
+        self.bounds = (jnp.asarray(lower), jnp.asarray(upper))
+        self.run = jax.jit(self._program(link, 1.0 if self.kind == "pose" else 0.0))
+        self.solve(np.clip(np.zeros(self.chain.dof), self.chain.lower, self.chain.upper),
+                   np.zeros(3), np.eye(3))  # compile (untimed)
+
+    @staticmethod
+    def _program(link: int, ori_weight: float) -> Any:
+        import jax.numpy as jnp
+        import jaxls
+        import pyroki
+
+        limits = _cost_factories()[4]
+
+        def run(robot, target, init, lower, upper):
+            var = robot.joint_var_cls(0)
+            costs = [pyroki.costs.pose_cost_analytic_jac(robot, var, target,
+                                                         jnp.int32(link), 1.0, ori_weight),
+                     limits(var, lower, upper)]
+            problem = jaxls.LeastSquaresProblem(costs=costs, variables=[var]).analyze()
+            solution, summary = problem.solve(
+                initial_vals=jaxls.VarValues.make([var.with_value(init)]),
+                linear_solver="conjugate_gradient", verbose=False, return_summary=True,
+                termination=jaxls.TerminationConfig(max_iterations=MAX_STEPS))
+            return solution[var], summary.iterations
+
+        return run
+
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
+        import jax.numpy as jnp
+        import jaxlie
+
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = rotation, point_m
+        target = self.T_root_base @ jaxlie.SE3.from_matrix(jnp.asarray(T))
+        q, iterations = self.run(self.pk, target, jnp.asarray(np.asarray(q_init)[self.order]),
+                                 *self.bounds)
+        out = np.empty(self.chain.dof)
+        out[self.order] = np.asarray(q, dtype=float)
+        return PoseOut(out, int(iterations), bool(int(iterations) < MAX_STEPS))

@@ -55,16 +55,17 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.baselines._common.chain import Chain, Goals
-from ikbench.baselines._common.geometry import (
-    closest_rotation_with_axis,
-    quaternion_xyzw,
-    rotation_about,
-    rotation_angle_rad,
+from ikbench.baselines._common.exact_pose import (
+    check_roll_settings,
+    roll_max_option,
+    roll_step_option,
+    rolls_rad,
+    solve_exact_poses,
 )
+from ikbench.baselines._common.geometry import quaternion_xyzw, rotation_angle_rad
 from ikbench.baselines._common.method import ChainResult, LibraryMethod
-from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
-from ikbench.baselines._common.walk import PointResult, walk_back
-from ikbench.core.errors import InputError
+from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
+from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES
 from ikbench.methods.base import check_choice, check_positive, option
 
 if TYPE_CHECKING:
@@ -93,10 +94,8 @@ class TracIKSettings:
                              help="TRAC-IK's SolveType: Distance returns the solution nearest "
                              "the seed found within the timeout, Speed the first one, Manip1 / "
                              "Manip2 the most manipulable one")
-    roll_step: float = option(1.0, flag="tracik-roll-step", unit="deg",
-                              help="roll sweep step when a point has no solution")
-    roll_max: float = option(60.0, flag="tracik-roll-max", unit="deg",
-                             help="largest roll change tried (0: no sweep)")
+    roll_step: float = roll_step_option("tracik")
+    roll_max: float = roll_max_option("tracik")
     posture_seed: float = option(0.5, flag="tracik-posture-seed",
                                  help="scheme track: TRAC-IK's seed (the pose its Distance "
                                  "mode returns the solution nearest to) is the warm start "
@@ -104,21 +103,14 @@ class TracIKSettings:
                                  "to touch pose, linearly); 0: the warm start")
 
     def __post_init__(self):
-        check_positive(self, "timeout", "eps", "roll_step")
+        check_positive(self, "timeout", "eps")
         check_choice(self, "scheme", SCHEMES)
         check_choice(self, "solve_type", SOLVE_TYPES)
-        if not (np.isfinite(self.posture_seed) and 0 <= self.posture_seed <= 1):
-            raise InputError(f"--tracik-posture-seed: {self.posture_seed!r} must be in [0, 1]")
-        if not 0 <= self.roll_max <= 180:
-            raise InputError(f"--tracik-roll-max: {self.roll_max!r} must be in [0, 180] deg")
+        check_roll_settings(self)
 
     def rolls_rad(self) -> list[float]:
         """0, +step, -step, +2 step, ... up to +-roll_max [rad]."""
-        count = int(np.floor(self.roll_max / self.roll_step + 1e-9))
-        rolls = [0.0]
-        for k in range(1, count + 1):
-            rolls += [np.radians(k * self.roll_step), -np.radians(k * self.roll_step)]
-        return rolls
+        return rolls_rad(self.roll_step, self.roll_max)
 
 
 def tracik_solver(chain: Chain, settings: TracIKSettings) -> Any:
@@ -155,52 +147,25 @@ def solve_chain(chain: Chain, goals: Goals, settings: TracIKSettings) -> ChainRe
     import pytracik
 
     solver = tracik_solver(chain, settings)
-    rolls = settings.rolls_rad()
-    plan = goals.track
-    swept, off = [], []
 
-    def solve_pose(i: int, seed: np.ndarray, point, candidates, q_warm) -> PointResult:
-        """The first candidate rotation TRAC-IK solves at ``point`` from ``seed``, checked by
-        FK; none solved: ``q_warm``, not ok."""
+    def solve(seed: np.ndarray, point: np.ndarray, rotation: np.ndarray
+              ) -> tuple[np.ndarray, bool] | None:
         x, y, z = (float(v) for v in point)
-        seed = np.ascontiguousarray(seed, dtype=float)
-        for k, rotation in enumerate(candidates):
-            out = pytracik.ik(solver, seed, x, y, z, *quaternion_xyzw(rotation))
-            if out[0] >= 0:
-                q = np.asarray(out[1:], dtype=float)
-                if k:
-                    swept.append(i)
-                ok = pose_error(solver, q, point, rotation) <= FK_CHECK * settings.eps
-                if not ok:
-                    off.append(i)
-                return PointResult(q, k + 1, ok)
-        return PointResult(q_warm, len(candidates), False)
+        out = pytracik.ik(solver, np.ascontiguousarray(seed, dtype=float), x, y, z,
+                          *quaternion_xyzw(rotation))
+        if out[0] < 0:
+            return None
+        q = np.asarray(out[1:], dtype=float)
+        return q, pose_error(solver, q, point, rotation) <= FK_CHECK * settings.eps
 
-    def pointing_candidates(q_warm: np.ndarray, direction) -> list[np.ndarray]:
-        """The warm start's rotation tilted onto ``direction``, then rolled about it."""
-        R_warm = np.asarray(pytracik.fk(solver, np.ascontiguousarray(q_warm)))[:3, :3]
-        tilted = closest_rotation_with_axis(R_warm, chain.pointing_axis, direction)
-        return [rotation_about(direction, r) @ tilted for r in rolls]
+    def end_rotation(q: np.ndarray) -> np.ndarray:
+        return np.asarray(pytracik.fk(solver, np.ascontiguousarray(q, dtype=float)))[:3, :3]
 
-    def walk_point(i: int, q_warm: np.ndarray) -> PointResult:
-        candidates = ([goals.rotations[i]] if goals.rotations is not None
-                      else pointing_candidates(q_warm, goals.directions[i]))
-        return solve_pose(i, q_warm, goals.points_m[i], candidates, q_warm)
-
-    def track_point(i: int, q_warm: np.ndarray) -> PointResult:
-        candidates = pointing_candidates(q_warm, goals.directions[i] if plan.directions is None
-                                         else plan.directions[i])
-        if plan.directions is None:  # no pointing asked: else the warm start's rotation
-            candidates.append(np.asarray(pytracik.fk(solver, np.ascontiguousarray(q_warm)))
-                              [:3, :3])
-        seed = chain.clip(q_warm + settings.posture_seed * (plan.posture[i] - q_warm))
-        return solve_pose(i, seed, plan.points_m[i], candidates, q_warm)
-
-    walk = track(track_point, chain, plan) if plan is not None else \
-        walk_back(walk_point, chain, goals)
-    return ChainResult.from_walk(walk, points_roll_swept=len(swept),
-                                 points_fk_off=len(off), solve_type=settings.solve_type,
-                                 scheme="track" if plan is not None else "walk",
+    walk, info = solve_exact_poses(chain, goals, solve, end_rotation, settings.rolls_rad(),
+                                   settings.posture_seed)
+    return ChainResult.from_walk(walk, points_roll_swept=info["points_roll_swept"],
+                                 points_fk_off=info["points_fk_off"],
+                                 solve_type=settings.solve_type, scheme=info["scheme"],
                                  iterations_are="pytracik.ik calls (TRAC-IK reports no "
                                  "iteration count)")
 
@@ -237,3 +202,46 @@ class TracIK(LibraryMethod):
 
     def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         return solve_chain(chain, goals, self.settings)
+
+
+#: Single-pose IK: TRAC-IK's eps and SolveType (trac_ik_lib's defaults; its default timeout,
+#: 5 ms, is the protocol's default budget), and its timeout when the budget is unbounded.
+POSE_EPS, POSE_SOLVE_TYPE, POSE_UNBOUNDED_TIMEOUT_S = 1e-5, "Speed", 1.0
+
+
+class TracIKSolver(PoseSolver):
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`):
+    ``ik(solver, seed, x, y, z, qx, qy, qz, qw)`` from the first initial configuration, with
+    the budget as TRAC-IK's timeout (its own random restarts within it: it restarts itself,
+    from its own draws; the sequence's further rows are not used), eps 1e-5, Speed. Poses
+    only: the binding cannot free the rotation (no tolerance twist)."""
+
+    name, library, modules = "trac-ik", "pytracik", ("pytracik",)
+    kinds = ("pose",)
+    deterministic = False
+    restarts_itself = True
+    one_descent = False
+    iterations_are = "pytracik.ik calls (TRAC-IK reports no iteration count)"
+
+    def prepare(self) -> None:
+        timeout = self.budget_s if np.isfinite(self.budget_s) else POSE_UNBOUNDED_TIMEOUT_S
+        self.solver = tracik_solver(self.chain, TracIKSettings(
+            timeout=timeout, eps=POSE_EPS, solve_type=POSE_SOLVE_TYPE))
+
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
+        import pytracik
+
+        x, y, z = (float(v) for v in point_m)
+        out = pytracik.ik(self.solver, np.ascontiguousarray(q_init, dtype=float), x, y, z,
+                          *quaternion_xyzw(rotation))
+        ok = out[0] >= 0
+        return PoseOut(np.asarray(out[1:], dtype=float) if ok else np.asarray(q_init), 1, ok)
+
+    def solve_within(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
+                     budget_s: float) -> PoseOut:
+        """The first row, TRAC-IK's timeout the budget (set in :meth:`prepare`: ``budget_s``
+        must be the solver's)."""
+        if budget_s != self.budget_s:
+            raise ValueError(f"TRAC-IK's timeout is the budget it was built with, "
+                             f"{self.budget_s} s, not {budget_s} s")
+        return self.solve(initials[0], point_m, rotation)

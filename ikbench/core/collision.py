@@ -396,7 +396,10 @@ def build_collision_model(robot: Robot) -> CollisionModel | None:
     """
     import pinocchio as pin
 
-    from ikbench.core.kinematics.pinocchio_fk import build_chain_model_with_geometry
+    from ikbench.core.kinematics.pinocchio_fk import (
+        build_chain_model_with_geometry,
+        link_frame_id,
+    )
 
     config = collision_config(robot)
     if config is None:
@@ -410,13 +413,13 @@ def build_collision_model(robot: Robot) -> CollisionModel | None:
     else:
         model = robot.pinocchio_fk().model
         geometry = pin.GeometryModel()
-        root = model.frames[model.getFrameId(robot.root_link)].placement
+        root = model.frames[link_frame_id(model, robot.root_link)].placement
         names = []
         for k, capsule in enumerate(config["capsules"]):
             if not model.existFrame(capsule.link):
                 raise InputError(f"collision file {config['path']!r}: capsule {k}: link "
                                  f"{capsule.link!r} is not a link of {robot.name}'s model")
-            fid = model.getFrameId(capsule.link)
+            fid = link_frame_id(model, capsule.link)
             frame = model.frames[fid]
             placement = frame.placement if frame.parentJoint else root.actInv(frame.placement)
             shape, local = _capsule_placement(capsule)

@@ -277,7 +277,7 @@ def offset_frame_position_m(robot: Robot, frame: str) -> np.ndarray:
         return np.zeros(3)
     import pinocchio as pin
 
-    from ikbench.core.kinematics.pinocchio_fk import chain_urdf_xml
+    from ikbench.core.kinematics.pinocchio_fk import chain_urdf_xml, link_frame_id
 
     model = pin.buildModelFromXML(chain_urdf_xml(robot))
     if not model.existFrame(frame):
@@ -289,7 +289,8 @@ def offset_frame_position_m(robot: Robot, frame: str) -> np.ndarray:
         q[model.idx_qs[model.getJointId(name)]] = value
     data = model.createData()
     pin.framesForwardKinematics(model, data, q)
-    T = data.oMf[model.getFrameId(robot.root_link)].actInv(data.oMf[model.getFrameId(frame)])
+    T_world_base = data.oMf[link_frame_id(model, robot.root_link)]
+    T = T_world_base.actInv(data.oMf[link_frame_id(model, frame)])
     if np.abs(T.rotation - np.eye(3)).max() > FRAME_ROTATION_TOLERANCE:
         raise InputError(f"path_offset_frame: {frame!r} is rotated against {robot.root_link} "
                          "at the zero configuration; CppFlow's format needs an unrotated frame")

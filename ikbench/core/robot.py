@@ -314,6 +314,19 @@ class Robot:
             self._cache["pin_fk"] = PinocchioFK(self)
         return self._cache["pin_fk"]
 
+    def check_loads(self) -> None:
+        """Build the Pinocchio model now (cached); InputError, one line, when it cannot be
+        built (a URDF Pinocchio cannot read, a frame it cannot find, ...), so a command stops
+        before any work with the reason instead of a traceback in the middle of it."""
+        try:
+            self.pinocchio_fk()
+        except InputError:
+            raise
+        except Exception as exc:  # whatever Pinocchio or the URDF reader raises
+            text = " ".join(str(exc).split())
+            raise InputError(f"--robot {self.name}: its kinematics cannot be built "
+                             f"({type(exc).__name__}: {text})") from None
+
     def chain_kinematics(self) -> ChainKinematics:
         """The vectorised numpy chain (cached); see ``ChainKinematics``."""
         from ikbench.core.kinematics.chain import ChainKinematics

@@ -62,6 +62,7 @@ BUILTIN = (
     Entry("ikpy-walk", "ikbench.baselines.libraries.ikpy_ik:IkpyWalk", ("ikpy",)),
     Entry("pink", "ikbench.baselines.libraries.pink_ik:PinkIK", ("pink", "qpsolvers", "daqp")),
     Entry("trac-ik", "ikbench.baselines.libraries.trac_ik:TracIK", ("pytracik",)),
+    Entry("rtb-lm", "ikbench.baselines.libraries.rtb:RtbLM", ("roboticstoolbox",)),
     Entry("mink", "ikbench.baselines.libraries.mink_ik:MinkIK",
           ("mink", "mujoco", "qpsolvers", "daqp")),
     Entry("drake-ik", "ikbench.baselines.libraries.drake_ik:DrakeIK", ("pydrake",)),

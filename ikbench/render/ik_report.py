@@ -3,17 +3,22 @@
 ``OUTPUT/ik/<robot>/`` is written whole or not at all (:func:`ikbench.core.io.staged_folder`):
 
 - ``results.csv`` (``results.parquet`` above :data:`PARQUET_ROWS` rows when pyarrow is
-  installed): one row per method x target (:data:`ikbench.studies.ik.COLUMNS`);
+  installed): one row per attempts rule x method x target (:data:`ikbench.studies.ik.COLUMNS`),
+  with each answer's joint values ``q0 ..`` in URDF units (named in run.json);
 - ``targets.csv`` (``targets.parquet`` alike): each target's configuration [pose units],
-  end-frame pose (position [mm], rotation matrix) and initial pose;
-- ``leaderboard.md``: the task and tolerances, one row per method, the machine and versions;
-- ``times.png``: the distribution of per-IK times; ``success_vs_tolerance.png``;
-- ``run.json``: command, settings, per-method facts, provenance (machine and versions).
+  end-frame pose (position [mm], rotation matrix) and initial pose (row 0 of its sequence);
+- ``leaderboard.md``: the task, tolerances and protocol (budget, initial configurations,
+  attempts rule) above one table per attempts rule, the published figures for the robot
+  (labelled as published, with their source), the machine and versions;
+- ``times.png``: the distribution of per-call times per rule; ``success_vs_tolerance.png``;
+- ``run.json``: command, settings, per-method facts, batched throughput, the solution
+  columns, provenance (machine and versions).
 """
 
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Iterable
 from dataclasses import asdict
 from pathlib import Path
@@ -21,6 +26,8 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from ikbench.render.ik_published import published_for
 
 #: The study's result (:class:`ikbench.studies.ik.IKResult`): render takes it as it
 #: comes, without importing the study (render is below the studies).
@@ -30,6 +37,13 @@ StudyResult = Any
 PARQUET_ROWS = 50_000
 #: Position tolerances [mm] of the success curve.
 CURVE_MM = np.geomspace(1e-3, 10.0, 41)
+#: The attempts rule that restarts until success or the budget.
+AUTO = "auto"
+
+
+def robot_slug(robot: Any) -> str:
+    """The robot's folder name (its name, without a package prefix)."""
+    return str(robot.name).split(":")[-1].replace("/", "_")
 
 
 def write_folder(result: StudyResult, folder: Path, command: str = "") -> Path:
@@ -39,7 +53,7 @@ def write_folder(result: StudyResult, folder: Path, command: str = "") -> Path:
     with staged_folder(folder) as tmp:
         _results(result, tmp)
         _targets(result, tmp)
-        summary = summarise(result.table)
+        summary = summarise(result.table, result.batches)
         record = _record(result, command)
         (tmp / "leaderboard.md").write_text(leaderboard(result, summary, record),
                                             encoding="utf-8")
@@ -62,12 +76,10 @@ def _results(result: StudyResult, tmp: Path) -> None:
     if parquet(result):
         table.to_parquet(tmp / "results.parquet", index=False)
     else:
-        table.to_csv(tmp / "results.csv", index=False, float_format="%.6g")
+        table.to_csv(tmp / "results.csv", index=False, float_format="%.17g")
 
 
 def _targets(result: StudyResult, tmp: Path) -> None:
-    import pandas as pd
-
     robot, t = result.robot, result.targets
     columns = {}
     for j, name in enumerate(robot.joint_names):
@@ -83,17 +95,21 @@ def _targets(result: StudyResult, tmp: Path) -> None:
     if parquet(result):
         frame.to_parquet(tmp / "targets.parquet", index=False)
     else:
-        frame.to_csv(tmp / "targets.csv", index=False, float_format="%.10g")
+        frame.to_csv(tmp / "targets.csv", index=False, float_format="%.17g")
 
 
 def _record(result: StudyResult, command: str) -> dict:
     from ikbench.core.provenance import library_versions, provenance
 
+    robot = result.robot
     libraries = sorted({m["library"] for m in result.methods.values()})
-    import os
-
-    return {"command": command, "robot": result.robot.describe(),
+    units = ["m" if p else "rad" for p in robot.prismatic]
+    return {"command": command, "robot": robot.describe(),
             "settings": asdict(result.settings), "methods": result.methods,
+            "batched": result.batches,
+            "solution_columns": {f"q{j}": {"joint": name, "unit": unit}
+                                 for j, (name, unit) in enumerate(zip(robot.joint_names,
+                                                                      units))},
             "library_versions": library_versions(libraries), "wall_s": result.wall_s,
             "load_average": {"start": getattr(result, "load_start", None),
                              "end": tuple(round(v, 2) for v in os.getloadavg())},
@@ -112,15 +128,56 @@ def _fmt(value, digits: int = 3) -> str:
     return f"{value:.{digits}g}"
 
 
+def rule_title(rule: str, auto_rows: int) -> str:
+    """The heading of one attempts rule's table."""
+    if rule == AUTO:
+        return (f"Budgeted, with restarts (`--attempts auto`): from the next initial "
+                f"configuration until the answer holds or the budget is spent (at most "
+                f"{auto_rows})")
+    if rule == "1":
+        return ("Single descents (`--attempts 1`): one descent from the first initial "
+                "configuration, the same for every method")
+    return f"At most {rule} attempts (`--attempts {rule}`), within the budget"
+
+
+def protocol(result: StudyResult) -> str:
+    """The protocol paragraph of the leaderboard: budget, initial configurations, restarts,
+    times."""
+    s = result.settings
+    budget = ("no wall-clock budget (`--budget-ms inf`)" if not np.isfinite(s.budget_ms)
+              else f"a budget of **{s.budget_ms:g} ms** of wall-clock time per target")
+    first = ("drawn uniformly within the limits, independent of the target" if s.init ==
+             "random" else f"the target's configuration moved by up to {s.perturb_deg:g} deg "
+             "per joint")
+    itself = [m for m, f in result.methods.items() if f["restarts_itself"]]
+    restarted = [m for m, f in result.methods.items() if not f["restarts_itself"]]
+    lines = [f"**Protocol**, the same for every method: {budget}; **initial "
+             f"configurations**: a seeded sequence per target, the same for every method "
+             f"(row 0: `--init {s.init}`, {first}; rows 1, 2, ...: drawn uniformly within the "
+             f"limits by target k's child of seed {s.seed}, `SeedSequence({s.seed}).spawn`); "
+             "**attempts**: the rule of each table below."]
+    if itself:
+        lines.append(f"{', '.join(itself)} restart by themselves: each gets the rows the rule "
+                     "allows and the budget in one call.")
+    if restarted:
+        lines.append(f"{', '.join(restarted)} are restarted by the study from the next row "
+                     "until the answer holds (checked as the judge checks it, inside the timed "
+                     "call) or the budget is spent (an attempt started before it runs out "
+                     "finishes).")
+    lines.append("**Times**: wall time of each call, one target per call, all its attempts "
+                 "included (`time.perf_counter`, set-up untimed): median, mean, p95, max. "
+                 "Batched throughput (every target in one call, the same rows and budget per "
+                 "target) is its own column, in targets per second.")
+    return " ".join(lines)
+
+
 def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, Any]) -> str:
-    """leaderboard.md: the task above the table, one row per method (see the module doc)."""
+    """leaderboard.md: the task and protocol above one table per attempts rule (see the
+    module docstring)."""
     s, robot = result.settings, result.robot
     prov = record["provenance"]
     kind = ("6-D pose (position and rotation)" if s.kind == "pose"
             else "position only (rotation free)")
-    init = ("random (uniform within the limits, seeded, independent of the target)"
-            if s.init == "random" else f"nearby (the target's configuration moved by up to "
-            f"{s.perturb_deg:g} deg per joint)")
     tolerance = f"{s.tolerance_mm:g} mm" + (f" and {s.tolerance_deg:g} deg"
                                             if s.kind == "pose" else "")
     lines = [
@@ -128,37 +185,52 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
         "",
         f"Robot: {robot.name} ({robot.dof} joints, {robot.root_link} -> {robot.end_frame}; "
         f"{robot.config.get('description', '')}). Targets: {s.count}, FK of configurations "
-        f"drawn uniformly within the joint limits, seed {s.seed}. Goal: {kind}. Initial "
-        f"pose: {init}. **Success**: FK through Pinocchio within {tolerance} and within the "
-        "joint limits (the library's own claim is not used). Times: wall time of each call "
-        "(`time.perf_counter`, set-up untimed); a batched method solves every target in one "
-        "call, and its time per IK is that call's time divided by the targets.",
+        f"drawn uniformly within the joint limits, seed {s.seed}. Goal: {kind}. **Success**: "
+        f"FK through Pinocchio within {tolerance} and within the joint limits (the method's "
+        "own claim is not used).",
         "",
-        "| method | library | targets | success | time median [ms] | p95 [ms] | max [ms] | "
-        "batched time per IK [ms] | position error median [mm] | rotation error median "
-        "[deg] | joint distance median [deg] | iterations median | failed calls |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        protocol(result),
+        "",
     ]
     versions = record["library_versions"]
-    for row in summary.itertuples(index=False):
-        facts = result.methods[row.method]
-        library = f"{facts['library']} {versions.get(facts['library']) or ''}".strip()
-        note = "" if facts["deterministic"] else " (not deterministic)"
-        lines.append(
-            f"| {row.method}{note} | {library} | {row.targets} | {row.success_pct:.2f} % "
-            f"| {_fmt(row.time_median_ms)} | {_fmt(row.time_p95_ms)} | {_fmt(row.time_max_ms)} "
-            f"| {_fmt(row.batched_time_per_ik_ms)} | {_fmt(row.position_error_median_mm)} "
-            f"| {_fmt(row.rotation_error_median_deg)} | {_fmt(row.joint_distance_median_deg)} "
-            f"| {_fmt(row.iterations_median)} | {row.failed_calls} |")
+    for rule, table in summary.groupby("attempts_rule", sort=False):
+        lines += [f"## {rule_title(str(rule), result.auto_rows)}", "",
+                  "| method | library | targets | success | attempts median | attempts max | "
+                  "time per call median [ms] | mean [ms] | p95 [ms] | max [ms] | batched "
+                  "[targets/s] | position error median [mm] | rotation error median [deg] | "
+                  "joint distance median [deg] | iterations median | failed calls |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for row in table.itertuples(index=False):
+            facts = result.methods[row.method]
+            library = f"{facts['library']} {versions.get(facts['library']) or ''}".strip()
+            notes = [] if facts["deterministic"] else ["not deterministic"]
+            if facts["restarts_itself"]:
+                notes.append("restarts itself")
+            if str(rule) == "1" and not facts["one_descent"]:
+                notes.append("its own restarts within the budget: not one descent")
+            note = f" ({'; '.join(notes)})" if notes else ""
+            batch = "-"
+            if np.isfinite(row.batched_per_s):
+                batch = (f"{row.batched_per_s:,.0f} ({row.batched_threads:.0f} threads, "
+                         f"{row.batched_success_pct:.2f} %)")
+            lines.append(
+                f"| {row.method}{note} | {library} | {row.targets} | {row.success_pct:.2f} % "
+                f"| {_fmt(row.attempts_median)} | {_fmt(row.attempts_max)} "
+                f"| {_fmt(row.time_median_ms)} | {_fmt(row.time_mean_ms)} "
+                f"| {_fmt(row.time_p95_ms)} | {_fmt(row.time_max_ms)} | {batch} "
+                f"| {_fmt(row.position_error_median_mm)} "
+                f"| {_fmt(row.rotation_error_median_deg)} "
+                f"| {_fmt(row.joint_distance_median_deg)} | {_fmt(row.iterations_median)} "
+                f"| {row.failed_calls} |")
+        lines.append("")
     capped = {m: f["count"] for m, f in result.methods.items() if f["count"] < s.count}
-    lines += [""]
     if capped:
-        lines.append("Capped (`--max-count-per-method`, the first targets only): " + ", ".join(
-            f"{m} {n}" for m, n in capped.items()) + ".")
+        lines += ["Capped (`--max-count-per-method`, the first targets only): " + ", ".join(
+            f"{m} {n}" for m, n in capped.items()) + ".", ""]
+    lines += ["Iterations count: " + "; ".join(f"{m}: {f['iterations_are']}"
+                                              for m, f in result.methods.items()) + ".", ""]
+    lines += published_section(robot_slug(robot), summary)
     lines += [
-        "Iterations count: " + "; ".join(f"{m}: {f['iterations_are']}"
-                                         for m, f in result.methods.items()) + ".",
-        "",
         f"Machine: {prov['cpu']} ({prov['cpu_count']} logical CPUs), {prov['platform']}, "
         f"Python {prov['python']}; ikbench {prov['git_revision'] or ''}. Wall time of the run "
         f"{result.wall_s:.0f} s; load average (1, 5, 15 min) {_load(record)} (other jobs on "
@@ -166,10 +238,34 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
         "",
         f"Command: `{record['command']}`" if record["command"] else "",
         "",
-        "![per-IK time](times.png) ![success against tolerance](success_vs_tolerance.png)",
+        "![per-call time](times.png) ![success against tolerance](success_vs_tolerance.png)",
         "",
     ]
     return "\n".join(lines)
+
+
+def published_section(robot: str, summary: pd.DataFrame) -> list[str]:
+    """The published figures of ``robot`` (:mod:`ikbench.render.ik_published`), labelled as
+    published with their source, beside this run's trac-ik; none: no lines."""
+    figures = published_for(robot)
+    if not figures:
+        return []
+    lines = ["## Published figures (other machines and protocols: not comparable one to one)",
+             "",
+             "| solver | success (published) | time (published) [ms] | the time is | protocol "
+             "| source |",
+             "|---|---|---|---|---|---|"]
+    for p in figures:
+        lines.append(f"| {p.solver} | {p.success_pct:g} % | {p.time_ms:g} | {p.time_is} "
+                     f"| {p.protocol} | {p.source} |")
+    here = summary[summary["method"] == "trac-ik"]
+    if len(here):
+        lines += ["", "This run's trac-ik (Python binding, this machine): " + "; ".join(
+            f"`--attempts {r.attempts_rule}` {r.success_pct:.2f} %, median "
+            f"{_fmt(r.time_median_ms)} ms, mean {_fmt(r.time_mean_ms)} ms per call, mean of "
+            f"the successes {_fmt(r.time_success_mean_ms)} ms" for r in here.itertuples())
+            + "."]
+    return lines + [""]
 
 
 def _figures(result: StudyResult, tmp: Path) -> None:
@@ -181,61 +277,69 @@ def _figures(result: StudyResult, tmp: Path) -> None:
     from ikbench.core.io import atomic_savefig
 
     table, s = result.table, result.settings
-    fig, ax = plt.subplots(figsize=(8.5, 4.2))
-    for k, (method, g) in enumerate(table.groupby("method", sort=False)):
-        color = f"C{k % 10}"
-        batch = g["batched_time_per_ik_s"].iloc[0]
-        if np.isfinite(batch):
-            ax.axvline(batch * 1000.0, color=color, ls="--", label=f"{method} (batched, per IK)")
-            continue
-        times = np.sort(g["time_s"].to_numpy() * 1000.0)
-        ax.step(times, np.arange(1, len(times) + 1) / len(times) * 100.0, where="post",
-                color=color, label=method)
-    ax.set_xscale("log")
-    ax.set_xlabel("time per IK [ms] (log)")
-    ax.set_ylabel("calls done within that time [%]")
-    ax.set_title(f"{result.robot.name}: per-IK time, {s.count} targets ({s.kind}, {s.init} "
-                 "start)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    rules = list(dict.fromkeys(table["attempts_rule"]))
+    fig, axes = plt.subplots(len(rules), 1, figsize=(8.5, 3.6 * len(rules)), squeeze=False)
+    for ax, rule in zip(axes[:, 0], rules):
+        part = table[table["attempts_rule"] == rule]
+        for k, (method, g) in enumerate(part.groupby("method", sort=False)):
+            times = np.sort(g["time_s"].dropna().to_numpy() * 1000.0)
+            if len(times):
+                ax.step(times, np.arange(1, len(times) + 1) / len(times) * 100.0, where="post",
+                        color=f"C{k % 10}", label=method)
+        if np.isfinite(s.budget_ms):
+            ax.axvline(s.budget_ms, color="k", ls=":", lw=1, label="budget")
+        ax.set_xscale("log")
+        ax.set_xlabel("time per call [ms] (log), all attempts included")
+        ax.set_ylabel("calls done within [%]")
+        ax.set_title(f"{result.robot.name}: --attempts {rule}, {s.count} targets ({s.kind}, "
+                     f"{s.init} start)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
     atomic_savefig(tmp / "times.png", fig)
 
     ratio = s.tolerance_deg / s.tolerance_mm
-    curve = success_curve(table, s.kind, ratio, CURVE_MM)
-    fig, ax = plt.subplots(figsize=(8.5, 4.2))
-    for k, method in enumerate(curve.columns):
-        ax.plot(curve.index, curve[method], color=f"C{k % 10}", label=method)
-    ax.axvline(s.tolerance_mm, color="k", ls=":", lw=1, label="stated tolerance")
-    ax.set_xscale("log")
-    xlabel = "position tolerance [mm] (log)"
-    if s.kind == "pose":
-        xlabel += f"; rotation tolerance {ratio:g} deg per mm of it"
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel("success [%]")
-    ax.set_ylim(-2, 102)
-    ax.set_title(f"{result.robot.name}: success against tolerance")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    fig, axes = plt.subplots(len(rules), 1, figsize=(8.5, 3.6 * len(rules)), squeeze=False)
+    for ax, rule in zip(axes[:, 0], rules):
+        curve = success_curve(table[table["attempts_rule"] == rule], s.kind, ratio, CURVE_MM)
+        for k, method in enumerate(curve.columns):
+            ax.plot(curve.index, curve[method], color=f"C{k % 10}", label=method)
+        ax.axvline(s.tolerance_mm, color="k", ls=":", lw=1, label="stated tolerance")
+        ax.set_xscale("log")
+        xlabel = "position tolerance [mm] (log)"
+        if s.kind == "pose":
+            xlabel += f"; rotation tolerance {ratio:g} deg per mm of it"
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("success [%]")
+        ax.set_ylim(-2, 102)
+        ax.set_title(f"{result.robot.name}: success against tolerance, --attempts {rule}")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
     atomic_savefig(tmp / "success_vs_tolerance.png", fig)
 
 
-def summarise(table: pd.DataFrame) -> pd.DataFrame:
-    """One row per method: targets, successes, success %, per-IK time median / p95 / max
-    [ms] (batched methods: their share, in their own column), errors of the successes,
-    joint distance, iterations, failed calls."""
+def summarise(table: pd.DataFrame, batches: dict | None = None) -> pd.DataFrame:
+    """One row per attempts rule and method: targets, successes, success %, attempts, time
+    per call median / mean / p95 / max [ms] and mean of the successes, the batched
+    throughput [targets/s] with its threads and success (``batches``: rule -> method ->
+    :func:`ikbench.studies.ik._batch`'s figures; NaN for methods that do not batch), errors
+    of the successes, joint distance, iterations, failed calls."""
+    batches = batches or {}
     rows = []
-    for method, g in table.groupby("method", sort=False):
+    for (rule, method), g in table.groupby(["attempts_rule", "method"], sort=False):
         ok = g[g["success"].astype(bool)]
-        batched = bool(np.isfinite(g["batched_time_per_ik_s"]).any())
         times = g["time_s"] * 1000.0
+        batch = batches.get(str(rule), {}).get(method, {})
         rows.append({
-            "method": method, "targets": len(g), "solved": len(ok),
+            "attempts_rule": rule, "method": method, "targets": len(g), "solved": len(ok),
             "success_pct": 100.0 * len(ok) / len(g),
-            "time_median_ms": np.nan if batched else times.median(),
-            "time_p95_ms": np.nan if batched else times.quantile(0.95),
-            "time_max_ms": np.nan if batched else times.max(),
-            "batched_time_per_ik_ms": g["batched_time_per_ik_s"].iloc[0] * 1000.0
-            if batched else np.nan,
+            "attempts_median": g["attempts"].median(), "attempts_mean": g["attempts"].mean(),
+            "attempts_max": g["attempts"].max(),
+            "time_median_ms": times.median(), "time_mean_ms": times.mean(),
+            "time_p95_ms": times.quantile(0.95), "time_max_ms": times.max(),
+            "time_success_mean_ms": (ok["time_s"] * 1000.0).mean(),
+            "batched_per_s": batch.get("targets_per_s", np.nan),
+            "batched_threads": batch.get("threads", np.nan),
+            "batched_success_pct": batch.get("success_pct", np.nan),
             "position_error_median_mm": ok["position_error_mm"].median(),
             "rotation_error_median_deg": ok["rotation_error_deg"].median(),
             "joint_distance_median_deg": ok["joint_distance_deg"].median(),

@@ -1,60 +1,111 @@
-"""The single-pose IK benchmark (``ikbench ik``): success and solve time per library on a robot.
+"""The single-pose IK benchmark (``ikbench ik``): success and time per call of every method on a
+robot, under one protocol.
 
-As PickNik's ik_benchmarking: targets are end-frame poses from forward kinematics of
+Targets, as PickNik's ik_benchmarking: end-frame poses from forward kinematics of
 configurations drawn uniformly within the joint limits (continuous joints: +-180 deg), seeded,
-so every target is reachable. Each method starts from a stated initial pose: ``random`` (drawn
-uniformly, seeded, independent of the target) or ``nearby`` (the target's own configuration
-moved by up to ``perturb_deg`` per joint, the tracking case). Every library solves the same
-targets from the same initial poses (:mod:`ikbench.baselines._common.single_pose`), one call per
-target timed here with ``time.perf_counter`` around the call (set-up untimed), an exception being a
-failed row; a batched method solves all targets in one call and each target gets its share of the
-time (``batched_time_per_ik_s``). Success is judged here, never taken from the library: FK of
-the answer through Pinocchio within ``tolerance_mm`` and ``tolerance_deg`` (position only for
-``kind="position"``) and within the joint limits.
+so every target is reachable. The protocol, the same for every method (the leaderboard's
+header states it):
 
-:func:`run_ik` returns an :class:`IKResult` (one row per method x target, :data:`COLUMNS`);
-:func:`write` puts it under ``OUTPUT/ik/<robot>/`` (:mod:`.ik_report`).
+- **Initial configurations**: each target k has a seeded sequence (:meth:`Targets.initials`).
+  Row 0 is its initial pose: ``random`` (drawn uniformly within the limits, independent of the
+  target) or ``nearby`` (the target's configuration moved by up to ``perturb_deg`` per joint,
+  the tracking case). Rows 1, 2, ... are drawn uniformly within the limits from the seed's
+  k-th child generator (``SeedSequence(seed).spawn``; restarts are random, as TRAC-IK's,
+  KDL's and roboticstoolbox's own).
+  Every method gets the same rows.
+- **Budget**: ``budget_ms`` of wall-clock time per target (:data:`BUDGET_MS`: TRAC-IK's
+  default timeout, which its own benchmark and MoveIt's default ``kinematics_solver_timeout``
+  use; PickNik's ik_benchmarking gives more. At 5 ms the fast solvers restart tens of times,
+  and a 10,000-target run of the whole panel stays within minutes per robot).
+- **Attempts**, one table per rule (``attempts``): ``"auto"`` restarts from the next row until
+  the answer holds, the budget is spent or the :data:`AUTO_ROWS` rows are used; an integer N
+  allows at most N rows (within the budget); 1 is one descent from row 0, for every method
+  (TRAC-IK excepted: it restarts from its own random draws within its timeout whatever it is
+  given, and says so).
+- **Restarts**: a method that restarts by itself (``restarts_itself``: TRAC-IK within its
+  timeout, ours-lm) gets the rows the rule allows and the budget in one call and honours them.
+  Any other is restarted here (:func:`restart`): an attempt starts only while the time spent on
+  the target is below the budget (the attempt running when it runs out finishes), and each
+  answer is checked as the judge checks it (:class:`AttemptCheck`), inside the timed call.
+- **Time**: ``time.perf_counter`` around the call with all its attempts, one target per call
+  (set-up untimed; the rows are drawn and converted before the clock starts); per method:
+  median, mean, p95, max. A method that batches (``batched``) also solves all the targets in
+  one call from the same rows within the same budget per target: its throughput (targets/s,
+  threads stated) is its own column, never mixed with per-call times.
+- **Success** is judged here (:func:`judge`), never taken from the method: FK through Pinocchio
+  of the answer within ``tolerance_mm`` and ``tolerance_deg`` (position only for
+  ``kind="position"``) and within the joint limits. The method's own claim is ``library_ok``.
+- **Solutions** are stored: ``q0 .. q{dof-1}``, each answer in URDF units (rad, m) in the
+  chain's joint order (named in run.json), so any row can be rechecked from the targets file.
+
+:func:`run_ik` returns an :class:`IKResult` (one row per attempts rule x method x target,
+:data:`COLUMNS` and the solution columns); :func:`write` puts it under
+``OUTPUT/ik/<robot>/`` (:mod:`ikbench.render.ik_report`).
 """
 
 from __future__ import annotations
 
+import math
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError
+from ikbench.render.ik_report import robot_slug
 from ikbench.runtime.harness import Progress, describe
 
 if TYPE_CHECKING:
     from pathlib import Path
 
+    from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
     from ikbench.core.robot import Robot
 
 FOLDER = "ik"
 KINDS = ("pose", "position")
 INITS = ("random", "nearby")
+AUTO = "auto"
 MAX_SEED = 2**63
-#: Bytes held per target (the batched solve's arrays, the targets) and per result row.
-BYTES_PER_TARGET, BYTES_PER_ROW = 32_000, 1_000
+#: The default wall-clock budget per target [ms] (see the module docstring).
+BUDGET_MS = 5.0
+#: Rows of a target's sequence under ``--attempts auto`` (more than any method uses within
+#: a few milliseconds), and the most ``--attempts N`` may ask.
+AUTO_ROWS = 256
+MAX_ATTEMPTS = 1000
+#: Bytes held per target (the batched solve's arrays, the targets) and per result row; a
+#: batched method also holds each target's rows (8 bytes per value, twice).
+BYTES_PER_TARGET, BYTES_PER_ROW, BYTES_PER_START = 32_000, 1_000, 16
 #: Share of the available memory a run may plan to use.
 MEMORY_SHARE = 0.5
 #: Progress line at most every this many seconds.
 PROGRESS_EVERY_S = 10.0
-COLUMNS = ["robot", "method", "target", "kind", "init", "success", "library_ok", "failure",
-           "time_s", "batched_time_per_ik_s", "position_error_mm", "rotation_error_deg",
-           "within_limits", "joint_distance_deg", "iterations"]
+#: Slack [pose units] of the limits when judging (round-off of the unit conversions).
+LIMIT_SLACK = 1e-6
+COLUMNS = ["robot", "method", "attempts_rule", "target", "kind", "init", "budget_ms", "success",
+           "library_ok", "failure", "time_s", "attempts", "position_error_mm",
+           "rotation_error_deg", "within_limits", "joint_distance_deg", "iterations"]
+
+Rule = int | str
 
 
 @dataclass(frozen=True)
 class IKSettings:
-    """What a run asks (see the module docstring); ``max_count``: method -> targets at most
-    (the first ones), for slow libraries."""
+    """What a run asks (see the module docstring).
+
+    Attributes:
+        count, seed, kind: targets, their seed, ``pose`` or ``position``.
+        tolerance_mm, tolerance_deg: the judge's tolerances.
+        init, perturb_deg: the initial poses (row 0 of each sequence).
+        max_count: method -> targets at most (the first ones), for slow libraries.
+        budget_ms: wall-clock budget per target [ms] (``inf``: none).
+        attempts: the attempts rules, one table each: ``"auto"`` or an integer >= 1.
+        threads: threads of the batched throughput runs (None: every core).
+    """
 
     count: int = 1000
     seed: int = 1
@@ -64,24 +115,57 @@ class IKSettings:
     init: str = "random"
     perturb_deg: float = 10.0
     max_count: dict = field(default_factory=dict)
+    budget_ms: float = BUDGET_MS
+    attempts: tuple[Rule, ...] = (AUTO,)
+    threads: int | None = None
 
     def __post_init__(self):
         check_settings(self)
 
+    @property
+    def budget_s(self) -> float:
+        """The budget per target [s]."""
+        return self.budget_ms / 1000.0
+
 
 @dataclass
 class Targets:
-    """The targets (B of them): configurations (B, dof) [pose units] and their end-frame
-    poses (B, 4, 4) [m] in the base frame, and the initial poses (B, dof) [pose units]."""
+    """The targets (B of them) and their initial configurations.
+
+    Attributes:
+        q_target: (B, dof) configurations [pose units].
+        T_target: (B, 4, 4) their end-frame poses [m] in the base frame.
+        q_init: (B, dof) row 0 of each target's sequence [pose units].
+        seed: the run's seed (rows 1.. of target k: numpy's k-th child of the seed,
+            ``SeedSequence(seed).spawn(...)[k]``, independent of the targets' own draws).
+        sample_lower, sample_upper: (dof,) where rows 1.. are drawn [pose units].
+    """
 
     q_target: np.ndarray
     T_target: np.ndarray
     q_init: np.ndarray
+    seed: int = 0
+    sample_lower: np.ndarray | None = None
+    sample_upper: np.ndarray | None = None
+
+    def initials(self, k: int, rows: int) -> np.ndarray:
+        """Target ``k``'s first ``rows`` initial configurations (rows, dof) [pose units]: row
+        0 its initial pose, then uniform draws within the limits; the same for every method,
+        and a prefix of any longer sequence."""
+        first = self.q_init[k:k + 1]
+        if rows <= 1:
+            return first.copy()
+        lower = self.q_init[k] if self.sample_lower is None else self.sample_lower
+        upper = self.q_init[k] if self.sample_upper is None else self.sample_upper
+        rng = np.random.default_rng(np.random.SeedSequence(int(self.seed), spawn_key=(int(k),)))
+        return np.concatenate([first, rng.uniform(lower, upper, (rows - 1, first.shape[1]))])
 
 
 @dataclass
 class IKResult:
-    """What :func:`run_ik` produced."""
+    """What :func:`run_ik` produced: ``methods``: name -> facts (library, restarts, ...);
+    ``batches``: rule -> name -> the batched throughput run (targets/s, threads, success);
+    ``auto_rows``: rows of a sequence under ``--attempts auto``."""
 
     robot: Robot
     settings: IKSettings
@@ -90,6 +174,34 @@ class IKResult:
     methods: dict
     wall_s: float
     load_start: tuple | None = None
+    batches: dict = field(default_factory=dict)
+    auto_rows: int = AUTO_ROWS
+
+
+def rule_rows(rule: Rule) -> int:
+    """Rows of the sequence a rule allows."""
+    return AUTO_ROWS if rule == AUTO else int(rule)
+
+
+def parse_attempts(text: str | Sequence[Rule]) -> tuple[Rule, ...]:
+    """``"auto,1"`` -> ("auto", 1); InputError for anything else."""
+    items = text if isinstance(text, (list, tuple)) else str(text).split(",")
+    rules: list[Rule] = []
+    for item in items:
+        word = str(item).strip()
+        if word == AUTO:
+            rule: Rule = AUTO
+        else:
+            try:
+                rule = int(word)
+            except ValueError:
+                raise InputError(f"--attempts: {word!r} is neither auto nor an integer "
+                                 "(e.g. auto,1)") from None
+        if rule not in rules:
+            rules.append(rule)
+    if not rules:
+        raise InputError(f"--attempts: {text!r} names no rule (auto, or an integer >= 1)")
+    return tuple(rules)
 
 
 def check_settings(s: IKSettings) -> None:
@@ -107,20 +219,33 @@ def check_settings(s: IKSettings) -> None:
                         ("--perturb-deg", s.perturb_deg)):
         if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
             raise InputError(f"{flag}: {value!r} must be a finite number > 0")
+    if not (isinstance(s.budget_ms, (int, float)) and s.budget_ms > 0):
+        raise InputError(f"--budget-ms: {s.budget_ms!r} must be a number > 0 (inf: none)")
+    if not s.attempts:
+        raise InputError("--attempts: no rule (auto, or an integer >= 1)")
+    for rule in s.attempts:
+        if rule != AUTO and (isinstance(rule, bool) or not isinstance(rule, (int, np.integer))
+                             or not 1 <= rule <= MAX_ATTEMPTS):
+            raise InputError(f"--attempts: {rule!r} must be auto or an integer in "
+                             f"[1, {MAX_ATTEMPTS}]")
+    if s.threads is not None and (isinstance(s.threads, bool) or
+                                  not isinstance(s.threads, (int, np.integer)) or s.threads < 1):
+        raise InputError(f"--threads: {s.threads!r} must be an integer >= 1")
     for name, n in s.max_count.items():
         if not isinstance(n, (int, np.integer)) or n < 1:
             raise InputError(f"--max-count-per-method: {name}={n!r} must be an integer >= 1")
 
 
-def check_memory(count: int, methods: int) -> None:
+def check_memory(count: int, methods: int, rows: int = 1, dof: int = 7) -> None:
     """InputError when ``count`` targets would not fit in memory (checked up front)."""
-    need = count * (BYTES_PER_TARGET + methods * BYTES_PER_ROW)
+    per_target = BYTES_PER_TARGET + methods * BYTES_PER_ROW + rows * dof * BYTES_PER_START
+    need = count * per_target
     try:
         available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     except (ValueError, OSError, AttributeError):  # not Linux: assume 4 GiB
         available = 4 * 2**30
     if need > MEMORY_SHARE * available:
-        most = int(MEMORY_SHARE * available / (BYTES_PER_TARGET + methods * BYTES_PER_ROW))
+        most = int(MEMORY_SHARE * available / per_target)
         raise InputError(f"--count: {count} targets need about {need / 2**30:.1f} GiB; "
                          f"{available / 2**30:.1f} GiB are free here: at most {most}")
 
@@ -128,19 +253,20 @@ def check_memory(count: int, methods: int) -> None:
 def parse_methods(text: str | Sequence[str] | None, kind: str = "pose") -> list[str]:
     """Method names (comma-separated or a list); None: every installed one that takes
     ``kind`` targets. InputError for unknown, missing or unsuitable ones."""
-    from ikbench.baselines._common.single_pose import SOLVERS
+    from ikbench.baselines._common.single_pose import SOLVERS, solver_class
 
     if text is None:
-        return [n for n, c in SOLVERS.items() if c.available() and kind in c.kinds]
+        classes = {n: solver_class(n) for n in SOLVERS}
+        return [n for n, c in classes.items() if c.available() and kind in c.kinds]
     items = text if isinstance(text, (list, tuple)) else str(text).split(",")
     names = list(dict.fromkeys(s.strip() for s in items if s.strip()))
     if not names:
         raise InputError(f"--methods: {text!r} names no method; known: {', '.join(SOLVERS)}")
     for name in names:
-        cls = SOLVERS.get(name)
-        if cls is None:
+        if name not in SOLVERS:
             raise InputError(f"--methods: {name!r} is not a single-pose IK method; known: "
                              f"{', '.join(SOLVERS)}")
+        cls = solver_class(name)
         if not cls.available():
             raise InputError(f"--methods: {name} needs {', '.join(cls.modules)} "
                              "(pip install 'ikbench[libs]')")
@@ -161,7 +287,14 @@ def sample_targets(robot: Robot, settings: IKSettings) -> Targets:
     else:
         step = rng.uniform(-settings.perturb_deg, settings.perturb_deg, q_target.shape)
         q_init = np.clip(q_target + step, lo, hi)
-    return Targets(q_target, T, q_init)
+    return Targets(q_target, T, q_init, int(settings.seed), np.asarray(lo), np.asarray(hi))
+
+
+def _errors(T: np.ndarray, T_target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Position error [mm] and rotation angle [deg] of frames T (B, 4, 4) [m] from T_target."""
+    position = np.linalg.norm(T[:, :3, 3] - T_target[:, :3, 3], axis=1) * 1000.0
+    cos = (np.einsum("kij,kij->k", T[:, :3, :3], T_target[:, :3, :3]) - 1.0) / 2.0
+    return position, np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
 def judge(robot: Robot, T_target: np.ndarray, poses: npt.ArrayLike, settings: IKSettings
@@ -171,18 +304,86 @@ def judge(robot: Robot, T_target: np.ndarray, poses: npt.ArrayLike, settings: IK
     poses = np.asarray(poses, dtype=float)
     finite = np.all(np.isfinite(poses), axis=1)
     safe = np.where(finite[:, None], poses, robot.sample_lower)
-    T = robot.fk_transform(safe)
-    position = np.linalg.norm(T[:, :3, 3] - T_target[:, :3, 3], axis=1) * 1000.0
-    cos = (np.einsum("kij,kij->k", T[:, :3, :3], T_target[:, :3, :3]) - 1.0) / 2.0
-    rotation = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
-    within = (np.all(safe >= robot.lower - 1e-6, axis=1)
-              & np.all(safe <= robot.upper + 1e-6, axis=1))
+    position, rotation = _errors(robot.fk_transform(safe), T_target)
+    within = (np.all(safe >= robot.lower - LIMIT_SLACK, axis=1)
+              & np.all(safe <= robot.upper + LIMIT_SLACK, axis=1))
     ok = finite & within & (position <= settings.tolerance_mm)
     if settings.kind == "pose":
         ok &= rotation <= settings.tolerance_deg
     position[~finite], rotation[~finite] = np.nan, np.nan
     return {"success": ok, "position_error_mm": position, "rotation_error_deg": rotation,
             "within_limits": within & finite}
+
+
+class AttemptCheck:
+    """The judge (:func:`judge`) for one answer, cheap enough to run after every attempt of a
+    method the study restarts: Pinocchio FK of ``q`` [rad, m], the same errors, tolerances
+    and limits. ``check(q_urdf, T_target) -> bool``."""
+
+    def __init__(self, robot: Robot, settings: IKSettings) -> None:
+        fk = robot.pinocchio_fk()
+        self.robot, self.model, self.frame = robot, fk.model, fk.frame_id
+        self.data = fk.model.createData()
+        self.lower, self.upper = robot.lower - LIMIT_SLACK, robot.upper + LIMIT_SLACK
+        self.settings = settings
+
+    def __call__(self, q_urdf: np.ndarray, T_target: np.ndarray) -> bool:
+        import pinocchio as pin
+
+        q = np.asarray(q_urdf, dtype=float)
+        if not np.all(np.isfinite(q)):
+            return False
+        pose = self.robot.from_urdf(q)
+        if np.any(pose < self.lower) or np.any(pose > self.upper):
+            return False
+        pin.framesForwardKinematics(self.model, self.data, q)
+        M = self.data.oMf[self.frame]
+        s = self.settings
+        if np.linalg.norm(M.translation - T_target[:3, 3]) * 1000.0 > s.tolerance_mm:
+            return False
+        if s.kind == "position":
+            return True
+        cos = (float(np.sum(M.rotation * T_target[:3, :3])) - 1.0) / 2.0
+        return bool(math.degrees(math.acos(min(1.0, max(-1.0, cos)))) <= s.tolerance_deg)
+
+
+def restart(solve: Callable[[np.ndarray, np.ndarray, np.ndarray], PoseOut],
+            starts: np.ndarray, T_target: np.ndarray,
+            holds: Callable[[np.ndarray, np.ndarray], bool], budget_s: float,
+            clock: Callable[[], float] = time.perf_counter) -> PoseOut:
+    """One descent per row of ``starts`` (A, dof), in order, until the answer holds
+    (``holds(q, T_target)``), the rows are used up or ``budget_s`` [s] has passed (checked
+    before each new attempt, by ``clock``); the last answer, its iterations summed and the
+    attempts made."""
+    begun = clock()
+    point, rotation = T_target[:3, 3], T_target[:3, :3]
+    iterations = 0
+    a = 0
+    while True:
+        out = solve(starts[a], point, rotation)
+        iterations += int(out.iterations)
+        a += 1
+        if a == len(starts) or holds(out.q, T_target) or clock() - begun >= budget_s:
+            return out._replace(iterations=iterations, attempts=a)
+
+
+@dataclass
+class _Outcome:
+    """One method's answers to the first ``count`` targets under one rule."""
+
+    q_urdf: np.ndarray
+    times: np.ndarray
+    iterations: np.ndarray
+    attempts: np.ndarray
+    library_ok: np.ndarray
+    failures: list[str]
+
+    @classmethod
+    def failed(cls, count: int, dof: int, failure: str) -> _Outcome:
+        """Every row failed (a library that could not be set up)."""
+        return cls(np.full((count, dof), np.nan), np.full(count, np.nan),
+                   np.zeros(count, dtype=int), np.zeros(count, dtype=int),
+                   np.full(count, None, dtype=object), [failure] * count)
 
 
 def run_ik(robot: Robot, settings: IKSettings | None = None,
@@ -192,11 +393,12 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
 
     Args:
         robot: a :class:`~ikbench.core.robot.Robot`.
-        settings: count, seed, kind, tolerances, initial poses, per-method caps.
+        settings: count, seed, kind, tolerances, initial poses, budget, attempts rules,
+            per-method caps.
         methods: method names; None: every installed one (:func:`parse_methods`).
         progress: progress lines on stderr.
     """
-    from ikbench.baselines._common.single_pose import SOLVERS
+    from ikbench.baselines._common.single_pose import solver_class
 
     started = time.perf_counter()
     load = load_average()
@@ -206,60 +408,88 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
     if unknown:
         raise InputError(f"--max-count-per-method: {unknown[0]} is not among the methods run "
                          f"({', '.join(names)})")
-    check_memory(settings.count, len(names))
+    rows = max(rule_rows(r) for r in settings.attempts)
+    check_memory(settings.count, len(names) * len(settings.attempts), rows, robot.dof)
+    robot.check_loads()
     targets = sample_targets(robot, settings)
+    check = AttemptCheck(robot, settings)
     say = Progress(FOLDER, enabled=progress).say
     frames, info = [], {}
-    for name in names:
-        solver = SOLVERS[name](robot, settings.kind)
-        count = min(settings.count, settings.max_count.get(name, settings.count))
-        say(f"{name}: preparing ({count} targets)")
-        try:
-            solver.prepare()
-        except Exception as exc:  # the library cannot take this robot: failed rows
-            say(f"{name}: FAILED to prepare: {describe(exc)}")
-            outcome = _unprepared(robot, count, f"prepare: {describe(exc)}")
-        else:
-            outcome = _solve(solver, targets, count, settings, say)
-        poses, times, iterations, library_ok, failures, batch = outcome
-        frames.append(_rows(robot, name, targets, count, settings, poses, times, iterations,
-                            library_ok, failures, batch))
-        info[name] = {"library": solver.library, "deterministic": solver.deterministic,
-                      "batched": solver.batched, "iterations_are": solver.iterations_are,
-                      "count": count}
-        done = frames[-1]
-        say(f"{name}: {int(done['success'].sum())}/{count} succeeded, "
-            f"{np.nansum(done['time_s']):.1f} s")
-    table = pd.concat(frames, ignore_index=True)[COLUMNS]
-    return IKResult(robot, settings, targets, table, info, time.perf_counter() - started, load)
+    batches: dict[str, dict[str, dict[str, float]]] = {}
+    solvers: dict[str, Any] = {}
+    for rule in settings.attempts:
+        batches[str(rule)] = {}
+        for name in names:
+            cls = solver_class(name)
+            count = min(settings.count, settings.max_count.get(name, settings.count))
+            info[name] = {"library": cls.library, "deterministic": cls.deterministic,
+                          "restarts_itself": cls.restarts_itself,
+                          "one_descent": cls.one_descent, "batched": cls.batched,
+                          "iterations_are": cls.iterations_are, "count": count}
+            if name not in solvers:
+                solvers[name] = _prepared(cls, robot, settings, say, count)
+            solver = solvers[name]
+            if isinstance(solver, str):  # the library cannot take this robot
+                outcome = _Outcome.failed(count, robot.dof, solver)
+            else:
+                say(f"attempts {rule}: {name}: solving {count} targets, one per call")
+                outcome = _solve_calls(solver, targets, count, settings, rule, check, say)
+                if solver.batched:
+                    batches[str(rule)][name] = _batch(solver, targets, count, settings, rule)
+            frames.append(_rows(robot, name, rule, targets, count, settings, outcome))
+            done = frames[-1]
+            say(f"attempts {rule}: {name}: {int(done['success'].sum())}/{count} succeeded, "
+                f"{np.nansum(done['time_s']):.1f} s")
+    table = pd.concat(frames, ignore_index=True)
+    table = table[COLUMNS + [c for c in table.columns if c not in COLUMNS]]
+    return IKResult(robot, settings, targets, table, info, time.perf_counter() - started, load,
+                    batches)
 
 
-def _solve(solver, targets: Targets, count: int, settings: IKSettings, say):
-    """Solve the first ``count`` targets; per target: poses, times, iterations, library's
-    claim, failure; and the batched time per IK (NaN unless batched)."""
+def _prepared(cls: type[PoseSolver], robot: Robot, settings: IKSettings, say, count: int
+              ) -> PoseSolver | str:
+    """The solver, set up (untimed); the failure (``"prepare: ..."``) when it cannot be."""
+    solver = cls(robot, settings.kind, (settings.tolerance_mm, settings.tolerance_deg),
+                 settings.budget_s)
+    say(f"{cls.name}: preparing ({count} targets)")
+    try:
+        solver.prepare()
+    except Exception as exc:  # the library cannot take this robot: failed rows
+        say(f"{cls.name}: FAILED to prepare: {describe(exc)}")
+        return f"prepare: {describe(exc)}"
+    return solver
+
+
+def _solve_calls(solver: PoseSolver, targets: Targets, count: int, settings: IKSettings,
+                 rule: Rule, check: AttemptCheck, say) -> _Outcome:
+    """Solve the first ``count`` targets one call each under ``rule`` (see the module doc)."""
     robot = solver.robot
-    T = targets.T_target[:count]
-    dof = robot.dof
-    if solver.batched:
-        t0 = time.perf_counter()
-        poses, iterations, ok = solver.solve_batch(
-            targets.q_init[:count], T[:, :3, 3] * 1000.0, T[:, :3, :3],
-            (settings.tolerance_mm, settings.tolerance_deg), settings.seed)
-        share = (time.perf_counter() - t0) / count
-        return (poses, np.full(count, share), iterations, ok.astype(object),
-                [""] * count, share)
-    poses = np.full((count, dof), np.nan)
+    dof, rows, budget_s = robot.dof, rule_rows(rule), settings.budget_s
+    out_q = np.full((count, dof), np.nan)
     times = np.zeros(count)
-    iterations = np.zeros(count, dtype=int)
+    iterations, attempts = np.zeros(count, dtype=int), np.zeros(count, dtype=int)
     library_ok = np.empty(count, dtype=object)
     failures = [""] * count
-    q_init = robot.to_urdf(targets.q_init[:count])
+
+    def to_urdf(q: np.ndarray) -> np.ndarray:
+        q = np.asarray(q, dtype=float).reshape(dof)
+        return robot.to_urdf(q) if solver.pose_units else q
+
+    def holds(q: np.ndarray, T: np.ndarray) -> bool:
+        return check(to_urdf(q), T)
+
     last = time.perf_counter()
     for k in range(count):
-        point, rotation = T[k, :3, 3], T[k, :3, :3]
+        initials = targets.initials(k, rows)
+        starts = np.ascontiguousarray(initials if solver.pose_units
+                                      else robot.to_urdf(initials))
+        T = targets.T_target[k]
         t0 = time.perf_counter()
         try:
-            out = solver.solve(q_init[k], point, rotation)
+            if solver.restarts_itself:
+                out = solver.solve_within(starts, T[:3, 3], T[:3, :3], budget_s)
+            else:
+                out = restart(solver.solve, starts, T, holds, budget_s)
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # one failed solve is a row
@@ -267,30 +497,53 @@ def _solve(solver, targets: Targets, count: int, settings: IKSettings, say):
             failures[k] = describe(exc)
             continue
         times[k] = time.perf_counter() - t0
-        poses[k] = robot.from_urdf(np.asarray(out.q, dtype=float).reshape(dof))
-        iterations[k], library_ok[k] = out.iterations, out.ok
+        out_q[k] = to_urdf(out.q)
+        iterations[k], attempts[k], library_ok[k] = out.iterations, out.attempts, out.ok
         if time.perf_counter() - last > PROGRESS_EVERY_S:
             last = time.perf_counter()
-            say(f"{solver.name}: {k + 1}/{count} solved")
-    return poses, times, iterations, library_ok, failures, np.nan
+            say(f"attempts {rule}: {solver.name}: {k + 1}/{count} solved")
+    return _Outcome(out_q, times, iterations, attempts, library_ok, failures)
 
 
-def _unprepared(robot, count: int, failure: str):
-    """What :func:`_solve` returns for a library that could not be set up: every row failed."""
-    return (np.full((count, robot.dof), np.nan), np.full(count, np.nan),
-            np.zeros(count, dtype=int), np.full(count, None, dtype=object), [failure] * count,
-            np.nan)
+def _batch(solver: PoseSolver, targets: Targets, count: int, settings: IKSettings, rule: Rule
+           ) -> dict[str, float]:
+    """The batched throughput run: every target in one call, from the same rows within the
+    same budget per target; targets/s, threads, success (judged), mean attempts."""
+    rows = rule_rows(rule)
+    initials = np.stack([targets.initials(k, rows) for k in range(count)])
+    T = targets.T_target[:count]
+    t0 = time.perf_counter()
+    out = solver.solve_batch(initials, np.ascontiguousarray(T[:, :3, 3]),
+                             np.ascontiguousarray(T[:, :3, :3]), settings.budget_s,
+                             settings.threads)
+    wall = time.perf_counter() - t0
+    verdict = judge(solver.robot, T, out.q, settings)
+    return {"targets_per_s": count / wall, "threads": int(out.threads), "wall_s": wall,
+            "success_pct": 100.0 * float(verdict["success"].mean()),
+            "attempts_mean": float(np.mean(out.attempts))}
 
 
-def _rows(robot, name, targets, count, settings, poses, times, iterations, library_ok,
-          failures, batch) -> pd.DataFrame:
+def _rows(robot: Robot, name: str, rule: Rule, targets: Targets, count: int,
+          settings: IKSettings, outcome: _Outcome) -> pd.DataFrame:
+    poses = robot.from_urdf(outcome.q_urdf)
     verdict = judge(robot, targets.T_target[:count], poses, settings)
     distance = np.linalg.norm(poses - targets.q_init[:count], axis=1)
+    solutions = {f"q{j}": outcome.q_urdf[:, j] for j in range(robot.dof)}
     return pd.DataFrame({
-        "robot": robot.name, "method": name, "target": np.arange(count), "kind": settings.kind,
-        "init": settings.init, **verdict, "library_ok": library_ok, "failure": failures,
-        "time_s": times, "batched_time_per_ik_s": batch, "joint_distance_deg": distance,
-        "iterations": iterations})
+        "robot": robot.name, "method": name, "attempts_rule": str(rule),
+        "target": np.arange(count), "kind": settings.kind, "init": settings.init,
+        "budget_ms": settings.budget_ms, **verdict, "library_ok": outcome.library_ok,
+        "failure": outcome.failures, "time_s": outcome.times, "attempts": outcome.attempts,
+        "joint_distance_deg": distance, "iterations": outcome.iterations, **solutions})
+
+
+def recheck(robot: Robot, table: pd.DataFrame, T_target: np.ndarray, settings: IKSettings
+            ) -> np.ndarray:
+    """Success of every row of ``table`` recomputed from its stored solution (``q0 ..``,
+    URDF units) and the targets' frames (B, 4, 4) [m]: what :func:`judge` said."""
+    q_urdf = table[[f"q{j}" for j in range(robot.dof)]].to_numpy(dtype=float)
+    T = T_target[table["target"].to_numpy(dtype=int)]
+    return judge(robot, T, robot.from_urdf(q_urdf), settings)["success"]
 
 
 def load_average() -> tuple | None:
@@ -302,13 +555,9 @@ def load_average() -> tuple | None:
         return None
 
 
-def robot_slug(robot: Robot) -> str:
-    """The robot's folder name (its name, without a package prefix)."""
-    return str(robot.name).split(":")[-1].replace("/", "_")
-
-
 def write(result: IKResult, output: str | Path, command: str = "") -> Path:
-    """Write ``OUTPUT/ik/<robot>/`` whole (:mod:`.ik_report`); return the folder."""
+    """Write ``OUTPUT/ik/<robot>/`` whole (:mod:`ikbench.render.ik_report`); return the
+    folder."""
     from pathlib import Path
 
     from ikbench.render.ik_report import write_folder

@@ -6,8 +6,13 @@ import argparse
 
 from ikbench.cli.commands import Subparsers
 
-HELP = "single-pose IK benchmark: success rate and solve time of every library on a robot"
+HELP = ("single-pose IK benchmark: success rate and time per call of every library on a robot, "
+        "under one protocol (budget, initial configurations, attempts)")
 DEFAULT_OUTPUT = "runs"
+
+
+#: The default budget [ms] (ikbench.studies.ik.BUDGET_MS; not imported: the CLI starts light).
+BUDGET_MS = 5.0
 
 
 def register(subparsers: Subparsers) -> None:
@@ -17,20 +22,36 @@ def register(subparsers: Subparsers) -> None:
         "ik", help=HELP,
         description=(
             "Solve COUNT single-pose IK targets (FK of configurations drawn uniformly within "
-            "the limits, seeded) with every installed library, each from the same initial "
-            "poses, timing each call, and judge every answer by FK through Pinocchio. Writes "
-            "OUTPUT/ik/<robot>/: results.csv (one row per method x target; Parquet above 50,000 "
-            "rows), targets.csv, leaderboard.md, times.png, success_vs_tolerance.png, "
-            "run.json. Robots by package name: --robot example-robot-data:panda (ikbench "
-            "robots --all lists them)."),
+            "the limits, seeded) with every installed library under one protocol: each target "
+            "has a wall-clock budget (--budget-ms) and a seeded sequence of initial "
+            "configurations, the same for every method; a method is restarted from the next "
+            "one until its answer holds or the budget is spent (--attempts auto), or makes at "
+            "most N attempts (--attempts 1: one descent each). One target per call, each call "
+            "timed; every answer judged by FK through Pinocchio. Writes OUTPUT/ik/<robot>/: "
+            "results.csv (one row per rule x method x target with the answer's joint values; "
+            "Parquet above 50,000 rows), targets.csv, leaderboard.md, times.png, "
+            "success_vs_tolerance.png, run.json. Robots by package name: --robot "
+            "example-robot-data:panda (ikbench robots --all lists them)."),
     )
     add_robot_arguments(parser)
     parser.add_argument("--count", type=int, default=1000, help="targets (default 1000)")
-    parser.add_argument("--seed", type=int, default=1, help="seed of targets, initial poses "
-                        "and restarts (default 1)")
+    parser.add_argument("--seed", type=int, default=1, help="seed of targets and initial "
+                        "configurations (default 1)")
     parser.add_argument("--methods", default=None,
                         help="comma-separated methods (default: every installed one: ours-lm, "
-                        "trac-ik, sequential-ik, pink, mink, drake-ik, pyroki, ikpy)")
+                        "rtb-lm, trac-ik, rtb-nr, sequential-ik, pink, mink, drake-ik, pyroki, "
+                        "ikpy)")
+    parser.add_argument("--budget-ms", type=float, default=BUDGET_MS,
+                        help="wall-clock budget per target [ms], the same for every method; "
+                        f"inf: none (default {BUDGET_MS:g}: TRAC-IK's default timeout)")
+    parser.add_argument("--attempts", default="auto", metavar="auto|N[,...]",
+                        help="auto: restart from the next initial configuration until the "
+                        "answer holds or the budget is spent; N: at most N attempts (1: one "
+                        "descent from the first, for every method); several rules, e.g. "
+                        "auto,1, give one table each (default auto)")
+    parser.add_argument("--threads", type=int, default=None,
+                        help="threads of the batched throughput run of the methods that batch "
+                        "(default: every core)")
     parser.add_argument("--kind", choices=("pose", "position"), default="pose",
                         help="pose (6-D, default) or position (rotation free)")
     parser.add_argument("--tolerance-mm", type=float, default=1.0,
@@ -38,8 +59,9 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--tolerance-deg", type=float, default=0.5,
                         help="rotation tolerance of a success [deg] (default 0.5)")
     parser.add_argument("--init", choices=("random", "nearby"), default="random",
-                        help="initial pose: random (uniform within the limits, default) or "
-                        "nearby (the target's configuration perturbed by --perturb-deg)")
+                        help="the first initial configuration: random (uniform within the "
+                        "limits, default) or nearby (the target's configuration perturbed by "
+                        "--perturb-deg); the further ones are uniform draws")
     parser.add_argument("--perturb-deg", type=float, default=10.0,
                         help="--init nearby: largest change per joint [deg] (default 10)")
     parser.add_argument("--max-count-per-method", default=None, metavar="METHOD=N,...",
@@ -80,6 +102,9 @@ def command_line(args: argparse.Namespace) -> str:
     words += ["--count", str(args.count), "--seed", str(args.seed)]
     if args.methods:
         words += ["--methods", args.methods]
+    words += ["--budget-ms", f"{args.budget_ms:g}", "--attempts", args.attempts]
+    if args.threads:
+        words += ["--threads", str(args.threads)]
     words += ["--kind", args.kind, "--tolerance-mm", f"{args.tolerance_mm:g}",
               "--tolerance-deg", f"{args.tolerance_deg:g}", "--init", args.init]
     if args.init == "nearby":
@@ -99,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
     from ikbench.studies.ik import (
         FOLDER,
         IKSettings,
+        parse_attempts,
         parse_methods,
         robot_slug,
         run_ik,
@@ -107,16 +133,18 @@ def run(args: argparse.Namespace) -> int:
 
     settings = IKSettings(args.count, args.seed, args.kind, args.tolerance_mm,
                           args.tolerance_deg, args.init, args.perturb_deg,
-                          parse_caps(args.max_count_per_method))
+                          parse_caps(args.max_count_per_method), args.budget_ms,
+                          parse_attempts(args.attempts), args.threads)
     robot = robot_from_args(args)
     names = parse_methods(args.methods, args.kind)
+    robot.check_loads()
     folder = Path(args.output) / FOLDER / robot_slug(robot)
     check_folder_writable(folder)
     result = run_ik(robot, settings, names, progress=not args.quiet)
     write(result, args.output, command_line(args))
-    summary = summarise(result.table)
-    print(summary[["method", "targets", "success_pct", "time_median_ms", "time_p95_ms",
-                   "batched_time_per_ik_ms"]].to_string(
+    summary = summarise(result.table, result.batches)
+    print(summary[["attempts_rule", "method", "targets", "success_pct", "attempts_median",
+                   "time_median_ms", "time_mean_ms", "time_p95_ms", "batched_per_s"]].to_string(
                        index=False, float_format=lambda v: f"{v:.3g}"))
     print(f"written to {folder}/")
     return 0

@@ -36,6 +36,18 @@ def chain_urdf_xml(robot: Robot) -> str:
     return ET.tostring(tree.getroot(), encoding="unicode")
 
 
+def link_frame_id(model: Any, name: str) -> int:
+    """The id of link ``name``'s frame in ``model``: its ``BODY`` frame when there is one, else
+    the one frame of that name. A URDF may give a fixed joint and its child link one name (z1's
+    ``gripperStator``); Pinocchio then holds two frames of it, and ``getFrameId(name)`` raises
+    "Several frames match the filter"."""
+    import pinocchio as pin
+
+    if model.existFrame(name, pin.FrameType.BODY):
+        return int(model.getFrameId(name, pin.FrameType.BODY))
+    return int(model.getFrameId(name))
+
+
 def build_chain_model(robot: Robot) -> Any:
     """The Pinocchio model of ``robot``'s chain (see the module docstring)."""
     return build_chain_model_with_geometry(robot, with_collision=False)[0]
@@ -72,7 +84,7 @@ def build_chain_model_with_geometry(robot: Robot, with_collision: bool = True
         raise ValueError(f"base link {robot.root_link} is not a frame of the model")
     data = model.createData()
     pin.framesForwardKinematics(model, data, pin.neutral(model))
-    T_world_base = data.oMf[model.getFrameId(robot.root_link)].copy()
+    T_world_base = data.oMf[link_frame_id(model, robot.root_link)].copy()
     if not T_world_base.isIdentity():
         # the chain's base becomes the world frame: its first joint hangs off the universe
         first = 1
@@ -96,7 +108,7 @@ class PinocchioFK:
         self.robot = robot
         self.model = build_chain_model(robot)
         self.data = self.model.createData()
-        self.frame_id = self.model.getFrameId(robot.end_frame)
+        self.frame_id = link_frame_id(self.model, robot.end_frame)
 
     def placement(self, q_rad: np.ndarray) -> Any:
         """The end frame's ``pin.SE3`` in the base frame for one configuration (dof,)."""

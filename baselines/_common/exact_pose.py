@@ -1,0 +1,133 @@
+"""Tracking and walking with a library that solves exact 6-D poses (TRAC-IK, roboticstoolbox's
+``ik_LM``): what pointing goals become for such a solver, shared by those methods.
+
+A pointing goal fixes one axis of the end frame, not its roll; an exact-pose solver needs a
+whole rotation. Goal i asks for the warm start's end-frame rotation tilted by the smallest angle
+that puts the pointing axis on the goal direction (the roll carried over from the pose before).
+When the solver finds no solution for that roll, the roll is swept about the goal direction
+(+-step, +-2 step, ... up to +-max, :func:`rolls_rad`) and the first success kept. A point with
+no solution keeps its warm start and counts as not converged. 6-D goal frames are solved as
+given.
+
+The track (:mod:`ikbench.baselines._common.track`): step i asks for the plan's point and
+scheduled pointing direction; when the task asks no pointing, the step asks for the task's own
+goal direction (not judged; roll swept as above) and, when none of those rotations is solved,
+for the warm start's rotation itself. The seed of step i is the warm start moved
+``posture_seed`` of the way toward the plan's posture pose (start to touch pose, linearly): an
+exact-pose solver has no posture term. The walk
+(:mod:`ikbench.baselines._common.walk`) seeds each point with the pose after it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ikbench.baselines._common.chain import Chain, Goals
+from ikbench.baselines._common.geometry import closest_rotation_with_axis, rotation_about
+from ikbench.baselines._common.track import track
+from ikbench.baselines._common.walk import PointResult, Walk, walk_back
+from ikbench.core.errors import InputError
+from ikbench.methods.base import check_positive, flag_of, option
+
+#: ``solve(seed, point, rotation)``: seed (dof,) [rad, m], goal point (3,) [m], goal rotation
+#: (3, 3) -> (q (dof,), holds) when the library returns a solution (``holds``: its FK is
+#: within the library's tolerance), None when it finds none.
+PoseIK = Callable[[np.ndarray, np.ndarray, np.ndarray], "tuple[np.ndarray, bool] | None"]
+
+
+def roll_step_option(prefix: str) -> Any:
+    """The settings field ``roll_step`` [deg], flag ``--{prefix}-roll-step``."""
+    return option(1.0, flag=f"{prefix}-roll-step", unit="deg",
+                  help="roll sweep step when a point has no solution")
+
+
+def roll_max_option(prefix: str) -> Any:
+    """The settings field ``roll_max`` [deg], flag ``--{prefix}-roll-max``."""
+    return option(60.0, flag=f"{prefix}-roll-max", unit="deg",
+                  help="largest roll change tried (0: no sweep)")
+
+
+def check_roll_settings(settings: Any) -> None:
+    """InputError naming the flag for a bad ``roll_step``, ``roll_max`` [deg] or
+    ``posture_seed`` of an exact-pose method's settings."""
+    check_positive(settings, "roll_step")
+    if not (np.isfinite(settings.posture_seed) and 0 <= settings.posture_seed <= 1):
+        raise InputError(f"{flag_of(settings, 'posture_seed')}: {settings.posture_seed!r} "
+                         "must be in [0, 1]")
+    if not 0 <= settings.roll_max <= 180:
+        raise InputError(f"{flag_of(settings, 'roll_max')}: {settings.roll_max!r} must be in "
+                         "[0, 180] deg")
+
+
+def rolls_rad(step_deg: float, max_deg: float) -> list[float]:
+    """0, +step, -step, +2 step, ... up to +-max_deg [rad]."""
+    count = int(np.floor(max_deg / step_deg + 1e-9))
+    rolls = [0.0]
+    for k in range(1, count + 1):
+        rolls += [np.radians(k * step_deg), -np.radians(k * step_deg)]
+    return rolls
+
+
+def solve_exact_poses(chain: Chain, goals: Goals, solve: PoseIK,
+                      end_rotation: Callable[[np.ndarray], np.ndarray], rolls: list[float],
+                      posture_seed: float) -> tuple[Walk, dict[str, object]]:
+    """Track (``goals.track`` set) or walk the goals with ``solve`` (see the module docstring).
+
+    Args:
+        chain: the chain (limits, pointing axis).
+        goals: the goals in URDF units.
+        solve: the library's IK of one pose (:data:`PoseIK`).
+        end_rotation: the end frame's rotation (3, 3) of a configuration (dof,), by the
+            library's own FK.
+        rolls: the roll angles [rad] tried in order (:func:`rolls_rad`).
+        posture_seed: the track's seed moves this fraction from the warm start toward the
+            plan's posture pose.
+
+    Returns:
+        (the walk, figures for details: points whose roll was swept, points whose solution
+        missed the library's tolerance by FK, the scheme).
+    """
+    plan = goals.track
+    swept, off = [], []
+
+    def solve_pose(i: int, seed: np.ndarray, point: np.ndarray,
+                   candidates: list[np.ndarray], q_warm: np.ndarray) -> PointResult:
+        """The first candidate rotation solved at ``point`` from ``seed``; none: q_warm."""
+        for k, rotation in enumerate(candidates):
+            out = solve(seed, point, rotation)
+            if out is not None:
+                q, holds = out
+                if k:
+                    swept.append(i)
+                if not holds:
+                    off.append(i)
+                return PointResult(q, k + 1, holds)
+        return PointResult(q_warm, len(candidates), False)
+
+    def pointing_candidates(q_warm: np.ndarray, direction: np.ndarray) -> list[np.ndarray]:
+        """The warm start's rotation tilted onto ``direction``, then rolled about it."""
+        tilted = closest_rotation_with_axis(end_rotation(q_warm), chain.pointing_axis,
+                                            direction)
+        return [rotation_about(direction, r) @ tilted for r in rolls]
+
+    def walk_point(i: int, q_warm: np.ndarray) -> PointResult:
+        candidates = ([goals.rotations[i]] if goals.rotations is not None
+                      else pointing_candidates(q_warm, goals.directions[i]))
+        return solve_pose(i, q_warm, goals.points_m[i], candidates, q_warm)
+
+    def track_point(i: int, q_warm: np.ndarray) -> PointResult:
+        assert plan is not None
+        candidates = pointing_candidates(q_warm, goals.directions[i] if plan.directions is None
+                                         else plan.directions[i])
+        if plan.directions is None:  # no pointing asked: else the warm start's rotation
+            candidates.append(end_rotation(q_warm))
+        seed = chain.clip(q_warm + posture_seed * (plan.posture[i] - q_warm))
+        return solve_pose(i, seed, plan.points_m[i], candidates, q_warm)
+
+    walk = track(track_point, chain, plan) if plan is not None else \
+        walk_back(walk_point, chain, goals)
+    return walk, {"points_roll_swept": len(swept), "points_fk_off": len(off),
+                  "scheme": "track" if plan is not None else "walk"}
