@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 
+import numpy as np
 import pytest
 
 from ikbench.methods.ours_exact import OursExact
@@ -33,3 +34,20 @@ def test_ours_exact_names_its_solver_and_its_initial_solution():
 def test_every_method_names_a_backend(name):
     runtime = available_methods()[name]().runtime()
     assert isinstance(runtime["backend"], str) and runtime["backend"]
+
+
+def test_ik_runs_the_compiled_single_pose_lm_where_numba_is_installed(robot):
+    """``ikbench ik``'s ours-lm is the compiled solver with numba, the numpy reference
+    without; both answer the same target within the tolerance."""
+    from ikbench.baselines._common.ours_lm_pose import OursLMSolver
+
+    solver = OursLMSolver(robot, "pose", (1.0, 0.5), 0.005)
+    solver.prepare()
+    expected = "numba" if importlib.util.find_spec("numba") else "numpy"
+    assert solver.runtime() == {"backend": expected}
+    pose = robot.sample_lower + 0.4 * (robot.sample_upper - robot.sample_lower)
+    T = robot.fk_transform(pose)[0]
+    start = robot.sample_lower + 0.45 * (robot.sample_upper - robot.sample_lower)
+    out = solver.solve_within(start[None].repeat(3, 0), T[:3, 3], T[:3, :3], float("inf"))
+    reached = robot.fk_transform(out.q)[0]
+    assert out.ok and np.linalg.norm(reached[:3, 3] - T[:3, 3]) * 1000.0 < 1.0

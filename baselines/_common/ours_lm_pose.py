@@ -2,32 +2,44 @@
 library: its adapter sits beside the interface, :mod:`ikbench.baselines._common.single_pose`).
 
 ours-lm restarts by itself: :meth:`OursLMSolver.solve_within` takes the target's whole
-sequence of initial configurations [pose units] and the budget. Today it runs on the numpy
-reference, :func:`ikbench.methods.ours_lm.single_pose.solve_poses`, one target per call: an
-attempt from row a stops after :data:`RESTART_AFTER` iterations without success (the last
-row's after :data:`~ikbench.baselines._common.single_pose.MAX_STEPS`), and the next row starts
-while the budget lasts (checked between attempts: numpy cannot stop inside one). The compiled
-single-pose LM (``SinglePoseLM(robot, kind, tolerance).solve(point_mm, rotation, initials,
-budget_s)``, restarts and deadline inside its loop) takes exactly these arguments and replaces
-the loop here.
+sequence of initial configurations [pose units] and the budget. With numba installed (the
+``[fast]`` extra; the default wherever it is) it runs the compiled single-pose LM
+(:class:`ikbench.methods.ours_lm.single_pose_compiled.SinglePoseLM`): the restarts from the
+rows in order and the wall-clock deadline are inside its compiled loop, one target per call
+from Python, and :meth:`OursLMSolver.solve_batch` solves every target over numba threads,
+each with its own budget. Without numba it runs the numpy reference,
+:func:`ikbench.methods.ours_lm.single_pose.solve_poses`, one target per call: an attempt from
+row a stops after :data:`RESTART_AFTER` iterations without success (the last row's after
+:data:`~ikbench.baselines._common.single_pose.MAX_STEPS`), and the next row starts while the
+budget lasts (checked between attempts: numpy cannot stop inside one); its batch is one numpy
+call without a deadline. :meth:`OursLMSolver.runtime` says which ran.
 
-Batched (:meth:`OursLMSolver.solve_batch`, throughput only): every target in one numpy batch
-from its first row, restarting from the reference's own seeded random poses (up to A - 1 of
-them) with :data:`BATCH_MAX_ITERATIONS` iterations in all; no wall-clock budget; one thread.
+One descent (``--attempts 1``: one row) stops after
+:data:`~ikbench.baselines._common.single_pose.MAX_STEPS` iterations, as the other methods'
+descents do.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import time
+from typing import Any
 
 import numpy as np
 
 from ikbench.baselines._common.single_pose import MAX_STEPS, BatchOut, PoseOut, PoseSolver
+from ikbench.methods.ours_lm.devices import numba_threads
+from ikbench.methods.ours_lm.single_pose import solve_poses
 
-#: Iterations of one attempt before the next row (as the reference's ``restart_after``).
+#: Iterations of one attempt before the next row (the numpy reference's ``restart_after``).
 RESTART_AFTER = 15
-#: The batch: LM iterations per target in all (restarts included).
+#: The numpy batch: LM iterations per target in all (restarts included).
 BATCH_MAX_ITERATIONS = 1500
+
+
+def compiled_available() -> bool:
+    """True when numba is installed (the compiled solver runs)."""
+    return importlib.util.find_spec("numba") is not None
 
 
 class OursLMSolver(PoseSolver):
@@ -40,6 +52,23 @@ class OursLMSolver(PoseSolver):
     pose_units = True
     iterations_are = "LM iterations (all attempts)"
 
+    def prepare(self) -> None:
+        """Build (and compile or load) the compiled solver when numba is installed."""
+        self.compiled = None
+        if compiled_available():
+            # numba is optional: its module is imported only where it runs
+            from ikbench.methods.ours_lm.single_pose_compiled import SinglePoseLM
+
+            self.compiled = SinglePoseLM(self.robot, self.kind, self.tolerance)
+            self.descent = SinglePoseLM(self.robot, self.kind, self.tolerance,
+                                        max_iterations=MAX_STEPS)
+            self.compiled.warm_up()
+            self.descent.warm_up()
+
+    def runtime(self) -> dict[str, Any]:
+        """The solver that runs: compiled (numba) or the numpy reference."""
+        return {"backend": "numba" if getattr(self, "compiled", None) else "numpy"}
+
     def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         """One descent from ``q_init`` [pose units] (:data:`MAX_STEPS` iterations at most)."""
         return self.solve_within(np.asarray(q_init, dtype=float)[None], point_m, rotation,
@@ -49,16 +78,19 @@ class OursLMSolver(PoseSolver):
                      budget_s: float) -> PoseOut:
         """From the rows of ``initials`` (A, dof) [pose units] in order until success, the
         last row or the budget [s] (see the module docstring)."""
-        from ikbench.methods.ours_lm.single_pose import solve_poses
-
+        point_mm = np.asarray(point_m, dtype=float) * 1000.0
+        if getattr(self, "compiled", None) is not None:
+            solver = self.descent if len(initials) == 1 else self.compiled
+            out = solver.solve(point_mm, np.asarray(rotation, dtype=float), initials,
+                               budget_s)
+            return PoseOut(out.pose, int(out.iterations), bool(out.success), int(out.attempts))
         deadline = time.perf_counter() + budget_s
-        point_mm = np.asarray(point_m, dtype=float)[None] * 1000.0
         goal_R = np.asarray(rotation, dtype=float)[None]
         iterations = 0
         for a in range(len(initials)):
             last = a + 1 == len(initials)
-            out = solve_poses(self.robot, point_mm, goal_R, initials[a:a + 1], self.tolerance,
-                              position_only=self.kind == "position",
+            out = solve_poses(self.robot, point_mm[None], goal_R, initials[a:a + 1],
+                              self.tolerance, position_only=self.kind == "position",
                               max_iterations=MAX_STEPS if last else RESTART_AFTER)
             iterations += int(out.iterations[0])
             if out.converged[0] or last or time.perf_counter() >= deadline:
@@ -67,13 +99,16 @@ class OursLMSolver(PoseSolver):
 
     def solve_batch(self, initials: np.ndarray, points_m: np.ndarray, rotations: np.ndarray,
                     budget_s: float, threads: int | None = None) -> BatchOut:
-        """Every target in one numpy batch (see the module docstring; ``budget_s`` and
-        ``threads`` are not used by the numpy reference: no deadline, one thread)."""
-        from ikbench.methods.ours_lm.single_pose import solve_poses
-
+        """Every target in one call: compiled over ``threads`` numba threads, each target with
+        its own budget, or (numpy) one batch without a deadline on one thread."""
+        points_mm = np.asarray(points_m, dtype=float) * 1000.0
+        if getattr(self, "compiled", None) is not None:
+            solver = self.descent if initials.shape[1] == 1 else self.compiled
+            out = solver.solve_batch(points_mm, rotations, initials, budget_s, threads)
+            count = max(1, min(threads or numba_threads(), numba_threads(), len(points_mm)))
+            return BatchOut(out.poses, out.attempts, count)
         rows = initials.shape[1]
-        out = solve_poses(self.robot, np.asarray(points_m) * 1000.0, rotations,
-                          initials[:, 0], self.tolerance,
+        out = solve_poses(self.robot, points_mm, rotations, initials[:, 0], self.tolerance,
                           position_only=self.kind == "position",
                           max_iterations=BATCH_MAX_ITERATIONS, restarts=rows - 1,
                           restart_after=RESTART_AFTER)

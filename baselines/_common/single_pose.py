@@ -28,7 +28,7 @@ from __future__ import annotations
 import importlib
 import importlib.util
 from collections.abc import Callable
-from typing import TYPE_CHECKING, ClassVar, NamedTuple
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -126,6 +126,11 @@ class PoseSolver:
     def available(cls) -> bool:
         """True when every module it needs can be imported (nothing is imported here)."""
         return all(importlib.util.find_spec(m) is not None for m in cls.modules)
+
+    def runtime(self) -> dict[str, Any]:
+        """What runs the solves (recorded in run.json, shown in the leaderboard): the
+        library by default; ikbench's own solver names its backend."""
+        return {"backend": self.library}
 
     def prepare(self) -> None:
         """Untimed set-up (models, compilation)."""

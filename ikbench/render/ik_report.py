@@ -229,6 +229,10 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
             f"{m} {n}" for m, n in capped.items()) + ".", ""]
     lines += ["Iterations count: " + "; ".join(f"{m}: {f['iterations_are']}"
                                               for m, f in result.methods.items()) + ".", ""]
+    runtimes = {m: f.get("runtime") for m, f in result.methods.items() if f.get("runtime")}
+    if runtimes:
+        lines += ["Backends: " + "; ".join(f"{m} {r['backend']}" for m, r in runtimes.items())
+                  + ".", ""]
     lines += published_section(robot_slug(robot), summary)
     lines += [
         f"Machine: {prov['cpu']} ({prov['cpu_count']} logical CPUs), {prov['platform']}, "

@@ -429,6 +429,7 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
             if name not in solvers:
                 solvers[name] = _prepared(cls, robot, settings, say, count)
             solver = solvers[name]
+            info[name]["runtime"] = None if isinstance(solver, str) else solver.runtime()
             if isinstance(solver, str):  # the library cannot take this robot
                 outcome = _Outcome.failed(count, robot.dof, solver)
             else:
