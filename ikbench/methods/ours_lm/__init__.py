@@ -81,9 +81,20 @@ class OursLM(Method):
                 from ikbench.methods.ours_lm.compiled import warm_up
 
                 warm_up(robot)
+                if self._pose_paths_ahead:
+                    from ikbench.methods.ours_lm.start_search import warm_up_search
+
+                    warm_up_search(robot, self.settings)
         else:
             robot.pinocchio_fk()
         import scipy.linalg.lapack  # noqa: F401  the banded solver's import is not timed
+
+    #: The tasks checked last hold a pose path (the search's kernels are then warmed up too).
+    _pose_paths_ahead = False
+
+    def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
+        super().check_tasks(robot, tasks)
+        self._pose_paths_ahead = any(t.goal_rotations is not None for t in tasks)
 
     def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         return self.solve_many(robot, [task])[0]

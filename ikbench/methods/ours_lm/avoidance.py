@@ -1,8 +1,8 @@
-"""Keeping clear of obstacles (and of itself) in ours-lm's 6-D pose-path search.
+"""Keeping clear of obstacles and of itself in ours-lm's 6-D pose-path search.
 
-Used when a task has obstacles and the robot a collision model
-(:mod:`ikbench.core.collision`); without obstacles nothing here runs, so obstacle-free results
-do not change. Three places:
+Used whenever the robot has a collision model (:mod:`ikbench.core.collision`), obstacles or
+not: self-collision is always avoided (the numpy search; the compiled search
+:mod:`.path_search` does the same in compiled code). Three places:
 
 - **carrying** (:func:`avoidance_motion`): besides the joint-limit avoidance, a joint motion
   that moves every pair closer than ``activation_mm`` apart (robot-obstacle and self pairs)
@@ -123,10 +123,8 @@ class Avoidance:
 
 def avoidance_for(robot: Robot, task: Task, clearance_mm: float, weight: float
                   ) -> Avoidance | None:
-    """The :class:`Avoidance` of a task with obstacles on a robot with a collision model,
-    else None (nothing changes)."""
-    if not getattr(task, "obstacles", ()):
-        return None
+    """The :class:`Avoidance` of a task (its obstacles, if any, and the robot's own links) on
+    a robot with a collision model, else None (nothing to avoid)."""
     from ikbench.core.collision import collision_model
 
     model = collision_model(robot)

@@ -60,7 +60,6 @@ from ikbench.methods.ours_lm.start_search import (
     CARRY_RETRY,
     DROP_MM_DEG,
     SEARCH_MARGIN,
-    SEED_TOLERANCE,
     STITCH_JUMP_COST,
     STITCH_REACHED,
     SearchResult,
@@ -75,9 +74,13 @@ if TYPE_CHECKING:
     from ikbench.core.task import Task
     from ikbench.methods.ours_lm.start_search import OursLMSettings
 
-#: Anchor waypoints spread over the path in the first round, and IK seeds at each.
+#: Anchor waypoints spread over the path in the first round, and IK seeds at each (twice as
+#: many at the anchors of later rounds).
 ANCHORS = 5
 SEEDS = 16
+#: An anchor's IK solution closer than this to its goal [mm and deg] is carried (the carrying
+#: steps close the rest, or its poses are no nodes).
+ANCHOR_TOLERANCE = 0.5
 #: Rounds of anchors around the stitch's jumps (and waypoints without a node); anchors per
 #: jump, waypoint offsets around it, and jumps per round at most.
 ROUNDS = 3
@@ -88,9 +91,11 @@ REACH = 40
 #: A stitched step above this [pose units] is a jump that more anchors are placed around; the
 #: LM smooths smaller excesses over the stitch's step limit.
 RETRACK_STEP = 2.0 * MAX_JOINT_CHANGE_DEG
-#: The refinement's shortening phases: (smoothness weight c6, LM iterations), validity not
-#: checked (the pose errors grow to millimetres while the path straightens out).
-SHORTEN = ((10.0, 40), (1.0, 20))
+#: The refinement's shortening phases, strong to none, each tried while the last failed:
+#: (smoothness weight c6, LM iterations) each, validity not checked (the pose errors grow to
+#: millimetres while the path straightens out; a strong one may press the path against an
+#: obstacle where the poses cannot be reached again).
+SHORTEN = (((10.0, 40), (1.0, 20)), ((0.1, 60),), ())
 #: LM iterations of the refinement's last phase (the task's weights) at most.
 LM_ITERATIONS = 40
 #: Further stitches refined when a refinement ends without a valid path, each without the
@@ -154,6 +159,33 @@ def wrap(poses: np.ndarray, period: np.ndarray, lower: np.ndarray) -> np.ndarray
     return np.where(period > 0, wrapped, poses)
 
 
+def warm_up(robot: Robot) -> None:
+    """Compile (or load from numba's cache) the search's kernels outside any timed region: a
+    three-waypoint path of the robot's current end frame, with a box."""
+    from ikbench.core.obstacles import box
+    from ikbench.core.task import Task
+
+    pose = np.clip(np.zeros(robot.dof), robot.sample_lower, robot.sample_upper)
+    point, rotation, _, _ = robot.chain_kinematics().frames(pose[None], False)
+    points_mm = np.repeat(point * 1000.0, 3, axis=0)
+    far = box("warm-up", points_mm[0] + 5000.0, [10.0, 10.0, 10.0])
+    task = Task("warm-up", points_mm, np.tile([1.0, 0.0, 0.0], (3, 1)), None, None,
+                goal_rotations=np.repeat(rotation, 3, axis=0), reference_pose_deg=pose,
+                obstacles=(far,))
+    from ikbench.methods.ours_lm.start_search import OursLMSettings
+
+    s = _Search(robot, task, OursLMSettings(max_iterations=2))
+    for threads in (1, 2):
+        previous = kernels.set_threads(threads)
+        try:
+            s.add_tracks(np.array([0, 2]), 2)
+        finally:
+            kernels.set_threads(previous)
+    path, _ = s.stitch()
+    s.refine(np.repeat(pose[None], 3, axis=0) if path is None else path,
+             {"L0": 1.0, "L1": 1.0, "L6": 0.001}, SHORTEN[0])
+
+
 class _Search:
     """One task's search state: the kernels' spec, the goals and the tracks found so far."""
 
@@ -198,8 +230,8 @@ class _Search:
             self.lower, self.upper)
         self.ik_iterations += iterations
         q = q.reshape(len(anchors), count, dof)
-        ok = ((position < SEED_TOLERANCE) & (rotation < SEED_TOLERANCE)).reshape(len(anchors),
-                                                                                   count)
+        ok = ((position < ANCHOR_TOLERANCE) & (rotation < ANCHOR_TOLERANCE)).reshape(
+            len(anchors), count)
         out = np.full_like(q, np.nan)
         for a in range(len(anchors)):
             found = distinct(q[a], ok[a])
@@ -215,9 +247,10 @@ class _Search:
     def spec_frames(self):
         return self.robot.chain_kinematics().frames
 
-    def add_tracks(self, anchors: np.ndarray, count: int, reach: int | None = None) -> None:
+    def add_tracks(self, anchors: np.ndarray, count: int, reach: int | None = None,
+                   avoid: bool = False) -> None:
         """Carry the seeds' solutions at ``anchors`` both ways, to the ends or ``reach``
-        waypoints; add their nodes."""
+        waypoints (``avoid``: pushed away from close pairs); add their nodes."""
         solutions = self.seeds_at(anchors, count)
         starts, anchor_of, direction, length = [], [], [], []
         most = self.n if reach is None else reach + 1
@@ -234,7 +267,8 @@ class _Search:
             return
         tracks, iterations = kernels.carry_tracks(
             self.spec, self.goals_p, self.goals_R, np.array(anchor_of), np.array(direction),
-            np.array(length), np.array(starts), self.scene is not None, self.carry_settings)
+            np.array(length), np.array(starts), avoid and self.scene is not None,
+            self.carry_settings)
         self.carry_iterations += int(iterations.sum())
         nodes = kernels.track_nodes(self.spec, self.goals_p, self.goals_R, tracks,
                                     STITCH_REACHED)
@@ -269,16 +303,16 @@ class _Search:
         """Waypoints without any node."""
         return np.flatnonzero(~self.nodes.any(axis=0))
 
-    def refine(self, path: np.ndarray, weights: dict, shorten: bool = True) -> tuple:
-        """:func:`.compiled_paths.solve_path` from a stitched path: the :data:`SHORTEN` phases
-        (``shorten``), then the task's weights, returning the last valid iterate (mode 1);
-        the iterations of all phases are summed."""
+    def refine(self, path: np.ndarray, weights: dict, shorten: tuple = ()) -> tuple:
+        """:func:`.compiled_paths.solve_path` from a stitched path: the ``shorten`` phases
+        (one of :data:`SHORTEN`), then the task's weights, returning the last valid iterate
+        (mode 1); the iterations of all phases are summed."""
         s = self.settings
         c = np.array([weights.get("L0", 0.0), weights.get("L1", 0.0), weights.get("L6", 0.0)])
         collision = np.array([s.clearance_mm, SELF_CLEARANCE_MM,
                               s.collision_weight if self.scene is not None else 0.0])
         iterations = 0
-        for c6, count in SHORTEN if shorten else ():
+        for c6, count in shorten:
             path, _, _, used, _, _, _ = kernels.solve_path(
                 self.spec, self.goals_p, self.goals_R, path, np.array([c[0], c[1], c6]),
                 collision, count, s.tolerance, s.damping, SEARCH_MARGIN, LIMITS, mode=2)
@@ -318,7 +352,7 @@ def search_compiled(robot: Robot, task: Task, settings: OursLMSettings,
             if len(where) > JUMPS:
                 where = where[np.linspace(0, len(where) - 1, JUMPS).round().astype(int)]
             around = np.unique(np.clip((where[:, None] + AROUND).ravel(), 0, s.n - 1))
-            s.add_tracks(around, SEEDS, REACH)
+            s.add_tracks(around, 2 * SEEDS, REACH, avoid=True)
             path, jumps = s.stitch()
             rounds += 1
         t_carry = time.perf_counter()
@@ -332,18 +366,18 @@ def search_compiled(robot: Robot, task: Task, settings: OursLMSettings,
         best_result = None
         nodes = s.nodes.copy()
         lm_iterations, refined = 0, 0
-        for attempt in range(2 * (RETRIES + 1)):
-            # each stitch shortened and refined, then refined as it is
-            result = s.refine(path, weights, shorten=attempt % 2 == 0)
+        for attempt in range(len(SHORTEN) * (RETRIES + 1)):
+            # each stitch shortened strongly and refined, then less, then refined as it is
+            result = s.refine(path, weights, SHORTEN[attempt % len(SHORTEN)])
             poses, loss, terms, iterations, converged, valid, figures = result
             valid = valid and s.first_pose_ok(poses)
             lm_iterations += iterations
             refined += 1
             if best_result is None or valid or loss < best_result[1]:
                 best_result = (poses, loss, terms, converged, valid, figures)
-            if valid or attempt % 2 == 0:
-                if valid:
-                    break
+            if valid:
+                break
+            if attempt % len(SHORTEN) < len(SHORTEN) - 1:
                 continue
             # the next stitch: without the nodes the failed path used around its worst place
             if s.choice is None:

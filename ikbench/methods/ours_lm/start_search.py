@@ -310,6 +310,13 @@ def search(robot: Robot, task: Task, settings: OursLMSettings, weights: dict) ->
     return search_numpy(robot, task, settings, weights)
 
 
+def warm_up_search(robot: Robot, settings: OursLMSettings) -> None:
+    """Compile (or load) the compiled search's kernels when it will run (untimed)."""
+    compiled = _compiled_search(robot, settings)
+    if compiled is not None:
+        compiled.warm_up(robot)
+
+
 def _compiled_search(robot: Robot, settings: OursLMSettings) -> Any:
     """The :mod:`.path_search` module when it can run for these settings and robot."""
     from ikbench.methods.ours_lm.devices import cpu_backend
