@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -131,3 +131,28 @@ def avoidance_for(robot: Robot, task: Task, clearance_mm: float, weight: float
     if model is None:
         return None
     return Avoidance(model, task.obstacles, clearance_mm, weight)
+
+
+def collision_checker(robot: Robot) -> Any:
+    """The robot's collision model for checking many poses: the compiled capsules
+    (:class:`ikbench.core.capsules.CapsuleModel`) when numba imports and the geometry is
+    capsules, else the coal checker; None without geometry. Both have ``check(poses,
+    obstacles)`` and ``distance_jacobians``."""
+    from ikbench.core.collision import collision_model
+
+    model = collision_model(robot)
+    if model is None:
+        return None
+    try:
+        from ikbench.core.capsules import capsule_model
+    except ImportError:
+        return model
+    return capsule_model(robot) or model
+
+
+def self_colliding(checker: Any, poses: np.ndarray) -> np.ndarray:
+    """(B,) waypoints of trajectories (B, N, dof) where the robot touches itself."""
+    b, n, dof = poses.shape
+    report = checker.check(poses.reshape(-1, dof))
+    return report.self_colliding.reshape(b, n).sum(axis=1)
+
