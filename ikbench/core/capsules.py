@@ -229,9 +229,9 @@ class CapsuleScene:
         n, p = len(segments), len(self.first)
         d, p1, p2, normal = (np.empty((n, p)), np.empty((n, p, 3)), np.empty((n, p, 3)),
                              np.empty((n, p, 3)))
-        _distances_many(np.ascontiguousarray(segments), self.capsules.radius_m, self.first,
-                        self.second, self.is_env, *self.arrays, below_mm / MM_PER_M, d, p1, p2,
-                        normal)
+        _distances_many(np.ascontiguousarray(segments), self.capsules.radius_m,  # type: ignore[call-arg]
+                        self.first, self.second, self.is_env, *self.arrays,
+                        below_mm / MM_PER_M, d, p1, p2, normal)
         return d, p1, p2, normal
 
     def check(self, poses: npt.ArrayLike) -> CollisionReport:

@@ -155,8 +155,8 @@ class OursLM(Method):
         if checker is None:
             return []
         before = self_colliding(checker, result.poses_deg)
-        again = np.flatnonzero(before)
-        if not again.size:
+        again = [int(k) for k in np.flatnonzero(before)]
+        if not again:
             return []
         avoid = Avoidance(checker, (), self.settings.clearance_mm, self.settings.collision_weight)
         sub = solve_batch(robot, [tasks[k] for k in again], replace(self.settings, backend="numpy"),
@@ -169,7 +169,7 @@ class OursLM(Method):
                 result.poses_deg[k], result.loss[k] = sub.poses_deg[j], sub.loss[j]
                 result.terms[k], result.converged[k] = sub.terms[j], sub.converged[j]
                 result.iterations[k] += sub.iterations[j]
-                kept.append(int(k))
+                kept.append(k)
         return kept
 
     def _solve_path(self, robot, task) -> Solution:

@@ -79,6 +79,7 @@ class PathSpec:
         self.lower = np.ascontiguousarray(lower, dtype=float)
         self.upper = np.ascontiguousarray(upper, dtype=float)
         self.dof = len(self.lower)
+        self.caps: tuple[np.ndarray, ...]
         if scene is None:
             empty3 = np.zeros((0, 3))
             none = np.zeros(0, dtype=np.int64)
@@ -479,7 +480,7 @@ def carry_tracks(spec: PathSpec, goals_p: np.ndarray, goals_R: np.ndarray,
     if not t_count:
         return tracks, iterations
     count = max(1, min(numba.get_num_threads(), t_count))
-    _carry_all(*spec.args(), np.ascontiguousarray(goals_p, dtype=float),
+    _carry_all(*spec.args(), np.ascontiguousarray(goals_p, dtype=float),  # type: ignore[call-arg]
                np.ascontiguousarray(goals_R, dtype=float), np.asarray(anchors, dtype=np.int64),
                np.asarray(directions, dtype=np.int64), np.asarray(lengths, dtype=np.int64),
                np.ascontiguousarray(starts, dtype=float), bool(avoid),
@@ -784,7 +785,8 @@ def check_path(spec: PathSpec, goals_p: np.ndarray, goals_R: np.ndarray, poses: 
     poses (N, k); see :func:`_check`."""
     out = np.zeros(3)
     ws = _workspace(spec.dof, len(spec.caps[0]), spec.n_pairs)
-    valid = _check(*spec.args(), np.ascontiguousarray(goals_p), np.ascontiguousarray(goals_R),
+    valid = _check(*spec.args(), np.ascontiguousarray(goals_p),  # type: ignore[call-arg]
+                   np.ascontiguousarray(goals_R),
                    np.ascontiguousarray(poses, dtype=float), float(margin),
                    np.asarray(limits, dtype=float), ws, out)
     return bool(valid), out
@@ -902,7 +904,7 @@ def solve_path(spec: PathSpec, goals_p: np.ndarray, goals_R: np.ndarray, initial
     """
     x = np.array(initial, dtype=float, order="C")
     terms, out = np.zeros(7), np.zeros(3)
-    loss, iterations, converged, valid = _solve_path(
+    loss, iterations, converged, valid = _solve_path(  # type: ignore[call-arg]
         *spec.args(), np.ascontiguousarray(goals_p, dtype=float),
         np.ascontiguousarray(goals_R, dtype=float), x, np.asarray(weights, dtype=float),
         np.asarray(collision, dtype=float), int(max_iterations), float(tolerance),
