@@ -275,6 +275,15 @@ def _pose_error(chain, point, rot, axes, origins, goal_p, goal_R, exact, derivat
                 J[3 + r, j] = M[r, 0] * x0 + M[r, 1] * x1 + M[r, 2] * x2
 
 
+@njit(cache=True)
+def _workspace(k, n_caps, n_pairs):
+    """Scratch arrays of one pose's frames, errors and pair distances."""
+    return (np.empty((k, 3, 3)), np.empty((k, 3)), np.empty((k, 3)), np.empty(3),
+            np.empty((3, 3)), np.empty(6), np.empty((6, k)), np.empty((n_caps, 2, 3)),
+            np.empty(n_pairs), np.empty((n_pairs, 3)), np.empty((n_pairs, 3)),
+            np.empty((n_pairs, 3)), np.empty(k))
+
+
 # ----- carrying ---------------------------------------------------------------------------------
 @njit(cache=True)
 def _solve6(A, rhs, out):
@@ -398,15 +407,10 @@ def _carry_one(chain, tip_rot, lower, upper, caps, goals_p, goals_R, anchor, dir
     (iterations_max, retry, drop, damping, limit_gain, activation_mm, carry_gain,
      carry_max) = settings
     k = len(start)
-    n_caps = len(caps[0])
     n_pairs = len(caps[4])
-    rots, origins, axes = np.empty((k, 3, 3)), np.empty((k, 3)), np.empty((k, 3))
-    point, rot = np.empty(3), np.empty((3, 3))
-    e, J = np.empty(6), np.empty((6, k))
-    segs = np.empty((n_caps, 2, 3))
-    d, p1, p2, nrm = np.empty(n_pairs), np.empty((n_pairs, 3)), np.empty((n_pairs, 3)), \
-        np.empty((n_pairs, 3))
-    grad, motion, step, q = np.empty(k), np.empty(k), np.empty(k), np.empty(k)
+    (rots, origins, axes, point, rot, e, J, segs, d, p1, p2, nrm,
+     grad) = _workspace(k, len(caps[0]), n_pairs)
+    motion, step, q = np.empty(k), np.empty(k), np.empty(k)
     for j in range(k):
         track[anchor, j] = start[j]
     iterations = 0
@@ -491,14 +495,9 @@ def carry_tracks(spec: PathSpec, goals_p: np.ndarray, goals_R: np.ndarray,
 # ----- nodes and the stitch ---------------------------------------------------------------------
 @njit(cache=True)
 def _nodes_one(chain, tip_rot, caps, goals_p, goals_R, track, reached, node):
-    k = track.shape[1]
-    n_caps, n_pairs = len(caps[0]), len(caps[4])
-    rots, origins, axes = np.empty((k, 3, 3)), np.empty((k, 3)), np.empty((k, 3))
-    point, rot = np.empty(3), np.empty((3, 3))
-    e, J = np.empty(6), np.empty((6, k))
-    segs = np.empty((n_caps, 2, 3))
-    d, p1, p2, nrm = np.empty(n_pairs), np.empty((n_pairs, 3)), np.empty((n_pairs, 3)), \
-        np.empty((n_pairs, 3))
+    n_pairs = len(caps[4])
+    (rots, origins, axes, point, rot, e, J, segs, d, p1, p2, nrm,
+     _) = _workspace(track.shape[1], len(caps[0]), n_pairs)
     for i in range(track.shape[0]):
         node[i] = False
         if math.isnan(track[i, 0]):
@@ -728,14 +727,6 @@ def _evaluate(chain, tip_rot, caps, goals_p, goals_R, x, c, collision, derivativ
     terms[1] = sq_r / (3 * n)
     terms[6] = sq_s / ((n - 1) * k)
     return c[0] * terms[0] + c[1] * terms[1] + c[2] * terms[6] + penalty
-
-
-@njit(cache=True)
-def _workspace(k, n_caps, n_pairs):
-    return (np.empty((k, 3, 3)), np.empty((k, 3)), np.empty((k, 3)), np.empty(3),
-            np.empty((3, 3)), np.empty(6), np.empty((6, k)), np.empty((n_caps, 2, 3)),
-            np.empty(n_pairs), np.empty((n_pairs, 3)), np.empty((n_pairs, 3)),
-            np.empty((n_pairs, 3)), np.empty(k))
 
 
 @njit(cache=True)
