@@ -102,9 +102,14 @@ LM_ITERATIONS = 40
 #: nodes the failed path used within this many waypoints of where it failed worst.
 RETRIES = 2
 STRIKE = 5
-#: CppFlow's limits: position [mm], rotation [deg], revolute step [deg], prismatic step [mm].
-LIMITS = np.array([MAX_POSITION_ERROR_MM, MAX_ROTATION_ERROR_DEG, MAX_JOINT_CHANGE_DEG,
-                   MAX_JOINT_CHANGE_MM])
+#: The poses keep this far inside the joint limits [pose units]: a joint held at a limit stays
+#: within it after a trajectory CSV's rounding (10 significant digits), as ours-exact's.
+BOUND_MARGIN = 1e-5
+#: CppFlow's limits: position [mm], rotation [deg] (both times the search margin,
+#: :data:`.start_search.SEARCH_MARGIN`, where they are used), revolute step [deg] and prismatic
+#: step [mm], these two a hair inside (a step at the limit may round over it in a CSV).
+LIMITS = np.array([MAX_POSITION_ERROR_MM, MAX_ROTATION_ERROR_DEG, 0.999 * MAX_JOINT_CHANGE_DEG,
+                   0.999 * MAX_JOINT_CHANGE_MM])
 
 
 def available(robot: Robot) -> bool:
@@ -195,9 +200,10 @@ class _Search:
         self.low = np.where(np.isfinite(lower), lower, robot.sample_lower)
         self.high = np.where(np.isfinite(upper), upper, robot.sample_upper)
         self.period = turns(robot, lower, upper)
-        # a continuous joint bounded to one turn: searched unbounded, wrapped at the end
-        self.lower = np.where(self.period > 0, -np.inf, lower)
-        self.upper = np.where(self.period > 0, np.inf, upper)
+        # a continuous joint bounded to one turn: searched unbounded, wrapped at the end; the
+        # others kept BOUND_MARGIN inside their limits
+        self.lower = np.where(self.period > 0, -np.inf, lower + BOUND_MARGIN)
+        self.upper = np.where(self.period > 0, np.inf, upper - BOUND_MARGIN)
         self.task_lower = lower
         self.scene = scene_for(robot, task)
         self.spec = kernels.PathSpec(robot, self.lower, self.upper, self.scene)
