@@ -92,10 +92,11 @@ REACH = 40
 #: LM smooths smaller excesses over the stitch's step limit.
 RETRACK_STEP = 2.0 * MAX_JOINT_CHANGE_DEG
 #: The refinement's shortening phases, strong to none, each tried while the last failed:
-#: (smoothness weight c6, LM iterations) each, validity not checked (the pose errors grow to
-#: millimetres while the path straightens out; a strong one may press the path against an
-#: obstacle where the poses cannot be reached again).
-SHORTEN = (((10.0, 40), (1.0, 20)), ((0.1, 60),), ())
+#: (smoothness weight c6, LM iterations, clearance [mm] the penalty asks for meanwhile) each,
+#: validity not checked (the pose errors grow to millimetres while the path straightens out; a
+#: strong one may press the path against an obstacle where the poses cannot be reached again:
+#: hence the wider clearance while shortening).
+SHORTEN = (((10.0, 40, 10.0), (1.0, 20, 5.0)), ((0.1, 60, 0.5),), ())
 #: LM iterations of the refinement's last phase (the task's weights) at most.
 LM_ITERATIONS = 40
 #: Further stitches refined when a refinement ends without a valid path, each without the
@@ -318,10 +319,11 @@ class _Search:
         collision = np.array([s.clearance_mm, SELF_CLEARANCE_MM,
                               s.collision_weight if self.scene is not None else 0.0])
         iterations = 0
-        for c6, count in shorten:
+        for c6, count, clearance_mm in shorten:
+            wide = np.array([max(clearance_mm, s.clearance_mm), SELF_CLEARANCE_MM, collision[2]])
             path, _, _, used, _, _, _ = kernels.solve_path(
-                self.spec, self.goals_p, self.goals_R, path, np.array([c[0], c[1], c6]),
-                collision, count, s.tolerance, s.damping, SEARCH_MARGIN, LIMITS, mode=2)
+                self.spec, self.goals_p, self.goals_R, path, np.array([c[0], c[1], c6]), wide,
+                count, s.tolerance, s.damping, SEARCH_MARGIN, LIMITS, mode=2)
             iterations += used
         poses, loss, terms, used, converged, valid, figures = kernels.solve_path(
             self.spec, self.goals_p, self.goals_R, path, c, collision,
