@@ -145,29 +145,42 @@ def _dls(e, J, damping):
 
 
 def first_waypoint_ik(frames: Callable[..., Frames], goal_mm: np.ndarray, goal_R: np.ndarray,
-                      seeds: np.ndarray, lower: np.ndarray, upper: np.ndarray
+                      seeds: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                      max_iterations: int = IK_ITERATIONS
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """Damped least-squares IK of one pose from every seed (K, dof), with an adaptive damping.
+    """Damped least-squares IK of one pose (``goal_mm`` (3,), ``goal_R`` (3, 3), or one per
+    seed, (K, 3) and (K, 3, 3)) from every seed (K, dof), with an adaptive damping; a seed
+    stops once converged or stuck (the others go on).
 
     Returns:
         (poses (K, dof), position errors (K,) [mm], rotation errors (K,) [deg], iterations).
     """
     q = np.clip(seeds, lower, upper)
-    e, J = _stack(*errors_from_frames(*frames(q), goal_mm, goal_R))
+    goal_mm, goal_R = np.asarray(goal_mm, dtype=float), np.asarray(goal_R, dtype=float)
+    per_seed = goal_mm.ndim == 2
+
+    def errors(poses, rows):
+        return _stack(*errors_from_frames(*frames(poses), goal_mm[rows] if per_seed else goal_mm,
+                                          goal_R[rows] if per_seed else goal_R))
+
+    e, J = errors(q, slice(None))
     damping = np.full(len(q), 1.0)
     iterations = 0
-    while iterations < IK_ITERATIONS:
+    while iterations < max_iterations:
         norm = np.linalg.norm(e, axis=1)
-        if np.all((norm < IK_TOLERANCE) | (damping > IK_STALLED)):   # converged or stuck
+        active = np.flatnonzero((norm >= IK_TOLERANCE) & (damping <= IK_STALLED))
+        if not active.size:                                   # every seed converged or stuck
             break
         iterations += 1
-        step = _dls(e, J, damping)
+        step = _dls(e[active], J[active], damping[active])
         step *= np.minimum(1.0, IK_MAX_STEP / np.maximum(np.abs(step).max(1), 1e-300))[:, None]
-        trial = np.clip(q + step, lower, upper)
-        e_new, J_new = _stack(*errors_from_frames(*frames(trial), goal_mm, goal_R))
-        better = np.linalg.norm(e_new, axis=1) < norm
-        q[better], e[better], J[better] = trial[better], e_new[better], J_new[better]
-        damping = np.where(better, np.maximum(damping / 3.0, 1e-6), damping * 4.0)
+        trial = np.clip(q[active] + step, lower, upper)
+        e_new, J_new = errors(trial, active)
+        better = np.linalg.norm(e_new, axis=1) < norm[active]
+        rows = active[better]
+        q[rows], e[rows], J[rows] = trial[better], e_new[better], J_new[better]
+        damping[active] = np.where(better, np.maximum(damping[active] / 3.0, 1e-6),
+                                   damping[active] * 4.0)
     return q, np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(e[:, 3:], axis=1), iterations
 
 
