@@ -78,9 +78,10 @@ class OursLM(Method):
         elif self.settings.kinematics == "numpy":
             robot.chain_kinematics().frames(np.zeros((1, robot.dof)))
             if cpu_backend(self.settings) == "numba":  # compiled (or loaded) outside timing
-                from ikbench.methods.ours_lm.compiled import warm_up
+                if not self._only_pose_paths_ahead:
+                    from ikbench.methods.ours_lm.compiled import warm_up
 
-                warm_up(robot)
+                    warm_up(robot)
                 if self._pose_paths_ahead:
                     from ikbench.methods.ours_lm.start_search import warm_up_search
 
@@ -89,12 +90,16 @@ class OursLM(Method):
             robot.pinocchio_fk()
         import scipy.linalg.lapack  # noqa: F401  the banded solver's import is not timed
 
-    #: The tasks checked last hold a pose path (the search's kernels are then warmed up too).
+    #: The tasks checked last hold a pose path (the search's kernels are then warmed up too),
+    #: or only pose paths (the 3-D solver's are not: about a second of loading saved).
     _pose_paths_ahead = False
+    _only_pose_paths_ahead = False
 
     def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
         super().check_tasks(robot, tasks)
-        self._pose_paths_ahead = any(t.goal_rotations is not None for t in tasks)
+        frames = [t.goal_rotations is not None for t in tasks]
+        self._pose_paths_ahead = any(frames)
+        self._only_pose_paths_ahead = bool(frames) and all(frames)
 
     def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         return self.solve_many(robot, [task])[0]
