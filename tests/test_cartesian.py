@@ -145,6 +145,28 @@ def test_the_benchmark_command_writes_its_folder(tmp_path, capsys):
     assert not np.array_equal(seeds[4], seeds[7])    # the seed is passed on
 
 
+def test_the_summary_sets_the_length_beside_torms_published_one():
+    from ikbench.render.cartesian_report import TORM_LENGTH, summarise
+
+    table = pd.DataFrame({
+        "problem": ["fetch_arm__s", "fetch_arm__s", "panda__flappy_bird"],
+        "method": ["ours-lm"] * 3, "seed": [1, 2, 1], "valid": [True, False, True],
+        "time_to_valid_s": [0.5, np.nan, 0.7], "duration_s": [0.5, 0.9, 0.7],
+        "joint_path_length_deg": np.degrees([10.0, 12.0, 20.0]),
+        **{c: [0.0] * 3 for c in ("position_error_max_mm", "rotation_error_max_deg",
+                                  "max_joint_change_deg", "max_joint_change_mm",
+                                  "env_collisions", "self_collisions", "min_clearance_mm")},
+        "avoids_obstacles": [True] * 3, "failed_criteria": ["", "joint_change", ""]})
+    summary = summarise(table).set_index("problem")
+    assert "published" in TORM_LENGTH and "TORM_TL_RESULTS" in TORM_LENGTH
+    s = summary.loc["fetch_arm__s"]
+    assert s["valid_runs"] == 1 and s["duration_median_s"] == pytest.approx(0.7)
+    assert s["joint_path_length_median_rad"] == pytest.approx(11.0)
+    assert s[TORM_LENGTH] == 10.856                       # as jstmn/cppflow records it
+    assert s["joint_path_length_over_torm"] == pytest.approx(11.0 / 10.856)
+    assert np.isnan(summary.loc["panda__flappy_bird", TORM_LENGTH])     # none published
+
+
 def test_published_figures_are_labelled_and_never_estimated():
     from ikbench.render.cartesian_report import published_table
 
@@ -159,9 +181,19 @@ def test_published_figures_are_labelled_and_never_estimated():
     assert row.loc["panda__square"].iloc[-1] == "no"        # not in CppFlow's benchmark set
 
 
+def test_seeds_are_lists_ranges_or_both():
+    from ikbench.studies.cartesian import parse_seeds
+
+    assert parse_seeds("1-5") == (1, 2, 3, 4, 5)
+    assert parse_seeds("1-3,7, 9-9") == (1, 2, 3, 7, 9)
+    assert parse_seeds([4, "6"]) == (4, 6)
+
+
 @pytest.mark.parametrize("args, message", [
     (["--seeds", "1,x"], "--seeds: '1,x' must be distinct integers"),
     (["--seeds", "2,2"], "must be distinct integers"),
+    (["--seeds", "5-1"], "--seeds: '5-1' must be distinct integers"),
+    (["--seeds", "1-3,2"], "must be distinct integers"),
     (["--problems", "nope"], "--problem: 'nope' is neither a shipped problem"),
     (["--methods", "nope"], "--method: unknown method 'nope'"),
     (["--seed", "3"], "--seed: the benchmark runs every seed of --seeds"),

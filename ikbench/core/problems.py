@@ -50,8 +50,16 @@ REQUIRED = KEYS[:5]
 PATH_HEADER = ["time", "x", "y", "z", "qw", "qx", "qy", "qz"]
 #: The header of CppFlow's Panda paths (a pandas index column, then x..qz numbered 0-6).
 INDEXED_PATH_HEADER = ["", "0", "1", "2", "3", "4", "5", "6"]
-#: The shipped benchmark's name (``--problems cppflow``) and its problems, in this order.
+#: CppFlow's benchmark (``--problems cppflow``): the 13 problems of its benchmark list
+#: (jstmn/cppflow ``cppflow/data_type_utils.py`` ``ALL_PROBLEM_FILENAMES``), in this order.
 BENCHMARK = "cppflow"
+BENCHMARK_PROBLEMS = (
+    "fetch_arm__circle", "fetch_arm__hello", "fetch_arm__rot_yz2", "fetch_arm__s",
+    "fetch_arm__square", "fetch__circle", "fetch__hello", "fetch__rot_yz2", "fetch__s",
+    "fetch__square", "panda__1cube", "panda__2cubes", "panda__flappy_bird")
+#: Every shipped problem (``--problems shipped``): the benchmark's, ``fetch_arm__rot_yz``,
+#: ``fetch__rot_yz`` and ``panda__square``.
+SHIPPED = "shipped"
 #: A path quaternion whose norm differs from 1 by more than this is refused.
 QUATERNION_NORM_TOLERANCE = 1e-3
 #: The offset frame counts as unrotated when its rotation is within this of the identity.
@@ -120,15 +128,22 @@ def resolve_problem(spec: str | Path) -> Path:
 
 
 def resolve_problems(spec: str | Path | Sequence[str | Path]) -> list[Path]:
-    """``cppflow`` (every shipped problem), names and files separated by commas, or a list."""
+    """``cppflow`` (CppFlow's 13, :data:`BENCHMARK_PROBLEMS`), ``shipped`` (every shipped
+    problem), names and files separated by commas, or a list."""
     items = spec if isinstance(spec, (list, tuple)) else str(spec).split(",")
     names = [str(s).strip() for s in items if str(s).strip()]
     if not names:
-        raise InputError(f"--problems: {spec!r} names no problem; give {BENCHMARK}, names "
-                         f"({', '.join(shipped_problems())}) or files (*.yaml)")
+        raise InputError(f"--problems: {spec!r} names no problem; give {BENCHMARK}, {SHIPPED}, "
+                         f"names ({', '.join(shipped_problems())}) or files (*.yaml)")
     out: list[Path] = []
+    shipped = shipped_problems()
     for name in names:
-        out += list(shipped_problems().values()) if name == BENCHMARK else [resolve_problem(name)]
+        if name == BENCHMARK:
+            out += [shipped[p] for p in BENCHMARK_PROBLEMS]
+        elif name == SHIPPED:
+            out += list(shipped.values())
+        else:
+            out.append(resolve_problem(name))
     stems = [p.stem for p in out]
     duplicates = sorted({s for s in stems if stems.count(s) > 1})
     if duplicates:

@@ -44,6 +44,19 @@ PUBLISHED = {
         ("TORM", "trajectory length (revolute joints)"),
 }
 IN_SET = "in CppFlow's benchmark set (cppflow/data_type_utils.py ALL_PROBLEM_FILENAMES)"
+#: summary.csv's column of TORM's published joint path length, labelled with its source.
+TORM_LENGTH = ("TORM joint path length [rad], published (jstmn/cppflow cppflow/utils.py "
+               "TORM_TL_RESULTS)")
+
+
+def torm_lengths() -> dict[str, float]:
+    """problem -> TORM's joint path length [rad] (revolute joints) as CppFlow's repository
+    records it (``ikbench/data/cppflow/torm_path_lengths.csv``); problems without one are
+    left out."""
+    table = pd.read_csv(data_dir() / "torm_path_lengths.csv")
+    return {str(p): float(v) for p, v in zip(table["problem"],
+                                             table["torm_joint_path_length_rad"])
+            if not math.isnan(v)}
 
 
 def published_table(problems: Iterable[str]) -> pd.DataFrame:
@@ -190,7 +203,9 @@ def report(result: StudyResult, summary: pd.DataFrame, published: pd.DataFrame,
         "## Summary", "",
         "Per problem and method: valid runs of all runs; time to a valid solution [s], median "
         "(min-max) over the valid runs; the worst position [mm] and rotation [deg] errors and "
-        "joint change [deg] over all runs; the median joint-space path length [deg].", "",
+        "joint change [deg] over all runs; the median joint-space path length [deg, rad] "
+        "(revolute joints, changes wrapped, as CppFlow's `path_length_rad`), TORM's published "
+        "one (labelled with its source) and the ratio of ours to it.", "",
     ]
     view = summary.copy()
     view["valid"] = [f"{v}/{r}" for v, r in zip(view["valid_runs"], view["runs"])]
@@ -198,11 +213,10 @@ def report(result: StudyResult, summary: pd.DataFrame, published: pd.DataFrame,
         "" if math.isnan(m) else f"{m:.3g} ({lo:.3g}-{hi:.3g})" for m, lo, hi in
         zip(view["time_to_valid_median_s"], view["time_to_valid_min_s"],
             view["time_to_valid_max_s"])]
-    view["joint_path_length_median_rad"] = np.radians(view["joint_path_length_median_deg"])
     columns = ["problem", "method", "valid", "time to valid [s]", "position_error_max_mm",
                "rotation_error_max_deg", "max_joint_change_deg", "max_joint_change_mm",
-               "joint_path_length_median_deg", "joint_path_length_median_rad",
-               "failed_criteria"]
+               "joint_path_length_median_deg", "joint_path_length_median_rad", TORM_LENGTH,
+               "joint_path_length_over_torm", "failed_criteria"]
     lines += [_markdown(view[columns]), ""]
     if reach:
         lines += ["## Problems without a valid run", ""]
@@ -243,16 +257,25 @@ def _markdown(frame: pd.DataFrame) -> str:
 
 def summarise(table: pd.DataFrame) -> pd.DataFrame:
     """One row per problem x method: runs, valid runs, the median (and range) time to a valid
-    solution over the valid runs, the worst errors and joint change, the median path length."""
+    solution over the valid runs, the median solve time over all runs, the worst errors and
+    joint change, the median path length, and beside it TORM's published length (labelled,
+    :data:`TORM_LENGTH`) and the ratio of ours to it."""
+    torm = torm_lengths()
     rows = []
     for (problem, method), group in table.groupby(["problem", "method"], sort=False):
         valid = group[group["valid"].astype(bool)]
         times = valid["time_to_valid_s"]
+        length_rad = float(np.radians(group["joint_path_length_deg"].median()))
         rows.append({
             "problem": problem, "method": method, "runs": len(group), "valid_runs": len(valid),
             "time_to_valid_median_s": times.median() if len(valid) else np.nan,
             "time_to_valid_min_s": times.min() if len(valid) else np.nan,
             "time_to_valid_max_s": times.max() if len(valid) else np.nan,
+            "duration_median_s": group["duration_s"].median(),
+            "joint_path_length_median_rad": length_rad,
+            TORM_LENGTH: torm.get(problem, np.nan),
+            "joint_path_length_over_torm": length_rad / torm[problem] if problem in torm
+            else np.nan,
             "position_error_max_mm": group["position_error_max_mm"].max(),
             "rotation_error_max_deg": group["rotation_error_max_deg"].max(),
             "max_joint_change_deg": group["max_joint_change_deg"].max(),

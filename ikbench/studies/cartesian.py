@@ -1,6 +1,6 @@
 """The Cartesian path benchmark: methods on 6-D pose-path problems, several seeds each.
 
-``cartesian(problems="cppflow")`` solves every problem (the shipped CppFlow/TORM problems, or
+``cartesian(problems="cppflow")`` solves every problem (CppFlow's 13 CppFlow/TORM problems, or
 names and files in CppFlow's format, :mod:`ikbench.core.problems`) with every method that
 follows goal frames (``Method.supports_frames``; a method added later joins by setting it), once
 per seed, through the study harness (each solve timed the same way, a failed solve kept as a
@@ -77,16 +77,26 @@ def frame_methods() -> dict[str, type]:
 
 
 def parse_seeds(text: str | int | Sequence[int | str]) -> tuple[int, ...]:
-    """``"1,2,3"`` (or a sequence) -> (1, 2, 3); InputError for anything but distinct
-    integers in [0, 2^63)."""
+    """``"1,2,3"``, ``"1-5"`` (a range, both ends included) or a mix such as ``"1-3,7"`` (or
+    a sequence) -> (1, 2, 3, ...); InputError for anything but distinct integers in
+    [0, 2^63)."""
     items = text if isinstance(text, (list, tuple)) else str(text).split(",")
+    seeds: tuple[int, ...] = ()
     try:
-        seeds = tuple(int(str(s).strip()) for s in items if str(s).strip())
+        for item in (str(s).strip() for s in items):
+            if not item:
+                continue
+            first, dash, last = item.partition("-")
+            if dash and first:  # a range a-b (a leading "-" is a negative number: refused)
+                low, high = int(first), int(last)
+                seeds += tuple(range(low, high + 1)) if low <= high else (-1,)
+            else:
+                seeds += (int(item),)
     except ValueError:
         seeds = ()
     if not seeds or any(not 0 <= s < MAX_SEED for s in seeds) or len(set(seeds)) != len(seeds):
         raise InputError(f"--seeds: {text!r} must be distinct integers in [0, 2^63), "
-                         "comma-separated, e.g. 1,2,3")
+                         "comma-separated or as ranges, e.g. 1,2,3 or 1-5")
     return seeds
 
 
@@ -130,8 +140,8 @@ def cartesian(problems: str | Path | Sequence[str | Path] = BENCHMARK,
     """Run the benchmark (see the module docstring); nothing is written.
 
     Args:
-        problems: ``"cppflow"`` (the shipped problems), names and files (comma-separated or
-            a list).
+        problems: ``"cppflow"`` (CppFlow's 13), ``"shipped"`` (every shipped problem), names
+            and files (comma-separated or a list).
         methods: method names; None: every available method that follows goal frames.
         seeds: seeds (each method with a ``seed`` setting gets each; the others run once per
             seed too, as repetitions of the same solve).

@@ -13,16 +13,17 @@ DEFAULT_OUTPUT = "runs"
 
 def register(subparsers: Subparsers) -> None:
     from ikbench.cli.options import add_method_options
-    from ikbench.core.problems import BENCHMARK, shipped_problems
+    from ikbench.core.problems import BENCHMARK, SHIPPED, shipped_problems
     from ikbench.studies.cartesian import DEFAULT_SEEDS, frame_methods
 
     methods = frame_methods()
     parser = subparsers.add_parser(
         "cartesian", help=HELP,
         description=(
-            "Solve Cartesian path problems (6-D pose paths in CppFlow's format: the shipped "
-            f"obstacle-free CppFlow/TORM problems, {', '.join(shipped_problems())}, or your own "
-            "YAML files) with every method that follows goal frames "
+            "Solve Cartesian path problems (6-D pose paths in CppFlow's format: CppFlow's 13 "
+            f"benchmark problems ({BENCHMARK}), every shipped one ({SHIPPED}: "
+            f"{', '.join(shipped_problems())}), or your own YAML files, obstacles included) "
+            "with every method that follows goal frames "
             f"({', '.join(methods)}), once per seed, and write OUTPUT/cartesian/: table.csv "
             "(one row per problem x method x seed: pose errors, joint changes, path lengths, "
             "CppFlow's validity, time to a valid solution), summary.csv, published.csv "
@@ -31,14 +32,15 @@ def register(subparsers: Subparsers) -> None:
             "Method options below apply to the methods that have them."),
     )
     parser.add_argument("--problems", action="append", default=None,
-                        metavar=f"{BENCHMARK}|NAME,...|FILE.yaml",
-                        help=f"{BENCHMARK} (default: every shipped problem), problem names or "
-                        "YAML files, comma-separated; may be repeated")
+                        metavar=f"{BENCHMARK}|{SHIPPED}|NAME,...|FILE.yaml",
+                        help=f"{BENCHMARK} (default: CppFlow's 13 benchmark problems), "
+                        f"{SHIPPED} (every shipped problem), problem names or YAML files, "
+                        "comma-separated; may be repeated")
     parser.add_argument("--methods", default=None,
                         help=f"comma-separated methods (default: {', '.join(methods)})")
     parser.add_argument("--seeds", default=",".join(map(str, DEFAULT_SEEDS)),
-                        help="comma-separated seeds, one solve per method and seed (default "
-                        f"{','.join(map(str, DEFAULT_SEEDS))})")
+                        help="seeds, comma-separated or as ranges (1-5), one solve per "
+                        f"method and seed (default {','.join(map(str, DEFAULT_SEEDS))})")
     parser.add_argument("--output", default=DEFAULT_OUTPUT,
                         help=f"output directory; the study writes OUTPUT/cartesian/ (default "
                         f"{DEFAULT_OUTPUT})")
@@ -117,9 +119,11 @@ def run(args: argparse.Namespace) -> int:
 
     summary = summarise(result.table)
     print(summary[["problem", "method", "valid_runs", "runs", "time_to_valid_median_s",
-                   "position_error_max_mm", "rotation_error_max_deg",
-                   "max_joint_change_deg"]].to_string(index=False, float_format=lambda v:
-                                                      f"{v:.3g}"))
+                   "duration_median_s", "position_error_max_mm", "rotation_error_max_deg",
+                   "max_joint_change_deg", "joint_path_length_median_rad",
+                   "joint_path_length_over_torm"]].rename(
+                       columns={"joint_path_length_over_torm": "length_over_torm_published"})
+          .to_string(index=False, float_format=lambda v: f"{v:.3g}"))
     print(f"written to {folder}/")
     failed = result.table[result.table["failure"].fillna("") != ""]
     if len(failed):

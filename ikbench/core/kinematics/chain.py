@@ -121,11 +121,20 @@ class ChainKinematics:
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(position_m (M, 3), rotation (M, 3, 3), axes_world (M, dof, 3),
         origins_m (M, dof, 3)) of the end frame and the joints, for poses (M, dof)."""
+        rotations, origins, axes_world = self.joint_frames(poses)
+        rot, pos = rotations[:, -1], origins[:, -1]
+        point = pos + rot @ self.tip_translation
+        return point, rot @ self.tip_rotation, axes_world, origins
+
+    def joint_frames(self, poses: npt.ArrayLike
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(rotations (M, dof, 3, 3), origins_m (M, dof, 3), axes_world (M, dof, 3)): every
+        joint's frame (after its motion) in the base frame, for poses (M, dof)."""
         q = self.robot.to_urdf(np.asarray(poses, dtype=float))
         m = len(q)
         rot = np.broadcast_to(np.eye(3), (m, 3, 3))
         pos = np.zeros((m, 3))
-        axes_world, origins = [], []
+        rotations, axes_world, origins = [], [], []
         for j in range(self.dof):
             pos = pos + rot @ self.translations[j]
             rot = rot @ self.rotations[j]
@@ -134,10 +143,10 @@ class ChainKinematics:
                 pos = pos + (rot @ axis) * q[:, j, None]
             else:
                 rot = rot @ axis_rotation(axis, q[:, j])
+            rotations.append(rot)
             axes_world.append(rot @ axis)
             origins.append(pos)
-        point = pos + rot @ self.tip_translation
-        return point, rot @ self.tip_rotation, np.stack(axes_world, 1), np.stack(origins, 1)
+        return np.stack(rotations, 1), np.stack(origins, 1), np.stack(axes_world, 1)
 
     def __call__(self, poses: npt.ArrayLike, jacobian: bool = True) -> Frames:
         """FK (and Jacobians) of poses (M, dof) [pose units].

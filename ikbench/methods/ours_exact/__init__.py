@@ -159,9 +159,21 @@ class OursExact(Method):
         return {"backend": "numpy", "threads": 1,
                 "initial_solution": OursLM().runtime()["backend"]}
 
+    #: The tasks checked last hold a pose path (ours-lm's search is then warmed up too).
+    _pose_paths_ahead = False
+
+    def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
+        super().check_tasks(robot, tasks)
+        self._pose_paths_ahead = any(t.has_frames for t in tasks)
+
     def prepare(self, robot: Robot) -> None:
         robot.chain_kinematics().frames(np.zeros((1, robot.dof)))
         import scipy.linalg.lapack  # noqa: F401  the banded solver's import is not timed
+
+        if self._pose_paths_ahead:  # its initial trajectories come from ours-lm's search
+            lm = OursLM(seed=self.settings.seed)
+            lm._pose_paths_ahead = True
+            lm.prepare(robot)
 
     def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         return self.solve_many(robot, [task])[0]
@@ -211,6 +223,7 @@ class OursExact(Method):
                                  "converged"):
                         getattr(result, name)[k] = getattr(second, name)[j]
                     init_info[k] = "ours-lm (after the interpolation's)"
+        fallback = self._avoid_collisions(robot, tasks, problem, result, initial, init_info)
         wall = time.perf_counter() - started
         solutions = []
         for k in range(len(tasks)):
@@ -222,11 +235,53 @@ class OursExact(Method):
                     **{f"objective_{t}": float(v) for t, v in zip(TERMS, result.terms[k])}}
             if not feasible:
                 info["infeasible"] = describe_violation(problem, result, k)
+            if k in fallback:
+                info["collision"] = fallback[k]
             solutions.append(Solution(
                 poses_deg=result.poses[k], iterations=int(result.iterations[k]),
                 duration_s=wall / len(tasks), loss=float(result.objective[k]),
                 converged=bool(result.converged[k]) and feasible, info=info))
         return solutions
+
+
+    def _avoid_collisions(self, robot: Robot, tasks: Sequence[Task], problem: ExactProblem,
+                          result: SQPResult, initial: np.ndarray, init_info: list[str]
+                          ) -> dict[int, str]:
+        """Self-collision (and, on pose paths, the task's obstacles) judged on every result:
+        the SQP has no collision term, so a result that collides where ours-lm's path (its
+        initial trajectory, or solved now for a task that started from the interpolation) does
+        not, or less, is replaced by that path (``result`` updated in place). Returns the
+        replaced trajectories' notes."""
+        from ikbench.methods.ours_exact.problem import evaluate
+        from ikbench.methods.ours_lm.avoidance import collision_checker
+
+        checker = collision_checker(robot)
+        if checker is None:
+            return {}
+        notes: dict[int, str] = {}
+        for k, task in enumerate(tasks):
+            obstacles = tuple(task.obstacles) if task.has_frames else ()
+            colliding = int(checker.check(result.poses[k], obstacles).colliding.any(axis=1)
+                            .sum())
+            if not colliding:
+                continue
+            if init_info[k].startswith("ours-lm"):
+                other = initial[k]
+            else:
+                other, _ = initial_trajectories(robot, [task], replace(self.settings,
+                                                                      init="ours-lm"))
+                other = other[0]
+            theirs = int(checker.check(other, obstacles).colliding.any(axis=1).sum())
+            if theirs >= colliding:
+                continue
+            model = evaluate(robot.chain_kinematics(), problem.take([k]), other[None], False)
+            result.poses[k] = other
+            result.objective[k], result.terms[k] = model.objective[0], model.terms[0]
+            result.violation[k] = model.violation()[0]
+            result.converged[k] = False
+            notes[k] = (f"the SQP's result collides at {colliding} waypoints; ours-lm's path "
+                        f"returned instead ({theirs})")
+        return notes
 
 
 def _step_excess(problem: ExactProblem, result: SQPResult, k: int) -> float:

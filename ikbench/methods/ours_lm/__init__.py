@@ -94,12 +94,28 @@ class OursLM(Method):
         elif self.settings.kinematics == "numpy":
             robot.chain_kinematics().frames(np.zeros((1, robot.dof)))
             if cpu_backend(self.settings) == "numba":  # compiled (or loaded) outside timing
-                from ikbench.methods.ours_lm.compiled import warm_up
+                if not self._only_pose_paths_ahead:
+                    from ikbench.methods.ours_lm.compiled import warm_up
 
-                warm_up(robot)
+                    warm_up(robot)
+                if self._pose_paths_ahead:
+                    from ikbench.methods.ours_lm.start_search import warm_up_search
+
+                    warm_up_search(robot, self.settings)
         else:
             robot.pinocchio_fk()
         import scipy.linalg.lapack  # noqa: F401  the banded solver's import is not timed
+
+    #: The tasks checked last hold a pose path (the search's kernels are then warmed up too),
+    #: or only pose paths (the 3-D solver's are not: about a second of loading saved).
+    _pose_paths_ahead = False
+    _only_pose_paths_ahead = False
+
+    def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
+        super().check_tasks(robot, tasks)
+        frames = [t.goal_rotations is not None for t in tasks]
+        self._pose_paths_ahead = any(frames)
+        self._only_pose_paths_ahead = bool(frames) and all(frames)
 
     def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         return self.solve_many(robot, [task])[0]
@@ -129,6 +145,9 @@ class OursLM(Method):
             for k, task in enumerate(tasks):
                 progress.start(task, k, len(tasks))
         result = solve_batch(robot, tasks, self.settings, weights=weights)
+        started = time.perf_counter()
+        again = self._without_self_collisions(robot, tasks, result, weights)
+        result.duration_s += time.perf_counter() - started
         share = result.duration_s / len(tasks)
         solutions = []
         for k, task in enumerate(tasks):
@@ -138,10 +157,41 @@ class OursLM(Method):
                 converged=bool(result.converged[k]),
                 info={"batch_size": len(tasks), "batch_wall_time_s": result.duration_s,
                       "weights": format_weights(weights[k]),
+                      "solved_again_without_self_collision": k in again,
                       **{f"{t}": float(v) for t, v in zip(TERMS, result.terms[k])}}))
             if progress:
                 progress.done(task, solutions[-1])
         return solutions
+
+    def _without_self_collisions(self, robot: Robot, tasks: Sequence[Task],
+                                 result: BatchResult, weights: list[dict]) -> list[int]:
+        """Solve the trajectories that touch the robot itself again, from their poses, by the
+        numpy solver with the clearance penalty between the robot's links
+        (:class:`.avoidance.Avoidance`); ``result`` is updated in place where that touches
+        itself at fewer waypoints. Returns those trajectories' indices. A trajectory clear of
+        itself, or a robot without a collision model, is left as it is."""
+        from ikbench.methods.ours_lm.avoidance import Avoidance, collision_checker, self_colliding
+
+        checker = collision_checker(robot)
+        if checker is None:
+            return []
+        before = self_colliding(checker, result.poses_deg)
+        again = [int(k) for k in np.flatnonzero(before)]
+        if not again:
+            return []
+        avoid = Avoidance(checker, (), self.settings.clearance_mm, self.settings.collision_weight)
+        sub = solve_batch(robot, [tasks[k] for k in again], replace(self.settings, backend="numpy"),
+                          weights=[weights[k] for k in again],
+                          initial=result.poses_deg[again], evaluator=avoid.evaluator(evaluate))
+        after = self_colliding(checker, sub.poses_deg)
+        kept = []
+        for j, k in enumerate(again):
+            if after[j] < before[k]:
+                result.poses_deg[k], result.loss[k] = sub.poses_deg[j], sub.loss[j]
+                result.terms[k], result.converged[k] = sub.terms[j], sub.converged[j]
+                result.iterations[k] += sub.iterations[j]
+                kept.append(k)
+        return kept
 
     def _solve_path(self, robot, task) -> Solution:
         """A 6-D pose path by the start search; ``converged``: a valid path was found."""

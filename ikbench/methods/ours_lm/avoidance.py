@@ -1,8 +1,8 @@
-"""Keeping clear of obstacles (and of itself) in ours-lm's 6-D pose-path search.
+"""Keeping clear of obstacles and of itself in ours-lm's 6-D pose-path search.
 
-Used when a task has obstacles and the robot a collision model
-(:mod:`ikbench.core.collision`); without obstacles nothing here runs, so obstacle-free results
-do not change. Three places:
+Used whenever the robot has a collision model (:mod:`ikbench.core.collision`), obstacles or
+not: self-collision is always avoided (the numpy search; the compiled search
+:mod:`.path_search` does the same in compiled code). Three places:
 
 - **carrying** (:func:`avoidance_motion`): besides the joint-limit avoidance, a joint motion
   that moves every pair closer than ``activation_mm`` apart (robot-obstacle and self pairs)
@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -123,13 +123,36 @@ class Avoidance:
 
 def avoidance_for(robot: Robot, task: Task, clearance_mm: float, weight: float
                   ) -> Avoidance | None:
-    """The :class:`Avoidance` of a task with obstacles on a robot with a collision model,
-    else None (nothing changes)."""
-    if not getattr(task, "obstacles", ()):
-        return None
+    """The :class:`Avoidance` of a task (its obstacles, if any, and the robot's own links) on
+    a robot with a collision model, else None (nothing to avoid)."""
     from ikbench.core.collision import collision_model
 
     model = collision_model(robot)
     if model is None:
         return None
     return Avoidance(model, task.obstacles, clearance_mm, weight)
+
+
+def collision_checker(robot: Robot) -> Any:
+    """The robot's collision model for checking many poses: the compiled capsules
+    (:class:`ikbench.core.capsules.CapsuleModel`) when numba imports and the geometry is
+    capsules, else the coal checker; None without geometry. Both have ``check(poses,
+    obstacles)`` and ``distance_jacobians``."""
+    from ikbench.core.collision import collision_model
+
+    model = collision_model(robot)
+    if model is None:
+        return None
+    try:
+        from ikbench.core.capsules import capsule_model
+    except ImportError:
+        return model
+    return capsule_model(robot) or model
+
+
+def self_colliding(checker: Any, poses: np.ndarray) -> np.ndarray:
+    """(B,) waypoints of trajectories (B, N, dof) where the robot touches itself."""
+    b, n, dof = poses.shape
+    report = checker.check(poses.reshape(-1, dof))
+    return report.self_colliding.reshape(b, n).sum(axis=1)
+

@@ -145,29 +145,42 @@ def _dls(e, J, damping):
 
 
 def first_waypoint_ik(frames: Callable[..., Frames], goal_mm: np.ndarray, goal_R: np.ndarray,
-                      seeds: np.ndarray, lower: np.ndarray, upper: np.ndarray
+                      seeds: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                      max_iterations: int = IK_ITERATIONS
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """Damped least-squares IK of one pose from every seed (K, dof), with an adaptive damping.
+    """Damped least-squares IK of one pose (``goal_mm`` (3,), ``goal_R`` (3, 3), or one per
+    seed, (K, 3) and (K, 3, 3)) from every seed (K, dof), with an adaptive damping; a seed
+    stops once converged or stuck (the others go on).
 
     Returns:
         (poses (K, dof), position errors (K,) [mm], rotation errors (K,) [deg], iterations).
     """
     q = np.clip(seeds, lower, upper)
-    e, J = _stack(*errors_from_frames(*frames(q), goal_mm, goal_R))
+    goal_mm, goal_R = np.asarray(goal_mm, dtype=float), np.asarray(goal_R, dtype=float)
+    per_seed = goal_mm.ndim == 2
+
+    def errors(poses, rows):
+        return _stack(*errors_from_frames(*frames(poses), goal_mm[rows] if per_seed else goal_mm,
+                                          goal_R[rows] if per_seed else goal_R))
+
+    e, J = errors(q, slice(None))
     damping = np.full(len(q), 1.0)
     iterations = 0
-    while iterations < IK_ITERATIONS:
+    while iterations < max_iterations:
         norm = np.linalg.norm(e, axis=1)
-        if np.all((norm < IK_TOLERANCE) | (damping > IK_STALLED)):   # converged or stuck
+        active = np.flatnonzero((norm >= IK_TOLERANCE) & (damping <= IK_STALLED))
+        if not active.size:                                   # every seed converged or stuck
             break
         iterations += 1
-        step = _dls(e, J, damping)
+        step = _dls(e[active], J[active], damping[active])
         step *= np.minimum(1.0, IK_MAX_STEP / np.maximum(np.abs(step).max(1), 1e-300))[:, None]
-        trial = np.clip(q + step, lower, upper)
-        e_new, J_new = _stack(*errors_from_frames(*frames(trial), goal_mm, goal_R))
-        better = np.linalg.norm(e_new, axis=1) < norm
-        q[better], e[better], J[better] = trial[better], e_new[better], J_new[better]
-        damping = np.where(better, np.maximum(damping / 3.0, 1e-6), damping * 4.0)
+        trial = np.clip(q[active] + step, lower, upper)
+        e_new, J_new = errors(trial, active)
+        better = np.linalg.norm(e_new, axis=1) < norm[active]
+        rows = active[better]
+        q[rows], e[rows], J[rows] = trial[better], e_new[better], J_new[better]
+        damping[active] = np.where(better, np.maximum(damping[active] / 3.0, 1e-6),
+                                   damping[active] * 4.0)
     return q, np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(e[:, 3:], axis=1), iterations
 
 
@@ -185,7 +198,9 @@ def limit_avoidance(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.n
     u = (q - middle) / half-range in [-1, 1], -:data:`AVOIDANCE_GAIN` half-range u^3 (small in
     the middle of the range, strong near a limit)."""
     middle, half = 0.5 * (upper + lower), 0.5 * (upper - lower)
-    u = (q - middle) / half
+    bounded = np.isfinite(half)
+    half = np.where(bounded, half, 1.0)
+    u = np.where(bounded, (q - np.where(bounded, middle, 0.0)) / half, 0.0)
     return -AVOIDANCE_GAIN * half * u**3
 
 
@@ -217,10 +232,9 @@ def carry(frames: Callable[..., Frames], task: Task, start: np.ndarray, lower: n
 
     Waypoint i starts from the linear extrapolation 2 q_{i-1} - q_{i-2} (the previous pose at
     i = 1) and takes one :func:`redundant_step` (damped least squares, limit avoidance and,
-    with ``avoid``, collision avoidance in the null space); another (at most
-    :data:`CARRY_ITERATIONS` in all) when an error before the step exceeded
-    :data:`CARRY_RETRY` (mm or deg), e.g. at a corner of the path. The LM refinement
-    polishes what is left.
+    with ``avoid``, collision avoidance in the null space); a pose whose error before the step
+    exceeded :data:`CARRY_RETRY` (mm or deg), e.g. at a corner of the path, takes another (at
+    most :data:`CARRY_ITERATIONS` in all). The LM refinement polishes what is left.
 
     Returns:
         (paths (K, N, dof), iterations).
@@ -233,8 +247,9 @@ def carry(frames: Callable[..., Frames], task: Task, start: np.ndarray, lower: n
     for i in range(1, len(goals_mm)):
         q = paths[alive, i - 1] if i == 1 else np.clip(
             2 * paths[alive, i - 1] - paths[alive, i - 2], lower, upper)
+        todo = np.arange(len(alive))          # the poses still stepping at this waypoint
         for attempt in range(CARRY_ITERATIONS):
-            point, rotation, j_point, j_angular = frames(q)
+            point, rotation, j_point, j_angular = frames(q[todo])
             e, J = _stack(*errors_from_frames(point, rotation, j_point, j_angular, goals_mm[i],
                                               goals_R[i], exact=False))
             size = np.abs(e).max(1)
@@ -242,13 +257,15 @@ def carry(frames: Callable[..., Frames], task: Task, start: np.ndarray, lower: n
                 keep = size <= DROP_MM_DEG
                 paths[alive[~keep], i:] = paths[alive[~keep], i - 1, None]
                 alive, q, e, J, size = alive[keep], q[keep], e[keep], J[keep], size[keep]
+                todo = np.arange(len(alive))
                 if not alive.size:
                     return paths, iterations
             extra = avoid.motion(q) if avoid is not None and attempt == 0 else None
-            q = np.clip(q + redundant_step(e, J, CARRY_DAMPING, q, lower, upper, extra),
-                        lower, upper)
+            q[todo] = np.clip(q[todo] + redundant_step(e, J, CARRY_DAMPING, q[todo], lower,
+                                                       upper, extra), lower, upper)
             iterations += 1
-            if size.max() <= CARRY_RETRY:
+            todo = todo[size > CARRY_RETRY]
+            if not todo.size:
                 break
         paths[alive, i] = q
     return paths, iterations
@@ -297,7 +314,41 @@ def check_paths(robot: Robot, task: Task, paths: np.ndarray, frames: Callable[..
 
 
 def search(robot: Robot, task: Task, settings: OursLMSettings, weights: dict) -> SearchResult:
-    """Solve a 6-D pose path without a start pose (see the module docstring)."""
+    """Solve a 6-D pose path without a start pose: by the compiled search
+    (:mod:`.path_search`) when the numba backend runs and the robot's collision geometry is
+    capsules (or it has none), else by the numpy search (see the module docstring)."""
+    compiled = _compiled_search(robot, settings)
+    if compiled is not None:
+        return compiled.search_compiled(robot, task, settings, weights)
+    return search_numpy(robot, task, settings, weights)
+
+
+def warm_up_search(robot: Robot, settings: OursLMSettings) -> None:
+    """Compile (or load) the compiled search's kernels when it will run (untimed)."""
+    compiled = _compiled_search(robot, settings)
+    if compiled is not None:
+        compiled.warm_up(robot)
+
+
+def _compiled_search(robot: Robot, settings: OursLMSettings) -> Any:
+    """The :mod:`.path_search` module when it can run for these settings and robot."""
+    from ikbench.methods.ours_lm.devices import cpu_backend
+
+    if settings.device is not None or cpu_backend(settings) != "numba":
+        return None
+    try:
+        from ikbench.methods.ours_lm import path_search
+    except ImportError:
+        if settings.backend == "numba":
+            raise InputError("--lm-backend numba: numba does not import; use --lm-backend "
+                             "numpy") from None
+        return None
+    return path_search if path_search.available(robot) else None
+
+
+def search_numpy(robot: Robot, task: Task, settings: OursLMSettings, weights: dict
+                 ) -> SearchResult:
+    """The numpy search (the reference; see the module docstring)."""
     started = time.perf_counter()
     frames = robot.chain_kinematics().frames
     lower, upper = (np.asarray(v, dtype=float) for v in task.limits(robot))
@@ -373,12 +424,13 @@ def search(robot: Robot, task: Task, settings: OursLMSettings, weights: dict) ->
 
 #: Stitching (tasks with obstacles): waypoints spread over the path that paths are carried from
 #: in the second round, IK seeds at each waypoint carried from, and the largest joint step
-#: [pose units] the stitched path may take.
+#: [pose units] the stitched path may take (a prismatic joint: this share of CppFlow's 20 mm).
 STITCH_ANCHORS = 9
 STITCH_SEEDS = 64
 STITCH_MAX_STEP = 6.5
-#: The cost of a step above it: the path jumps only where no carried path continues (the LM
-#: refinement may then smooth the jump).
+STITCH_STEP_SHARE = STITCH_MAX_STEP / MAX_JOINT_CHANGE_DEG
+#: The cost of a step above it, per pose unit above it: the path jumps only where no carried
+#: path continues, as little as it can (the LM refinement may then smooth the jump).
 STITCH_JUMP_COST = 1e6
 #: Rounds of carrying from around where the stitched path still jumps (waypoint offsets).
 STITCH_ROUNDS = 4
@@ -414,6 +466,7 @@ def stitched_candidates(frames: Callable[..., Frames], task: Task, avoid: Avoida
         was found (``info["stitched"]``), then the forward-carried paths.
     """
     n, dof = len(task.goal_points_mm), len(lower)
+    weights, max_step = stitch_costs(avoid.model.robot)
     jobs: list[tuple[np.ndarray, int]] = [(np.array([0, n - 1]), n)]   # (anchors, reach)
     tracks: list[np.ndarray] = []
     nodes: list[np.ndarray] = []      # each track's node mask, found once
@@ -428,9 +481,10 @@ def stitched_candidates(frames: Callable[..., Frames], task: Task, avoid: Avoida
                 forward = first
         nodes += [stitch_nodes(frames, task, avoid, t) for t in tracks[len(nodes):]]
         if tracks:
-            path = stitch(frames, task, avoid, np.concatenate(tracks), np.concatenate(nodes))
+            path = stitch(frames, task, avoid, np.concatenate(tracks), np.concatenate(nodes),
+                          weights, max_step)
         jumps = np.zeros(0, dtype=int) if path is None else np.flatnonzero(
-            np.abs(np.diff(path, axis=0)).max(axis=1) > STITCH_MAX_STEP)
+            np.any(np.abs(np.diff(path, axis=0)) > max_step, axis=1))
         rounds += 1
         if path is not None and not jumps.size or rounds > STITCH_ROUNDS:
             break
@@ -510,14 +564,46 @@ def stitch_nodes(frames: Callable[..., Frames], task: Task, avoid: Avoidance,
     return node
 
 
+def stitch_costs(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+    """(weights (dof,), largest step (dof,) [pose units]) of the stitch: a revolute joint's
+    step counts by its size [deg], a prismatic joint's [mm] by 7/20 of it (CppFlow's step
+    limits' ratio), and a step above :data:`STITCH_MAX_STEP` (prismatic:
+    :data:`STITCH_STEP_SHARE` of 20 mm) is a jump."""
+    prismatic = robot.chain_kinematics().prismatic
+    weights = np.where(prismatic, MAX_JOINT_CHANGE_DEG / MAX_JOINT_CHANGE_MM, 1.0)
+    max_step = np.where(prismatic, STITCH_STEP_SHARE * MAX_JOINT_CHANGE_MM, STITCH_MAX_STEP)
+    return weights, max_step
+
+
+def joint_steps(a: np.ndarray, b: np.ndarray, period: np.ndarray | None = None) -> np.ndarray:
+    """|b - a| per joint [pose units]; a joint with ``period`` > 0 (one turn [pose units]:
+    a continuous joint) the shorter way round."""
+    step = np.abs(b - a)
+    if period is None or not np.any(period > 0):
+        return step
+    turn = np.where(period > 0, period, 1.0)
+    wrapped = np.remainder(step, turn)
+    return np.where(period > 0, np.minimum(wrapped, turn - wrapped), step)
+
+
 def stitch(frames: Callable[..., Frames], task: Task, avoid: Avoidance, tracks: np.ndarray,
-           node: np.ndarray | None = None) -> np.ndarray | None:
+           node: np.ndarray | None = None, weights: np.ndarray | None = None,
+           max_step: np.ndarray | float = STITCH_MAX_STEP,
+           period: np.ndarray | None = None) -> np.ndarray | None:
     """The stitched path (N, dof) through the nodes of carried tracks (M, N, dof) (NaN where a
     track does not reach; ``node``: their :func:`stitch_nodes`, found here when None), see
-    :func:`stitched_candidates`; None when no node sequence exists."""
+    :func:`stitched_candidates`; None when no node sequence exists.
+
+    The path minimises its weighted joint path length, sum_i sum_j w_j |p_{i+1,j} - p_{i,j}|
+    (``weights`` w (dof,), default 1: :func:`stitch_costs`), plus :data:`STITCH_JUMP_COST`
+    times every joint's step beyond ``max_step`` (dof,) or a number [pose units]: the
+    shortest path through the nodes, globally (dynamic programming), with the smallest jumps
+    where it must jump. ``period`` (dof,): continuous joints step the shorter way round
+    (:func:`joint_steps`)."""
     m, n, dof = tracks.shape
     if node is None:
         node = stitch_nodes(frames, task, avoid, tracks)
+    w = np.ones(dof) if weights is None else np.asarray(weights, dtype=float)
     poses = np.nan_to_num(tracks).swapaxes(0, 1)                    # (N, M, dof)
     nodes = [np.flatnonzero(node[:, i]) for i in range(n)]
     if any(not len(k) for k in nodes):
@@ -525,9 +611,10 @@ def stitch(frames: Callable[..., Frames], task: Task, avoid: Avoidance, tracks: 
     cost = np.zeros(len(nodes[0]))
     back = []
     for i in range(1, n):
-        step = np.abs(poses[i, nodes[i]][None] - poses[i - 1, nodes[i - 1]][:, None])
-        total = cost[:, None] + np.sum(step**2, axis=-1) \
-            + STITCH_JUMP_COST * (step.max(axis=-1) > STITCH_MAX_STEP)
+        step = joint_steps(poses[i - 1, nodes[i - 1]][:, None], poses[i, nodes[i]][None],
+                           period)
+        total = cost[:, None] + np.sum(w * step, axis=-1) \
+            + STITCH_JUMP_COST * np.sum(np.maximum(step - max_step, 0.0), axis=-1)
         back.append(np.argmin(total, axis=0))
         cost = total[back[-1], np.arange(len(nodes[i]))]
     k = int(np.argmin(cost))
