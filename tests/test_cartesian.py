@@ -162,8 +162,8 @@ def test_published_figures_are_labelled_and_never_estimated():
 @pytest.mark.parametrize("args, message", [
     (["--seeds", "1,x"], "--seeds: '1,x' must be distinct integers"),
     (["--seeds", "2,2"], "must be distinct integers"),
-    (["--problems", "nope"], "--problem: 'nope' is neither a shipped problem"),
-    (["--methods", "nope"], "--method: unknown method 'nope'"),
+    (["--problems", "nope"], "--problems: 'nope' is neither a shipped problem"),
+    (["--methods", "nope"], "--methods: unknown method 'nope'"),
     (["--seed", "3"], "--seed: the benchmark runs every seed of --seeds"),
     (["--lm-seed", "3"], "--lm-seed: the benchmark runs every seed of --seeds"),
     (["--methods", "sequential-ik", "--lr", "0.5"], "--lr is not an option of the methods "

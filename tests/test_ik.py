@@ -156,7 +156,7 @@ def test_robots_by_package_name(name, dof, end):
 
 @needs_erd
 def test_package_robot_outside_the_table_needs_an_end_frame_and_lists_are_complete(capsys):
-    with pytest.raises(InputError, match="give --end-frame LINK"):
+    with pytest.raises(InputError, match="give its end frame, a link"):
         load_robot("example-robot-data:so101")
     with pytest.raises(InputError, match="neither a common arm"):
         load_robot("example-robot-data:no_such_arm")
