@@ -5,13 +5,14 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import OUTPUT
 
 HELP = "single-pose IK benchmark: success rate and solve time of every library on a robot"
 DEFAULT_OUTPUT = "runs"
 
 
 def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import add_robot_arguments
+    from ikbench.cli.options import add_progress_arguments, add_robot_arguments
 
     parser = subparsers.add_parser(
         "ik", help=HELP,
@@ -45,10 +46,10 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--max-count-per-method", default=None, metavar="METHOD=N,...",
                         help="solve only the first N targets with METHOD (slow libraries, "
                         "e.g. ikpy=500); the leaderboard says so")
-    parser.add_argument("--output", default=DEFAULT_OUTPUT,
+    parser.add_argument("--output", default=DEFAULT_OUTPUT, type=OUTPUT,
                         help=f"output directory; writes OUTPUT/ik/<robot>/ (default "
                         f"{DEFAULT_OUTPUT})")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_progress_arguments(parser)
     parser.set_defaults(func=run)
 
 
@@ -93,12 +94,13 @@ def command_line(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import robot_from_args
+    from ikbench.cli.options import begin, robot_from_args
     from ikbench.core.io import check_folder_writable
     from ikbench.render.ik_report import summarise
     from ikbench.studies.ik import (
         FOLDER,
         IKSettings,
+        check_memory,
         parse_methods,
         robot_slug,
         run_ik,
@@ -112,6 +114,8 @@ def run(args: argparse.Namespace) -> int:
     names = parse_methods(args.methods, args.kind)
     folder = Path(args.output) / FOLDER / robot_slug(robot)
     check_folder_writable(folder)
+    check_memory(settings.count, len(names))
+    begin(args)
     result = run_ik(robot, settings, names, progress=not args.quiet)
     write(result, args.output, command_line(args))
     summary = summarise(result.table)

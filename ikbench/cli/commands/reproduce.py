@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import OUTPUT
 
 HELP = ("regenerate Tables 1 and 2, the comparison, the ablation, all figures and "
         "results/README.md")
@@ -30,7 +31,7 @@ def register(subparsers: Subparsers) -> None:
             "takes a few minutes on 2 cores."
         ),
     )
-    parser.add_argument("--output", default=None,
+    parser.add_argument("--output", default=None, type=OUTPUT,
                         help="results directory (default: results; results-quick with "
                         "--quick)")
     parser.add_argument("--quick", action="store_true",
@@ -41,11 +42,13 @@ def register(subparsers: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ikbench.cli.options import check_threads, set_threads
-    from ikbench.paper.reproduce import reproduce
+    from ikbench.cli.options import begin, check_threads, set_threads
+    from ikbench.paper.reproduce import check_output, reproduce
 
     check_threads(args.threads)
+    check_output(args.output, args.quick)
     set_threads(args.threads)
+    begin(args)
     times = reproduce(args.output, quick=args.quick, progress=not args.quiet)
     width = max(map(len, times))
     for stage, seconds in times.items():
