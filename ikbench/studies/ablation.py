@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import json
 import re
-import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -54,6 +53,7 @@ from ikbench.methods.base import Method
 from ikbench.methods.registry import available_methods, get_method
 from ikbench.render.run_report import TABLE_COLUMNS, _matplotlib, markdown_table, report_sections
 from ikbench.runtime.harness import Progress, solve_tasks
+from ikbench.runtime.progress import message
 from ikbench.runtime.record import TRAJECTORY_FILE
 from ikbench.studies.run import DEFAULT_OUTPUT, evaluate, robot_record
 
@@ -206,8 +206,7 @@ def joint_interpolation_by_joint(robot: Robot, tasks: Sequence[Task],
 
 
 def _say(text: str, enabled: bool) -> None:
-    if enabled:
-        print(f"[ablation] {text}", file=sys.stderr, flush=True)
+    message("ablation", text, enabled)
 
 
 def ablate(drops: str | list[str], method: str, *,

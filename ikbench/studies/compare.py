@@ -92,7 +92,7 @@ COLLISION_METRICS = ["self_collisions", "env_collisions", "min_clearance_mm",
 #: The note beside a collision of a method that does not avoid obstacles.
 NO_AVOIDANCE = "does not avoid obstacles"
 #: Statuses that make ``ikbench compare`` exit with 1.
-FAILING = ("failed", "refused", "does not honour")
+FAILING = ("failed", "refused", "does not honour", "not installed")
 
 
 @dataclass
@@ -274,13 +274,14 @@ def _solve_methods(names: list[str], robot: Robot, targets: Targets, tasks: list
     log.say(f"solving {len(tasks)} trajectories with {len(built)} method(s), each trajectory "
             f"alone, {warmup} warm-up + {repeat} timed round(s) ({executor.name} executor)")
     last = {}
+    log.set_total(len(built))
     for (name, solver), (single, batched) in zip(built.items(),
                                                  executor.map(solve_method, work)):
         last[name] = single[-1]
         rows += _timed_rows(name, solver, robot, targets, contract, single, batched, repeat)
         median_s = np.median([r["time_median_s"] for r in rows[-len(tasks):]])
-        log.say(f"{name}: {repeat} x {len(tasks)} trajectories solved alone, median "
-                f"{median_s:.4f} s per trajectory")
+        log.advance(1, f"{name}: {repeat} x {len(tasks)} trajectories solved alone, median "
+                    f"{median_s:.4f} s per trajectory")
     return rows, built, last
 
 
@@ -325,8 +326,8 @@ def _build(names, robot, targets, tasks, solvers, log) -> tuple[list[dict], dict
     for k, name in enumerate(names):
         cls = status[name].cls
         if cls is None:
-            log.say(f"{name} ({k + 1}/{len(names)}): unavailable: {status[name].reason}")
-            rows += [_row(name, "", robot, targets, task, "unavailable", status[name].reason)
+            log.note(f"{name} ({k + 1}/{len(names)}): not installed: {status[name].reason}")
+            rows += [_row(name, "", robot, targets, task, "not installed", status[name].reason)
                      for task in tasks]
             continue
         try:
