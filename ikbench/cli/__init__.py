@@ -17,6 +17,7 @@ import sys
 
 from ikbench.cli import commands
 from ikbench.cli.values import QUOTED_CHARS, PathValue, harden, quoted
+from ikbench.core import chatter
 from ikbench.core.errors import IkbenchError, OutputError
 
 #: A word argparse takes for an option although it is a value: ``-24.9,81.5`` (a negative
@@ -147,8 +148,11 @@ def run_parsed(parser: argparse.ArgumentParser, argv: list[str]) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    chatter.forget()
     try:
         code = args.func(args)
+        for line in chatter.summary():  # what the libraries printed, once, at the end
+            print(line, file=sys.stderr)
     except IkbenchError as exc:
         command = _subparser(parser, args.command)
         message = with_flags(str(exc), command)

@@ -78,7 +78,10 @@ def add_method_options(parser: argparse.ArgumentParser, methods: dict[str, Any])
     if not by_flag:
         return
     group = parser.add_argument_group(
-        "method options", "options of the methods (each applies to the methods it names)")
+        "method options", f"{len(by_flag)} options of the methods, each applying to the "
+        "methods it names: --help-methods shows them here, ikbench methods NAME one method's")
+    group.add_argument("--help-methods", action=_HelpMethods, nargs=0,
+                       help="show this help with every method's options, and exit")
     for flag, users in by_flag.items():
         types = {opt.value_type() for _, opt in users}
         value_type = types.pop() if len(types) == 1 else str
@@ -93,8 +96,24 @@ def add_method_options(parser: argparse.ArgumentParser, methods: dict[str, Any])
                    and users[0][1].spec.choices else flag.upper().replace("-", "_"))
         if value_type is int:  # counts and caps; a settings field named seed is a seed
             value_type = SEED if users[0][1].field == "seed" else METHOD_INTEGER
-        group.add_argument(f"--{flag}", dest=f"opt_{flag.replace('-', '_')}", default=None,
-                           type=value_type, metavar=metavar, help=text.replace("%", "%%"))
+        action = group.add_argument(f"--{flag}", dest=f"opt_{flag.replace('-', '_')}",
+                                    default=None, type=value_type, metavar=metavar,
+                                    help=argparse.SUPPRESS)
+        setattr(action, HIDDEN_HELP, text.replace("%", "%%"))
+
+
+#: Where a method option keeps the help text that --help leaves out.
+HIDDEN_HELP = "ikbench_method_help"
+
+
+class _HelpMethods(argparse.Action):
+    """``--help-methods``: the command's help with the method options --help leaves out."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        for action in parser._actions:
+            action.help = getattr(action, HIDDEN_HELP, action.help)
+        parser.print_help()
+        parser.exit()
 
 
 def _given(args) -> dict[str, object]:
@@ -149,7 +168,8 @@ def add_threads_and_quiet(parser: argparse.ArgumentParser) -> None:
 
 
 def add_progress_arguments(parser: argparse.ArgumentParser) -> None:
-    """--quiet and --log FILE (how :func:`begin` reports progress)."""
+    """--quiet, --log FILE and --verbose (how :func:`begin` reports progress and what the
+    libraries print)."""
     parser.add_argument("--quiet", action="store_true",
                         help="no progress bar (there is none either when stderr is not a "
                         "terminal)")
@@ -157,6 +177,10 @@ def add_progress_arguments(parser: argparse.ArgumentParser) -> None:
                         metavar="FILE|-",
                         help="progress as machine-readable lines, one JSON object each (t_s, "
                         "label, event, done, total, text), to FILE ('-': stderr)")
+    parser.add_argument("--verbose", action="store_true",
+                        help="show what kinematics libraries print on their own (TRAC-IK's "
+                        "KDL, Drake's URDF warnings) as it comes; by default one note per "
+                        "library at the end")
 
 
 def begin(args: argparse.Namespace) -> None:
@@ -165,6 +189,7 @@ def begin(args: argparse.Namespace) -> None:
 
     Every command calls it between checking its input and its first long or writing step.
     """
+    from ikbench.core.chatter import set_verbose
     from ikbench.runtime.progress import configure
 
     target = getattr(args, "progress_log", None)
@@ -181,6 +206,7 @@ def begin(args: argparse.Namespace) -> None:
     elif target is not None:
         log = open(target, "w", encoding="utf-8")  # noqa: SIM115 - open for the whole run
     configure(mode, log)
+    set_verbose(bool(getattr(args, "verbose", False)))
 
 
 def inputs_checked(args: argparse.Namespace) -> None:

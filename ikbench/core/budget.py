@@ -1,9 +1,9 @@
-"""Up-front budgets: sizes that allocate or take time are refused before the work starts.
+"""Up-front budgets: sizes that allocate are refused before the work starts.
 
-A count, a rate or a grid that would need more memory than is available, or more time than is
-sane, is refused with the estimate and the most that fits (``rate_hz: 36,000,001 points need
-about 103 GiB of memory; 22 GiB are available here: at most 3,843,410 points``). Messages name
-the field; the CLI names its option instead.
+A count, a rate or a grid that would need more memory than is available is refused with the
+estimate and the most that fits (``rate_hz: 36,000,001 points need about 134 GiB of memory;
+8 GiB are available here: at most 1,073,741 points``). Messages name the field; the CLI names
+its option instead.
 """
 
 from __future__ import annotations
@@ -12,8 +12,6 @@ from ikbench.core.errors import InputError
 
 #: Share of the memory available now that one command may plan to use.
 MEMORY_SHARE = 0.5
-#: Work a command may plan up front before it is refused as absurd [s] (a week).
-MAX_WORK_S = 7 * 24 * 3600.0
 
 
 def available_memory_bytes() -> int:
@@ -41,28 +39,8 @@ def check_memory(field: str, amount: int, what: str, bytes_each: float) -> None:
                          f"{most:,} {what}")
 
 
-def check_work(field: str, amount: int, what: str, seconds_each: float,
-               max_s: float = MAX_WORK_S) -> None:
-    """InputError when ``amount`` ``what`` (``"solves"``) of at least ``seconds_each`` [s]
-    each would take longer than ``max_s``; the message gives the estimate and the maximum."""
-    need = amount * seconds_each
-    if need > max_s:
-        most = int(max_s // seconds_each)
-        raise InputError(f"{field}: {amount:,} {what} take at least {_duration(need)} (at "
-                         f"least {seconds_each:g} s each); at most {most:,} {what} "
-                         f"({_duration(max_s)})")
-
-
 def _bytes(amount: float) -> str:
     for unit, size in (("TiB", 2**40), ("GiB", 2**30), ("MiB", 2**20)):
         if amount >= size:
             return f"{amount / size:.3g} {unit}"
     return f"{amount / 1024:.3g} KiB"
-
-
-def _duration(seconds: float) -> str:
-    for unit, size in (("years", 365.25 * 86400), ("days", 86400), ("hours", 3600),
-                       ("minutes", 60)):
-        if seconds >= size:
-            return f"{seconds / size:.3g} {unit}"
-    return f"{seconds:.3g} s"

@@ -118,7 +118,8 @@ def _table(board: pd.DataFrame, reference: str, judged: Contract) -> list[str]:
     lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
     for _, row in board.iterrows():
         n = int(row["trajectories"])
-        cells = [row["method"], f"{row['library']} {row['version'] or ''}".strip(),
+        cells = [row["method"], " ".join(v for v in (row["library"], row["version"])
+                                          if isinstance(v, str) and v),  # none: not installed
                  str(row["scheme"]), str(row["status"]),
                  f"**{int(row['success_count'])}/{n}**"]
         cells += [f"{int(row[f'{c}_count'])}/{n}" if not pd.isna(row[f"{c}_count"]) else ""

@@ -231,7 +231,7 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
     robot = as_robot(robot)
     targets, tasks, kind = sweep_tasks(robot, targets, shape, only, steps, size_mm,
                                        start_pose, direction)
-    check_grid_size(grid, tasks)
+    check_grid_size(grid, tasks, robot.dof)
     base, settings = _sweep_settings(tasks, grid, shape, method)
     all_tasks = [task for _ in settings for task in tasks]
     all_weights = [w for w in settings for _ in tasks]
@@ -349,10 +349,11 @@ def _trajectory_rows(robot: Robot, kind: str, grid: dict[str, list[float]],
 NUMBERS_PER_POSE_JOINT = 50
 
 
-def check_grid_size(grid: dict[str, list[float]], tasks: list[Task]) -> int:
+def check_grid_size(grid: dict[str, list[float]], tasks: list[Task], dof: int) -> int:
     """The number of trajectories the sweep solves (every setting of ``grid``, the reference
     included, times ``tasks``); InputError, before any setting is built, when they are more
-    than one batch takes (:data:`ikbench.studies.batch.MAX_COUNT`) or than memory holds."""
+    than one batch takes (:data:`ikbench.studies.batch.MAX_COUNT`) or than memory holds
+    (``dof``: the robot's joints)."""
     from ikbench.studies.batch import MAX_COUNT
 
     count = (math.prod(len(v) for v in grid.values()) + 1) * len(tasks)
@@ -360,7 +361,7 @@ def check_grid_size(grid: dict[str, list[float]], tasks: list[Task]) -> int:
         raise InputError(f"weight: the grid makes {count:,} trajectories ({count // len(tasks):,} "
                          f"settings x {len(tasks)} tasks), more than one batch takes, "
                          f"{MAX_COUNT:,}; give fewer values")
-    size = (tasks[0].steps + 1) * len(tasks[0].start_pose_deg) * 8 * NUMBERS_PER_POSE_JOINT
+    size = (tasks[0].steps + 1) * dof * 8 * NUMBERS_PER_POSE_JOINT
     check_memory("weight", count, "trajectories", size)
     return count
 

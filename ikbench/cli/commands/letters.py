@@ -14,7 +14,8 @@ DEFAULT_OUTPUT = "runs/letters"
 def register(subparsers: Subparsers) -> None:
     from ikbench.cli.commands.run import (
         LETTER_SIZE_MM,
-        add_run_arguments,
+        add_method_and_output,
+        add_solve_arguments,
         add_start_pose_argument,
     )
     from ikbench.cli.options import add_robot_arguments
@@ -43,6 +44,7 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("letters", type=letters_value,
                         help="letters A-Z, comma-separated, e.g. P or P,A,S "
                         "(lower case is drawn upper case)")
+    add_method_and_output(parser, methods, DEFAULT_OUTPUT, folder="<method>")
     add_robot_arguments(parser)
     parser.add_argument("--size", type=LETTER_SIZE_MM, default=None,
                         help="letter height [mm] (default 300)")
@@ -51,7 +53,7 @@ def register(subparsers: Subparsers) -> None:
     add_start_pose_argument(parser, f"the robot's letter pose; NICO: the paper's {pose}")
     parser.add_argument("--steps", type=STEPS, default=None,
                         help=f"number of segments n per letter (default {DEFAULT_STEPS})")
-    add_run_arguments(parser, methods, DEFAULT_OUTPUT, folder="<method>")
+    add_solve_arguments(parser, methods)
     parser.set_defaults(func=run, targets=None, only=None)
 
 

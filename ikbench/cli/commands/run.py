@@ -51,13 +51,10 @@ def register(subparsers: Subparsers) -> None:
             "--no-animation skips it) and report.md. The folder is replaced whole: files an "
             "earlier run wrote there and this one does not are removed, other files are kept. A "
             "failed solve is reported as a row (exit code 1); Ctrl-C keeps the trajectories "
-            "solved so far. Methods: " + "; ".join(f"{name}: {cls.description}"
-                                                   for name, cls in methods.items())
-            + " (ikbench methods lists them all, with those not installed)."),
+            "solved so far. Methods: " + ", ".join(methods) + " (ikbench methods lists them "
+            "all, with those not installed; ikbench methods NAME gives one's options)."),
     )
-    add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3",
-                       start_pose_default="the targets file's")
-    add_run_arguments(parser, methods, DEFAULT_OUTPUT)
+    add_method_and_output(parser, methods, DEFAULT_OUTPUT)
     parser.add_argument("--name", default=None, type=Text("a run name", max_chars=200),
                         help="folder under OUTPUT for this run (default: the method's name), "
                         "e.g. sequential-ik-position; letters, digits, '_', '-', '.'")
@@ -68,6 +65,9 @@ def register(subparsers: Subparsers) -> None:
                         "or a shipped one (fetch_arm__hello, ...); writes "
                         "trajectory_<problem>.csv with the end frame's quaternion, and a table "
                         "of pose errors, joint changes, path lengths and CppFlow's validity")
+    add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3",
+                       start_pose_default="the targets file's")
+    add_solve_arguments(parser, methods)
     parser.set_defaults(func=run)
 
 
@@ -105,18 +105,23 @@ def add_start_pose_argument(parser: argparse.ArgumentParser, default: str) -> No
                         f"(default: {default}); write --start-pose=-24,... for a leading minus")
 
 
-def add_run_arguments(parser: argparse.ArgumentParser, methods: dict, default_output: str,
-                      folder: str = "<method> (or --name)") -> None:
-    """--method, output options and every method's own options (shared with ``letters``);
-    ``folder``: the run folder's name under OUTPUT, in words for the help."""
-    from ikbench.cli.options import add_method_options, add_threads_and_quiet
-
+def add_method_and_output(parser: argparse.ArgumentParser, methods: dict, default_output: str,
+                          folder: str = "<method> (or --name)") -> None:
+    """--method and --output, the first options of ``run`` and ``letters``; ``folder``: the
+    run folder's name under OUTPUT, in words for the help."""
     parser.add_argument("--method", default=DEFAULT_METHOD,
                         help=f"one of: {', '.join(methods)} (default: {DEFAULT_METHOD})")
     parser.add_argument("--output", default=default_output, type=OUTPUT,
                         help=f"directory of the run folder: writes OUTPUT/{folder}/ (default: "
                         f"{default_output}, which git ignores, so {default_output}/<method>/; "
                         "ikbench reproduce writes results/)")
+
+
+def add_solve_arguments(parser: argparse.ArgumentParser, methods: dict) -> None:
+    """--duration, --no-animation, --timing, --threads, progress options and every method's
+    own options (shown by --help-methods; shared with ``letters``)."""
+    from ikbench.cli.options import add_method_options, add_threads_and_quiet
+
     parser.add_argument("--duration", type=duration_s(), default=2.0,
                         help="movement duration T [s] for the time_s column, 0.001 to 3600 "
                         "(default 2)")

@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
                                                                  "--start-pose")
     _, tasks, _ = sweep_tasks(robot, args.targets, args.shape, args.only, args.steps,
                               args.size, start_pose, args.direction)
-    check_grid_size(grid, tasks)  # the tasks and the grid's size checked before anything runs
+    check_grid_size(grid, tasks, robot.dof)  # tasks and grid size checked before anything runs
     check_writable(Path(args.output) / "sweep.csv")  # before the solve, not after it
     begin(args)
     result = sweep(grid, targets=args.targets, only=args.only, steps=args.steps,
