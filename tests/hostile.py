@@ -115,6 +115,8 @@ def _put(base: list[str], action: argparse.Action, sub: argparse.ArgumentParser,
         positionals = [a for a in sub._actions if not a.option_strings
                        and a.nargs != 0 and not isinstance(a, argparse._SubParsersAction)]
         k = positionals.index(action)
+        if len(positionals) == 1:  # after "--", as a user gives a value such as -inf
+            return [w for w in base if w not in _positionals(base)] + ["--", value]
         words, index = list(base), 0
         for i, word in enumerate(words[1:], start=1):
             if not word.startswith("-") and not words[i - 1].startswith("-"):
@@ -134,6 +136,12 @@ def _put(base: list[str], action: argparse.Action, sub: argparse.ArgumentParser,
             continue
         words.append(word)
     return words + [f"{max(action.option_strings, key=len)}={value}"]
+
+
+def _positionals(base: list[str]) -> list[str]:
+    """The words of ``base`` that are positional arguments (not options nor their values)."""
+    return [w for i, w in enumerate(base[1:], start=1)
+            if not w.startswith("-") and not base[i - 1].startswith("-")]
 
 
 def run_cases(selected: list[dict], parser: argparse.ArgumentParser, fixtures: dict

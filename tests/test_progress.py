@@ -59,3 +59,15 @@ def test_quiet_and_disabled_report_nothing(capsys):
     Reporter("sweep", total=2).advance(2, "done")
     Reporter("sweep", enabled=False, stream=io.StringIO()).note("not shown")
     assert capsys.readouterr().err == ""
+
+
+def test_a_command_leaves_the_library_default_behind(tmp_path):
+    """The CLI sets the mode for one command (off: stderr is not a terminal here) and its
+    --log file; after it, a library call in the same process reports lines again."""
+    from ikbench.cli import main
+
+    log = tmp_path / "log.jsonl"
+    assert main(["sweep", "--weight", "c0=10", "--only", "1", "--steps", "4", "--output",
+                 str(tmp_path / "out"), "--log", str(log)]) == 0
+    assert progress.mode() == "lines" and progress._config["log"] is None
+    assert log.read_text().splitlines()[-1].startswith('{"t_s"')  # written and closed

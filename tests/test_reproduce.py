@@ -36,7 +36,7 @@ def quick(tmp_path_factory):
     (out / "ours_speed.csv").write_text("by benchmarks/ours_speed.py")
     stdout, stderr = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
-        assert main(["reproduce", "--quick", "--output", str(out)]) == 0
+        assert main(["reproduce", "--quick", "--output", str(out), "--log", "-"]) == 0
     return out, stdout.getvalue(), stderr.getvalue()
 
 

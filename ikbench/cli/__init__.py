@@ -19,6 +19,7 @@ from ikbench.cli import commands
 from ikbench.cli.values import QUOTED_CHARS, PathValue, harden, quoted
 from ikbench.core import chatter
 from ikbench.core.errors import IkbenchError, OutputError
+from ikbench.runtime import progress
 
 #: A word argparse takes for an option although it is a value: ``-24.9,81.5`` (a negative
 #: number followed by more values is not what argparse recognises as a negative number).
@@ -170,6 +171,8 @@ def run_parsed(parser: argparse.ArgumentParser, argv: list[str]) -> int:
     except MemoryError:  # the up-front budgets (ikbench.core.budget) missed a size
         print(f"ikbench: error: out of memory in ikbench {args.command}", file=sys.stderr)
         return 1
+    finally:
+        progress.reset()  # begin() set it for this command; a library call after it gets lines
     return int(code or 0)
 
 
@@ -178,7 +181,8 @@ def interrupted(ignore_more: bool = False) -> int:
     second Ctrl-C while the process ends is ignored (no traceback from clean-up code)."""
     if ignore_more:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-    print("ikbench: interrupted (Ctrl-C)", file=sys.stderr, flush=True)
+    clear = "\r\033[K" if sys.stderr.isatty() else ""  # over a progress bar, if one is drawn
+    print(f"{clear}ikbench: interrupted (Ctrl-C)", file=sys.stderr, flush=True)
     return 130
 
 

@@ -204,8 +204,8 @@ def begin(args: argparse.Namespace) -> None:
     if target == "-":
         log = sys.stderr
     elif target is not None:
-        log = open(target, "w", encoding="utf-8")  # noqa: SIM115 - open for the whole run
-    configure(mode, log)
+        log = open(target, "w", encoding="utf-8")  # noqa: SIM115 - closed by progress.reset
+    configure(mode, log, owned=log is not None and log is not sys.stderr)
     set_verbose(bool(getattr(args, "verbose", False)))
 
 

@@ -29,14 +29,23 @@ MODES = ("bar", "lines", "off")
 LINES_EVERY_S = 1.0
 LOG_EVERY_S = 0.5
 
-_config: dict[str, Any] = {"mode": "lines", "log": None}
+_config: dict[str, Any] = {"mode": "lines", "log": None, "owned": False}
 
 
-def configure(mode: str = "lines", log: TextIO | None = None) -> None:
-    """Where every :class:`Reporter` of this process writes (see the module docstring)."""
+def configure(mode: str = "lines", log: TextIO | None = None, owned: bool = False) -> None:
+    """Where every :class:`Reporter` of this process writes (see the module docstring);
+    ``owned``: the log is a file opened for this, closed by :func:`reset`."""
     if mode not in MODES:
         raise ValueError(f"progress mode {mode!r} is not one of {', '.join(MODES)}")
-    _config.update(mode=mode, log=log)
+    _config.update(mode=mode, log=log, owned=owned)
+
+
+def reset() -> None:
+    """Back to the library default (``lines``, no log), closing a log file it owns (the CLI
+    calls it when a command ends)."""
+    if _config["owned"] and _config["log"] is not None:
+        _config["log"].close()
+    configure()
 
 
 def mode() -> str:
