@@ -21,6 +21,7 @@ import io
 import json
 import os
 import resource
+import signal
 import sys
 import tempfile
 import time
@@ -63,12 +64,25 @@ METHOD_FLAG = {"run": "--method", "letters": "--method", "ablate": "--method",
                "cartesian": "--methods"}
 
 
+#: A case still running after this long is stopped and recorded as a crash [s] (a command
+#: that does its work before ``inputs_checked`` would otherwise run it here).
+CASE_ALARM_S = 30
+
+
 class Reached(BaseException):
     """The command accepted its input (it reached ``inputs_checked``)."""
 
 
+class TimedOut(BaseException):
+    """The case ran past :data:`CASE_ALARM_S`."""
+
+
 def _stop(args: argparse.Namespace) -> None:
     raise Reached
+
+
+def _alarm(signum, frame) -> None:
+    raise TimedOut(f"still running after {CASE_ALARM_S} s")
 
 
 def cases(parser: argparse.ArgumentParser) -> list[dict]:
@@ -151,6 +165,7 @@ def run_cases(selected: list[dict], parser: argparse.ArgumentParser, fixtures: d
     from ikbench.cli import run_parsed
 
     ikbench.cli.options.inputs_checked = _stop
+    signal.signal(signal.SIGALRM, _alarm)
     results = []
     for case in selected:
         with tempfile.TemporaryDirectory(dir=fixtures["scratch"]) as tmp:
@@ -175,6 +190,7 @@ def _run_one(parser, argv, run_parsed) -> dict:
     code: int | None
     crash = None
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+        signal.alarm(CASE_ALARM_S)
         try:
             code = run_parsed(parser, argv)
         except Reached:
@@ -183,6 +199,8 @@ def _run_one(parser, argv, run_parsed) -> dict:
             code = exc.code if isinstance(exc.code, int) else 2
         except BaseException as exc:  # a crash: what the test must never see
             code, crash = -1, f"{type(exc).__name__}: {exc}"[:500]
+        finally:
+            signal.alarm(0)
     seconds = time.perf_counter() - started
     after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return {"code": code, "stderr": err.getvalue()[-2000:], "seconds": seconds,
