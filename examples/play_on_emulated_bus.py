@@ -9,7 +9,8 @@ sends the segments on time, waits for the arm to settle and reports. Needs dynam
 (``pip install 'ikbench[hw]'``). On NICO, give ``execute`` the serial port instead
 (``/dev/ttyUSB0``).
 
-Run:  python examples/play_on_emulated_bus.py     (about 3 s: T = 2 s, then settling)
+Run:  python examples/play_on_emulated_bus.py     (about 10 s on 2 busy cores: start-up, then
+T = 2 s and settling)
 """
 
 import numpy as np

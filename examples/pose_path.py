@@ -7,7 +7,8 @@ trajectory meets at every waypoint (``ikbench.core.validity``): position error <
 rotation error < 0.1 deg, joint changes < 7 deg between waypoints, within the joint limits
 (ikbench has no collision model, so CppFlow's collision checks are left out).
 
-Run:  python examples/pose_path.py [PROBLEM]     (ikbench cartesian --help lists the problems)
+Run:  python examples/pose_path.py [PROBLEM]     (about 20 s on 2 busy cores; ikbench cartesian
+--help lists the problems)
 """
 
 import sys

@@ -140,7 +140,7 @@ def test_a_method_whose_library_is_missing_breaks_nothing(broken_plugins):
     assert fk.returncode == 0 and fk.stderr == ""
     run = _ikbench(broken_plugins, "run", "--method", "broken", "--quiet")
     assert run.returncode == 2
-    assert run.stderr.startswith("ikbench: error: --method broken is not available here: "
+    assert run.stderr.startswith("ikbench: error: --method: broken is not available here: "
                                  "failed to import: ModuleNotFoundError")
     good = _ikbench(broken_plugins, "run", "--method", "plugin-lm", "--only", "1",
                     "--steps", "5", "--quiet", "--output", "out")

@@ -194,8 +194,8 @@ def test_seeds_are_lists_ranges_or_both():
     (["--seeds", "2,2"], "must be distinct integers"),
     (["--seeds", "5-1"], "--seeds: '5-1' must be distinct integers"),
     (["--seeds", "1-3,2"], "must be distinct integers"),
-    (["--problems", "nope"], "--problem: 'nope' is neither a shipped problem"),
-    (["--methods", "nope"], "--method: unknown method 'nope'"),
+    (["--problems", "nope"], "--problems: 'nope' is neither a shipped problem"),
+    (["--methods", "nope"], "--methods: unknown method 'nope'"),
     (["--seed", "3"], "--seed: the benchmark runs every seed of --seeds"),
     (["--lm-seed", "3"], "--lm-seed: the benchmark runs every seed of --seeds"),
     (["--methods", "sequential-ik", "--lr", "0.5"], "--lr is not an option of the methods "

@@ -158,7 +158,7 @@ def test_obstacle_files_round_trip_and_bad_items_fail_in_one_line(tmp_path):
         parse_obstacles([{"type": "cube"}], "f.json")
     with pytest.raises(InputError, match=r"radius_mm = -1 must be a positive number"):
         parse_obstacles([{"type": "sphere", "center_mm": [0, 0, 0], "radius_mm": -1}], "f")
-    with pytest.raises(InputError, match=r"--obstacles: 'nothing' is neither"):
+    with pytest.raises(InputError, match=r"obstacles: 'nothing' is neither"):
         read_obstacles("nothing", load_robot("nico_right_arm"))
 
 

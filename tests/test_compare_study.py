@@ -4,12 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
-import signal
-import subprocess
-import sys
-import time
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -25,7 +19,7 @@ from ikbench.methods import registry
 from ikbench.methods.base import Solution, option
 from ikbench.render.leaderboard import fmt
 from ikbench.studies.compare import COLUMNS, CONTRACT_METRICS, compare
-from tests.conftest import register_temporarily
+from tests.conftest import exit_code, interrupt_while, register_temporarily
 from tests.test_run_folder import Straight
 
 
@@ -75,13 +69,13 @@ def test_compare_judges_every_method_by_the_contract_from_the_csvs(tmp_path, rob
     assert len(results) == 8 and set(results["method"]) == {"ours-lm", "straight", "walker",
                                                               "missing-lib"}
     missing = results[results["method"] == "missing-lib"]
-    assert (missing["status"] == "unavailable").all() and not missing["success"].any()
+    assert (missing["status"] == "not installed").all() and not missing["success"].any()
     assert missing["failure"].str.contains("not_a_lib").all()
     contract = contract_for(robot)
     touch = contract.with_track("touch")
     tasks = {t.name: t for t in line_tasks(robot, paper_targets.select("1,3").with_steps(6),
                                            contract)}
-    measured = results[results["status"] != "unavailable"]
+    measured = results[results["status"] != "not installed"]
     assert len(measured) == 6
     for _, row in measured.iterrows():
         poses = read_trajectory_poses(root / row["method"] / f"trajectory_{row['trajectory']}"
@@ -142,13 +136,13 @@ def test_a_failing_method_is_a_row_not_a_crash(tmp_path, methods):
 
 @pytest.mark.parametrize("args, message", [
     (["--methods", "ours-lm,nope"], "--methods: unknown method(s) 'nope'; registered:"),
-    (["--repeat", "0"], "--repeat: 0 must be an integer >= 1"),
+    (["--repeat", "0"], "--repeat: 0 is out of range; give a number of solves from 1 to 1000"),
     (["--only", "9"], "--only: unknown trajectory id(s) '9'"),
     (["--reference", "ikpy", "--only", "1", "--steps", "4", "--repeat", "1"],
      "--reference: 'ikpy' is not among --methods"),
 ])
 def test_compare_cli_bad_input_one_line_exit_2(tmp_path, capsys, args, message):
-    assert main(["compare", "--output", str(tmp_path), "--quiet", *args]) == 2
+    assert exit_code(["compare", "--output", str(tmp_path), "--quiet", *args]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and message in err
     assert not (tmp_path / "compare").exists()
@@ -195,20 +189,9 @@ def test_ctrl_c_is_one_line_exit_130_and_leaves_the_folder_unchanged(tmp_path, m
 
 def test_sigint_through_the_cli_process(tmp_path):
     """A real Ctrl-C (SIGINT) to ``ikbench compare`` while it solves: exit 130, one line."""
-    repo = Path(__file__).resolve().parents[1]
-    env = {**os.environ, "PYTHONPATH": str(repo), "PYTHONUNBUFFERED": "1"}
-    proc = subprocess.Popen([sys.executable, "-m", "ikbench.cli", "compare", "--methods",
-                             "ours-lm", "--repeat", "100000", "--output", str(tmp_path)],
-                            stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env,
-                            cwd=tmp_path)
-    deadline = time.monotonic() + 120
-    for line in proc.stderr:  # wait until it solves
-        if "solving" in line or time.monotonic() > deadline:
-            break
-    time.sleep(1.0)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130
+    code, err = interrupt_while(["compare", "--methods", "ours-lm", "--repeat", "1000",
+                                 "--output", str(tmp_path)], tmp_path, "solving")
+    assert code == 130
     assert err.strip().splitlines() == [
         f"ikbench: interrupted; {tmp_path / 'compare'}/ left unchanged"]
     assert not (tmp_path / "compare").exists()

@@ -15,6 +15,7 @@ from ikbench.core.metrics import trajectory_metrics
 from ikbench.core.task import line_task
 from ikbench.studies.dataset import shard_path
 from ikbench.studies.dataset_shard import line_problem, line_tasks, shard_seed
+from tests.conftest import exit_code
 
 pytest.importorskip("pyarrow", reason="datasets need pyarrow: pip install 'ikbench[scale]'")
 
@@ -134,17 +135,17 @@ def test_torch_backend_dataset_records_its_solver(tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--count", "0"], "--count: 0 must be an integer >= 1"),
-    (["--shard-size", "0"], "--shard-size: 0 must be an integer >= 1"),
-    (["--steps", "1"], "--steps: 1 must be an integer >= 2"),
-    (["--seed", "-1"], "--seed: -1 must be an integer in [0, 2^63)"),
+    (["--count", "0"], "--count: 0 is out of range; give a number of trajectories from 1"),
+    (["--shard-size", "0"], "--shard-size: 0 is out of range; give a number of trajectories"),
+    (["--steps", "1"], "--steps: 1 is out of range; give a number of segments from 2 to 5000"),
+    (["--seed", "-1"], "--seed: -1 is out of range; give a seed in [0, 2^63)"),
     (["--ray-address", "h:1"], "--ray-address h:1: give --executor ray with it"),
     (["--lm-tolerance", "-1"], "--lm-tolerance: -1.0 must be a positive number"),
     (["--dtype", "float32"], "--dtype float32: the numpy solver (no --device) computes in "
                              "float64"),
 ])
 def test_bad_input_is_one_line_exit_2(tmp_path, capsys, args, message):
-    assert main(["dataset", "--output", str(tmp_path / "d"), *args]) == 2
+    assert exit_code(["dataset", "--output", str(tmp_path / "d"), *args]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
     assert not (tmp_path / "d").exists()

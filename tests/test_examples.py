@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import ast
 import os
+import re
 import subprocess
 import sys
 
@@ -21,6 +22,10 @@ EXPECTED = {
     "pose_path.py": ["fetch_arm__hello", "valid by CppFlow's criteria: True"],
     "play_on_emulated_bus.py": ["50 of 50 segments sent", "0 limit violations"],
 }
+#: script -> what it prints on stderr: its expected time, then progress (the long ones;
+#: compare_libraries ran 260 s without a word)
+PROGRESS = {"compare_libraries.py": ["about 20 s on 2 busy cores; progress below",
+                                     "[compare] "]}
 
 
 def test_every_example_is_tested_and_documented():
@@ -29,6 +34,7 @@ def test_every_example_is_tested_and_documented():
     for name in scripts:
         doc = ast.get_docstring(ast.parse((EXAMPLES / name).read_text()))
         assert doc and f"python examples/{name}" in doc, name
+        assert re.search(r"\(about \d+ (s|min)\b", doc), f"{name}: state the expected time"
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
@@ -39,4 +45,6 @@ def test_example_runs(tmp_path, name):
     assert done.returncode == 0, done.stderr[-2000:]
     for text in EXPECTED[name]:
         assert text in done.stdout, done.stdout
+    for text in PROGRESS.get(name, []):
+        assert text in done.stderr, done.stderr
     assert list(tmp_path.iterdir()) == []  # nothing written where it was run

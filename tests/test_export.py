@@ -131,10 +131,10 @@ def test_the_file_duration_differs_from_duration_and_a_note_says_so(tmp_path, ni
 
 @pytest.mark.parametrize("args, message", [
     (["missing.csv", "--format", "ros-json", "--output", "{tmp}/x.json"],
-     "ikbench: error: trajectory file 'missing.csv' not found"),
+     "argument TRAJ.csv: 'missing.csv' not found; give a trajectory CSV"),
     (["{csv}", "--format", "ros", "--output", "{tmp}/x.json"], "argument --format: invalid choice"),
     (["{csv}", "--format", "ros-json", "--output", "{tmp}/x.json", "--duration", "-1"],
-     "ikbench: error: --duration: -1.0 must be a positive number of seconds"),
+     "argument --duration: -1 is out of range; give a duration [s] from 0.001 to 3600"),
     (["{csv}", "--format", "ros-json", "--output", "{tmp}"], "it is a directory"),
     (["{csv}", "--format", "ros-json"], "the following arguments are required: --output"),
     (["{csv}", "--format", "ros-json", "--output", "{tmp}/x.json", "--robot", str(

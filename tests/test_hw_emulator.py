@@ -224,4 +224,5 @@ def test_emulate_cli_unwritable_log_is_refused_before_serving(tmp_path, capsys):
     assert main(["emulate", "--log", str(log), "--for", "0.1"]) == 2
     out, err = capsys.readouterr()
     assert out == ""  # no port printed: nothing was started
-    assert err == f"ikbench: error: cannot write {log}: {blocker} is a file, not a directory\n"
+    assert err == (f"ikbench: error: --log: cannot write {log}: {blocker} is a file, not a "
+                   "directory\n")

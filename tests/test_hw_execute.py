@@ -591,5 +591,5 @@ def test_unwritable_record_is_refused_before_anything_moves(short_traj, tmp_path
                      "--record", str(record)])
     err = capsys.readouterr().err
     assert code == 2
-    assert err == f"ikbench: error: cannot write {record}: {reason}\n"
+    assert err == f"ikbench: error: --record: cannot write {record}: {reason}\n"
     assert emulator.log == []  # the port was not even opened: no ping, no SYNC WRITE

@@ -13,7 +13,7 @@ from ikbench.core.errors import InputError
 from ikbench.core.trajectory import write_trajectory_csv
 from ikbench.hw.motors import default_config_path, load_motor_config, parse_motor_config
 from ikbench.hw.plan import make_plan
-from tests.conftest import blocked_output
+from tests.conftest import blocked_output, exit_code
 
 START = np.array([-24.92, 81.45, 46.55, 94.37, -59.03, 28.0, 45.67])
 TOUCH_1 = np.array([33, 39, 25, 134, 102, 77, -168.0])
@@ -115,18 +115,18 @@ def test_plan_cli_flags_poses_outside_robot_ranges(tmp_path, robot, capsys):
 
 @pytest.mark.parametrize("duration, message", [
     ("0.1", "--duration 0.1 s gives segments of 2 ms; give at least 0.25 s for 50 segments"),
-    ("-2", "--duration -2 s gives segments of -40 ms"),
-    ("nan", "--duration nan s"),
+    ("-2", "argument --duration: -2 is out of range; give a duration [s] from 0.001 to 3600"),
+    ("nan", "argument --duration: nan is not a finite number"),
 ])
 def test_plan_cli_bad_duration(traj, capsys, duration, message):
-    assert main(["plan", str(traj), f"--duration={duration}"]) == 2
+    assert exit_code(["plan", str(traj), f"--duration={duration}"]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
 
 
 def test_plan_cli_missing_file(tmp_path, capsys):
-    assert main(["plan", str(tmp_path / "none.csv")]) == 2
-    assert "trajectory file" in capsys.readouterr().err
+    assert exit_code(["plan", str(tmp_path / "none.csv")]) == 2
+    assert "none.csv' not found; give a trajectory CSV" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("blocked_by", ["file", "directory"])
@@ -135,4 +135,4 @@ def test_plan_cli_unwritable_out_is_one_line(traj, tmp_path, capsys, blocked_by)
     assert main(["plan", str(traj), "--out", str(out_csv)]) == 2
     out, err = capsys.readouterr()
     assert out == ""  # refused before the table is printed
-    assert err == f"ikbench: error: cannot write {out_csv}: {reason}\n"
+    assert err == f"ikbench: error: --out: cannot write {out_csv}: {reason}\n"

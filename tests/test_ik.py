@@ -319,13 +319,17 @@ def test_the_cli_writes_the_folder_and_every_row_recomputes_from_its_solution(tm
     (["--methods", "nope"], "--methods: 'nope' is not a single-pose IK method; known: ours-lm"),
     (["--max-count-per-method", "ikpy"], "--max-count-per-method: 'ikpy' is not METHOD=N"),
     (["--robot", "example-robot-data:nope"], "example-robot-data:nope"),
-    (["--budget-ms", "0"], "--budget-ms: 0.0 must be a number > 0 (inf: none)"),
+    (["--budget-ms", "0"], "argument --budget-ms: 0 is out of range; give a budget [ms] more "
+                           "than 0 to 3,600,000 (or inf: no budget)"),
     (["--attempts", "0"], "--attempts: 0 must be auto or an integer in [1, 1000]"),
     (["--attempts", "many"], "--attempts: 'many' is neither auto nor an integer"),
     (["--threads", "0"], "--threads: 0 must be an integer >= 1"),
 ])
 def test_bad_input_is_one_line_exit_2(capsys, tmp_path, args, message):
-    code = main(["ik", "--robot", "panda", "--output", str(tmp_path), "--quiet", *args])
+    try:  # the parser refuses some values itself (cli/values.py), the study the others
+        code = main(["ik", "--robot", "panda", "--output", str(tmp_path), "--quiet", *args])
+    except SystemExit as exit_info:
+        code = exit_info.code
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and message in err, err
     assert not (tmp_path / "ik").exists()
@@ -425,7 +429,7 @@ def test_drakes_friction_warnings_become_one_line(caplog):
 
 @needs_erd
 def test_package_robot_outside_the_table_needs_an_end_frame_and_lists_are_complete(capsys):
-    with pytest.raises(InputError, match="give --end-frame LINK"):
+    with pytest.raises(InputError, match="give its end frame, a link"):
         load_robot("example-robot-data:so101")
     with pytest.raises(InputError, match="neither a common arm"):
         load_robot("example-robot-data:no_such_arm")

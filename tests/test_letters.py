@@ -18,6 +18,7 @@ from ikbench.core.letters import (
 from ikbench.core.losses import objective
 from ikbench.core.task import build_tasks, letter_task
 from ikbench.methods.ours import Ours, initial_logits
+from tests.conftest import exit_code
 
 
 def test_every_letter_is_defined_and_fits_its_box():
@@ -56,7 +57,7 @@ def test_letter_curve_placement_and_reading_direction():
     stem_y = curve.strokes_mm[0][0, 1]
     assert stem_y == pytest.approx(points[:, 1].max())
     assert np.allclose(curve.plane.normal, [-1, 0, 0])
-    with pytest.raises(InputError, match="--size"):
+    with pytest.raises(InputError, match="size_mm"):
         letter_curve("P", 0, centre)
 
 
@@ -142,7 +143,7 @@ def test_cli_letters_uses_the_papers_letter_setting(tmp_path, capsys):
     table = pd.read_csv(folder / "table.csv")
     assert table["iterations"].tolist() == [20, 20]
     assert (folder / "trajectory_X.csv").is_file() and (folder / "shapes.png").is_file()
-    assert main(["letters", "7", "--output", str(tmp_path / "bad"), "--quiet"]) == 2
+    assert exit_code(["letters", "7", "--output", str(tmp_path / "bad"), "--quiet"]) == 2
     assert "letter '7' is not one of A-Z" in capsys.readouterr().err
 
 

@@ -11,7 +11,7 @@ import pytest
 
 from ikbench.cli import main
 from ikbench.core.trajectory import write_trajectory_csv
-from tests.conftest import PAPER_START, REPO
+from tests.conftest import PAPER_START, REPO, exit_code
 
 
 def one_line_error(capsys) -> str:
@@ -29,25 +29,29 @@ def png_size(path: Path) -> tuple[int, int]:
 # ----- counts bounded up front ---------------------------------------------------------------
 @pytest.mark.parametrize("args, message", [
     (["--count", "1000000000000"],
-     "--count: 1000000000000 is more than the maximum, 1,000,000,000 trajectories"),
+     "--count: 1000000000000 is out of range; give a number of trajectories from 1 to "
+     "1,000,000,000"),
     (["--count", "1000000000", "--shard-size", "1000"],
      "makes 1,000,000 shards, more than the maximum, 100,000; raise --shard-size to at least "
      "10000"),
-    (["--shard-size", "1000000"], "--shard-size: 1000000 is more than the maximum, 100,000"),
+    (["--shard-size", "1000000"], "--shard-size: 1000000 is out of range; give a number of "
+     "trajectories from 1 to 100,000 (one shard is one batch in memory)"),
 ])
 def test_dataset_count_beyond_the_maximum_is_refused(tmp_path, capsys, args, message):
     output = tmp_path / "data"
-    assert main(["dataset", *args, "--output", str(output)]) == 2
+    assert exit_code(["dataset", *args, "--output", str(output)]) == 2
     assert message in one_line_error(capsys)
     assert not output.exists()
 
 
 def test_batch_count_beyond_the_maximum_is_refused(tmp_path, capsys):
     output = tmp_path / "batch"
-    assert main(["batch", "--count", "99999999999", "--output", str(output), "--quiet"]) == 2
+    assert exit_code(["batch", "--count", "99999999999", "--output", str(output),
+                      "--quiet"]) == 2
     assert one_line_error(capsys) == (
-        "ikbench: error: --count: 99999999999 is more than the maximum, 100,000 touch poses in "
-        "one batch (ikbench dataset builds larger sets shard by shard)\n")
+        "ikbench batch: error: argument --count: 99999999999 is out of range; give a number of "
+        "touch poses from 1 to 100,000 (in one batch; ikbench dataset builds larger sets) (see "
+        "ikbench batch --help)\n")
     assert not output.exists()
 
 
@@ -71,11 +75,13 @@ def test_batch_count_beyond_the_maximum_is_refused(tmp_path, capsys):
 def test_an_empty_output_is_refused(tmp_path, monkeypatch, capsys, argv):
     """``run --output ""`` wrote ./ours-lm/ into the working directory."""
     monkeypatch.chdir(tmp_path)  # where an empty path would have written
-    assert main(argv) == 2
+    (tmp_path / "t.csv").write_text("step\n")  # export, plan, execute read it first
+    assert exit_code(argv) == 2
     flag = argv[-2]
     assert one_line_error(capsys).startswith(
-        f"ikbench {argv[0]}: error: argument {flag}: {argv[-1]!r} is empty; name a file or "
-        f"folder (e.g. {flag} runs/mine)")
+        f"ikbench {argv[0]}: error: argument {flag}: {argv[-1]!r} is empty; give a file or "
+        "folder to write")
+    (tmp_path / "t.csv").unlink()
     assert list(tmp_path.iterdir()) == []
 
 

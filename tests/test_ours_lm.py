@@ -208,7 +208,7 @@ def test_method_registered_and_options_validated():
         OursLM(tolerance=-1.0)
     with pytest.raises(InputError, match="--lm-max-iterations"):
         OursLM(max_iterations=0)
-    with pytest.raises(InputError, match="--weights"):
+    with pytest.raises(InputError, match="weights"):
         OursLM(weights="c9=1")
 
 

@@ -16,6 +16,7 @@ import ikbench.paper.reproduce as reproduce_module
 from ikbench.cli import main
 from ikbench.core.errors import InputError
 from ikbench.methods.registry import method_status
+from tests.conftest import exit_code
 
 #: Table 2 as the authors ran it (ikpy-walk) is a stage when ikpy is installed ([libs]).
 IKPY = method_status()["ikpy-walk"].available
@@ -35,7 +36,7 @@ def quick(tmp_path_factory):
     (out / "ours_speed.csv").write_text("by benchmarks/ours_speed.py")
     stdout, stderr = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
-        assert main(["reproduce", "--quick", "--output", str(out)]) == 0
+        assert main(["reproduce", "--quick", "--output", str(out), "--log", "-"]) == 0
     return out, stdout.getvalue(), stderr.getvalue()
 
 
@@ -143,10 +144,10 @@ def test_elapsed_shows_tenths_below_a_minute():
 
 
 def test_empty_output_is_rejected(capsys):
-    assert main(["reproduce", "--quick", "--output", ""]) == 2  # the CLI refuses it first
+    assert exit_code(["reproduce", "--quick", "--output", ""]) == 2  # the CLI refuses it first
     err = capsys.readouterr().err
-    assert err == ("ikbench reproduce: error: argument --output: '' is empty; name a file or "
-                   "folder (e.g. --output runs/mine) (see ikbench reproduce --help)\n")
+    assert err == ("ikbench reproduce: error: argument --output: '' is empty; give a file or "
+                   "folder to write (see ikbench reproduce --help)\n")
     with pytest.raises(InputError, match=r"--output: '' is empty; give a directory \(default "
                        r"results, or results-quick with --quick\)"):
         reproduce_module._output_dir("", quick=True)  # and so does the library

@@ -134,7 +134,7 @@ def test_fk_cli_on_a_bare_urdf(capsys):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--robot", str(URDF)], "a bare URDF needs --end-frame LINK"),
+    (["--robot", str(URDF)], "a bare URDF needs an end frame, a link"),
     (["--robot", str(URDF), "--end-frame", "nope"], "--end-frame: 'nope' is not a link of "
      "unaligned_arm.urdf; links: world_link, base"),
     (["--robot", "no_such_robot"], "--robot: 'no_such_robot' is not a shipped robot "

@@ -15,7 +15,7 @@ from ikbench.core.shapes import (
     read_points_csv,
 )
 from ikbench.core.task import build_tasks, curve_task, file_task, parse_shape
-from tests.conftest import PAPER_START
+from tests.conftest import PAPER_START, exit_code
 
 
 def test_resample_is_even_and_keeps_the_corner():
@@ -141,7 +141,7 @@ def test_parse_shape():
     assert parse_shape("spline:a b.csv") == ("spline", "a b.csv")
     assert parse_shape("letter:P,A") == ("letter", "P,A")
     for bad in ("circle", "line:x", "polyline", "letter:"):
-        with pytest.raises(InputError, match="--shape"):
+        with pytest.raises(InputError, match="shape"):
             parse_shape(bad)
 
 
@@ -166,9 +166,9 @@ def test_build_tasks_line_and_direction(robot, paper_targets):
     assert np.allclose(down[0].goal_directions, [0, 0, -1])
     assert np.allclose(down[0].goal_points_mm, build_tasks(robot, paper_targets.select("1"))[0]
                        .goal_points_mm)
-    with pytest.raises(InputError, match="--size: only letters"):
+    with pytest.raises(InputError, match="size_mm: only letters"):
         build_tasks(robot, paper_targets, "line", size_mm=100)
-    with pytest.raises(InputError, match="--direction: 'up' is not one of"):
+    with pytest.raises(InputError, match="direction: 'up' is not one of"):
         build_tasks(robot, paper_targets, "line", direction="up")
     with pytest.raises(InputError, match="a line has no drawing plane"):
         build_tasks(robot, paper_targets, "line", direction="normal")
@@ -234,16 +234,16 @@ def test_cli_bad_shape_files(tmp_path, capsys, text, message):
     (["--shape", "letter:PQ"], "letter 'PQ' is not one of A-Z; separate letters with commas"),
     (["--shape", "letter:P", "--only", "1"], "--only selects touch poses of the line shape"),
     (["--size", "100"], "--size: only letters are scaled"),
-    (["--shape", "letter:P", "--size", "-5"], "--size: -5.0 must be a positive number"),
+    (["--shape", "letter:P", "--size", "-5"], "--size: -5 is out of range; give a letter "
+     "height [mm] from 1 to 10,000"),
     (["--shape", "letter:P", "--direction", "0,0,0"], "--direction: '0,0,0' is not one of"),
     (["--start-pose", "1,2,3"], "--start-pose: expected 7 angles"),
     (["--shape", "spline:/nonexistent.csv"], "cannot read shape file '/nonexistent.csv'"),
 ])
 def test_cli_bad_shape_options(tmp_path, capsys, argv, message):
-    from ikbench.cli import main
 
     out = tmp_path / "out"
-    assert main(["run", *argv, "--output", str(out), "--quiet"]) == 2
+    assert exit_code(["run", *argv, "--output", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
     assert not out.exists()

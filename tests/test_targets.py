@@ -27,7 +27,7 @@ def test_select_and_steps(paper_targets):
     sub = paper_targets.select("3,1")
     assert sub.ids == ["3", "1"] and sub.is_paper
     assert paper_targets.with_steps(10).steps == 10
-    with pytest.raises(TargetsError, match=r"--only: '' names an empty trajectory id"):
+    with pytest.raises(TargetsError, match=r"only: '' names an empty trajectory id"):
         paper_targets.select("")
     with pytest.raises(TargetsError, match=r"unknown trajectory id.*'9'.*available: 1, 2"):
         paper_targets.select("1,9")

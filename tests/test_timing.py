@@ -214,7 +214,7 @@ def test_execute_cli_emulator_topp(capsys):
 
 
 @pytest.mark.parametrize("args, words", [
-    (["--timing", "fast"], "--timing 'fast'; allowed: constant, min-jerk, topp"),
+    (["--timing", "fast"], "--timing: 'fast'; allowed: constant, min-jerk, topp"),
     (["--timing", "topp", "--max-velocity", "-3"], "--max-velocity '-3'"),
     (["--timing", "topp", "--max-acceleration", "1,2"], "--max-acceleration '1,2'"),
 ])
@@ -272,4 +272,4 @@ def test_run_times_its_animation(tmp_path, capsys):
     assert main(["run", "--method", "ours-lm", "--timing", "fast", "--output",
                  str(tmp_path / "bad")]) == 2
     assert capsys.readouterr().err.strip() == (
-        "ikbench: error: --timing 'fast'; allowed: constant, min-jerk, topp")
+        "ikbench: error: --timing: 'fast'; allowed: constant, min-jerk, topp")

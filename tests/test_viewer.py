@@ -18,7 +18,7 @@ import ikbench
 from ikbench.cli import main
 from ikbench.core.errors import InputError
 from ikbench.viewer.folders import load_runs
-from tests.conftest import REPO
+from tests.conftest import REPO, exit_code
 
 DATA = Path(__file__).parent / "data"
 
@@ -153,13 +153,14 @@ def test_a_chain_below_the_urdf_root_with_a_prismatic_joint_is_drawn_where_fk_sa
 
 
 @pytest.mark.parametrize("args, message", [
-    (["nowhere"], "view: 'nowhere' does not exist; give folders written by ikbench run"),
+    (["nowhere"], "argument RUN_DIR: 'nowhere' not found; give a run folder"),
     (["{arm}", "{nico}"], "the runs shown together must share the robot"),
-    (["{nico}", "--port", "70000"], "--port: 70000 is not a port number"),
+    (["{nico}", "--port", "70000"], "--port: 70000 is out of range; give a TCP port from 0 to "
+     "65535"),
 ])
 def test_bad_input_one_line_exit_2(folders, capsys, args, message):
     args = [a.format(arm=folders["arm"][0], nico=folders["nico"][0]) for a in args]
-    assert main(["view", *args, "--no-browser"]) == 2
+    assert exit_code(["view", *args, "--no-browser"]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
 

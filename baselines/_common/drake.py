@@ -41,6 +41,7 @@ import numpy.typing as npt
 
 from ikbench.baselines._common.chain import Chain, chain_of
 from ikbench.baselines._common.method import LibraryMethod
+from ikbench.core.chatter import quiet
 from ikbench.core.errors import InputError
 
 if TYPE_CHECKING:
@@ -127,7 +128,8 @@ def drake_chain(chain: Chain) -> DrakeChain:
     from pydrake.multibody.plant import MultibodyPlant
 
     plant = MultibodyPlant(time_step=0.0)
-    add_urdf(plant, chain.urdf_text)
+    with quiet("drake", loggers=("drake",)):  # a warning per URDF tag it ignores
+        add_urdf(plant, chain.urdf_text)
     root = urdf_root(chain.urdf_text)
     if root != "world":  # a URDF link named world is Drake's world body already (UR, xArm)
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(root))
@@ -164,7 +166,8 @@ def drake_scene_chain(chain: Chain, scene: Scene) -> DrakeChain:
 
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, 0.0)
-    add_urdf(plant, chain.urdf_text)
+    with quiet("drake", loggers=("drake",)):  # a warning per URDF tag it ignores
+        add_urdf(plant, chain.urdf_text)
     root = urdf_root(chain.urdf_text)
     if root != "world":
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(root))

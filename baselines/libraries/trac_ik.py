@@ -66,6 +66,7 @@ from ikbench.baselines._common.geometry import quaternion_xyzw, rotation_angle_r
 from ikbench.baselines._common.method import ChainResult, LibraryMethod
 from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES
+from ikbench.core.chatter import quiet
 from ikbench.methods.base import check_choice, check_positive, option
 
 if TYPE_CHECKING:
@@ -121,9 +122,10 @@ def tracik_solver(chain: Chain, settings: TracIKSettings) -> Any:
         return cached[key]
     import pytracik
 
-    solver = pytracik.TRAC_IK(chain.base_link, chain.end_frame, chain.urdf_text,
-                              float(settings.timeout), float(settings.eps),
-                              getattr(pytracik.SolveType, settings.solve_type))
+    with quiet("trac-ik"):  # KDL prints on stdout ("The root link %s has an inertia ...")
+        solver = pytracik.TRAC_IK(chain.base_link, chain.end_frame, chain.urdf_text,
+                                  float(settings.timeout), float(settings.eps),
+                                  getattr(pytracik.SolveType, settings.solve_type))
     if pytracik.get_num_joints(solver) != chain.dof:
         raise ValueError(f"TRAC-IK's chain {chain.base_link} -> {chain.end_frame} has "
                          f"{pytracik.get_num_joints(solver)} joints, the robot {chain.dof}")

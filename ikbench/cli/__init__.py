@@ -12,17 +12,24 @@ import argparse
 import importlib
 import pkgutil
 import re
+import signal
 import sys
 
 from ikbench.cli import commands
-from ikbench.core.errors import IkbenchError
+from ikbench.cli.values import QUOTED_CHARS, PathValue, harden, quoted
+from ikbench.core import chatter
+from ikbench.core.errors import IkbenchError, OutputError
+from ikbench.runtime import progress
 
-#: Options that name a file or folder to write. An empty value would write into the working
-#: directory (``run --output ""`` wrote ./ours-lm/ into the checkout), so it is refused.
-OUTPUT_OPTIONS = ("output", "out", "record", "log")
 #: A word argparse takes for an option although it is a value: ``-24.9,81.5`` (a negative
 #: number followed by more values is not what argparse recognises as a negative number).
 _NEGATIVE_VALUE = re.compile(r"-\.?\d")
+#: A quoted value in a message, longer than an error should quote.
+_LONG_QUOTE = re.compile(f"'([^'\\n]{{{QUOTED_CHARS + 1},}})'")
+#: ``field: ...`` at the start of an error from the library (a settings field, a parameter).
+_FIELD = re.compile(r"([a-z][a-z0-9_]*)(?=:)")
+#: Unit suffixes a field has and its option does not (``duration_s`` is ``--duration``).
+_UNIT_SUFFIXES = ("_s", "_mm", "_deg", "_hz", "_rad", "_ms")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -35,7 +42,7 @@ class _Parser(argparse.ArgumentParser):
         return super().parse_known_args(args, namespace)
 
     def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message}{self._hint(message)} "
+        self.exit(2, f"{self.prog}: error: {shorten(message)}{self._hint(message)} "
                   f"(see {self.prog} --help)\n")
 
     def _hint(self, message: str) -> str:
@@ -52,14 +59,30 @@ class _Parser(argparse.ArgumentParser):
         return ""
 
 
-def _empty_output(args) -> str | None:
-    """The error for an empty file or folder option (:data:`OUTPUT_OPTIONS`), else None."""
-    for dest in OUTPUT_OPTIONS:
-        value = getattr(args, dest, None)
-        if isinstance(value, str) and not value.strip():
-            return (f"argument --{dest}: {value!r} is empty; name a file or folder (e.g. "
-                    f"--{dest} runs/mine)")
-    return None
+def shorten(message: str) -> str:
+    """``message`` on one line, with every quoted value longer than an error should quote cut
+    (a 10,000-character value is named by its start and length)."""
+    message = _LONG_QUOTE.sub(lambda m: quoted(m[1]), message)
+    return " ".join(message.split())
+
+
+def with_flags(message: str, parser: argparse.ArgumentParser | None) -> str:
+    """An error of the library names a field (``duration_s: inf must be ...``); on the
+    command line it names the argument of ``parser`` that sets it (``--duration: ...``; the
+    option of a list, ``--methods``, for a field of one item, ``method``)."""
+    found = _FIELD.match(message)
+    if not found or parser is None:
+        return message
+    field = found[1]
+    names = [field] + [field.removesuffix(s) for s in _UNIT_SUFFIXES if field.endswith(s)]
+    names.append(f"{field}s")
+    for action in parser._actions:
+        flags = [f for f in action.option_strings if f.startswith("--")]
+        name = max(flags, key=len) if flags else None if action.option_strings else \
+            str(action.metavar or action.dest)
+        if name and action.dest.removeprefix("opt_") in names and action.nargs != 0:
+            return name + message[len(field):]
+    return message
 
 
 def command_modules() -> dict[str, str]:
@@ -75,7 +98,8 @@ def _invoked(argv: list[str], names) -> str | None:
 
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     """The ``ikbench`` parser: the subcommand in ``argv`` in full, the others as stubs
-    (``argv=None`` registers every subcommand in full, e.g. for documentation)."""
+    (``argv=None`` registers every subcommand in full, e.g. for documentation). Every option
+    that takes a value validates it (:func:`ikbench.cli.values.harden`)."""
     parser = _Parser(
         prog="ikbench",
         description=(
@@ -96,34 +120,47 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
             module.register(sub)
         else:
             sub.add_parser(name, help=module.HELP, add_help=False)
+    harden(parser)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``ikbench`` console script; returns the exit code."""
+    """Entry point of the ``ikbench`` console script; returns the exit code.
+
+    Bad input: one line on stderr, exit code 2 (3 for the hardware); Ctrl-C at any moment: one
+    line, exit code 130.
+    """
+    console = argv is None
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
-        parser = build_parser(argv)
-        args = parser.parse_args(argv)
-    except IkbenchError as exc:  # e.g. a broken robot or method while building options
-        print(f"ikbench: error: {exc}", file=sys.stderr)
-        return exc.exit_code
+        try:
+            parser = build_parser(argv)
+        except IkbenchError as exc:  # e.g. a broken robot or method while building options
+            print(f"ikbench: error: {shorten(str(exc))}", file=sys.stderr)
+            return exc.exit_code
+        return run_parsed(parser, argv)
+    except KeyboardInterrupt:
+        return interrupted(ignore_more=console)
+
+
+def run_parsed(parser: argparse.ArgumentParser, argv: list[str]) -> int:
+    """Parse ``argv`` with ``parser`` (from :func:`build_parser`) and run the command."""
+    args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    empty = _empty_output(args)
-    if empty:
-        prog = f"{parser.prog} {args.command}"
-        print(f"{prog}: error: {empty} (see {prog} --help)", file=sys.stderr)
-        return 2
+    chatter.forget()
     try:
         code = args.func(args)
+        for line in chatter.summary():  # what the libraries printed, once, at the end
+            print(line, file=sys.stderr)
     except IkbenchError as exc:
-        print(f"ikbench: error: {exc}", file=sys.stderr)
+        command = _subparser(parser, args.command)
+        message = with_flags(str(exc), command)
+        if isinstance(exc, OutputError):
+            message = _name_output(message, command, args)
+        print(f"ikbench: error: {shorten(message)}", file=sys.stderr)
         return exc.exit_code
-    except KeyboardInterrupt:
-        print("ikbench: interrupted", file=sys.stderr)
-        return 130
     except BrokenPipeError:  # e.g. `ikbench plan X | head`: the reader went away
         sys.stderr.close()
         return 0
@@ -131,7 +168,44 @@ def main(argv: list[str] | None = None) -> int:
         where = f" {exc.filename}" if exc.filename else ""
         print(f"ikbench: error:{where}: {exc.strerror or exc}", file=sys.stderr)
         return 2
+    except MemoryError:  # the up-front budgets (ikbench.core.budget) missed a size
+        print(f"ikbench: error: out of memory in ikbench {args.command}", file=sys.stderr)
+        return 1
+    finally:
+        progress.reset()  # begin() set it for this command; a library call after it gets lines
     return int(code or 0)
+
+
+def interrupted(ignore_more: bool = False) -> int:
+    """Say that Ctrl-C stopped the command and return its exit code, 130; ``ignore_more``: a
+    second Ctrl-C while the process ends is ignored (no traceback from clean-up code)."""
+    if ignore_more:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    clear = "\r\033[K" if sys.stderr.isatty() else ""  # over a progress bar, if one is drawn
+    print(f"{clear}ikbench: interrupted (Ctrl-C)", file=sys.stderr, flush=True)
+    return 130
+
+
+def _name_output(message: str, parser: argparse.ArgumentParser | None,
+                 args: argparse.Namespace) -> str:
+    """``--output: cannot write ...``: a path that cannot be written, named by the option
+    that gave it (the longest value of an output option the message holds)."""
+    given = []
+    for action in parser._actions if parser is not None else []:
+        value = getattr(args, action.dest, None)
+        if isinstance(action.type, PathValue) and action.type.must_exist is None \
+                and action.option_strings and isinstance(value, str) and value in message:
+            given.append((len(value), max(action.option_strings, key=len)))
+    return f"{max(given)[1]}: {message}" if given else message
+
+
+def _subparser(parser: argparse.ArgumentParser, name: str | None
+               ) -> argparse.ArgumentParser | None:
+    """The parser of subcommand ``name``."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action.choices.get(name or "")
+    return None
 
 
 if __name__ == "__main__":  # pragma: no cover

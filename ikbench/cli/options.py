@@ -9,8 +9,10 @@ chosen method is built (:func:`method_from_args`), so bad input fails before any
 from __future__ import annotations
 
 import argparse
+import sys
 from typing import TYPE_CHECKING, Any, TypeVar
 
+from ikbench.cli.values import METHOD_INTEGER, OUTPUT, SEED, STEPS, THREADS, Text
 from ikbench.core.errors import InputError
 
 if TYPE_CHECKING:
@@ -28,6 +30,7 @@ DEFAULT_ROBOT = "nico_right_arm"
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     """``--robot NAME|PATH`` and ``--end-frame LINK``."""
     parser.add_argument("--robot", default=DEFAULT_ROBOT, metavar="NAME|PATH",
+                        type=Text("a robot name or a config or URDF path"),
                         help="a shipped robot (ikbench robots lists them), a robot config "
                         "(*.toml) or a URDF with --end-frame; poses are in its units (motor "
                         f"degrees for NICO, else joint degrees, mm for prismatic joints) "
@@ -51,7 +54,7 @@ def add_line_task_arguments(parser: argparse.ArgumentParser) -> None:
                         help="targets JSON file (default: the robot's own; NICO: the paper's "
                         "seven touch poses)")
     parser.add_argument("--only", default=None, help="comma-separated trajectory ids, e.g. 1,3")
-    parser.add_argument("--steps", type=int, default=None,
+    parser.add_argument("--steps", type=STEPS, default=None,
                         help="number of segments n, 2..5000 (default: the targets file's; 50 "
                         "for NICO's)")
 
@@ -75,7 +78,10 @@ def add_method_options(parser: argparse.ArgumentParser, methods: dict[str, Any])
     if not by_flag:
         return
     group = parser.add_argument_group(
-        "method options", "options of the methods (each applies to the methods it names)")
+        "method options", f"{len(by_flag)} options of the methods, each applying to the "
+        "methods it names: --help-methods shows them here, ikbench methods NAME one method's")
+    group.add_argument("--help-methods", action=_HelpMethods, nargs=0,
+                       help="show this help with every method's options, and exit")
     for flag, users in by_flag.items():
         types = {opt.value_type() for _, opt in users}
         value_type = types.pop() if len(types) == 1 else str
@@ -88,8 +94,26 @@ def add_method_options(parser: argparse.ArgumentParser, methods: dict[str, Any])
             text = "; ".join(f"{name}: {opt.help_text()}" for name, opt in users)
         metavar = ("|".join(map(str, users[0][1].spec.choices)) if len(users) == 1
                    and users[0][1].spec.choices else flag.upper().replace("-", "_"))
-        group.add_argument(f"--{flag}", dest=f"opt_{flag.replace('-', '_')}", default=None,
-                           type=value_type, metavar=metavar, help=text.replace("%", "%%"))
+        if value_type is int:  # counts and caps; a settings field named seed is a seed
+            value_type = SEED if users[0][1].field == "seed" else METHOD_INTEGER
+        action = group.add_argument(f"--{flag}", dest=f"opt_{flag.replace('-', '_')}",
+                                    default=None, type=value_type, metavar=metavar,
+                                    help=argparse.SUPPRESS)
+        setattr(action, HIDDEN_HELP, text.replace("%", "%%"))
+
+
+#: Where a method option keeps the help text that --help leaves out.
+HIDDEN_HELP = "ikbench_method_help"
+
+
+class _HelpMethods(argparse.Action):
+    """``--help-methods``: the command's help with the method options --help leaves out."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        for action in parser._actions:
+            action.help = getattr(action, HIDDEN_HELP, action.help)
+        parser.print_help()
+        parser.exit()
 
 
 def _given(args) -> dict[str, object]:
@@ -136,11 +160,59 @@ def method_names_help(methods: dict[str, Any]) -> str:
 
 
 def add_threads_and_quiet(parser: argparse.ArgumentParser) -> None:
-    """--threads (torch threads, default 1) and --quiet."""
-    parser.add_argument("--threads", type=int, default=1,
+    """--threads (torch threads, default 1), --quiet and --log."""
+    parser.add_argument("--threads", type=THREADS, default=1,
                         help="torch threads (default 1: the tensors are tiny, and on a busy "
                         "2-core machine 2 threads ran ours 15x slower than 1)")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_progress_arguments(parser)
+
+
+def add_progress_arguments(parser: argparse.ArgumentParser) -> None:
+    """--quiet, --log FILE and --verbose (how :func:`begin` reports progress and what the
+    libraries print)."""
+    parser.add_argument("--quiet", action="store_true",
+                        help="no progress bar (there is none either when stderr is not a "
+                        "terminal)")
+    parser.add_argument("--log", dest="progress_log", type=OUTPUT, default=None,
+                        metavar="FILE|-",
+                        help="progress as machine-readable lines, one JSON object each (t_s, "
+                        "label, event, done, total, text), to FILE ('-': stderr)")
+    parser.add_argument("--verbose", action="store_true",
+                        help="show what kinematics libraries print on their own (TRAC-IK's "
+                        "KDL, Drake's URDF warnings) as it comes; by default one note per "
+                        "library at the end")
+
+
+def begin(args: argparse.Namespace) -> None:
+    """The command's input is checked and its work starts: progress goes to a bar on a
+    terminal (not with --quiet) and as JSON lines to --log (:mod:`ikbench.runtime.progress`).
+
+    Every command calls it between checking its input and its first long or writing step.
+    """
+    from ikbench.core.chatter import set_verbose
+    from ikbench.runtime.progress import configure
+
+    target = getattr(args, "progress_log", None)
+    if target not in (None, "-"):
+        from ikbench.core.io import check_writable
+
+        check_writable(target)
+    inputs_checked(args)
+    quiet = bool(getattr(args, "quiet", False))
+    mode = "bar" if not quiet and sys.stderr.isatty() else "off"
+    log = None
+    if target == "-":
+        log = sys.stderr
+    elif target is not None:
+        log = open(target, "w", encoding="utf-8")  # noqa: SIM115 - closed by progress.reset
+    configure(mode, log, owned=log is not None and log is not sys.stderr)
+    set_verbose(bool(getattr(args, "verbose", False)))
+
+
+def inputs_checked(args: argparse.Namespace) -> None:
+    """The moment a command has checked all of its input and nothing is written yet (a seam:
+    tests/test_hostile_input.py stops every command here to see that bad input never gets
+    further)."""
 
 
 def check_threads(threads: int) -> int:

@@ -107,12 +107,12 @@ class Contract:
 
     def __post_init__(self):
         if self.track not in TRACKS:
-            raise InputError(f"--track: {self.track!r} is not one of {', '.join(TRACKS)}")
+            raise InputError(f"track: {self.track!r} is not one of {', '.join(TRACKS)}")
         if not 0.0 <= self.pointing_judged_from < 1.0:
             raise InputError(f"pointing_judged_from: {self.pointing_judged_from!r} must be in "
                              "[0, 1)")
         if not (math.isfinite(self.duration_s) and self.duration_s > 0):
-            raise InputError(f"--duration: {self.duration_s!r} must be a positive number [s]")
+            raise InputError(f"duration_s: {self.duration_s!r} must be a positive number [s]")
 
     @property
     def fixed_poses(self) -> tuple[str, ...]:
@@ -225,14 +225,14 @@ def parse_tolerances(text: str | Mapping | None,
     for key, value in items:
         key = str(key).strip()
         if key not in DEFAULT_TOLERANCES:
-            raise InputError(f"--tolerance: unknown criterion {key!r}; known: "
+            raise InputError(f"tolerance: unknown criterion {key!r}; known: "
                              f"{', '.join(DEFAULT_TOLERANCES)} (e.g. start_pose_deg=0.5)")
         try:
             number = float(value)
         except (TypeError, ValueError):
             number = math.nan
         if not (math.isfinite(number) and number >= 0):
-            raise InputError(f"--tolerance: {key}={value!r} must be a number >= 0")
+            raise InputError(f"tolerance: {key}={value!r} must be a number >= 0")
         out[key] = number
     return out
 
@@ -302,7 +302,7 @@ def contract_for(robot: Robot, track: str = "paper", tolerances: str | Mapping |
     """
     if isinstance(pointing, str):
         if pointing not in POINTING_CHOICES:
-            raise InputError(f"--pointing: {pointing!r} is not one of "
+            raise InputError(f"pointing: {pointing!r} is not one of "
                              f"{', '.join(POINTING_CHOICES)}")
         pointing = pointing_declared(robot) if pointing == "auto" else pointing == "on"
     max_speed, source = speed_limits(robot)

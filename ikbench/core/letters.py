@@ -151,7 +151,7 @@ def letter_curve(letter: str, size_mm: float, centre_mm: npt.ArrayLike,
         A :class:`Curve` whose plane has its origin at ``centre_mm``.
     """
     if not (size_mm > 0 and math.isfinite(size_mm)):
-        raise InputError(f"--size: {size_mm!r} must be a positive number of mm")
+        raise InputError(f"size_mm: {size_mm!r} must be a positive number of mm")
     u_axis, v_axis = np.asarray(u_axis, float), np.asarray(v_axis, float)
     centre = np.asarray(centre_mm, dtype=float)
     u_lo, u_hi = letter_box(letter)

@@ -77,12 +77,12 @@ def parse_weights(text: str | None, base: dict | None = None) -> dict[str, float
             number = float("nan")
         if not sep or key not in TERMS or not np.isfinite(number) or number < 0:
             raise InputError(
-                f"--weights: {item.strip()!r} is not term=value with term in c0..c6 (or "
+                f"weights: {item.strip()!r} is not term=value with term in c0..c6 (or "
                 "L0..L6) and a finite value >= 0"
             )
         weights[key] = number
     if not any(weights.values()):
-        raise InputError(f"--weights: {text!r} sets every term to 0; the loss would be empty")
+        raise InputError(f"weights: {text!r} sets every term to 0; the loss would be empty")
     return weights
 
 

@@ -329,11 +329,11 @@ def read_obstacles(spec: str | Path | Sequence[Obstacle] | None,
     path = Path(text)
     if path.suffix.lower() in (".json", ".yaml", ".yml"):
         if not path.is_file():
-            raise InputError(f"--obstacles: file {text!r} not found")
+            raise InputError(f"obstacles: file {text!r} not found")
         return parse_obstacles(load_file(path), text)
     named = (f"a named set of {robot.name} ({', '.join(sets)}), "
              if sets and robot is not None else "")  # sets only come from a robot
-    raise InputError(f"--obstacles: {text!r} is neither {named}nor an obstacle file "
+    raise InputError(f"obstacles: {text!r} is neither {named}nor an obstacle file "
                      "(*.json, *.yaml), nor none")
 
 

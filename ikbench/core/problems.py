@@ -121,9 +121,9 @@ def resolve_problem(spec: str | Path) -> Path:
     path = Path(text)
     if path.suffix.lower() in (".yaml", ".yml"):
         if not path.is_file():
-            raise InputError(f"--problem: file {text!r} not found")
+            raise InputError(f"problem: file {text!r} not found")
         return path
-    raise InputError(f"--problem: {text!r} is neither a shipped problem ({', '.join(shipped)}) "
+    raise InputError(f"problem: {text!r} is neither a shipped problem ({', '.join(shipped)}) "
                      "nor a problem file (*.yaml)")
 
 
@@ -133,7 +133,7 @@ def resolve_problems(spec: str | Path | Sequence[str | Path]) -> list[Path]:
     items = spec if isinstance(spec, (list, tuple)) else str(spec).split(",")
     names = [str(s).strip() for s in items if str(s).strip()]
     if not names:
-        raise InputError(f"--problems: {spec!r} names no problem; give {BENCHMARK}, {SHIPPED}, "
+        raise InputError(f"problems: {spec!r} names no problem; give {BENCHMARK}, {SHIPPED}, "
                          f"names ({', '.join(shipped_problems())}) or files (*.yaml)")
     out: list[Path] = []
     shipped = shipped_problems()
@@ -147,7 +147,7 @@ def resolve_problems(spec: str | Path | Sequence[str | Path]) -> list[Path]:
     stems = [p.stem for p in out]
     duplicates = sorted({s for s in stems if stems.count(s) > 1})
     if duplicates:
-        raise InputError(f"--problems: {', '.join(duplicates)} named twice (results are "
+        raise InputError(f"problems: {', '.join(duplicates)} named twice (results are "
                          "written per problem name)")
     return out
 

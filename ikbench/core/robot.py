@@ -399,11 +399,18 @@ def chain_joints(urdf_path: Path, base_link: str, end_frame: str) -> list[ChainJ
     libraries parse the rest.
 
     Raises:
-        InputError: unreadable URDF, unknown link, or end_frame not below base_link.
+        InputError: unreadable URDF, a joint naming a link the URDF does not define, unknown
+            link, or end_frame not below base_link.
     """
     root = _read_urdf(urdf_path)
     links = [link.get("name", "") for link in root.iter("link")]
-    for what, name in (("--end-frame", end_frame), ("base link", base_link)):
+    for joint in root.findall("joint"):  # the real fault before the chain it breaks
+        for role in ("parent", "child"):
+            if _link_of(joint, role) not in links:
+                raise InputError(f"robot: {urdf_path.name}: joint {joint.get('name')!r} names "
+                                 f"the {role} link {_link_of(joint, role)!r}, which the URDF "
+                                 f"does not define; links: {', '.join(links)}")
+    for what, name in (("end_frame", end_frame), ("base link", base_link)):
         if name not in links:
             raise InputError(f"{what}: {name!r} is not a link of {urdf_path.name}; links: "
                              f"{', '.join(links)}")
@@ -412,7 +419,7 @@ def chain_joints(urdf_path: Path, base_link: str, end_frame: str) -> list[ChainJ
     while link != base_link:
         joint = by_child.get(link)
         if joint is None:
-            raise InputError(f"--end-frame: {end_frame!r} is not below the base link "
+            raise InputError(f"end_frame: {end_frame!r} is not below the base link "
                              f"{base_link!r} in {urdf_path.name}")
         path.append(joint)
         link = _link_of(joint, "parent")
@@ -626,18 +633,18 @@ def _load(name_or_path: str, end_frame: str | None) -> Robot:
     path = Path(name_or_path)
     if path.suffix.lower() == ".urdf":
         if not path.is_file():
-            raise InputError(f"--robot: URDF {name_or_path!r} not found")
+            raise InputError(f"robot: URDF {name_or_path!r} not found")
         if not end_frame:
-            raise InputError(f"--robot {name_or_path}: a bare URDF needs --end-frame LINK "
+            raise InputError(f"robot: {name_or_path}: a bare URDF needs an end frame, a link "
                              "(the chain runs from the URDF's root to that link)")
         return robot_from_urdf(path, end_frame)
     if path.suffix.lower() in (".toml", ".json") and path.is_file():
         return robot_from_config(path, end_frame)
     if path.name.endswith(".motors.json") or path.suffix.lower() in (".toml", ".json"):
-        raise InputError(f"--robot: robot config {name_or_path!r} not found")
-    raise InputError(f"--robot: {name_or_path!r} is not a shipped robot ("
+        raise InputError(f"robot: robot config {name_or_path!r} not found")
+    raise InputError(f"robot: {name_or_path!r} is not a shipped robot ("
                      f"{', '.join(shipped) or 'none'}), a robot config (*.toml), a URDF "
-                     "(*.urdf, with --end-frame) or PACKAGE:NAME from an installed description "
+                     "(*.urdf, with an end frame) or PACKAGE:NAME from an installed description "
                      "package (ikbench robots --all lists them)")
 
 

@@ -106,19 +106,19 @@ def resolve(name: str, end_frame: str | None) -> tuple[Path, str | None, str, st
     package, _, robot = name.partition(":")
     folder = robots_folder(package)
     if folder is None:
-        raise InputError(f"--robot {name}: the package {package} is not installed ({EXTRA})")
+        raise InputError(f"robot: {name}: the package {package} is not installed ({EXTRA})")
     arm = ARMS.get(package, {}).get(robot)
     if arm is not None:
         return (folder / arm.urdf, arm.base_link, end_frame or arm.end_frame,
                 f"{arm.description} ({package})")
     urdfs = package_urdfs(package)
     if robot not in urdfs:
-        raise InputError(f"--robot {name}: {robot!r} is neither a common arm of {package} "
+        raise InputError(f"robot: {name}: {robot!r} is neither a common arm of {package} "
                          f"({', '.join(ARMS.get(package, {}))}) nor one of its URDFs "
                          f"({', '.join(urdfs)})")
     if not end_frame:
-        raise InputError(f"--robot {name}: not in ikbench's table of common arms; give "
-                         "--end-frame LINK (the chain runs from the URDF's root to it)")
+        raise InputError(f"robot: {name}: not in ikbench's table of common arms; give its "
+                         "end frame, a link (the chain runs from the URDF's root to it)")
     return urdfs[robot], None, end_frame, f"{urdfs[robot].name} from {package}"
 
 

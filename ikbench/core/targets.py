@@ -100,11 +100,11 @@ class Targets:
         wanted = [s.strip() for s in only.split(",")] if isinstance(only, str) else list(only)
         unknown = [w for w in wanted if w not in self.touch_poses_deg]
         if "" in wanted:
-            raise TargetsError(f"--only: {only!r} names an empty trajectory id; give ids such "
+            raise TargetsError(f"only: {only!r} names an empty trajectory id; give ids such "
                                f"as 1,3 (available: {', '.join(self.ids)})")
         if unknown or not wanted:
             raise TargetsError(
-                f"--only: unknown trajectory id(s) {', '.join(map(repr, unknown)) or repr(only)}; "
+                f"only: unknown trajectory id(s) {', '.join(map(repr, unknown)) or repr(only)}; "
                 f"available: {', '.join(self.ids)}"
             )
         poses = {k: self.touch_poses_deg[k] for k in dict.fromkeys(wanted)}
@@ -114,7 +114,7 @@ class Targets:
         """A copy with another number of segments (None keeps the file's)."""
         if steps is None:
             return self
-        _check_steps(steps, "--steps")
+        _check_steps(steps, "steps")
         return replace(self, steps=steps)
 
     def with_obstacles(self, obstacles: tuple, source: str) -> Targets:
@@ -262,7 +262,8 @@ def load_targets(path: str | Path | None = None, robot: Robot | None = None) -> 
         try:
             text = Path(path).read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
-            raise TargetsError(f"cannot read targets file {source!r}: {exc}") from None
+            raise TargetsError(f"targets: cannot read targets file {source!r}: "
+                               f"{getattr(exc, 'strerror', None) or exc}") from None
     try:
         # NaN/Infinity parse as floats; check_pose then names the target and joint
         spec = json.loads(text, object_pairs_hook=_reject_duplicate_keys)
@@ -288,7 +289,7 @@ def pose_words(robot: Robot) -> str:
     return "motor angles" if robot.has_motor_map else f"joint values [{robot.pose_unit}]"
 
 
-def parse_pose(text: str, robot: Robot | None = None, what: str = "--pose") -> np.ndarray:
+def parse_pose(text: str, robot: Robot | None = None, what: str = "pose") -> np.ndarray:
     """Parse ``"a,b,c,..."`` (pose units) into a validated pose."""
     robot = robot or load_robot()
     parts = [p.strip() for p in str(text).split(",")]

@@ -213,10 +213,10 @@ def parse_shape(spec: str) -> tuple[str, str]:
     kind, sep, arg = str(spec).partition(":")
     kind = kind.strip().lower()
     if kind not in SHAPE_KINDS or (kind == "line") == bool(sep):
-        raise InputError(f"--shape: {spec!r} is not one of line, polyline:FILE, spline:FILE, "
+        raise InputError(f"shape: {spec!r} is not one of line, polyline:FILE, spline:FILE, "
                          "letter:X (e.g. letter:P or letter:P,A,B)")
     if kind != "line" and not arg.strip():
-        raise InputError(f"--shape: {spec!r} names no {'letter' if kind == 'letter' else 'file'}")
+        raise InputError(f"shape: {spec!r} names no {'letter' if kind == 'letter' else 'file'}")
     return kind, arg.strip()
 
 
@@ -246,7 +246,7 @@ def goal_directions(curve: Curve | None, tangents: np.ndarray,
         return tangents
     if isinstance(direction, str) and direction == "normal":
         if curve is None:
-            raise InputError("--direction normal: a line has no drawing plane; give a vector "
+            raise InputError("direction: 'normal': a line has no drawing plane; give a vector "
                              "x,y,z")
         vector = curve.drawing_plane().normal
     else:
@@ -263,7 +263,7 @@ def parse_direction(value: str | npt.ArrayLike) -> np.ndarray:
     except ValueError:
         vector = np.array([])
     if vector.shape != (3,) or not np.all(np.isfinite(vector)) or not np.any(vector):
-        raise InputError(f"--direction: {text!r} is not one of {DIRECTION_CHOICES} (a non-zero "
+        raise InputError(f"direction: {text!r} is not one of {DIRECTION_CHOICES} (a non-zero "
                          "finite vector)")
     return vector
 
@@ -343,7 +343,7 @@ def _shape_tasks(robot: Robot, targets: Targets, shape: str, steps: int | None,
     """:func:`build_tasks` without the obstacles."""
     kind, arg = parse_shape(shape)
     if size_mm is not None and kind != "letter":
-        raise InputError(f"--size: only letters are scaled; shape {shape!r} is in mm as given")
+        raise InputError(f"size_mm: only letters are scaled; shape {shape!r} is in mm as given")
     if kind == "line":
         tasks = line_tasks(robot, targets.with_steps(steps))
         if direction is None:

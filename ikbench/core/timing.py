@@ -60,7 +60,7 @@ ARC_SAMPLES = 16
 def check_timing(name: str) -> str:
     """``name`` if it is a timing of :data:`TIMINGS`, else InputError naming the allowed ones."""
     if name not in TIMINGS:
-        raise InputError(f"--timing {name!r}; allowed: {', '.join(TIMINGS)}")
+        raise InputError(f"timing: {name!r}; allowed: {', '.join(TIMINGS)}")
     return name
 
 
@@ -85,14 +85,14 @@ def retime(robot: Robot, poses: npt.ArrayLike, timing: str, *, duration_s: float
         raise InputError(f"a timing needs (n+1, dof) finite poses with n >= 1, got an array of "
                          f"shape {poses.shape}")
     if timing != "topp" and not (np.isfinite(duration_s) and duration_s > 0):
-        raise InputError(f"--duration {duration_s!r}; give a positive number of seconds")
+        raise InputError(f"duration_s: {duration_s!r}; give a positive number of seconds")
     if timing == "constant":
         return constant(poses, duration_s)
     tip = np.asarray(robot.fk(poses).point_mm if tip_mm is None else tip_mm, dtype=float)
     if timing == "min-jerk":
         return min_jerk(poses, tip, duration_s, robot)
     if limits is None:
-        raise InputError("--timing topp needs joint velocity and acceleration limits")
+        raise InputError("timing: topp needs joint velocity and acceleration limits")
     return topp(poses, tip, limits)
 
 
@@ -148,7 +148,7 @@ def min_jerk(poses: np.ndarray, tip_mm: np.ndarray, duration_s: float, robot: Ro
 
     chord = np.linalg.norm(np.diff(tip_mm, axis=0), axis=1)
     if not chord.sum() > 1e-9:
-        raise InputError("--timing min-jerk times the fingertip's path, and the fingertip does "
+        raise InputError("timing: min-jerk times the fingertip's path, and the fingertip does "
                          "not move along this trajectory; use --timing constant or topp")
     knots = path_parameter(tip_mm)
     path = spline(knots, poses)

@@ -53,7 +53,7 @@ def topp(poses: np.ndarray, tip_mm: np.ndarray, limits: Limits) -> TimedPath:
         import toppra.algorithm
         import toppra.constraint
     except ImportError:
-        raise InputError(f"--timing topp needs toppra, which is not installed: {INSTALL}"
+        raise InputError(f"timing: topp needs toppra, which is not installed: {INSTALL}"
                          ) from None
     dof = poses.shape[1]
     if limits.velocity.shape != (dof,) or limits.acceleration.shape != (dof,):

@@ -138,8 +138,8 @@ def get_method(name: str) -> type[Method]:
     if cls is not None:
         return cls
     if name in status:
-        raise InputError(f"--method {name} is not available here: {status[name].reason}")
-    raise InputError(f"--method: unknown method {name!r}; available: "
+        raise InputError(f"method: {name} is not available here: {status[name].reason}")
+    raise InputError(f"method: unknown method {name!r}; available: "
                      f"{', '.join(available_methods())} (ikbench methods lists them all)")
 
 

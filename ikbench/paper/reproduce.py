@@ -33,7 +33,6 @@ the touch pose (the paper's task); ``ikbench compare`` runs them.
 from __future__ import annotations
 
 import os
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -48,6 +47,7 @@ from ikbench.methods.registry import get_method, method_status
 from ikbench.paper.ablation_claims import check_claims, claims_table
 from ikbench.paper.values import paper_values, table1_comparison
 from ikbench.render.run_report import markdown_table
+from ikbench.runtime.progress import message
 from ikbench.studies.ablation import FULL, SUMMARY_METRICS, ablate
 from ikbench.studies.run import run
 
@@ -145,6 +145,15 @@ def _output_dir(output: str | Path | None, quick: bool) -> Path:
     return Path(output)
 
 
+def check_output(output: str | Path | None, quick: bool = False) -> Path:
+    """The results directory, checked for writing (before any solving, not after minutes
+    of it); InputError for an empty ``output``, OutputError for one that cannot be written."""
+    output = _output_dir(output, quick)
+    for first in (output / OURS / "table.csv", output / "README.md"):
+        check_writable(first)
+    return output
+
+
 def reproduce(output: str | Path | None = None, quick: bool = False,
               progress: bool = True) -> dict[str, float]:
     """Regenerate Tables 1 and 2, the comparison, the ablation, the figures and README.md.
@@ -163,10 +172,8 @@ def reproduce(output: str | Path | None = None, quick: bool = False,
         ReproduceError: before any work, when sequential-ik-walk or the comparison is
             missing.
     """
-    output = _output_dir(output, quick)
+    output = check_output(output, quick)
     baseline, write_comparison_report = _baseline(), _comparison_writer()
-    for first in (output / OURS / "table.csv", output / "README.md"):
-        check_writable(first)  # before any solving, not after minutes of it
     subset: dict[str, Any] = {"only": QUICK["only"], "steps": QUICK["steps"]} if quick else {}
     ours_options: dict[str, Any] = {"max_iterations": QUICK["max_iterations"]} if quick else {}
     ours = get_method(OURS)
@@ -197,9 +204,7 @@ def reproduce(output: str | Path | None = None, quick: bool = False,
     total = len(stages) + 1
 
     def say(text):
-        if progress:
-            print(f"[reproduce {_elapsed(time.perf_counter() - started)}] {text}",
-                  file=sys.stderr, flush=True)
+        message(f"reproduce {_elapsed(time.perf_counter() - started)}", text, progress)
 
     say(f"{'quick pipeline check' if quick else 'full reproduction'} into {output}/, "
         f"{total} stages")

@@ -53,8 +53,10 @@ def _board_row(name, group, track, judged: Contract, success: str, ref) -> dict:
     status = sorted(set(group["status"].astype(str)))
     if track != "paper":  # the walk honours the touch-pose-only track
         status = sorted({"solved" if s.startswith("does not honour") else s for s in status})
-    row = {"track": track, "method": name, "library": group["library"].iloc[0],
-           "version": group["library_version"].iloc[0],
+    library, version = group["library"].iloc[0], group["library_version"].iloc[0]
+    row = {"track": track, "method": name,
+           "library": library if isinstance(library, str) else "",  # not installed: none
+           "version": version if isinstance(version, str) else None,
            "scheme": group["scheme"].dropna().iloc[0] if group["scheme"].notna().any() else "",
            "status": "; ".join(status), "trajectories": count,
            "success_count": int(group[success].astype(bool).sum()),
@@ -116,7 +118,8 @@ def _table(board: pd.DataFrame, reference: str, judged: Contract) -> list[str]:
     lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
     for _, row in board.iterrows():
         n = int(row["trajectories"])
-        cells = [row["method"], f"{row['library']} {row['version'] or ''}".strip(),
+        cells = [row["method"], " ".join(v for v in (row["library"], row["version"])
+                                          if isinstance(v, str) and v),  # none: not installed
                  str(row["scheme"]), str(row["status"]),
                  f"**{int(row['success_count'])}/{n}**"]
         cells += [f"{int(row[f'{c}_count'])}/{n}" if not pd.isna(row[f"{c}_count"]) else ""

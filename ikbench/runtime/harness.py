@@ -6,12 +6,12 @@
 method (``Method.batched``) is timed once for the whole batch and each task gets its share.
 An exception in one solve becomes a failed :class:`Outcome` with its message instead of
 aborting the study; Ctrl-C stops solving and returns what was solved so far
-(:class:`Interrupted`), so the caller can keep it and say so.
+(:class:`Interrupted`, a ``KeyboardInterrupt``: no ``except Exception`` turns it into a failed
+row), so the caller can keep it and say so.
 """
 
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, TextIO
 
 from ikbench.core.task import Task
 from ikbench.methods.base import Solution
+from ikbench.runtime.progress import Reporter
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -47,7 +48,7 @@ class Outcome:
         return self.solution is not None
 
 
-class Interrupted(Exception):
+class Interrupted(KeyboardInterrupt):
     """Ctrl-C while solving; ``outcomes`` holds the tasks solved before it."""
 
     def __init__(self, outcomes: list[Outcome]):
@@ -55,20 +56,16 @@ class Interrupted(Exception):
         self.outcomes = outcomes
 
 
-class Progress:
-    """Progress lines on stderr: one per trajectory start/end, one per progress update."""
+class Progress(Reporter):
+    """A method's progress (:class:`ikbench.methods.base.Progress`) as a :class:`Reporter`:
+    one unit per trajectory solved, the iterations as its status."""
 
     def __init__(self, label: str, stream: TextIO | None = None, enabled: bool = True) -> None:
-        self.label = label
-        self.stream = stream or sys.stderr
-        self.enabled = enabled
-
-    def say(self, text: str) -> None:
-        """One line ``[label] text`` (if enabled)."""
-        if self.enabled:
-            print(f"[{self.label}] {text}", file=self.stream, flush=True)
+        super().__init__(label, unit="trajectory", enabled=enabled, stream=stream)
 
     def start(self, task: Task, index: int, total: int) -> None:
+        if self.total != total:
+            self.set_total(total)
         self.say(f"trajectory {task.name} ({index + 1}/{total}): solving, n = {task.steps}")
 
     def update(self, task: Task, iteration: int, loss: float) -> None:
@@ -79,11 +76,12 @@ class Progress:
         flag = "" if solution.converged else " (did not meet its stopping criterion)"
         if solution.info.get("infeasible"):  # a method's best infeasible result, said so
             flag = f" (INFEASIBLE: {solution.info['infeasible']})"
-        self.say(f"trajectory {task.name}: done in {solution.iterations} iterations, "
-                 f"{solution.duration_s:.2f} s{loss}{flag}")
+        self.advance(1, f"trajectory {task.name}: done in {solution.iterations} iterations, "
+                     f"{solution.duration_s:.2f} s{loss}{flag}")
 
     def failed(self, task: Task, failure: str) -> None:
-        self.say(f"trajectory {task.name}: FAILED: {failure}")
+        self.note(f"trajectory {task.name}: FAILED: {failure}")
+        self.advance(1)
 
 
 def describe(exc: BaseException) -> str:
@@ -102,14 +100,18 @@ def solve_tasks(method: Method, robot: Robot, tasks: Sequence[Task],
     """
     method.check_tasks(robot, tasks)
     method.prepare(robot)
-    if method.batched:
-        return _solve_batched(method, robot, tasks, progress)
-    outcomes: list[Outcome] = []
-    for k, task in enumerate(tasks):
-        if progress:
-            progress.start(task, k, len(tasks))
-        outcomes.append(_solve_one(method, robot, task, progress, outcomes))
-    return outcomes
+    try:
+        if method.batched:
+            return _solve_batched(method, robot, tasks, progress)
+        outcomes: list[Outcome] = []
+        for k, task in enumerate(tasks):
+            if progress:
+                progress.start(task, k, len(tasks))
+            outcomes.append(_solve_one(method, robot, task, progress, outcomes))
+        return outcomes
+    finally:
+        if isinstance(progress, Reporter):
+            progress.close()  # the bar goes; the next solve of the study opens its own
 
 
 def _solve_one(method, robot, task, progress, done: list[Outcome]) -> Outcome:

@@ -20,7 +20,6 @@ ablation there are replaced; other files in it are kept.
 from __future__ import annotations
 
 import re
-import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -43,6 +42,7 @@ from ikbench.methods.base import Method
 from ikbench.methods.registry import available_methods, get_method
 from ikbench.render.run_report import TABLE_COLUMNS, _matplotlib, markdown_table, report_sections
 from ikbench.runtime.harness import Progress, solve_tasks
+from ikbench.runtime.progress import message
 from ikbench.runtime.record import (
     TRAJECTORY_FILE,
     RunFolder,
@@ -202,8 +202,7 @@ def joint_interpolation_by_joint(robot: Robot, tasks: Sequence[Task],
 
 
 def _say(text: str, enabled: bool) -> None:
-    if enabled:
-        print(f"[ablation] {text}", file=sys.stderr, flush=True)
+    message("ablation", text, enabled)
 
 
 def ablate(drops: str | list[str], method: str, *,

@@ -22,7 +22,6 @@ solves them in one batched call per weight setting, measures every trajectory wi
 from __future__ import annotations
 
 import json
-import sys
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -45,6 +44,7 @@ from ikbench.core.task import line_task
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.executors import Executor, LocalExecutor
 from ikbench.runtime.parallel import solve_parts
+from ikbench.runtime.progress import Reporter
 
 if TYPE_CHECKING:
     from ikbench.core.task import Task
@@ -227,8 +227,8 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
     workspace = WorkspaceFilter.of(robot)
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
-    log = (lambda text: print(f"[batch] {text}", file=sys.stderr, flush=True)) if progress \
-        else (lambda text: None)
+    reporter = Reporter("batch", total=len(settings), unit="setting", enabled=progress)
+    log = reporter.say
     t0 = time.perf_counter()
     touch, draws = sample_touch_poses(robot, targets.start_pose_deg, count, seed, workspace)
     sample_s = time.perf_counter() - t0
@@ -259,6 +259,7 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
                 f"{result.duration_s:.2f} s on {executor.workers} {executor.name} workers "
                 f"({count / result.duration_s:.0f} per s)")
             measure_s = float("nan")  # within the solve's wall time
+        reporter.advance(1, f"{label}: measured")
         frame = pd.DataFrame(mine)
         summary.append(_summarise(label, w, frame, result.duration_s, count,
                                   line_tolerance_mm, end_tolerance_mm, measure_s))

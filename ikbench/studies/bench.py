@@ -16,7 +16,6 @@ for ``ours``, which takes tens of seconds per round for the paper's seven target
 from __future__ import annotations
 
 import json
-import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -36,12 +35,15 @@ from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import line_tasks
 from ikbench.methods.registry import get_method
 from ikbench.render.run_report import markdown_table
+from ikbench.runtime.progress import Reporter
 
 if TYPE_CHECKING:
     from ikbench.core.task import Task
 
 TOTAL = "total"
 TOTAL_BATCHED = "total (batched)"
+#: At most this many timed rounds per method.
+MAX_ROUNDS = 1000
 
 
 def parse_repeat(text: str | int | None, methods: list[str]) -> dict[str, int]:
@@ -63,9 +65,9 @@ def parse_repeat(text: str | int | None, methods: list[str]) -> dict[str, int]:
             number = int(value)
         except ValueError:
             number = 0
-        if number < 1 or (sep and not name):
+        if not 1 <= number <= MAX_ROUNDS or (sep and not name):
             raise InputError(f"--repeat: {item.strip()!r} is not N or method=N with N an "
-                             "integer >= 1, e.g. 5,ours=3")
+                             f"integer from 1 to {MAX_ROUNDS}, e.g. 5,ours=3")
         if sep and name not in methods:
             raise InputError(f"--repeat: {item.strip()!r} names {name!r}, which is not "
                              f"benchmarked; methods: {', '.join(methods)}")
@@ -98,15 +100,6 @@ class BenchResult:
     record: dict
 
 
-class _Log:
-    def __init__(self, enabled: bool):
-        self.enabled = enabled
-
-    def __call__(self, text: str) -> None:
-        if self.enabled:
-            print(f"[bench] {text}", file=sys.stderr, flush=True)
-
-
 def benchmark(methods: list[str] | str, *, repeat: str | int | None = None,
               warmup: int = 1, targets: str | Path | Targets | None = None,
               only: str | None = None, steps: int | None = None, solvers: dict | None = None,
@@ -132,7 +125,8 @@ def benchmark(methods: list[str] | str, *, repeat: str | int | None = None,
     robot = as_robot(robot)
     targets = select_targets(targets, robot, only, steps)
     tasks = line_tasks(robot, targets)
-    log = _Log(progress)
+    solves = sum((warmup + counts[n]) * (len(tasks) + get_method(n).batched) for n in names)
+    log = Reporter("bench", total=solves, unit="solve", enabled=progress)
     runs, last = [], {}
     for name in names:
         solver = (solvers or {}).get(name) or get_method(name)()
@@ -144,8 +138,8 @@ def benchmark(methods: list[str] | str, *, repeat: str | int | None = None,
                 t0 = time.perf_counter()
                 solution = solver.solve(robot, task)
                 wall = time.perf_counter() - t0
-                log(f"{name} {label}: trajectory {task.name} ({k + 1}/{len(tasks)}) "
-                    f"{wall:.4f} s")
+                log.advance(1, f"{name} {label}: trajectory {task.name} ({k + 1}/{len(tasks)}) "
+                            f"{wall:.4f} s")
                 if timed:
                     runs.append({"method": name, "round": r - warmup + 1, "mode": "single",
                                  "trajectory": task.name, "wall_s": wall,
@@ -155,11 +149,13 @@ def benchmark(methods: list[str] | str, *, repeat: str | int | None = None,
                 t0 = time.perf_counter()
                 solver.solve_many(robot, tasks)
                 wall = time.perf_counter() - t0
-                log(f"{name} {label}: batched solve of {len(tasks)} trajectories {wall:.4f} s")
+                log.advance(1, f"{name} {label}: batched solve of {len(tasks)} trajectories "
+                            f"{wall:.4f} s")
                 if timed:
                     runs.append({"method": name, "round": r - warmup + 1, "mode": "batched",
                                  "trajectory": TOTAL_BATCHED, "wall_s": wall,
                                  "iterations": np.nan})
+    log.close()
     runs = pd.DataFrame(runs)
     summary = summarise(robot, tasks, names, runs, last)
     record = {"methods": names, "repeat": counts, "warmup": warmup, "robot": robot.describe(),

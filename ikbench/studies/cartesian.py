@@ -29,7 +29,8 @@ from ikbench.core.metrics import frame_metrics
 from ikbench.core.problems import BENCHMARK, load_problem, resolve_problems
 from ikbench.methods.base import Method
 from ikbench.methods.registry import available_methods, get_method
-from ikbench.runtime.harness import Outcome, Progress, solve_tasks
+from ikbench.runtime.harness import Outcome, solve_tasks
+from ikbench.runtime.progress import Reporter
 
 DEFAULT_SEEDS = (1, 2, 3)
 #: Seeds are integers in [0, 2^63) (numpy's and torch's generators).
@@ -159,9 +160,9 @@ def cartesian(problems: str | Path | Sequence[str | Path] = BENCHMARK,
     for name in names:  # settings errors before any solve
         build_method(name, seeds[0], options.get(name))
     loaded = {f.stem: load_problem(f) for f in files}
-    say = Progress(FOLDER, enabled=progress).say
     rows, poses = [], {}
-    total, done = len(loaded) * len(names) * len(seeds), 0
+    total = len(loaded) * len(names) * len(seeds)
+    log = Reporter(FOLDER, total=total, unit="solve", enabled=progress)
     for problem, (robot, task, _) in loaded.items():
         for name in names:
             for seed in seeds:
@@ -170,15 +171,15 @@ def cartesian(problems: str | Path | Sequence[str | Path] = BENCHMARK,
                     outcome = solve_tasks(method, robot, [task])[0]
                 except IkbenchError as exc:  # refused before solving: a row saying why
                     outcome = Outcome(task, None, 0.0, f"refused: {exc}")
-                done += 1
                 if outcome.solution is not None:  # the table describes the poses as written
                     outcome.solution.poses_deg = as_written(outcome.solution.poses_deg)
                     poses[(problem, name, seed)] = outcome.solution.poses_deg
                 row = _row(problem, robot, task, name, seed, outcome)
                 rows.append(row)
                 verdict = "valid" if row["valid"] else f"not valid ({row['failed_criteria']})"
-                say(f"{done}/{total} {problem} {name} seed {seed}: {verdict}, "
-                    f"{row['duration_s']:.2f} s")
+                log.advance(1, f"{problem} {name} seed {seed}: {verdict}, "
+                            f"{row['duration_s']:.2f} s")
+    log.close()
     settings = {name: build_method(name, seeds[0], options.get(name)).settings
                 for name in names}
     return CartesianResult(pd.DataFrame(rows, columns=COLUMNS), loaded, poses, names, settings,

@@ -103,7 +103,7 @@ COLLISION_METRICS = ["self_collisions", "env_collisions", "min_clearance_mm",
 #: The note beside a collision of a method that does not avoid obstacles.
 NO_AVOIDANCE = "does not avoid obstacles"
 #: Statuses that make ``ikbench compare`` exit with 1.
-FAILING = ("failed", "refused", "does not honour")
+FAILING = ("failed", "refused", "does not honour", "not installed")
 
 
 @dataclass
@@ -325,13 +325,14 @@ def _solve_methods(spec: CompareSpec, log: Progress
             f"trajectory alone, {spec.warmup} warm-up + {spec.repeat} timed round(s) "
             f"({executor.name} executor)")
     last = {}
+    log.set_total(len(built))
     for (name, solver), (single, batched) in zip(built.items(),
                                                  executor.map(solve_method, work)):
         last[name] = single[-1]
         rows += _timed_rows(spec, name, solver, single, batched)
         median_s = np.median([r["time_median_s"] for r in rows[-len(spec.tasks):]])
-        log.say(f"{name}: {spec.repeat} x {len(spec.tasks)} trajectories solved alone, median "
-                f"{median_s:.4f} s per trajectory")
+        log.advance(1, f"{name}: {spec.repeat} x {len(spec.tasks)} trajectories solved alone, "
+                    f"median {median_s:.4f} s per trajectory")
     return rows, built, last
 
 
@@ -404,9 +405,9 @@ def _build(spec: CompareSpec, log: Progress) -> tuple[list[dict], dict[str, Meth
     for k, name in enumerate(spec.methods):
         cls = status[name].cls
         if cls is None:
-            log.say(f"{name} ({k + 1}/{len(spec.methods)}): unavailable: "
-                    f"{status[name].reason}")
-            rows += [_row(spec, name, "", task, "unavailable", status[name].reason)
+            log.note(f"{name} ({k + 1}/{len(spec.methods)}): not installed: "
+                     f"{status[name].reason}")
+            rows += [_row(spec, name, "", task, "not installed", status[name].reason)
                      for task in spec.tasks]
             continue
         try:

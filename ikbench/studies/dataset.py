@@ -30,7 +30,6 @@ import hashlib
 import importlib.util
 import json
 import math
-import sys
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
@@ -48,6 +47,7 @@ from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.runtime.executors import SCALE_EXTRA, Executor, LocalExecutor, portable_robot
 from ikbench.runtime.parallel import gpus_for
+from ikbench.runtime.progress import Reporter
 from ikbench.studies.batch import WorkspaceFilter, check_seed
 from ikbench.studies.dataset_shard import (
     FORMAT,
@@ -193,7 +193,10 @@ def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
         robot: the robot or its name/config/URDF (default NICO's right arm).
         output: the dataset folder.
         executor: where shards are built (default: one after another in this process).
-        progress: progress lines on stderr.
+        progress: progress on stderr (:mod:`ikbench.runtime.progress`).
+
+    Ctrl-C keeps the complete shards (the same command resumes) and marks dataset.json
+    ``"interrupted"`` (``complete`` false) before the KeyboardInterrupt goes on.
     """
     from ikbench.methods.ours_lm import LMSettings
 
@@ -213,10 +216,11 @@ def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
     _remove_temporary_files(output)
     kept = [s.shard for s in specs if is_complete(output, s)]
     missing = [s for s in specs if s.shard not in set(kept)]
-    log = _Log(progress)
-    log(f"{count} trajectories in {len(specs)} shard(s) of up to {shard_size}: "
-        f"{len(kept)} complete (kept), {len(missing)} to build on {executor.name} "
-        f"({executor.workers} worker(s)) with {_solver_name(settings)}")
+    log = Reporter("dataset", total=count, unit="trajectory", enabled=progress)
+    log.note(f"{count} trajectories in {len(specs)} shard(s) of up to {shard_size}: "
+             f"{len(kept)} complete (kept), {len(missing)} to build on {executor.name} "
+             f"({executor.workers} worker(s)) with {_solver_name(settings)}")
+    log.advance(count - sum(s.count for s in missing))
     manifest = _manifest(config, count, specs, output, executor, None)
     atomic_write_text(Path(output) / MANIFEST, json.dumps(manifest, indent=2) + "\n")
     began, written, done = time.perf_counter(), [], count - sum(s.count for s in missing)
@@ -225,17 +229,25 @@ def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
         results = pipelined(missing)
     else:
         results = executor.map(build_shard, missing, gpus=gpus_for(settings))
-    for spec, result in zip(missing, results):
-        _write_shard(output, spec, result)
-        written.append(spec.shard)
-        done += spec.count
-        draws += result.draws
-        elapsed = time.perf_counter() - began
-        rate = sum(s.count for s in missing if s.shard in written) / elapsed
-        log(f"shard {spec.shard + 1}/{len(specs)}: {spec.count} trajectories in "
-            f"{result.total_s:.1f} s (solve {result.solve_s:.1f} s); {done}/{count} done "
-            f"({100 * done / count:.0f} %), {rate:.0f} trajectories/s, "
-            f"ETA {_eta((count - done) / rate if rate else 0)}")
+    try:
+        for spec, result in zip(missing, results):
+            _write_shard(output, spec, result)
+            written.append(spec.shard)
+            done += spec.count
+            draws += result.draws
+            elapsed = time.perf_counter() - began
+            rate = sum(s.count for s in missing if s.shard in written) / elapsed
+            log.advance(spec.count, f"shard {spec.shard + 1}/{len(specs)}: {spec.count} "
+                        f"trajectories in {result.total_s:.1f} s (solve {result.solve_s:.1f} s); "
+                        f"{done}/{count} done ({100 * done / count:.0f} %), {rate:.0f} "
+                        f"trajectories/s, ETA {_eta((count - done) / rate if rate else 0)}")
+    except KeyboardInterrupt:  # complete shards stay (a rerun resumes); the manifest says so
+        manifest = {**_manifest(config, count, specs, output, executor, None),
+                    "interrupted": {"shards_built": len(written), "shards_kept": len(kept)}}
+        atomic_write_text(Path(output) / MANIFEST, json.dumps(manifest, indent=2) + "\n")
+        raise
+    finally:
+        log.close()
     wall = time.perf_counter() - began
     run = {"shards_built": len(written), "shards_kept": len(kept),
            "trajectories_built": int(sum(s.count for s in missing)), "draws": draws,
@@ -243,8 +255,9 @@ def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
                                                   if wall > 0 and missing else None)}
     manifest = _manifest(config, count, specs, output, executor, run)
     atomic_write_text(Path(output) / MANIFEST, json.dumps(manifest, indent=2) + "\n")
-    log(f"done: {count} trajectories in {output}/ ({manifest['summary']['converged_share']:.1%} "
-        f"converged); this run built {len(written)} shard(s) in {wall:.1f} s")
+    log.note(f"done: {count} trajectories in {output}/ "
+             f"({manifest['summary']['converged_share']:.1%} converged); this run built "
+             f"{len(written)} shard(s) in {wall:.1f} s")
     return DatasetReport(manifest, written, kept)
 
 
@@ -330,11 +343,3 @@ def _eta(seconds: float) -> str:
         return f"{seconds:.0f} s"
     return f"{seconds / 60:.0f} min" if seconds < 5400 else f"{seconds / 3600:.1f} h"
 
-
-class _Log:
-    def __init__(self, enabled: bool):
-        self.enabled = enabled
-
-    def __call__(self, text: str) -> None:
-        if self.enabled:
-            print(f"[dataset] {text}", file=sys.stderr, flush=True)

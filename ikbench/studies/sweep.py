@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import itertools
 import json
-import sys
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -33,6 +33,7 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
+from ikbench.core.budget import check_memory
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text
 from ikbench.core.letters import DEFAULT_SIZE_MM
@@ -45,6 +46,7 @@ from ikbench.core.task import build_tasks, letter_start_pose, parse_shape
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.executors import Executor, LocalExecutor
 from ikbench.runtime.parallel import solve_parts
+from ikbench.runtime.progress import Reporter
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -227,27 +229,28 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
 
     check_sweep_method(method, grid, executor)
     robot = as_robot(robot)
-    targets, tasks, kind = _sweep_tasks(robot, targets, shape, only, steps, size_mm,
-                                        start_pose, direction)
+    targets, tasks, kind = sweep_tasks(robot, targets, shape, only, steps, size_mm,
+                                       start_pose, direction)
+    check_grid_size(grid, tasks, robot.dof)
     base, settings = _sweep_settings(tasks, grid, shape, method)
     all_tasks = [task for _ in settings for task in tasks]
     all_weights = [w for w in settings for _ in tasks]
-    if progress:
-        how = ("one batched ours-lm solve" if method == "ours-lm"
-               else f"{len(settings)} batched ours-exact solves")
-        print(f"[sweep] {len(settings)} weight settings x {len(tasks)} tasks ({shape}): "
-              f"{how} of {len(all_tasks)} trajectories", file=sys.stderr, flush=True)
+    log = Reporter("sweep", total=len(all_tasks), unit="trajectory", enabled=progress)
+    how = ("one batched ours-lm solve" if method == "ours-lm"
+           else f"{len(settings)} batched ours-exact solves")
+    log.note(f"{len(settings)} weight settings x {len(tasks)} tasks ({shape}): {how} of "
+             f"{len(all_tasks)} trajectories, then each measured")
+    log.say("solving")
     result: BatchResult | _ExactBatch
     if method == "ours-lm":
         result, _ = solve_parts(executor, robot, all_tasks, lm_settings or LMSettings(),
                                 all_weights)
     else:
         result = _solve_exact(robot, tasks, settings)
-    if progress:
-        print(f"[sweep] solved in {result.duration_s:.2f} s; measuring", file=sys.stderr,
-              flush=True)
-    per_traj = pd.DataFrame(_trajectory_rows(robot, kind, grid, base, all_tasks, all_weights,
-                                             result))
+    log.note(f"solved in {result.duration_s:.2f} s; measuring")
+    with log:
+        per_traj = pd.DataFrame(_trajectory_rows(robot, kind, grid, base, all_tasks,
+                                                 all_weights, result, log))
     record = {"grid": {f"c{t[1]}": v for t, v in grid.items()}, "robot": robot.describe(),
               "targets": targets.source,
               "shape": shape, "size_mm": (size_mm or DEFAULT_SIZE_MM) if kind == "letter" else None,
@@ -261,10 +264,10 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
     return SweepResult(summarise(per_traj, method), per_traj, record)
 
 
-def _sweep_tasks(robot: Robot, targets: str | Path | Targets | None, shape: str,
-                 only: str | None, steps: int | None, size_mm: float | None,
-                 start_pose: npt.ArrayLike | None, direction: str | npt.ArrayLike | None
-                 ) -> tuple[Targets, list[Task], str]:
+def sweep_tasks(robot: Robot, targets: str | Path | Targets | None, shape: str,
+                only: str | None, steps: int | None, size_mm: float | None,
+                start_pose: npt.ArrayLike | None, direction: str | npt.ArrayLike | None
+                ) -> tuple[Targets, list[Task], str]:
     """(the targets as swept, the tasks of one setting, the shape's kind) for :func:`sweep`'s
     options: letters start from the robot's letter start pose unless ``start_pose`` is given;
     ``only`` selects touch poses (the line only) and ``steps`` sets the line's segments.
@@ -317,7 +320,8 @@ def _sweep_settings(tasks: list[Task], grid: dict[str, list[float]], shape: str,
 
 def _trajectory_rows(robot: Robot, kind: str, grid: dict[str, list[float]],
                      base: dict[str, float], all_tasks: list[Task], all_weights: list[dict],
-                     result: BatchResult | _ExactBatch) -> list[dict]:
+                     result: BatchResult | _ExactBatch, log: Reporter | None = None
+                     ) -> list[dict]:
     """One row of sweep_trajectories.csv per solved trajectory (setting x task, in solve
     order): the setting and its weights, the loss with them and with the reference weights,
     iterations, convergence, limits, and the line's or shape's metrics."""
@@ -334,7 +338,32 @@ def _trajectory_rows(robot: Robot, kind: str, grid: dict[str, list[float]],
                      "iterations": int(result.iterations[k]),
                      "converged": bool(result.converged[k]),
                      "within_limits": robot.within_limits(poses), **metrics})
+        if log is not None:
+            log.advance(1, f"measured trajectory {task.name}, setting "
+                        f"{setting_label(weights, grid)}")
     return rows
+
+
+#: Memory a trajectory of the batch needs per pose and joint while it is solved and measured,
+#: 8-byte numbers (about 5 KB were measured for a 51-pose NICO trajectory; 4x that).
+NUMBERS_PER_POSE_JOINT = 50
+
+
+def check_grid_size(grid: dict[str, list[float]], tasks: list[Task], dof: int) -> int:
+    """The number of trajectories the sweep solves (every setting of ``grid``, the reference
+    included, times ``tasks``); InputError, before any setting is built, when they are more
+    than one batch takes (:data:`ikbench.studies.batch.MAX_COUNT`) or than memory holds
+    (``dof``: the robot's joints)."""
+    from ikbench.studies.batch import MAX_COUNT
+
+    count = (math.prod(len(v) for v in grid.values()) + 1) * len(tasks)
+    if count > MAX_COUNT:
+        raise InputError(f"weight: the grid makes {count:,} trajectories ({count // len(tasks):,} "
+                         f"settings x {len(tasks)} tasks), more than one batch takes, "
+                         f"{MAX_COUNT:,}; give fewer values")
+    size = (tasks[0].steps + 1) * dof * 8 * NUMBERS_PER_POSE_JOINT
+    check_memory("weight", count, "trajectories", size)
+    return count
 
 
 #: Methods a sweep can run, and the terms of the grid each can take.

@@ -20,7 +20,6 @@ timed round), ``throughput.json`` (device, CPU, versions) and ``throughput.md``.
 from __future__ import annotations
 
 import json
-import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -37,24 +36,27 @@ from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import line_tasks
 from ikbench.render.run_report import markdown_table
+from ikbench.runtime.progress import Reporter
 from ikbench.studies.batch import sample_touch_poses
 from ikbench.studies.dataset_shard import line_tasks as sampled_line_tasks
 
 DEFAULT_BATCHES = (7, 1000, 10_000, 100_000)
 DEFAULT_DTYPES = ("float64", "float32")
+#: The largest batch timed (10x the default's largest; a batch is one solve in memory).
+MAX_BATCH = 1_000_000
 NUMPY = "numpy"
 NUMBA = "numba"
 
 
 def parse_batches(text: object) -> list[int]:
-    """``"7,1000"`` -> [7, 1000] (each an integer >= 1)."""
+    """``"7,1000"`` -> [7, 1000] (each an integer from 1 to :data:`MAX_BATCH`)."""
     try:
         values = [int(v) for v in str(text).split(",") if v.strip()]
     except ValueError:
         values = []
-    if not values or min(values) < 1:
-        raise InputError(f"--batches: {text!r} is not a list of batch sizes >= 1, e.g. "
-                         "7,1000,10000")
+    if not values or min(values) < 1 or max(values) > MAX_BATCH:
+        raise InputError(f"--batches: {text!r} is not a list of batch sizes from 1 to "
+                         f"{MAX_BATCH:,}, e.g. 7,1000,10000")
     return list(dict.fromkeys(values))
 
 
@@ -108,8 +110,7 @@ def throughput(device: str, *, batches: Sequence[int] = DEFAULT_BATCHES,
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
     targets = targets.with_steps(steps)
-    log = (lambda text: print(f"[bench] {text}", file=sys.stderr, flush=True)) if progress \
-        else (lambda text: None)
+    log = Reporter("bench", enabled=progress).say
     pool = _task_pool(robot, targets, batches)
     numba = numba_installed() if numba is None else numba
     cases = [(NUMPY, "float64", LMSettings(backend=NUMPY))]

@@ -47,6 +47,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 import numpy.typing as npt
 
+from ikbench.core.budget import check_memory
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_text
 
@@ -62,6 +63,13 @@ DEFAULT_RATE_HZ = 250.0
 #: ``ikbench export --format`` -> what it writes.
 FORMATS = {"ros-json": "JointTrajectory as JSON", "ros-yaml": "JointTrajectory as YAML",
            "csv-rad": "step,time_s,<joints> in URDF units (rad; m for prismatic joints)"}
+
+
+#: The highest rate of a retimed export [Hz] (controllers run at 1 kHz at most).
+MAX_RATE_HZ = 10_000.0
+#: Memory per exported point while it is built and written (the point's dict in the message,
+#: its text, and the four samples per point of the fingertip check) [bytes].
+BYTES_PER_POINT = 4_000
 
 
 def sample_times_ns(count: int, duration_s: float) -> list[int]:
@@ -118,6 +126,7 @@ def timed_points(robot: Robot, timed: TimedPath, rate_hz: float = DEFAULT_RATE_H
     if rate_hz:
         total_ns = int(round(timed.duration_s * NS_PER_S))
         step_ns = NS_PER_S / rate_hz
+        check_memory("rate_hz", int(total_ns // step_ns) + 2, "points", BYTES_PER_POINT)
         times_ns = [int(round(k * step_ns)) for k in range(int(total_ns // step_ns) + 1)]
         if total_ns - times_ns[-1] < step_ns / 2 and len(times_ns) > 1:
             times_ns.pop()  # no sliver of a last interval
@@ -233,9 +242,9 @@ def export_trajectory(trajectory_csv: str | Path, fmt: str, output: str | Path, 
     poses = frame[list(robot.joint_names)].to_numpy(dtype=float)
     check_writable(output)
     if timing != "constant":
-        if not (np.isfinite(rate_hz) and rate_hz >= 0):
-            raise InputError(f"--rate {rate_hz!r}; give a number of points per second >= 0 "
-                             "(0: one point per solved pose)")
+        if not (np.isfinite(rate_hz) and 0 <= rate_hz <= MAX_RATE_HZ):
+            raise InputError(f"rate_hz: {rate_hz!r}; give a number of points per second from 0 "
+                             f"to {MAX_RATE_HZ:g} (0: one point per solved pose)")
         return _export_retimed(robot, frame, poses, fmt, output, duration_s, timing, limits,
                                rate_hz)
     if fmt == "csv-rad":

@@ -110,11 +110,11 @@ def check_folders(folders: Iterable[str | Path]) -> list[Path]:
     """The folders as Paths; InputError for one that is not a run folder (cheap, no imports)."""
     paths = [Path(f) for f in folders]
     if not paths:
-        raise InputError("view: give at least one run folder (e.g. results/ours)")
+        raise InputError("folders: give at least one run folder (e.g. results/ours)")
     for path in paths:
         if not RunFolder(path).has_record:
             what = "does not exist" if not path.exists() else "has no run.json"
-            raise InputError(f"view: {str(path)!r} {what}; give folders written by ikbench "
+            raise InputError(f"folders: {str(path)!r} {what}; give folders written by ikbench "
                              "run (OUTPUT/NAME/ with run.json and trajectory_<id>.csv)")
     return paths
 

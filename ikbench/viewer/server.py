@@ -313,6 +313,15 @@ def _frame_scene(server, robot: Robot, framing: list) -> None:
     server.initial_camera.look_at = look_at
 
 
+def check_trajectory(runs: list[ViewRun], trajectory: str | None) -> list[str]:
+    """The trajectory ids of ``runs``; InputError when ``trajectory`` is not one of them."""
+    ids = list(dict.fromkeys(t for r in runs for t in r.trajectories))
+    if trajectory is not None and trajectory not in ids:
+        raise InputError(f"trajectory: {trajectory!r} is not a trajectory of these runs; "
+                         f"available: {', '.join(ids)}")
+    return ids
+
+
 def serve(robot: Robot, runs: list[ViewRun], *, port: int = 8080, host: str = "127.0.0.1",
           open_browser: bool = True, trajectory: str | None = None) -> Viewer:
     """Start the viewer (non-blocking) and return its handle.
@@ -325,10 +334,7 @@ def serve(robot: Robot, runs: list[ViewRun], *, port: int = 8080, host: str = "1
         open_browser: open the URL in the default browser.
         trajectory: the trajectory id shown first (default: the first run's first).
     """
-    ids = list(dict.fromkeys(t for r in runs for t in r.trajectories))
-    if trajectory is not None and trajectory not in ids:
-        raise InputError(f"--trajectory: {trajectory!r} is not a trajectory of these runs; "
-                         f"available: {', '.join(ids)}")
+    ids = check_trajectory(runs, trajectory)
     with contextlib.redirect_stdout(io.StringIO()):  # viser's banner; we print the URL
         server = viser.ViserServer(host=host, port=port, label=TITLE, verbose=False)
     server.scene.set_up_direction("+z")

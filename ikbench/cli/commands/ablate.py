@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import OUTPUT
 
 HELP = ("loss-term ablation: run a method with terms of L0..L6 dropped, compare with "
         "the full loss")
@@ -42,7 +43,7 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--method", default="ours",
                         help=f"a method with loss weights: {', '.join(methods)} (default: ours)")
     add_line_task_arguments(parser)
-    parser.add_argument("--output", default="runs",
+    parser.add_argument("--output", default="runs", type=OUTPUT,
                         help="results directory; writes OUTPUT/ablation/ (default: runs, which "
                         "git ignores; ikbench reproduce writes results/ablation/)")
     parser.add_argument("--figure-trajectory", default=None, metavar="ID",
@@ -56,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
     from ikbench.cli.options import (
+        begin,
         check_threads,
         method_from_args,
         robot_from_args,
@@ -74,10 +76,16 @@ def run(args: argparse.Namespace) -> int:
     options = {k: v for k, v in asdict(solver.settings).items() if k != "weights"}
     robot = robot_from_args(args)
     targets = targets_from_args(args, robot)
+    if args.figure_trajectory is not None and args.figure_trajectory not in targets.ids:
+        from ikbench.core.errors import InputError
+
+        raise InputError(f"--figure-trajectory: {args.figure_trajectory!r} is not among the "
+                         f"selected trajectories ({', '.join(targets.ids)})")
     from pathlib import Path
 
     check_folder_writable(Path(args.output) / "ablation")
     set_threads(args.threads)
+    begin(args)
     weights = solver.settings.weights
     table = ablate(drops, args.method, targets=targets, output=args.output, options=options,
                    base_weights=weights if isinstance(weights, dict) else parse_weights(weights),

@@ -5,8 +5,11 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import OUTPUT, SEED, STEPS, count, tolerance
 
 HELP = "sample random reachable touch poses, solve them in one batch (ours-lm)"
+#: A tolerance on a distance (up to 10 m).
+TOLERANCE_MM = tolerance("mm", 10_000.0)
 
 
 def register(subparsers: Subparsers) -> None:
@@ -29,12 +32,14 @@ def register(subparsers: Subparsers) -> None:
             "touch_poses.csv, batch.json and batch.md."
         ),
     )
-    parser.add_argument("--count", type=int, default=1000,
+    parser.add_argument("--count", default=1000,
+                        type=count("touch poses", 1, MAX_COUNT,
+                                   "in one batch; ikbench dataset builds larger sets"),
                         help=f"number of touch poses N, at most {MAX_COUNT:,} (default 1000; "
                         "ikbench dataset builds larger sets)")
-    parser.add_argument("--seed", type=int, default=0,
+    parser.add_argument("--seed", type=SEED, default=0,
                         help="sampling seed, an integer in [0, 2^63) (default 0)")
-    parser.add_argument("--steps", type=int, default=50,
+    parser.add_argument("--steps", type=STEPS, default=50,
                         help="number of segments n per trajectory (default 50)")
     parser.add_argument("--weights", action="append", metavar="SETTING",
                         help="a weight setting: 'paper' or changes such as c0=100,c1=500; "
@@ -45,14 +50,15 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--targets", default=None,
                         help="targets JSON file whose start pose is used (default: the "
                         "paper's)")
-    parser.add_argument("--line-tolerance-mm", type=float, default=LINE_TOLERANCE_MM,
+    parser.add_argument("--line-tolerance-mm", type=TOLERANCE_MM, default=LINE_TOLERANCE_MM,
                         help=f"tolerance on the mean line distance (default {LINE_TOLERANCE_MM})")
-    parser.add_argument("--end-tolerance-mm", type=float, default=END_TOLERANCE_MM,
+    parser.add_argument("--end-tolerance-mm", type=TOLERANCE_MM, default=END_TOLERANCE_MM,
                         help=f"tolerance on the end point error (default {END_TOLERANCE_MM})")
-    parser.add_argument("--output", default="runs/batch",
+    parser.add_argument("--output", default="runs/batch", type=OUTPUT,
                         help="output directory (default: runs/batch, which git ignores)")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    from ikbench.cli.options import add_executor_arguments
+    from ikbench.cli.options import add_executor_arguments, add_progress_arguments
+
+    add_progress_arguments(parser)
 
     add_executor_arguments(parser)
     parser.set_defaults(func=run)
@@ -61,13 +67,20 @@ def register(subparsers: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import check_executor_args, executor_from_args, robot_from_args
+    from ikbench.cli.options import (
+        begin,
+        check_executor_args,
+        executor_from_args,
+        robot_from_args,
+    )
     from ikbench.core.io import check_writable
+    from ikbench.core.targets import load_targets
     from ikbench.studies.batch import (
         DEFAULT_WEIGHTS,
         check_count,
         check_seed,
         run_batch,
+        weight_setting,
         write,
     )
 
@@ -75,7 +88,11 @@ def run(args: argparse.Namespace) -> int:
     check_seed(args.seed)
     check_executor_args(args)
     robot = robot_from_args(args)
+    for setting in args.weights or DEFAULT_WEIGHTS:
+        weight_setting(setting)
+    load_targets(args.targets, robot)  # its start pose is used: checked up front
     check_writable(Path(args.output) / "batch.csv")  # before sampling and solving
+    begin(args)
     report = run_batch(args.count, seed=args.seed, steps=args.steps, robot=robot,
                        weights=args.weights or DEFAULT_WEIGHTS, targets=args.targets,
                        line_tolerance_mm=args.line_tolerance_mm,

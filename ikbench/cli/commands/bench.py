@@ -5,13 +5,17 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import OUTPUT, THREADS, count
 
 HELP = "time methods on the same targets (median/min/max, ratios, losses)"
 DEFAULT_METHODS = "ours,ours-lm"
+#: At most this many untimed rounds.
+MAX_WARMUP = 100
 
 
 def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import add_line_task_arguments
+    from ikbench.cli.options import add_line_task_arguments, add_progress_arguments
+    from ikbench.studies.throughput import MAX_BATCH
 
     parser = subparsers.add_parser(
         "bench", help=HELP,
@@ -34,15 +38,15 @@ def register(subparsers: Subparsers) -> None:
                         help="timed rounds: N for every method, or N,method=M to give a "
                         "method of --methods its own count (default: each method's own, 5; "
                         "ours 3)")
-    parser.add_argument("--warmup", type=int, default=1,
-                        help="untimed rounds before timing (default 1)")
-    parser.add_argument("--output", default="runs",
+    parser.add_argument("--warmup", type=count("warm-up rounds", 0, MAX_WARMUP), default=1,
+                        help=f"untimed rounds before timing, 0 to {MAX_WARMUP} (default 1)")
+    parser.add_argument("--output", default="runs", type=OUTPUT,
                         help="output directory (default: runs, which git ignores)")
-    parser.add_argument("--threads", type=int, default=None,
+    parser.add_argument("--threads", type=THREADS, default=None,
                         help="torch threads (default 1: the tensors are tiny, and on a busy "
                         "2-core machine 2 threads ran ours 15x slower than 1); with --device "
                         "also the numba backend's (default: all cores)")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_progress_arguments(parser)
     scale = parser.add_argument_group(
         "throughput mode (--device)",
         "ours-lm's numpy solver against its numba backend (the same loop compiled, when "
@@ -55,12 +59,13 @@ def register(subparsers: Subparsers) -> None:
                        "solvers on the CPU)")
     scale.add_argument("--no-numba", action="store_true",
                        help="leave the numba backend out (default: timed when installed)")
-    scale.add_argument("--batches", default="7,1000,10000,100000",
+    scale.add_argument("--batches", default=None,
                        help="batch sizes; 7 is the paper's seven targets (default "
                        "7,1000,10000,100000)")
-    scale.add_argument("--dtypes", default="float64,float32",
+    scale.add_argument("--dtypes", default=None,
                        help="torch precisions to time (default float64,float32)")
-    scale.add_argument("--numpy-max-batch", type=int, default=10_000,
+    scale.add_argument("--numpy-max-batch", type=count("trajectories", 1, MAX_BATCH),
+                       default=None,
                        help="largest batch the numpy solver is timed on (default 10000)")
     parser.set_defaults(func=run)
 
@@ -68,7 +73,13 @@ def register(subparsers: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import check_threads, robot_from_args, set_threads, targets_from_args
+    from ikbench.cli.options import (
+        begin,
+        check_threads,
+        robot_from_args,
+        set_threads,
+        targets_from_args,
+    )
     from ikbench.core.io import check_writable
     from ikbench.studies.bench import (
         benchmark,
@@ -83,12 +94,20 @@ def run(args: argparse.Namespace) -> int:
         check_threads(args.threads)
     if args.device is not None:
         return run_throughput(args)
+    for flag, given in (("--batches", args.batches), ("--dtypes", args.dtypes),
+                        ("--numpy-max-batch", args.numpy_max_batch),
+                        ("--no-numba", args.no_numba or None)):
+        if given is not None:
+            from ikbench.core.errors import InputError
+
+            raise InputError(f"{flag} applies to the throughput mode only (give --device)")
     names = parse_methods(args.methods or DEFAULT_METHODS)
     parse_repeat(args.repeat, names)
     robot = robot_from_args(args)
     targets = targets_from_args(args, robot)
     check_writable(Path(args.output) / "benchmark.csv")  # before the timed rounds
     set_threads(args.threads or 1)
+    begin(args)
     result = benchmark(names, repeat=args.repeat, warmup=args.warmup, targets=targets,
                        progress=not args.quiet, robot=robot)
     path = write(result, args.output)
@@ -108,29 +127,41 @@ def run_throughput(args: argparse.Namespace) -> int:
     """``ikbench bench --device DEV``: numpy solver vs numba and torch backends per batch."""
     from pathlib import Path
 
-    from ikbench.cli.options import robot_from_args, set_threads
+    from ikbench.cli.options import begin, robot_from_args, set_threads
     from ikbench.core.errors import InputError
     from ikbench.core.io import check_writable
     from ikbench.methods.ours_lm.devices import check_device
-    from ikbench.studies.throughput import parse_batches, parse_dtypes, throughput, write
+    from ikbench.studies.bench import MAX_ROUNDS
+    from ikbench.studies.throughput import (
+        DEFAULT_BATCHES,
+        DEFAULT_DTYPES,
+        parse_batches,
+        parse_dtypes,
+        throughput,
+        write,
+    )
 
     if args.methods is not None or args.only is not None:
         flag = "--methods" if args.methods is not None else "--only"
         raise InputError(f"{flag}: not with --device (the throughput mode times ours-lm on "
                          "batches; batch 7 is the paper's seven)")
-    batches, dtypes = parse_batches(args.batches), parse_dtypes(args.dtypes)
+    batches = parse_batches(args.batches or ",".join(map(str, DEFAULT_BATCHES)))
+    dtypes = parse_dtypes(args.dtypes or ",".join(DEFAULT_DTYPES))
     try:
         repeat = 3 if args.repeat is None else int(args.repeat)
     except ValueError:
-        raise InputError(f"--repeat: {args.repeat!r} must be an integer >= 1 with "
-                         "--device") from None
+        repeat = 0
+    if not 1 <= repeat <= MAX_ROUNDS:
+        raise InputError(f"--repeat: {args.repeat!r} must be an integer from 1 to "
+                         f"{MAX_ROUNDS} with --device")
     device = check_device(args.device)
     assert device is not None, "the throughput mode runs with --device"
     robot = robot_from_args(args)
     check_writable(Path(args.output) / "throughput.csv")  # before the timed rounds
     set_threads(args.threads or 1)
+    begin(args)
     result = throughput(device, batches=batches, dtypes=dtypes, repeat=repeat,
-                        warmup=args.warmup, numpy_max_batch=args.numpy_max_batch,
+                        warmup=args.warmup, numpy_max_batch=args.numpy_max_batch or 10_000,
                         steps=args.steps, targets=args.targets, robot=robot,
                         progress=not args.quiet, threads=args.threads,
                         numba=False if args.no_numba else None)

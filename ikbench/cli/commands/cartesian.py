@@ -6,13 +6,14 @@ import argparse
 from collections.abc import Sequence
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import OUTPUT, THREADS
 
 HELP = "Cartesian path benchmark: methods on the CppFlow/TORM 6-D pose paths, several seeds"
 DEFAULT_OUTPUT = "runs"
 
 
 def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import add_method_options
+    from ikbench.cli.options import add_method_options, add_progress_arguments
     from ikbench.core.problems import BENCHMARK, SHIPPED, shipped_problems
     from ikbench.studies.cartesian import DEFAULT_SEEDS, frame_methods
 
@@ -41,14 +42,14 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--seeds", default=",".join(map(str, DEFAULT_SEEDS)),
                         help="seeds, comma-separated or as ranges (1-5), one solve per "
                         f"method and seed (default {','.join(map(str, DEFAULT_SEEDS))})")
-    parser.add_argument("--output", default=DEFAULT_OUTPUT,
+    parser.add_argument("--output", default=DEFAULT_OUTPUT, type=OUTPUT,
                         help=f"output directory; the study writes OUTPUT/cartesian/ (default "
                         f"{DEFAULT_OUTPUT})")
     parser.add_argument("--trajectories", choices=["first", "all"], default="first",
                         help="trajectory CSVs to write: the first seed's (default) or every "
                         "seed's (a 553-waypoint path is about 100 kB)")
-    parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    parser.add_argument("--threads", type=THREADS, default=1, help="torch threads (default 1)")
+    add_progress_arguments(parser)
     add_method_options(parser, methods)
     parser.set_defaults(func=run)
 
@@ -99,10 +100,17 @@ def run(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
-    from ikbench.cli.options import check_threads, set_threads
+    from ikbench.cli.options import begin, check_threads, set_threads
     from ikbench.core.io import check_folder_writable
     from ikbench.core.problems import BENCHMARK, resolve_problems
-    from ikbench.studies.cartesian import FOLDER, cartesian, parse_methods, parse_seeds, write
+    from ikbench.studies.cartesian import (
+        FOLDER,
+        build_method,
+        cartesian,
+        parse_methods,
+        parse_seeds,
+        write,
+    )
 
     check_threads(args.threads)
     problems = ",".join(args.problems) if args.problems else BENCHMARK
@@ -110,9 +118,12 @@ def run(args: argparse.Namespace) -> int:
     names = parse_methods(args.methods)
     seeds = parse_seeds(args.seeds)
     options = method_settings(args, names)
+    for name in names:  # each method's settings checked before anything runs
+        build_method(name, seeds[0], options.get(name))
     folder = Path(args.output) / FOLDER
     check_folder_writable(folder)
     set_threads(args.threads)
+    begin(args)
     result = cartesian(problems, names, seeds, options, progress=not args.quiet)
     write(result, args.output, command_line(args, problems, seeds), args.trajectories)
     from ikbench.render.cartesian_report import summarise

@@ -6,10 +6,13 @@ import argparse
 import sys
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import OUTPUT, count, duration_s
 
 HELP = "compare methods and libraries on the same robot and tasks: results.csv, leaderboard"
 DEFAULT_METHODS = "ours-lm,ours-exact,sequential-ik"
 DEFAULT_OUTPUT = "runs"
+#: At most this many solves per method and trajectory.
+MAX_REPEAT = 1000
 
 
 def register(subparsers: Subparsers) -> None:
@@ -30,7 +33,8 @@ def register(subparsers: Subparsers) -> None:
             "weight sweep), run.json (the contract, library versions, machine) and one run "
             "folder per method as `ikbench run` writes it. A method that is not installed, "
             "fails or does not honour the contract is a row saying so. Exit code 1 when a "
-            "solve failed or a method refused the tasks or does not honour the contract; "
+            "method is not installed, a solve failed or a method refused the tasks or does "
+            "not honour the contract; "
             "130 on Ctrl-C (OUTPUT/compare/ left unchanged). docs/comparison.md explains "
             "the contract; ikbench methods lists the methods."),
     )
@@ -45,8 +49,9 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--seeds", default=None,
                         help="with --problems: seeds of the start search (default 1,2,3)")
     add_line_task_arguments(parser)
-    parser.add_argument("--repeat", type=int, default=5,
-                        help="solves per method and trajectory; times are medians (default 5)")
+    parser.add_argument("--repeat", type=count("solves", 1, MAX_REPEAT), default=5,
+                        help=f"solves per method and trajectory, 1 to {MAX_REPEAT}; times are "
+                        "medians (default 5)")
     parser.add_argument("--tolerance", default=None, metavar="KEY=VALUE,...",
                         help="change the contract's tolerances: start_pose_deg, end_pose_deg "
                         "[pose units], line_distance_max_mm, pointing_judged_mean_deg, "
@@ -57,7 +62,7 @@ def register(subparsers: Subparsers) -> None:
                         help="judge (and ask for) pointing along the line: auto = on for "
                         "robots whose config names a pointing axis, off for a bare URDF "
                         "(default auto)")
-    parser.add_argument("--duration", type=float, default=2.0,
+    parser.add_argument("--duration", type=duration_s(), default=2.0,
                         help="trajectory duration T [s] the speed limits are judged at "
                         "(segments of T/n; default 2, the paper's)")
     parser.add_argument("--obstacles", default=None, metavar="FILE|NAME|none",
@@ -72,7 +77,7 @@ def register(subparsers: Subparsers) -> None:
     from ikbench.cli.options import add_executor_arguments
 
     add_executor_arguments(parser)
-    parser.add_argument("--output", default=DEFAULT_OUTPUT,
+    parser.add_argument("--output", default=DEFAULT_OUTPUT, type=OUTPUT,
                         help=f"results directory; writes OUTPUT/compare/ (default "
                         f"{DEFAULT_OUTPUT}, which git ignores)")
     add_threads_and_quiet(parser)
@@ -89,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ikbench.cli.options import (
+        begin,
         check_executor_args,
         check_threads,
         executor_from_args,
@@ -115,8 +121,14 @@ def run(args: argparse.Namespace) -> int:
     from ikbench.studies.compare import with_obstacles
 
     targets = with_obstacles(targets, args.obstacles, robot)
+    if args.reference is not None and args.reference not in names:
+        from ikbench.core.errors import InputError
+
+        raise InputError(f"--reference: {args.reference!r} is not among --methods "
+                         f"{', '.join(names)}")
     check_folder_writable(Path(args.output) / "compare")
     set_threads(args.threads)
+    begin(args)
     from ikbench.runtime.harness import Interrupted
 
     try:
@@ -138,11 +150,18 @@ def run(args: argparse.Namespace) -> int:
     print(f"written to {Path(args.output) / 'compare'}/ (leaderboard.md, results.csv, "
           "pareto.png)")
     if result.failed:
-        bad = sorted(set(result.results.loc[result.results["status"].astype(str).str.startswith(
-            ("failed", "refused", "does not honour")), "method"]))
-        print(f"ikbench: {', '.join(bad)}: a solve failed, the tasks were refused or the "
-              "contract is not honoured (see the status column); exit code 1",
-              file=sys.stderr)
+        from ikbench.studies.compare import FAILING
+
+        status = result.results["status"].astype(str)
+        bad = result.results[status.str.startswith(FAILING)]
+        missing = sorted(set(bad.loc[status == "not installed", "method"]))
+        other = sorted(set(bad["method"]) - set(missing))
+        print("ikbench: " + "; ".join(
+            ([f"{', '.join(missing)}: not installed (ikbench methods says what to install)"]
+             if missing else [])
+            + ([f"{', '.join(other)}: a solve failed, the tasks were refused or the contract "
+                "is not honoured (see the status column)"] if other else []))
+            + "; exit code 1", file=sys.stderr)
         return 1
     return 0
 
@@ -164,5 +183,6 @@ def run_problems(args: argparse.Namespace) -> int:
     given = argparse.Namespace(
         problems=args.problems, methods=None if args.methods == "all" else args.methods,
         seeds=args.seeds or ",".join(map(str, DEFAULT_SEEDS)), output=args.output,
-        trajectories="first", threads=args.threads, quiet=args.quiet)
+        trajectories="first", threads=args.threads, quiet=args.quiet,
+        progress_log=args.progress_log)
     return cartesian.run(given)

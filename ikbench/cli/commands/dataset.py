@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import OUTPUT, SEED, STEPS, THREADS, count
 
 HELP = "a training set: N random reachable trajectories (ours-lm) as Parquet shards"
 #: At most this many trajectories (a million took 76 min on one CPU core, docs/scale.md).
@@ -14,7 +15,12 @@ MAX_SHARDS = 100_000
 
 
 def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import add_executor_arguments, add_method_options, add_robot_arguments
+    from ikbench.cli.options import (
+        add_executor_arguments,
+        add_method_options,
+        add_progress_arguments,
+        add_robot_arguments,
+    )
     from ikbench.methods.registry import get_method
     from ikbench.studies.batch import MAX_COUNT as MAX_SHARD_SIZE
     from ikbench.studies.dataset import DEFAULT_SHARD_SIZE
@@ -33,14 +39,16 @@ def register(subparsers: Subparsers) -> None:
             "resume: complete shards are kept. The same seed gives the same files with any "
             "executor and shard order."),
     )
-    parser.add_argument("--count", type=int, default=1000,
+    parser.add_argument("--count", type=count("trajectories", 1, MAX_COUNT), default=1000,
                         help=f"number of trajectories N, at most {MAX_COUNT:,} and "
                         f"{MAX_SHARDS:,} shards (default 1000)")
-    parser.add_argument("--seed", type=int, default=0,
+    parser.add_argument("--seed", type=SEED, default=0,
                         help="seed, an integer in [0, 2^63) (default 0)")
-    parser.add_argument("--steps", type=int, default=50,
+    parser.add_argument("--steps", type=STEPS, default=50,
                         help="number of segments n per trajectory (default 50)")
-    parser.add_argument("--shard-size", type=int, default=DEFAULT_SHARD_SIZE,
+    parser.add_argument("--shard-size", type=count("trajectories", 1, MAX_SHARD_SIZE,
+                                                   "one shard is one batch in memory"),
+                        default=DEFAULT_SHARD_SIZE,
                         help="trajectories per shard and per batched solve, at most "
                         f"{MAX_SHARD_SIZE:,} (default {DEFAULT_SHARD_SIZE}; on a GPU larger "
                         "shards, e.g. 100000, run faster)")
@@ -48,11 +56,11 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--targets", default=None,
                         help="targets JSON file whose start pose is used (default: the "
                         "robot's, NICO: the paper's)")
-    parser.add_argument("--output", default="runs/dataset",
+    parser.add_argument("--output", default="runs/dataset", type=OUTPUT,
                         help="dataset folder (default: runs/dataset, which git ignores)")
-    parser.add_argument("--threads", type=int, default=1,
+    parser.add_argument("--threads", type=THREADS, default=1,
                         help="torch threads for --device cpu (default 1)")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_progress_arguments(parser)
     add_executor_arguments(parser)
     add_method_options(parser, {"ours-lm": get_method("ours-lm")})
     parser.set_defaults(func=run)
@@ -62,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ikbench.cli.options import (
+        begin,
         check_executor_args,
         check_threads,
         executor_from_args,
@@ -80,8 +89,12 @@ def run(args: argparse.Namespace) -> int:
     cls = get_method("ours-lm")
     solver = method_from_args(args, cls, {"ours-lm": cls})
     robot = robot_from_args(args)
+    from ikbench.core.targets import load_targets
+
+    load_targets(args.targets, robot)  # its start pose is used: checked up front
     check_writable(Path(args.output) / MANIFEST)  # before sampling and solving
     set_threads(args.threads)
+    begin(args)
     report = build_dataset(args.count, seed=args.seed, steps=args.steps,
                            shard_size=args.shard_size, lm_settings=solver.settings,
                            targets=args.targets, robot=robot, output=args.output,

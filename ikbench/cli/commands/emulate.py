@@ -6,6 +6,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import INPUT_FILE, OUTPUT, Number
 
 if TYPE_CHECKING:
     from ikbench.hw.emulator import Fault
@@ -27,7 +28,7 @@ def register(subparsers: Subparsers) -> None:
             "Example: ikbench emulate --fault drop:5:read"
         ),
     )
-    parser.add_argument("--motors", metavar="FILE",
+    parser.add_argument("--motors", metavar="FILE", type=INPUT_FILE,
                         help="motor config JSON (default: the robot's, NICO's right arm)")
     from ikbench.cli.options import add_robot_arguments
 
@@ -35,7 +36,8 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--pose", metavar="DEG,...",
                         help="start pose: 7 comma-separated motor angles (default: the paper's "
                         "start pose); write --pose=-24,... for a leading minus")
-    parser.add_argument("--missing", type=int, action="append", default=[], metavar="ID",
+    parser.add_argument("--missing", type=Number("a motor id", 0, 253, integer=True),
+                        action="append", default=[], metavar="ID",
                         help="a motor id that never answers, as if unplugged (repeatable)")
     parser.add_argument("--fault", action="append", default=[],
                         metavar="KIND[:ID[:INSTRUCTION[:AFTER]]]",
@@ -43,10 +45,12 @@ def register(subparsers: Subparsers) -> None:
                         "(bad checksum) or error (overload bit set); ID a motor id or *; "
                         "INSTRUCTION ping, read, write or *; AFTER how many matching status "
                         "packets pass first (default 0). Example: error:31:write")
-    parser.add_argument("--log", metavar="OUT.csv",
+    parser.add_argument("--log", metavar="OUT.csv", type=OUTPUT,
                         help="write the packet log (t_s, direction, id, instruction, bytes, "
                         "note) when stopping")
-    parser.add_argument("--for", dest="seconds", type=float, metavar="SECONDS",
+    parser.add_argument("--for", dest="seconds", type=Number("a time [s]", 0, 7 * 86400.0,
+                                                            low_open=True),
+                        metavar="SECONDS",
                         help="stop after this many seconds (default: run until Ctrl-C)")
     parser.set_defaults(func=run)
 
@@ -92,10 +96,11 @@ def run(args: argparse.Namespace) -> int:
     if unknown:
         raise InputError(f"--missing {unknown[0]} is not a motor id; ids: {list(config.ids)}")
     faults = [parse_fault(text) for text in args.fault]
-    if args.seconds is not None and not args.seconds > 0:
-        raise InputError(f"--for {args.seconds:g}; give a positive number of seconds")
     if args.log:
         check_writable(args.log)  # before serving, not when stopping
+    from ikbench.cli.options import begin
+
+    begin(args)
 
     stop = threading.Event()
     handlers = {}

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 
 from ikbench.cli.commands import Subparsers
 from ikbench.cli.commands.plan import add_plan_arguments, check_timing_args, timing_from_args
+from ikbench.cli.values import OUTPUT
 
 HELP = "play a trajectory on the arm's Dynamixel servos (Protocol 1.0) or an emulator"
 
@@ -34,7 +36,7 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--dry-run", action="store_true",
                         help="ping the motors, read the present pose and check the start, but "
                         "write nothing to the bus")
-    parser.add_argument("--record", metavar="OUT.csv",
+    parser.add_argument("--record", metavar="OUT.csv", type=OUTPUT,
                         help="write the present poses read back (time_s, phase, joints in motor "
                         "deg) to this CSV")
     parser.add_argument("--record-rate", type=float, default=0.0, metavar="HZ",
@@ -83,7 +85,12 @@ def run(args: argparse.Namespace) -> int:
     if note:
         print(note)
     plan.check_executable()
+    if args.port != EMULATOR_PORT and os.path.isdir(args.port):
+        raise InputError(f"--port: {args.port!r} is a directory; give a serial port such as "
+                         f"/dev/ttyUSB0 or '{EMULATOR_PORT}'")
+    from ikbench.cli.options import begin
 
+    begin(args)
     emulator = None
     port = args.port
     if port == EMULATOR_PORT:
@@ -92,9 +99,6 @@ def run(args: argparse.Namespace) -> int:
         emulator = Emulator(config, plan.poses_motor_deg[0])
         port = emulator.start()
         print(f"emulator on {port}: {len(config.motors)} servos at the first pose")
-    elif not port:
-        raise InputError("--port is empty; give a serial port such as /dev/ttyUSB0 or "
-                         f"'{EMULATOR_PORT}'")
 
     stop = threading.Event()
     previous = _install_sigint(stop)

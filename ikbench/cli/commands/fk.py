@@ -36,7 +36,7 @@ def register(subparsers: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ikbench.cli.options import robot_from_args
+    from ikbench.cli.options import begin, robot_from_args
     from ikbench.core.targets import load_targets, parse_pose
 
     robot = robot_from_args(args)
@@ -44,6 +44,7 @@ def run(args: argparse.Namespace) -> int:
         pose = load_targets(None, robot).start_pose_deg
     else:
         pose = parse_pose(args.pose, robot, "--pose")
+    begin(args)
     result = robot.fk(pose, backend=args.backend)
     point = [float(v) for v in result.point_mm[0]]
     direction = [float(v) for v in result.direction[0]]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import OUTPUT, Number
 
 HELP = ("single-pose IK benchmark: success rate and time per call of every library on a robot, "
         "under one protocol (budget, initial configurations, attempts)")
@@ -13,10 +14,12 @@ DEFAULT_OUTPUT = "runs"
 
 #: The default budget [ms] (ikbench.studies.ik.BUDGET_MS; not imported: the CLI starts light).
 BUDGET_MS = 5.0
+#: --budget-ms: more than 0 ms, at most an hour, or inf (no budget).
+BUDGET = Number("a budget [ms]", 0.0, 3_600_000.0, low_open=True, infinite="no budget")
 
 
 def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import add_robot_arguments
+    from ikbench.cli.options import add_progress_arguments, add_robot_arguments
 
     parser = subparsers.add_parser(
         "ik", help=HELP,
@@ -41,7 +44,7 @@ def register(subparsers: Subparsers) -> None:
                         help="comma-separated methods (default: every installed one: ours-lm, "
                         "rtb-lm, trac-ik, rtb-nr, sequential-ik, pink, mink, drake-ik, pyroki, "
                         "ikpy)")
-    parser.add_argument("--budget-ms", type=float, default=BUDGET_MS,
+    parser.add_argument("--budget-ms", type=BUDGET, default=BUDGET_MS,
                         help="wall-clock budget per target [ms], the same for every method; "
                         f"inf: none (default {BUDGET_MS:g}: TRAC-IK's default timeout)")
     parser.add_argument("--attempts", default="auto", metavar="auto|N[,...]",
@@ -67,10 +70,10 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--max-count-per-method", default=None, metavar="METHOD=N,...",
                         help="solve only the first N targets with METHOD (slow libraries, "
                         "e.g. ikpy=500); the leaderboard says so")
-    parser.add_argument("--output", default=DEFAULT_OUTPUT,
+    parser.add_argument("--output", default=DEFAULT_OUTPUT, type=OUTPUT,
                         help=f"output directory; writes OUTPUT/ik/<robot>/ (default "
                         f"{DEFAULT_OUTPUT})")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_progress_arguments(parser)
     parser.set_defaults(func=run)
 
 
@@ -118,15 +121,17 @@ def command_line(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import robot_from_args
+    from ikbench.cli.options import begin, robot_from_args
     from ikbench.core.io import check_folder_writable
     from ikbench.render.ik_report import summarise
     from ikbench.studies.ik import (
         FOLDER,
         IKSettings,
+        check_memory,
         parse_attempts,
         parse_methods,
         robot_slug,
+        rule_rows,
         run_ik,
         write,
     )
@@ -140,6 +145,9 @@ def run(args: argparse.Namespace) -> int:
     robot.check_loads()
     folder = Path(args.output) / FOLDER / robot_slug(robot)
     check_folder_writable(folder)
+    check_memory(settings.count, len(names) * len(settings.attempts),
+                 max(rule_rows(rule) for rule in settings.attempts), robot.dof)
+    begin(args)
     result = run_ik(robot, settings, names, progress=not args.quiet)
     write(result, args.output, command_line(args))
     summary = summarise(result.table, result.batches)

@@ -5,13 +5,19 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import STEPS, Text
 
 HELP = "draw letters A-Z in the air with the end point (the paper's letter experiment)"
 DEFAULT_OUTPUT = "runs/letters"
 
 
 def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.commands.run import add_run_arguments, add_start_pose_argument
+    from ikbench.cli.commands.run import (
+        LETTER_SIZE_MM,
+        add_method_and_output,
+        add_solve_arguments,
+        add_start_pose_argument,
+    )
     from ikbench.cli.options import add_robot_arguments
     from ikbench.core.letters import DEFAULT_STEPS, PAPER_ITERATIONS, PAPER_START_POSE_DEG
     from ikbench.methods.registry import available_methods
@@ -35,18 +41,33 @@ def register(subparsers: Subparsers) -> None:
             f"{DEFAULT_OUTPUT}/ours/): trajectory_<letter>.csv, table.csv, details.csv, "
             "run.json, shapes.png, animation.gif (unless --no-animation) and report.md."),
     )
-    parser.add_argument("letters", help="letters A-Z, comma-separated, e.g. P or P,A,S "
+    parser.add_argument("letters", type=letters_value,
+                        help="letters A-Z, comma-separated, e.g. P or P,A,S "
                         "(lower case is drawn upper case)")
+    add_method_and_output(parser, methods, DEFAULT_OUTPUT, folder="<method>")
     add_robot_arguments(parser)
-    parser.add_argument("--size", type=float, default=None,
+    parser.add_argument("--size", type=LETTER_SIZE_MM, default=None,
                         help="letter height [mm] (default 300)")
     parser.add_argument("--direction", default=None,
                         help="goal pointing directions: normal (default), tangent or x,y,z")
     add_start_pose_argument(parser, f"the robot's letter pose; NICO: the paper's {pose}")
-    parser.add_argument("--steps", type=int, default=None,
+    parser.add_argument("--steps", type=STEPS, default=None,
                         help=f"number of segments n per letter (default {DEFAULT_STEPS})")
-    add_run_arguments(parser, methods, DEFAULT_OUTPUT, folder="<method>")
+    add_solve_arguments(parser, methods)
     parser.set_defaults(func=run, targets=None, only=None)
+
+
+def letters_value(text: str) -> str:
+    """The LETTERS argument checked (argparse ``type``): comma-separated letters A-Z."""
+    from ikbench.core.errors import InputError
+    from ikbench.core.letters import parse_letters
+
+    text = Text("letters A-Z, comma-separated")(text)
+    try:
+        parse_letters(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
 
 
 def run(args: argparse.Namespace) -> int:

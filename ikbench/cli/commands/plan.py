@@ -6,6 +6,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import INPUT_FILE, OUTPUT, PathValue, duration_s
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -18,6 +19,8 @@ if TYPE_CHECKING:
 HELP = "segment table of a trajectory: joint speeds [motor deg/s] and limit flags"
 
 DEFAULT_DURATION_S = 2.0
+#: A trajectory CSV to read.
+TRAJECTORY_CSV = PathValue("a trajectory CSV", must_exist="file")
 
 
 def register(subparsers: Subparsers) -> None:
@@ -33,9 +36,10 @@ def register(subparsers: Subparsers) -> None:
         ),
     )
     add_plan_arguments(parser)
-    parser.add_argument("--out", metavar="CSV",
+    parser.add_argument("--out", metavar="CSV", type=OUTPUT,
                         help="segment table CSV to write (default: TRAJ with suffix .plan.csv)")
     parser.add_argument("--figure", nargs="?", const="", default=None, metavar="PNG",
+                        type=OUTPUT,
                         help="also draw joint speeds and fingertip speed against time for the "
                         "three timings (default file: TRAJ with suffix .timing.png)")
     parser.set_defaults(func=run)
@@ -43,13 +47,14 @@ def register(subparsers: Subparsers) -> None:
 
 def add_plan_arguments(parser: argparse.ArgumentParser) -> None:
     """The trajectory, --duration and --motors options shared with ``ikbench execute``."""
-    parser.add_argument("trajectory", metavar="TRAJ.csv",
+    parser.add_argument("trajectory", metavar="TRAJ.csv", type=TRAJECTORY_CSV,
                         help="trajectory CSV (columns step, time_s, joint angles in motor deg, "
                         "...), as written by ikbench")
-    parser.add_argument("--duration", type=float, default=DEFAULT_DURATION_S, metavar="T",
+    parser.add_argument("--duration", type=duration_s(), default=DEFAULT_DURATION_S,
+                        metavar="T",
                         help=f"duration of the whole movement in seconds (default: "
                         f"{DEFAULT_DURATION_S:g}, the paper's)")
-    parser.add_argument("--motors", metavar="FILE",
+    parser.add_argument("--motors", metavar="FILE", type=INPUT_FILE,
                         help="motor config JSON: Dynamixel id, model, offset, orientation and "
                         "angle limits per joint (default: the robot's, NICO's right arm; see "
                         "docs/hardware.md)")
@@ -102,7 +107,7 @@ def check_timing_args(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ikbench.cli.options import robot_from_args
+    from ikbench.cli.options import begin, robot_from_args
     from ikbench.core.io import atomic_write_csv, check_writable
     from ikbench.hw.motors import load_motor_config
     from ikbench.hw.plan import plan_trajectory_file
@@ -119,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
     if args.figure is not None:
         figure = args.figure or _default_out(args.trajectory, ".timing.png")
         check_writable(figure)
+    begin(args)
     atomic_write_csv(out, plan.table(), float_format="%.10g")
     print(format_plan(plan))
     if note:

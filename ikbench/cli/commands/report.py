@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import PathValue
 
 HELP = "compare the runs in DIR (ours vs each sequential-ik run); write DIR/report.md"
 
@@ -25,14 +26,25 @@ def register(subparsers: Subparsers) -> None:
             "DIR/pointing_deviation_per_step.png."
         ),
     )
-    parser.add_argument("dir", metavar="DIR",
+    parser.add_argument("dir", metavar="DIR", type=PathValue("a folder of runs",
+                                                             must_exist="dir"),
                         help="the --output directory of the runs (e.g. results)")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from ikbench.cli.options import begin
+    from ikbench.core.errors import OutputError
+    from ikbench.core.io import check_writable
     from ikbench.paper.comparison import write_comparison_report
 
+    try:
+        check_writable(Path(args.dir) / "report.md")  # before reading every run
+    except OutputError as exc:
+        raise OutputError(f"dir: {exc}") from None
+    begin(args)
     path = write_comparison_report(args.dir)
     print(f"written {path}")
     return 0

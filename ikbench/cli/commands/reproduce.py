@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import OUTPUT
 
 HELP = ("regenerate Tables 1 and 2, the comparison, the ablation, all figures and "
         "results/README.md")
@@ -30,7 +31,7 @@ def register(subparsers: Subparsers) -> None:
             "takes a few minutes on 2 cores."
         ),
     )
-    parser.add_argument("--output", default=None,
+    parser.add_argument("--output", default=None, type=OUTPUT,
                         help="results directory (default: results; results-quick with "
                         "--quick)")
     parser.add_argument("--quick", action="store_true",
@@ -61,20 +62,22 @@ def register(subparsers: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ikbench.cli.options import check_threads, set_threads
+    from ikbench.cli.options import begin, check_threads, set_threads
+    from ikbench.core.errors import InputError
+    from ikbench.paper.reproduce import check_output, reproduce
 
     if args.docs:
+        begin(args)
         return render_docs()
     if args.all or args.plan:
         return run_all(args)
     if args.only or args.force or args.allow_dirty:
-        from ikbench.core.errors import InputError
-
         raise InputError("--only, --force and --allow-dirty go with --all (or --plan)")
-    from ikbench.paper.reproduce import reproduce
 
     check_threads(args.threads)
+    check_output(args.output, args.quick)
     set_threads(args.threads)
+    begin(args)
     times = reproduce(args.output, quick=args.quick, progress=not args.quiet)
     width = max(map(len, times))
     for stage, seconds in times.items():
@@ -84,9 +87,12 @@ def run(args: argparse.Namespace) -> int:
 
 def run_all(args: argparse.Namespace) -> int:
     """``reproduce --all`` / ``--plan``: the regeneration plan (:mod:`ikbench.paper.regenerate`)."""
-    from ikbench.paper.regenerate import regenerate
+    from ikbench.cli.options import begin
+    from ikbench.paper.regenerate import plan, regenerate
 
     only = [s.strip() for s in args.only.split(",") if s.strip()] if args.only else None
+    plan(only)  # an unknown study is refused before anything runs
+    begin(args)
     times = regenerate(args.output or "results", only=only, force=args.force,
                        allow_dirty=args.allow_dirty, dry_run=args.plan)
     for study, seconds in times.items():

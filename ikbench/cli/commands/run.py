@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import OUTPUT, STEPS, Number, Text, duration_s
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -28,6 +29,10 @@ PROBLEM_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "position_e
 DEFAULT_METHOD = "ours"
 DEFAULT_OUTPUT = "runs"
 DEFAULT_ROBOT = "nico_right_arm"
+#: The console table's name of duration_s when it is a share of one batched solve.
+BATCH_SHARE_COLUMN = "duration_s (batch share)"
+#: A letter's height.
+LETTER_SIZE_MM = Number("a letter height [mm]", 1.0, 10_000.0)
 
 
 def register(subparsers: Subparsers) -> None:
@@ -46,14 +51,11 @@ def register(subparsers: Subparsers) -> None:
             "--no-animation skips it) and report.md. The folder is replaced whole: files an "
             "earlier run wrote there and this one does not are removed, other files are kept. A "
             "failed solve is reported as a row (exit code 1); Ctrl-C keeps the trajectories "
-            "solved so far. Methods: " + "; ".join(f"{name}: {cls.description}"
-                                                   for name, cls in methods.items())
-            + " (ikbench methods lists them all, with those not installed)."),
+            "solved so far. Methods: " + ", ".join(methods) + " (ikbench methods lists them "
+            "all, with those not installed; ikbench methods NAME gives one's options)."),
     )
-    add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3",
-                       start_pose_default="the targets file's")
-    add_run_arguments(parser, methods, DEFAULT_OUTPUT)
-    parser.add_argument("--name", default=None,
+    add_method_and_output(parser, methods, DEFAULT_OUTPUT)
+    parser.add_argument("--name", default=None, type=Text("a run name", max_chars=200),
                         help="folder under OUTPUT for this run (default: the method's name), "
                         "e.g. sequential-ik-position; letters, digits, '_', '-', '.'")
     parser.add_argument("--problem", default=None, metavar="FILE.yaml|NAME",
@@ -63,6 +65,9 @@ def register(subparsers: Subparsers) -> None:
                         "or a shipped one (fetch_arm__hello, ...); writes "
                         "trajectory_<problem>.csv with the end frame's quaternion, and a table "
                         "of pose errors, joint changes, path lengths and CppFlow's validity")
+    add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3",
+                       start_pose_default="the targets file's")
+    add_solve_arguments(parser, methods)
     parser.set_defaults(func=run)
 
 
@@ -82,14 +87,14 @@ def add_task_arguments(parser: argparse.ArgumentParser, only_help: str,
                         "(CSV of x,y,z control points [mm], base frame), or letter:X[,Y...] "
                         "(letters A-Z, lower case drawn as upper case, on the robot's letter "
                         "plane through the end point at the start pose, one trajectory each)")
-    parser.add_argument("--size", type=float, default=None,
+    parser.add_argument("--size", type=LETTER_SIZE_MM, default=None,
                         help="letter height [mm] (default 300)")
     parser.add_argument("--direction", default=None,
                         help="goal pointing directions: tangent (default for line, polyline, "
                         "spline), normal (of the drawing plane; default for letters) or a "
                         "vector x,y,z")
     add_start_pose_argument(parser, start_pose_default)
-    parser.add_argument("--steps", type=int, default=None,
+    parser.add_argument("--steps", type=STEPS, default=None,
                         help="number of segments n, 2..5000 (default: the targets file's, 50, "
                         "for lines; 100 for other shapes)")
 
@@ -100,20 +105,26 @@ def add_start_pose_argument(parser: argparse.ArgumentParser, default: str) -> No
                         f"(default: {default}); write --start-pose=-24,... for a leading minus")
 
 
-def add_run_arguments(parser: argparse.ArgumentParser, methods: dict, default_output: str,
-                      folder: str = "<method> (or --name)") -> None:
-    """--method, output options and every method's own options (shared with ``letters``);
-    ``folder``: the run folder's name under OUTPUT, in words for the help."""
-    from ikbench.cli.options import add_method_options, add_threads_and_quiet
-
+def add_method_and_output(parser: argparse.ArgumentParser, methods: dict, default_output: str,
+                          folder: str = "<method> (or --name)") -> None:
+    """--method and --output, the first options of ``run`` and ``letters``; ``folder``: the
+    run folder's name under OUTPUT, in words for the help."""
     parser.add_argument("--method", default=DEFAULT_METHOD,
                         help=f"one of: {', '.join(methods)} (default: {DEFAULT_METHOD})")
-    parser.add_argument("--output", default=default_output,
+    parser.add_argument("--output", default=default_output, type=OUTPUT,
                         help=f"directory of the run folder: writes OUTPUT/{folder}/ (default: "
                         f"{default_output}, which git ignores, so {default_output}/<method>/; "
                         "ikbench reproduce writes results/)")
-    parser.add_argument("--duration", type=float, default=2.0,
-                        help="movement duration T [s] for the time_s column (default 2)")
+
+
+def add_solve_arguments(parser: argparse.ArgumentParser, methods: dict) -> None:
+    """--duration, --no-animation, --timing, --threads, progress options and every method's
+    own options (shown by --help-methods; shared with ``letters``)."""
+    from ikbench.cli.options import add_method_options, add_threads_and_quiet
+
+    parser.add_argument("--duration", type=duration_s(), default=2.0,
+                        help="movement duration T [s] for the time_s column, 0.001 to 3600 "
+                        "(default 2)")
     parser.add_argument("--no-animation", action="store_true",
                         help="do not write animation.gif (the arm playing each trajectory; "
                         "1-3 s for seven trajectories)")
@@ -123,6 +134,11 @@ def add_run_arguments(parser: argparse.ArgumentParser, methods: dict, default_ou
                         "trajectory files keep their poses (default constant; docs/timing.md)")
     add_threads_and_quiet(parser)
     add_method_options(parser, methods)
+
+
+def _seconds(value: float) -> str:
+    """A time [s] in 3 significant digits (0.000312, not 0.000)."""
+    return f"{value:.3g}"
 
 
 def lowercase_letters_note(shape: str) -> str | None:
@@ -137,7 +153,13 @@ def run(args: argparse.Namespace, shape: str | None = None, fixed: dict | None =
     """Validate everything, then solve and write; ``fixed``: method settings on top."""
     import sys
 
-    from ikbench.cli.options import check_threads, method_from_args, robot_from_args, set_threads
+    from ikbench.cli.options import (
+        begin,
+        check_threads,
+        method_from_args,
+        robot_from_args,
+        set_threads,
+    )
     from ikbench.core.targets import parse_pose
     from ikbench.methods.registry import available_methods, get_method
     from ikbench.studies.run import check_name, prepare
@@ -154,10 +176,6 @@ def run(args: argparse.Namespace, shape: str | None = None, fixed: dict | None =
     name = getattr(args, "name", None)
     if name is not None:
         check_name(name)
-    if not args.duration > 0:
-        from ikbench.core.errors import InputError
-
-        raise InputError(f"--duration: {args.duration!r} must be a positive number of seconds")
     shape = shape or args.shape
     cls = get_method(args.method)
     solver = method_from_args(args, cls, available_methods(), **(fixed or {}))
@@ -175,6 +193,7 @@ def run(args: argparse.Namespace, shape: str | None = None, fixed: dict | None =
     if note:
         print(note, file=sys.stderr)
     set_threads(args.threads)
+    begin(args)
     record = {"shape": shape, "direction": args.direction, "duration_s": args.duration,
               "name": name, "size_mm": args.size, "timing": args.timing}
     return solve_write_report(solver, robot, targets, tasks, folder, record, args.quiet,
@@ -200,14 +219,14 @@ def solve_write_report(solver: Method, robot: Robot, targets: Targets, tasks: Se
             print(f"ikbench: interrupted before any trajectory was solved; {folder}/ is "
                   "unchanged", file=sys.stderr)
         return 130
-    return report_table(table, folder)
+    return report_table(table, folder, batch=len(tasks) if solver.batched else None)
 
 
 def run_problem(args: argparse.Namespace, fixed: dict | None = None) -> int:
     """``run --problem``: validate, solve the problem's pose path, write, print the table."""
     from pathlib import Path
 
-    from ikbench.cli.options import method_from_args, set_threads
+    from ikbench.cli.options import begin, method_from_args, set_threads
     from ikbench.core.io import check_folder_writable
     from ikbench.methods.registry import available_methods, get_method
     from ikbench.studies.run import check_name, check_problem_options, prepare_problem
@@ -218,10 +237,6 @@ def run_problem(args: argparse.Namespace, fixed: dict | None = None) -> int:
     name = getattr(args, "name", None)
     if name is not None:
         check_name(name)
-    if not args.duration > 0:
-        from ikbench.core.errors import InputError
-
-        raise InputError(f"--duration: {args.duration!r} must be a positive number of seconds")
     cls = get_method(args.method)
     solver = method_from_args(args, cls, available_methods(), **(fixed or {}))
     robot = None if args.robot == DEFAULT_ROBOT else args.robot
@@ -229,19 +244,28 @@ def run_problem(args: argparse.Namespace, fixed: dict | None = None) -> int:
     folder = Path(args.output) / (name or solver.name)
     check_folder_writable(folder)
     set_threads(args.threads)
+    begin(args)
     record = {**record, "direction": None, "duration_s": args.duration, "name": name,
               "timing": args.timing}
     return solve_write_report(solver, robot, targets, tasks, folder, record, args.quiet,
                               animation=not args.no_animation)
 
 
-def report_table(table: pd.DataFrame, folder: Path) -> int:
-    """Print a run's table and where it went; exit code 1 when a solve failed."""
+def report_table(table: pd.DataFrame, folder: Path, batch: int | None = None) -> int:
+    """Print a run's table and where it went; exit code 1 when a solve failed. ``batch``: the
+    trajectories a batched method solved in one call (their times are shares of it)."""
     import sys
 
     columns = (PROBLEM_COLUMNS if "position_error_max_mm" in table else
                LINE_COLUMNS if "line_distance_mean_mm" in table else SHAPE_COLUMNS)
-    print(table[columns].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    shown = table[columns]
+    if batch and batch > 1:
+        shown = shown.rename(columns={"duration_s": BATCH_SHARE_COLUMN})
+    print(shown.to_string(index=False, float_format=lambda v: f"{v:.3f}",
+                          formatters={"duration_s": _seconds, BATCH_SHARE_COLUMN: _seconds}))
+    if batch and batch > 1:
+        print(f"{BATCH_SHARE_COLUMN}: the {batch} trajectories were solved in one batched call "
+              f"of {table['duration_s'].sum():.3g} s; each row shows its equal share")
     print(f"written to {folder}/")
     failed = table["trajectory"][table[columns[4]].isna()].tolist()
     if failed:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import MAX_LIST_CHARS, OUTPUT, Text
 
 HELP = ("solve the targets or a shape for a grid of loss weights (ours-lm or ours-exact); "
         "CSV, Pareto figure")
@@ -34,16 +35,17 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--method", default="ours-lm", choices=("ours-lm", "ours-exact"),
                         help="the method swept (default ours-lm)")
     parser.add_argument("--weight", action="append", metavar="TERM=V1,V2,...",
+                        type=Text("a term and its values", max_chars=MAX_LIST_CHARS),
                         help="a term of the grid and its values, e.g. --weight c0=1,10,100,1000 "
                         "(repeat for a grid over several terms: --weight c1=5,50)")
     add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3 (line only)",
                        start_pose_default=f"the targets file's; for letters the robot's "
                        f"letter pose, NICO: the paper's {pose}")
-    parser.add_argument("--output", default="runs/sweep",
+    parser.add_argument("--output", default="runs/sweep", type=OUTPUT,
                         help="output directory (default: runs/sweep, which git ignores)")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    from ikbench.cli.options import add_executor_arguments
+    from ikbench.cli.options import add_executor_arguments, add_progress_arguments
 
+    add_progress_arguments(parser)
     add_executor_arguments(parser)
     parser.set_defaults(func=run)
 
@@ -51,17 +53,33 @@ def register(subparsers: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import check_executor_args, executor_from_args, robot_from_args
+    from ikbench.cli.options import (
+        begin,
+        check_executor_args,
+        executor_from_args,
+        robot_from_args,
+    )
     from ikbench.core.io import check_writable
     from ikbench.core.targets import parse_pose
-    from ikbench.studies.sweep import measures_of, parse_grid, sweep, write
+    from ikbench.studies.sweep import (
+        check_grid_size,
+        measures_of,
+        parse_grid,
+        sweep,
+        sweep_tasks,
+        write,
+    )
 
     check_executor_args(args)
     grid = parse_grid(args.weight)
     robot = robot_from_args(args)
     start_pose = None if args.start_pose is None else parse_pose(args.start_pose, robot,
                                                                  "--start-pose")
+    _, tasks, _ = sweep_tasks(robot, args.targets, args.shape, args.only, args.steps,
+                              args.size, start_pose, args.direction)
+    check_grid_size(grid, tasks, robot.dof)  # tasks and grid size checked before anything runs
     check_writable(Path(args.output) / "sweep.csv")  # before the solve, not after it
+    begin(args)
     result = sweep(grid, targets=args.targets, only=args.only, steps=args.steps,
                    shape=args.shape, size_mm=args.size, start_pose=start_pose,
                    direction=args.direction, progress=not args.quiet, robot=robot,

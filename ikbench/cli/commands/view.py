@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import re
 from typing import TYPE_CHECKING
 
 from ikbench.cli.commands import Subparsers
+from ikbench.cli.values import Number, PathValue, Text, duration_s
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -31,17 +33,20 @@ def register(subparsers: Subparsers) -> None:
             " See docs/viewer.md."),
     )
     parser.add_argument("folders", nargs="+", metavar="RUN_DIR",
+                        type=PathValue("a run folder", must_exist="dir"),
                         help="run folders (OUTPUT/NAME/ with run.json), e.g. results/ours")
-    parser.add_argument("--port", type=int, default=8080,
+    parser.add_argument("--port", type=Number("a TCP port", 0, 65535, integer=True,
+                                              shown="from 0 to 65535"),
+                        default=8080,
                         help="TCP port (default 8080; the next free one if it is taken; 0: any)")
-    parser.add_argument("--host", default="127.0.0.1",
+    parser.add_argument("--host", default="127.0.0.1", type=host_value,
                         help="interface to listen on (default 127.0.0.1, this machine only; "
                         "0.0.0.0: every interface)")
     parser.add_argument("--no-browser", action="store_true",
                         help="do not open a browser (e.g. on a server; open the URL printed)")
     parser.add_argument("--trajectory", default=None, metavar="ID",
                         help="trajectory shown first (default: the first)")
-    parser.add_argument("--duration", type=float, default=None, metavar="T",
+    parser.add_argument("--duration", type=duration_s(), default=None, metavar="T",
                         help="duration of each movement in seconds for --timing constant and "
                         "min-jerk (default: each trajectory's own, its time_s column)")
     from ikbench.cli.commands.plan import add_timing_arguments
@@ -50,25 +55,34 @@ def register(subparsers: Subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+def host_value(text: str) -> str:
+    """The --host argument checked (argparse ``type``): a host name or an IP address."""
+    text = Text("a host name or IP address", max_chars=253)(text)
+    if not re.fullmatch(r"[A-Za-z0-9.:_\-\[\]%]+", text):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a host name or IP address (e.g. "
+                                         "127.0.0.1, 0.0.0.0, localhost)")
+    return text
+
+
 def run(args: argparse.Namespace) -> int:
     from ikbench.cli.commands.plan import check_timing_args
     from ikbench.core.errors import InputError
     from ikbench.viewer.folders import check_folders, load_runs
 
-    if not 0 <= args.port <= 65535:
-        raise InputError(f"--port: {args.port} is not a port number (0-65535)")
     check_timing_args(args)
-    if args.duration is not None and not (args.duration > 0 and args.duration < float("inf")):
-        raise InputError(f"--duration {args.duration:g}; give a positive number of seconds")
     check_folders(args.folders)
     try:
         import viser  # noqa: F401
     except ImportError:
         raise InputError(f"ikbench view needs viser, which is not installed: {INSTALL}") from None
-    from ikbench.viewer.server import run_forever
+    from ikbench.viewer.server import check_trajectory, run_forever
 
     robot, runs = load_runs(args.folders)
     retime_runs(robot, runs, args)
+    check_trajectory(runs, args.trajectory)
+    from ikbench.cli.options import begin
+
+    begin(args)
     run_forever(robot, runs, port=args.port, host=args.host, open_browser=not args.no_browser,
                 trajectory=args.trajectory)
     return 0

@@ -1,0 +1,181 @@
+"""Progress of long commands: a bar a person can read, machine-readable lines, or nothing.
+
+A study reports through a :class:`Reporter`: ``advance`` counts units of work (solves, shards,
+rounds) towards ``total``, ``say`` tells what is happening now, ``note`` a line that must stay
+(a failure). Where it goes is set once per process by :func:`configure` (the CLI does it from
+``--quiet`` and ``--log``):
+
+- ``bar``: a tqdm progress bar on stderr with the count, rate and ETA, ``say`` as its status;
+  the CLI's choice when stderr is a terminal.
+- ``lines``: ``[label] text`` lines on stderr, at most one a second besides the notes; the
+  default for library calls (``ikbench.run(..., progress=True)`` in a script).
+- ``off``: nothing (``--quiet``, and the CLI's choice when stderr is not a terminal).
+
+With a log stream (``--log FILE``) every event is also one JSON object per line: ``t_s``
+(seconds since the reporter started), ``label``, ``event`` (``say``, ``advance``, ``note``,
+``close``), ``done``, ``total``, ``text``; ``advance`` events at most every
+:data:`LOG_EVERY_S` seconds (and always the last one), every other event as it comes.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from typing import Any, TextIO
+
+MODES = ("bar", "lines", "off")
+#: Plain lines and logged updates at most this often [s] (notes and the last update always).
+LINES_EVERY_S = 1.0
+LOG_EVERY_S = 0.5
+
+_config: dict[str, Any] = {"mode": "lines", "log": None, "owned": False}
+
+
+def configure(mode: str = "lines", log: TextIO | None = None, owned: bool = False) -> None:
+    """Where every :class:`Reporter` of this process writes (see the module docstring);
+    ``owned``: the log is a file opened for this, closed by :func:`reset`."""
+    if mode not in MODES:
+        raise ValueError(f"progress mode {mode!r} is not one of {', '.join(MODES)}")
+    _config.update(mode=mode, log=log, owned=owned)
+
+
+def reset() -> None:
+    """Back to the library default (``lines``, no log), closing a log file it owns (the CLI
+    calls it when a command ends)."""
+    if _config["owned"] and _config["log"] is not None:
+        _config["log"].close()
+    configure()
+
+
+def mode() -> str:
+    """The mode :func:`configure` set (``lines`` unless it was called)."""
+    return str(_config["mode"])
+
+
+class Reporter:
+    """One study's progress (see the module docstring).
+
+    Args:
+        label: what runs (``compare``, ``bench``), the bar's title and each line's prefix.
+        total: units of work in all, if known (else the bar counts without an ETA).
+        unit: what a unit is (``solve``, ``shard``).
+        enabled: False reports nothing (the studies' ``progress=False``).
+        stream: where lines and the bar go (default stderr).
+    """
+
+    def __init__(self, label: str, total: int | None = None, unit: str = "it",
+                 enabled: bool = True, stream: TextIO | None = None) -> None:
+        self.label, self.total, self.unit = label, total, unit
+        self.enabled = enabled
+        self.stream = stream
+        self.completed = 0
+        self._started = time.perf_counter()
+        self._last_line = self._last_log = -float("inf")
+        self._bar: Any = None
+
+    # ----- what studies call ---------------------------------------------------------------
+    def say(self, text: str) -> None:
+        """What is happening now (the bar's status; a line at most once a second)."""
+        if not self.enabled:
+            return
+        self._log("say", text)
+        if self._mode() == "bar":
+            self._open_bar().set_postfix_str(_one_line(text), refresh=False)
+        elif self._mode() == "lines":
+            self._line(text, throttle=True)
+
+    def note(self, text: str) -> None:
+        """A line that stays (a failure, a method that is not installed)."""
+        if not self.enabled:
+            return
+        self._log("note", text)
+        if self._mode() == "bar":
+            from tqdm import tqdm
+
+            tqdm.write(f"[{self.label}] {_one_line(text)}", file=self._stream())
+        elif self._mode() == "lines":
+            self._line(text)
+
+    def advance(self, amount: int = 1, text: str | None = None) -> None:
+        """``amount`` more units done; ``text``: what was just done."""
+        self.completed += amount
+        if not self.enabled:
+            return
+        last = self.total is not None and self.completed >= self.total
+        self._log("advance", text, throttle=not last)
+        if self._mode() == "bar":
+            bar = self._open_bar()
+            if text:
+                bar.set_postfix_str(_one_line(text), refresh=False)
+            bar.update(amount)
+        elif self._mode() == "lines" and text:
+            counted = f"{self.completed}/{self.total}" if self.total else f"{self.completed}"
+            self._line(f"{counted} {text}", throttle=not last)
+
+    def set_total(self, total: int) -> None:
+        """The units of work in all, once known."""
+        self.total = total
+        if self._bar is not None:
+            self._bar.total = total
+            self._bar.refresh()
+
+    def close(self) -> None:
+        """The study is over: remove the bar (its last state is in the log)."""
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+        if self.enabled:
+            self._log("close", None)
+
+    def __enter__(self) -> Reporter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ----- where it goes -------------------------------------------------------------------
+    def _mode(self) -> str:
+        return mode() if self.stream is None else "lines"
+
+    def _stream(self) -> TextIO:
+        return self.stream or sys.stderr
+
+    def _open_bar(self) -> Any:
+        if self._bar is None:
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=self.total, desc=self.label, unit=self.unit,
+                             file=self._stream(), dynamic_ncols=True, leave=False,
+                             mininterval=0.2)
+        return self._bar
+
+    def _line(self, text: str, throttle: bool = False) -> None:
+        now = time.perf_counter()
+        if throttle and now - self._last_line < LINES_EVERY_S:
+            return
+        self._last_line = now
+        print(f"[{self.label}] {text}", file=self._stream(), flush=True)
+
+    def _log(self, event: str, text: str | None, throttle: bool = False) -> None:
+        log = _config["log"]
+        if log is None:
+            return
+        now = time.perf_counter()
+        if throttle:
+            if now - self._last_log < LOG_EVERY_S:
+                return
+            self._last_log = now
+        record = {"t_s": round(now - self._started, 3), "label": self.label, "event": event,
+                  "done": self.completed, "total": self.total, "text": text}
+        log.write(json.dumps(record) + "\n")
+        log.flush()
+
+
+def message(label: str, text: str, enabled: bool = True) -> None:
+    """One line that stays (a stage of a long command), routed as :meth:`Reporter.note`."""
+    Reporter(label, enabled=enabled).note(text)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())

@@ -1,0 +1,54 @@
+"""A real Ctrl-C (SIGINT) while a long command solves: exit code 130, one line on stderr, and
+its output folder unchanged or marked interrupted (issue 39). ``compare`` on touch poses is in
+tests/test_compare_study.py, ``execute`` in tests/test_hw_execute.py, ``view`` in
+tests/test_viewer.py."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tests.conftest import interrupt_while
+
+ONE_LINE = ["ikbench: interrupted (Ctrl-C)"]
+
+
+@pytest.mark.parametrize("command", [
+    ["cartesian", "--methods", "sequential-ik"],
+    ["compare", "--methods", "sequential-ik"],  # compare --problems runs the benchmark
+])
+def test_ctrl_c_while_the_cartesian_benchmark_solves(tmp_path, command):
+    """After the first solve (its progress line), during the second."""
+    code, err = interrupt_while([*command, "--problems", "fetch_arm__hello", "--seeds",
+                                 "1,2,3,4,5,6,7,8", "--output", str(tmp_path / "out")],
+                                tmp_path, "seed 1")
+    assert (code, err.strip().splitlines()) == (130, ONE_LINE)
+    assert not (tmp_path / "out").exists()
+
+
+def test_ctrl_c_while_a_sweep_solves(tmp_path):
+    grid = ",".join(str(v) for v in range(1, 301))
+    code, err = interrupt_while(["sweep", "--weight", f"c0={grid}", "--output",
+                                 str(tmp_path / "out")], tmp_path, "solving")
+    assert (code, err.strip().splitlines()) == (130, ONE_LINE)
+    assert not (tmp_path / "out").exists()
+
+
+def test_ctrl_c_while_bench_times(tmp_path):
+    code, err = interrupt_while(["bench", "--methods", "sequential-ik", "--repeat", "1000",
+                                 "--output", str(tmp_path / "out")], tmp_path, "trajectory 1")
+    assert (code, err.strip().splitlines()) == (130, ONE_LINE)
+    assert not (tmp_path / "out").exists()
+
+
+def test_ctrl_c_while_a_dataset_is_built(tmp_path):
+    """Complete shards stay (the same command resumes); dataset.json says interrupted."""
+    pytest.importorskip("pyarrow", reason="datasets need pyarrow: pip install 'ikbench[scale]'")
+    out = tmp_path / "out"
+    code, err = interrupt_while(["dataset", "--count", "100000", "--shard-size", "200",
+                                 "--steps", "10", "--output", str(out)], tmp_path, "shard 1/")
+    assert (code, err.strip().splitlines()) == (130, ONE_LINE)
+    manifest = json.loads((out / "dataset.json").read_text())
+    assert manifest["complete"] is False and manifest["interrupted"]["shards_built"] >= 1
+    assert not list(out.rglob("*.tmp"))  # no half-written shard
