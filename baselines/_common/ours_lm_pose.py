@@ -79,8 +79,9 @@ class OursLMSolver(PoseSolver):
         """From the rows of ``initials`` (A, dof) [pose units] in order until success, the
         last row or the budget [s] (see the module docstring)."""
         point_mm = np.asarray(point_m, dtype=float) * 1000.0
-        if getattr(self, "compiled", None) is not None:
-            solver = self.descent if len(initials) == 1 else self.compiled
+        compiled, descent = getattr(self, "compiled", None), getattr(self, "descent", None)
+        if compiled is not None:
+            solver = descent if len(initials) == 1 and descent is not None else compiled
             out = solver.solve(point_mm, np.asarray(rotation, dtype=float), initials,
                                budget_s)
             return PoseOut(out.pose, int(out.iterations), bool(out.success), int(out.attempts))
@@ -102,8 +103,9 @@ class OursLMSolver(PoseSolver):
         """Every target in one call: compiled over ``threads`` numba threads, each target with
         its own budget, or (numpy) one batch without a deadline on one thread."""
         points_mm = np.asarray(points_m, dtype=float) * 1000.0
-        if getattr(self, "compiled", None) is not None:
-            solver = self.descent if initials.shape[1] == 1 else self.compiled
+        compiled, descent = getattr(self, "compiled", None), getattr(self, "descent", None)
+        if compiled is not None:
+            solver = descent if initials.shape[1] == 1 and descent is not None else compiled
             out = solver.solve_batch(points_mm, rotations, initials, budget_s, threads)
             count = max(1, min(threads or numba_threads(), numba_threads(), len(points_mm)))
             return BatchOut(out.poses, out.attempts, count)
