@@ -54,6 +54,21 @@ def test_twenty_moves_of_the_touch_point_each_re_solve(nico, method):
         assert designer.update.ok, [c.text() for c in designer.update.criteria]
 
 
+def test_settle_solves_from_scratch_what_a_long_drag_solved_warm(nico):
+    designer = Designer(nico, "ours-exact")
+    centre = designer.handles()["touch"]
+    for angle in np.linspace(0.0, 2 * np.pi, 12, endpoint=False):  # a 20 mm circle
+        update = designer.move_touch(centre + 20 * np.array([0, np.cos(angle) - 1,
+                                                              np.sin(angle)]))
+        assert update.warm
+    cold = designer.method.solve(nico, update.task).poses_deg
+    settled = designer.settle()
+    assert not settled.warm and settled.task is not update.task
+    np.testing.assert_array_equal(settled.poses_deg, cold)
+    np.testing.assert_array_equal(settled.task.goal_points_mm, update.task.goal_points_mm)
+    assert settled.reach is update.reach
+
+
 def test_the_warm_start_solves_the_same_task_as_a_cold_solve(nico):
     task = ikbench.build_tasks(nico, ikbench.load_targets(None, nico).select("3"))[0]
     for name in ("ours-lm", "ours-exact"):
@@ -173,6 +188,8 @@ def test_saving_writes_what_ikbench_run_writes_on_the_saved_targets(nico, tmp_pa
                                     f"--targets {saved.files[0]} --steps 50 --duration 2.5")
     assert saved.change_deg < 0.05  # solved from scratch, it is the trajectory shown
     np.testing.assert_allclose(designer.update.poses_deg, shown, atol=0.05)
+    designer.settle()  # at rest the designer shows what ikbench run solves: no change
+    assert designer.save(tmp_path / "out", "mine").change_deg < 1e-6
     record = json.loads((saved.folder / "run.json").read_text())
     assert record["targets"] == str(saved.files[0]) and record["duration_s"] == 2.5
     # ikbench run on the saved targets file: the same trajectory and the same metrics

@@ -57,7 +57,9 @@ def test_twenty_drags_redraw_the_paths_and_the_arm(view):
     view.gui["time"].value = 0.0
     _wait(lambda: np.allclose(view.model.get_transform(robot.end_frame)[:3, 3],
                               robot.fk(update.poses_deg[0]).point_mm[0] / 1000, atol=1e-9))
-    assert "ours-lm: solved, timed and judged in" in view.gui["status"].content
+    assert "ours-lm (warm start): solved, timed and judged in" in view.gui["status"].content
+    settled = view.release()  # from scratch, as ikbench run solves it
+    assert not settled.warm and "(from scratch)" in view.gui["status"].content
     assert ("every criterion met" in view.gui["criteria"].content
             or "fails: " in view.gui["criteria"].content)
 
@@ -78,6 +80,7 @@ def test_the_gizmos_own_events_move_the_design(view):
     reached = designer.update.reach.point_mm
     np.testing.assert_allclose(view.handles["missed"].position, reached / 1000, atol=1e-6)
     np.testing.assert_allclose(gizmo.position, reached / 1000, atol=1e-6)  # snapped on release
+    assert not designer.update.warm  # and solved from scratch
 
 
 def test_the_panel_changes_timing_and_saves(view, tmp_path):

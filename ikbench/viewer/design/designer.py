@@ -5,10 +5,15 @@ method that solves it and the timing that plays it. Every change (a point moved,
 the start pose, the timing) builds the task again, solves it with the method warm-started
 from the previous solution (:meth:`ikbench.methods.base.Method.solve_from`), times it
 (:func:`ikbench.core.timing.retime`) and judges it (:mod:`.criteria`), and returns an
-:class:`Update`. When the method's solution is infeasible (``ours-exact``: a constraint that
-cannot hold, e.g. a line that leaves the workspace), the fallback method's (default
-``ours-lm``, the paper's soft objective) is shown instead, and the update says why. A point
-out of reach is moved as far as the arm gets, and the update says how far that is.
+:class:`Update`. A warm-started solution depends on the path the drag took (ours-exact's
+SQP settles into a nearby local solution, up to a few degrees away after a long drag);
+:meth:`Designer.settle` solves the task from scratch, as ``ikbench run`` does, and the view
+calls it when a gizmo is released, so what is shown at rest is what Save writes.
+
+When the method's solution is infeasible (``ours-exact``: a constraint that cannot hold, e.g.
+a line that leaves the workspace), the fallback method's (default ``ours-lm``, the paper's
+soft objective) is shown instead, and the update says why. A point out of reach is moved as
+far as the arm gets, and the update says how far that is.
 
 No viser here: the tests drive it directly, and :mod:`.view` puts it in the browser::
 
@@ -91,6 +96,8 @@ class Update:
             judgement [s] (the browser view adds its scene update).
         message: what went differently, in words ("" when nothing did).
         reach: the IK of the moved point (None when no point moved).
+        warm: True when the solve started from the previous solution, False when it
+            started from scratch (as ``ikbench run`` starts).
     """
 
     task: Task
@@ -101,6 +108,7 @@ class Update:
     elapsed_s: float
     message: str = ""
     reach: Reach | None = None
+    warm: bool = False
 
     @property
     def poses_deg(self) -> np.ndarray:
@@ -189,6 +197,12 @@ class Designer:
         self.method, self.fallback = solver, fallback
         return self._solve(None, None, started)
 
+    def settle(self) -> Update:
+        """Solve the task shown from scratch, as ``ikbench run`` solves it (see the module
+        doc); the moved point's reachability is kept."""
+        started = time.perf_counter()
+        return self._solve(None, self.update.reach, started)
+
     def move_touch(self, point_mm: npt.ArrayLike) -> Update:
         """Move a line's touch point (:meth:`move` ``"touch"``)."""
         return self.move("touch", point_mm)
@@ -250,7 +264,8 @@ class Designer:
                        "point; the nearest point is shown" + (f"; {message}" if message else ""))
         timed = self._timed(solution.poses_deg)
         self.update = Update(task, solution, method, timed, self._judge(task, timed, found),
-                             time.perf_counter() - started, message, found)
+                             time.perf_counter() - started, message, found,
+                             initial is not None)
         return self.update
 
     def _solve_task(self, task: Task, initial: np.ndarray | None
@@ -317,7 +332,7 @@ class Designer:
         timed = self._timed(poses)
         self.update = replace(self.update, solution=solution, timed=timed, method=method.name,
                               criteria=self._judge(self.update.task, timed, None), reach=None,
-                              message=f"saved to {folder}/")
+                              message=f"saved to {folder}/", warm=False)
         command = saving.command_line(method, self.robot, arguments, output, name,
                                       self.duration_s, self.timing)
         return saving.Saved(files, folder, table, command, change)

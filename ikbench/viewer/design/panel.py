@@ -76,11 +76,13 @@ def limits_html(robot: Robot, update: Update) -> str:
 
 
 def status_text(update: Update, scene_s: float | None) -> str:
-    """``ours-exact: solved, timed and judged in 10.9 ms, scene 2.0 ms; n = 50, T = 2 s``."""
+    """``ours-exact (warm start): solved, timed and judged in 10.9 ms, scene 2.0 ms; n = 50,
+    T = 2 s (constant)``."""
     scene = "" if scene_s is None else f", scene {1000 * scene_s:.1f} ms"
-    return (f"{update.method}: solved, timed and judged in {1000 * update.elapsed_s:.1f} ms"
-            f"{scene}; n = {update.task.steps}, T = {update.timed.duration_s:.3g} s "
-            f"({update.timed.timing})")
+    start = "warm start" if update.warm else "from scratch"
+    return (f"{update.method} ({start}): solved, timed and judged in "
+            f"{1000 * update.elapsed_s:.1f} ms{scene}; n = {update.task.steps}, "
+            f"T = {update.timed.duration_s:.3g} s ({update.timed.timing})")
 
 
 def add_panel(server: viser.ViserServer, view: DesignerView) -> dict[str, Any]:

@@ -4,8 +4,10 @@ The scene: the arm (the URDF's visual shapes, ``ViserUrdf``) playing the traject
 timing, the goal path (green), the fingertip path (blue), and a translation gizmo on each of
 the design's points (:meth:`~.designer.Designer.handles`: the touch and start points of a
 line, a letter's centre, a pose path's chosen waypoint). Dragging a gizmo re-solves the
-trajectory (:meth:`~.designer.Designer.move`) and redraws it; where the arm cannot get to the
-point, a red sphere shows where it got, and the gizmo snaps there when released. The panel
+trajectory (:meth:`~.designer.Designer.move`, warm-started) and redraws it; releasing it
+solves the task from scratch (:meth:`~.designer.Designer.settle`, what Save writes). Where the
+arm cannot get to the point, a red sphere shows where it got, and the gizmo snaps there when
+released. The panel
 (:mod:`.panel`) shows every criterion, green or red, and the controls.
 
 Changes from the browser run in one worker thread, the latest of each kind first (a drag
@@ -88,11 +90,17 @@ class DesignerView:
 
     # ----- changes ----------------------------------------------------------------------------
     def drag(self, handle: str, point_mm: npt.ArrayLike) -> Update:
-        """Move the gizmo ``handle`` to ``point_mm`` (3,) [mm, base frame] as a drag in the
-        browser does, re-solve and redraw (synchronously; :attr:`scene_s` gets the time)."""
+        """Move the gizmo ``handle`` to ``point_mm`` (3,) [mm, base frame] as one step of a
+        drag in the browser does, re-solve (warm-started) and redraw, synchronously
+        (:attr:`scene_s` gets the time)."""
         point = np.asarray(point_mm, dtype=float)
         self.gizmos[handle].position = sc.to_root_m(self.T_root_base, point)
         return self.apply(lambda: self.designer.move(handle, point))
+
+    def release(self) -> Update:
+        """What releasing a gizmo does: solve from scratch (:meth:`~.designer.Designer.
+        settle`), redraw and put the gizmos on their points."""
+        return self.apply(self.designer.settle, snap=True)
 
     def apply(self, change: Callable[[], Any], snap: bool = False) -> Update:
         """Make a change of the designer and redraw (``snap``: and put the gizmos on their
@@ -190,12 +198,16 @@ class DesignerView:
     def _on_gizmo(self, name: str, event: viser.TransformControlsEvent) -> None:
         point = to_base_mm(self.T_root_base, np.asarray(event.target.position, dtype=float))
 
+        release = event.phase == "end"
+
         def move() -> None:
             if not np.allclose(point, self.designer.handles()[name], atol=1e-9):
                 self.designer.move(name, point)
+            if release:
+                self.designer.settle()
             if name == "start" and "start" in self.gui:
                 self.gui["start"].value = panel.DRAGGED
-        self.request(f"move {name}", move, snap=event.phase == "end")
+        self.request(f"move {name}", move, snap=release)
 
     def _worker(self) -> None:
         """Apply queued changes, oldest key first, each the newest of its key."""
