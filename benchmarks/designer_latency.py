@@ -6,8 +6,9 @@ touch point is moved ``--moves`` times along a small circle (radius 20 mm) aroun
 point, as a hand drags it, each move through :meth:`DesignerView.drag`: the touch pose's IK,
 the warm-started solve, the timing, the judgement and the scene update (paths, markers, the
 arm's pose, the panel). Rounds are interleaved between the methods, so background load hits
-both alike. ``--browser`` connects a headless Chromium to the page first, so every update is
-also sent to a browser.
+both alike. ``--browser`` connects a headless Chromium to the page of the designer measured
+(one at a time: its software WebGL takes a core of its own), so every update is also sent
+to a browser.
 
 Run: ``.venv/bin/python benchmarks/designer_latency.py [--moves 20] [--rounds 5]
 [--browser] [--output runs/designer_latency.csv]``; the CSV has one row per move (method,
@@ -69,23 +70,26 @@ def main() -> None:
     views = {m: serve_design(Designer("nico_right_arm", m), port=0, open_browser=False)
              for m in methods}
     rows = []
-    with contextlib.ExitStack() as stack:
-        if args.browser:
-            for view in views.values():
-                stack.enter_context(HeadlessPage(view.url)).wait_for_text("Judged")
-        for rep in range(args.rounds + 1):  # round 0: warm-up, not recorded
-            for method, view in views.items():
+    for rep in range(args.rounds + 1):  # round 0: warm-up, not recorded
+        for method, view in views.items():
+            for other in views.values():  # only the designer measured plays its arm
+                other.set_playing(other is view)
+            with contextlib.ExitStack() as stack:
+                if args.browser:  # one browser at a time: software WebGL takes a core
+                    page = stack.enter_context(HeadlessPage(view.url))
+                    page.wait_for_text("Judged")
+                    page.settled()
                 start = view.designer.handles()["touch"]
                 view.scene_s.clear()
                 load = os.getloadavg()[0]
                 updates = [view.drag("touch", p) for p in circle(start, args.moves)]
-                if rep:
-                    rows += [{"method": method, "round": rep, "move": k,
-                              "solve_s": u.elapsed_s, "scene_s": s,
-                              "warm_solve_s": u.solution.duration_s,
-                              "cold_solve_s": cold_solve_s(view.designer, u),
-                              "load_1min": load, "browser": args.browser}
-                             for k, (u, s) in enumerate(zip(updates, view.scene_s))]
+            if rep:
+                rows += [{"method": method, "round": rep, "move": k,
+                          "solve_s": u.elapsed_s, "scene_s": s,
+                          "warm_solve_s": u.solution.duration_s,
+                          "cold_solve_s": cold_solve_s(view.designer, u),
+                          "load_1min": load, "browser": args.browser}
+                         for k, (u, s) in enumerate(zip(updates, view.scene_s))]
     for view in views.values():
         view.stop()
     info = provenance(extra=("viser",))
