@@ -4,7 +4,8 @@ A dragged touch point needs a touch pose: the end point at the point and, for a 
 pointing axis along the line (the contract judges pointing over the last part of the motion,
 which ends at this pose). :func:`reach` asks for both at once, with the roll about the
 pointing axis kept from the previous pose, trading 1 mm of position against
-:data:`POINTING_TOLERANCE_DEG` of pointing; then the position alone is refined from there. A
+:data:`POINTING_TOLERANCE_DEG` of pointing (at most :data:`POINTING_ITERATIONS` iterations);
+then the position alone is refined from there, to :data:`POSITION_STOP_MM`. A
 point out of reach ends where the end point gets closest (a local minimum of the distance,
 from the previous pose): :attr:`Reach.reachable` is False and :attr:`Reach.distance_mm` says
 how far it is. Both solves are ours-lm's single-pose LM
@@ -25,8 +26,12 @@ from ikbench.methods.ours_lm.single_pose import solve_poses
 REACH_TOLERANCE_MM = 0.5
 #: A pointing error of this many degrees costs as much as 1 mm of position error.
 POINTING_TOLERANCE_DEG = 3.0
-#: LM iterations of each of the two solves, at most.
+#: LM iterations of the solve with pointing, at most: it converges in about 6 where the
+#: pointing can be had exactly, and where it cannot, the position is refined alone after it.
+POINTING_ITERATIONS = 12
+#: LM iterations of the position-only solve, at most, and the error it stops at [mm].
 REACH_ITERATIONS = 40
+POSITION_STOP_MM = 0.01
 
 
 @dataclass(frozen=True)
@@ -74,19 +79,32 @@ def reach(robot: Robot, goal_mm: npt.ArrayLike, from_pose: npt.ArrayLike,
           direction: npt.ArrayLike | None = None) -> Reach:
     """The pose nearest ``from_pose`` (dof,) [pose units] that puts the end point at
     ``goal_mm`` (3,) [mm] and, with ``direction`` (3,), points along it (see the module doc).
-    """
+    A point not reached gets a second round of both solves, with :data:`REACH_ITERATIONS`
+    for each (a long jump, e.g. back from beyond the reach)."""
     goal = np.asarray(goal_mm, dtype=float).reshape(3)
     pose = np.asarray(from_pose, dtype=float).reshape(1, -1)
+    for pointing_iterations in (POINTING_ITERATIONS, REACH_ITERATIONS):
+        pose, point = _solve(robot, goal, pose, direction, pointing_iterations)
+        if np.linalg.norm(point - goal) <= REACH_TOLERANCE_MM:
+            break
+    return Reach(pose[0], point, goal)
+
+
+def _solve(robot: Robot, goal: np.ndarray, pose: np.ndarray, direction: npt.ArrayLike | None,
+           pointing_iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """(pose (1, dof), its end point (3,) [mm]) after the pointing solve (with
+    ``direction``) and the position-only refinement."""
     T_base_end = robot.fk_transform(pose)[0]
     if direction is not None and np.linalg.norm(direction) > 0:
         axis = T_base_end[:3, :3] @ robot.pointing_axis
         rotation = rotation_between(axis, direction) @ T_base_end[:3, :3]
         pose = solve_poses(robot, goal[None], rotation[None], pose,
                            (1.0, POINTING_TOLERANCE_DEG),
-                           max_iterations=REACH_ITERATIONS).poses
+                           max_iterations=pointing_iterations).poses
     point = robot.fk(pose).point_mm[0]
-    if np.linalg.norm(point - goal) > REACH_TOLERANCE_MM / 10:
+    if np.linalg.norm(point - goal) > POSITION_STOP_MM:
         pose = solve_poses(robot, goal[None], T_base_end[None, :3, :3], pose,
-                           position_only=True, max_iterations=REACH_ITERATIONS).poses
+                           position_only=True, max_iterations=REACH_ITERATIONS,
+                           stop=POSITION_STOP_MM).poses
         point = robot.fk(pose).point_mm[0]
-    return Reach(pose[0], point, goal)
+    return pose, point
