@@ -7,9 +7,11 @@ for ``ours`` and ``ours-lm``); the CLI then shows one option whose help names bo
 
 A method class sets ``name``, ``description``, ``Settings`` and ``solve`` (the one abstract
 method of :class:`Method`, an :class:`abc.ABC`); optionally
-``solve_many`` (batched methods), ``check_tasks`` (refuse before any solve) and ``prepare``
-(untimed set-up, e.g. building kinematics). Methods that come from another library say so
-in ``library`` (its PyPI distribution, whose version is recorded with results).
+``solve_many`` (batched methods), ``check_tasks`` (refuse before any solve), ``prepare``
+(untimed set-up, e.g. building kinematics) and ``solve_from`` (a warm start from given poses,
+``warm_starts = True``; the designer re-solves that way while a point is dragged). Methods
+that come from another library say so in ``library`` (its PyPI distribution, whose version is
+recorded with results).
 """
 
 from __future__ import annotations
@@ -212,6 +214,8 @@ class Method(abc.ABC):
             (``Task.obstacles``) and of itself; the others still solve such tasks, and the
             studies name "does not avoid obstacles" beside a collision.
         batched: True when ``solve_many`` solves all tasks in one call (timed as one).
+        warm_starts: True when :meth:`solve_from` starts from the poses it is given (else it
+            solves from scratch).
         bench_rounds: timed rounds ``ikbench bench`` gives the method by default.
     """
 
@@ -223,6 +227,7 @@ class Method(abc.ABC):
     supports_frames: ClassVar[bool] = False
     avoids_obstacles: ClassVar[bool] = False
     batched: ClassVar[bool] = False
+    warm_starts: ClassVar[bool] = False
     bench_rounds: ClassVar[int] = 5
 
     def __init__(self, settings: Any = None, **options: Any) -> None:
@@ -313,6 +318,12 @@ class Method(abc.ABC):
     @abc.abstractmethod
     def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         """Solve one task: the poses and the method's own figures."""
+
+    def solve_from(self, robot: Robot, task: Task, initial_poses: np.ndarray) -> Solution:
+        """Solve ``task`` starting from ``initial_poses`` (n+1, dof) [pose units], e.g. the
+        solution of a slightly different task (a warm start). Methods that cannot start from
+        given poses (``warm_starts`` False) solve from scratch: this default."""
+        return self.solve(robot, task)
 
     def solve_many(self, robot: Robot, tasks: Sequence[Task],
                    progress: Progress | None = None) -> list[Solution]:

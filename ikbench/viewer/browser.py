@@ -5,12 +5,14 @@ panel half laid out, so Chromium is started with ``--remote-debugging-port=0`` (
 port it chose to ``<profile>/DevToolsActivePort``) and driven over the page's websocket with
 the ``websockets`` package (a viser dependency): navigate, wait in real time until a text is
 on the page, capture. DevTools methods used: ``Page.enable``, ``Page.navigate``,
-``Emulation.setDeviceMetricsOverride``, ``Runtime.evaluate``, ``Page.captureScreenshot``.
+``Emulation.setDeviceMetricsOverride``, ``Runtime.evaluate``, ``Page.captureScreenshot``,
+``Input.dispatchMouseEvent`` (a drag).
 """
 
 from __future__ import annotations
 
 import base64
+import io
 import itertools
 import json
 import shutil
@@ -20,6 +22,8 @@ import time
 import urllib.request
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 #: Flags for a machine without network or display: root needs --no-sandbox; the
 #: background-networking flags stop Chromium's own connections.
@@ -41,6 +45,18 @@ HIDE_SOFTWARE_GL_NOTICE = """(() => {
   }
   return false;
 })()"""
+
+
+def rgb(png: bytes) -> np.ndarray:
+    """(H, W, 3) int32 RGB of a PNG."""
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=np.int32)
+
+
+def changed_pixels(a: np.ndarray, b: np.ndarray, threshold: int = 30) -> int:
+    """Pixels whose RGB differs by more than ``threshold`` (summed over channels)."""
+    return int((np.abs(a - b).sum(axis=-1) > threshold).sum())
 
 
 def find_chromium() -> str | None:
@@ -136,6 +152,35 @@ class HeadlessPage:
         if path is not None:
             Path(path).write_bytes(png)
         return png
+
+    def settled(self, path: str | Path | None = None, timeout_s: float = 90.0,
+                tolerance_px: int = 100) -> np.ndarray:
+        """(H, W, 3) RGB of the viewport once two captures in a row differ in fewer than
+        ``tolerance_px`` pixels (software WebGL takes seconds to draw); the last capture
+        after ``timeout_s``. ``path``: where the PNG goes."""
+        previous, deadline = None, time.monotonic() + timeout_s
+        while True:
+            image = rgb(self.capture(path))
+            if previous is not None and changed_pixels(image, previous) < tolerance_px:
+                return image
+            if time.monotonic() > deadline:
+                return image
+            previous = image
+            time.sleep(0.5)
+
+    def drag(self, x: float, y: float, dx: float, dy: float, steps: int = 20,
+             pause_s: float = 0.05) -> None:
+        """Press the left mouse button at (x, y) [px], move by (dx, dy) in ``steps`` steps
+        and release: a drag, as a hand makes it (DevTools ``Input.dispatchMouseEvent``)."""
+        self.call("Input.dispatchMouseEvent", type="mouseMoved", x=x, y=y)
+        self.call("Input.dispatchMouseEvent", type="mousePressed", x=x, y=y, button="left",
+                  buttons=1, clickCount=1)
+        for k in range(1, steps + 1):
+            self.call("Input.dispatchMouseEvent", type="mouseMoved", x=x + dx * k / steps,
+                      y=y + dy * k / steps, button="left", buttons=1)
+            time.sleep(pause_s)
+        self.call("Input.dispatchMouseEvent", type="mouseReleased", x=x + dx, y=y + dy,
+                  button="left", buttons=0, clickCount=1)
 
     def close(self) -> None:
         """Close the session, end Chromium and remove its profile."""

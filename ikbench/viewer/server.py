@@ -30,6 +30,7 @@ import signal
 import threading
 import time
 import webbrowser
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -95,8 +96,7 @@ class Viewer:
     @property
     def url(self) -> str:
         """The viewer's address (``localhost`` for a wildcard host)."""
-        host = "localhost" if self.host in ("0.0.0.0", "::", "") else self.host
-        return f"http://{host}:{self.server.get_port()}/"
+        return address(self.server, self.host)
 
     @property
     def trajectory(self) -> str:
@@ -295,8 +295,9 @@ def _node(tid: str) -> str:
     return "t_" + "".join(c if c.isalnum() or c in "_-." else "_" for c in tid)
 
 
-def _frame_scene(server, robot: Robot, framing: list) -> None:
-    """Floor grid, base axes and the initial camera from the robot's figure view."""
+def frame_scene(server: viser.ViserServer, robot: Robot, framing: list) -> None:
+    """Floor grid, base axes and the initial camera from the robot's figure view, framing
+    the points [m] of ``framing`` (arrays (..., 3), URDF root frame)."""
     points = np.vstack(framing)
     lo, hi = points.min(axis=0), points.max(axis=0)
     size = float(max(hi[0] - lo[0], hi[1] - lo[1])) * 1.2 + 0.1
@@ -335,13 +336,11 @@ def serve(robot: Robot, runs: list[ViewRun], *, port: int = 8080, host: str = "1
         trajectory: the trajectory id shown first (default: the first run's first).
     """
     ids = check_trajectory(runs, trajectory)
-    with contextlib.redirect_stdout(io.StringIO()):  # viser's banner; we print the URL
-        server = viser.ViserServer(host=host, port=port, label=TITLE, verbose=False)
-    server.scene.set_up_direction("+z")
+    server = new_server(host, port, TITLE)
     framing: list[np.ndarray] = []
     drawn: dict[str, list] = {}  # obstacle sets in the scene, shared by the runs that have them
     scenes = [_add_run(server, robot, run, i, framing, drawn) for i, run in enumerate(runs)]
-    _frame_scene(server, robot, framing)
+    frame_scene(server, robot, framing)
     viewer = Viewer(server, host, timeline(runs), scenes)
     add_gui(server, viewer, ids)
     if trajectory is not None:
@@ -355,9 +354,32 @@ def serve(robot: Robot, runs: list[ViewRun], *, port: int = 8080, host: str = "1
     return viewer
 
 
+def new_server(host: str, port: int, label: str) -> viser.ViserServer:
+    """A viser server on ``host:port`` (the next free port when taken; 0: any), z up,
+    without viser's banner (the caller prints the URL)."""
+    with contextlib.redirect_stdout(io.StringIO()):
+        server = viser.ViserServer(host=host, port=port, label=label, verbose=False)
+    server.scene.set_up_direction("+z")
+    return server
+
+
+def address(server: viser.ViserServer, host: str) -> str:
+    """``http://HOST:PORT/`` of a server listening on ``host`` (``localhost`` for a wildcard
+    host), with the port it bound."""
+    shown = "localhost" if host in ("0.0.0.0", "::", "") else host
+    return f"http://{shown}:{server.get_port()}/"
+
+
 def run_forever(robot: Robot, runs: list[ViewRun], **kwargs: Any) -> None:
     """Serve (keywords of :func:`serve`), print the URL and block until Ctrl-C or SIGTERM,
-    then stop cleanly (no traceback; another Ctrl-C while stopping changes nothing).
+    then stop cleanly (:func:`block_until_stopped`)."""
+    block_until_stopped(lambda: serve(robot, runs, **kwargs), TITLE)
+
+
+def block_until_stopped(start: Callable[[], Any], title: str) -> None:
+    """Start a viewer (``start()``: an object with ``url`` and ``stop()``), print its URL and
+    block until Ctrl-C or SIGTERM, then stop it cleanly (no traceback; another Ctrl-C while
+    stopping changes nothing).
 
     The handlers are installed here, not inherited: a process started in the background by
     a non-interactive shell ignores SIGINT, and Ctrl-C must stop the viewer anyway.
@@ -371,14 +393,14 @@ def run_forever(robot: Robot, runs: list[ViewRun], **kwargs: Any) -> None:
             pass
     viewer = None
     try:
-        viewer = serve(robot, runs, **kwargs)
-        print(f"ikbench viewer: {viewer.url}  (Ctrl-C to stop)", flush=True)
+        viewer = start()
+        print(f"{title}: {viewer.url}  (Ctrl-C to stop)", flush=True)
         stop.wait()
     except KeyboardInterrupt:
         pass
     finally:
         if viewer is not None:
-            print("\nstopping the viewer", flush=True)
+            print(f"\nstopping the {title.split()[-1]}", flush=True)
             viewer.stop()
         for signum, handler in handlers.items():
             signal.signal(signum, handler if handler is not None else signal.SIG_DFL)

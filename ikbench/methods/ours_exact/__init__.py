@@ -137,6 +137,7 @@ class OursExact(Method):
                    "with a banded KKT solve")
     Settings = ExactSettings
     batched = True
+    warm_starts = True
     supports_frames = True
 
     def scheme_label(self) -> str:
@@ -224,11 +225,37 @@ class OursExact(Method):
                         getattr(result, name)[k] = getattr(second, name)[j]
                     init_info[k] = "ours-lm (after the interpolation's)"
         fallback = self._avoid_collisions(robot, tasks, problem, result, initial, init_info)
-        wall = time.perf_counter() - started
-        solutions = []
-        for k in range(len(tasks)):
-            feasible = bool(result.violation[k] <= s.feasibility_tolerance)
-            info = {"batch_size": len(tasks), "batch_wall_time_s": wall,
+        return self._solutions(problem, result, init_info, time.perf_counter() - started,
+                               fallback)
+
+    def solve_from(self, robot: Robot, task: Task, initial_poses: np.ndarray) -> Solution:
+        """The task's SQP from ``initial_poses`` (n+1, dof) [pose units], moved onto the
+        constraints first (the fixed poses put in place): no initial solve, no retry."""
+        started = time.perf_counter()
+        s = self.settings
+        problem = build_problem(robot, [task], s)
+        initial = np.clip(np.array(initial_poses, dtype=float)[None], problem.lower,
+                          problem.upper)
+        for fixed, pose in ((0, task.start_pose_deg), (-1, task.end_pose_deg)):
+            if pose is not None:
+                initial[0, fixed] = pose
+        result = solve(robot.chain_kinematics(), problem, initial,
+                       max_iterations=s.max_iterations, tolerance=s.tolerance,
+                       feasibility_tolerance=s.feasibility_tolerance)
+        return self._solutions(problem, result, ["given (warm start)"],
+                               time.perf_counter() - started)[0]
+
+    def _solutions(self, problem: ExactProblem, result: SQPResult, init_info: list[str],
+                   wall_s: float, fallback: dict[int, str] | None = None) -> list[Solution]:
+        """One Solution per trajectory of ``result``; ``wall_s``: the batch's time [s];
+        ``fallback``: the trajectories replaced by ours-lm's path, with why
+        (:meth:`_avoid_collisions`)."""
+        fallback = fallback or {}
+        tolerance = self.settings.feasibility_tolerance
+        size, solutions = len(result.poses), []
+        for k in range(size):
+            feasible = bool(result.violation[k] <= tolerance)
+            info = {"batch_size": size, "batch_wall_time_s": wall_s,
                     "constraint_violation_max": float(result.violation[k]),
                     "feasible": feasible, "sqp_converged": bool(result.converged[k]),
                     "initial": init_info[k],
@@ -239,7 +266,7 @@ class OursExact(Method):
                 info["collision"] = fallback[k]
             solutions.append(Solution(
                 poses_deg=result.poses[k], iterations=int(result.iterations[k]),
-                duration_s=wall / len(tasks), loss=float(result.objective[k]),
+                duration_s=wall_s / size, loss=float(result.objective[k]),
                 converged=bool(result.converged[k]) and feasible, info=info))
         return solutions
 

@@ -30,12 +30,14 @@ import numpy as np
 
 from ikbench.core.losses import TERMS, format_weights, resolve_weights
 from ikbench.methods.base import Method, Solution
+from ikbench.methods.ours_lm.avoidance import avoidance_for
 from ikbench.methods.ours_lm.devices import (
     BACKENDS,
     cpu_backend,
     numba_threads,
     torch_threads,
 )
+from ikbench.methods.ours_lm.frames import FrameProblem, evaluate_frames
 from ikbench.methods.ours_lm.problem import Evaluation, Problem, evaluate
 from ikbench.methods.ours_lm.solver import (
     KINEMATICS,
@@ -46,7 +48,7 @@ from ikbench.methods.ours_lm.solver import (
     solve_batch,
     solve_problem,
 )
-from ikbench.methods.ours_lm.start_search import OursLMSettings, search
+from ikbench.methods.ours_lm.start_search import OursLMSettings, check_paths, search
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -67,6 +69,7 @@ class OursLM(Method):
                    "paths: seeded start search, then the same LM")
     Settings = OursLMSettings
     batched = True
+    warm_starts = True
     supports_frames = True
     avoids_obstacles = True     # on 6-D pose paths (:mod:`.avoidance`); 3-D tasks: none
 
@@ -148,17 +151,10 @@ class OursLM(Method):
         started = time.perf_counter()
         again = self._without_self_collisions(robot, tasks, result, weights)
         result.duration_s += time.perf_counter() - started
-        share = result.duration_s / len(tasks)
         solutions = []
         for k, task in enumerate(tasks):
-            solutions.append(Solution(
-                poses_deg=result.poses_deg[k], iterations=int(result.iterations[k]),
-                duration_s=share, loss=float(result.loss[k]),
-                converged=bool(result.converged[k]),
-                info={"batch_size": len(tasks), "batch_wall_time_s": result.duration_s,
-                      "weights": format_weights(weights[k]),
-                      "solved_again_without_self_collision": k in again,
-                      **{f"{t}": float(v) for t, v in zip(TERMS, result.terms[k])}}))
+            solutions.append(_solution(result, k, weights[k]))
+            solutions[-1].info["solved_again_without_self_collision"] = k in again
             if progress:
                 progress.done(task, solutions[-1])
         return solutions
@@ -193,6 +189,27 @@ class OursLM(Method):
                 kept.append(k)
         return kept
 
+    def solve_from(self, robot: Robot, task: Task, initial_poses: np.ndarray) -> Solution:
+        """The task's LM solve from ``initial_poses`` (n+1, dof) [pose units] instead of the
+        joint interpolation (6-D pose paths: the same LM on their objective, no start
+        search; ``converged``: the path is valid)."""
+        weights = resolve_weights(self.settings.weights, task)
+        initial = np.asarray(initial_poses, dtype=float)[None]
+        if task.goal_rotations is None:
+            return _solution(solve_batch(robot, [task], self.settings, weights=[weights],
+                                         initial=initial), 0, weights)
+        frames = robot.chain_kinematics().frames
+        avoid = avoidance_for(robot, task, self.settings.clearance_mm,
+                              self.settings.collision_weight)
+        result = solve_batch(
+            robot, [task], replace(self.settings, weights=weights), [weights], initial=initial,
+            problem=FrameProblem.from_tasks(robot, [task], [weights], frames),
+            evaluator=evaluate_frames if avoid is None else avoid.evaluator(evaluate_frames))
+        solution = _solution(result, 0, weights)
+        solution.converged = bool(check_paths(robot, task, result.poses_deg, frames, 1.0,
+                                              avoid)[0][0])
+        return solution
+
     def _solve_path(self, robot, task) -> Solution:
         """A 6-D pose path by the start search; ``converged``: a valid path was found."""
         started = time.perf_counter()
@@ -205,3 +222,15 @@ class OursLM(Method):
             info={"valid_by_search": result.valid, "lm_converged": result.converged,
                   "weights": format_weights(weights), **result.info,
                   **{t: float(v) for t, v in zip(TERMS, result.terms)}})
+
+
+def _solution(result: BatchResult, k: int, weights: dict) -> Solution:
+    """Trajectory ``k`` of a batch as a Solution (duration_s: its share of the batch)."""
+    size = len(result.poses_deg)
+    return Solution(
+        poses_deg=result.poses_deg[k], iterations=int(result.iterations[k]),
+        duration_s=result.duration_s / size, loss=float(result.loss[k]),
+        converged=bool(result.converged[k]),
+        info={"batch_size": size, "batch_wall_time_s": result.duration_s,
+              "weights": format_weights(weights),
+              **{f"{t}": float(v) for t, v in zip(TERMS, result.terms[k])}})
