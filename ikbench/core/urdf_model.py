@@ -11,8 +11,9 @@ Drake, MuJoCo, PyRoki) is written from the model by :meth:`UrdfModel.to_xml` (yo
 writer), with the edits a consumer asks for: visual or collision elements left out, joints
 held fixed at a value, continuous joints as wide revolute ones, unit axes. yourdfpy keeps an
 origin as a 4x4 matrix and writes it back as ``xyz`` / ``rpy`` at full precision (``rpy``
-through ``trimesh.transformations.euler_from_matrix``): the shipped URDFs come back with every
-number unchanged, others as the same placements (to ~1e-16; an angle may come back wrapped,
+through ``trimesh.transformations.euler_from_matrix``; a -0.0 it gives is written 0.0, as the
+file had it: PyRoki's rotations follow the sign of a zero): the shipped URDFs come back with
+every number unchanged, others as the same placements (to ~1e-16; an angle may come back wrapped,
 e.g. ``-3.1416`` for ``3.1416``). yourdfpy writes no ``<mimic>``, ``<calibration>``,
 ``<safety_controller>``, ``<transmission>`` or ``<gazebo>`` elements: none of them changes the
 kinematics the libraries build here.
@@ -186,7 +187,13 @@ class UrdfModel:
                         materials=self._tree.materials if visuals else [])
         writer = yourdfpy.URDF(robot=robot, build_scene_graph=False, load_meshes=False,
                                filename_handler=yourdfpy.filename_handler_null)
-        return writer.write_xml_string().decode("ascii")
+        tree = writer.write_xml()
+        for origin in tree.iter("origin"):  # rpy from a matrix may hold -0.0 for a written 0
+            for key in ("xyz", "rpy"):
+                origin.set(key, " ".join(repr(float(v) + 0.0) for v in origin.get(key).split()))
+        out = io.BytesIO()
+        tree.write(out, xml_declaration=True)
+        return out.getvalue().decode("ascii")
 
 
 def _edited(joint: yourdfpy.Joint, fixed: dict[str, float], continuous_limit: float | None,
