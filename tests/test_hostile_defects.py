@@ -138,8 +138,10 @@ def test_library_chatter_is_kept_off_the_table(tmp_path, capfd):
     out, err = capfd.readouterr()
     assert "root link" not in out and "safety_controller" not in out + err.split("note:")[0]
     notes = [line for line in err.splitlines() if line.startswith("note: ")]
-    assert len(notes) == 2 and "trac-ik printed 1 line(s)" in notes[0]
-    assert "drake printed 7 line(s)" in notes[1] and "--verbose shows it" in notes[1]
+    # Drake parses the URDF text written from the model (core/urdf_model.py), which holds no
+    # tag Drake ignores: it may print nothing at all; whatever it prints is one note
+    assert "trac-ik printed 1 line(s)" in notes[0] and len(notes) <= 2
+    assert all("--verbose shows it" in note for note in notes)
 
 
 def test_a_missing_library_is_a_row_saying_so_and_the_exit_code_too(tmp_path, capsys,

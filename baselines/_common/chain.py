@@ -10,18 +10,18 @@ Limits: a robot's limits are given in pose units (motor degrees for NICO, whose 
 negative scales); in URDF units they are the min / max of the two mapped limits, so lower <=
 upper always. Continuous joints keep -inf / +inf.
 
-The URDF text a library parses (:func:`chain_urdf_text`) is the robot's URDF reduced to what
-kinematics needs: ``<visual>`` / ``<collision>`` and the ``<transmission>`` / ``<gazebo>`` /
-``<ros2_control>`` elements removed (no mesh files to find, no joints that are not joints),
-every movable joint that is not one of the chain's turned ``fixed`` (locked at 0, as the robot's
-Pinocchio model locks it) and joint axes normalised (URDF axes are unit vectors by the
+The URDF text a library parses (:func:`chain_urdf_text`) is written from the robot's URDF model
+(``Robot.urdf_model``, :mod:`ikbench.core.urdf_model`) reduced to what kinematics needs: no
+``<visual>`` / ``<collision>`` elements (no mesh files to find; yourdfpy writes no
+``<transmission>`` / ``<gazebo>`` either), every movable joint that is not one of the chain's
+turned ``fixed`` (at 0, as the robot's Pinocchio model locks it, or at the config's locked value,
+folded into its origin) and joint axes normalised (URDF axes are unit vectors by the
 specification; ikpy and PyRoki use them as written).
 """
 
 from __future__ import annotations
 
 import weakref
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -35,10 +35,8 @@ if TYPE_CHECKING:
     from ikbench.core.contract import Contract
     from ikbench.core.robot import Robot
     from ikbench.core.task import Task
+    from ikbench.core.urdf_model import UrdfModel
 
-#: Top-level URDF elements that carry no kinematics (ROS control, Gazebo), left out of the text
-#: the libraries parse: a ``<transmission>`` holds ``<joint>`` elements of its own.
-NON_KINEMATIC = ("transmission", "gazebo", "ros2_control")
 #: Largest clip [pose units] that counts as round-off in :func:`poses_from_urdf`.
 ROUND_OFF = 1e-6
 
@@ -52,6 +50,7 @@ class Chain:
     Attributes:
         urdf_path: the robot's URDF file.
         urdf_text: the URDF a library parses (see the module docstring).
+        urdf: the robot's URDF model (its root link, the path to the end frame).
         base_link: the chain's base link; goals are in its frame.
         end_frame: the end link (its origin is the end point).
         joint_names: (dof,) the movable joints, base to end.
@@ -63,6 +62,7 @@ class Chain:
 
     urdf_path: Path
     urdf_text: str
+    urdf: UrdfModel
     base_link: str
     end_frame: str
     joint_names: tuple[str, ...]
@@ -124,56 +124,13 @@ def urdf_limits(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
 
 
 def chain_urdf_text(robot: Robot) -> str:
-    """The robot's URDF as the libraries parse it (see the module docstring)."""
-    tree = ET.parse(robot.urdf_path)
-    root = tree.getroot()
-    for element in [e for e in root if e.tag in NON_KINEMATIC]:
-        root.remove(element)  # their <joint> children are no joints of the tree
-    for link in root.iter("link"):
-        for tag in ("visual", "collision"):
-            for element in link.findall(tag):
-                link.remove(element)
+    """The robot's URDF as the libraries parse it (see the module docstring), written from the
+    robot's URDF model."""
+    urdf = robot.urdf_model
     keep = set(robot.joint_names)
-    locked = dict(getattr(robot, "locked_urdf", {}) or {})
-    for joint in root.iter("joint"):
-        kind = joint.get("type")
-        if kind in ("revolute", "continuous", "prismatic") and joint.get("name") not in keep:
-            value = float(locked.get(joint.get("name"), 0.0))
-            if value:
-                _fold_into_origin(joint, kind, value)
-            joint.set("type", "fixed")
-            for tag in ("axis", "limit", "mimic", "dynamics", "safety_controller"):
-                for element in joint.findall(tag):
-                    joint.remove(element)
-        axis = joint.find("axis")
-        if axis is not None and axis.get("xyz"):
-            values = np.array([float(v) for v in axis.get("xyz", "").split()])
-            norm = float(np.linalg.norm(values))
-            if norm > 0:
-                axis.set("xyz", " ".join(repr(float(v)) for v in values / norm))
-    return ET.tostring(root, encoding="unicode")
-
-
-def _fold_into_origin(joint: ET.Element, kind: str, value: float) -> None:
-    """Turn a joint held at ``value`` [rad or m] into its constant transform: the motion
-    about/along its axis is folded into its ``<origin>`` (the joint becomes fixed after)."""
-    from scipy.spatial.transform import Rotation
-
-    origin = joint.find("origin")
-    if origin is None:
-        origin = ET.SubElement(joint, "origin")
-    xyz = np.array([float(v) for v in origin.get("xyz", "0 0 0").split()])
-    rotation = Rotation.from_euler("xyz", [float(v) for v in origin.get("rpy", "0 0 0").split()])
-    axis_element = joint.find("axis")
-    axis = np.array([float(v) for v in (axis_element.get("xyz", "1 0 0") if axis_element
-                                        is not None else "1 0 0").split()])
-    axis = axis / np.linalg.norm(axis)
-    if kind == "prismatic":
-        xyz = xyz + rotation.apply(axis * value)
-    else:
-        rotation = rotation * Rotation.from_rotvec(axis * value)
-    origin.set("xyz", " ".join(repr(float(v)) for v in xyz))
-    origin.set("rpy", " ".join(repr(float(v)) for v in rotation.as_euler("xyz")))
+    fixed = {j.name: float(robot.locked_urdf.get(j.name, 0.0)) for j in urdf.joints
+             if j.movable and j.name not in keep}
+    return urdf.to_xml(collisions=False, fixed=fixed, unit_axes=True)
 
 
 def chain_of(robot: Robot) -> Chain:
@@ -181,9 +138,10 @@ def chain_of(robot: Robot) -> Chain:
     if robot not in _CHAINS:
         lower, upper = urdf_limits(robot)
         axis = np.asarray(robot.pointing_axis, dtype=float)
-        _CHAINS[robot] = Chain(Path(robot.urdf_path), chain_urdf_text(robot), robot.root_link,
-                           robot.end_frame, tuple(robot.joint_names), tuple(robot.joint_types),
-                           lower, upper, axis / np.linalg.norm(axis))
+        _CHAINS[robot] = Chain(Path(robot.urdf_path), chain_urdf_text(robot), robot.urdf_model,
+                               robot.root_link, robot.end_frame, tuple(robot.joint_names),
+                               tuple(robot.joint_types), lower, upper,
+                               axis / np.linalg.norm(axis))
     return _CHAINS[robot]
 
 
@@ -252,16 +210,12 @@ def poses_from_urdf(robot: Robot, q_urdf: npt.ArrayLike) -> np.ndarray:
     return clipped
 
 
-def element_path(urdf_text: str, base_link: str, end_frame: str) -> list[tuple[str, str, str]]:
-    """The joints from ``base_link`` down to ``end_frame`` as (joint, type, child link)."""
-    root = ET.fromstring(urdf_text)
-    by_child = {j.find("child").get("link"): j for j in root.iter("joint")}  # type: ignore
-    path, link = [], end_frame
-    while link != base_link:
-        joint = by_child[link]
-        path.append((joint.get("name", ""), joint.get("type", ""), link))
-        link = joint.find("parent").get("link", "")  # type: ignore[union-attr]
-    return path[::-1]
+def element_path(chain: Chain) -> list[tuple[str, str, str]]:
+    """The joints from the chain's base link down to its end frame as (joint, type, child
+    link), with the types of :func:`chain_urdf_text` (a joint off the chain is fixed)."""
+    path = chain.urdf.path_between(chain.base_link, chain.end_frame)
+    return [(j.name, j.type if j.name in chain.joint_names else "fixed", j.child)
+            for j in path]
 
 
 def require_touch_and_start(task: Task, method: str) -> None:

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import logging
 import weakref
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -113,14 +112,6 @@ def add_urdf(plant: Any, urdf_text: str) -> None:
                        "Drake's MultibodyPlant ignores joint friction (kinematics unaffected)")
 
 
-def urdf_root(urdf_text: str) -> str:
-    """The URDF's root link (the one that is no joint's child)."""
-    root = ET.fromstring(urdf_text)
-    children = {j.find("child").get("link") for j in root.iter("joint")}  # type: ignore
-    return next(str(name) for link in root.iter("link")
-                if (name := link.get("name")) not in children)
-
-
 def drake_chain(chain: Chain) -> DrakeChain:
     """The chain's :class:`DrakeChain` (cached per chain)."""
     if chain in _PLANTS:
@@ -130,7 +121,7 @@ def drake_chain(chain: Chain) -> DrakeChain:
     plant = MultibodyPlant(time_step=0.0)
     with quiet("drake", loggers=("drake",)):  # a warning per URDF tag it ignores
         add_urdf(plant, chain.urdf_text)
-    root = urdf_root(chain.urdf_text)
+    root = chain.urdf.root_link
     if root != "world":  # a URDF link named world is Drake's world body already (UR, xArm)
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(root))
     plant.Finalize()
@@ -168,7 +159,7 @@ def drake_scene_chain(chain: Chain, scene: Scene) -> DrakeChain:
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, 0.0)
     with quiet("drake", loggers=("drake",)):  # a warning per URDF tag it ignores
         add_urdf(plant, chain.urdf_text)
-    root = urdf_root(chain.urdf_text)
+    root = chain.urdf.root_link
     if root != "world":
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(root))
     friction = CoulombFriction(0.5, 0.5)

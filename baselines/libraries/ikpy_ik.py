@@ -156,7 +156,7 @@ def ikpy_chain(chain: Chain) -> tuple[Any, np.ndarray]:
         return _CHAINS[chain]
     import ikpy.chain
 
-    path = element_path(chain.urdf_text, chain.base_link, chain.end_frame)
+    path = element_path(chain)
     elements = [chain.base_link]
     for joint, _, child in path:
         elements += [joint, child]

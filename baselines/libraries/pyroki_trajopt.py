@@ -113,17 +113,17 @@ def _setup_jax():
     return jax
 
 
-def with_velocity_limits(urdf_text: str) -> str:
-    """``urdf_text`` with a ``<limit>`` (velocity only) on continuous joints that have none:
-    PyRoki's parser refuses joints without a velocity limit. The velocity is not used here, and
-    the position limits of continuous joints stay open (-pi..pi is PyRoki's default guess)."""
-    import xml.etree.ElementTree as ET
+def with_velocity_limits(urdf: Any) -> Any:
+    """``urdf`` (a ``yourdfpy.URDF``) with a ``<limit>`` (velocity only) on continuous joints
+    that have none: PyRoki's parser refuses joints without a velocity limit. The velocity is
+    not used here, and the position limits of continuous joints stay open (-pi..pi is PyRoki's
+    default guess)."""
+    import yourdfpy
 
-    root = ET.fromstring(urdf_text)
-    for joint in root.iter("joint"):
-        if joint.get("type") == "continuous" and joint.find("limit") is None:
-            ET.SubElement(joint, "limit", effort="0", velocity=repr(UNBOUNDED))
-    return ET.tostring(root, encoding="unicode")
+    for joint in urdf.robot.joints:
+        if joint.type == "continuous" and joint.limit is None:
+            joint.limit = yourdfpy.Limit(effort=0.0, velocity=UNBOUNDED)
+    return urdf
 
 
 def pyroki_robot(chain: Chain) -> tuple[Any, np.ndarray, int, int]:
@@ -135,10 +135,9 @@ def pyroki_robot(chain: Chain) -> tuple[Any, np.ndarray, int, int]:
     import pyroki
     import yourdfpy
 
-    urdf = yourdfpy.URDF.load(io.BytesIO(with_velocity_limits(chain.urdf_text).encode()),
-                              load_meshes=False,
+    urdf = yourdfpy.URDF.load(io.BytesIO(chain.urdf_text.encode()), load_meshes=False,
                               build_collision_scene_graph=False)
-    robot = pyroki.Robot.from_urdf(urdf)
+    robot = pyroki.Robot.from_urdf(with_velocity_limits(urdf))
     names = list(robot.joints.actuated_names)
     if sorted(names) != sorted(chain.joint_names):
         raise ValueError(f"PyRoki's actuated joints {names} differ from {chain.joint_names}")

@@ -72,9 +72,7 @@ import ctypes
 import os
 import sys
 import tempfile
-import warnings
 import weakref
-import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -94,6 +92,7 @@ from ikbench.baselines._common.method import ChainResult, LibraryMethod
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
+from ikbench.core.urdf_model import with_fixed_frame
 from ikbench.methods.base import check_choice, check_positive, option
 
 if TYPE_CHECKING:
@@ -202,14 +201,11 @@ def _quiet_in(folder: Path) -> Iterator[None]:
 def check_axes(chain: Chain) -> None:
     """InputError unless every chain joint turns or slides along +-x, +-y or +-z (the only
     axes RangedIK's URDF model takes)."""
-    root = ET.fromstring(chain.urdf_text)
-    joints = {j.get("name"): j for j in root.iter("joint")}
-    for name, _, _ in element_path(chain.urdf_text, chain.base_link, chain.end_frame):
+    for name, _, _ in element_path(chain):
         if name not in chain.joint_names:
             continue
-        axis_element = joints[name].find("axis")
-        text = "1 0 0" if axis_element is None else axis_element.get("xyz", "1 0 0")
-        axis = np.array([float(v) for v in text.split()])
+        axis = np.asarray(chain.urdf.joint(name).axis, dtype=float)
+        text = " ".join(f"{v:g}" for v in axis)
         if np.count_nonzero(axis) != 1 or abs(float(np.max(np.abs(axis)))) != 1.0:
             raise InputError(f"--method rangedik: joint {name!r} has axis {text!r}; RangedIK's "
                              "URDF model takes joint axes along +-x, +-y or +-z only")
@@ -221,18 +217,7 @@ def settings_urdf(chain: Chain) -> tuple[str, str]:
     R_EP = frame_with_z_on(chain.pointing_axis)
     if np.allclose(R_EP, np.eye(3)):
         return chain.urdf_text, chain.end_frame
-    from scipy.spatial.transform import Rotation
-
-    root = ET.fromstring(chain.urdf_text)
-    ET.SubElement(root, "link", name=POINTING_LINK)
-    joint = ET.SubElement(root, "joint", name=f"{POINTING_LINK}_joint", type="fixed")
-    ET.SubElement(joint, "parent", link=chain.end_frame)
-    ET.SubElement(joint, "child", link=POINTING_LINK)
-    with warnings.catch_warnings():  # gimbal lock (a quarter turn) still gives a valid rpy
-        warnings.simplefilter("ignore")
-        rpy = Rotation.from_matrix(R_EP).as_euler("xyz")
-    ET.SubElement(joint, "origin", xyz="0 0 0", rpy=" ".join(repr(float(v)) for v in rpy))
-    return ET.tostring(root, encoding="unicode"), POINTING_LINK
+    return with_fixed_frame(chain.urdf_text, POINTING_LINK, chain.end_frame, R_EP), POINTING_LINK
 
 
 class Solver:

@@ -6,8 +6,8 @@ The robot's collision geometry comes from
   [mm], the link pairs that never collide (as an SRDF's ``disable_collisions``) and named
   obstacle sets (e.g. NICO's ``touchscreen``); the shipped robots have one (Panda and Fetch:
   jstmn/jrl's capsules; NICO: capsules from its link dimensions), or
-- the URDF's ``<collision>`` elements (a user's URDF, a description package's robot), read by
-  Pinocchio.
+- the URDF's ``<collision>`` elements (a user's URDF, a description package's robot), in the
+  text written from the robot's URDF model (``Robot.urdf_model``) and read by Pinocchio.
 
 Pairs never checked: geometry on the same moving body (their distance cannot change), on
 adjacent moving bodies (one hangs from the other through a single movable joint, fixed links in
@@ -402,6 +402,8 @@ def build_collision_model(robot: Robot) -> CollisionModel | None:
     )
 
     config = collision_config(robot)
+    if config is None and not robot.urdf_model.collisions:
+        return None
     if config is None:
         model, geometry = build_chain_model_with_geometry(robot, with_collision=True)
         if geometry is None or geometry.ngeoms == 0:

@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import json
 import math
-import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -270,16 +269,9 @@ def _read_speed_limits(robot) -> tuple[np.ndarray | None, str]:
         if all(v is not None for v in speeds):
             return (np.array(speeds, dtype=float),
                     f"max_speed_deg_s of {path.name}")
-    root = ET.parse(robot.urdf_path).getroot()
-    joints = {j.get("name"): j for j in root.iter("joint")}
-    speeds = []
-    for name in robot.joint_names:
-        limit = joints[name].find("limit") if name in joints else None
-        velocity = None if limit is None else limit.get("velocity")
-        if velocity is None or float(velocity) <= 0:
-            return None, "no speed limit known (a chain joint has no URDF velocity limit)"
-        speeds.append(float(velocity))
-    si = np.asarray(speeds)
+    si = robot.urdf_model.velocity_limits(robot.joint_names)
+    if not np.all(np.isfinite(si)):
+        return None, "no speed limit known (a chain joint has no URDF velocity limit)"
     # joint units per s -> pose units per s: a pose unit is (scale) joint units (deg or mm)
     per_unit = np.where(np.asarray(robot.prismatic), 1000.0, np.degrees(1.0))
     scale = np.abs(np.asarray(robot.scale, dtype=float))

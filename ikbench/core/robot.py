@@ -26,11 +26,9 @@ that jrl/CppFlow give the continuous rolls of the Fetch arm.
 from __future__ import annotations
 
 import functools
-import hashlib
 import json
 import math
 import tomllib
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple, overload
@@ -39,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.errors import InputError
+from ikbench.core.urdf_model import MOVABLE_TYPES, UrdfJoint, UrdfModel, load_urdf_model
 
 if TYPE_CHECKING:
     import torch
@@ -52,8 +51,6 @@ DEG2RAD = math.pi / 180.0
 MM_PER_M = 1000.0
 #: Tolerance [pose units] when checking that a pose lies within the limits.
 RANGE_TOLERANCE_DEG = 1e-6
-#: URDF joint types a chain may hold (fixed joints are constant transforms).
-MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
 #: Keys a robot config may hold (a typo would otherwise be ignored silently).
 CONFIG_KEYS = ("name", "description", "source", "urdf", "base_link", "end_frame",
                "pointing_axis", "joints", "motor_map", "hardware", "targets", "frame",
@@ -73,15 +70,6 @@ class FKResult(NamedTuple):
 
     point_mm: np.ndarray
     direction: np.ndarray
-
-
-class ChainJoint(NamedTuple):
-    """A movable joint of the chain as the URDF gives it (SI units)."""
-
-    name: str
-    type: str
-    lower: float
-    upper: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,11 +167,17 @@ class Robot:
         return "mm" if self.joint_types[joint] == "prismatic" else "deg"
 
     @property
+    def urdf_model(self) -> UrdfModel:
+        """The URDF as read when the robot was loaded (:mod:`ikbench.core.urdf_model`): links,
+        joints, limits, velocities, collision elements, and the text the libraries load."""
+        if "urdf_model" not in self._cache:
+            self._cache["urdf_model"] = load_urdf_model(self.urdf_path)
+        return self._cache["urdf_model"]
+
+    @property
     def urdf_sha256(self) -> str:
         """SHA-256 of the URDF file (recorded with results)."""
-        if "sha256" not in self._cache:
-            self._cache["sha256"] = hashlib.sha256(self.urdf_path.read_bytes()).hexdigest()
-        return self._cache["sha256"]
+        return self.urdf_model.sha256
 
     @property
     def sample_lower(self) -> np.ndarray:
@@ -379,76 +373,42 @@ class Robot:
 
 
 # ----- loading ------------------------------------------------------------------------------
-def _link_of(joint: ET.Element, tag: str) -> str:
-    """The ``link`` attribute of a joint's <parent> or <child> ("" when missing)."""
-    element = joint.find(tag)
-    return "" if element is None else element.get("link", "")
-
-
-def _read_urdf(urdf_path: Path) -> ET.Element:
-    try:
-        return ET.parse(urdf_path).getroot()
-    except (OSError, ET.ParseError) as exc:
-        raise InputError(f"cannot read URDF {str(urdf_path)!r}: {exc}") from None
-
-
-def chain_joints(urdf_path: Path, base_link: str, end_frame: str) -> list[ChainJoint]:
+def chain_joints(urdf: UrdfModel, base_link: str, end_frame: str) -> list[UrdfJoint]:
     """The movable joints on the path base_link -> end_frame of a URDF, base first.
 
-    Reads only the joints' names, types, parent/child links and limits; the kinematics
-    libraries parse the rest.
-
     Raises:
-        InputError: unreadable URDF, a joint naming a link the URDF does not define, unknown
-            link, or end_frame not below base_link.
+        InputError: a joint naming a link the URDF does not define, unknown link, end_frame
+            not below base_link, a joint type a chain cannot hold, or no movable joint on the
+            path.
     """
-    root = _read_urdf(urdf_path)
-    links = [link.get("name", "") for link in root.iter("link")]
-    for joint in root.findall("joint"):  # the real fault before the chain it breaks
+    name = urdf.path.name
+    for joint in urdf.joints:  # the real fault before the chain it breaks
         for role in ("parent", "child"):
-            if _link_of(joint, role) not in links:
-                raise InputError(f"robot: {urdf_path.name}: joint {joint.get('name')!r} names "
-                                 f"the {role} link {_link_of(joint, role)!r}, which the URDF "
-                                 f"does not define; links: {', '.join(links)}")
-    for what, name in (("end_frame", end_frame), ("base link", base_link)):
-        if name not in links:
-            raise InputError(f"{what}: {name!r} is not a link of {urdf_path.name}; links: "
-                             f"{', '.join(links)}")
-    by_child = {_link_of(j, "child"): j for j in root.iter("joint")}
-    path, link = [], end_frame
-    while link != base_link:
-        joint = by_child.get(link)
-        if joint is None:
-            raise InputError(f"end_frame: {end_frame!r} is not below the base link "
-                             f"{base_link!r} in {urdf_path.name}")
-        path.append(joint)
-        link = _link_of(joint, "parent")
+            if getattr(joint, role) not in urdf.links:
+                raise InputError(f"robot: {name}: joint {joint.name!r} names the {role} link "
+                                 f"{getattr(joint, role)!r}, which the URDF does not define; "
+                                 f"links: {', '.join(urdf.links)}")
+    for what, link in (("end_frame", end_frame), ("base link", base_link)):
+        if link not in urdf.links:
+            raise InputError(f"{what}: {link!r} is not a link of {name}; links: "
+                             f"{', '.join(urdf.links)}")
+    try:
+        path = urdf.path_between(base_link, end_frame)
+    except LookupError:
+        raise InputError(f"end_frame: {end_frame!r} is not below the base link "
+                         f"{base_link!r} in {name}") from None
     joints = []
-    for joint in reversed(path):
-        kind = joint.get("type", "")
-        if kind == "fixed":
+    for joint in path:
+        if joint.type == "fixed":
             continue
-        if kind not in MOVABLE_TYPES:
-            raise InputError(f"{urdf_path.name}: joint {joint.get('name')!r} is {kind!r}; a "
+        if joint.type not in MOVABLE_TYPES:
+            raise InputError(f"{name}: joint {joint.name!r} is {joint.type!r}; a "
                              f"chain may hold {', '.join(MOVABLE_TYPES)} and fixed joints")
-        limit = joint.find("limit")
-        if kind == "continuous" or limit is None:
-            lower, upper = -math.inf, math.inf
-        else:
-            lower, upper = float(limit.get("lower", 0.0)), float(limit.get("upper", 0.0))
-        joints.append(ChainJoint(joint.get("name", ""), kind, lower, upper))
+        joints.append(joint)
     if not joints:
-        raise InputError(f"{urdf_path.name}: no movable joint between {base_link!r} and "
+        raise InputError(f"{name}: no movable joint between {base_link!r} and "
                          f"{end_frame!r}")
     return joints
-
-
-def urdf_root_link(urdf_path: Path) -> str:
-    """The URDF's root link (the one no joint has as child)."""
-    root = _read_urdf(urdf_path)
-    children = {_link_of(j, "child") for j in root.iter("joint")}
-    return next(name for link in root.iter("link")
-                if (name := link.get("name", "")) not in children)
 
 
 def shipped_robots() -> dict[str, Path]:
@@ -484,7 +444,7 @@ def _read_config(path: Path) -> dict:
     return config
 
 
-def _motor_map(path: Path, joints: list[ChainJoint]):
+def _motor_map(path: Path, joints: list[UrdfJoint]):
     """scale, offset, lower, upper (dof,) from a ``*.motors.json`` map in the chain's order."""
     try:
         spec = json.loads(path.read_text(encoding="utf-8"))
@@ -508,8 +468,9 @@ def robot_from_config(path: Path, end_frame: str | None = None) -> Robot:
     if not urdf_path.is_file():
         raise InputError(f"robot config {str(path)!r}: URDF {str(urdf_path)!r} not found")
     end = end_frame or config["end_frame"]
-    base = config.get("base_link") or urdf_root_link(urdf_path)
-    joints, locked = _split_locked(chain_joints(urdf_path, base, end), config.get("locked"),
+    urdf = load_urdf_model(urdf_path)
+    base = config.get("base_link") or urdf.root_link
+    joints, locked = _split_locked(chain_joints(urdf, base, end), config.get("locked"),
                                    path)
     names = tuple(j.name for j in joints)
     if "joints" in config and tuple(config["joints"]) != names:
@@ -534,7 +495,8 @@ def robot_from_config(path: Path, end_frame: str | None = None) -> Robot:
                  pointing_axis=_unit_axis(config.get("pointing_axis", (0, 0, 1)),
                                           f"{path.name}: pointing_axis"),
                  has_motor_map=has_map, config={**config, "config_path": str(path)},
-                 locked_urdf=locked, validity_lower=valid_lower, validity_upper=valid_upper)
+                 locked_urdf=locked, validity_lower=valid_lower, validity_upper=valid_upper,
+                 _cache={"urdf_model": urdf})
 
 
 def _number(value) -> bool:
@@ -542,7 +504,7 @@ def _number(value) -> bool:
         and math.isfinite(value)
 
 
-def _split_locked(joints: list[ChainJoint], spec, path: Path):
+def _split_locked(joints: list[UrdfJoint], spec, path: Path):
     """(the chain's free joints, {locked name: value [rad or m]}) from a config's ``locked``
     table (values in pose units: deg, mm for prismatic joints)."""
     if not spec:
@@ -594,8 +556,9 @@ def _validity_limits(spec, names, lower, upper, path: Path):
 def robot_from_urdf(urdf_path: Path, end_frame: str, base_link: str | None = None) -> Robot:
     """A robot from a bare URDF: the chain from its root (or ``base_link``) to ``end_frame``;
     poses in joint degrees (mm for prismatic joints), the end frame's z-axis points."""
-    base = base_link or urdf_root_link(urdf_path)
-    joints = chain_joints(urdf_path, base, end_frame)
+    urdf = load_urdf_model(urdf_path)
+    base = base_link or urdf.root_link
+    joints = chain_joints(urdf, base, end_frame)
     types = tuple(j.type for j in joints)
     per_unit = np.array([MM_PER_M if t == "prismatic" else 1.0 / DEG2RAD for t in types])
     return Robot(name=urdf_path.stem, urdf_path=urdf_path.resolve(), end_frame=end_frame,
@@ -605,7 +568,8 @@ def robot_from_urdf(urdf_path: Path, end_frame: str, base_link: str | None = Non
                  upper_motor_deg=np.array([j.upper for j in joints]) * per_unit,
                  joint_types=types, has_motor_map=False,
                  config={"description": f"{urdf_path.name}, chain {base} -> {end_frame}",
-                         "source": str(urdf_path)})
+                         "source": str(urdf_path)},
+                 _cache={"urdf_model": urdf})
 
 
 def robot_from_package(name: str, end_frame: str | None) -> Robot:
@@ -617,7 +581,7 @@ def robot_from_package(name: str, end_frame: str | None) -> Robot:
 
     urdf_path, base, end, description = resolve(name, end_frame)
     robot = robot_from_urdf(urdf_path, end, base)
-    return replace(robot, name=name.partition(":")[2], _cache={},
+    return replace(robot, name=name.partition(":")[2], _cache={"urdf_model": robot.urdf_model},
                    config={"description": description, "source": name})
 
 

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import json
 import math
-import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -53,22 +52,9 @@ def pose_units_per_urdf_unit(robot: Robot) -> np.ndarray:
 
 
 def urdf_velocity_limits(robot: Robot) -> np.ndarray:
-    """(dof,) the URDF's joint velocity limits [URDF units/s]; NaN where a joint has none."""
-    try:
-        root = ET.parse(robot.urdf_path).getroot()
-    except (OSError, ET.ParseError) as exc:
-        raise InputError(f"cannot read URDF {str(robot.urdf_path)!r}: {exc}") from None
-    by_name = {j.get("name"): j for j in root.iter("joint")}
-    values = []
-    for name in robot.joint_names:
-        limit = by_name[name].find("limit") if name in by_name else None
-        text = None if limit is None else limit.get("velocity")
-        try:
-            value = float(text) if text is not None else math.nan
-        except ValueError:
-            value = math.nan
-        values.append(value if value > 0 else math.nan)
-    return np.array(values)
+    """(dof,) the URDF's joint velocity limits [URDF units/s]; NaN where a joint has none
+    (or a non-positive one)."""
+    return robot.urdf_model.velocity_limits(robot.joint_names)
 
 
 def limits_file(robot: Robot) -> Path | None:

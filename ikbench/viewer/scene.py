@@ -49,9 +49,8 @@ def load_model(robot: Robot, meshes: bool = True) -> yourdfpy.URDF:
         found = resolve_package_uri(fname)
         return str(found) if found else yourdfpy.filename_handler_magic(fname, dir=mesh_dir)
 
-    model = yourdfpy.URDF.load(str(robot.urdf_path), build_scene_graph=True,
-                               load_meshes=meshes, mesh_dir=mesh_dir,
-                               filename_handler=filename)
+    model = robot.urdf_model.to_yourdfpy(build_scene_graph=True, load_meshes=meshes,
+                                         mesh_dir=mesh_dir, filename_handler=filename)
     for joint in model.robot.joints:
         if joint.type == "prismatic" and joint.axis is not None:
             joint.axis = np.asarray(joint.axis, dtype=float) / np.linalg.norm(joint.axis)

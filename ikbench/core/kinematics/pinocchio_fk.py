@@ -9,7 +9,6 @@ model's world frame (positions and world-aligned Jacobians are in the base frame
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -23,17 +22,9 @@ CONTINUOUS_LIMIT_RAD = 1e6
 
 
 def chain_urdf_xml(robot: Robot) -> str:
-    """The robot's URDF text with its continuous joints made revolute with wide limits."""
-    tree = ET.parse(robot.urdf_path)
-    for joint in tree.getroot().iter("joint"):
-        if joint.get("type") == "continuous":
-            joint.set("type", "revolute")
-            limit = joint.find("limit")
-            if limit is None:
-                limit = ET.SubElement(joint, "limit", effort="0", velocity="0")
-            limit.set("lower", repr(-CONTINUOUS_LIMIT_RAD))
-            limit.set("upper", repr(CONTINUOUS_LIMIT_RAD))
-    return ET.tostring(tree.getroot(), encoding="unicode")
+    """The robot's URDF text, written from its model (``Robot.urdf_model``), with its
+    collision elements and its continuous joints made revolute with wide limits."""
+    return robot.urdf_model.to_xml(continuous_limit=CONTINUOUS_LIMIT_RAD)
 
 
 def link_frame_id(model: Any, name: str) -> int:

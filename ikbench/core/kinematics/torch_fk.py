@@ -71,8 +71,8 @@ class TorchFK:
         self.robot = robot
         self.dtype = dtype or torch.float32
         self.device = device
-        chain = build_chain_float64(robot.urdf_path.read_bytes(), robot.end_frame,
-                                    robot.root_link)
+        chain = build_chain_float64(robot.urdf_model.to_xml(collisions=False).encode(),
+                                    robot.end_frame, robot.root_link)
         names = tuple(chain.get_joint_parameter_names())
         free = tuple(n for n in names if n not in robot.locked_urdf)
         if free != robot.joint_names:

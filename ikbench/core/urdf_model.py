@@ -1,0 +1,371 @@
+"""A URDF read once, through yourdfpy: links, joints, limits, velocities, collision elements.
+
+:func:`load_urdf_model` parses a URDF file with yourdfpy (no scene graph, no meshes) into a
+:class:`UrdfModel`, cached per file and content, so every consumer reads the same model: the
+robot's chain and limits (:mod:`ikbench.core.robot`), the velocity limits of the contract and
+of ``--timing topp``, the root link Drake welds, the path ikpy follows. Units are the URDF's:
+metres, radians, m/s and rad/s.
+
+The URDF text handed to a kinematics library (Pinocchio, pytorch-kinematics, ikpy, TRAC-IK,
+Drake, MuJoCo, PyRoki) is written from the model by :meth:`UrdfModel.to_xml` (yourdfpy's
+writer), with the edits a consumer asks for: visual or collision elements left out, joints
+held fixed at a value, continuous joints as wide revolute ones, unit axes. yourdfpy keeps an
+origin as a 4x4 matrix and writes it back as ``xyz`` / ``rpy`` at full precision (``rpy``
+through ``trimesh.transformations.euler_from_matrix``; a -0.0 it gives is written 0.0, as the
+file had it: PyRoki's rotations follow the sign of a zero): the shipped URDFs come back with
+every number unchanged, others as the same placements (to ~1e-16; an angle may come back wrapped,
+e.g. ``-3.1416`` for ``3.1416``). yourdfpy writes no ``<mimic>``, ``<calibration>``,
+``<safety_controller>``, ``<transmission>`` or ``<gazebo>`` elements: none of them changes the
+kinematics the libraries build here.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import io
+import logging
+import math
+from collections import OrderedDict
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ikbench.core.errors import InputError
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+
+    import yourdfpy
+
+#: URDF joint types that move (fixed joints are constant transforms).
+MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
+#: How many parsed files :func:`load_urdf_model` keeps.
+CACHE_SIZE = 32
+
+_MODELS: OrderedDict[tuple[str, str], UrdfModel] = OrderedDict()
+
+
+@dataclass(frozen=True, eq=False)
+class UrdfJoint:
+    """One ``<joint>`` of a URDF, in its units.
+
+    Attributes:
+        name: the joint's name.
+        type: ``revolute``, ``continuous``, ``prismatic``, ``fixed``, ``floating`` or
+            ``planar``.
+        parent: the parent link.
+        child: the child link.
+        origin: (4, 4) the child's frame in the parent's at joint value 0 [m]; identity when
+            the joint has no ``<origin>``.
+        axis: (3,) the axis as written (not normalised); (1, 0, 0) when none is given.
+        lower: lower limit [rad or m]; -inf for a continuous joint or one without ``<limit>``
+            (0 where ``<limit>`` gives no ``lower``, as the URDF specification says).
+        upper: upper limit [rad or m]; +inf as ``lower``.
+        velocity: velocity limit [rad/s or m/s] as written; NaN when the joint gives none.
+    """
+
+    name: str
+    type: str
+    parent: str
+    child: str
+    origin: np.ndarray
+    axis: np.ndarray
+    lower: float
+    upper: float
+    velocity: float
+
+    @property
+    def movable(self) -> bool:
+        """True for revolute, continuous and prismatic joints."""
+        return self.type in MOVABLE_TYPES
+
+
+@dataclass(frozen=True, eq=False)
+class UrdfCollision:
+    """One ``<collision>`` element of a link.
+
+    Attributes:
+        link: the link it belongs to.
+        kind: ``box``, ``cylinder``, ``sphere`` or ``mesh`` ("" when it has no geometry).
+        origin: (4, 4) its frame in the link's [m].
+        mesh: the mesh's file name as written (``package://`` URIs too), else None.
+    """
+
+    link: str
+    kind: str
+    origin: np.ndarray
+    mesh: str | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class UrdfModel:
+    """A URDF file as yourdfpy parsed it (read-only; see the module docstring).
+
+    Attributes:
+        path: the URDF file.
+        sha256: SHA-256 of the file's bytes (the cache key, with the path).
+        name: the ``<robot>`` name.
+        links: the link names, in file order.
+        joints: the joints, in file order.
+        root_link: the first link that is no joint's child.
+        collisions: the links' ``<collision>`` elements, in file order.
+    """
+
+    path: Path
+    sha256: str
+    name: str
+    links: tuple[str, ...]
+    joints: tuple[UrdfJoint, ...]
+    root_link: str
+    collisions: tuple[UrdfCollision, ...]
+    _tree: yourdfpy.Robot
+
+    def joint(self, name: str) -> UrdfJoint:
+        """The joint called ``name`` (KeyError when there is none)."""
+        for joint in self.joints:
+            if joint.name == name:
+                return joint
+        raise KeyError(name)
+
+    def velocity_limits(self, names: tuple[str, ...] | list[str]) -> np.ndarray:
+        """(len(names),) the joints' velocity limits [rad/s or m/s]; NaN where a joint gives
+        none or a non-positive one."""
+        values = np.array([self.joint(name).velocity for name in names], dtype=float)
+        return np.where(values > 0, values, math.nan)
+
+    def path_between(self, base_link: str, end_link: str) -> tuple[UrdfJoint, ...]:
+        """The joints from ``base_link`` down to ``end_link``, base first (fixed ones too).
+
+        Raises:
+            LookupError: ``end_link`` is not below ``base_link`` (or either is no link).
+        """
+        by_child = {j.child: j for j in self.joints}
+        path, link = [], end_link
+        while link != base_link:
+            joint = by_child.get(link)
+            if joint is None:
+                raise LookupError(f"{end_link!r} is not below {base_link!r} in {self.path.name}")
+            path.append(joint)
+            link = joint.parent
+        return tuple(reversed(path))
+
+    def to_yourdfpy(self, **options: Any) -> yourdfpy.URDF:
+        """A ``yourdfpy.URDF`` of a copy of the model (the caller may change it), built with
+        ``options`` (yourdfpy's: ``build_scene_graph``, ``load_meshes``, ``mesh_dir``,
+        ``filename_handler``, ...): the viewer's scene graph."""
+        import yourdfpy
+
+        return yourdfpy.URDF(robot=copy.deepcopy(self._tree), **options)
+
+    def to_xml(self, *, visuals: bool = False, collisions: bool = True,
+               fixed: Mapping[str, float] | None = None,
+               continuous_limit: float | None = None, unit_axes: bool = False) -> str:
+        """The URDF text of the model, written by yourdfpy, with these edits.
+
+        Args:
+            visuals: keep the ``<visual>`` elements (and the ``<material>`` elements).
+            collisions: keep the ``<collision>`` elements.
+            fixed: joints made fixed, name -> value [rad or m]: the motion at that value is
+                folded into the joint's origin, and its axis, limit and dynamics go.
+            continuous_limit: when given, continuous joints are written as revolute joints
+                with limits -value..value [rad] (their effort and velocity kept, 0 if none).
+            unit_axes: write every joint axis normalised.
+
+        Fixed joints are written without an axis (ikpy warns about one).
+        """
+        import yourdfpy
+
+        held = dict(fixed or {})
+        joints = [_edited(j, held, continuous_limit, unit_axes) for j in self._tree.joints]
+        links = [replace(link, visuals=link.visuals if visuals else [],
+                         collisions=link.collisions if collisions else [])
+                 for link in self._tree.links]
+        robot = replace(self._tree, links=links, joints=joints,
+                        materials=self._tree.materials if visuals else [])
+        writer = yourdfpy.URDF(robot=robot, build_scene_graph=False, load_meshes=False,
+                               filename_handler=yourdfpy.filename_handler_null)
+        tree = writer.write_xml()
+        for origin in tree.iter("origin"):  # rpy from a matrix may hold -0.0 for a written 0
+            for key in ("xyz", "rpy"):
+                origin.set(key, " ".join(repr(float(v) + 0.0) for v in origin.get(key).split()))
+        out = io.BytesIO()
+        tree.write(out, xml_declaration=True)
+        return out.getvalue().decode("ascii")
+
+
+def with_fixed_frame(urdf_text: str, name: str, parent: str, rotation: np.ndarray) -> str:
+    """A URDF text (written by :meth:`UrdfModel.to_xml`) with one more link ``name`` fixed
+    to ``parent`` at its origin, rotated by ``rotation`` (3, 3): a frame a library can name
+    (RangedIK's end link with the pointing axis as its z). Read and written by yourdfpy."""
+    import yourdfpy
+
+    tree = yourdfpy.URDF.load(io.BytesIO(urdf_text.encode()), build_scene_graph=False,
+                              load_meshes=False, filename_handler=yourdfpy.filename_handler_null)
+    origin = np.eye(4)
+    origin[:3, :3] = rotation
+    robot = tree.robot
+    robot = replace(robot, links=[*robot.links, yourdfpy.Link(name=name)],
+                    joints=[*robot.joints, yourdfpy.Joint(name=f"{name}_joint", type="fixed",
+                                                          parent=parent, child=name,
+                                                          origin=origin)])
+    writer = yourdfpy.URDF(robot=robot, build_scene_graph=False, load_meshes=False,
+                           filename_handler=yourdfpy.filename_handler_null)
+    out = io.BytesIO()
+    writer.write_xml().write(out, xml_declaration=True)
+    return out.getvalue().decode("ascii")
+
+
+def _edited(joint: yourdfpy.Joint, fixed: dict[str, float], continuous_limit: float | None,
+            unit_axes: bool) -> yourdfpy.Joint:
+    """A copy of a yourdfpy joint with the edits of :meth:`UrdfModel.to_xml`."""
+    if joint.name in fixed and joint.type in MOVABLE_TYPES:
+        value = float(fixed[joint.name])
+        origin = _origin(joint)
+        if value:
+            origin = origin @ _motion(joint.type, _unit(joint.axis), value)
+        return replace(joint, type="fixed", origin=origin, axis=None, limit=None,
+                       dynamics=None, mimic=None, safety_controller=None, calibration=None)
+    if joint.type == "fixed":
+        return replace(joint, axis=None)
+    if joint.type == "continuous" and continuous_limit is not None:
+        import yourdfpy
+
+        old = joint.limit
+        limit = yourdfpy.Limit(
+            effort=0.0 if old is None or old.effort is None else old.effort,
+            velocity=0.0 if old is None or old.velocity is None else old.velocity,
+            lower=-float(continuous_limit), upper=float(continuous_limit))
+        joint = replace(joint, type="revolute", limit=limit)
+    if unit_axes and joint.axis is not None:
+        joint = replace(joint, axis=_unit(joint.axis))
+    return joint
+
+
+def _origin(joint: yourdfpy.Joint) -> np.ndarray:
+    """(4, 4) a copy of the joint's origin (identity when it has none)."""
+    return np.eye(4) if joint.origin is None else np.array(joint.origin, dtype=float)
+
+
+def _unit(axis: np.ndarray | None) -> np.ndarray:
+    """``axis`` normalised ((1, 0, 0) for None; unchanged when zero)."""
+    values = np.array([1.0, 0.0, 0.0] if axis is None else axis, dtype=float)
+    norm = float(np.linalg.norm(values))
+    return values / norm if norm > 0 else values
+
+
+def _motion(kind: str, axis: np.ndarray, value: float) -> np.ndarray:
+    """(4, 4) the motion of a joint of ``kind`` about/along a unit ``axis`` at ``value``
+    [rad or m]."""
+    from scipy.spatial.transform import Rotation
+
+    T = np.eye(4)
+    if kind == "prismatic":
+        T[:3, 3] = axis * value
+    else:
+        T[:3, :3] = Rotation.from_rotvec(axis * value).as_matrix()
+    return T
+
+
+def load_urdf_model(path: str | Path) -> UrdfModel:
+    """The :class:`UrdfModel` of a URDF file (cached per file and content).
+
+    Raises:
+        InputError: the file cannot be read or is no URDF yourdfpy can parse (one line).
+    """
+    path = Path(path).resolve()
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"cannot read URDF {str(path)!r}: {exc}") from None
+    key = (str(path), hashlib.sha256(data).hexdigest())
+    if key in _MODELS:
+        _MODELS.move_to_end(key)
+        return _MODELS[key]
+    model = _parse(path, key[1], data)
+    _MODELS[key] = model
+    while len(_MODELS) > CACHE_SIZE:
+        _MODELS.popitem(last=False)
+    return model
+
+
+class _Errors(logging.Handler):
+    """Collects what yourdfpy logs while it parses (it logs a malformed file's XML error,
+    then parses what it can recover)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.ERROR)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+def _parse(path: Path, digest: str, data: bytes) -> UrdfModel:
+    import yourdfpy
+
+    logger = logging.getLogger(yourdfpy.URDF.__module__)
+    errors, propagate = _Errors(), logger.propagate
+    logger.addHandler(errors)
+    logger.propagate = False
+    where = f"cannot read URDF {str(path)!r}"
+    try:
+        urdf = yourdfpy.URDF.load(io.BytesIO(data), build_scene_graph=False, load_meshes=False,
+                                  filename_handler=yourdfpy.filename_handler_null)
+    except Exception as exc:  # yourdfpy raises what its parsing meets (KeyError, ...)
+        reason = (errors.messages[0] if errors.messages
+                  else f"an element lacks its {exc} attribute" if isinstance(exc, KeyError)
+                  else f"not a URDF yourdfpy can read ({type(exc).__name__}: {exc})")
+        raise InputError(f"{where}: {_one_line(reason)}") from None
+    finally:
+        logger.removeHandler(errors)
+        logger.propagate = propagate
+    if errors.messages:
+        raise InputError(f"{where}: {_one_line(errors.messages[0])}")
+    tree = urdf.robot
+    try:
+        joints = tuple(_joint(j) for j in tree.joints)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{where}: {_one_line(str(exc))}") from None
+    links = tuple(link.name for link in tree.links)
+    children = {j.child for j in joints}
+    root = next((name for name in links if name not in children), "")
+    return UrdfModel(path=path, sha256=digest, name=str(tree.name), links=links,
+                     joints=joints, root_link=root,
+                     collisions=tuple(_collision(link.name, c) for link in tree.links
+                                      for c in link.collisions),
+                     _tree=tree)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def _joint(joint: yourdfpy.Joint) -> UrdfJoint:
+    limit = joint.limit
+    if joint.type == "continuous" or limit is None:
+        lower, upper = -math.inf, math.inf
+    else:
+        lower = 0.0 if limit.lower is None else float(limit.lower)
+        upper = 0.0 if limit.upper is None else float(limit.upper)
+    velocity = math.nan if limit is None or limit.velocity is None else float(limit.velocity)
+    axis = np.array([1.0, 0.0, 0.0] if joint.axis is None else joint.axis, dtype=float)
+    origin = _origin(joint)
+    origin.setflags(write=False)
+    axis.setflags(write=False)
+    return UrdfJoint(name=str(joint.name), type=str(joint.type), parent=str(joint.parent),
+                     child=str(joint.child), origin=origin, axis=axis, lower=lower,
+                     upper=upper, velocity=velocity)
+
+
+def _collision(link: str, collision: yourdfpy.Collision) -> UrdfCollision:
+    geometry = collision.geometry
+    kinds = ("box", "cylinder", "sphere", "mesh")
+    kind = next((k for k in kinds if geometry is not None and getattr(geometry, k) is not None),
+                "")
+    origin = np.eye(4) if collision.origin is None else np.array(collision.origin, dtype=float)
+    origin.setflags(write=False)
+    mesh = geometry.mesh.filename if kind == "mesh" else None
+    return UrdfCollision(link=link, kind=kind, origin=origin, mesh=mesh)
