@@ -79,6 +79,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, cast
 import numpy as np
 import numpy.typing as npt
 
+from ikbench.baselines._common.chain import goals_of, max_step_urdf
 from ikbench.baselines._common.single_pose import (
     LIBRARY_TOLERANCE,
     MAX_STEPS,
@@ -493,7 +494,6 @@ def track_joint_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
     Raises:
         InputError: the task lacks the start or the touch pose.
     """
-    from ikbench.baselines._common.chain import goals_of, max_step_urdf
 
     require_start_and_touch(task, "sequential-ik")
     pin_fk = robot.pinocchio_fk()
@@ -596,7 +596,6 @@ def check_tasks(robot: Robot, tasks: Sequence[Task], settings: DLSSettings,
     """Fail before any solve: the walk needs a touch pose, the track a start and a touch pose
     (a pose path needs neither: it is walked forward), and frame mode an up vector that is not
     parallel to any goal direction asked (InputError naming the trajectory)."""
-    from ikbench.baselines._common.chain import goals_of
 
     pin_fk = robot.pinocchio_fk()
     for task in tasks:

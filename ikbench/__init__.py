@@ -22,8 +22,6 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-import ikbench.paper  # noqa: F401  registers the paper's report sections (nothing heavy)
-
 __version__ = "0.3.0"
 
 #: public name -> module that defines it

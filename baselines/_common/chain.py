@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from ikbench.core.contract import DEFAULT_DURATION_S, speed_limits
 from ikbench.core.errors import InputError, SolverError
 
 if TYPE_CHECKING:
@@ -181,7 +182,6 @@ def max_step_urdf(robot: Robot, contract: Contract | None, steps: int) -> np.nda
     """(dof,) the largest joint change per segment [rad, m]: the contract's speed limits at
     its duration (:meth:`~ikbench.core.contract.Contract.max_step`); without a contract the
     robot's own limits at the default duration; None when no speed limit is known."""
-    from ikbench.core.contract import DEFAULT_DURATION_S, speed_limits
 
     if contract is not None:
         step = contract.max_step(steps)

@@ -35,6 +35,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from ikbench.core.collision import collision_model
+from ikbench.core.obstacles import frame_with_z
+
 if TYPE_CHECKING:
     from ikbench.core.collision import Capsule
     from ikbench.core.obstacles import Obstacle
@@ -156,7 +159,6 @@ class Scene:
 
 def rotation_with_z(axis: npt.ArrayLike) -> np.ndarray:
     """A rotation whose z column is ``axis`` normalised (identity for a zero axis)."""
-    from ikbench.core.obstacles import frame_with_z
 
     return frame_with_z(axis)
 
@@ -233,7 +235,6 @@ def no_avoidance_reason(robot: Robot, obstacles: Sequence[Obstacle]) -> str:
 
 
 def _model(robot):
-    from ikbench.core.collision import collision_model
 
     return collision_model(robot)
 

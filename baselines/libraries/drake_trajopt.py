@@ -81,6 +81,7 @@ from ikbench.baselines._common.drake import (
     solve,
 )
 from ikbench.baselines._common.method import ChainResult
+from ikbench.baselines.libraries import drake_ik
 from ikbench.baselines.libraries.drake_ik import STEP_MARGIN
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
@@ -202,7 +203,6 @@ def _initial_guess(trajopt, chain, goals, drake, settings, s, scene=None):
     basis = trajopt.basis()
     first, last = drake.positions(goals.q_start), drake.positions(goals.q_touch)
     if settings.init == "ik":
-        from ikbench.baselines.libraries import drake_ik
 
         ik_settings = (drake_ik.DrakeIKSettings(solver=settings.solver) if scene is None else
                        drake_ik.DrakeIKSettings(solver=settings.solver,

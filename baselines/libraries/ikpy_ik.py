@@ -63,7 +63,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ikbench.baselines._common.chain import Chain, Goals, element_path
+from ikbench.baselines._common.chain import Chain, Goals, chain_of, element_path
 from ikbench.baselines._common.geometry import angle_between_rad, rotation_angle_rad
 from ikbench.baselines._common.method import ChainResult, LibraryMethod
 from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
@@ -294,13 +294,11 @@ class IkpyIK(LibraryMethod):
     def check_robot(self, robot: Robot) -> None:
         """Pointing mode needs a coordinate pointing axis (ikpy's X / Y / Z modes)."""
         if self.settings.orientation == "pointing":
-            from ikbench.baselines._common.chain import chain_of
 
             axis_mode(chain_of(robot))
 
     def prepare(self, robot: Robot) -> None:
         """Untimed: parse the URDF and build ikpy's chain (sympy-compiled link matrices)."""
-        from ikbench.baselines._common.chain import chain_of
 
         ikpy_chain(chain_of(robot))
 

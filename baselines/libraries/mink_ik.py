@@ -67,7 +67,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals
+from ikbench.baselines._common.chain import Chain, Goals, chain_of
 from ikbench.baselines._common.collision import (
     AvoidsObstacles,
     Scene,
@@ -502,7 +502,6 @@ class MinkIK(AvoidsObstacles, LibraryMethod):
 
     def prepare(self, robot: Robot) -> None:
         """Untimed: MuJoCo parses and compiles the URDF."""
-        from ikbench.baselines._common.chain import chain_of
 
         mink_model(chain_of(robot))
 

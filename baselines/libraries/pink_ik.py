@@ -81,7 +81,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals
+from ikbench.baselines._common.chain import Chain, Goals, chain_of
 from ikbench.baselines._common.collision import (
     AvoidsObstacles,
     Scene,
@@ -109,7 +109,7 @@ from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.core.kinematics.pinocchio_fk import link_frame_id
-from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.base import check_choice, check_positive, flag_of, option
 
 if TYPE_CHECKING:
     from ikbench.baselines._common.track import TrackPlan
@@ -125,7 +125,6 @@ def check_qp_solver(settings: object, field_name: str) -> None:
 
     value = getattr(settings, field_name)
     if value not in qpsolvers.available_solvers:
-        from ikbench.methods.base import flag_of
 
         raise InputError(f"{flag_of(settings, field_name)}: {value!r} is not an installed "
                          f"qpsolvers backend; installed: {', '.join(qpsolvers.available_solvers)}")
@@ -432,7 +431,6 @@ class PinkIK(AvoidsObstacles, LibraryMethod):
 
     def prepare(self, robot: Robot) -> None:
         """Untimed: the model copy with the pointing frame."""
-        from ikbench.baselines._common.chain import chain_of
 
         pink_model(robot, chain_of(robot))
 

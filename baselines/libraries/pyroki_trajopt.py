@@ -53,7 +53,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals, contract_step
+from ikbench.baselines._common.chain import Chain, Goals, chain_of, contract_step
 from ikbench.baselines._common.method import ChainResult, LibraryMethod
 from ikbench.baselines._common.single_pose import MAX_STEPS, PoseOut, PoseSolver
 from ikbench.core.errors import InputError
@@ -323,7 +323,6 @@ class PyrokiTrajopt(LibraryMethod):
         """Untimed: parse the URDF, and JIT-compile the solve for every task size (and with or
         without the speed constraint) seen by :meth:`check_tasks` (one solve of a placeholder
         task each)."""
-        from ikbench.baselines._common.chain import chain_of
 
         chain = chain_of(robot)
         pyroki_robot(chain)

@@ -54,7 +54,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ikbench.baselines._common.chain import Chain, Goals
+from ikbench.baselines._common.chain import Chain, Goals, chain_of
 from ikbench.baselines._common.exact_pose import (
     check_roll_settings,
     roll_max_option,
@@ -198,7 +198,6 @@ class TracIK(LibraryMethod):
 
     def prepare(self, robot: Robot) -> None:
         """Untimed: KDL parses the URDF, TRAC-IK builds its solvers."""
-        from ikbench.baselines._common.chain import chain_of
 
         tracik_solver(chain_of(robot), self.settings)
 

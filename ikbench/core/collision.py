@@ -32,86 +32,31 @@ points p1, p2 and the unit normal n from the first to the second geometry).
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
+from ikbench.core.collision_file import (  # noqa: F401  (re-exported)
+    CAPSULE_KEYS,
+    CONFIG_KEYS,
+    Capsule,
+    collision_config,
+)
 from ikbench.core.errors import InputError
-from ikbench.core.obstacles import Obstacle
+from ikbench.core.kinematics.pinocchio_fk import build_chain_model_with_geometry, link_frame_id
+from ikbench.core.obstacles import Obstacle, frame_with_z
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
 
 MM_PER_M = 1000.0
-#: Keys a robot's collision file may hold.
-CONFIG_KEYS = ("description", "source", "licence", "capsules", "never_collide",
-               "obstacle_sets")
-CAPSULE_KEYS = ("link", "a_mm", "b_mm", "radius_mm")
 #: The distance [m] reported for a penetrating mesh pair (coal gives a mesh's distance as 0, not
 #: its depth): a collision, depth unknown.
 MESH_PENETRATION_M = 1e-6
-
-
-@dataclass(frozen=True, eq=False)
-class Capsule:
-    """A robot capsule in its link's frame: the points within ``radius_mm`` of the segment
-    ``a_mm`` - ``b_mm`` (3,) [mm]."""
-
-    link: str
-    a_mm: np.ndarray
-    b_mm: np.ndarray
-    radius_mm: float
-
-
-def collision_config(robot: Robot) -> dict | None:
-    """The robot's collision file as a dict (with ``path``), or None when it names none."""
-    name = robot.config.get("collision")
-    if not name:
-        return None
-    key = "collision_config"
-    if key not in robot._cache:
-        base = Path(robot.config.get("config_path", robot.urdf_path)).parent
-        path = (base / name).resolve()
-        robot._cache[key] = _read_collision_file(path)
-    return robot._cache[key]
-
-
-def _read_collision_file(path: Path) -> dict:
-    where = f"collision file {str(path)!r}"
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"cannot read {where}: {exc.strerror}") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{where}: not valid JSON (line {exc.lineno}): {exc.msg}") from None
-    if not isinstance(doc, dict):
-        raise InputError(f"{where}: must be a JSON object with keys {', '.join(CONFIG_KEYS)}")
-    unknown = [k for k in doc if k not in CONFIG_KEYS]
-    if unknown:
-        raise InputError(f"{where}: unknown key(s) {', '.join(unknown)}; allowed: "
-                         f"{', '.join(CONFIG_KEYS)}")
-    capsules = []
-    for k, item in enumerate(doc.get("capsules", [])):
-        if not isinstance(item, dict) or sorted(item) != sorted(CAPSULE_KEYS):
-            raise InputError(f"{where}: capsule {k} must have exactly the keys "
-                             f"{', '.join(CAPSULE_KEYS)}")
-        a, b = np.array(item["a_mm"], dtype=float), np.array(item["b_mm"], dtype=float)
-        radius = float(item["radius_mm"])
-        if a.shape != (3,) or b.shape != (3,) or not (radius > 0 and math.isfinite(radius)):
-            raise InputError(f"{where}: capsule {k} ({item['link']}): a_mm and b_mm must be "
-                             "three numbers and radius_mm positive")
-        capsules.append(Capsule(str(item["link"]), a, b, radius))
-    pairs = doc.get("never_collide", [])
-    if not all(isinstance(p, list) and len(p) == 2 for p in pairs):
-        raise InputError(f"{where}: never_collide must be a list of [link, link] pairs")
-    return {**doc, "path": str(path), "capsules": capsules,
-            "never_collide": [tuple(p) for p in pairs]}
 
 
 @dataclass
@@ -379,7 +324,6 @@ def _capsule_placement(capsule: Capsule):
     import coal
     import pinocchio as pin
 
-    from ikbench.core.obstacles import frame_with_z
 
     a, b = capsule.a_mm / MM_PER_M, capsule.b_mm / MM_PER_M
     length = float(np.linalg.norm(b - a))
@@ -396,10 +340,6 @@ def build_collision_model(robot: Robot) -> CollisionModel | None:
     """
     import pinocchio as pin
 
-    from ikbench.core.kinematics.pinocchio_fk import (
-        build_chain_model_with_geometry,
-        link_frame_id,
-    )
 
     config = collision_config(robot)
     if config is None and not robot.urdf_model.collisions:

@@ -12,6 +12,10 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 import numpy.typing as npt
 
+from ikbench.core.collision import check_trajectory
+from ikbench.core.rotations import geodesic_angle
+from ikbench.core.validity import validity_failures
+
 if TYPE_CHECKING:
     from ikbench.core.contract import Contract
     from ikbench.core.robot import Robot
@@ -199,7 +203,6 @@ def frame_errors(robot: Robot, task: Task, poses_deg: npt.ArrayLike
         (position errors (n+1,) [mm], rotation errors (n+1,) [deg]: the SO(3) geodesic angle
         |log(R_goal^T R)|, end points (n+1, 3) [mm]); FK by Pinocchio in float64.
     """
-    from ikbench.core.rotations import geodesic_angle
 
     T = robot.fk_transform(np.asarray(poses_deg, dtype=float))
     points_mm = T[:, :3, 3] * 1000.0
@@ -235,8 +238,6 @@ def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[st
         (all of :func:`ikbench.core.validity.validity_failures`) and ``failed_criteria``
         (their names, ``""`` when valid).
     """
-    from ikbench.core.collision import check_trajectory
-    from ikbench.core.validity import validity_failures
 
     poses = np.asarray(poses_deg, dtype=float)
     position, rotation, points_mm = frame_errors(robot, task, poses)
@@ -330,7 +331,6 @@ def contract_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike,
     lower, upper = task.limits(robot)
     out["within_limits"] = bool(np.all(poses >= lower - 1e-6) and np.all(poses <= upper + 1e-6))
     if getattr(task, "obstacles", ()):
-        from ikbench.core.collision import check_trajectory
 
         found = check_trajectory(robot, poses, task.obstacles)
         checked = found["collision_model"] != "none"

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from ikbench.core.collision_file import collision_config
 from ikbench.core.errors import InputError
 
 if TYPE_CHECKING:
@@ -339,7 +340,6 @@ def read_obstacles(spec: str | Path | Sequence[Obstacle] | None,
 
 def named_sets(robot: Robot) -> dict[str, Path]:
     """name -> file of the obstacle sets the robot's collision config names."""
-    from ikbench.core.collision import collision_config
 
     config = collision_config(robot)
     if not config:

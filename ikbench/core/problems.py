@@ -37,8 +37,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ikbench.core.errors import InputError
+from ikbench.core.kinematics.pinocchio_fk import chain_urdf_xml, link_frame_id
 from ikbench.core.obstacles import cppflow_obstacles
+from ikbench.core.robot import load_robot, shipped_robots
 from ikbench.core.rotations import quat_wxyz_to_matrix
+from ikbench.core.targets import load_targets
+from ikbench.core.task import frame_task
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -292,7 +296,6 @@ def offset_frame_position_m(robot: Robot, frame: str) -> np.ndarray:
         return np.zeros(3)
     import pinocchio as pin
 
-    from ikbench.core.kinematics.pinocchio_fk import chain_urdf_xml, link_frame_id
 
     model = pin.buildModelFromXML(chain_urdf_xml(robot))
     if not model.existFrame(frame):
@@ -319,7 +322,6 @@ def problem_task(problem: CartesianProblem, robot: Robot) -> Task:
     Raises:
         InputError: ``robot`` is not the problem's robot.
     """
-    from ikbench.core.task import frame_task
 
     if robot.name != problem.robot:
         raise InputError(f"{problem.source}: the problem is for robot {problem.robot!r}, not "
@@ -345,7 +347,6 @@ def home_pose(robot: Robot) -> np.ndarray:
     (clipped to the validity limits)."""
     pose = np.zeros(robot.dof)
     if isinstance(robot.config.get("targets"), dict):
-        from ikbench.core.targets import load_targets
 
         pose = load_targets(None, robot).start_pose_deg
     return np.clip(pose, robot.validity_lower, robot.validity_upper)
@@ -353,7 +354,6 @@ def home_pose(robot: Robot) -> np.ndarray:
 
 def load_problem(spec: str | Path) -> tuple[Robot, Task, CartesianProblem]:
     """(robot, task, problem) of a shipped problem name or a problem file."""
-    from ikbench.core.robot import load_robot, shipped_robots
 
     problem = read_problem(spec)
     if problem.robot not in shipped_robots():

@@ -37,6 +37,10 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.errors import InputError
+from ikbench.core.kinematics.chain import ChainKinematics
+from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
+from ikbench.core.kinematics.torch_fk import TorchFK
+from ikbench.core.robot_packages import is_package_name, resolve
 from ikbench.core.urdf_model import MOVABLE_TYPES, UrdfJoint, UrdfModel, load_urdf_model
 
 if TYPE_CHECKING:
@@ -292,7 +296,6 @@ class Robot:
         """The pytorch-kinematics FK backend (cached per dtype/device); see ``TorchFK``."""
         import torch
 
-        from ikbench.core.kinematics.torch_fk import TorchFK
 
         dtype = dtype or torch.float32
         key = ("torch_fk", dtype, str(device))
@@ -302,7 +305,6 @@ class Robot:
 
     def pinocchio_fk(self) -> PinocchioFK:
         """The Pinocchio FK backend (cached); see ``PinocchioFK``."""
-        from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
 
         if "pin_fk" not in self._cache:
             self._cache["pin_fk"] = PinocchioFK(self)
@@ -323,7 +325,6 @@ class Robot:
 
     def chain_kinematics(self) -> ChainKinematics:
         """The vectorised numpy chain (cached); see ``ChainKinematics``."""
-        from ikbench.core.kinematics.chain import ChainKinematics
 
         if "chain" not in self._cache:
             self._cache["chain"] = ChainKinematics(self)
@@ -577,7 +578,6 @@ def robot_from_package(name: str, end_frame: str | None) -> Robot:
     (:mod:`ikbench.core.robot_packages`); named ``NAME``, its source the package."""
     from dataclasses import replace
 
-    from ikbench.core.robot_packages import resolve
 
     urdf_path, base, end, description = resolve(name, end_frame)
     robot = robot_from_urdf(urdf_path, end, base)
@@ -587,7 +587,6 @@ def robot_from_package(name: str, end_frame: str | None) -> Robot:
 
 @functools.lru_cache(maxsize=16)
 def _load(name_or_path: str, end_frame: str | None) -> Robot:
-    from ikbench.core.robot_packages import is_package_name
 
     shipped = shipped_robots()
     if name_or_path in shipped:

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ikbench.core.errors import InputError, TargetsError
+from ikbench.core.obstacles import load_file, named_sets, parse_obstacles
 from ikbench.core.robot import Robot, load_robot
 
 PAPER_TARGETS = "paper"
@@ -151,7 +152,6 @@ def parse_targets_obstacles(value: object, robot: Robot, where: str,
     """(obstacles, source) of a targets file's ``obstacles`` value: a list in the obstacle
     file format, a named set of ``robot`` (``"touchscreen"``), an obstacle file (relative to
     ``folder``, the targets file's) or ``"none"``; :class:`TargetsError` naming the bad value."""
-    from ikbench.core.obstacles import load_file, named_sets, parse_obstacles
 
     here = f"{where}: obstacles"
     try:

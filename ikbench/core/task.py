@@ -29,11 +29,12 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core import letters
+from ikbench.core.contract import contract_for
 from ikbench.core.errors import InputError
-from ikbench.core.losses import FRAME_WEIGHTS
+from ikbench.core.losses import FRAME_WEIGHTS, PAPER_WEIGHTS
 from ikbench.core.robot import Robot
 from ikbench.core.shapes import Curve, catmull_rom, read_points_csv
-from ikbench.core.targets import Targets
+from ikbench.core.targets import Targets, load_targets
 
 if TYPE_CHECKING:
     from ikbench.core.contract import Contract
@@ -189,8 +190,6 @@ def line_tasks(robot: Robot, targets: Targets, contract: Contract | None = None)
     the pointing term (c1 = 0; ``--weights`` can set it again). Every task carries the
     targets' obstacles (``Targets.obstacles``), and with obstacles the contract judges
     collisions (``Contract.obstacles``)."""
-    from ikbench.core.contract import contract_for
-    from ikbench.core.losses import PAPER_WEIGHTS
 
     contract = contract if contract is not None else contract_for(robot)
     if targets.obstacles and not contract.obstacles:
@@ -283,7 +282,6 @@ def letter_start_pose(robot: Robot, targets: Targets | None = None) -> np.ndarra
     if pose is not None:
         return robot.check_pose(pose, f"robot {robot.name}: letters start_pose")
     if targets is None:
-        from ikbench.core.targets import load_targets
 
         targets = load_targets(None, robot)
     return targets.start_pose_deg

@@ -23,6 +23,7 @@ import pandas as pd
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_text
 from ikbench.core.robot import Robot, load_robot
+from ikbench.core.rotations import matrix_to_quat_wxyz
 
 DEFAULT_DURATION_S = 2.0
 #: How a trajectory CSV writes its numbers (10 significant digits).
@@ -55,7 +56,6 @@ def trajectory_frame(robot: Robot, poses_motor_deg: npt.ArrayLike,
     frame[POINT_COLUMNS] = fk.point_mm
     frame[DIRECTION_COLUMNS] = fk.direction
     if quaternion:
-        from ikbench.core.rotations import matrix_to_quat_wxyz
 
         frame[QUATERNION_COLUMNS] = matrix_to_quat_wxyz(robot.fk_transform(poses)[:, :3, :3])
     return frame

@@ -45,6 +45,19 @@ from ikbench.core.io import atomic_write_text, check_writable
 from ikbench.core.provenance import provenance
 from ikbench.methods.registry import get_method, method_status
 from ikbench.paper.ablation_claims import check_claims, claims_table
+from ikbench.paper.baseline_runs import load_comparison
+from ikbench.paper.comparison import (
+    FIGURE_NAME,
+    IKPY_TABLE2_NOTE,
+    MODES_NOTE,
+    PAPER_BASELINE_NOTE,
+    TABLE2_UNITS_NOTE,
+    claims_lines,
+    escaped_table,
+    modes_table,
+    table2_comparison,
+    write_comparison_report,
+)
 from ikbench.paper.values import paper_values, table1_comparison
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.progress import message
@@ -116,17 +129,6 @@ def _authors_method():
     return status.cls, status.reason
 
 
-def _comparison_writer():
-    try:
-        from ikbench.paper.comparison import write_comparison_report
-    except ImportError as exc:
-        raise ReproduceError(
-            "the comparison report needs "
-            "ikbench.paper.comparison.write_comparison_report, which this "
-            f"checkout lacks ({exc})") from None
-    return write_comparison_report
-
-
 def _elapsed(seconds: float) -> str:
     """``0.2 s``, ``42.0 s`` or ``2 min 36 s``."""
     if seconds < 59.95:
@@ -173,7 +175,7 @@ def reproduce(output: str | Path | None = None, quick: bool = False,
             missing.
     """
     output = check_output(output, quick)
-    baseline, write_comparison_report = _baseline(), _comparison_writer()
+    baseline = _baseline()
     subset: dict[str, Any] = {"only": QUICK["only"], "steps": QUICK["steps"]} if quick else {}
     ours_options: dict[str, Any] = {"max_iterations": QUICK["max_iterations"]} if quick else {}
     ours = get_method(OURS)
@@ -278,7 +280,6 @@ def _initialisation_finding(ours: pd.DataFrame, interpolation: pd.DataFrame) -> 
 
 def _authors_section(output: Path, times: dict) -> list[str]:
     """README lines: Table 2 as the authors ran it (``ikpy/``), or why that stage was skipped."""
-    from ikbench.paper.comparison import IKPY_TABLE2_NOTE, table2_comparison
 
     heading = f"### Table 2 as the authors ran it (`{AUTHORS_METHOD}`, their call)"
     if AUTHORS_STAGE not in times:
@@ -377,17 +378,6 @@ def write_results_readme(output: str | Path, times: dict[str, float], quick: boo
         quick: whether the quick configuration produced the results.
         comparison: the comparison report's path.
     """
-    from ikbench.paper.baseline_runs import load_comparison
-    from ikbench.paper.comparison import (
-        FIGURE_NAME,
-        MODES_NOTE,
-        PAPER_BASELINE_NOTE,
-        TABLE2_UNITS_NOTE,
-        claims_lines,
-        escaped_table,
-        modes_table,
-        table2_comparison,
-    )
 
     output = Path(output)
     figure = Path(os.path.relpath(Path(comparison).parent / FIGURE_NAME, output)).as_posix()

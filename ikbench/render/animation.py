@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ikbench.core.io import atomic_path
+from ikbench.core.timing import check_timing, retime
 from ikbench.render.arm_plots import (
     COLLISION_COLOR,
     GOAL_STYLE,
@@ -130,7 +131,6 @@ def render_frames(robot: Robot, tasks: Sequence[Task], poses_by_id: dict, title:
         timing: ``constant``, ``min-jerk`` or ``topp`` (see the module doc).
         limits: the joint limits for ``topp``.
     """
-    from ikbench.core.timing import check_timing
 
     check_timing(timing)
     plt = matplotlib_pyplot()
@@ -200,7 +200,6 @@ def _timings(robot, tasks, poses_by_id, timing, duration_s, limits):
     """The TimedPath of every panel, or None for the paper's timing."""
     if timing == "constant":
         return None
-    from ikbench.core.timing import retime
 
     return [retime(robot, poses_by_id[task.name], timing, duration_s=duration_s, limits=limits)
             for task in tasks]

@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from ikbench.core.collision import collision_model
+
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
@@ -252,7 +254,6 @@ def colliding_waypoints(robot: Robot | None, poses: npt.ArrayLike,
     or without the robot's collision model (nothing checked, nothing to draw)."""
     if robot is None or not obstacles:
         return None
-    from ikbench.core.collision import collision_model
 
     model = collision_model(robot)
     if model is None:

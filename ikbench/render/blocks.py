@@ -42,6 +42,7 @@ from typing import Any
 import pandas as pd
 
 from ikbench.core.errors import InputError
+from ikbench.core.io import atomic_write_text
 from ikbench.render.leaderboard import readme_table
 
 #: ``<!-- generated: RENDERER SOURCE OPTIONS -->`` ... ``<!-- /generated -->``
@@ -127,7 +128,6 @@ def render_text(text: str, root: Path, where: str = "") -> str:
 
 def render_files(paths: Iterable[Path], root: Path) -> list[Path]:
     """Rewrite every block of ``paths``; return the files that changed."""
-    from ikbench.core.io import atomic_write_text
 
     changed = []
     for path in paths:

@@ -25,6 +25,8 @@ from ikbench.core.problems import data_dir
 from ikbench.core.provenance import provenance
 from ikbench.core.trajectory import write_trajectory_csv
 from ikbench.core.validity import SOURCE, describe
+from ikbench.methods.ours_lm.start_search import REACH_SEEDS, waypoint_reach
+from ikbench.methods.registry import get_method
 from ikbench.render.pose_paths import plot_pose_path, reached
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.record import RECORD_FILE, RunRecord, files_written_by, jsonable
@@ -134,7 +136,6 @@ def write_folder(result: StudyResult, folder: Path, command: str = "",
 
 
 def _libraries(methods) -> list[str]:
-    from ikbench.methods.registry import get_method
 
     return sorted({get_method(m).library for m in methods})
 
@@ -146,7 +147,6 @@ def _reach_notes(result, table) -> dict[str, str]:
     for problem, (robot, task, _) in result.problems.items():
         if table[table["problem"] == problem]["valid"].astype(bool).any():
             continue
-        from ikbench.methods.ours_lm.start_search import REACH_SEEDS, waypoint_reach
 
         position, rotation = waypoint_reach(robot, task)
         out = np.flatnonzero((position >= 0.1) | (rotation >= 0.1))

@@ -16,6 +16,11 @@ import numpy as np
 
 from ikbench.core.io import atomic_savefig
 from ikbench.core.metrics import line_distances_mm, pointing_deviations_deg
+from ikbench.core.robot import load_robot
+from ikbench.core.targets import load_targets
+from ikbench.core.task import line_tasks
+from ikbench.methods.registry import get_method
+from ikbench.render.arm_plots import matplotlib_pyplot
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -29,7 +34,6 @@ FLOOR_MM = 1e-9
 
 def exact_figure(robot: Robot, task: Task, poses_by_method: dict[str, np.ndarray]) -> Figure:
     """The three-panel figure for ``task`` and {method name: poses (n+1, dof)}."""
-    from ikbench.render.arm_plots import matplotlib_pyplot
 
     plt = matplotlib_pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
@@ -67,10 +71,6 @@ def exact_figure(robot: Robot, task: Task, poses_by_method: dict[str, np.ndarray
 
 def main(argv: list[str] | None = None) -> int:
     """Write the figure for one of NICO's paper targets."""
-    from ikbench.core.robot import load_robot
-    from ikbench.core.targets import load_targets
-    from ikbench.core.task import line_tasks
-    from ikbench.methods.registry import get_method
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("output", help="PNG file to write")

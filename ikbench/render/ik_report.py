@@ -27,6 +27,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ikbench.core.io import atomic_savefig, staged_folder
+from ikbench.core.provenance import library_versions, provenance
 from ikbench.render.ik_published import published_for
 
 #: The study's result (:class:`ikbench.studies.ik.IKResult`): render takes it as it
@@ -48,7 +50,6 @@ def robot_slug(robot: Any) -> str:
 
 def write_folder(result: StudyResult, folder: Path, command: str = "") -> Path:
     """Write every file (see the module docstring) into ``folder``; return it."""
-    from ikbench.core.io import staged_folder
 
     with staged_folder(folder) as tmp:
         _results(result, tmp)
@@ -99,7 +100,6 @@ def _targets(result: StudyResult, tmp: Path) -> None:
 
 
 def _record(result: StudyResult, command: str) -> dict:
-    from ikbench.core.provenance import library_versions, provenance
 
     robot = result.robot
     libraries = sorted({m["library"] for m in result.methods.values()})
@@ -278,7 +278,6 @@ def _figures(result: StudyResult, tmp: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ikbench.core.io import atomic_savefig
 
     table, s = result.table, result.settings
     rules = list(dict.fromkeys(table["attempts_rule"]))

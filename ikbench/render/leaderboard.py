@@ -22,6 +22,10 @@ import numpy as np
 import pandas as pd
 
 from ikbench.core.contract import TRACK_TITLES, Contract
+from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text
+from ikbench.core.obstacles import parse_obstacles
+from ikbench.render.run_report import _matplotlib
+from ikbench.runtime.record import RunFolder
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -203,7 +207,6 @@ def construction_notes(record: dict) -> list[str]:
 
 def _obstacles_paragraph(obstacles: dict) -> list[str]:
     """The header lines naming the obstacles (run.json's ``obstacles``)."""
-    from ikbench.core.obstacles import parse_obstacles
 
     items = parse_obstacles(obstacles["items"], "run.json")
     return [f"Obstacles ({obstacles['source']}), on every task: "
@@ -219,7 +222,6 @@ def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Con
                 ) -> Figure:
     """Two panels: time vs line distance (max), and line distance vs pointing (judged part)
     with ours-lm's weight sweep as a curve; one colour per library."""
-    from ikbench.render.run_report import _matplotlib
 
     plt = _matplotlib()
     fig, (ax_t, ax_p) = plt.subplots(1, 2, figsize=(13, 7.0))
@@ -310,8 +312,6 @@ def render(folder: str | Path) -> None:
     for a change of presentation only)."""
     from pathlib import Path
 
-    from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text
-    from ikbench.runtime.record import RunFolder
 
     folder = Path(folder)
     record = RunFolder(folder).read_record("leaderboard")

@@ -1,30 +1,49 @@
 """Report sections that higher layers add (the paper's tables beside a run's measured ones).
 
-The studies write generic reports; the paper layer (:mod:`ikbench.paper`) registers what it
-adds for its own targets and methods, so no study names a method or the paper. This module
-imports nothing heavy: registering costs nothing at start-up.
+The studies write generic reports; the paper layer (:mod:`ikbench.paper`) provides what it
+adds for its own targets and methods, so no study names a method or the paper. Providers are
+named as ``"module:function"`` (:data:`PROVIDERS`, as the method registry names methods) and
+imported the first time a report of their kind is written, so importing ikbench costs nothing
+for them; :func:`add_report_section` adds one at run time (a notebook, a plugin).
 """
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from typing import Any
 
-#: kind -> providers; a provider takes the report's context as keywords and returns lines.
-_SECTIONS: dict[str, list[Callable[..., list[str] | None]]] = {"run": [], "ablation": []}
+#: A provider takes the report's context as keywords and returns Markdown lines (or None).
+Provider = Callable[..., list[str] | None]
+#: kind -> the built-in providers, ``"module:function"``.
+PROVIDERS: dict[str, tuple[str, ...]] = {
+    "run": ("ikbench.paper.report_tables:run_section",),
+    "ablation": ("ikbench.paper.ablation_claims:ablation_section",),
+}
+#: kind -> providers added at run time.
+_ADDED: dict[str, list[Provider]] = {"run": [], "ablation": []}
 
 
-def add_report_section(kind: str, provider: Callable[..., list[str] | None]) -> None:
+def add_report_section(kind: str, provider: Provider) -> None:
     """Register ``provider(**context) -> list[str]`` (Markdown lines, possibly empty) for the
     reports of ``kind``: ``"run"`` (context: method, table, record, targets) or ``"ablation"``
     (context: table)."""
-    if provider not in _SECTIONS[kind]:
-        _SECTIONS[kind].append(provider)
+    if provider not in _ADDED[kind]:
+        _ADDED[kind].append(provider)
+
+
+def providers(kind: str) -> list[Provider]:
+    """The providers of ``kind``: the built-in ones (imported now), then those added."""
+    built_in = []
+    for target in PROVIDERS[kind]:
+        module, _, name = target.partition(":")
+        built_in.append(getattr(importlib.import_module(module), name))
+    return [*built_in, *(p for p in _ADDED[kind] if p not in built_in)]
 
 
 def report_sections(kind: str, **context: Any) -> list[str]:
     """The lines every provider of ``kind`` adds for ``context``."""
     lines: list[str] = []
-    for provider in _SECTIONS[kind]:
+    for provider in providers(kind):
         lines += provider(**context) or []
     return lines

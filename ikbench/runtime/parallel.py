@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ikbench.methods.ours_lm import BatchResult, solve_batch
 from ikbench.runtime.executors import Executor, LocalExecutor, portable_robot, split
 
 if TYPE_CHECKING:
@@ -64,7 +65,6 @@ def solve_parts(executor: Executor | None, robot: Robot, tasks: Sequence[Task],
 
 def solve_part(part: Part) -> tuple[BatchResult, list[dict[str, Any]] | None]:
     """Solve one part (in a worker); returns (BatchResult, rows or None)."""
-    from ikbench.methods.ours_lm import solve_batch
 
     result = solve_batch(part.robot, part.tasks, part.settings, weights=part.weights)
     rows = None if part.measure is None else part.measure(part.robot, part.tasks,
@@ -79,8 +79,6 @@ def gpus_for(settings: object) -> float:
 
 
 def _concatenate(results):
-    from ikbench.methods.ours_lm import BatchResult
-
     def cat(name):
         return np.concatenate([getattr(r, name) for r in results])
 

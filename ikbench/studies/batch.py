@@ -41,6 +41,7 @@ from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import line_task
+from ikbench.methods.ours_lm import LMSettings, solve_batch
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.executors import Executor, LocalExecutor
 from ikbench.runtime.parallel import solve_parts
@@ -212,7 +213,6 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
             default: one batched call per setting in this process); the per-trajectory
             numbers do not depend on it.
     """
-    from ikbench.methods.ours_lm import LMSettings, solve_batch
 
     for flag, value in (("--line-tolerance-mm", line_tolerance_mm),
                         ("--end-tolerance-mm", end_tolerance_mm)):

@@ -29,6 +29,7 @@ from ikbench.core.metrics import frame_metrics
 from ikbench.core.problems import BENCHMARK, load_problem, resolve_problems
 from ikbench.methods.base import Method
 from ikbench.methods.registry import available_methods, get_method
+from ikbench.render.cartesian_report import write_folder
 from ikbench.runtime.harness import Outcome, solve_tasks
 from ikbench.runtime.progress import Reporter
 
@@ -213,6 +214,5 @@ def write(result: CartesianResult, output: str | Path, command: str = "",
           trajectories: str = "first") -> Path:
     """Write ``OUTPUT/cartesian/`` whole (see :mod:`.cartesian_report`); return the folder.
     ``trajectories``: ``first`` (the first seed's trajectory CSVs) or ``all``."""
-    from ikbench.render.cartesian_report import write_folder
 
     return write_folder(result, Path(output) / FOLDER, command, trajectories)

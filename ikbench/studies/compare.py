@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ikbench.core.collision import collision_model
 from ikbench.core.contract import (
     COLLISION_CRITERION,
     CRITERIA,
@@ -53,6 +54,7 @@ from ikbench.core.contract import (
 )
 from ikbench.core.errors import IkbenchError, InputError
 from ikbench.core.metrics import contract_metrics
+from ikbench.core.obstacles import read_obstacles
 from ikbench.core.provenance import library_versions, provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, select_targets
@@ -162,8 +164,6 @@ def with_obstacles(targets: Targets, obstacles: str | Path | Sequence | None,
     """``targets`` with the obstacles of ``obstacles`` (a file, a named set of the robot such
     as ``touchscreen``, ``none``, or parsed obstacles) instead of their own; None keeps
     theirs. InputError when obstacles are given for a robot without collision geometry."""
-    from ikbench.core.collision import collision_model
-    from ikbench.core.obstacles import read_obstacles
 
     if obstacles is not None:
         source = str(obstacles) if isinstance(obstacles, (str, Path)) else "given"

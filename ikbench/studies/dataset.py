@@ -34,7 +34,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -45,6 +45,8 @@ from ikbench.core.losses import TERMS, parse_weights
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
+from ikbench.methods.ours_lm import LMSettings
+from ikbench.methods.ours_lm.devices import cpu_backend
 from ikbench.runtime.executors import SCALE_EXTRA, Executor, LocalExecutor, portable_robot
 from ikbench.runtime.parallel import gpus_for
 from ikbench.runtime.progress import Reporter
@@ -57,9 +59,6 @@ from ikbench.studies.dataset_shard import (
     build_shard,
     pipelined,
 )
-
-if TYPE_CHECKING:
-    from ikbench.methods.ours_lm.solver import LMSettings
 
 DEFAULT_SHARD_SIZE = 10_000
 MAX_STEPS = 5000
@@ -100,7 +99,6 @@ def dataset_config(robot: Robot, start_pose_deg: np.ndarray, steps: int, seed: i
                    shard_size: int, workspace: WorkspaceFilter, settings: LMSettings
                    ) -> dict[str, Any]:
     """Everything that determines the shards' content (hashed into each shard)."""
-    from ikbench.methods.ours_lm.devices import cpu_backend
 
     solver: dict[str, Any] = {"max_iterations": settings.max_iterations,
                               "tolerance": settings.tolerance, "damping": settings.damping}
@@ -198,7 +196,6 @@ def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
     Ctrl-C keeps the complete shards (the same command resumes) and marks dataset.json
     ``"interrupted"`` (``complete`` false) before the KeyboardInterrupt goes on.
     """
-    from ikbench.methods.ours_lm import LMSettings
 
     check_options(count, seed, steps, shard_size)
     robot = as_robot(robot)
@@ -326,7 +323,6 @@ def _remove_temporary_files(output) -> None:
 
 
 def _solver_name(settings) -> str:
-    from ikbench.methods.ours_lm.devices import cpu_backend
 
     if settings.device is None:
         if cpu_backend(settings) == "numba":

@@ -25,10 +25,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ikbench.core.losses import TERMS
+from ikbench.core.losses import MM_PER_CM, TERMS
 from ikbench.core.metrics_batch import line_metrics
 from ikbench.core.robot import MM_PER_M, RANGE_TOLERANCE_DEG
 from ikbench.core.task import Task
+from ikbench.methods.ours_lm import solve_problem
+from ikbench.methods.ours_lm.devices import cpu_backend
+from ikbench.methods.ours_lm.problem import Problem
 from ikbench.studies.batch import sample_touch_poses
 
 if TYPE_CHECKING:
@@ -127,8 +130,6 @@ def line_problem(robot: Robot, start_pose_deg: npt.ArrayLike, touch_poses_deg: n
     Returns:
         (problem, initial poses (B, N, dof), start_point_mm (3,), touch_points_mm (B, 3)).
     """
-    from ikbench.core.losses import MM_PER_CM
-    from ikbench.methods.ours_lm.problem import Problem
 
     kin = robot.chain_kinematics()
     start = np.asarray(start_pose_deg, dtype=float)
@@ -181,7 +182,6 @@ def prepare_shard(spec: ShardSpec) -> _Prepared:
 def solve_shard(spec: ShardSpec, prepared: _Prepared
                 ) -> tuple[BatchResult, np.ndarray, np.ndarray]:
     """(the solver's BatchResult, end points [m] (B*N, 3), directions (B*N, 3))."""
-    from ikbench.methods.ours_lm import solve_problem
 
     result = solve_problem(spec.robot, prepared.problem, prepared.initial, spec.settings)
     point_m, direction = _forward(spec.robot, result.poses_deg.reshape(-1, spec.robot.dof),
@@ -233,7 +233,6 @@ def pipelined(specs: Iterable[ShardSpec]) -> Iterator[ShardResult]:
 
 def _forward(robot, poses, settings):
     """End points [m] and directions of poses (M, dof): compiled with the numba backend."""
-    from ikbench.methods.ours_lm.devices import cpu_backend
 
     if settings.device is None and cpu_backend(settings) == "numba":
         try:

@@ -56,8 +56,9 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
+from ikbench.baselines._common.single_pose import SOLVERS, solver_class
 from ikbench.core.errors import InputError
-from ikbench.render.ik_report import robot_slug
+from ikbench.render.ik_report import robot_slug, write_folder
 from ikbench.runtime.harness import Progress, describe
 
 if TYPE_CHECKING:
@@ -253,7 +254,6 @@ def check_memory(count: int, methods: int, rows: int = 1, dof: int = 7) -> None:
 def parse_methods(text: str | Sequence[str] | None, kind: str = "pose") -> list[str]:
     """Method names (comma-separated or a list); None: every installed one that takes
     ``kind`` targets. InputError for unknown, missing or unsuitable ones."""
-    from ikbench.baselines._common.single_pose import SOLVERS, solver_class
 
     if text is None:
         classes = {n: solver_class(n) for n in SOLVERS}
@@ -398,7 +398,6 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
         methods: method names; None: every installed one (:func:`parse_methods`).
         progress: progress lines on stderr.
     """
-    from ikbench.baselines._common.single_pose import solver_class
 
     started = time.perf_counter()
     load = load_average()
@@ -561,6 +560,5 @@ def write(result: IKResult, output: str | Path, command: str = "") -> Path:
     folder."""
     from pathlib import Path
 
-    from ikbench.render.ik_report import write_folder
 
     return write_folder(result, Path(output) / FOLDER / robot_slug(result.robot), command)

@@ -35,14 +35,19 @@ import pandas as pd
 from ikbench.core.errors import InputError
 from ikbench.core.io import check_folder_writable
 from ikbench.core.metrics import frame_metrics, shape_metrics, trajectory_metrics
+from ikbench.core.problems import load_problem, shipped_problems
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import ID_PATTERN, Targets, load_targets
 from ikbench.core.task import Task, build_tasks, parse_shape
+from ikbench.core.timing import check_timing
 from ikbench.core.trajectory import DEFAULT_DURATION_S
+from ikbench.core.validity import describe
+from ikbench.hw.limits import timing_limits
 from ikbench.methods.base import Method
 from ikbench.methods.registry import get_method
 from ikbench.render.animation import write_animation
+from ikbench.render.pose_paths import plot_pose_path, reached
 from ikbench.render.run_report import (
     FRAME_TABLE_COLUMNS,
     SHAPE_TABLE_COLUMNS,
@@ -181,7 +186,6 @@ def prepare_problem(method: str | Method, problem: str | Path, *,
         (solver, robot, targets, tasks, record): targets are the robot's own (recorded only),
         record names the problem file.
     """
-    from ikbench.core.problems import load_problem
 
     problem_robot, task, parsed = load_problem(problem)
     if robot is not None:
@@ -203,7 +207,6 @@ def prepare_problem(method: str | Method, problem: str | Path, *,
 
 def problem_label(problem: CartesianProblem) -> str:
     """How reports name a problem: ``NAME (shipped)`` or its file path."""
-    from ikbench.core.problems import shipped_problems
 
     if shipped_problems().get(problem.name) == problem.source:
         return f"{problem.name} (shipped, CppFlow/TORM)"
@@ -258,7 +261,6 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
     """
     if not (duration_s > 0 and np.isfinite(duration_s)):
         raise InputError(f"--duration: {duration_s!r} must be a positive number of seconds")
-    from ikbench.core.timing import check_timing
 
     check_timing(timing)
     if name is not None:
@@ -367,7 +369,6 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
             timing = record.get("timing", "constant")
             limits = None
             if timing == "topp":  # the robot's limits: NICO's motor table, else its URDF
-                from ikbench.hw.limits import timing_limits
 
                 limits = timing_limits(robot)
             write_animation(stage.path / ANIMATION_FILE, robot, solved,
@@ -406,7 +407,6 @@ def _figures(solver: Method, robot: Robot, outcomes: Sequence[Outcome],
     if not solved:
         return []
     if solved[0].goal_rotations is not None:
-        from ikbench.render.pose_paths import plot_pose_path, reached
 
         figures: list[tuple[str, str, Any]] = []
         for outcome in outcomes:
@@ -466,7 +466,6 @@ def method_report(solver: Method, table: pd.DataFrame, details: pd.DataFrame, ta
               "per-call set-up and, for the first trajectory, library start-up).",
               "", markdown_table(table.drop(columns=["method"]), digits), ""]
     if record.problem:
-        from ikbench.core.validity import describe
 
         lines += ["Position error: distance of the end frame from its goal [mm]; rotation "
                   "error: the SO(3) geodesic angle |log(R_goal^T R)| [deg]; joint changes "

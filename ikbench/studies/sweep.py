@@ -43,16 +43,19 @@ from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import build_tasks, letter_start_pose, parse_shape
+from ikbench.methods.ours_exact import ExactSettings, OursExact
+from ikbench.methods.ours_lm import LMSettings
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.executors import Executor, LocalExecutor
 from ikbench.runtime.parallel import solve_parts
 from ikbench.runtime.progress import Reporter
+from ikbench.studies.batch import MAX_COUNT
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from ikbench.core.task import Task
-    from ikbench.methods.ours_lm.solver import BatchResult, LMSettings
+    from ikbench.methods.ours_lm.solver import BatchResult
 
 #: Per-trajectory figures averaged (mean) or taken at the worst target (max) per setting.
 MEAN_COLUMNS = ("line_distance_mean_mm", "pointing_deviation_mean_deg",
@@ -225,7 +228,6 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
     Raises:
         InputError: bad shape, options or a setting whose weights are all 0 for the tasks.
     """
-    from ikbench.methods.ours_lm import LMSettings
 
     check_sweep_method(method, grid, executor)
     robot = as_robot(robot)
@@ -354,7 +356,6 @@ def check_grid_size(grid: dict[str, list[float]], tasks: list[Task], dof: int) -
     included, times ``tasks``); InputError, before any setting is built, when they are more
     than one batch takes (:data:`ikbench.studies.batch.MAX_COUNT`) or than memory holds
     (``dof``: the robot's joints)."""
-    from ikbench.studies.batch import MAX_COUNT
 
     count = (math.prod(len(v) for v in grid.values()) + 1) * len(tasks)
     if count > MAX_COUNT:
@@ -388,7 +389,6 @@ def check_sweep_method(method: str, grid: dict[str, list[float]], executor: Exec
 
 def exact_reference_weights() -> dict:
     """ours-exact's default c1 (pointing) and c6 (smoothness), the other terms 0."""
-    from ikbench.methods.ours_exact import ExactSettings
 
     defaults = ExactSettings()
     return {**{t: 0.0 for t in TERMS}, "L1": defaults.pointing_weight,
@@ -408,7 +408,6 @@ class _ExactBatch:
 
 def _solve_exact(robot, tasks, settings) -> _ExactBatch:
     """ours-exact solved for every weight setting (one batched call each), in order."""
-    from ikbench.methods.ours_exact import OursExact
 
     solutions = []
     for weights in settings:

@@ -31,10 +31,13 @@ import pandas as pd
 
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_csv, atomic_write_text
+from ikbench.core.losses import PAPER_WEIGHTS
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import line_tasks
+from ikbench.methods.ours_lm import LMSettings, solve_batch
+from ikbench.methods.ours_lm.devices import check_device, device_name, numba_installed
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.progress import Reporter
 from ikbench.studies.batch import sample_touch_poses
@@ -99,8 +102,6 @@ def throughput(device: str, *, batches: Sequence[int] = DEFAULT_BATCHES,
         threads: threads of the numba backend (None: all cores numba sees).
         numba: time the numba backend (None: when numba is installed).
     """
-    from ikbench.methods.ours_lm import LMSettings
-    from ikbench.methods.ours_lm.devices import check_device, device_name, numba_installed
 
     device = check_device(device) or "cpu"
     for flag, value, low in (("--repeat", repeat, 1), ("--warmup", warmup, 0)):
@@ -161,7 +162,6 @@ def _task_pool(robot, targets, batches) -> dict:
 
 def _round(robot, tasks, settings, log, label, r, warmup):
     """One round of one case: (the timed row, or None in a warm-up round; the result)."""
-    from ikbench.methods.ours_lm import solve_batch
 
     start = time.perf_counter()
     result = solve_batch(robot, tasks, settings, weights=_paper_weights())
@@ -179,7 +179,6 @@ def _round(robot, tasks, settings, log, label, r, warmup):
 
 
 def _paper_weights():
-    from ikbench.core.losses import PAPER_WEIGHTS
 
     return dict(PAPER_WEIGHTS)
 

@@ -49,7 +49,10 @@ import numpy.typing as npt
 
 from ikbench.core.budget import check_memory
 from ikbench.core.errors import InputError
-from ikbench.core.io import atomic_write_text
+from ikbench.core.io import atomic_write_text, check_writable
+from ikbench.core.timing import fingertip_deviation_mm, retime
+from ikbench.core.timing_limits import urdf_units_per_pose_unit
+from ikbench.core.trajectory import read_trajectory_csv
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -121,7 +124,6 @@ def timed_points(robot: Robot, timed: TimedPath, rate_hz: float = DEFAULT_RATE_H
                  ) -> tuple[list[int], np.ndarray, np.ndarray, np.ndarray]:
     """``(times_ns, q, qd, qdd)`` of a retimed export [URDF units]: the timing sampled at
     ``rate_hz`` (0: at the solved poses), see the module doc."""
-    from ikbench.core.timing_limits import urdf_units_per_pose_unit
 
     if rate_hz:
         total_ns = int(round(timed.duration_s * NS_PER_S))
@@ -232,8 +234,6 @@ def export_trajectory(trajectory_csv: str | Path, fmt: str, output: str | Path, 
         ``duration_s``, and for a retimed export the timing, its rate and the fingertip's
         deviation from the solved path; else None).
     """
-    from ikbench.core.io import check_writable
-    from ikbench.core.trajectory import read_trajectory_csv
 
     if fmt not in FORMATS:
         raise InputError(f"--format: {fmt!r} is not one of {', '.join(FORMATS)}")
@@ -266,7 +266,6 @@ def export_trajectory(trajectory_csv: str | Path, fmt: str, output: str | Path, 
 
 def _export_retimed(robot, frame, poses, fmt, output, duration_s, timing, limits, rate_hz):
     """:func:`export_trajectory` for ``min-jerk`` and ``topp``."""
-    from ikbench.core.timing import fingertip_deviation_mm, retime
 
     timed = retime(robot, poses, timing, duration_s=duration_s, limits=limits)
     message = timed_joint_trajectory(robot, timed, rate_hz)

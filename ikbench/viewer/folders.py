@@ -26,6 +26,7 @@ import numpy as np
 from ikbench.core.errors import InputError
 from ikbench.core.robot import Robot
 from ikbench.core.task import Task, build_tasks
+from ikbench.core.timing import retime
 from ikbench.core.trajectory import DEFAULT_DURATION_S
 from ikbench.runtime.record import RunFolder, RunRecord, robot_from_record
 
@@ -80,7 +81,6 @@ class ViewTrajectory:
                duration_s: float | None = None) -> None:
         """Play under ``timing`` (``min-jerk`` over ``duration_s``, default this trajectory's
         own; ``topp`` within ``limits``): sets ``times_s`` and ``duration_s``."""
-        from ikbench.core.timing import retime
 
         if timing == "constant":
             if duration_s is not None:

@@ -16,6 +16,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.robot import Robot
+from ikbench.core.robot_packages import resolve_package_uri
+from ikbench.render.arm_plots import colliding_waypoints, halfspace_patch
 
 if TYPE_CHECKING:
     import viser
@@ -44,7 +46,6 @@ def load_model(robot: Robot, meshes: bool = True) -> yourdfpy.URDF:
     def filename(fname: str) -> str:
         """``package://`` URIs of an installed description package resolved to its files
         (:func:`ikbench.core.robot_packages.resolve_package_uri`), else yourdfpy's guess."""
-        from ikbench.core.robot_packages import resolve_package_uri
 
         found = resolve_package_uri(fname)
         return str(found) if found else yourdfpy.filename_handler_magic(fname, dir=mesh_dir)
@@ -162,7 +163,6 @@ def add_obstacles(server: viser.ViserServer, obstacles: Sequence[Obstacle],
     a half-space's surface (a square around ``around_mm`` (N, 3) [mm], base frame: e.g. the
     goal path; :func:`ikbench.render.arm_plots.halfspace_patch`) with ``add_mesh_simple``.
     Returns the handles, one per obstacle."""
-    from ikbench.render.arm_plots import halfspace_patch
 
     R_root = np.asarray(T_root_base, dtype=float)[:3, :3]
     style: dict[str, Any] = {"color": OBSTACLE_COLOR, "opacity": OBSTACLE_OPACITY}
@@ -197,7 +197,6 @@ def colliding_tips_m(robot: Robot, poses: npt.ArrayLike, tip_mm: np.ndarray,
     """(K, 3) [m, URDF root] the end points of the waypoints where poses (N, dof) collide
     with an obstacle or the robot itself (:func:`ikbench.render.arm_plots.
     colliding_waypoints`); empty without obstacles, collision model or collision."""
-    from ikbench.render.arm_plots import colliding_waypoints
 
     colliding = colliding_waypoints(robot, poses, obstacles)
     if colliding is None or not colliding.any():

@@ -41,9 +41,10 @@ from ikbench.methods.base import (
     flag_of,
     option,
 )
-from ikbench.methods.ours_exact.problem import TERMS, ExactProblem
+from ikbench.methods.ours_exact.problem import TERMS, ExactProblem, evaluate
 from ikbench.methods.ours_exact.sqp import RESTORATIONS, SQPResult, solve
-from ikbench.methods.ours_lm import OursLM
+from ikbench.methods.ours_lm import OursLM, initial_poses
+from ikbench.methods.ours_lm.avoidance import collision_checker
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -279,8 +280,6 @@ class OursExact(Method):
         initial trajectory, or solved now for a task that started from the interpolation) does
         not, or less, is replaced by that path (``result`` updated in place). Returns the
         replaced trajectories' notes."""
-        from ikbench.methods.ours_exact.problem import evaluate
-        from ikbench.methods.ours_lm.avoidance import collision_checker
 
         checker = collision_checker(robot)
         if checker is None:
@@ -425,7 +424,6 @@ def initial_trajectories(robot: Robot, tasks: Sequence[Task], settings: ExactSet
         if not lm and not ok:
             raise InputError(f"trajectory {task.name!r}: --exact-init interpolation needs a "
                              "start and a touch pose; use --exact-init ours-lm or auto")
-    from ikbench.methods.ours_lm import initial_poses
 
     out: Any = (initial_poses(robot, tasks) if not tasks[0].has_frames or not any(use_lm)
                 else None)

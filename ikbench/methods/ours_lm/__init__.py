@@ -28,13 +28,20 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ikbench.core.kinematics.chain_torch import torch_chain_kinematics
 from ikbench.core.losses import TERMS, format_weights, resolve_weights
 from ikbench.methods.base import Method, Solution
-from ikbench.methods.ours_lm.avoidance import avoidance_for
+from ikbench.methods.ours_lm.avoidance import (
+    Avoidance,
+    avoidance_for,
+    collision_checker,
+    self_colliding,
+)
 from ikbench.methods.ours_lm.devices import (
     BACKENDS,
     cpu_backend,
     numba_threads,
+    torch_dtype,
     torch_threads,
 )
 from ikbench.methods.ours_lm.frames import FrameProblem, evaluate_frames
@@ -48,7 +55,7 @@ from ikbench.methods.ours_lm.solver import (
     solve_batch,
     solve_problem,
 )
-from ikbench.methods.ours_lm.start_search import OursLMSettings, check_paths, search
+from ikbench.methods.ours_lm.start_search import OursLMSettings, check_paths, search, warm_up_search
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -90,8 +97,6 @@ class OursLM(Method):
 
     def prepare(self, robot: Robot) -> None:
         if self.settings.device is not None:  # the torch backend's kinematics on its device
-            from ikbench.core.kinematics.chain_torch import torch_chain_kinematics
-            from ikbench.methods.ours_lm.devices import torch_dtype
 
             torch_chain_kinematics(robot, torch_dtype(self.settings.dtype), self.settings.device)
         elif self.settings.kinematics == "numpy":
@@ -102,7 +107,6 @@ class OursLM(Method):
 
                     warm_up(robot)
                 if self._pose_paths_ahead:
-                    from ikbench.methods.ours_lm.start_search import warm_up_search
 
                     warm_up_search(robot, self.settings)
         else:
@@ -166,7 +170,6 @@ class OursLM(Method):
         (:class:`.avoidance.Avoidance`); ``result`` is updated in place where that touches
         itself at fewer waypoints. Returns those trajectories' indices. A trajectory clear of
         itself, or a robot without a collision model, is left as it is."""
-        from ikbench.methods.ours_lm.avoidance import Avoidance, collision_checker, self_colliding
 
         checker = collision_checker(robot)
         if checker is None:

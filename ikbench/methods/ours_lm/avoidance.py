@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ikbench.core.collision import collision_model
 from ikbench.methods.ours_lm.problem import Evaluation
 
 if TYPE_CHECKING:
@@ -125,7 +126,6 @@ def avoidance_for(robot: Robot, task: Task, clearance_mm: float, weight: float
                   ) -> Avoidance | None:
     """The :class:`Avoidance` of a task (its obstacles, if any, and the robot's own links) on
     a robot with a collision model, else None (nothing to avoid)."""
-    from ikbench.core.collision import collision_model
 
     model = collision_model(robot)
     if model is None:
@@ -138,7 +138,6 @@ def collision_checker(robot: Robot) -> Any:
     (:class:`ikbench.core.capsules.CapsuleModel`) when numba imports and the geometry is
     capsules, else the coal checker; None without geometry. Both have ``check(poses,
     obstacles)`` and ``distance_jacobians``."""
-    from ikbench.core.collision import collision_model
 
     model = collision_model(robot)
     if model is None:

@@ -38,9 +38,11 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from ikbench.core.losses import PAPER_WEIGHTS
+from ikbench.core.task import Task
 from ikbench.methods.ours_lm.compiled_chain import Chain, sin_cos
 from ikbench.methods.ours_lm.problem import CM_PER_M, Problem, Weights
-from ikbench.methods.ours_lm.solver import (
+from ikbench.methods.ours_lm.settings import (
     BOUND_EPS_DEG,
     MAX_DAMPING,
     MIN_GAIN_RATIO,
@@ -53,7 +55,7 @@ if TYPE_CHECKING:
 
     from ikbench.core.robot import Robot
     from ikbench.core.task import Task
-    from ikbench.methods.ours_lm.solver import LMSettings
+    from ikbench.methods.ours_lm.settings import LMSettings
 
 #: A batch gets a second (third, ...) thread for every this many trajectories.
 PER_THREAD = 16
@@ -149,8 +151,6 @@ def forward(robot: Robot, poses: npt.ArrayLike, threads: int | None = None
 
 def warm_up(robot: Robot) -> None:
     """Compile (or load from numba's cache) the kernels outside any timed region."""
-    from ikbench.core.losses import PAPER_WEIGHTS
-    from ikbench.core.task import Task
 
     k = robot.dof
     pose = np.clip(np.zeros(k), robot.lower_motor_deg, robot.upper_motor_deg)

@@ -46,7 +46,7 @@ from ikbench.methods.ours_lm.compiled import (
     _solve_damped,
     _stationary,
 )
-from ikbench.methods.ours_lm.solver import MAX_DAMPING, MIN_GAIN_RATIO
+from ikbench.methods.ours_lm.settings import MAX_DAMPING, MIN_GAIN_RATIO
 
 if TYPE_CHECKING:
     from ikbench.core.capsules import CapsuleScene

@@ -16,6 +16,7 @@ import re
 from typing import TYPE_CHECKING
 
 from ikbench.core.errors import InputError
+from ikbench.core.provenance import cpu_model
 
 if TYPE_CHECKING:
     import torch
@@ -91,7 +92,6 @@ def device_name(device: str) -> str:
         import torch
 
         return torch.cuda.get_device_name(torch.device(device))
-    from ikbench.core.provenance import cpu_model
 
     return cpu_model()
 

@@ -39,6 +39,9 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
+from ikbench.core.errors import InputError
+from ikbench.core.obstacles import box
+from ikbench.core.task import Task
 from ikbench.core.validity import (
     MAX_INITIAL_DISTANCE,
     MAX_JOINT_CHANGE_DEG,
@@ -53,7 +56,8 @@ from ikbench.methods.ours_lm.avoidance import (
     CARRY_MAX_STEP,
     SELF_CLEARANCE_MM,
 )
-from ikbench.methods.ours_lm.start_search import (
+from ikbench.methods.ours_lm.frames import errors_from_frames
+from ikbench.methods.ours_lm.search_common import (
     AVOIDANCE_GAIN,
     CARRY_DAMPING,
     CARRY_ITERATIONS,
@@ -62,6 +66,7 @@ from ikbench.methods.ours_lm.start_search import (
     SEARCH_MARGIN,
     STITCH_JUMP_COST,
     STITCH_REACHED,
+    OursLMSettings,
     SearchResult,
     distinct,
     first_waypoint_ik,
@@ -72,7 +77,7 @@ if TYPE_CHECKING:
     from ikbench.core.capsules import CapsuleScene
     from ikbench.core.robot import Robot
     from ikbench.core.task import Task
-    from ikbench.methods.ours_lm.start_search import OursLMSettings
+    from ikbench.methods.ours_lm.search_common import OursLMSettings
 
 #: Anchor waypoints spread over the path in the first round, and IK seeds at each (twice as
 #: many at the anchors of later rounds).
@@ -168,8 +173,6 @@ def wrap(poses: np.ndarray, period: np.ndarray, lower: np.ndarray) -> np.ndarray
 def warm_up(robot: Robot) -> None:
     """Compile (or load from numba's cache) the search's kernels outside any timed region: a
     three-waypoint path of the robot's current end frame, with a box."""
-    from ikbench.core.obstacles import box
-    from ikbench.core.task import Task
 
     pose = np.clip(np.zeros(robot.dof), robot.sample_lower, robot.sample_upper)
     point, rotation, _, _ = robot.chain_kinematics().frames(pose[None], False)
@@ -178,7 +181,6 @@ def warm_up(robot: Robot) -> None:
     task = Task("warm-up", points_mm, np.tile([1.0, 0.0, 0.0], (3, 1)), None, None,
                 goal_rotations=np.repeat(rotation, 3, axis=0), reference_pose_deg=pose,
                 obstacles=(far,))
-    from ikbench.methods.ours_lm.start_search import OursLMSettings
 
     s = _Search(robot, task, OursLMSettings(max_iterations=2))
     for threads in (1, 2):
@@ -343,7 +345,6 @@ class _Search:
 def search_compiled(robot: Robot, task: Task, settings: OursLMSettings,
                     weights: dict) -> SearchResult:
     """Solve a 6-D pose path by the compiled search (see the module docstring)."""
-    from ikbench.core.errors import InputError
 
     started = time.perf_counter()
     s = _Search(robot, task, settings)
@@ -427,7 +428,6 @@ def _worst_waypoint(s: _Search, poses: np.ndarray) -> int:
     if steps.max() >= MAX_JOINT_CHANGE_DEG * 0.999:
         return int(np.argmax(steps))
     point, rotation, _, _ = s.spec_frames(poses, False)
-    from ikbench.methods.ours_lm.frames import errors_from_frames
 
     e_point, e_rot, _, _ = errors_from_frames(point, rotation, None, None, s.goals_p, s.goals_R)
     size = np.maximum(np.linalg.norm(e_point, axis=1) / MAX_POSITION_ERROR_MM,

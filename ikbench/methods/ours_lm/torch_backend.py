@@ -33,7 +33,7 @@ from ikbench.core.kinematics.chain_torch import torch_chain_kinematics
 from ikbench.core.losses import resolve_weights
 from ikbench.methods.ours_lm.devices import torch_dtype
 from ikbench.methods.ours_lm.problem import CM_PER_M, Problem, Weights
-from ikbench.methods.ours_lm.solver import (
+from ikbench.methods.ours_lm.settings import (
     BOUND_EPS_DEG,
     MAX_DAMPING,
     MIN_GAIN_RATIO,

@@ -34,11 +34,13 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.errors import InputError
+from ikbench.core.problems import load_problem
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets
 from ikbench.core.task import Task
 from ikbench.core.timing import Limits, TimedPath, check_timing, retime
 from ikbench.core.trajectory import DEFAULT_DURATION_S, read_trajectory_poses
+from ikbench.hw.limits import timing_limits
 from ikbench.methods.base import Method, Solution
 from ikbench.methods.registry import get_method
 from ikbench.studies.run import DEFAULT_OUTPUT
@@ -145,7 +147,6 @@ class Designer:
         self.design: LineDesign | LetterDesign | PathDesign
         self.problem = None
         if spec.problem is not None:
-            from ikbench.core.problems import load_problem
 
             own, task, self.problem = load_problem(spec.problem)
             if robot is not None and as_robot(robot).name != own.name:
@@ -284,7 +285,6 @@ class Designer:
 
     def _timed(self, poses: np.ndarray) -> TimedPath:
         if self.timing == "topp" and self._limits is None:
-            from ikbench.hw.limits import timing_limits
 
             self._limits = timing_limits(self.robot)
         return retime(self.robot, poses, self.timing, duration_s=self.duration_s,
