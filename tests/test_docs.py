@@ -64,3 +64,14 @@ def _relative_links(path: Path):
 def test_every_relative_link_names_a_file_of_the_repository(page):
     missing = [t for t in _relative_links(page) if not (page.parent / t).exists()]
     assert not missing, missing
+
+
+def test_the_layout_picture_names_every_layer():
+    """docs/contributing.md's picture of the layers names each layer the architecture test
+    knows (a new layer is drawn or the test fails)."""
+    from tests.test_architecture import LAYERS
+
+    text = (REPO / "docs" / "contributing.md").read_text()
+    picture = text.split("```mermaid", 1)[1].split("```", 1)[0]
+    drawn = set(re.findall(r"^\s*(\w+)\[", picture, flags=re.M))
+    assert drawn == set(LAYERS), (sorted(drawn), sorted(LAYERS))
