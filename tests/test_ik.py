@@ -287,9 +287,16 @@ def test_the_cli_writes_the_folder_and_every_row_recomputes_from_its_solution(tm
                  "--quiet"]) == 0
     folder = out / "ik" / "panda"
     files = {p.name for p in folder.iterdir()}
-    assert {"results.csv", "targets.csv", "leaderboard.md", "run.json", "times.png",
-            "success_vs_tolerance.png"} <= files
+    assert {"results.csv", "summary.csv", "targets.csv", "leaderboard.md", "run.json",
+            "times.png", "success_vs_tolerance.png"} <= files
     table = pd.read_csv(folder / "results.csv")
+    summary = pd.read_csv(folder / "summary.csv")
+    for (rule, method), rows in table.groupby([table["attempts_rule"].astype(str), "method"]):
+        row = summary[(summary["attempts_rule"].astype(str) == rule)
+                      & (summary["method"] == method)]
+        assert len(row) == 1
+        assert row["success_pct"].iloc[0] == pytest.approx(100 * rows["success"].mean(),
+                                                           abs=1e-4)
     assert set(table["method"]) == set(names) and len(table) == 2 * 6 * len(names)
     assert set(table["attempts_rule"].astype(str)) == {"auto", "1"}
     assert (table.loc[table["attempts_rule"].astype(str) == "1", "attempts"] == 1).all()

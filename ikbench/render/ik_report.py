@@ -5,6 +5,8 @@
 - ``results.csv`` (``results.parquet`` above :data:`PARQUET_ROWS` rows when pyarrow is
   installed): one row per attempts rule x method x target (:data:`ikbench.studies.ik.COLUMNS`),
   with each answer's joint values ``q0 ..`` in URDF units (named in run.json);
+- ``summary.csv``: the leaderboard's figures, one row per attempts rule and method
+  (:func:`summarise`).
 - ``targets.csv`` (``targets.parquet`` alike): each target's configuration [pose units],
   end-frame pose (position [mm], rotation matrix) and initial pose (row 0 of its sequence);
 - ``leaderboard.md``: the task, tolerances and protocol (budget, initial configurations,
@@ -55,6 +57,7 @@ def write_folder(result: StudyResult, folder: Path, command: str = "") -> Path:
         _results(result, tmp)
         _targets(result, tmp)
         summary = summarise(result.table, result.batches)
+        summary.to_csv(tmp / "summary.csv", index=False, float_format="%.6g")
         record = _record(result, command)
         (tmp / "leaderboard.md").write_text(leaderboard(result, summary, record),
                                             encoding="utf-8")
