@@ -12,16 +12,24 @@ The opening comment names the renderer, the source file (relative to the reposit
 the renderer's options (``key=value``; quote a value with spaces: ``columns="a:A b"``).
 :func:`render_text` rewrites every block of a text; :func:`check_files` says which blocks differ
 from a fresh render (the test suite runs it, so a retyped or stale figure fails). Blocks may stand
-inline in a sentence (``value``) or on lines of their own (``table``, ``provenance``, and the named
-renderers).
+inline in a sentence (``value``, ``range``, ``fraction``, ``provenance``) or on lines of their own
+(``table`` and the named renderers).
 
 Renderers (:data:`RENDERERS`):
 
-- ``table SOURCE [where=COL:VALUE[;COL:VALUE]] [columns=COL[:Header],...] [digits=N]``: a
-  Markdown table of a CSV's rows (rows where each COL equals VALUE as text), followed by the
-  provenance line of the folder's run record.
-- ``value SOURCE column=COL [where=...] [format=.3g] [unit=ms] [scale=1000]``: one cell (the
-  single row the filter leaves), formatted, with its unit.
+- ``table SOURCE [where=COL:VALUE[|VALUE][;COL:VALUE]] [columns=COL[:Header],...] [digits=N]``:
+  a Markdown table of a CSV's rows (rows where each COL equals one of its VALUEs as text),
+  followed by the provenance line of the folder's run record.
+- ``value SOURCE column=COL [where=...] [agg=median] [format=.3g] [unit=ms] [scale=1000]``:
+  one cell (the single row the filter leaves, or ``agg`` of the rows it leaves: min, max,
+  median, mean, sum, count), formatted, with its unit. For a JSON source (``dataset.json``,
+  ``run.json``): ``key=this_run.trajectories_per_s`` instead of ``column``.
+- ``range SOURCE column=COL [where=...] [format] [unit] [scale]``: "min-max unit" of a column
+  over the rows the filter leaves (one value when they are equal).
+- ``fraction SOURCE column=COL [where=...]``: "k/N", the rows whose COL is true (True, 1) among
+  the N the filter leaves.
+- ``list SOURCE column=COL [where=...] [format] [unit] [scale]``: the column's values of the rows
+  the filter leaves, in file order, comma-separated.
 - ``provenance SOURCE``: "measured at commit C (clean) on CPU, N cores, load L, DATE", from the
   JSON record beside the source (run.json, benchmark.json, throughput.json, ...).
 - ``compare-table SOURCE [reference=ours-lm]``: README's leaderboard of a compare folder's
@@ -162,7 +170,7 @@ def _rows(source: Path, options: dict[str, str]) -> pd.DataFrame:
         column, _, value = condition.partition(":")
         if column not in frame.columns:
             raise InputError(f"{source}: where={condition!r}: no column {column!r}")
-        frame = frame[frame[column] == value]
+        frame = frame[frame[column].isin(value.split("|"))]
     return frame
 
 
@@ -175,6 +183,8 @@ def _number(text: str, digits: int) -> str:
         return ""
     if value == int(value) and abs(value) < 1e15:
         return str(int(value))
+    if abs(value) >= 10 ** digits:
+        return f"{value:.0f}"  # 1892, not 1.89e+03
     return f"{value:.{digits}g}"
 
 
@@ -194,23 +204,100 @@ def render_table(source: Path, options: dict[str, str], root: Path) -> str:
     return "\n".join(lines) + "\n\n" + render_provenance(source, {}, root)
 
 
-def render_value(source: Path, options: dict[str, str], root: Path) -> str:
-    """One cell of a CSV, formatted, with its unit (see the module docstring)."""
+#: ``agg=`` of ``value``: name -> reduction of a column's values.
+AGGREGATES: dict[str, Callable[[pd.Series], float]] = {
+    "min": lambda v: float(v.min()), "max": lambda v: float(v.max()),
+    "median": lambda v: float(v.median()), "mean": lambda v: float(v.mean()),
+    "sum": lambda v: float(v.sum()), "count": lambda v: float(len(v))}
+
+
+def _column(source: Path, options: dict[str, str]) -> pd.Series:
+    """The ``column=`` values (float) of the rows ``where=`` leaves; InputError when the column
+    is missing or no row is left."""
     frame = _rows(source, options)
     column = options.get("column")
     if column not in frame.columns:
         raise InputError(f"{source}: column={column!r} is not in the file")
-    if len(frame) != 1:
-        raise InputError(f"{source}: where={options.get('where')!r} leaves {len(frame)} rows, "
-                         "not one")
-    value = float(frame[column].iloc[0]) * float(options.get("scale", "1"))
+    if frame.empty:
+        raise InputError(f"{source}: where={options.get('where')!r} leaves no row")
+    values = frame[column].replace({"True": "1", "False": "0"})
+    try:
+        return values.astype(float)
+    except ValueError:
+        raise InputError(f"{source}: column {column!r} holds text, not numbers") from None
+
+
+def _json_value(source: Path, key: str) -> float:
+    """The number at a dotted ``key`` of a JSON file."""
+    value: Any = json.loads(source.read_text(encoding="utf-8"))
+    for part in key.split("."):
+        if not isinstance(value, dict) or part not in value:
+            raise InputError(f"{source}: key={key!r}: no {part!r} there")
+        value = value[part]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"{source}: key={key!r} is {value!r}, not a number")
+    return float(value)
+
+
+def _formatted(value: float, options: dict[str, str]) -> str:
+    value *= float(options.get("scale", "1"))
     unit = options.get("unit", "")
     return f"{value:{options.get('format', '.3g')}}" + (f" {unit}" if unit else "")
 
 
+def render_value(source: Path, options: dict[str, str], root: Path) -> str:
+    """One cell of a CSV, or an aggregate of a column, or a number of a JSON file, formatted,
+    with its unit (see the module docstring)."""
+    if source.suffix == ".json":
+        return _formatted(_json_value(source, options.get("key", "")), options)
+    values = _column(source, options)
+    agg = options.get("agg")
+    if agg is not None:
+        if agg not in AGGREGATES:
+            raise InputError(f"{source}: agg={agg!r} is unknown; known: "
+                             f"{', '.join(AGGREGATES)}")
+        return _formatted(AGGREGATES[agg](values), options)
+    if len(values) != 1:
+        raise InputError(f"{source}: where={options.get('where')!r} leaves {len(values)} rows, "
+                         "not one (or give agg=)")
+    return _formatted(float(values.iloc[0]), options)
+
+
+def render_range(source: Path, options: dict[str, str], root: Path) -> str:
+    """"min-max unit" of a column over the rows the filter leaves (see the module docstring)."""
+    values = _column(source, options)
+    low, high = (_formatted(float(v), {**options, "unit": ""})
+                 for v in (values.min(), values.max()))
+    unit = options.get("unit", "")
+    return (low if low == high else f"{low}-{high}") + (f" {unit}" if unit else "")
+
+
+def render_list(source: Path, options: dict[str, str], root: Path) -> str:
+    """The column's values, comma-separated, in file order (see the module docstring)."""
+    values = _column(source, options)
+    unit = options.get("unit", "")
+    return ", ".join(_formatted(float(v), {**options, "unit": ""}) for v in values) + \
+        (f" {unit}" if unit else "")
+
+
+def render_fraction(source: Path, options: dict[str, str], root: Path) -> str:
+    """"k/N": the rows whose column is true among those the filter leaves."""
+    values = _column(source, options)
+    return f"{int((values != 0).sum())}/{len(values)}"
+
+
+#: Columns by which a CSV's rows carry their own provenance (benchmarks/ours_speed.py's).
+ROW_PROVENANCE = ("git_commit", "git_revision")
+
+
 def record_of(source: Path) -> dict[str, Any]:
-    """The JSON run record beside ``source`` (a file or folder): the first of :data:`RECORDS`
-    in its folder or the folders above it within results/."""
+    """The provenance of ``source`` (a file or folder): a CSV's own columns when its rows carry
+    it (:data:`ROW_PROVENANCE`: the first row), else the JSON run record beside it: the first
+    of :data:`RECORDS` in its folder or the folders above it within results/."""
+    if source.suffix == ".csv":
+        head = pd.read_csv(source, nrows=1)
+        if any(c in head.columns for c in ROW_PROVENANCE) and len(head):
+            return head.iloc[0].to_dict()
     folder = source if source.is_dir() else source.parent
     for candidate in [folder, *folder.parents]:
         for name in RECORDS:
@@ -227,6 +314,8 @@ def render_provenance(source: Path, options: dict[str, str], root: Path) -> str:
     record = record_of(source)
     commit = record.get("git_commit") or record.get("git_revision") or "unknown commit"
     clean = record.get("git_clean")
+    if clean is None and str(commit).endswith("-dirty"):
+        clean = False
     state = "" if clean is None else (", clean tree" if clean else ", modified tree")
     load = record.get("load_average")
     load_text = f", load {', '.join(f'{v:g}' for v in load)}" if load else ""
@@ -248,4 +337,7 @@ def render_compare_table(source: Path, options: dict[str, str], root: Path) -> s
 register("table", render_table)
 register("compare-table", render_compare_table)
 register("value", render_value)
+register("range", render_range)
+register("fraction", render_fraction)
+register("list", render_list)
 register("provenance", render_provenance)

@@ -244,16 +244,16 @@ def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Con
             ax_p.scatter(line.median(), group["pointing_deviation_judged_mean_deg"].median(),
                          color=color, marker=marker, s=120, edgecolor="k", label=name)
     if sweep is not None and len(sweep):
-        ax_p.plot(sweep["line_distance_max_mm"].clip(lower=floor),
-                  sweep["pointing_deviation_judged_mean_deg"], "-o", color="0.3", ms=4,
+        ax_p.plot(sweep["line_distance_max_median_mm"].clip(lower=floor),
+                  sweep["pointing_deviation_judged_mean_median_deg"], "-o", color="0.3", ms=4,
                   label="ours-lm weight sweep (c0)")
         for k, (_, row) in enumerate(sweep.iterrows()):
             if k % 2:  # every other label: they would overlap
                 continue
-            ax_p.annotate(f"c0={row['c0']:g}", (max(row["line_distance_max_mm"], floor),
-                                                row["pointing_deviation_judged_mean_deg"]),
-                          fontsize=7, xytext=(0, -11), textcoords="offset points",
-                          ha="center")
+            point = (max(row["line_distance_max_median_mm"], floor),
+                     row["pointing_deviation_judged_mean_median_deg"])
+            ax_p.annotate(f"c0={row['c0']:g}", point, fontsize=7, xytext=(0, -11),
+                          textcoords="offset points", ha="center")
     tol = contract.tolerances
     for ax in (ax_t, ax_p):
         ax.grid(alpha=0.3, which="both")
