@@ -1,9 +1,10 @@
 """Command-line interface: argument parsing only; the work lives in library modules.
 
-Every module in :mod:`ikbench.cli.commands` defines ``HELP`` (one line) and
-``register(subparsers)``. Only the invoked subcommand is registered in full (its options may
-list the methods, which imports their modules); the others appear with their ``HELP`` line,
-so ``ikbench fk`` imports no method and bad input is refused before anything heavy loads.
+Every module in :mod:`ikbench.cli.commands` declares one subcommand (``HELP``,
+``DESCRIPTION``, ``arguments``, ``run``: see there). Only the invoked subcommand is built in
+full (its options may list the methods, which imports their modules); the others appear with
+their ``HELP`` line, so ``ikbench fk`` imports no method and bad input is refused before
+anything heavy loads.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import pkgutil
 import re
 import signal
 import sys
+from types import ModuleType
 
 from ikbench.cli import commands
 from ikbench.cli.values import QUOTED_CHARS, PathValue, harden, quoted
@@ -117,10 +119,23 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     for name, module_name in modules.items():
         module = importlib.import_module(module_name)
         if argv is None or name == invoked:
-            module.register(sub)
+            add_command(sub, name, module)
         else:
             sub.add_parser(name, help=module.HELP, add_help=False)
     harden(parser)
+    return parser
+
+
+def add_command(subparsers: argparse._SubParsersAction, name: str, module: ModuleType
+                ) -> argparse.ArgumentParser:
+    """The full parser of subcommand ``name``, built from what its module declares (``HELP``,
+    ``DESCRIPTION``, ``arguments``, ``run``, ``DEFAULTS``: :mod:`ikbench.cli.commands`)."""
+    description = module.DESCRIPTION
+    parser = subparsers.add_parser(
+        name, help=module.HELP,
+        description=description() if callable(description) else description)
+    module.arguments(parser)
+    parser.set_defaults(func=module.run, **getattr(module, "DEFAULTS", {}))
     return parser
 
 

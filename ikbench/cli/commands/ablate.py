@@ -4,37 +4,41 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.options import (
+    add_line_task_arguments,
+    add_method_options,
+    add_threads_and_quiet,
+    begin,
+    check_threads,
+    method_from_args,
+    robot_from_args,
+    set_threads,
+    targets_from_args,
+)
 from ikbench.cli.values import OUTPUT
+from ikbench.core.errors import InputError
 
 HELP = ("loss-term ablation: run a method with terms of L0..L6 dropped, compare with "
         "the full loss")
 
 
-def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import (
-        add_line_task_arguments,
-        add_method_options,
-        add_threads_and_quiet,
-    )
+DESCRIPTION = (
+    "Run a method with the full loss and with the weights of some loss terms set to "
+    "zero (everything else as in the paper, stopping rule included) on the same "
+    "targets. Writes OUTPUT/ablation/: <variant>/trajectory_<id>.csv, table.csv (one "
+    "row per variant and trajectory: the Table 1 metrics, smoothness, distance from "
+    "the joint-space interpolation, whether the iteration cap was hit), summary.csv, "
+    "run.json, metrics.png, trajectories_3d.png, joints.png and report.md, which "
+    "checks the paper's claims about the terms. Terms: L0 line points, L1 pointing, "
+    "L2 start pose, L3 end pose, L4 start point, L5 end point, L6 smoothness. The "
+    "output folder is checked before any solve; trajectory CSVs and variant folders "
+    "of an earlier ablation there that this run does not write are removed.")
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     from ikbench.studies.ablation import weighted_methods
 
     methods = weighted_methods()
-    parser = subparsers.add_parser(
-        "ablate", help=HELP,
-        description=(
-            "Run a method with the full loss and with the weights of some loss terms set to "
-            "zero (everything else as in the paper, stopping rule included) on the same "
-            "targets. Writes OUTPUT/ablation/: <variant>/trajectory_<id>.csv, table.csv (one "
-            "row per variant and trajectory: the Table 1 metrics, smoothness, distance from "
-            "the joint-space interpolation, whether the iteration cap was hit), summary.csv, "
-            "run.json, metrics.png, trajectories_3d.png, joints.png and report.md, which "
-            "checks the paper's claims about the terms. Terms: L0 line points, L1 pointing, "
-            "L2 start pose, L3 end pose, L4 start point, L5 end point, L6 smoothness. The "
-            "output folder is checked before any solve; trajectory CSVs and variant folders "
-            "of an earlier ablation there that this run does not write are removed."
-        ),
-    )
     parser.add_argument(
         "--drop", action="append", default=None, metavar="TERMS",
         help="terms to drop together, e.g. L1 or L2,L3,L4,L5; 'each' (its own --drop value, "
@@ -50,20 +54,11 @@ def register(subparsers: Subparsers) -> None:
                         help="trajectory drawn per variant in the figures (default: the first)")
     add_threads_and_quiet(parser)
     add_method_options(parser, methods)
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
-    from ikbench.cli.options import (
-        begin,
-        check_threads,
-        method_from_args,
-        robot_from_args,
-        set_threads,
-        targets_from_args,
-    )
     from ikbench.core.io import check_folder_writable
     from ikbench.core.losses import parse_weights
     from ikbench.studies.ablation import ablate, check_method, parse_drops, weighted_methods
@@ -77,8 +72,6 @@ def run(args: argparse.Namespace) -> int:
     robot = robot_from_args(args)
     targets = targets_from_args(args, robot)
     if args.figure_trajectory is not None and args.figure_trajectory not in targets.ids:
-        from ikbench.core.errors import InputError
-
         raise InputError(f"--figure-trajectory: {args.figure_trajectory!r} is not among the "
                          f"selected trajectories ({', '.join(targets.ids)})")
     from pathlib import Path

@@ -4,7 +4,15 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.options import (
+    add_executor_arguments,
+    add_progress_arguments,
+    add_robot_arguments,
+    begin,
+    check_executor_args,
+    executor_from_args,
+    robot_from_args,
+)
 from ikbench.cli.values import OUTPUT, SEED, STEPS, count, tolerance
 
 HELP = "sample random reachable touch poses, solve them in one batch (ours-lm)"
@@ -12,7 +20,17 @@ HELP = "sample random reachable touch poses, solve them in one batch (ours-lm)"
 TOLERANCE_MM = tolerance("mm", 10_000.0)
 
 
-def register(subparsers: Subparsers) -> None:
+DESCRIPTION = (
+    "Draw N touch poses uniformly within the motor ranges (seeded), keep those in the "
+    "front workspace (fingertip x <= -250 mm, z >= 0 mm, at least 100 mm below the "
+    "start point, finger within 20 deg of the line direction), solve one line task per "
+    "pose from the start pose with ours-lm in one batched call per weight setting, and "
+    "report trajectories per second and the share within tolerance (mean line "
+    "distance and end point error). Writes OUTPUT/batch.csv, batch_trajectories.csv, "
+    "touch_poses.csv, batch.json and batch.md.")
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     from ikbench.studies.batch import (
         DEFAULT_WEIGHTS,
         END_TOLERANCE_MM,
@@ -20,18 +38,6 @@ def register(subparsers: Subparsers) -> None:
         MAX_COUNT,
     )
 
-    parser = subparsers.add_parser(
-        "batch", help=HELP,
-        description=(
-            "Draw N touch poses uniformly within the motor ranges (seeded), keep those in the "
-            "front workspace (fingertip x <= -250 mm, z >= 0 mm, at least 100 mm below the "
-            "start point, finger within 20 deg of the line direction), solve one line task per "
-            "pose from the start pose with ours-lm in one batched call per weight setting, and "
-            "report trajectories per second and the share within tolerance (mean line "
-            "distance and end point error). Writes OUTPUT/batch.csv, batch_trajectories.csv, "
-            "touch_poses.csv, batch.json and batch.md."
-        ),
-    )
     parser.add_argument("--count", default=1000,
                         type=count("touch poses", 1, MAX_COUNT,
                                    "in one batch; ikbench dataset builds larger sets"),
@@ -44,8 +50,6 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--weights", action="append", metavar="SETTING",
                         help="a weight setting: 'paper' or changes such as c0=100,c1=500; "
                         f"repeat for several (default: {' and '.join(DEFAULT_WEIGHTS)})")
-    from ikbench.cli.options import add_robot_arguments
-
     add_robot_arguments(parser)
     parser.add_argument("--targets", default=None,
                         help="targets JSON file whose start pose is used (default: the "
@@ -56,23 +60,13 @@ def register(subparsers: Subparsers) -> None:
                         help=f"tolerance on the end point error (default {END_TOLERANCE_MM})")
     parser.add_argument("--output", default="runs/batch", type=OUTPUT,
                         help="output directory (default: runs/batch, which git ignores)")
-    from ikbench.cli.options import add_executor_arguments, add_progress_arguments
-
     add_progress_arguments(parser)
-
     add_executor_arguments(parser)
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import (
-        begin,
-        check_executor_args,
-        executor_from_args,
-        robot_from_args,
-    )
     from ikbench.core.io import check_writable
     from ikbench.core.targets import load_targets
     from ikbench.studies.batch import (

@@ -4,8 +4,17 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.options import (
+    add_line_task_arguments,
+    add_progress_arguments,
+    begin,
+    check_threads,
+    robot_from_args,
+    set_threads,
+    targets_from_args,
+)
 from ikbench.cli.values import OUTPUT, THREADS, count
+from ikbench.core.errors import InputError
 
 HELP = "time methods on the same targets (median/min/max, ratios, losses)"
 DEFAULT_METHODS = "ours,ours-lm"
@@ -13,23 +22,20 @@ DEFAULT_METHODS = "ours,ours-lm"
 MAX_WARMUP = 100
 
 
-def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import add_line_task_arguments, add_progress_arguments
+DESCRIPTION = (
+    "Solve the targets with each method in one process: warm-up rounds, then timed "
+    "rounds; every trajectory is timed on its own, and batched methods also solve all "
+    "targets in one call. Writes OUTPUT/benchmark.csv (median, min, max wall time per "
+    "method and trajectory, totals, speed-ups against the first method, final losses "
+    "and metrics), benchmark_runs.csv (every timed solve), benchmark.json (settings, "
+    "CPU, versions, git revision) and benchmark.md (with the range of per-trajectory "
+    "speed-ups). The output folder is checked before timing. The paper's method takes "
+    "tens of seconds per round, so by default it runs 3 rounds and other methods 5.")
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     from ikbench.studies.throughput import MAX_BATCH
 
-    parser = subparsers.add_parser(
-        "bench", help=HELP,
-        description=(
-            "Solve the targets with each method in one process: warm-up rounds, then timed "
-            "rounds; every trajectory is timed on its own, and batched methods also solve all "
-            "targets in one call. Writes OUTPUT/benchmark.csv (median, min, max wall time per "
-            "method and trajectory, totals, speed-ups against the first method, final losses "
-            "and metrics), benchmark_runs.csv (every timed solve), benchmark.json (settings, "
-            "CPU, versions, git revision) and benchmark.md (with the range of per-trajectory "
-            "speed-ups). The output folder is checked before timing. The paper's method takes "
-            "tens of seconds per round, so by default it runs 3 rounds and other methods 5."
-        ),
-    )
     parser.add_argument("--methods", default=None,
                         help=f"comma-separated methods; the first is the baseline of the ratios "
                         f"(default: {DEFAULT_METHODS}; not with --device)")
@@ -67,19 +73,11 @@ def register(subparsers: Subparsers) -> None:
     scale.add_argument("--numpy-max-batch", type=count("trajectories", 1, MAX_BATCH),
                        default=None,
                        help="largest batch the numpy solver is timed on (default 10000)")
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import (
-        begin,
-        check_threads,
-        robot_from_args,
-        set_threads,
-        targets_from_args,
-    )
     from ikbench.core.io import check_writable
     from ikbench.studies.bench import (
         benchmark,
@@ -98,8 +96,6 @@ def run(args: argparse.Namespace) -> int:
                         ("--numpy-max-batch", args.numpy_max_batch),
                         ("--no-numba", args.no_numba or None)):
         if given is not None:
-            from ikbench.core.errors import InputError
-
             raise InputError(f"{flag} applies to the throughput mode only (give --device)")
     names = parse_methods(args.methods or DEFAULT_METHODS)
     parse_repeat(args.repeat, names)
@@ -127,8 +123,6 @@ def run_throughput(args: argparse.Namespace) -> int:
     """``ikbench bench --device DEV``: numpy solver vs numba and torch backends per batch."""
     from pathlib import Path
 
-    from ikbench.cli.options import begin, robot_from_args, set_threads
-    from ikbench.core.errors import InputError
     from ikbench.core.io import check_writable
     from ikbench.methods.ours_lm.devices import check_device
     from ikbench.studies.bench import MAX_ROUNDS

@@ -5,33 +5,50 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.options import (
+    _convert,
+    _given,
+    add_method_options,
+    add_progress_arguments,
+    begin,
+    check_threads,
+    set_threads,
+)
 from ikbench.cli.values import OUTPUT, THREADS
+from ikbench.core.errors import InputError
 
 HELP = "Cartesian path benchmark: methods on the CppFlow/TORM 6-D pose paths, several seeds"
 DEFAULT_OUTPUT = "runs"
 
 
-def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import add_method_options, add_progress_arguments
+def description() -> str:
+    """The paragraph of ``ikbench cartesian --help`` (it names the problems and methods)."""
     from ikbench.core.problems import BENCHMARK, SHIPPED, shipped_problems
+    from ikbench.studies.cartesian import frame_methods
+
+    methods = frame_methods()
+    return (
+        "Solve Cartesian path problems (6-D pose paths in CppFlow's format: CppFlow's 13 "
+        f"benchmark problems ({BENCHMARK}), every shipped one ({SHIPPED}: "
+        f"{', '.join(shipped_problems())}), or your own YAML files, obstacles included) "
+        "with every method that follows goal frames "
+        f"({', '.join(methods)}), once per seed, and write OUTPUT/cartesian/: table.csv "
+        "(one row per problem x method x seed: pose errors, joint changes, path lengths, "
+        "CppFlow's validity, time to a valid solution), summary.csv, published.csv "
+        "(CppFlow's and TORM's published figures with their sources, 'not found' where "
+        "none was found), the trajectories, a figure per problem, report.md and run.json. "
+        "Method options below apply to the methods that have them.")
+
+
+#: The paragraph of --help.
+DESCRIPTION = description
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
+    from ikbench.core.problems import BENCHMARK, SHIPPED
     from ikbench.studies.cartesian import DEFAULT_SEEDS, frame_methods
 
     methods = frame_methods()
-    parser = subparsers.add_parser(
-        "cartesian", help=HELP,
-        description=(
-            "Solve Cartesian path problems (6-D pose paths in CppFlow's format: CppFlow's 13 "
-            f"benchmark problems ({BENCHMARK}), every shipped one ({SHIPPED}: "
-            f"{', '.join(shipped_problems())}), or your own YAML files, obstacles included) "
-            "with every method that follows goal frames "
-            f"({', '.join(methods)}), once per seed, and write OUTPUT/cartesian/: table.csv "
-            "(one row per problem x method x seed: pose errors, joint changes, path lengths, "
-            "CppFlow's validity, time to a valid solution), summary.csv, published.csv "
-            "(CppFlow's and TORM's published figures with their sources, 'not found' where "
-            "none was found), the trajectories, a figure per problem, report.md and run.json. "
-            "Method options below apply to the methods that have them."),
-    )
     parser.add_argument("--problems", action="append", default=None,
                         metavar=f"{BENCHMARK}|{SHIPPED}|NAME,...|FILE.yaml",
                         help=f"{BENCHMARK} (default: CppFlow's 13 benchmark problems), "
@@ -51,14 +68,11 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--threads", type=THREADS, default=1, help="torch threads (default 1)")
     add_progress_arguments(parser)
     add_method_options(parser, methods)
-    parser.set_defaults(func=run)
 
 
 def method_settings(args: argparse.Namespace, names: list[str]) -> dict[str, dict]:
     """method -> settings from the method options given (each applies to the methods that
     have it); InputError for an option none of them has, and for --seed, --lm-seed (use --seeds)."""
-    from ikbench.cli.options import _convert, _given
-    from ikbench.core.errors import InputError
     from ikbench.methods.registry import get_method
 
     given = _given(args)
@@ -83,8 +97,6 @@ def command_line(args: argparse.Namespace, problems: str, seeds: Sequence[int]) 
     """The command as given (options in a fixed order), for the report."""
     import shlex
 
-    from ikbench.cli.options import _given
-
     words = ["ikbench", "cartesian", "--problems", problems]
     if args.methods:
         words += ["--methods", args.methods]
@@ -100,7 +112,6 @@ def run(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
-    from ikbench.cli.options import begin, check_threads, set_threads
     from ikbench.core.io import check_folder_writable
     from ikbench.core.problems import BENCHMARK, resolve_problems
     from ikbench.studies.cartesian import (

@@ -5,8 +5,21 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.commands import cartesian
+from ikbench.cli.options import (
+    add_executor_arguments,
+    add_line_task_arguments,
+    add_threads_and_quiet,
+    begin,
+    check_executor_args,
+    check_threads,
+    executor_from_args,
+    robot_from_args,
+    set_threads,
+    targets_from_args,
+)
 from ikbench.cli.values import OUTPUT, count, duration_s
+from ikbench.core.errors import InputError
 
 HELP = "compare methods and libraries on the same robot and tasks: results.csv, leaderboard"
 DEFAULT_METHODS = "ours-lm,ours-exact,sequential-ik"
@@ -15,29 +28,26 @@ DEFAULT_OUTPUT = "runs"
 MAX_REPEAT = 1000
 
 
-def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import add_line_task_arguments, add_threads_and_quiet
+DESCRIPTION = (
+    "Run every method on every task of the robot's targets under one task contract "
+    "(start and touch poses fixed, the line, pointing over its judged part, the "
+    "joints' speed limits at --duration, the tolerances), each task solved alone "
+    "--repeat times, timed by the same harness, and write OUTPUT/compare/: "
+    "results.csv (one row per method and trajectory: every criterion measured from "
+    "the trajectory CSVs and judged, success on the paper's track and on the "
+    "touch-pose-only track, single and batched solve times, the failure if any), "
+    "leaderboard.md/.csv (one table per track, the contract above it, ratios against "
+    "the reference method measured in the same run), pareto.png (with ours-lm's "
+    "weight sweep), run.json (the contract, library versions, machine) and one run "
+    "folder per method as `ikbench run` writes it. A method that is not installed, "
+    "fails or does not honour the contract is a row saying so. Exit code 1 when a "
+    "method is not installed, a solve failed or a method refused the tasks or does "
+    "not honour the contract; "
+    "130 on Ctrl-C (OUTPUT/compare/ left unchanged). docs/comparison.md explains "
+    "the contract; ikbench methods lists the methods.")
 
-    parser = subparsers.add_parser(
-        "compare", help=HELP,
-        description=(
-            "Run every method on every task of the robot's targets under one task contract "
-            "(start and touch poses fixed, the line, pointing over its judged part, the "
-            "joints' speed limits at --duration, the tolerances), each task solved alone "
-            "--repeat times, timed by the same harness, and write OUTPUT/compare/: "
-            "results.csv (one row per method and trajectory: every criterion measured from "
-            "the trajectory CSVs and judged, success on the paper's track and on the "
-            "touch-pose-only track, single and batched solve times, the failure if any), "
-            "leaderboard.md/.csv (one table per track, the contract above it, ratios against "
-            "the reference method measured in the same run), pareto.png (with ours-lm's "
-            "weight sweep), run.json (the contract, library versions, machine) and one run "
-            "folder per method as `ikbench run` writes it. A method that is not installed, "
-            "fails or does not honour the contract is a row saying so. Exit code 1 when a "
-            "method is not installed, a solve failed or a method refused the tasks or does "
-            "not honour the contract; "
-            "130 on Ctrl-C (OUTPUT/compare/ left unchanged). docs/comparison.md explains "
-            "the contract; ikbench methods lists the methods."),
-    )
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--methods", default=None,
                         help=f"comma-separated methods (default {DEFAULT_METHODS}; with "
                         "--problems every method that takes goal frames); 'all' for every "
@@ -74,34 +84,20 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--reference", default=None,
                         help="method the ratios are against (default ours-lm if compared, "
                         "else the first)")
-    from ikbench.cli.options import add_executor_arguments
-
     add_executor_arguments(parser)
     parser.add_argument("--output", default=DEFAULT_OUTPUT, type=OUTPUT,
                         help=f"results directory; writes OUTPUT/compare/ (default "
                         f"{DEFAULT_OUTPUT}, which git ignores)")
     add_threads_and_quiet(parser)
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     if args.problems:
         return run_problems(args)
     if args.seeds is not None:
-        from ikbench.core.errors import InputError
-
         raise InputError("--seeds applies to --problems only")
     from pathlib import Path
 
-    from ikbench.cli.options import (
-        begin,
-        check_executor_args,
-        check_threads,
-        executor_from_args,
-        robot_from_args,
-        set_threads,
-        targets_from_args,
-    )
     from ikbench.core.io import check_folder_writable
     from ikbench.methods.registry import method_status
     from ikbench.studies.compare import check_repeat, compare, parse_methods
@@ -122,8 +118,6 @@ def run(args: argparse.Namespace) -> int:
 
     targets = with_obstacles(targets, args.obstacles, robot)
     if args.reference is not None and args.reference not in names:
-        from ikbench.core.errors import InputError
-
         raise InputError(f"--reference: {args.reference!r} is not among --methods "
                          f"{', '.join(names)}")
     check_folder_writable(Path(args.output) / "compare")
@@ -170,13 +164,10 @@ def run_problems(args: argparse.Namespace) -> int:
     """``compare --problems``: the Cartesian benchmark (ikbench cartesian)."""
     import argparse
 
-    from ikbench.cli.commands import cartesian
     from ikbench.studies.cartesian import DEFAULT_SEEDS
 
     if args.targets or args.only or args.steps is not None or args.reference \
             or args.obstacles is not None:
-        from ikbench.core.errors import InputError
-
         raise InputError("--targets, --only, --steps, --obstacles and --reference do not "
                          "apply to --problems (the problem files define the paths and their "
                          "obstacles)")

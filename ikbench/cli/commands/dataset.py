@@ -4,8 +4,21 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.options import (
+    add_executor_arguments,
+    add_method_options,
+    add_progress_arguments,
+    add_robot_arguments,
+    begin,
+    check_executor_args,
+    check_threads,
+    executor_from_args,
+    method_from_args,
+    robot_from_args,
+    set_threads,
+)
 from ikbench.cli.values import OUTPUT, SEED, STEPS, THREADS, count
+from ikbench.core.errors import InputError
 
 HELP = "a training set: N random reachable trajectories (ours-lm) as Parquet shards"
 #: At most this many trajectories (a million took 76 min on one CPU core, docs/scale.md).
@@ -14,31 +27,24 @@ MAX_COUNT = 1_000_000_000
 MAX_SHARDS = 100_000
 
 
-def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import (
-        add_executor_arguments,
-        add_method_options,
-        add_progress_arguments,
-        add_robot_arguments,
-    )
+DESCRIPTION = (
+    "Draw N touch poses with the batch sampler (the robot config's workspace filter; "
+    "shard k seeded by (--seed, k)), solve one line task per pose from the start pose "
+    "with ours-lm in one batch per shard, and write OUTPUT/steps/part-*.parquet (one "
+    "row per trajectory and step: joints, fingertip x_mm, y_mm, z_mm, pointing "
+    "direction), OUTPUT/trajectories/part-*.parquet (one row per trajectory: start "
+    "and touch poses and points, loss and terms, iterations, convergence, line "
+    "distance, pointing deviation, errors, smoothness) and OUTPUT/dataset.json (the "
+    "options, the schema with units, totals). Run it again with the same options to "
+    "resume: complete shards are kept. The same seed gives the same files with any "
+    "executor and shard order.")
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     from ikbench.methods.registry import get_method
     from ikbench.studies.batch import MAX_COUNT as MAX_SHARD_SIZE
     from ikbench.studies.dataset import DEFAULT_SHARD_SIZE
 
-    parser = subparsers.add_parser(
-        "dataset", help=HELP,
-        description=(
-            "Draw N touch poses with the batch sampler (the robot config's workspace filter; "
-            "shard k seeded by (--seed, k)), solve one line task per pose from the start pose "
-            "with ours-lm in one batch per shard, and write OUTPUT/steps/part-*.parquet (one "
-            "row per trajectory and step: joints, fingertip x_mm, y_mm, z_mm, pointing "
-            "direction), OUTPUT/trajectories/part-*.parquet (one row per trajectory: start "
-            "and touch poses and points, loss and terms, iterations, convergence, line "
-            "distance, pointing deviation, errors, smoothness) and OUTPUT/dataset.json (the "
-            "options, the schema with units, totals). Run it again with the same options to "
-            "resume: complete shards are kept. The same seed gives the same files with any "
-            "executor and shard order."),
-    )
     parser.add_argument("--count", type=count("trajectories", 1, MAX_COUNT), default=1000,
                         help=f"number of trajectories N, at most {MAX_COUNT:,} and "
                         f"{MAX_SHARDS:,} shards (default 1000)")
@@ -63,21 +69,11 @@ def register(subparsers: Subparsers) -> None:
     add_progress_arguments(parser)
     add_executor_arguments(parser)
     add_method_options(parser, {"ours-lm": get_method("ours-lm")})
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import (
-        begin,
-        check_executor_args,
-        check_threads,
-        executor_from_args,
-        method_from_args,
-        robot_from_args,
-        set_threads,
-    )
     from ikbench.core.io import check_writable
     from ikbench.methods.registry import get_method
     from ikbench.studies.dataset import MANIFEST, build_dataset, check_options
@@ -113,7 +109,6 @@ def run(args: argparse.Namespace) -> int:
 def check_sizes(count: int, shard_size: int) -> None:
     """InputError, before anything is planned, for a --count or --shard-size beyond the
     stated maxima (a count of 10^12 used to fill the memory with the plan of its shards)."""
-    from ikbench.core.errors import InputError
     from ikbench.studies.batch import MAX_COUNT as MAX_SHARD_SIZE
 
     if count > MAX_COUNT:

@@ -4,28 +4,26 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.options import DEFAULT_ROBOT, add_robot_arguments, begin, robot_from_args
+from ikbench.core.errors import InputError
 
 HELP = "design a trajectory by hand in the browser: drag a point, see it re-solved and judged"
 INSTALL = "pip install 'ikbench[viewer]'"
 
 
-def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import add_robot_arguments
+DESCRIPTION = (
+    "Serve a 3-D designer and print its URL. Drag the touch point (or the start "
+    "point) of a line, the centre of a letter (--shape letter:X; its size in the "
+    "panel) or a waypoint of a 6-D pose path (--problem): every move re-solves the "
+    "trajectory with --method, warm-started from the previous solution, plays it, and "
+    "judges it live against the task contract (line distance, pointing, the largest "
+    "step against the speed limit, joint limits, collisions where the robot has a "
+    "collision model). Save writes OUTPUT/NAME.targets.json (or NAME.yaml and "
+    "NAME.csv) and the run folder OUTPUT/NAME/ exactly as ikbench run writes it. "
+    f"Ctrl-C stops it. Needs viser: {INSTALL}. See docs/viewer.md.")
 
-    parser = subparsers.add_parser(
-        "design", help=HELP,
-        description=(
-            "Serve a 3-D designer and print its URL. Drag the touch point (or the start "
-            "point) of a line, the centre of a letter (--shape letter:X; its size in the "
-            "panel) or a waypoint of a 6-D pose path (--problem): every move re-solves the "
-            "trajectory with --method, warm-started from the previous solution, plays it, and "
-            "judges it live against the task contract (line distance, pointing, the largest "
-            "step against the speed limit, joint limits, collisions where the robot has a "
-            "collision model). Save writes OUTPUT/NAME.targets.json (or NAME.yaml and "
-            "NAME.csv) and the run folder OUTPUT/NAME/ exactly as ikbench run writes it. "
-            f"Ctrl-C stops it. Needs viser: {INSTALL}. See docs/viewer.md."),
-    )
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     add_robot_arguments(parser)
     parser.add_argument("--targets", default=None,
                         help="targets JSON file whose poses the design starts from (default: "
@@ -66,12 +64,9 @@ def register(subparsers: Subparsers) -> None:
                         help="interface to listen on (default 127.0.0.1, this machine only)")
     parser.add_argument("--no-browser", action="store_true",
                         help="do not open a browser (e.g. on a server; open the URL printed)")
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ikbench.cli.options import DEFAULT_ROBOT, begin, robot_from_args
-    from ikbench.core.errors import InputError
     from ikbench.core.targets import parse_pose
     from ikbench.core.timing import check_timing
     from ikbench.methods.registry import get_method

@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.options import add_robot_arguments, begin, robot_from_args
 from ikbench.cli.values import INPUT_FILE, OUTPUT, Number
+from ikbench.core.errors import InputError
 
 if TYPE_CHECKING:
     from ikbench.hw.emulator import Fault
@@ -17,21 +18,17 @@ HELP = ("start emulated Dynamixel servos (Protocol 1.0) on a pseudo-terminal; pr
 INSTRUCTIONS = {"ping": 0x01, "read": 0x02, "write": 0x03, "*": None}
 
 
-def register(subparsers: Subparsers) -> None:
-    parser = subparsers.add_parser(
-        "emulate", help=HELP,
-        description=(
-            "Emulate the arm's Dynamixel MX servos (Protocol 1.0: ping, read, write, sync "
-            "write; present position moving towards the goal at the moving speed) on a "
-            "pseudo-terminal. Prints the port on the first line, then serves until Ctrl-C or "
-            "--for seconds; pass the port to `ikbench execute --port`. "
-            "Example: ikbench emulate --fault drop:5:read"
-        ),
-    )
+DESCRIPTION = (
+    "Emulate the arm's Dynamixel MX servos (Protocol 1.0: ping, read, write, sync "
+    "write; present position moving towards the goal at the moving speed) on a "
+    "pseudo-terminal. Prints the port on the first line, then serves until Ctrl-C or "
+    "--for seconds; pass the port to `ikbench execute --port`. "
+    "Example: ikbench emulate --fault drop:5:read")
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--motors", metavar="FILE", type=INPUT_FILE,
                         help="motor config JSON (default: the robot's, NICO's right arm)")
-    from ikbench.cli.options import add_robot_arguments
-
     add_robot_arguments(parser)
     parser.add_argument("--pose", metavar="DEG,...",
                         help="start pose: 7 comma-separated motor angles (default: the paper's "
@@ -52,12 +49,10 @@ def register(subparsers: Subparsers) -> None:
                                                             low_open=True),
                         metavar="SECONDS",
                         help="stop after this many seconds (default: run until Ctrl-C)")
-    parser.set_defaults(func=run)
 
 
 def parse_fault(text: str) -> Fault:
     """``"drop:5:read:2"`` -> :class:`ikbench.hw.emulator.Fault`."""
-    from ikbench.core.errors import InputError
     from ikbench.hw.emulator import FAULT_KINDS, Fault
 
     parts = text.split(":")
@@ -81,8 +76,6 @@ def run(args: argparse.Namespace) -> int:
     import signal
     import threading
 
-    from ikbench.cli.options import robot_from_args
-    from ikbench.core.errors import InputError
     from ikbench.core.io import atomic_write_csv, check_writable
     from ikbench.core.targets import load_targets, parse_pose
     from ikbench.hw.emulator import Emulator
@@ -98,8 +91,6 @@ def run(args: argparse.Namespace) -> int:
     faults = [parse_fault(text) for text in args.fault]
     if args.log:
         check_writable(args.log)  # before serving, not when stopping
-    from ikbench.cli.options import begin
-
     begin(args)
 
     stop = threading.Event()

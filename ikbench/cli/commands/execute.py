@@ -6,28 +6,27 @@ import argparse
 import math
 import os
 
-from ikbench.cli.commands import Subparsers
 from ikbench.cli.commands.plan import add_plan_arguments, check_timing_args, timing_from_args
+from ikbench.cli.options import begin, robot_from_args
 from ikbench.cli.values import OUTPUT
+from ikbench.core.errors import InputError, OutputError
 
 HELP = "play a trajectory on the arm's Dynamixel servos (Protocol 1.0) or an emulator"
 
 EMULATOR_PORT = "emulator"
 
 
-def register(subparsers: Subparsers) -> None:
-    parser = subparsers.add_parser(
-        "execute", help=HELP,
-        description=(
-            "Play a trajectory CSV on NICO's arm: ping every motor, read the present pose, "
-            "refuse if it is far from the trajectory's first pose (unless --approach), then "
-            "send one SYNC WRITE (goal position + moving speed for all motors) per segment, "
-            "paced by a monotonic clock. Ctrl-C (also while settling after the last segment) "
-            "or a failure on the bus stops the motion and holds the present position (exit "
-            "code 130 or 3). --timing min-jerk or topp sends the same goals at their retimed "
-            "times. See docs/hardware.md and docs/timing.md."
-        ),
-    )
+DESCRIPTION = (
+    "Play a trajectory CSV on NICO's arm: ping every motor, read the present pose, "
+    "refuse if it is far from the trajectory's first pose (unless --approach), then "
+    "send one SYNC WRITE (goal position + moving speed for all motors) per segment, "
+    "paced by a monotonic clock. Ctrl-C (also while settling after the last segment) "
+    "or a failure on the bus stops the motion and holds the present position (exit "
+    "code 130 or 3). --timing min-jerk or topp sends the same goals at their retimed "
+    "times. See docs/hardware.md and docs/timing.md.")
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     add_plan_arguments(parser)
     parser.add_argument("--port", required=True,
                         help="serial port of the servo bus, e.g. /dev/ttyUSB0, or a port printed "
@@ -51,7 +50,6 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--start-tolerance", type=float, default=5.0, metavar="DEG",
                         help="largest distance per joint [motor deg] between the present and "
                         "the first pose that counts as 'at the start' (default: 5)")
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -60,7 +58,6 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from ikbench.core.errors import InputError, OutputError
     from ikbench.core.io import check_writable
     from ikbench.hw.executor import ExecutionStopped, execute
     from ikbench.hw.motors import SPEED_RAW_MAX, SPEED_UNIT_DEG_S, load_motor_config
@@ -73,8 +70,6 @@ def run(args: argparse.Namespace) -> int:
            "[0, 360] deg")
     _check("--record-rate", args.record_rate, 0 <= args.record_rate <= 1000, "[0, 1000] Hz")
     check_timing_args(args)
-    from ikbench.cli.options import robot_from_args
-
     robot = robot_from_args(args)
     config = load_motor_config(args.motors, robot)
     timing, limits = timing_from_args(args, robot, config)
@@ -88,8 +83,6 @@ def run(args: argparse.Namespace) -> int:
     if args.port != EMULATOR_PORT and os.path.isdir(args.port):
         raise InputError(f"--port: {args.port!r} is a directory; give a serial port such as "
                          f"/dev/ttyUSB0 or '{EMULATOR_PORT}'")
-    from ikbench.cli.options import begin
-
     begin(args)
     emulator = None
     port = args.port
@@ -174,8 +167,6 @@ def _write_record(path, record) -> None:
 
 
 def _check(option: str, value: float, ok: bool, allowed: str) -> None:
-    from ikbench.core.errors import InputError
-
     if not (math.isfinite(value) and ok):
         raise InputError(f"{option} {value:g}; allowed: {allowed}")
 

@@ -4,28 +4,32 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.commands import Subparsers
-from ikbench.cli.commands.plan import TRAJECTORY_CSV
+from ikbench.cli.commands.plan import (
+    TRAJECTORY_CSV,
+    add_timing_arguments,
+    check_timing_args,
+    timing_from_args,
+)
+from ikbench.cli.options import add_robot_arguments, begin, robot_from_args
 from ikbench.cli.values import OUTPUT, duration_s, rate_hz
 
 HELP = "write a trajectory as a ROS JointTrajectory (JSON/YAML) or a CSV in URDF radians"
 DEFAULT_DURATION_S = 2.0
 
 
-def register(subparsers: Subparsers) -> None:
+DESCRIPTION = (
+    "Convert a trajectory CSV (poses in the robot's units: motor degrees for NICO) to "
+    "URDF joint values through the robot's motor map (radians; metres for prismatic "
+    "joints) and write it as a trajectory_msgs/JointTrajectory (positions, velocities "
+    "by central differences with zero at both ends, time_from_start as sec/nanosec, "
+    "T/n apart) in JSON or YAML, or as a CSV step,time_s,<joints>. --timing min-jerk "
+    "or topp samples the retimed motion at --rate with its velocities and "
+    "accelerations. See docs/viewer.md and docs/timing.md.")
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     from ikbench.viewer.export import FORMATS
 
-    parser = subparsers.add_parser(
-        "export", help=HELP,
-        description=(
-            "Convert a trajectory CSV (poses in the robot's units: motor degrees for NICO) to "
-            "URDF joint values through the robot's motor map (radians; metres for prismatic "
-            "joints) and write it as a trajectory_msgs/JointTrajectory (positions, velocities "
-            "by central differences with zero at both ends, time_from_start as sec/nanosec, "
-            "T/n apart) in JSON or YAML, or as a CSV step,time_s,<joints>. --timing min-jerk "
-            "or topp samples the retimed motion at --rate with its velocities and "
-            "accelerations. See docs/viewer.md and docs/timing.md."),
-    )
     parser.add_argument("trajectory", metavar="TRAJ.csv", type=TRAJECTORY_CSV,
                         help="trajectory CSV as ikbench writes it (trajectory_<id>.csv)")
     parser.add_argument("--format", required=True, choices=list(FORMATS),
@@ -37,7 +41,6 @@ def register(subparsers: Subparsers) -> None:
                         "when the CSV's time_s column ends elsewhere")
     parser.add_argument("--output", required=True, metavar="FILE", type=OUTPUT,
                         help="file to write (replaced atomically)")
-    from ikbench.cli.commands.plan import add_timing_arguments
     from ikbench.viewer.export import DEFAULT_RATE_HZ, MAX_RATE_HZ
 
     add_timing_arguments(parser)
@@ -46,17 +49,12 @@ def register(subparsers: Subparsers) -> None:
                         help=f"min-jerk, topp: points per second along the retimed motion, up "
                         f"to {MAX_RATE_HZ:g} (default {DEFAULT_RATE_HZ:g}; 0: one point per "
                         "solved pose)")
-    from ikbench.cli.options import add_robot_arguments
-
     add_robot_arguments(parser)
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from ikbench.cli.commands.plan import check_timing_args, timing_from_args
-    from ikbench.cli.options import begin, robot_from_args
     from ikbench.core.io import check_writable
 
     check_timing_args(args)

@@ -5,22 +5,19 @@ from __future__ import annotations
 import argparse
 import json
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.options import add_robot_arguments, begin, robot_from_args
 
 HELP = "forward kinematics: end point [mm] and pointing direction of a pose"
 
 
-def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import add_robot_arguments
+DESCRIPTION = (
+    "Print the end point [mm] in the robot's base frame (NICO: the torso frame, x "
+    "behind the robot, y to its right, z up) and the unit pointing direction for a "
+    "pose in the robot's units (NICO: motor degrees; robots without a motor map: "
+    "joint degrees, mm for prismatic joints).")
 
-    parser = subparsers.add_parser(
-        "fk", help=HELP,
-        description=(
-            "Print the end point [mm] in the robot's base frame (NICO: the torso frame, x "
-            "behind the robot, y to its right, z up) and the unit pointing direction for a "
-            "pose in the robot's units (NICO: motor degrees; robots without a motor map: "
-            "joint degrees, mm for prismatic joints)."),
-    )
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     add_robot_arguments(parser)
     parser.add_argument(
         "--pose", default=None,
@@ -32,11 +29,9 @@ def register(subparsers: Subparsers) -> None:
                         "(pytorch-kinematics, float64; 4 s)")
     parser.add_argument("--json", action="store_true",
                         help="print exactly one JSON object instead of text")
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ikbench.cli.options import begin, robot_from_args
     from ikbench.core.targets import load_targets, parse_pose
 
     robot = robot_from_args(args)

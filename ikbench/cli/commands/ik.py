@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.options import add_progress_arguments, add_robot_arguments, begin, robot_from_args
 from ikbench.cli.values import OUTPUT, Number
+from ikbench.core.errors import InputError
 
 HELP = ("single-pose IK benchmark: success rate and time per call of every library on a robot, "
         "under one protocol (budget, initial configurations, attempts)")
@@ -18,24 +19,21 @@ BUDGET_MS = 5.0
 BUDGET = Number("a budget [ms]", 0.0, 3_600_000.0, low_open=True, infinite="no budget")
 
 
-def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import add_progress_arguments, add_robot_arguments
+DESCRIPTION = (
+    "Solve COUNT single-pose IK targets (FK of configurations drawn uniformly within "
+    "the limits, seeded) with every installed library under one protocol: each target "
+    "has a wall-clock budget (--budget-ms) and a seeded sequence of initial "
+    "configurations, the same for every method; a method is restarted from the next "
+    "one until its answer holds or the budget is spent (--attempts auto), or makes at "
+    "most N attempts (--attempts 1: one descent each). One target per call, each call "
+    "timed; every answer judged by FK through Pinocchio. Writes OUTPUT/ik/<robot>/: "
+    "results.csv (one row per rule x method x target with the answer's joint values; "
+    "Parquet above 50,000 rows), targets.csv, leaderboard.md, times.png, "
+    "success_vs_tolerance.png, run.json. Robots by package name: --robot "
+    "example-robot-data:panda (ikbench robots --all lists them).")
 
-    parser = subparsers.add_parser(
-        "ik", help=HELP,
-        description=(
-            "Solve COUNT single-pose IK targets (FK of configurations drawn uniformly within "
-            "the limits, seeded) with every installed library under one protocol: each target "
-            "has a wall-clock budget (--budget-ms) and a seeded sequence of initial "
-            "configurations, the same for every method; a method is restarted from the next "
-            "one until its answer holds or the budget is spent (--attempts auto), or makes at "
-            "most N attempts (--attempts 1: one descent each). One target per call, each call "
-            "timed; every answer judged by FK through Pinocchio. Writes OUTPUT/ik/<robot>/: "
-            "results.csv (one row per rule x method x target with the answer's joint values; "
-            "Parquet above 50,000 rows), targets.csv, leaderboard.md, times.png, "
-            "success_vs_tolerance.png, run.json. Robots by package name: --robot "
-            "example-robot-data:panda (ikbench robots --all lists them)."),
-    )
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     add_robot_arguments(parser)
     parser.add_argument("--count", type=int, default=1000, help="targets (default 1000)")
     parser.add_argument("--seed", type=int, default=1, help="seed of targets and initial "
@@ -74,13 +72,10 @@ def register(subparsers: Subparsers) -> None:
                         help=f"output directory; writes OUTPUT/ik/<robot>/ (default "
                         f"{DEFAULT_OUTPUT})")
     add_progress_arguments(parser)
-    parser.set_defaults(func=run)
 
 
 def parse_caps(text: str | None) -> dict[str, int]:
     """``"ikpy=500,drake-ik=2000"`` -> {"ikpy": 500, "drake-ik": 2000}; InputError else."""
-    from ikbench.core.errors import InputError
-
     caps: dict[str, int] = {}
     for item in (text or "").split(","):
         if not item.strip():
@@ -121,7 +116,6 @@ def command_line(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import begin, robot_from_args
     from ikbench.core.io import check_folder_writable
     from ikbench.render.ik_report import summarise
     from ikbench.studies.ik import (

@@ -5,27 +5,23 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from ikbench.cli.commands import Subparsers
-
 HELP = "list the methods: available ones with their library, missing ones with the reason"
 
 
-def register(subparsers: Subparsers) -> None:
-    parser = subparsers.add_parser(
-        "methods", help=HELP,
-        description=(
-            "List every registered method: built-in ones, those of baselines/ (one per "
-            "kinematics library, installed with pip install 'ikbench[libs]') and those other "
-            "packages add through the entry-point group ikbench.methods. A method whose "
-            "library is missing is listed as unavailable with the reason; every other "
-            "command still works. [goal frames]: the method follows 6-D pose paths "
-            "(run --problem, ikbench cartesian)."),
-    )
+DESCRIPTION = (
+    "List every registered method: built-in ones, those of baselines/ (one per "
+    "kinematics library, installed with pip install 'ikbench[libs]') and those other "
+    "packages add through the entry-point group ikbench.methods. A method whose "
+    "library is missing is listed as unavailable with the reason; every other "
+    "command still works. [goal frames]: the method follows 6-D pose paths "
+    "(run --problem, ikbench cartesian).")
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("method", nargs="?", default=None, metavar="NAME",
                         help="one method: its description, library and every option with its "
                         "help and default (the options `ikbench run --help` leaves out)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
-    parser.set_defaults(func=run)
 
 
 def describe(row: dict[str, Any], cls: Any) -> int:

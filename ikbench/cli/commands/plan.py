@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.options import add_robot_arguments, begin, robot_from_args
 from ikbench.cli.values import INPUT_FILE, OUTPUT, PathValue, duration_s
 
 if TYPE_CHECKING:
@@ -23,18 +23,16 @@ DEFAULT_DURATION_S = 2.0
 TRAJECTORY_CSV = PathValue("a trajectory CSV", must_exist="file")
 
 
-def register(subparsers: Subparsers) -> None:
-    parser = subparsers.add_parser(
-        "plan", help=HELP,
-        description=(
-            "Split a trajectory CSV into segments (segment k runs from pose k to pose k+1 in "
-            "T/n seconds, or when --timing reaches them), compute each joint's speed "
-            "|delta|/duration in motor deg/s and the "
-            "Dynamixel register values the executor would send (goal position, moving speed), "
-            "and flag segments that exceed a motor's speed limit or leave its angle limits. "
-            "Prints the table and writes it as CSV. See docs/timing.md."
-        ),
-    )
+DESCRIPTION = (
+    "Split a trajectory CSV into segments (segment k runs from pose k to pose k+1 in "
+    "T/n seconds, or when --timing reaches them), compute each joint's speed "
+    "|delta|/duration in motor deg/s and the "
+    "Dynamixel register values the executor would send (goal position, moving speed), "
+    "and flag segments that exceed a motor's speed limit or leave its angle limits. "
+    "Prints the table and writes it as CSV. See docs/timing.md.")
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     add_plan_arguments(parser)
     parser.add_argument("--out", metavar="CSV", type=OUTPUT,
                         help="segment table CSV to write (default: TRAJ with suffix .plan.csv)")
@@ -42,7 +40,6 @@ def register(subparsers: Subparsers) -> None:
                         type=OUTPUT,
                         help="also draw joint speeds and fingertip speed against time for the "
                         "three timings (default file: TRAJ with suffix .timing.png)")
-    parser.set_defaults(func=run)
 
 
 def add_plan_arguments(parser: argparse.ArgumentParser) -> None:
@@ -59,8 +56,6 @@ def add_plan_arguments(parser: argparse.ArgumentParser) -> None:
                         "angle limits per joint (default: the robot's, NICO's right arm; see "
                         "docs/hardware.md)")
     add_timing_arguments(parser)
-    from ikbench.cli.options import add_robot_arguments
-
     add_robot_arguments(parser)
 
 
@@ -107,7 +102,6 @@ def check_timing_args(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ikbench.cli.options import begin, robot_from_args
     from ikbench.core.io import atomic_write_csv, check_writable
     from ikbench.hw.motors import load_motor_config
     from ikbench.hw.plan import plan_trajectory_file

@@ -4,39 +4,35 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.options import begin
 from ikbench.cli.values import PathValue
+from ikbench.core.errors import OutputError
 
 HELP = "compare the runs in DIR (ours vs each sequential-ik run); write DIR/report.md"
 
 
-def register(subparsers: Subparsers) -> None:
-    parser = subparsers.add_parser(
-        "report", help=HELP,
-        description=(
-            "Read every run folder that `ikbench run --output DIR [--name NAME]` wrote (the "
-            "folder ours and at least one sequential-ik run, e.g. sequential-ik/, "
-            "sequential-ik-pointing/, sequential-ik-position/; same targets and n; the folders "
-            "ablation/, sweep/, batch/ and letters/ of other commands are skipped), recompute "
-            "all figures from the trajectory CSVs, and write DIR/report.md (all runs side by "
-            "side per trajectory; the paper's claims about its baseline checked with numbers "
-            "once per sequential-ik / ikpy run, labelled with its --orientation mode and the task "
-            "it solved (walk: touch pose only; track: the paper's task); the modes in one "
-            "table; Table 2 beside the paper's, from the frame-mode run) and "
-            "DIR/pointing_deviation_per_step.png."
-        ),
-    )
+DESCRIPTION = (
+    "Read every run folder that `ikbench run --output DIR [--name NAME]` wrote (the "
+    "folder ours and at least one sequential-ik run, e.g. sequential-ik/, "
+    "sequential-ik-pointing/, sequential-ik-position/; same targets and n; the folders "
+    "ablation/, sweep/, batch/ and letters/ of other commands are skipped), recompute "
+    "all figures from the trajectory CSVs, and write DIR/report.md (all runs side by "
+    "side per trajectory; the paper's claims about its baseline checked with numbers "
+    "once per sequential-ik / ikpy run, labelled with its --orientation mode and the task "
+    "it solved (walk: touch pose only; track: the paper's task); the modes in one "
+    "table; Table 2 beside the paper's, from the frame-mode run) and "
+    "DIR/pointing_deviation_per_step.png.")
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("dir", metavar="DIR", type=PathValue("a folder of runs",
                                                              must_exist="dir"),
                         help="the --output directory of the runs (e.g. results)")
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import begin
-    from ikbench.core.errors import OutputError
     from ikbench.core.io import check_writable
     from ikbench.paper.comparison import write_comparison_report
 

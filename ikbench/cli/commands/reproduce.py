@@ -4,33 +4,30 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.options import add_threads_and_quiet, begin, check_threads, set_threads
 from ikbench.cli.values import OUTPUT
+from ikbench.core.errors import InputError
 
 HELP = ("regenerate Tables 1 and 2, the comparison, the ablation, all figures and "
         "results/README.md")
 
 
-def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.options import add_threads_and_quiet
+DESCRIPTION = (
+    "Run the paper's method (Table 1: OUTPUT/ours/) and the authors' baseline, the "
+    "walk from the touch pose (sequential-ik-walk; Table 2, --orientation frame: "
+    "OUTPUT/sequential-ik/; also --orientation pointing "
+    "and position: OUTPUT/sequential-ik-pointing/, OUTPUT/sequential-ik-position/) on "
+    "the paper's targets, ours with --init interpolation (OUTPUT/"
+    "ours-init-interpolation/), write the comparison report (OUTPUT/report.md) and the "
+    "loss-term ablation (OUTPUT/ablation/: every single term, and L2..L5 together), "
+    "and write OUTPUT/README.md: each paper table beside the measured one, the "
+    "baseline's three modes, the figures, the deviations from the paper, and the "
+    "versions and machine used. The output folder is checked before any solving. "
+    "Progress goes to stderr; the total time is printed at the end. The full run "
+    "takes a few minutes on 2 cores.")
 
-    parser = subparsers.add_parser(
-        "reproduce", help=HELP,
-        description=(
-            "Run the paper's method (Table 1: OUTPUT/ours/) and the authors' baseline, the "
-            "walk from the touch pose (sequential-ik-walk; Table 2, --orientation frame: "
-            "OUTPUT/sequential-ik/; also --orientation pointing "
-            "and position: OUTPUT/sequential-ik-pointing/, OUTPUT/sequential-ik-position/) on "
-            "the paper's targets, ours with --init interpolation (OUTPUT/"
-            "ours-init-interpolation/), write the comparison report (OUTPUT/report.md) and the "
-            "loss-term ablation (OUTPUT/ablation/: every single term, and L2..L5 together), "
-            "and write OUTPUT/README.md: each paper table beside the measured one, the "
-            "baseline's three modes, the figures, the deviations from the paper, and the "
-            "versions and machine used. The output folder is checked before any solving. "
-            "Progress goes to stderr; the total time is printed at the end. The full run "
-            "takes a few minutes on 2 cores."
-        ),
-    )
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--output", default=None, type=OUTPUT,
                         help="results directory (default: results; results-quick with "
                         "--quick)")
@@ -58,12 +55,9 @@ def register(subparsers: Subparsers) -> None:
                        help="only render README.md's and docs/'s generated blocks again from "
                        "results/ (no solving)")
     add_threads_and_quiet(parser)
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ikbench.cli.options import begin, check_threads, set_threads
-    from ikbench.core.errors import InputError
     from ikbench.paper.reproduce import check_output, reproduce
 
     if args.docs:
@@ -87,7 +81,6 @@ def run(args: argparse.Namespace) -> int:
 
 def run_all(args: argparse.Namespace) -> int:
     """``reproduce --all`` / ``--plan``: the regeneration plan (:mod:`ikbench.paper.regenerate`)."""
-    from ikbench.cli.options import begin
     from ikbench.paper.regenerate import plan, regenerate
 
     only = [s.strip() for s in args.only.split(",") if s.strip()] if args.only else None

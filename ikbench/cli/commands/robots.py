@@ -4,25 +4,21 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.commands import Subparsers
-
 HELP = "list the shipped robots with their joints, end frame, units and source"
 
 
-def register(subparsers: Subparsers) -> None:
-    parser = subparsers.add_parser(
-        "robots", help=HELP,
-        description=(
-            "List the robots that ship with ikbench (a URDF plus a small config each, in "
-            "urdf/). Any other robot is --robot CONFIG.toml or --robot FILE.urdf --end-frame "
-            "LINK on every command that uses a robot."),
-    )
+DESCRIPTION = (
+    "List the robots that ship with ikbench (a URDF plus a small config each, in "
+    "urdf/). Any other robot is --robot CONFIG.toml or --robot FILE.urdf --end-frame "
+    "LINK on every command that uses a robot.")
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--all", action="store_true",
                         help="also the robots of installed description packages "
                         "(example-robot-data: pip install 'ikbench[robots]'), by the name "
                         "--robot takes (PACKAGE:NAME)")
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -6,7 +6,16 @@ import argparse
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.options import (
+    add_method_options,
+    add_robot_arguments,
+    add_threads_and_quiet,
+    begin,
+    check_threads,
+    method_from_args,
+    robot_from_args,
+    set_threads,
+)
 from ikbench.cli.values import OUTPUT, STEPS, Number, Text, duration_s
 
 if TYPE_CHECKING:
@@ -35,25 +44,33 @@ BATCH_SHARE_COLUMN = "duration_s (batch share)"
 LETTER_SIZE_MM = Number("a letter height [mm]", 1.0, 10_000.0)
 
 
-def register(subparsers: Subparsers) -> None:
+def description() -> str:
+    """The paragraph of ``ikbench run --help`` (it names the methods available)."""
     from ikbench.methods.registry import available_methods
 
     methods = available_methods()
-    parser = subparsers.add_parser(
-        "run", help=HELP,
-        description=(
-            "Generate one trajectory per touch pose (or per letter, or one along a polyline or "
-            "spline) with a method and write, under OUTPUT/NAME/ (NAME: --name, default the "
-            "method's name), trajectory_<id>.csv (poses in the robot's units), table.csv "
-            "(line distance [mm], pointing deviation [deg], start/end errors; for other shapes "
-            "the distance from the target curve), details.csv, run.json (robot, settings, "
-            "versions), figures, animation.gif (the arm playing each trajectory; "
-            "--no-animation skips it) and report.md. The folder is replaced whole: files an "
-            "earlier run wrote there and this one does not are removed, other files are kept. A "
-            "failed solve is reported as a row (exit code 1); Ctrl-C keeps the trajectories "
-            "solved so far. Methods: " + ", ".join(methods) + " (ikbench methods lists them "
-            "all, with those not installed; ikbench methods NAME gives one's options)."),
-    )
+    return (
+        "Generate one trajectory per touch pose (or per letter, or one along a polyline or "
+        "spline) with a method and write, under OUTPUT/NAME/ (NAME: --name, default the "
+        "method's name), trajectory_<id>.csv (poses in the robot's units), table.csv "
+        "(line distance [mm], pointing deviation [deg], start/end errors; for other shapes "
+        "the distance from the target curve), details.csv, run.json (robot, settings, "
+        "versions), figures, animation.gif (the arm playing each trajectory; "
+        "--no-animation skips it) and report.md. The folder is replaced whole: files an "
+        "earlier run wrote there and this one does not are removed, other files are kept. A "
+        "failed solve is reported as a row (exit code 1); Ctrl-C keeps the trajectories "
+        "solved so far. Methods: " + ", ".join(methods) + " (ikbench methods lists them "
+        "all, with those not installed; ikbench methods NAME gives one's options).")
+
+
+#: The paragraph of --help.
+DESCRIPTION = description
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
+    from ikbench.methods.registry import available_methods
+
+    methods = available_methods()
     add_method_and_output(parser, methods, DEFAULT_OUTPUT)
     parser.add_argument("--name", default=None, type=Text("a run name", max_chars=200),
                         help="folder under OUTPUT for this run (default: the method's name), "
@@ -68,15 +85,12 @@ def register(subparsers: Subparsers) -> None:
     add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3",
                        start_pose_default="the targets file's")
     add_solve_arguments(parser, methods)
-    parser.set_defaults(func=run)
 
 
 def add_task_arguments(parser: argparse.ArgumentParser, only_help: str,
                        start_pose_default: str) -> None:
     """--robot, --end-frame, --targets, --only, --shape, --size, --direction, --start-pose,
     --steps (run, sweep)."""
-    from ikbench.cli.options import add_robot_arguments
-
     add_robot_arguments(parser)
     parser.add_argument("--targets", default=None,
                         help="targets JSON file (default: the robot's own; NICO: the paper's "
@@ -120,8 +134,6 @@ def add_method_and_output(parser: argparse.ArgumentParser, methods: dict, defaul
 def add_solve_arguments(parser: argparse.ArgumentParser, methods: dict) -> None:
     """--duration, --no-animation, --timing, --threads, progress options and every method's
     own options (shown by --help-methods; shared with ``letters``)."""
-    from ikbench.cli.options import add_method_options, add_threads_and_quiet
-
     parser.add_argument("--duration", type=duration_s(), default=2.0,
                         help="movement duration T [s] for the time_s column, 0.001 to 3600 "
                         "(default 2)")
@@ -153,13 +165,6 @@ def run(args: argparse.Namespace, shape: str | None = None, fixed: dict | None =
     """Validate everything, then solve and write; ``fixed``: method settings on top."""
     import sys
 
-    from ikbench.cli.options import (
-        begin,
-        check_threads,
-        method_from_args,
-        robot_from_args,
-        set_threads,
-    )
     from ikbench.core.targets import parse_pose
     from ikbench.methods.registry import available_methods, get_method
     from ikbench.studies.run import check_name, prepare
@@ -226,7 +231,6 @@ def run_problem(args: argparse.Namespace, fixed: dict | None = None) -> int:
     """``run --problem``: validate, solve the problem's pose path, write, print the table."""
     from pathlib import Path
 
-    from ikbench.cli.options import begin, method_from_args, set_threads
     from ikbench.core.io import check_folder_writable
     from ikbench.methods.registry import available_methods, get_method
     from ikbench.studies.run import check_name, check_problem_options, prepare_problem

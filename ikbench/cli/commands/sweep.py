@@ -4,34 +4,37 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.commands.letters import paper_start_pose
+from ikbench.cli.commands.run import add_task_arguments
+from ikbench.cli.options import (
+    add_executor_arguments,
+    add_progress_arguments,
+    begin,
+    check_executor_args,
+    executor_from_args,
+    robot_from_args,
+)
 from ikbench.cli.values import MAX_LIST_CHARS, OUTPUT, Text
 
 HELP = ("solve the targets or a shape for a grid of loss weights (ours-lm or ours-exact); "
         "CSV, Pareto figure")
 
 
-def register(subparsers: Subparsers) -> None:
-    from ikbench.cli.commands.run import add_task_arguments
-    from ikbench.core.letters import PAPER_START_POSE_DEG
+DESCRIPTION = (
+    "Minimise the paper's objective with ours-lm for every combination of the given "
+    "weights (other terms keep the reference weights: the paper's for lines, "
+    "polylines and splines, the paper's letter setting c0=1, c1=50, c6=1, others 0, "
+    "for letters; the reference setting is always included) on the targets or a "
+    "shape, in one batched solve. Writes OUTPUT/sweep.csv (one row per setting: mean "
+    "line distance [mm] for lines, point error and distance from the curve [mm] for "
+    "other shapes, pointing deviation [deg], smoothness, worst errors, Pareto flag), "
+    "sweep_trajectories.csv, pareto.png (accuracy vs pointing deviation, smoothness "
+    "as colour), sweep.json and sweep.md. With --method ours-exact the path and the "
+    "fixed poses are constraints: the grid may hold c1 (pointing) and c6 "
+    "(smoothness), around ours-exact's defaults.")
 
-    pose = ",".join(f"{v:g}" for v in PAPER_START_POSE_DEG)  # NICO's, from the paper
-    parser = subparsers.add_parser(
-        "sweep", help=HELP,
-        description=(
-            "Minimise the paper's objective with ours-lm for every combination of the given "
-            "weights (other terms keep the reference weights: the paper's for lines, "
-            "polylines and splines, the paper's letter setting c0=1, c1=50, c6=1, others 0, "
-            "for letters; the reference setting is always included) on the targets or a "
-            "shape, in one batched solve. Writes OUTPUT/sweep.csv (one row per setting: mean "
-            "line distance [mm] for lines, point error and distance from the curve [mm] for "
-            "other shapes, pointing deviation [deg], smoothness, worst errors, Pareto flag), "
-            "sweep_trajectories.csv, pareto.png (accuracy vs pointing deviation, smoothness "
-            "as colour), sweep.json and sweep.md. With --method ours-exact the path and the "
-            "fixed poses are constraints: the grid may hold c1 (pointing) and c6 "
-            "(smoothness), around ours-exact's defaults."
-        ),
-    )
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", default="ours-lm", choices=("ours-lm", "ours-exact"),
                         help="the method swept (default ours-lm)")
     parser.add_argument("--weight", action="append", metavar="TERM=V1,V2,...",
@@ -40,25 +43,16 @@ def register(subparsers: Subparsers) -> None:
                         "(repeat for a grid over several terms: --weight c1=5,50)")
     add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3 (line only)",
                        start_pose_default=f"the targets file's; for letters the robot's "
-                       f"letter pose, NICO: the paper's {pose}")
+                       f"letter pose, NICO: the paper's {paper_start_pose()}")
     parser.add_argument("--output", default="runs/sweep", type=OUTPUT,
                         help="output directory (default: runs/sweep, which git ignores)")
-    from ikbench.cli.options import add_executor_arguments, add_progress_arguments
-
     add_progress_arguments(parser)
     add_executor_arguments(parser)
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ikbench.cli.options import (
-        begin,
-        check_executor_args,
-        executor_from_args,
-        robot_from_args,
-    )
     from ikbench.core.io import check_writable
     from ikbench.core.targets import parse_pose
     from ikbench.studies.sweep import (

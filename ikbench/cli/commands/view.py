@@ -6,8 +6,10 @@ import argparse
 import re
 from typing import TYPE_CHECKING
 
-from ikbench.cli.commands import Subparsers
+from ikbench.cli.commands.plan import add_timing_arguments, check_timing_args, timing_from_args
+from ikbench.cli.options import begin
 from ikbench.cli.values import Number, PathValue, Text, duration_s
+from ikbench.core.errors import InputError
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -19,19 +21,18 @@ HELP = "show run folders in a 3-D browser viewer: the arm, goal and fingertip pa
 INSTALL = "pip install 'ikbench[viewer]'"
 
 
-def register(subparsers: Subparsers) -> None:
-    parser = subparsers.add_parser(
-        "view", help=HELP,
-        description=(
-            "Serve an interactive 3-D view of run folders (written by ikbench run, letters or "
-            "compare) and print its URL: the robot drawn from its URDF's visual shapes, the "
-            "goal path (rebuilt from run.json; the panel says how), the fingertip path, a "
-            "timeline slider and Play at the trajectory's real speed. Several folders (runs "
-            "of the same robot, e.g. results/ours results/sequential-ik) are shown side by "
-            "side: the first run's arm in the URDF's colours, the others as ghosts in their "
-            f"colour; a dropdown picks the trajectory. Ctrl-C stops it. Needs viser: {INSTALL}."
-            " See docs/viewer.md."),
-    )
+DESCRIPTION = (
+    "Serve an interactive 3-D view of run folders (written by ikbench run, letters or "
+    "compare) and print its URL: the robot drawn from its URDF's visual shapes, the "
+    "goal path (rebuilt from run.json; the panel says how), the fingertip path, a "
+    "timeline slider and Play at the trajectory's real speed. Several folders (runs "
+    "of the same robot, e.g. results/ours results/sequential-ik) are shown side by "
+    "side: the first run's arm in the URDF's colours, the others as ghosts in their "
+    f"colour; a dropdown picks the trajectory. Ctrl-C stops it. Needs viser: {INSTALL}."
+    " See docs/viewer.md.")
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("folders", nargs="+", metavar="RUN_DIR",
                         type=PathValue("a run folder", must_exist="dir"),
                         help="run folders (OUTPUT/NAME/ with run.json), e.g. results/ours")
@@ -49,10 +50,7 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--duration", type=duration_s(), default=None, metavar="T",
                         help="duration of each movement in seconds for --timing constant and "
                         "min-jerk (default: each trajectory's own, its time_s column)")
-    from ikbench.cli.commands.plan import add_timing_arguments
-
     add_timing_arguments(parser)
-    parser.set_defaults(func=run)
 
 
 def host_value(text: str) -> str:
@@ -65,8 +63,6 @@ def host_value(text: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ikbench.cli.commands.plan import check_timing_args
-    from ikbench.core.errors import InputError
     from ikbench.viewer.folders import check_folders, load_runs
 
     check_timing_args(args)
@@ -80,8 +76,6 @@ def run(args: argparse.Namespace) -> int:
     robot, runs = load_runs(args.folders)
     retime_runs(robot, runs, args)
     check_trajectory(runs, args.trajectory)
-    from ikbench.cli.options import begin
-
     begin(args)
     run_forever(robot, runs, port=args.port, host=args.host, open_browser=not args.no_browser,
                 trajectory=args.trajectory)
@@ -90,8 +84,6 @@ def run(args: argparse.Namespace) -> int:
 
 def retime_runs(robot: Robot, runs: Sequence[ViewRun], args: argparse.Namespace) -> None:
     """Apply --timing (and --duration) to every trajectory of ``runs``."""
-    from ikbench.cli.commands.plan import timing_from_args
-
     timing, limits = timing_from_args(args, robot)
     for run in runs:
         for trajectory in run.trajectories.values():
