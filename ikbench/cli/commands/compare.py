@@ -7,6 +7,7 @@ import sys
 
 from ikbench.cli.commands import Subparsers
 from ikbench.cli.values import OUTPUT, count, duration_s
+from ikbench.core.defaults import DEFAULT_DURATION_S
 
 HELP = "compare methods and libraries on the same robot and tasks: results.csv, leaderboard"
 DEFAULT_METHODS = "ours-lm,ours-exact,sequential-ik"
@@ -62,9 +63,9 @@ def register(subparsers: Subparsers) -> None:
                         help="judge (and ask for) pointing along the line: auto = on for "
                         "robots whose config names a pointing axis, off for a bare URDF "
                         "(default auto)")
-    parser.add_argument("--duration", type=duration_s(), default=2.0,
+    parser.add_argument("--duration", type=duration_s(), default=DEFAULT_DURATION_S,
                         help="trajectory duration T [s] the speed limits are judged at "
-                        "(segments of T/n; default 2, the paper's)")
+                        f"(segments of T/n; default {DEFAULT_DURATION_S:g}, the paper's)")
     parser.add_argument("--obstacles", default=None, metavar="FILE|NAME|none",
                         help="obstacles on every task instead of the targets file's: an "
                         "obstacle file (*.json, *.yaml; mm, docs/collisions.md), a named set "

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.commands import Subparsers
+from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_ROBOT
 
 HELP = "design a trajectory by hand in the browser: drag a point, see it re-solved and judged"
 INSTALL = "pip install 'ikbench[viewer]'"
@@ -54,8 +55,8 @@ def register(subparsers: Subparsers) -> None:
                         "(default ours-lm; none: no fallback)")
     parser.add_argument("--timing", default="constant", metavar="NAME",
                         help="constant (default), min-jerk or topp (changeable in the panel)")
-    parser.add_argument("--duration", type=float, default=2.0,
-                        help="movement duration T [s] (default 2)")
+    parser.add_argument("--duration", type=float, default=DEFAULT_DURATION_S,
+                        help=f"movement duration T [s] (default {DEFAULT_DURATION_S:g})")
     parser.add_argument("--output", default="runs",
                         help="where Save writes (default runs)")
     parser.add_argument("--name", default="design",
@@ -70,7 +71,7 @@ def register(subparsers: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ikbench.cli.options import DEFAULT_ROBOT, begin, robot_from_args
+    from ikbench.cli.options import begin, robot_from_args
     from ikbench.core.errors import InputError
     from ikbench.core.targets import parse_pose
     from ikbench.core.timing import check_timing

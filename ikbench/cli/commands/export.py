@@ -7,9 +7,9 @@ import argparse
 from ikbench.cli.commands import Subparsers
 from ikbench.cli.commands.plan import TRAJECTORY_CSV
 from ikbench.cli.values import OUTPUT, duration_s, rate_hz
+from ikbench.core.defaults import DEFAULT_DURATION_S
 
 HELP = "write a trajectory as a ROS JointTrajectory (JSON/YAML) or a CSV in URDF radians"
-DEFAULT_DURATION_S = 2.0
 
 
 def register(subparsers: Subparsers) -> None:

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 from ikbench.cli.commands import Subparsers
 from ikbench.cli.values import OUTPUT, STEPS, Number, Text, duration_s
+from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_ROBOT
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -28,7 +29,6 @@ PROBLEM_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "position_e
                    "rotation_error_max_deg", "max_joint_change_deg", "valid"]
 DEFAULT_METHOD = "ours"
 DEFAULT_OUTPUT = "runs"
-DEFAULT_ROBOT = "nico_right_arm"
 #: The console table's name of duration_s when it is a share of one batched solve.
 BATCH_SHARE_COLUMN = "duration_s (batch share)"
 #: A letter's height.
@@ -122,9 +122,9 @@ def add_solve_arguments(parser: argparse.ArgumentParser, methods: dict) -> None:
     own options (shown by --help-methods; shared with ``letters``)."""
     from ikbench.cli.options import add_method_options, add_threads_and_quiet
 
-    parser.add_argument("--duration", type=duration_s(), default=2.0,
+    parser.add_argument("--duration", type=duration_s(), default=DEFAULT_DURATION_S,
                         help="movement duration T [s] for the time_s column, 0.001 to 3600 "
-                        "(default 2)")
+                        f"(default {DEFAULT_DURATION_S:g})")
     parser.add_argument("--no-animation", action="store_true",
                         help="do not write animation.gif (the arm playing each trajectory; "
                         "1-3 s for seven trajectories)")
