@@ -93,6 +93,58 @@ def test_generic_code_names_no_method():
     assert not bad, "\n".join(bad)
 
 
+#: The defaults several layers share, each defined once in ikbench/core/defaults.py.
+SHARED_DEFAULTS = ("DEFAULT_ROBOT", "DEFAULT_DURATION_S")
+
+
+def _is_default_duration(node: ast.expr | None) -> bool:
+    """``node`` is the number 2 (the default duration written out)."""
+    from ikbench.core.defaults import DEFAULT_DURATION_S
+
+    return (isinstance(node, ast.Constant) and isinstance(node.value, (int, float))
+            and not isinstance(node.value, bool) and node.value == DEFAULT_DURATION_S)
+
+
+def _defaults_of(node: ast.FunctionDef | ast.AsyncFunctionDef):
+    args = node.args
+    positional = [*args.posonlyargs, *args.args]
+    yield from zip(positional[len(positional) - len(args.defaults):], args.defaults)
+    yield from zip(args.kwonlyargs, args.kw_defaults)
+
+
+def test_each_shared_default_is_defined_once():
+    """The robot and the movement duration used when none is given are defined in
+    ikbench/core/defaults.py only: no other module assigns those names, nor gives a
+    ``duration_s`` parameter or field or a ``--duration`` option the 2 s written out."""
+    from ikbench.core import defaults
+
+    assert defaults.DEFAULT_ROBOT == "nico_right_arm" and defaults.DEFAULT_DURATION_S == 2.0
+    bad = []
+    for path, _ in _modules():
+        if path == REPO / "ikbench" / "core" / "defaults.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            where = f"{path.relative_to(REPO)}:{getattr(node, 'lineno', '?')}"
+            if isinstance(node, (ast.Assign, ast.AnnAssign)):
+                targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+                names = {t.id for t in targets if isinstance(t, ast.Name)}
+                if names & set(SHARED_DEFAULTS):
+                    bad.append(f"{where}: defines {sorted(names)}")
+                if "duration_s" in names and _is_default_duration(node.value):
+                    bad.append(f"{where}: duration_s = 2")
+            elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                bad += [f"{where}: {node.name}(duration_s=2)"
+                        for arg, value in _defaults_of(node)
+                        if arg.arg == "duration_s" and _is_default_duration(value)]
+            elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                  and node.func.attr == "add_argument" and node.args
+                  and isinstance(node.args[0], ast.Constant) and node.args[0].value == "--duration"
+                  and any(k.arg == "default" and _is_default_duration(k.value)
+                          for k in node.keywords)):
+                bad.append(f"{where}: --duration with default 2")
+    assert not bad, "import it from ikbench.core.defaults:\n" + "\n".join(bad)
+
+
 def test_pyproject_lists_every_package():
     listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
                  ["packages"])

@@ -29,7 +29,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ikbench.core.contract import DEFAULT_DURATION_S, speed_limits
+from ikbench.core.contract import speed_limits
+from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError, SolverError
 
 if TYPE_CHECKING:

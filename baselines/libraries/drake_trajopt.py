@@ -83,6 +83,7 @@ from ikbench.baselines._common.drake import (
 from ikbench.baselines._common.method import ChainResult
 from ikbench.baselines.libraries import drake_ik
 from ikbench.baselines.libraries.drake_ik import STEP_MARGIN
+from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
 
@@ -217,7 +218,7 @@ def _initial_guess(trajopt, chain, goals, drake, settings, s, scene=None):
         control = (np.outer(1 - w, first) + np.outer(w, last)).T
     control = np.clip(control, drake.positions(chain.lower)[:, None],
                       drake.positions(chain.upper)[:, None])
-    duration = 2.0
+    duration = DEFAULT_DURATION_S
     scaled = BsplineBasis(basis.order(), np.asarray(basis.knots()) * duration)
     return BsplineTrajectory(scaled, [control[:, [j]] for j in range(control.shape[1])]), duration
 

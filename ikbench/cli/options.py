@@ -13,6 +13,7 @@ import sys
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from ikbench.cli.values import METHOD_INTEGER, OUTPUT, SEED, STEPS, THREADS, Text
+from ikbench.core.defaults import DEFAULT_ROBOT
 from ikbench.core.errors import InputError
 
 if TYPE_CHECKING:
@@ -24,7 +25,6 @@ if TYPE_CHECKING:
 #: A method class's own type (method_from_args returns an instance of the class it gets).
 M = TypeVar("M", bound="Method")
 
-DEFAULT_ROBOT = "nico_right_arm"
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:

@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
 
 if TYPE_CHECKING:
@@ -58,8 +59,6 @@ TRACK_TITLES = {"paper": "the paper's task: start and touch poses both fixed",
 #: (1.0: at the limit).
 DEFAULT_TOLERANCES = {"start_pose_deg": 0.5, "end_pose_deg": 0.5, "line_distance_max_mm": 5.0,
                       "pointing_judged_mean_deg": 15.0, "speed_limit_use": 1.0}
-#: Default trajectory duration [s] (the paper's T).
-DEFAULT_DURATION_S = 2.0
 #: Default start of the judged part of the pointing, as a fraction of the steps.
 DEFAULT_POINTING_FROM = 0.2
 #: The criteria, in the order the tables show them: name -> (metric column, tolerance key).

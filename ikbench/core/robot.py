@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, overload
 import numpy as np
 import numpy.typing as npt
 
+from ikbench.core.defaults import DEFAULT_ROBOT
 from ikbench.core.errors import InputError
 from ikbench.core.kinematics.chain import ChainKinematics
 from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
@@ -50,7 +51,6 @@ if TYPE_CHECKING:
     from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
     from ikbench.core.kinematics.torch_fk import TorchFK
 
-DEFAULT_ROBOT = "nico_right_arm"
 DEG2RAD = math.pi / 180.0
 MM_PER_M = 1000.0
 #: Tolerance [pose units] when checking that a pose lies within the limits.

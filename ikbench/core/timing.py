@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
 from ikbench.core.timed_path import (  # noqa: F401  (re-exported: the timing API)
     INTERPOLATION,
@@ -64,8 +65,9 @@ def check_timing(name: str) -> str:
     return name
 
 
-def retime(robot: Robot, poses: npt.ArrayLike, timing: str, *, duration_s: float = 2.0,
-           limits: Limits | None = None, tip_mm: npt.ArrayLike | None = None) -> TimedPath:
+def retime(robot: Robot, poses: npt.ArrayLike, timing: str, *,
+           duration_s: float = DEFAULT_DURATION_S, limits: Limits | None = None,
+           tip_mm: npt.ArrayLike | None = None) -> TimedPath:
     """Time a path.
 
     Args:

@@ -20,12 +20,12 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
+from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_text
 from ikbench.core.robot import Robot, load_robot
 from ikbench.core.rotations import matrix_to_quat_wxyz
 
-DEFAULT_DURATION_S = 2.0
 #: How a trajectory CSV writes its numbers (10 significant digits).
 FLOAT_FORMAT = "%.10g"
 POINT_COLUMNS = ["x_mm", "y_mm", "z_mm"]

@@ -18,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
+from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
 from ikbench.core.robot import load_robot
 from ikbench.core.timing import TimedPath, retime
@@ -143,8 +144,8 @@ class MotionPlan:
             )
 
 
-def make_plan(poses_motor_deg: npt.ArrayLike, config: MotorConfig, duration_s: float = 2.0,
-              timed: TimedPath | None = None) -> MotionPlan:
+def make_plan(poses_motor_deg: npt.ArrayLike, config: MotorConfig,
+              duration_s: float = DEFAULT_DURATION_S, timed: TimedPath | None = None) -> MotionPlan:
     """Plan the segments of a trajectory.
 
     Args:
@@ -205,8 +206,9 @@ def _retimed_plan(poses: np.ndarray, config: MotorConfig, timed: TimedPath) -> M
     )
 
 
-def plan_trajectory_file(path: str | Path, config: MotorConfig, duration_s: float = 2.0,
-                         strict: bool = True, robot: Robot | None = None,
+def plan_trajectory_file(path: str | Path, config: MotorConfig,
+                         duration_s: float = DEFAULT_DURATION_S, strict: bool = True,
+                         robot: Robot | None = None,
                          timing: str = "constant", limits: Limits | None = None
                          ) -> tuple[MotionPlan, str | None]:
     """Read a trajectory CSV and plan it; return the plan and a note when the file's own

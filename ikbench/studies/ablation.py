@@ -30,6 +30,7 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
+from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError, SolverError
 from ikbench.core.io import check_folder_writable
 from ikbench.core.losses import PAPER_WEIGHTS, TERM_DESCRIPTIONS, TERMS, objective, parse_terms
@@ -37,7 +38,6 @@ from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import line_tasks
-from ikbench.core.trajectory import DEFAULT_DURATION_S
 from ikbench.methods.base import Method
 from ikbench.methods.registry import available_methods, get_method
 from ikbench.render.run_report import TABLE_COLUMNS, _matplotlib, markdown_table, report_sections

@@ -33,6 +33,7 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
+from ikbench.core.defaults import DEFAULT_ROBOT
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_csv, atomic_write_text
 from ikbench.core.losses import PAPER_WEIGHTS, TERMS, parse_weights
@@ -344,7 +345,7 @@ def markdown(report: BatchReport) -> str:
                                and not c.startswith("iterations")]
     return "\n".join([
         "# Batch: random touch poses", "",
-        f"{rec['count']} touch poses of {rec.get('robot', {}).get('name', 'nico_right_arm')} "
+        f"{rec['count']} touch poses of {rec.get('robot', {}).get('name', DEFAULT_ROBOT)} "
         f"drawn uniformly within the joint limits "
         f"(`numpy.random.default_rng({rec['seed']})`, {rec['draws']} draws) and kept when "
         f"the end point is {rec['workspace']}. Each is a line task from the start pose "

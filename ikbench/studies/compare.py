@@ -52,6 +52,7 @@ from ikbench.core.contract import (
     contract_for,
     judge,
 )
+from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import IkbenchError, InputError
 from ikbench.core.metrics import contract_metrics
 from ikbench.core.obstacles import read_obstacles
@@ -59,7 +60,6 @@ from ikbench.core.provenance import library_versions, provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import Task, line_tasks
-from ikbench.core.trajectory import DEFAULT_DURATION_S
 from ikbench.methods.base import Method
 from ikbench.methods.registry import get_method, method_status
 from ikbench.render.leaderboard import leaderboard, leaderboard_markdown, plot_pareto

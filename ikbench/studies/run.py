@@ -32,6 +32,7 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
+from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_ROBOT
 from ikbench.core.errors import InputError
 from ikbench.core.io import check_folder_writable
 from ikbench.core.metrics import frame_metrics, shape_metrics, trajectory_metrics
@@ -41,7 +42,6 @@ from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import ID_PATTERN, Targets, load_targets
 from ikbench.core.task import Task, build_tasks, parse_shape
 from ikbench.core.timing import check_timing
-from ikbench.core.trajectory import DEFAULT_DURATION_S
 from ikbench.core.validity import describe
 from ikbench.hw.limits import timing_limits
 from ikbench.methods.base import Method
@@ -442,7 +442,7 @@ def method_report(solver: Method, table: pd.DataFrame, details: pd.DataFrame, ta
     robot = record.robot or {}
     machine = record.provenance
     lines = [f"# {heading}: {solver.description}", "",
-             f"Robot: {robot.get('name', 'nico_right_arm')}. {where}; trajectories "
+             f"Robot: {robot.get('name', DEFAULT_ROBOT)}. {where}; trajectories "
              f"{', '.join(record.trajectories or [])}; n = {record.steps} segments. Produced "
              f"by ikbench (git {machine.get('git_revision')}) on {machine['cpu']} "
              f"({machine['cpu_count']} cores), torch {machine['packages']['torch']}.", ""]

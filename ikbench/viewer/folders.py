@@ -23,11 +23,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
 from ikbench.core.robot import Robot
 from ikbench.core.task import Task, build_tasks
 from ikbench.core.timing import retime
-from ikbench.core.trajectory import DEFAULT_DURATION_S
 from ikbench.runtime.record import RunFolder, RunRecord, robot_from_record
 
 if TYPE_CHECKING:

@@ -19,6 +19,7 @@ from ikbench.cli.options import (
     targets_from_args,
 )
 from ikbench.cli.values import OUTPUT, count, duration_s
+from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
 
 HELP = "compare methods and libraries on the same robot and tasks: results.csv, leaderboard"
@@ -72,9 +73,9 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         help="judge (and ask for) pointing along the line: auto = on for "
                         "robots whose config names a pointing axis, off for a bare URDF "
                         "(default auto)")
-    parser.add_argument("--duration", type=duration_s(), default=2.0,
+    parser.add_argument("--duration", type=duration_s(), default=DEFAULT_DURATION_S,
                         help="trajectory duration T [s] the speed limits are judged at "
-                        "(segments of T/n; default 2, the paper's)")
+                        f"(segments of T/n; default {DEFAULT_DURATION_S:g}, the paper's)")
     parser.add_argument("--obstacles", default=None, metavar="FILE|NAME|none",
                         help="obstacles on every task instead of the targets file's: an "
                         "obstacle file (*.json, *.yaml; mm, docs/collisions.md), a named set "

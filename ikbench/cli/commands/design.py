@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.options import DEFAULT_ROBOT, add_robot_arguments, begin, robot_from_args
+from ikbench.cli.options import add_robot_arguments, begin, robot_from_args
+from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_ROBOT
 from ikbench.core.errors import InputError
 
 HELP = "design a trajectory by hand in the browser: drag a point, see it re-solved and judged"
@@ -52,8 +53,8 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         "(default ours-lm; none: no fallback)")
     parser.add_argument("--timing", default="constant", metavar="NAME",
                         help="constant (default), min-jerk or topp (changeable in the panel)")
-    parser.add_argument("--duration", type=float, default=2.0,
-                        help="movement duration T [s] (default 2)")
+    parser.add_argument("--duration", type=float, default=DEFAULT_DURATION_S,
+                        help=f"movement duration T [s] (default {DEFAULT_DURATION_S:g})")
     parser.add_argument("--output", default="runs",
                         help="where Save writes (default runs)")
     parser.add_argument("--name", default="design",

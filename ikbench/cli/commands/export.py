@@ -12,9 +12,9 @@ from ikbench.cli.commands.plan import (
 )
 from ikbench.cli.options import add_robot_arguments, begin, robot_from_args
 from ikbench.cli.values import OUTPUT, duration_s, rate_hz
+from ikbench.core.defaults import DEFAULT_DURATION_S
 
 HELP = "write a trajectory as a ROS JointTrajectory (JSON/YAML) or a CSV in URDF radians"
-DEFAULT_DURATION_S = 2.0
 
 
 DESCRIPTION = (

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 from ikbench.cli.options import add_robot_arguments, begin, robot_from_args
 from ikbench.cli.values import INPUT_FILE, OUTPUT, PathValue, duration_s
+from ikbench.core.defaults import DEFAULT_DURATION_S
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -18,7 +19,6 @@ if TYPE_CHECKING:
 
 HELP = "segment table of a trajectory: joint speeds [motor deg/s] and limit flags"
 
-DEFAULT_DURATION_S = 2.0
 #: A trajectory CSV to read.
 TRAJECTORY_CSV = PathValue("a trajectory CSV", must_exist="file")
 

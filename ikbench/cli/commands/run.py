@@ -17,6 +17,7 @@ from ikbench.cli.options import (
     set_threads,
 )
 from ikbench.cli.values import OUTPUT, STEPS, Number, Text, duration_s
+from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_ROBOT
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -37,7 +38,6 @@ PROBLEM_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "position_e
                    "rotation_error_max_deg", "max_joint_change_deg", "valid"]
 DEFAULT_METHOD = "ours"
 DEFAULT_OUTPUT = "runs"
-DEFAULT_ROBOT = "nico_right_arm"
 #: The console table's name of duration_s when it is a share of one batched solve.
 BATCH_SHARE_COLUMN = "duration_s (batch share)"
 #: A letter's height.
@@ -134,9 +134,9 @@ def add_method_and_output(parser: argparse.ArgumentParser, methods: dict, defaul
 def add_solve_arguments(parser: argparse.ArgumentParser, methods: dict) -> None:
     """--duration, --no-animation, --timing, --threads, progress options and every method's
     own options (shown by --help-methods; shared with ``letters``)."""
-    parser.add_argument("--duration", type=duration_s(), default=2.0,
+    parser.add_argument("--duration", type=duration_s(), default=DEFAULT_DURATION_S,
                         help="movement duration T [s] for the time_s column, 0.001 to 3600 "
-                        "(default 2)")
+                        f"(default {DEFAULT_DURATION_S:g})")
     parser.add_argument("--no-animation", action="store_true",
                         help="do not write animation.gif (the arm playing each trajectory; "
                         "1-3 s for seven trajectories)")

@@ -33,13 +33,14 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
 from ikbench.core.problems import load_problem
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets
 from ikbench.core.task import Task
 from ikbench.core.timing import Limits, TimedPath, check_timing, retime
-from ikbench.core.trajectory import DEFAULT_DURATION_S, read_trajectory_poses
+from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.hw.limits import timing_limits
 from ikbench.methods.base import Method, Solution
 from ikbench.methods.registry import get_method
