@@ -68,9 +68,6 @@ class Study:
 
 COMPARE_METHODS = ("ours-lm,ours-exact,sequential-ik,ikpy,pink,trac-ik,mink,drake-ik,"
                    "drake-trajopt,pyroki,sequential-ik-walk,ikpy-walk")
-CARTESIAN_METHODS = "ours,ours-lm,sequential-ik,ikpy,pink,trac-ik,mink,drake-ik,drake-trajopt"
-OBSTACLE_PROBLEMS = ("panda__1cube,panda__2cubes,panda__flappy_bird,fetch_arm__circle,"
-                     "fetch_arm__s,fetch_arm__square,fetch__circle,fetch__s,fetch__square")
 #: The plan, in the order it runs (cheap and foundational first).
 STUDIES: tuple[Study, ...] = (
     Study("paper", ("reproduce", "--output", "{out}"),
@@ -96,15 +93,12 @@ STUDIES: tuple[Study, ...] = (
     Study("letters-sweep", ("sweep", "--shape", "letter:P", "--weight", "c0=1,10,100,1000",
                             "--weight", "c1=10,50,200", "--output", "{out}/letters/sweep"),
           ("letters/sweep",), 3.0),
-    Study("cartesian", ("cartesian", "--problems", "cppflow", "--methods", CARTESIAN_METHODS,
-                        "--seeds", "1,2,3", "--trajectories", "all", "--output", "{out}"),
-          ("cartesian",), 30.0),
-    Study("obstacles", ("cartesian", "--problems", OBSTACLE_PROBLEMS, "--methods", "ours-lm",
-                        "--seeds", "1,2,3,4,5", "--trajectories", "all", "--output",
-                        "{out}/obstacles"), ("obstacles",), 10.0),
-    Study("obstacles-all", ("cartesian", "--problems", OBSTACLE_PROBLEMS, "--seeds", "1",
-                            "--trajectories", "all", "--output", "{out}/obstacles_all"),
-          ("obstacles_all",), 20.0),
+    Study("cartesian", ("cartesian", "--problems", "cppflow", "--methods", "ours-lm",
+                        "--seeds", "1-5", "--trajectories", "all", "--output", "{out}"),
+          ("cartesian",), 4.0),
+    Study("cartesian-methods", ("cartesian", "--problems", "cppflow", "--seeds", "1",
+                                "--trajectories", "all", "--output",
+                                "{out}/cartesian_methods"), ("cartesian_methods",), 25.0),
     Study("ik-panda", ("ik", "--robot", "example-robot-data:panda", "--count", "10000",
                        "--output", "{out}"), ("ik/panda",), 15.0),
     Study("ik-ur5", ("ik", "--robot", "example-robot-data:ur5", "--count", "10000",
