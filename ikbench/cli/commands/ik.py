@@ -41,7 +41,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--methods", default=None,
                         help="comma-separated methods (default: every installed one: ours-lm, "
                         "rtb-lm, trac-ik, rtb-nr, sequential-ik, pink, mink, drake-ik, pyroki, "
-                        "ikpy)")
+                        "ikpy, placo)")
     parser.add_argument("--budget-ms", type=BUDGET, default=BUDGET_MS,
                         help="wall-clock budget per target [ms], the same for every method; "
                         f"inf: none (default {BUDGET_MS:g}: TRAC-IK's default timeout)")
