@@ -66,8 +66,8 @@ class Study:
         return shlex.join([*head, *args])
 
 
-COMPARE_METHODS = ("ours-lm,ours-exact,sequential-ik,ikpy,pink,trac-ik,mink,drake-ik,"
-                   "drake-trajopt,pyroki,sequential-ik-walk,ikpy-walk")
+COMPARE_METHODS = ("ours-lm,ours-exact,sequential-ik,ikpy,pink,trac-ik,rtb-lm,mink,drake-ik,"
+                   "drake-trajopt,pyroki,rangedik,placo,sequential-ik-walk,ikpy-walk")
 #: ``ikbench ik``'s options in every IK study (docs/ik.md): seed 1, both tables (restarts within
 #: the budget; one descent each) and ikpy, whose calls take 13-31 ms, on the first 2,000 targets.
 IK_PROTOCOL = ("--seed", "1", "--attempts", "auto,1", "--max-count-per-method", "ikpy=2000")
