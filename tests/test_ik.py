@@ -6,6 +6,7 @@ recompute, robots by package name (z1 included), bad input. Small counts; no tim
 from __future__ import annotations
 
 import json
+from pathlib import Path
 import logging
 from typing import ClassVar
 
@@ -462,3 +463,33 @@ def test_a_missing_description_package_is_one_line_naming_the_extra(monkeypatch)
     monkeypatch.setattr(robot_packages, "robots_folder", lambda package: None)
     with pytest.raises(InputError, match=r"not installed \(pip install 'ikbench\[robots\]'\)"):
         robot_packages.resolve("example-robot-data:ur5", None)
+
+
+COMMITTED_IK = sorted((Path(__file__).resolve().parents[1] / "results" / "ik").glob("*/run.json"))
+
+
+@pytest.mark.parametrize("record_path", COMMITTED_IK, ids=lambda p: p.parent.name)
+def test_committed_ik_results_recompute_from_their_solutions(record_path):
+    """results/ik/<robot>: every row's success recomputes from its stored joint values and the
+    targets file (numpy FK here, Pinocchio judged), and summary.csv's success rates are the
+    rows' shares; ours-lm succeeds at least as often as rtb-lm and trac-ik within the budget."""
+    folder = record_path.parent
+    record = json.loads(record_path.read_text())
+    source = folder / ("results.parquet" if (folder / "results.parquet").exists()
+                       else "results.csv")
+    table = (pd.read_parquet(source) if source.suffix == ".parquet"
+             else pd.read_csv(source))
+    targets = pd.read_csv(folder / "targets.csv")
+    robot = load_robot(record["robot"]["source"], end_frame=record["robot"]["end_frame"])
+    assert np.array_equal(_fk_recomputed(robot, table, targets, record),
+                          table["success"].to_numpy(dtype=bool))
+    summary = pd.read_csv(folder / "summary.csv", dtype={"attempts_rule": str})
+    rule = table["attempts_rule"].astype(str)
+    for (name, method), rows in table.groupby([rule, "method"]):
+        row = summary[(summary["attempts_rule"] == name) & (summary["method"] == method)]
+        assert row["success_pct"].iloc[0] == pytest.approx(100 * rows["success"].mean(),
+                                                           abs=1e-4)
+    auto = summary[summary["attempts_rule"] == "auto"].set_index("method")["success_pct"]
+    for other in ("rtb-lm", "trac-ik"):
+        if other in auto.index:
+            assert auto["ours-lm"] >= auto[other], (other, auto.to_dict())

@@ -28,7 +28,7 @@ from ikbench.hw.limits import timing_limits
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER = [REPO / "results" / "ours" / f"trajectory_{i}.csv" for i in range(1, 8)]
-PANDA = REPO / "results" / "cartesian" / "ours-lm" / "trajectory_panda__square_seed1.csv"
+PANDA = REPO / "results" / "cartesian" / "ours-lm" / "trajectory_panda__1cube_seed1.csv"
 #: "within the stated limits (to 1 %)"
 TOLERANCE = 1.01
 needs_toppra = pytest.mark.skipif(not toppra_available(), reason="needs toppra")

@@ -32,6 +32,10 @@ Renderers (:data:`RENDERERS`):
   the filter leaves, in file order, comma-separated.
 - ``provenance SOURCE``: "measured at commit C (clean) on CPU, N cores, load L, DATE", from the
   JSON record beside the source (run.json, benchmark.json, throughput.json, ...).
+- ``ik-table FOLDER [robots=a,b] [rule=auto]``: the single-pose IK leaderboards of
+  ``FOLDER/<robot>/summary.csv`` (``ikbench ik``) side by side: a row per method, per robot its
+  success and per-call median time under the attempts rule, then the batched rates and each
+  robot's provenance.
 - ``compare-table SOURCE [reference=ours-lm]``: README's leaderboard of a compare folder's
   ``leaderboard.csv`` (:func:`ikbench.render.leaderboard.readme_table`), then its provenance.
 """
@@ -334,8 +338,54 @@ def render_compare_table(source: Path, options: dict[str, str], root: Path) -> s
         render_provenance(source, {}, root)
 
 
+def render_ik_table(source: Path, options: dict[str, str], root: Path) -> str:
+    """``ikbench ik``'s summaries of several robots in one table (see the module docstring):
+    "success %, per-call median ms" per robot and method, methods in the first robot's order."""
+    if not source.is_dir():
+        raise InputError(f"{source}: ik-table takes a folder of ikbench ik results (results/ik)")
+    names = [r for r in options.get("robots", "").split(",") if r] or \
+        sorted(p.parent.name for p in source.glob("*/summary.csv"))
+    if not names:
+        raise InputError(f"{source}: no <robot>/summary.csv in it")
+    rule = options.get("rule", "auto")
+    frames = {}
+    for name in names:
+        path = source / name / "summary.csv"
+        if not path.is_file():
+            raise InputError(f"{path}: not found (robots={options.get('robots')!r})")
+        frame = pd.read_csv(path, dtype={"attempts_rule": str})
+        frames[name] = frame[frame["attempts_rule"] == rule].set_index("method")
+        if frames[name].empty:
+            raise InputError(f"{path}: no row with attempts_rule {rule!r}")
+    methods = list(dict.fromkeys(m for f in frames.values() for m in f.index))
+    head = ["method", *(f"{n}: success, per-call median" for n in names)]
+    lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
+    for method in methods:
+        cells = [method]
+        for name in names:
+            frame = frames[name]
+            if method not in frame.index:
+                cells.append("not run")
+                continue
+            row = frame.loc[method]
+            cells.append(f"{row['success_pct']:.2f} %, {_number(row['time_median_ms'], 3)} ms")
+        lines.append("| " + " | ".join(cells) + " |")
+    batched = []
+    for name in names:
+        rows = frames[name].dropna(subset=["batched_per_s"])
+        batched += [f"{m} {row['batched_per_s']:,.0f} IK/s on {name} "
+                    f"({int(row['batched_threads'])} threads)" for m, row in rows.iterrows()]
+    text = "\n".join(lines)
+    if batched:
+        text += "\n\nBatched (every target in one call, not a per-call time): " + \
+            "; ".join(batched) + "."
+    return text + "\n\n" + "\n".join(render_provenance(source / n / "summary.csv", {}, root)
+                                      for n in names)
+
+
 register("table", render_table)
 register("compare-table", render_compare_table)
+register("ik-table", render_ik_table)
 register("value", render_value)
 register("range", render_range)
 register("fraction", render_fraction)
