@@ -6,8 +6,8 @@ recompute, robots by package name (z1 included), bad input. Small counts; no tim
 from __future__ import annotations
 
 import json
-from pathlib import Path
 import logging
+from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
