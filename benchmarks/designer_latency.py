@@ -95,6 +95,7 @@ def main() -> None:
     info = provenance(extra=("viser",))
     frame = pd.DataFrame(rows).assign(
         cpu=info["cpu"], cpu_count=info["cpu_count"], git_revision=info["git_revision"],
+        git_commit=info["git_commit"], git_clean=info["git_clean"],
         viser=info["packages"]["viser"], created_utc=info["created_utc"])
     atomic_write_csv(args.output, frame)
     print(f"CPU: {info['cpu']} ({info['cpu_count']} cores); load average (1 min) "

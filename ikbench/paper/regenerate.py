@@ -112,6 +112,8 @@ STUDIES: tuple[Study, ...] = (
                   *IK_PROTOCOL, "--output", "{out}"), ("ik/fetch_arm",), 15.0),
     Study("ours-speed", ("--output", "{out}/ours_speed.csv"), ("ours_speed.csv",), 2.0,
           script="benchmarks/ours_speed.py"),
+    Study("designer-latency", ("--output", "{out}/designer_latency.csv"),
+          ("designer_latency.csv",), 2.0, script="benchmarks/designer_latency.py"),
 )
 
 
