@@ -155,6 +155,8 @@ SPECIFICATION = {
     "(CONTRACT_STEP_SHARE, PATH_STEP_SHARE) on the contract's speed limit and CppFlow's joint "
     "step criteria (ikbench/core/validity.py)",
     "constraints within (1e-6 mm and deg)": "ours-exact's default --exact-feasibility-tolerance",
+    "letters 300 mm high": "the default --size of ikbench letters and sweep (the paper's letter "
+    "setting)",
 }
 #: Text that is not prose: generated blocks, fenced code, inline code, comments, link targets.
 NOT_PROSE = [re.compile(r"```.*?```", re.S), re.compile(r"<!--.*?-->", re.S),
