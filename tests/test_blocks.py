@@ -198,8 +198,7 @@ def unlabelled_figures(text: str) -> list[tuple[int, str, str]]:
 #: ratchet, each page leaves it once the scan passes on it; no page may join it.
 NOT_YET_AUDITED = frozenset({
     "baselines", "cartesian", "collisions", "commands", "comparison",
-    "contributing", "getting-started", "hardware", "ik", "methods",
-    "results-at-a-glance", "robots", "scale", "shapes", "timing", "viewer"})
+    "contributing", "getting-started", "hardware", "ik", "results-at-a-glance", "robots", "timing", "viewer"})
 
 
 def test_the_audit_ratchet_only_shrinks():
