@@ -20,6 +20,16 @@ def test_every_generated_block_equals_a_fresh_render():
     assert not stale, "run `ikbench reproduce --docs`:\n" + "\n".join(stale)
 
 
+def test_no_inline_block_starts_a_line():
+    """mkdocs reads a line that starts with ``<!--`` as raw HTML, which ends the paragraph: an
+    inline block (value, range, fraction, list, provenance) stands after text on its line."""
+    inline = re.compile(r"^<!-- generated: (value|range|fraction|list|provenance) ", re.M)
+    starts = [f"{page.relative_to(REPO)}:{text[:m.start()].count(chr(10)) + 1}"
+              for page in documents(REPO)
+              for text in [page.read_text(encoding="utf-8")] for m in inline.finditer(text)]
+    assert not starts, starts
+
+
 def test_readme_has_its_leaderboard_as_a_block():
     kinds = [(b.renderer, b.source) for b in blocks(REPO / "README.md")]
     assert ("compare-table", "results/compare/leaderboard.csv") in kinds
