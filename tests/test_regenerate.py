@@ -49,6 +49,21 @@ def test_a_failed_study_stops_the_run_and_is_not_recorded(tmp_path, clean):
     assert regen.read_record(tmp_path) == {}
 
 
+def test_exit_1_finishes_a_study_whose_rows_may_fail(tmp_path, clean):
+    """compare exits 1 when a method does not meet the contract (its rows say so): the study is
+    made and recorded with its exit code; exit 1 of a study without failing rows stops the run."""
+    assert regen.plan(["compare"])[0].rows_may_fail and not regen.plan(["sweep"])[0].rows_may_fail
+    times = regen.regenerate(tmp_path, only=["compare"], say=lambda text: None,
+                             runner=lambda argv: 1)
+    assert list(times) == ["compare"]
+    assert regen.read_record(tmp_path)["compare"]["exit_code"] == 1
+    with pytest.raises(InputError, match="study sweep failed .exit code 1."):
+        regen.regenerate(tmp_path, only=["sweep"], say=lambda text: None, runner=lambda argv: 1)
+    with pytest.raises(InputError, match="study compare failed .exit code 2."):
+        regen.regenerate(tmp_path, only=["compare"], force=True, say=lambda text: None,
+                         runner=lambda argv: 2)
+
+
 def test_a_dirty_tree_is_refused_unless_allowed(tmp_path, monkeypatch, clean):
     monkeypatch.setattr(regen, "git_state", lambda: ("b" * 40, False))
     with pytest.raises(InputError, match="--allow-dirty"):
