@@ -208,6 +208,28 @@ SPECIFICATION = {
     # docs/contributing.md
     "at least 99 % of the public functions are annotated": "tests/test_annotations.py's "
     "REQUIRED threshold",
+    # docs/comparison.md, docs/timing.md
+    "40 ms at T = 2 s": "T/n at the paper's T and n = 50 (a definition)",
+    "T = 2 s": "the paper's trajectory duration, the default --duration (Contract.duration_s)",
+    "5 mm (the largest distance)": "the contract's default line tolerance "
+    "(ikbench/core/contract.py)",
+    "judged on the last 80 % of the steps (from step ceil(0.2 n)) | 15 deg mean": "the "
+    "contract's judged part (pointing_judged_from = 0.2) and default pointing tolerance",
+    "a servo whose resolution is 0.088 deg": "the MX encoder's step, 360/4096 deg (Dynamixel "
+    "MX control table)",
+    "each touch pose within 45 deg of it on every joint (on its IK branch), at least 100 mm "
+    "lower, above the table, the hand within 30 deg of the line": "urdf/generate_panda_lines.py's "
+    "REACH_DEG and the Panda's [batch] filter (urdf/panda.toml)",
+    "2.175 rad/s (joints 1-4), 2.61 rad/s (5-7)": "the Panda URDF's <limit velocity>",
+    "still gets 0.1 % of the mean": "the spline parameter's floor (MIN_PARAMETER_FRACTION, "
+    "ikbench/core/timed_path.py)",
+    "Segments must be at least 5 ms": "the executor's shortest segment (MIN_SEGMENT_S, "
+    "ikbench/hw/plan.py)",
+    "default 250 Hz": "export --rate's default (DEFAULT_RATE_HZ, ikbench/viewer/export.py)",
+    "270 deg/s (the slowest MX no-load speed at 12 V)": "NICO's motor table's max_speed_deg_s "
+    "(urdf/nico_right_arm.dynamixel.json)",
+    "velocity limit / 0.5 s": "the acceleration assumed without a stated one "
+    "(DEFAULT_ACCELERATION_TIME_S, ikbench/core/timing_limits.py)",
 }
 #: Text that is not prose: generated blocks, fenced code, inline code, comments, link targets.
 NOT_PROSE = [re.compile(r"```.*?```", re.S), re.compile(r"<!--.*?-->", re.S),
