@@ -230,6 +230,9 @@ SPECIFICATION = {
     "(urdf/nico_right_arm.dynamixel.json)",
     "velocity limit / 0.5 s": "the acceleration assumed without a stated one "
     "(DEFAULT_ACCELERATION_TIME_S, ikbench/core/timing_limits.py)",
+    # docs/cartesian.md
+    "end frame = flange (0.107 m) turned -45 deg about z": "the Panda URDF's flange offset "
+    "and hand mounting (urdf/panda.urdf, from franka_description's joint origins)",
 }
 #: Text that is not prose: generated blocks, fenced code, inline code, comments, link targets.
 NOT_PROSE = [re.compile(r"```.*?```", re.S), re.compile(r"<!--.*?-->", re.S),
