@@ -233,6 +233,27 @@ SPECIFICATION = {
     # docs/cartesian.md
     "end frame = flange (0.107 m) turned -45 deg about z": "the Panda URDF's flange offset "
     "and hand mounting (urdf/panda.urdf, from franka_description's joint origins)",
+    # docs/results-at-a-glance.md, docs/viewer.md
+    "the fingertip within 5 mm of the line at every step, pointing along the line within 15 deg "
+    "on average over the last 80 % of the steps": "the contract's default tolerances and "
+    "judged part (DEFAULT_TOLERANCES, DEFAULT_POINTING_FROM, ikbench/core/contract.py)",
+    "finds every position within 1e-9 rad": "tests/test_export.py's tolerance on the exported "
+    "URDF angles",
+    "the CSV's motor degrees come back to 1e-9 deg": "tests/test_export.py's round-trip "
+    "tolerance",
+    "the drawn end frame against ikbench's FK to 1e-9 m": "tests/test_viewer.py's tolerance "
+    "(yourdfpy against Pinocchio)",
+    "3 deg of pointing weigh as much as 1 mm of position": "the designer's IK weighting "
+    "(POINTING_TOLERANCE_DEG, ikbench/viewer/design/reach.py)",
+    "its height (20 to 1000 mm)": "the letter heights the designer accepts (SIZE_RANGE_MM, "
+    "ikbench/viewer/design/kinds.py)",
+    "20 times along a circle of radius 20 mm per round": "benchmarks/designer_latency.py's "
+    "--moves default and RADIUS_MM",
+    "a median of at most 50 ms with ours-lm and 100 ms with ours-exact": "the designer "
+    "issue's aims (issue 35; targets, not measurements)",
+    "the first frame is held 0.5 s longer and the last (the touch) 1 s longer": "the "
+    "animation's HOLD_FIRST_S and HOLD_LAST_S (ikbench/render/animation.py)",
+    "so 4.35 s is": "a worked example of the export's whole-nanosecond times (arithmetic)",
 }
 #: Text that is not prose: generated blocks, fenced code, inline code, comments, link targets.
 NOT_PROSE = [re.compile(r"```.*?```", re.S), re.compile(r"<!--.*?-->", re.S),
