@@ -249,8 +249,8 @@ def _recomputed(folder: Path) -> pd.DataFrame:
             assert metrics[column] == pytest.approx(row[column], rel=1e-6, abs=1e-9), (
                 row["problem"], row["method"], row["seed"], column)
         assert metrics["valid"] == bool(row["valid"]), (row["problem"], row["method"])
-        assert metrics["failed_criteria"] == (row["failed_criteria"] or "") or \
-            not metrics["valid"], (row["problem"], row["method"])
+        written_criteria = "" if pd.isna(row["failed_criteria"]) else row["failed_criteria"]
+        assert metrics["failed_criteria"] == written_criteria, (row["problem"], row["method"])
     return table
 
 
