@@ -89,7 +89,8 @@ def test_readme_says_which_command_wrote_what(quick):
             "`ablation/`.") in readme
     assert "`benchmark.md`, `benchmark_runs.csv` by `ikbench bench --output results`" in readme
     assert "`sweep/` by `ikbench sweep --output results/sweep`" in readme
-    assert "`ours_speed.csv` by `python benchmarks/ours_speed.py`" in readme
+    assert ("`ours_speed.csv` by `python benchmarks/ours_speed.py --output "
+            "results/ours_speed.csv`") in readme
     assert "`mystery.txt` by no stage of `ikbench reproduce`" in readme
 
 

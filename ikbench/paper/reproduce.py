@@ -58,6 +58,7 @@ from ikbench.paper.comparison import (
     table2_comparison,
     write_comparison_report,
 )
+from ikbench.paper.regenerate import STUDIES
 from ikbench.paper.values import paper_values, table1_comparison
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.progress import message
@@ -94,20 +95,6 @@ QUICK = {"only": "1", "steps": 10, "max_iterations": 100}
 #: What reproduce writes into the results directory (files and folders).
 WRITES = ("README.md", "report.md", "pointing_deviation_per_step.png", OURS, BASELINE,
           *BASELINE_MODES.values(), AUTHORS_RUN, INTERPOLATION_RUN, "ablation")
-#: Other commands that write into a results directory, by the first word of what they write.
-OTHER_COMMANDS = {"benchmark": "ikbench bench --output results",
-                  "sweep": "ikbench sweep --output results/sweep",
-                  "batch": "ikbench batch --output results/batch",
-                  "letters": "ikbench letters --output results/letters",
-                  "compare": "ikbench compare --output results",
-                  "cartesian": "ikbench cartesian --output results (speed.csv: python "
-                               "benchmarks/cartesian_speed.py)",
-                  "ours_speed": "python benchmarks/ours_speed.py",
-                  "scale": "ikbench bench --device cpu --output results/scale",
-                  "panda": "ikbench compare --robot panda --targets "
-                           "urdf/panda_lines.targets.json --methods all --output results/panda"}
-
-
 class ReproduceError(IkbenchError):
     """A part the reproduction needs is missing."""
 
@@ -351,9 +338,10 @@ def _provenance_lines(output: Path, command: str) -> list[str]:
     others = sorted(p.name for p in output.iterdir()
                     if not p.name.startswith(".") and p.name not in WRITES)
     by_command: dict[str, list[str]] = {}
+    writers = {w.split("/")[0]: study.shown(Path("results")) for study in STUDIES
+               for w in study.writes}
     for name in others:
-        stem = name.split(".")[0]
-        writer = OTHER_COMMANDS.get(stem) or OTHER_COMMANDS.get(stem.split("_")[0], "")
+        writer = writers.get(name, "")
         by_command.setdefault(writer, []).append(
             name + ("/" if (output / name).is_dir() else ""))
     written = ", ".join(f"`{n}/`" if (output / n).is_dir() else f"`{n}`" for n in WRITES
@@ -364,7 +352,8 @@ def _provenance_lines(output: Path, command: str) -> list[str]:
                  f"{', '.join(f'`{n}`' for n in names)} by no stage of `ikbench reproduce`"
                  for cmd, names in sorted(by_command.items())]
         text += (" The other files here come from other commands, which `ikbench reproduce` "
-                 "does not run: " + "; ".join(parts) + ".")
+                 "does not run (`ikbench reproduce --all` runs every one): " + "; ".join(parts)
+                 + ".")
     return [text, ""]
 
 
