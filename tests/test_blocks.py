@@ -82,7 +82,7 @@ def test_an_ik_table_puts_the_robots_side_by_side(results):
     head = ("attempts_rule,method,targets,success_pct,time_median_ms,batched_per_s,"
             "batched_threads\n")
     for robot, rows in (("panda", "auto,ours-lm,10,100,0.03,25000,2\nauto,trac-ik,10,98.5,0.4,,\n"
-                                  "1,ours-lm,10,50,0.07,,\n"),
+                                  "1,ours-lm,10,50,0.07,,\nauto,placo,10,0,,,\n"),
                         ("ur5", "auto,ours-lm,10,99.9,0.02,40000,2\n")):
         folder = results / "results" / "ik" / robot
         folder.mkdir(parents=True)
@@ -93,6 +93,7 @@ def test_an_ik_table_puts_the_robots_side_by_side(results):
     assert "| method | panda: success, per-call median | ur5: success, per-call median |" in out
     assert "| ours-lm | 100.00 %, 0.03 ms | 99.90 %, 0.02 ms |" in out
     assert "| trac-ik | 98.50 %, 0.4 ms | not run |" in out
+    assert "| placo | 0.00 %, no call timed (failed rows) | not run |" in out
     assert "50.00 %" not in out                      # the other attempts rule's table
     assert "ours-lm 25,000 IK/s on panda (2 threads); ours-lm 40,000 IK/s on ur5" in out
     assert out.count("*Measured at commit") == 2

@@ -368,7 +368,9 @@ def render_ik_table(source: Path, options: dict[str, str], root: Path) -> str:
                 cells.append("not run")
                 continue
             row = frame.loc[method]
-            cells.append(f"{row['success_pct']:.2f} %, {_number(row['time_median_ms'], 3)} ms")
+            time_ms = _number(row["time_median_ms"], 3)
+            cells.append(f"{row['success_pct']:.2f} %, " + (f"{time_ms} ms" if time_ms else
+                                                            "no call timed (failed rows)"))
         lines.append("| " + " | ".join(cells) + " |")
     batched = []
     for name in names:
