@@ -237,3 +237,22 @@ def test_a_lower_case_letter_is_drawn_upper_case_and_the_cli_says_so(tmp_path, c
                  str(tmp_path), "--quiet"]) == 0
     assert "note: letter:p: letters are drawn upper case (P)" in capsys.readouterr().err
     assert (tmp_path / "ours-lm" / "trajectory_P.csv").exists()
+
+
+def test_a_trajectory_file_may_pass_a_limit_by_a_float32_ulp_not_more(tmp_path):
+    """``ours`` (Adam in float32) writes poses that may pass a limit by an ulp of float32; the
+    reader takes them (FILE_RANGE_TOLERANCE_DEG), a pose beyond that is refused, and the judge
+    keeps its own tolerance (the pose is not within the limits)."""
+    from ikbench.core.robot import FILE_RANGE_TOLERANCE_DEG, load_robot
+    from ikbench.core.trajectory import read_trajectory_poses, write_trajectory_csv
+
+    robot = load_robot("panda")
+    poses = np.tile((robot.lower_motor_deg + robot.upper_motor_deg) / 2, (3, 1))
+    poses[1, -1] = robot.upper_motor_deg[-1] + 5e-6          # 166.003067 as ours wrote it
+    write_trajectory_csv(tmp_path / "ulp.csv", robot, poses)
+    read = read_trajectory_poses(tmp_path / "ulp.csv", robot)
+    assert read[1, -1] > robot.upper_motor_deg[-1] and not robot.within_limits(read[1])
+    poses[1, -1] = robot.upper_motor_deg[-1] + 10 * FILE_RANGE_TOLERANCE_DEG
+    write_trajectory_csv(tmp_path / "far.csv", robot, poses)
+    with pytest.raises(InputError, match="panda_joint7 = .* is outside its range"):
+        read_trajectory_poses(tmp_path / "far.csv", robot)

@@ -55,6 +55,10 @@ DEG2RAD = math.pi / 180.0
 MM_PER_M = 1000.0
 #: Tolerance [pose units] when checking that a pose lies within the limits.
 RANGE_TOLERANCE_DEG = 1e-6
+#: Tolerance [pose units] when reading a pose from a file: a trajectory written from float32
+#: iterates (``ours``: Adam in float32) may pass a limit by an ulp of float32 (1.5e-5 deg at
+#: 166 deg); the judge (:meth:`Robot.within_limits`) keeps :data:`RANGE_TOLERANCE_DEG`.
+FILE_RANGE_TOLERANCE_DEG = 1e-4
 #: Keys a robot config may hold (a typo would otherwise be ignored silently).
 CONFIG_KEYS = ("name", "description", "source", "urdf", "base_link", "end_frame",
                "pointing_axis", "joints", "motor_map", "hardware", "targets", "frame",
@@ -245,8 +249,10 @@ class Robot:
         return self._cache[key]
 
     # ----- validation -------------------------------------------------------------------------
-    def check_pose(self, pose_motor_deg: npt.ArrayLike, what: str = "pose") -> np.ndarray:
-        """Validate one pose (length, finite, within the limits); return it as float64.
+    def check_pose(self, pose_motor_deg: npt.ArrayLike, what: str = "pose",
+                   tol_deg: float = RANGE_TOLERANCE_DEG) -> np.ndarray:
+        """Validate one pose (length, finite, within the limits to ``tol_deg`` [pose units]);
+        return it as float64.
 
         Raises:
             InputError: naming the bad entry and the allowed values.
@@ -268,7 +274,7 @@ class Robot:
                 self.joint_names, pose, self.lower_motor_deg, self.upper_motor_deg)):
             if not math.isfinite(value):
                 raise InputError(f"{what}: {name} = {value} is not a finite number")
-            if value < lo - RANGE_TOLERANCE_DEG or value > hi + RANGE_TOLERANCE_DEG:
+            if value < lo - tol_deg or value > hi + tol_deg:
                 raise InputError(f"{what}: {name} = {value:g} {self.unit(j)} is outside its "
                                  f"range [{lo:g}, {hi:g}]")
         return pose

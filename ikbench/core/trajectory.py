@@ -23,7 +23,7 @@ import pandas as pd
 from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_text
-from ikbench.core.robot import Robot, load_robot
+from ikbench.core.robot import FILE_RANGE_TOLERANCE_DEG, Robot, load_robot
 from ikbench.core.rotations import matrix_to_quat_wxyz
 
 #: How a trajectory CSV writes its numbers (10 significant digits).
@@ -115,7 +115,8 @@ def read_trajectory_csv(path: str | Path | TextIO, robot: Robot | None = None,
             f"{_cell_as_written(path, row, robot.joint_names[col])} is not a finite number"
         )
     for row, pose in enumerate(joints.to_numpy(dtype=float)):
-        robot.check_pose(pose, f"{where}: line {row + 2} (step {row})")
+        robot.check_pose(pose, f"{where}: line {row + 2} (step {row})",
+                         tol_deg=FILE_RANGE_TOLERANCE_DEG)
     frame[list(robot.joint_names)] = joints
     return frame
 
