@@ -54,8 +54,8 @@ LAYOUTS: dict[str, tuple[str, ...]] = {
     "cartesian": ("command", "problems", "methods", "seeds", "settings", "options", "validity",
                   "validity_source", "wall_time_s", "files", PROVENANCE),
     # ikbench ik's folder: methods by name with their facts, provenance as one entry
-    "ik": ("command", "robot", "settings", "methods", "library_versions", "wall_s",
-           "load_average", "provenance"),
+    "ik": ("command", "robot", "settings", "methods", "batched?", "solution_columns?",
+           "library_versions", "wall_s", "load_average", "provenance"),
 }
 
 
