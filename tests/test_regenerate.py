@@ -28,11 +28,12 @@ def test_the_plan_runs_each_study_once_and_resumes(tmp_path, clean):
     times = regen.regenerate(tmp_path, only=["sweep", "batch"], say=lines.append,
                              runner=lambda argv: ran.append(argv) or 0)
     assert list(times) == ["sweep", "batch"] and len(ran) == 2
-    assert ran[0][-3:] == ["sweep", "--output", f"{tmp_path}/sweep"]
+    assert ran[0][-3:] == ["c1=10,50,200,500", "--output", f"{tmp_path}/sweep"]
     assert lines[0].startswith("plan: 2 studies")
     record = json.loads((tmp_path / regen.RECORD).read_text())
     assert record["sweep"]["commit"] == "a" * 40 and record["sweep"]["clean"] is True
-    assert record["sweep"]["command"] == f"ikbench sweep --output {tmp_path}/sweep"
+    assert record["sweep"]["command"] == ("ikbench sweep --weight c0=1,10,100,1000 --weight "
+                                          f"c1=10,50,200,500 --output {tmp_path}/sweep")
     ran.clear()
     assert regen.regenerate(tmp_path, only=["sweep", "batch"], say=lines.append,
                             runner=lambda argv: ran.append(argv) or 0) == {}
