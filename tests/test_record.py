@@ -38,7 +38,8 @@ RESULTS = Path(__file__).resolve().parents[1] / "results"
 RECORDS = sorted(RESULTS.rglob("run.json"))
 #: run.json files written before the robot, files and failures were recorded: copies of the
 #: letters runs as results/letters held them until their regeneration (a user's old folders).
-OLD = set((Path(__file__).resolve().parent / "data" / "old_records").glob("*/run.json"))
+OLD = set((Path(__file__).resolve().parent / "data" / "old_records").glob("*/run.json")) | {
+    RESULTS / "letters" / "ours" / "run.json"}  # still the old run until letters is regenerated
 
 
 def test_results_hold_a_run_json_of_every_kind():
@@ -56,7 +57,7 @@ def test_a_run_json_reads_back_to_the_same_keys_values_and_order(path):
     assert record.to_json() == text  # the writers' own text, byte for byte
 
 
-@pytest.mark.parametrize("path", sorted(OLD), ids=lambda p: p.parent.name)
+@pytest.mark.parametrize("path", sorted(OLD), ids=lambda p: "/".join(p.parts[-3:-1]))
 def test_an_old_run_json_reads_with_defaults_and_says_what_it_lacks(path):
     record = RunRecord.from_dict(json.loads(path.read_text()))
     assert record.kind == "run" and record.method == "ours" and record.robot is None
