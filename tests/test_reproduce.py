@@ -88,7 +88,8 @@ def test_readme_says_which_command_wrote_what(quick):
             + ("`ikpy/`, " if IKPY else "") + "`ours-init-interpolation/`, "
             "`ablation/`.") in readme
     assert "`benchmark.md`, `benchmark_runs.csv` by `ikbench bench --output results`" in readme
-    assert "`sweep/` by `ikbench sweep --output results/sweep`" in readme
+    assert ("`sweep/` by `ikbench sweep --weight c0=1,10,100,1000 --weight c1=10,50,200,500 "
+            "--output results/sweep`") in readme
     assert ("`ours_speed.csv` by `python benchmarks/ours_speed.py --output "
             "results/ours_speed.csv`") in readme
     assert "`mystery.txt` by no stage of `ikbench reproduce`" in readme
