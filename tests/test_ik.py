@@ -18,7 +18,7 @@ from ikbench.baselines._common.chain import chain_of
 from ikbench.baselines._common.single_pose import SOLVERS, PoseOut, PoseSolver, solver_class
 from ikbench.cli import main
 from ikbench.core.errors import InputError
-from ikbench.core.robot import Robot, load_robot
+from ikbench.core.robot import Robot, load_robot, shipped_robots
 from ikbench.core.robot_packages import resolve_package_uri, robots_folder
 from ikbench.studies.ik import (
     AUTO_ROWS,
@@ -480,7 +480,7 @@ def test_committed_ik_results_recompute_from_their_solutions(record_path):
     table = (pd.read_parquet(source) if source.suffix == ".parquet"
              else pd.read_csv(source, dtype={"attempts_rule": str}))
     targets = pd.read_csv(folder / "targets.csv")
-    shipped = record["robot"]["name"] in ("fetch", "fetch_arm", "nico_right_arm", "panda")
+    shipped = record["robot"]["name"] in shipped_robots()
     robot = load_robot(record["robot"]["name"] if shipped else record["robot"]["source"],
                        end_frame=record["robot"]["end_frame"])
     assert np.array_equal(_fk_recomputed(robot, table, targets, record),
