@@ -183,15 +183,18 @@ def add_progress_arguments(parser: argparse.ArgumentParser) -> None:
                         "library at the end")
 
 
-def begin(args: argparse.Namespace) -> None:
-    """The command's input is checked and its work starts: progress goes to a bar on a
-    terminal (not with --quiet) and as JSON lines to --log (:mod:`ikbench.runtime.progress`).
+def begin(args: argparse.Namespace, threads: int | None = None) -> None:
+    """The command's input is checked and its work starts: torch on ``threads`` threads when
+    given (:func:`set_threads`), progress to a bar on a terminal (not with --quiet) and as
+    JSON lines to --log (:mod:`ikbench.runtime.progress`).
 
     Every command calls it between checking its input and its first long or writing step.
     """
     from ikbench.core.chatter import set_verbose
     from ikbench.runtime.progress import configure
 
+    if threads is not None:
+        set_threads(threads)
     target = getattr(args, "progress_log", None)
     if target not in (None, "-"):
         from ikbench.core.io import check_writable
