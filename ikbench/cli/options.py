@@ -232,6 +232,16 @@ def set_threads(threads: int) -> None:
     torch.set_num_threads(threads)
 
 
+def add_study_arguments(parser: argparse.ArgumentParser, output: str) -> None:
+    """The options a batched study (batch, sweep) ends with: ``--output`` (default
+    ``output``, under runs/, which git ignores), the progress options
+    (:func:`add_progress_arguments`) and the executor's (:func:`add_executor_arguments`)."""
+    parser.add_argument("--output", default=output, type=OUTPUT,
+                        help=f"output directory (default: {output}, which git ignores)")
+    add_progress_arguments(parser)
+    add_executor_arguments(parser)
+
+
 def add_executor_arguments(parser: argparse.ArgumentParser) -> None:
     """``--executor local|ray`` and ``--ray-address ADDR`` (sweep, batch, dataset)."""
     parser.add_argument("--executor", default="local", choices=("local", "ray"),
