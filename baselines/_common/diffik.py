@@ -173,14 +173,16 @@ def track_orientation_costs(plan: TrackPlan, cost: float) -> list[float]:
 
 
 def settle(measure: Callable[[], tuple[float, float]], step: Callable[[], float],
-           tolerance: float, stall: float, max_steps: int) -> tuple[int, bool]:
+           tolerance: float, stall: float, max_steps: int,
+           infeasible: type[Exception] | tuple[type[Exception], ...] = ()) -> tuple[int, bool]:
     """Take ``step()`` (one QP; it returns the largest joint change it made [rad, m]) until
     the position error of ``measure()`` is below ``tolerance`` and either the pointing error
     is below ``tolerance`` too or the last step moved no joint by more than ``stall`` (the
     weighted optimum is reached: the scheduled pointing may be slightly out of reach), or
     until the last step moved no joint more than ``stall`` and did not halve the position
     error (stuck: a constraint holds the point off its goal), or ``max_steps`` steps; return
-    (steps taken, position error below ``tolerance``)."""
+    (steps taken, position error below ``tolerance``), or (0, False) when a step raised
+    ``infeasible`` (a QP that a collision constraint makes infeasible)."""
     steps, moved, before = 0, np.inf, np.inf
     while True:
         position, angle = measure()
@@ -189,7 +191,10 @@ def settle(measure: Callable[[], tuple[float, float]], step: Callable[[], float]
             return steps, True
         if steps >= max_steps or (stalled and position > 0.5 * before):
             return steps, position < tolerance
-        moved, before = float(step()), position
+        try:
+            moved, before = float(step()), position
+        except infeasible:
+            return 0, False
         steps += 1
 
 

@@ -423,11 +423,8 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: MinkSetti
             p_P, R_P = frame()
             return track_errors(world, i, p_P, R_P)
 
-        try:
-            steps, ok = settle(measure, step_once, settings.tolerance, settings.stall,
-                               settings.max_steps)
-        except NoSolutionFound:
-            steps, ok = 0, False
+        steps, ok = settle(measure, step_once, settings.tolerance, settings.stall,
+                           settings.max_steps, NoSolutionFound)
         return PointResult(configuration.q[m.qpos].copy(), steps, ok)
 
     walk = track(solve_point, chain, plan)

@@ -339,11 +339,8 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: PinkSetti
             p_P, R_P = frame()
             return track_errors(plan, i, p_P, R_P)
 
-        try:
-            steps, ok = settle(measure, step_once, settings.tolerance, settings.stall,
-                               settings.max_steps)
-        except NoSolutionFound:
-            steps, ok = 0, False
+        steps, ok = settle(measure, step_once, settings.tolerance, settings.stall,
+                           settings.max_steps, NoSolutionFound)
         return PointResult(configuration.q.copy(), steps, ok)
 
     walk = track(solve_point, chain, plan)
