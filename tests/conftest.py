@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ikbench import load_robot, load_targets
@@ -84,3 +85,57 @@ def register_temporarily(monkeypatch, cls) -> None:
     from ikbench.methods.registry import MethodStatus, method_status
 
     monkeypatch.setitem(method_status(), cls.name, MethodStatus(cls.name, cls))
+
+
+def method_class(name: str):
+    """The method's class; skipped only when its library is not installed (the registry's
+    ``needs ...``); an adapter that fails to import for another reason fails the test."""
+    from ikbench.methods.registry import method_status
+
+    status = method_status()[name]
+    if not status.available:
+        if status.reason.startswith("needs "):
+            pytest.skip(f"{name}: {status.reason}")
+        pytest.fail(f"{name}: {status.reason}")
+    return status.cls
+
+
+def fails_if_called(monkeypatch, module, name: str) -> None:
+    """Replace ``module.name`` by a function that fails the test: a command must check its
+    output folder before it does that work."""
+
+    def called(*args, **kwargs):
+        raise AssertionError(f"{module.__name__}.{name} ran before the output was checked")
+
+    monkeypatch.setattr(module, name, called)
+
+
+def unwritable_output_error(capsys, tmp_path: Path, argv: list[str]) -> str:
+    """``ikbench ARGV --output FILE/out`` with FILE a regular file: exit code 2 and one line on
+    stderr that says FILE is a file; returns that line."""
+    (tmp_path / "file").write_text("")
+    assert exit_code([*argv, "--output", str(tmp_path / "file" / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is a file" in err, err
+    return err
+
+
+def one_line_error(capsys, argv: list[str]) -> str:
+    """``ikbench ARGV`` is refused: exit code 2 and one line on stderr, which it returns."""
+    assert exit_code(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    return err
+
+
+def central_differences(f, x: np.ndarray, step: float) -> np.ndarray:
+    """The derivatives of ``f`` by central differences along each entry j of x's last axis,
+    (f(x + step e_j) - f(x - step e_j)) / (2 step), stacked on a new last axis. Every row of a
+    batch ``x`` moves at once, so f must treat its rows independently."""
+    columns = []
+    for j in range(x.shape[-1]):
+        plus, minus = x.copy(), x.copy()
+        plus[..., j] += step
+        minus[..., j] -= step
+        columns.append((np.asarray(f(plus)) - np.asarray(f(minus))) / (2 * step))
+    return np.stack(columns, axis=-1)

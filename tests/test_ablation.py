@@ -27,7 +27,7 @@ from ikbench.studies.ablation import (
     joint_interpolation_distance_deg,
     parse_drops,
 )
-from tests.conftest import register_temporarily
+from tests.conftest import fails_if_called, register_temporarily, unwritable_output_error
 
 
 def test_parse_drops_full_first_then_each_spec():
@@ -198,15 +198,9 @@ def test_cli_rejects_options_of_other_methods(capsys):
 def test_unwritable_output_fails_before_any_solve(tmp_path, monkeypatch, capsys):
     import ikbench.studies.ablation as ablation
 
-    def no_solving(*args, **kwargs):
-        raise AssertionError("solved before checking the output folder")
-
-    monkeypatch.setattr(ablation, "solve_tasks", no_solving)
-    blocker = tmp_path / "file"
-    blocker.write_text("")
-    assert main(["ablate", "--drop", "L1", "--only", "1", "--output", str(blocker)]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "cannot write" in err and "is a file" in err
+    fails_if_called(monkeypatch, ablation, "solve_tasks")
+    assert "cannot write" in unwritable_output_error(capsys, tmp_path,
+                                                     ["ablate", "--drop", "L1", "--only", "1"])
     out = tmp_path / "fresh"
     (tmp_path / "fresh").mkdir()
     (out / "ablation").write_text("")  # the ablation folder's name taken by a file

@@ -25,7 +25,8 @@ from ikbench.core.errors import InputError, SolverError
 from ikbench.core.metrics import pointing_deviations_deg, trajectory_metrics
 from ikbench.core.task import Task, line_tasks
 from ikbench.core.trajectory import read_trajectory_poses
-from ikbench.methods.registry import LIBS_EXTRA, method_status
+from ikbench.methods.registry import LIBS_EXTRA
+from tests.conftest import method_class
 
 DATA = Path(__file__).parent / "data"
 ARM, ARM_TARGETS = DATA / "unaligned_arm.urdf", DATA / "unaligned_arm.targets.json"
@@ -47,17 +48,6 @@ LIBRARIES = {
     "pyroki": (1e-2, 0.1, True),
 }
 FRAMES = [name for name in LIBRARIES if name != "pyroki"]
-
-
-def method_class(name: str):
-    """The method's class; skipped only when its library is not installed (the registry's
-    ``needs ...``); an adapter that fails to import for another reason fails the test."""
-    status = method_status()[name]
-    if not status.available:
-        if status.reason.startswith("needs "):
-            pytest.skip(f"{name}: {status.reason}")
-        pytest.fail(f"{name}: {status.reason}")
-    return status.cls
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

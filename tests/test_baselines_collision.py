@@ -20,22 +20,12 @@ from ikbench.baselines._common.collision import obstacle_shape, scene_of
 from ikbench.core.collision import collision_model
 from ikbench.core.obstacles import box, capsule, halfspace, sphere
 from ikbench.core.task import Task
-from ikbench.methods.registry import method_status
+from tests.conftest import method_class
 
 AVOIDING = ("drake-ik", "drake-trajopt", "pink", "mink")
 #: Each method's default clearance [mm]; the checker must see at least this less round-off.
 CLEARANCE_MM = 5.0
 STEPS = 20
-
-
-def method_class(name: str):
-    """The method's class; skipped only when its library is not installed."""
-    status = method_status()[name]
-    if not status.available:
-        if status.reason.startswith("needs "):
-            pytest.skip(f"{name}: {status.reason}")
-        pytest.fail(f"{name}: {status.reason}")
-    return status.cls
 
 
 @pytest.fixture(scope="module")
@@ -142,6 +132,16 @@ def _poses(robot) -> np.ndarray:
     return lo + rng.random((4, robot.dof)) * (hi - lo)
 
 
+def _scene_and_distances(robot):
+    """The test's obstacles, their scene, four poses, the checker's distances (pose, capsule
+    link, obstacle) [mm] and the capsules' links in that order."""
+    obstacles = _obstacles()
+    poses = _poses(robot)
+    links = list(dict.fromkeys(c.link for c in collision_model(robot).capsules))
+    return (obstacles, scene_of(robot, obstacles), poses,
+            _checker_distances(robot, poses, obstacles), links)
+
+
 def test_drakes_geometry_is_ikbenchs(panda):
     """Drake's signed distances on the plant with collision geometry equal the checker's
     (within 0.1 mm) for a box, a sphere, a capsule and a half-space (a large box for Drake)."""
@@ -149,12 +149,8 @@ def test_drakes_geometry_is_ikbenchs(panda):
     from ikbench.baselines._common.chain import chain_of
     from ikbench.baselines._common.drake import drake_scene_chain
 
-    obstacles = _obstacles()
-    scene = scene_of(panda, obstacles)
+    obstacles, scene, poses, expected, links = _scene_and_distances(panda)
     drake = drake_scene_chain(chain_of(panda), scene)
-    poses = _poses(panda)
-    expected = _checker_distances(panda, poses, obstacles)
-    links = list(dict.fromkeys(c.link for c in collision_model(panda).capsules))
     names = [obstacle_shape(o, k).name for k, o in enumerate(obstacles)]
     for i, pose in enumerate(poses):
         drake.plant.SetPositions(drake.context, drake.positions(panda.to_urdf(pose)))
@@ -183,12 +179,8 @@ def test_mujocos_geometry_is_ikbenchs(panda):
     from ikbench.baselines._common.chain import chain_of
     from ikbench.baselines.libraries.mink_ik import mink_scene_model
 
-    obstacles = _obstacles()
-    scene = scene_of(panda, obstacles)
+    _, scene, poses, expected, links = _scene_and_distances(panda)
     m = mink_scene_model(chain_of(panda), scene)
-    poses = _poses(panda)
-    expected = _checker_distances(panda, poses, obstacles)
-    links = list(dict.fromkeys(c.link for c in collision_model(panda).capsules))
     data = mujoco.MjData(m.model)
     fromto = np.zeros(6)
     for i, pose in enumerate(poses):

@@ -12,7 +12,7 @@ import pytest
 from ikbench.cli import main
 from ikbench.core.errors import InputError
 from ikbench.studies.batch import WorkspaceFilter, run_batch, sample_touch_poses, write
-from tests.conftest import PAPER_START
+from tests.conftest import PAPER_START, fails_if_called, unwritable_output_error
 
 
 def test_sampling_is_seeded_within_ranges_and_in_the_workspace(robot):
@@ -101,12 +101,6 @@ def test_bad_seeds_rejected_before_sampling(robot, seed):
 def test_batch_cli_checks_the_output_before_sampling(tmp_path, capsys, monkeypatch):
     import ikbench.studies.batch
 
-    def boom(*args, **kwargs):
-        raise AssertionError("sampled before the output folder was checked")
-
-    monkeypatch.setattr(ikbench.studies.batch, "run_batch", boom)
-    (tmp_path / "file").write_text("")
-    assert main(["batch", "--count", "2", "--output", str(tmp_path / "file" / "out"),
-                 "--quiet"]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "cannot write" in err and "is a file" in err
+    fails_if_called(monkeypatch, ikbench.studies.batch, "run_batch")
+    err = unwritable_output_error(capsys, tmp_path, ["batch", "--count", "2", "--quiet"])
+    assert "cannot write" in err

@@ -22,6 +22,7 @@ from ikbench.studies.bench import (
     speedup_ranges,
     write,
 )
+from tests.conftest import fails_if_called, unwritable_output_error
 
 
 def test_parse_repeat():
@@ -125,12 +126,6 @@ def test_markdown_states_the_range_of_per_trajectory_speedups():
 def test_bench_cli_checks_the_output_before_timing(tmp_path, capsys, monkeypatch):
     import ikbench.studies.bench
 
-    def boom(*args, **kwargs):
-        raise AssertionError("timed before the output folder was checked")
-
-    monkeypatch.setattr(ikbench.studies.bench, "benchmark", boom)
-    (tmp_path / "file").write_text("")
-    assert main(["bench", "--methods", "ours-lm", "--output", str(tmp_path / "file" / "out"),
-                 "--quiet"]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "cannot write" in err and "is a file" in err
+    fails_if_called(monkeypatch, ikbench.studies.bench, "benchmark")
+    err = unwritable_output_error(capsys, tmp_path, ["bench", "--methods", "ours-lm", "--quiet"])
+    assert "cannot write" in err

@@ -9,6 +9,7 @@ import pytest
 from ikbench.core.collision import collision_model
 from ikbench.core.obstacles import box, capsule, halfspace, rpy_to_matrix, sphere
 from ikbench.core.robot import load_robot
+from tests.conftest import central_differences
 
 pytest.importorskip("numba")
 
@@ -54,13 +55,9 @@ def test_distance_gradients_match_finite_differences():
     for row, pair, distance, gradient in zip(rows, pairs, distances, gradients):
         if distance < -5.0:      # deep inside a box the deepest point may jump: not smooth
             continue
-        numeric = np.zeros(robot.dof)
-        for j in range(robot.dof):
-            up, down = poses[row].copy(), poses[row].copy()
-            up[j] += step
-            down[j] -= step
-            numeric[j] = (model.check(up[None], OBSTACLES).distances_mm[0, pair]
-                          - model.check(down[None], OBSTACLES).distances_mm[0, pair]) / (2 * step)
+        numeric = central_differences(
+            lambda q, pair=pair: model.check(q[None], OBSTACLES).distances_mm[0, pair],
+            poses[row], step)
         worst = max(worst, float(np.abs(numeric - gradient).max()))
         checked += 1
     assert checked > 300 and worst < 1e-3, worst   # mm per deg

@@ -23,6 +23,7 @@ from ikbench.core.obstacles import (
 )
 from ikbench.core.problems import load_problem
 from ikbench.core.robot import load_robot
+from tests.conftest import central_differences
 
 
 def _segment_box_distance_mm(a, b, radius, center, size, samples=20001):
@@ -95,13 +96,9 @@ def test_distance_gradients_match_finite_differences(panda):
     step = 0.05  # deg: well above the solver's tolerance, small against the curvature
     worst = 0.0
     for row, pair, gradient in zip(rows, pairs, gradients):
-        numeric = np.zeros(7)
-        for j in range(7):
-            up, down = poses[row].copy(), poses[row].copy()
-            up[j] += step
-            down[j] -= step
-            numeric[j] = (model.check(up[None], obstacles).distances_mm[0, pair]
-                          - model.check(down[None], obstacles).distances_mm[0, pair]) / (2 * step)
+        numeric = central_differences(
+            lambda q, pair=pair: model.check(q[None], obstacles).distances_mm[0, pair],
+            poses[row], step)
         worst = max(worst, float(np.abs(numeric - gradient).max()))
     assert worst < 0.05, worst  # mm per deg
 

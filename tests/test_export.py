@@ -21,7 +21,7 @@ from ikbench.viewer.export import (
     split_ns,
     to_poses,
 )
-from tests.conftest import REPO
+from tests.conftest import REPO, one_line_error
 
 DATA = Path(__file__).parent / "data"
 
@@ -142,11 +142,5 @@ def test_the_file_duration_differs_from_duration_and_a_note_says_so(tmp_path, ni
 ])
 def test_bad_input_one_line_exit_2(tmp_path, nico_csv, capsys, args, message):
     args = [a.format(csv=nico_csv, tmp=tmp_path) for a in args]
-    try:
-        code = main(["export", *args])
-    except SystemExit as exc:  # argparse's own errors exit from the parser
-        code = exc.code
-    assert code == 2
-    err = capsys.readouterr().err
-    assert message in err and err.count("\n") == 1
+    assert message in one_line_error(capsys, ["export", *args])
     assert not (tmp_path / "x.json").exists()

@@ -25,7 +25,7 @@ from ikbench.core.metrics import contract_metrics
 from ikbench.core.task import line_task, line_tasks
 from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.methods.registry import method_status
-from tests.test_baselines import method_class
+from tests.conftest import method_class
 
 DATA = Path(__file__).parent / "data"
 ARM, ARM_TARGETS = DATA / "unaligned_arm.urdf", DATA / "unaligned_arm.targets.json"

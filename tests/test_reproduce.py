@@ -15,7 +15,7 @@ import ikbench.paper.reproduce as reproduce_module
 from ikbench.cli import main
 from ikbench.core.errors import InputError
 from ikbench.methods.registry import method_status
-from tests.conftest import exit_code
+from tests.conftest import exit_code, fails_if_called, unwritable_output_error
 
 #: Table 2 as the authors ran it (ikpy-walk) is a stage when ikpy is installed ([libs]).
 IKPY = method_status()["ikpy-walk"].available
@@ -155,15 +155,9 @@ def test_empty_output_is_rejected(capsys):
 
 
 def test_unwritable_output_fails_before_any_solve(tmp_path, monkeypatch, capsys):
-    def no_solving(*args, **kwargs):
-        raise AssertionError("solved before checking the output folder")
-
-    monkeypatch.setattr(reproduce_module, "run", no_solving)
-    blocker = tmp_path / "file"
-    blocker.write_text("")
-    assert main(["reproduce", "--quick", "--output", str(blocker / "results")]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "is a file, not a directory" in err
+    fails_if_called(monkeypatch, reproduce_module, "run")
+    err = unwritable_output_error(capsys, tmp_path, ["reproduce", "--quick"])
+    assert "is a file, not a directory" in err
     out = tmp_path / "results"
     (out / "README.md").mkdir(parents=True)  # README.md, written last, is taken by a folder
     assert main(["reproduce", "--quick", "--output", str(out)]) == 2

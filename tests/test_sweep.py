@@ -16,6 +16,7 @@ from ikbench.core.targets import load_targets
 from ikbench.core.task import line_tasks
 from ikbench.methods.ours_lm import solve_batch
 from ikbench.studies.sweep import grid_settings, parse_grid, summarise, sweep, write
+from tests.conftest import fails_if_called, unwritable_output_error
 
 
 def test_parse_grid_and_settings():
@@ -170,12 +171,6 @@ def test_grid_settings_reject_a_setting_with_every_weight_zero():
 def test_sweep_cli_checks_the_output_before_solving(tmp_path, capsys, monkeypatch):
     import ikbench.studies.sweep
 
-    def boom(*args, **kwargs):
-        raise AssertionError("solved before the output folder was checked")
-
-    monkeypatch.setattr(ikbench.studies.sweep, "sweep", boom)
-    (tmp_path / "file").write_text("")
-    assert main(["sweep", "--weight", "c0=1", "--output", str(tmp_path / "file" / "out"),
-                 "--quiet"]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "cannot write" in err and "is a file" in err
+    fails_if_called(monkeypatch, ikbench.studies.sweep, "sweep")
+    err = unwritable_output_error(capsys, tmp_path, ["sweep", "--weight", "c0=1", "--quiet"])
+    assert "cannot write" in err

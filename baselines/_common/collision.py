@@ -3,8 +3,9 @@
 A task's obstacles (``Task.obstacles``, :mod:`ikbench.core.obstacles`: boxes, spheres, capsules,
 half-spaces in the robot's base frame [mm]) reach an adapter's ``solve_chain`` through
 :class:`AvoidsObstacles` (a mixin before :class:`ikbench.baselines._common.method.LibraryMethod`):
-its ``solve`` keeps the task's obstacles in a context variable for the solve, and the adapter
-reads them with :func:`current_obstacles`. The robot's collision geometry is ikbench's own
+its ``solve`` keeps the task's obstacles in a context variable for the solve
+(:func:`current_obstacles`), and its ``solve_chain`` hands the adapter's ``solve_scene`` their
+:class:`Scene`. The robot's collision geometry is ikbench's own
 (:func:`ikbench.core.collision.collision_model`: capsules in link frames [mm] and the link
 pairs checked for self-collision); :func:`scene_of` gathers both in the libraries' units
 (metres) as a :class:`Scene`, or None when there is nothing to avoid.
@@ -39,6 +40,8 @@ from ikbench.core.collision import collision_model
 from ikbench.core.obstacles import frame_with_z
 
 if TYPE_CHECKING:
+    from ikbench.baselines._common.chain import Chain, Goals
+    from ikbench.baselines._common.method import ChainResult
     from ikbench.core.collision import Capsule
     from ikbench.core.obstacles import Obstacle
     from ikbench.core.robot import Robot
@@ -68,8 +71,10 @@ def current_obstacles() -> tuple:
 
 class AvoidsObstacles:
     """Mixin for a library method that keeps the robot clear of the task's obstacles: sets
-    ``avoids_obstacles`` and makes the task's obstacles visible to ``solve_chain`` through
-    :func:`current_obstacles` for the time of the solve."""
+    ``avoids_obstacles``, makes the task's obstacles visible through :func:`current_obstacles`
+    for the time of the solve, and solves each chain in its :class:`Scene`: the adapter
+    implements :meth:`solve_scene`, and the result's info gets :func:`scene_info` (with the
+    settings' ``clearance`` [mm])."""
 
     avoids_obstacles = True
 
@@ -79,6 +84,21 @@ class AvoidsObstacles:
             return super().solve(robot, task, progress)  # type: ignore[misc]
         finally:
             _OBSTACLES.reset(token)
+
+    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
+        """:meth:`solve_scene` in the scene of the current obstacles (None without any)."""
+        obstacles = current_obstacles()
+        scene = scene_of(robot, obstacles)
+        result = self.solve_scene(robot, chain, goals, scene)
+        result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
+                                      self.settings.clearance))  # type: ignore[attr-defined]
+        return result
+
+    def solve_scene(self, robot: Robot, chain: Chain, goals: Goals,
+                    scene: Scene | None) -> ChainResult:  # pragma: no cover
+        """Solve one task in URDF units keeping the robot clear in ``scene`` (None: nothing
+        to avoid, solve as without obstacles); implemented by each adapter."""
+        raise NotImplementedError
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ scheduled pointing may be out of reach), the posture task's per-joint weights
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -33,12 +33,77 @@ from ikbench.baselines._common.geometry import (
     closest_rotation_with_axis,
     rotation_angle_rad,
 )
+from ikbench.baselines._common.method import shared_option
+from ikbench.baselines._common.walk import PointResult
+from ikbench.core.errors import InputError
+from ikbench.methods.base import check_positive, flag_of
 
 if TYPE_CHECKING:
     from ikbench.baselines._common.track import TrackPlan
     from ikbench.core.robot import Robot
 
 Z = np.array([0.0, 0.0, 1.0])
+#: The options of the scheme, alike in pink and mink (``--<library>-<field>``,
+#: :func:`qp_option`): pink's defaults and words (mink's few differences are in its settings).
+QP_OPTIONS: dict[str, dict[str, Any]] = {
+    "dt": {"default": 1.0, "unit": "s", "help": "integration step of the QP velocity (1 with "
+           "gain 1: a full Gauss-Newton step)"},
+    "damping": {"default": 1e-6, "help": "Tikhonov damping of the QP (solve_ik's damping)"},
+    "position_cost": {"default": 1.0, "unit": "1/m", "help": "FrameTask position cost"},
+    "orientation_cost": {"default": 0.1, "unit": "1/rad", "help": "FrameTask orientation cost "
+                         "on the pointing axis's tilt (roll free)"},
+    "limit_gain": {"default": 0.5, "help": "ConfigurationLimit gain in (0, 1]"},
+    "qp_solver": {"default": "daqp", "help": "qpsolvers backend"},
+    "tolerance": {"default": 1e-6, "unit": "m, rad",
+                  "help": "stop a point when position and pointing errors are below"},
+    "max_steps": {"default": 100, "help": "QP steps per goal point at most"},
+    "track_position_cost": {"default": 1000.0, "unit": "1/m", "help": "scheme track: "
+                            "FrameTask position cost (the goal point is the hard goal; the "
+                            "pointing and posture costs are small against it)"},
+    "posture_cost": {"default": 0.01, "unit": "1/rad", "help": "scheme track: PostureTask "
+                     "cost towards the start-to-touch posture (per pose unit: a motor degree "
+                     "for NICO)"},
+    "speed_fraction": {"default": 0.95, "help": "scheme track: each step moves every joint by "
+                       "at most this fraction of the contract's speed-limit step and keeps the "
+                       "touch pose within reach at that speed (a QP box constraint); 0: no "
+                       "box"},
+    "stall": {"default": 1e-4, "unit": "rad, m", "help": "scheme track: a step ends once the "
+              "position is within the tolerance and the last QP step moved no joint more "
+              "than this"},
+}
+
+
+def qp_option(library: str, name: str, **changes: Any) -> Any:
+    """The settings field ``name`` of :data:`QP_OPTIONS` as ``--<library>-<name>``
+    (``changes``: another default or help for this library)."""
+    return shared_option(QP_OPTIONS, library, name, **changes)
+
+
+def check_qp_settings(settings: Any) -> None:
+    """InputError naming the method's flag when an option of :data:`QP_OPTIONS` is out of
+    range or its ``qp_solver`` is not installed; ``max_steps`` becomes an int."""
+    check_positive(settings, "dt", "position_cost", "track_position_cost", "limit_gain",
+                   "tolerance", "stall")
+    check_positive(settings, "max_steps", integer=True)
+    if (settings.limit_gain > 1 or settings.damping < 0 or settings.orientation_cost < 0
+            or settings.posture_cost < 0 or not 0 <= settings.speed_fraction <= 1):
+        flag = {name: flag_of(settings, name) for name in QP_OPTIONS}
+        raise InputError(f"{flag['limit_gain']} must be in (0, 1], {flag['speed_fraction']} "
+                         f"in [0, 1], {flag['damping']}, {flag['orientation_cost']} and "
+                         f"{flag['posture_cost']} >= 0")
+    settings.max_steps = int(settings.max_steps)
+    check_qp_solver(settings, "qp_solver")
+
+
+def check_qp_solver(settings: object, field_name: str) -> None:
+    """InputError naming the flag when the qpsolvers backend is not installed."""
+    import qpsolvers
+
+    value = getattr(settings, field_name)
+    if value not in qpsolvers.available_solvers:
+
+        raise InputError(f"{flag_of(settings, field_name)}: {value!r} is not an installed "
+                         f"qpsolvers backend; installed: {', '.join(qpsolvers.available_solvers)}")
 
 
 def target_rotation(goals: Goals, i: int, R_P: np.ndarray, R_EP: np.ndarray) -> np.ndarray:
@@ -108,14 +173,16 @@ def track_orientation_costs(plan: TrackPlan, cost: float) -> list[float]:
 
 
 def settle(measure: Callable[[], tuple[float, float]], step: Callable[[], float],
-           tolerance: float, stall: float, max_steps: int) -> tuple[int, bool]:
+           tolerance: float, stall: float, max_steps: int,
+           infeasible: type[Exception] | tuple[type[Exception], ...] = ()) -> tuple[int, bool]:
     """Take ``step()`` (one QP; it returns the largest joint change it made [rad, m]) until
     the position error of ``measure()`` is below ``tolerance`` and either the pointing error
     is below ``tolerance`` too or the last step moved no joint by more than ``stall`` (the
     weighted optimum is reached: the scheduled pointing may be slightly out of reach), or
     until the last step moved no joint more than ``stall`` and did not halve the position
     error (stuck: a constraint holds the point off its goal), or ``max_steps`` steps; return
-    (steps taken, position error below ``tolerance``)."""
+    (steps taken, position error below ``tolerance``), or (0, False) when a step raised
+    ``infeasible`` (a QP that a collision constraint makes infeasible)."""
     steps, moved, before = 0, np.inf, np.inf
     while True:
         position, angle = measure()
@@ -124,7 +191,10 @@ def settle(measure: Callable[[], tuple[float, float]], step: Callable[[], float]
             return steps, True
         if steps >= max_steps or (stalled and position > 0.5 * before):
             return steps, position < tolerance
-        moved, before = float(step()), position
+        try:
+            moved, before = float(step()), position
+        except infeasible:
+            return 0, False
         steps += 1
 
 
@@ -137,6 +207,51 @@ def posture_weights(robot: Robot) -> np.ndarray:
     per_unit = np.abs(robot.to_urdf(np.ones(dof)) - robot.to_urdf(np.zeros(dof)))
     unit = np.where(np.asarray(robot.prismatic, dtype=bool), 1e-3, np.pi / 180.0)
     return unit / per_unit
+
+
+def solve_clear(i: int, q_warm: np.ndarray, run: Callable[[int, np.ndarray, bool], PointResult],
+                penetrating: Callable[[np.ndarray], bool], infeasible: type[Exception],
+                entered: list[int]) -> PointResult:
+    """A walk's point ``i`` with collision avoidance (``run(i, q_warm, avoiding)``): the
+    avoidance cannot lead out of an obstacle, so a warm start that overlaps one (the walk's
+    first, the home pose, may) is first solved without it (``i`` goes to ``entered``) and,
+    if that pose is clear, solved with it from there; a QP the avoidance makes infeasible
+    (``infeasible`` raised) leaves the point unsolved at its warm start."""
+    spent = 0
+    if penetrating(q_warm):
+        q_free, spent, _ = run(i, q_warm, False)
+        entered.append(i)
+        if not penetrating(q_free):  # else: stay, not deeper inside
+            q_warm = q_free
+    try:
+        q, steps, ok = run(i, q_warm, True)
+    except infeasible:  # the avoidance's QP is infeasible here
+        q, steps, ok = q_warm, 0, False
+    return PointResult(q, spent + steps, ok)
+
+
+class WarmStart:
+    """Where each step of a track starts: the step before moved on by the last segment's
+    motion (a constant-speed warm start), kept in the step's :class:`SpeedBox` (whose step it
+    sets) and clipped by ``clip`` to the joint limits; not moved on where ``moving_on`` is
+    False (with obstacles: avoidance acts on QP steps only, and a warm start moved on without
+    it may start inside an obstacle)."""
+
+    def __init__(self, box: SpeedBox | None, clip: Callable[[np.ndarray], np.ndarray],
+                 moving_on: bool) -> None:
+        self.box, self.clip, self.moving_on = box, clip, moving_on
+        self.previous: np.ndarray | None = None
+
+    def __call__(self, i: int, q_warm: np.ndarray) -> np.ndarray:
+        """The start (dof,) [rad, m] of step ``i`` from the step before, ``q_warm``."""
+        q0 = q_warm
+        if self.box is not None:
+            self.box.set_step(i, q_warm)
+        if self.previous is not None and self.moving_on:
+            q0 = q_warm + (q_warm - self.previous)
+            q0 = self.clip(self.box.clip(q0) if self.box is not None else q0)
+        self.previous = q_warm
+        return q0
 
 
 class SpeedBox:
@@ -157,6 +272,15 @@ class SpeedBox:
         lower, upper: (dof,) the joint limits [rad, m].
         gain: the configuration limit's gain.
     """
+
+    @classmethod
+    def of(cls, plan: TrackPlan, step: np.ndarray | None, fraction: float,
+           lower: npt.ArrayLike, upper: npt.ArrayLike, gain: float) -> SpeedBox | None:
+        """The box of a track whose contract allows ``step`` (dof,) per segment [rad, m],
+        taken at ``fraction`` of it; None without a step or with ``fraction`` 0."""
+        if step is None or fraction <= 0:
+            return None
+        return cls(fraction * step, plan.q_touch, len(plan) - 1, lower, upper, gain)
 
     def __init__(self, step: npt.ArrayLike, q_touch: npt.ArrayLike, n: int,
                  lower: npt.ArrayLike, upper: npt.ArrayLike, gain: float) -> None:

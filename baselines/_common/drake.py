@@ -39,7 +39,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.baselines._common.chain import Chain, chain_of
-from ikbench.baselines._common.method import LibraryMethod
+from ikbench.baselines._common.method import LibraryMethod, shared_option
 from ikbench.core.chatter import quiet
 from ikbench.core.errors import InputError
 
@@ -48,6 +48,22 @@ if TYPE_CHECKING:
     from ikbench.core.robot import Robot
 
 SOLVERS = ("auto", "snopt", "ipopt", "nlopt")
+#: The options both Drake methods take (``--drake-<field>``, :func:`drake_option`).
+OPTIONS: dict[str, dict[str, Any]] = {
+    "solver": {"default": "auto", "choices": SOLVERS,
+               "help": "auto (Drake's choice: SNOPT) or a solver by name"},
+    "feasibility_tolerance": {"default": 1e-9,
+                              "help": "SNOPT major feasibility / IPOPT constr_viol_tol"},
+    "optimality_tolerance": {"default": 1e-6,
+                             "help": "SNOPT major optimality / IPOPT tol / NLopt xtol_rel"},
+    "clearance": {"default": 5.0, "unit": "mm",
+                  "help": "tasks with obstacles: the least distance kept between the robot's "
+                  "capsules and the obstacles and between self pairs "
+                  "(MinimumDistanceLowerBoundConstraint's bound)"},
+    "influence": {"default": 1.0, "unit": "mm",
+                  "help": "tasks with obstacles: pairs closer than clearance + this enter the "
+                  "constraint (its influence_distance_offset)"},
+}
 _PLANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -264,6 +280,12 @@ def exit_code(result: Any) -> int | None:
         if hasattr(details, attribute):
             return int(getattr(details, attribute))
     return None
+
+
+def drake_option(name: str, **changes: Any) -> Any:
+    """The settings field ``name`` of :data:`OPTIONS` (``changes``: another default or
+    help for one method)."""
+    return shared_option(OPTIONS, "drake", name, **changes)
 
 
 class DrakeMethod(LibraryMethod):

@@ -9,9 +9,9 @@ is here.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -20,12 +20,22 @@ from ikbench.baselines._common.chain import require_touch_and_start as _require_
 from ikbench.baselines._common.track import plan_track, require_start_and_touch
 from ikbench.baselines._common.walk import Walk
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Method, Solution
+from ikbench.methods.base import Method, Solution, option
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
     from ikbench.core.task import Task
     from ikbench.methods.base import Progress
+
+
+def shared_option(options: Mapping[str, Mapping[str, Any]], prefix: str, name: str,
+                  **changes: Any) -> Any:
+    """A settings field that several methods declare alike: ``options[name]`` (the
+    arguments of :func:`ikbench.methods.base.option`, ``default`` among them) as the flag
+    ``--<prefix>-<name with dashes>``; ``changes`` replace some of them (another default or
+    help) for one method."""
+    spec = {**options[name], **changes}
+    return option(spec.pop("default"), flag=f"{prefix}-{name.replace('_', '-')}", **spec)
 
 
 @dataclass

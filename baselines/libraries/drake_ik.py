@@ -60,18 +60,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ikbench.baselines._common.chain import Chain, Goals, contract_step, urdf_step
-from ikbench.baselines._common.collision import (
-    AvoidsObstacles,
-    Scene,
-    current_obstacles,
-    no_avoidance_reason,
-    scene_info,
-    scene_of,
-)
+from ikbench.baselines._common.collision import AvoidsObstacles, Scene
 from ikbench.baselines._common.drake import (
     SOLVERS,
     DrakeMethod,
     drake_chain,
+    drake_option,
     drake_scene_chain,
     make_solver,
     set_tolerances,
@@ -111,20 +105,11 @@ class DrakeIKSettings:
     pointing_cost: float = option(3000.0, flag="drake-pointing-cost",
                                   help="scheme track: weight c of c (1 - cos angle) for a "
                                   "step whose pointing constraint is infeasible")
-    solver: str = option("auto", flag="drake-solver", choices=SOLVERS,
-                         help="auto (Drake's choice: SNOPT) or a solver by name")
-    feasibility_tolerance: float = option(1e-9, flag="drake-feasibility-tolerance",
-                                          help="SNOPT major feasibility / IPOPT constr_viol_tol")
-    optimality_tolerance: float = option(1e-6, flag="drake-optimality-tolerance",
-                                         help="SNOPT major optimality / IPOPT tol / NLopt "
-                                         "xtol_rel")
-    clearance: float = option(5.0, flag="drake-clearance", unit="mm",
-                              help="tasks with obstacles: the least distance kept between the "
-                              "robot's capsules and the obstacles and between self pairs "
-                              "(MinimumDistanceLowerBoundConstraint's bound)")
-    influence: float = option(1.0, flag="drake-influence", unit="mm",
-                              help="tasks with obstacles: pairs closer than clearance + this "
-                              "enter the constraint (its influence_distance_offset)")
+    solver: str = drake_option("solver")
+    feasibility_tolerance: float = drake_option("feasibility_tolerance")
+    optimality_tolerance: float = drake_option("optimality_tolerance")
+    clearance: float = drake_option("clearance")
+    influence: float = drake_option("influence")
 
     def __post_init__(self):
         check_choice(self, "scheme", SCHEMES)
@@ -296,16 +281,12 @@ class DrakeIK(AvoidsObstacles, DrakeMethod):
     Settings = DrakeIKSettings
     supports_frames = True
 
-    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
+    def solve_scene(self, robot: Robot, chain: Chain, goals: Goals,
+                    scene: Scene | None) -> ChainResult:
         step = None
         if goals.track is not None:
             step = contract_step(goals, STEP_MARGIN)
-        obstacles = current_obstacles()
-        scene = scene_of(robot, obstacles)
-        result = solve_chain(chain, goals, self.settings, pose_metric(robot), step, scene)
-        result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
-                                      self.settings.clearance))
-        return result
+        return solve_chain(chain, goals, self.settings, pose_metric(robot), step, scene)
 
 
 #: Single-pose IK: the orientation constraint's bound [rad] (0 would be degenerate) and

@@ -61,18 +61,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ikbench.baselines._common.chain import Chain, Goals, contract_step
-from ikbench.baselines._common.collision import (
-    AvoidsObstacles,
-    Scene,
-    current_obstacles,
-    no_avoidance_reason,
-    scene_info,
-    scene_of,
-)
+from ikbench.baselines._common.collision import AvoidsObstacles, Scene
 from ikbench.baselines._common.drake import (
     SOLVERS,
     DrakeMethod,
     drake_chain,
+    drake_option,
     drake_scene_chain,
     exit_code,
     make_solver,
@@ -123,20 +117,14 @@ class DrakeTrajoptSettings:
                        help="initial guess: the Drake IK walk fitted, or linear in joints")
     max_iterations: int = option(1000, flag="drake-max-iterations",
                                  help="SNOPT major iterations limit")
-    solver: str = option("auto", flag="drake-solver", choices=SOLVERS,
-                         help="auto (Drake's choice: SNOPT) or a solver by name")
-    feasibility_tolerance: float = option(1e-8, flag="drake-feasibility-tolerance",
-                                          help="SNOPT major feasibility / IPOPT constr_viol_tol")
-    optimality_tolerance: float = option(1e-6, flag="drake-optimality-tolerance",
-                                         help="SNOPT major optimality / IPOPT tol / NLopt "
-                                         "xtol_rel")
-    clearance: float = option(5.0, flag="drake-clearance", unit="mm",
-                              help="tasks with obstacles: the least distance kept between the "
-                              "robot's capsules and the obstacles and between self pairs at "
-                              "the samples (MinimumDistanceLowerBoundConstraint's bound)")
-    influence: float = option(1.0, flag="drake-influence", unit="mm",
-                              help="tasks with obstacles: pairs closer than clearance + this "
-                              "enter the constraint (its influence_distance_offset)")
+    solver: str = drake_option("solver")
+    feasibility_tolerance: float = drake_option("feasibility_tolerance", default=1e-8)
+    optimality_tolerance: float = drake_option("optimality_tolerance")
+    clearance: float = drake_option(
+        "clearance", help="tasks with obstacles: the least distance kept between the robot's "
+        "capsules and the obstacles and between self pairs at the samples "
+        "(MinimumDistanceLowerBoundConstraint's bound)")
+    influence: float = drake_option("influence")
     collision_samples: int = option(1, flag="drake-collision-samples",
                                     help="tasks with obstacles: distance constraints per "
                                     "segment (1: at the goal samples only)")
@@ -349,17 +337,12 @@ class DrakeTrajopt(AvoidsObstacles, DrakeMethod):
         for task in tasks:
             control_point_count(self.settings, len(task.goal_points_mm))
 
-    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
-        obstacles = current_obstacles()
-        scene = scene_of(robot, obstacles)
+    def solve_scene(self, robot: Robot, chain: Chain, goals: Goals,
+                    scene: Scene | None) -> ChainResult:
         contract = goals.contract
         if contract is None:  # no contract: as before it, every inner point pointed
-            result = solve_chain(chain, goals, self.settings, scene=scene)
-        else:
-            steps = len(goals) - 1
-            pointing_from = contract.judged_from(steps) if contract.pointing else None
-            result = solve_chain(chain, goals, self.settings, pointing_from,
-                                 contract_step(goals, STEP_MARGIN), scene)
-        result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
-                                      self.settings.clearance))
-        return result
+            return solve_chain(chain, goals, self.settings, scene=scene)
+        steps = len(goals) - 1
+        pointing_from = contract.judged_from(steps) if contract.pointing else None
+        return solve_chain(chain, goals, self.settings, pointing_from,
+                           contract_step(goals, STEP_MARGIN), scene)

@@ -68,21 +68,18 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ikbench.baselines._common.chain import Chain, Goals, chain_of
-from ikbench.baselines._common.collision import (
-    AvoidsObstacles,
-    Scene,
-    current_obstacles,
-    no_avoidance_reason,
-    scene_info,
-    scene_of,
-)
+from ikbench.baselines._common.collision import AvoidsObstacles, Scene
 from ikbench.baselines._common.diffik import (
     SpeedBox,
+    WarmStart,
+    check_qp_settings,
     converge,
     errors,
     orientation_costs,
     posture_weights,
+    qp_option,
     settle,
+    solve_clear,
     target_rotation,
     track_errors,
     track_orientation_costs,
@@ -93,9 +90,8 @@ from ikbench.baselines._common.method import ChainResult, LibraryMethod
 from ikbench.baselines._common.single_pose import PoseOut, PoseSolver, steps_to_tolerance
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
 from ikbench.baselines._common.walk import PointResult, walk_back
-from ikbench.baselines.libraries.pink_ik import check_qp_solver
 from ikbench.core.errors import InputError
-from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.base import check_choice, option
 
 if TYPE_CHECKING:
     from ikbench.baselines._common.track import TrackPlan
@@ -114,36 +110,20 @@ class MinkSettings:
     pointing_task: str = option("frame", flag="mink-pointing-task", choices=POINTING_TASKS,
                                 help="frame (FrameTask, roll cost 0) or axis-align "
                                 "(AxisAlignTask beside a position-only FrameTask)")
-    dt: float = option(1.0, flag="mink-dt", unit="s",
-                       help="integration step of the QP velocity (1 with gain 1: a full "
-                       "Gauss-Newton step)")
-    damping: float = option(1e-6, flag="mink-damping",
-                            help="Levenberg-Marquardt damping of the QP (solve_ik's damping)")
-    position_cost: float = option(1.0, flag="mink-position-cost", unit="1/m",
-                                  help="FrameTask position cost")
-    orientation_cost: float = option(0.1, flag="mink-orientation-cost", unit="1/rad",
-                                     help="cost of the pointing axis's tilt (roll free)")
-    limit_gain: float = option(0.95, flag="mink-limit-gain",
-                               help="ConfigurationLimit gain in (0, 1]")
-    qp_solver: str = option("daqp", flag="mink-qp-solver", help="qpsolvers backend")
-    tolerance: float = option(1e-6, flag="mink-tolerance", unit="m, rad",
-                              help="stop a point when position and pointing errors are below")
-    max_steps: int = option(100, flag="mink-max-steps", help="QP steps per goal point at most")
-    track_position_cost: float = option(
-        1000.0, flag="mink-track-position-cost", unit="1/m",
-        help="scheme track: FrameTask position cost (the goal point is the hard goal; the "
-        "pointing and posture costs are small against it)")
-    posture_cost: float = option(0.01, flag="mink-posture-cost", unit="1/rad",
-                                 help="scheme track: PostureTask cost towards the start-to-touch "
-                                 "posture (per pose unit: a motor degree for NICO)")
-    speed_fraction: float = option(
-        0.95, flag="mink-speed-fraction",
-        help="scheme track: each step moves every joint by at most this fraction of the "
-        "contract's speed-limit step and keeps the touch pose within reach at that speed (a "
-        "QP box constraint); 0: no box")
-    stall: float = option(1e-4, flag="mink-stall", unit="rad, m",
-                          help="scheme track: a step ends once the position is within the "
-                          "tolerance and the last QP step moved no joint more than this")
+    dt: float = qp_option("mink", "dt")
+    damping: float = qp_option("mink", "damping", help="Levenberg-Marquardt damping of the QP "
+                               "(solve_ik's damping)")
+    position_cost: float = qp_option("mink", "position_cost")
+    orientation_cost: float = qp_option("mink", "orientation_cost",
+                                        help="cost of the pointing axis's tilt (roll free)")
+    limit_gain: float = qp_option("mink", "limit_gain", default=0.95)
+    qp_solver: str = qp_option("mink", "qp_solver")
+    tolerance: float = qp_option("mink", "tolerance")
+    max_steps: int = qp_option("mink", "max_steps")
+    track_position_cost: float = qp_option("mink", "track_position_cost")
+    posture_cost: float = qp_option("mink", "posture_cost")
+    speed_fraction: float = qp_option("mink", "speed_fraction")
+    stall: float = qp_option("mink", "stall")
     clearance: float = option(5.0, flag="mink-clearance", unit="mm",
                               help="tasks with obstacles: CollisionAvoidanceLimit's "
                               "minimum_distance_from_collisions, kept between the robot's "
@@ -158,19 +138,10 @@ class MinkSettings:
     def __post_init__(self):
         check_choice(self, "scheme", SCHEMES)
         check_choice(self, "pointing_task", POINTING_TASKS)
-        check_positive(self, "dt", "position_cost", "track_position_cost", "limit_gain",
-                       "tolerance", "stall")
-        check_positive(self, "max_steps", integer=True)
-        if (self.limit_gain > 1 or self.damping < 0 or self.orientation_cost < 0
-                or self.posture_cost < 0 or not 0 <= self.speed_fraction <= 1):
-            raise InputError("--mink-limit-gain must be in (0, 1], --mink-speed-fraction in "
-                             "[0, 1], --mink-damping, --mink-orientation-cost and "
-                             "--mink-posture-cost >= 0")
         if not (self.clearance >= 0 and self.detection > 0 and 0 < self.collision_gain <= 1):
             raise InputError("--mink-clearance must be >= 0 [mm], --mink-detection > 0 [mm] "
                              "and --mink-collision-gain in (0, 1]")
-        self.max_steps = int(self.max_steps)
-        check_qp_solver(self, "qp_solver")
+        check_qp_settings(self)
 
 
 @dataclass(frozen=True)
@@ -331,22 +302,11 @@ def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings,
 
     def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
         if avoid is None:
-            return run(i, q_warm, limits)
-        spent = 0
-        if penetrating(m, avoid, q_warm):
-            # the limit cannot lead out of an obstacle (the walk's first warm start, the home
-            # pose, may be inside one): reach the goal without it first
-            q_free, spent, _ = run(i, q_warm, plain_limits)
-            entered.append(i)
-            if not penetrating(m, avoid, q_free):  # else: stay, not deeper inside
-                q_warm = q_free
-        try:
-            q, steps, ok = run(i, q_warm, limits)
-        except NoSolutionFound:  # the limit's QP is infeasible here
-            q, steps, ok = q_warm, 0, False
-        return PointResult(q, spent + steps, ok)
+            return run(i, q_warm, False)
+        return solve_clear(i, q_warm, run, lambda q: penetrating(m, avoid, q), NoSolutionFound,
+                           entered)
 
-    def run(i: int, q_warm: np.ndarray, limits: list) -> PointResult:
+    def run(i: int, q_warm: np.ndarray, avoiding: bool) -> PointResult:
         q0 = np.zeros(model.nq)
         q0[m.qpos] = q_warm
         configuration = mink.Configuration(model, q0)
@@ -363,7 +323,8 @@ def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings,
             frame_task.set_target(mink.SE3.from_rotation_and_translation(
                 mink.SO3.from_matrix(R), world.points_m[i]))
             v = mink.solve_ik(configuration, tasks, settings.dt, settings.qp_solver,
-                              damping=settings.damping, limits=limits)
+                              damping=settings.damping,
+                              limits=limits if avoiding else plain_limits)
             q = configuration.integrate(v, settings.dt)
             q[m.qpos] = chain.clip(q[m.qpos])
             configuration.update(q)
@@ -411,10 +372,9 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: MinkSetti
     limits: list[Any] = [mink.ConfigurationLimit(model, gain=settings.limit_gain)]
     if scene is not None:
         limits.append(collision_limit(m, scene, settings))
-    box = None
-    if step is not None and settings.speed_fraction > 0:
-        box = SpeedBox(settings.speed_fraction * step, plan.q_touch, len(plan) - 1, chain.lower,
-                       chain.upper, settings.limit_gain)
+    box = SpeedBox.of(plan, step, settings.speed_fraction, chain.lower, chain.upper,
+                      settings.limit_gain)
+    if box is not None:
 
         class SpeedLimit(mink.Limit):
             """The speed box (:class:`ikbench.baselines._common.diffik.SpeedBox`) as a mink
@@ -429,21 +389,12 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: MinkSetti
                 return mink.Constraint(G=G_full, h=h)
 
         limits.append(SpeedLimit())
-    previous: dict[str, Any] = {"q": None}
+    warm_start = WarmStart(box, chain.clip, moving_on=scene is None)
     q_full = np.zeros(model.nq)
     configuration = mink.Configuration(model)
 
     def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
-        q0 = q_warm
-        if box is not None:
-            box.set_step(i, q_warm)
-        # the last segment's motion again; not with obstacles: the barrier acts on QP steps
-        # only, and a warm start moved on without it may start inside an obstacle
-        if previous["q"] is not None and scene is None:
-            q0 = q_warm + (q_warm - previous["q"])
-            q0 = chain.clip(box.clip(q0) if box is not None else q0)
-        previous["q"] = q_warm
-        q_full[m.qpos] = q0
+        q_full[m.qpos] = warm_start(i, q_warm)
         configuration.update(q_full)
         q_full[m.qpos] = plan.posture[i]
         posture_task.set_target(q_full)
@@ -472,11 +423,8 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: MinkSetti
             p_P, R_P = frame()
             return track_errors(world, i, p_P, R_P)
 
-        try:
-            steps, ok = settle(measure, step_once, settings.tolerance, settings.stall,
-                               settings.max_steps)
-        except NoSolutionFound:
-            steps, ok = 0, False
+        steps, ok = settle(measure, step_once, settings.tolerance, settings.stall,
+                           settings.max_steps, NoSolutionFound)
         return PointResult(configuration.q[m.qpos].copy(), steps, ok)
 
     walk = track(solve_point, chain, plan)
@@ -505,17 +453,11 @@ class MinkIK(AvoidsObstacles, LibraryMethod):
 
         mink_model(chain_of(robot))
 
-    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
-        obstacles = current_obstacles()
-        scene = scene_of(robot, obstacles)
+    def solve_scene(self, robot: Robot, chain: Chain, goals: Goals,
+                    scene: Scene | None) -> ChainResult:
         if goals.track is not None:
-            result = solve_track(robot, chain, goals.track, self.settings, goals.max_step,
-                                 scene)
-        else:
-            result = solve_chain(chain, goals, self.settings, scene)
-        result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
-                                      self.settings.clearance))
-        return result
+            return solve_track(robot, chain, goals.track, self.settings, goals.max_step, scene)
+        return solve_chain(chain, goals, self.settings, scene)
 
 
 class MinkSolver(PoseSolver):

@@ -82,21 +82,18 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ikbench.baselines._common.chain import Chain, Goals, chain_of
-from ikbench.baselines._common.collision import (
-    AvoidsObstacles,
-    Scene,
-    current_obstacles,
-    no_avoidance_reason,
-    scene_info,
-    scene_of,
-)
+from ikbench.baselines._common.collision import AvoidsObstacles, Scene
 from ikbench.baselines._common.diffik import (
     SpeedBox,
+    WarmStart,
+    check_qp_settings,
     converge,
     errors,
     orientation_costs,
     posture_weights,
+    qp_option,
     settle,
+    solve_clear,
     target_rotation,
     track_errors,
     track_orientation_costs,
@@ -109,7 +106,7 @@ from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.core.kinematics.pinocchio_fk import link_frame_id
-from ikbench.methods.base import check_choice, check_positive, flag_of, option
+from ikbench.methods.base import check_choice, option
 
 if TYPE_CHECKING:
     from ikbench.baselines._common.track import TrackPlan
@@ -119,53 +116,23 @@ POINTING_FRAME = "ikbench_pointing_frame"
 _MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def check_qp_solver(settings: object, field_name: str) -> None:
-    """InputError naming the flag when the qpsolvers backend is not installed."""
-    import qpsolvers
-
-    value = getattr(settings, field_name)
-    if value not in qpsolvers.available_solvers:
-
-        raise InputError(f"{flag_of(settings, field_name)}: {value!r} is not an installed "
-                         f"qpsolvers backend; installed: {', '.join(qpsolvers.available_solvers)}")
-
-
 @dataclass
 class PinkSettings:
     """Settings of pink's track and walk (see the module docstring)."""
 
     scheme: str = option("track", flag="scheme", choices=SCHEMES, help=SCHEME_HELP)
-    dt: float = option(1.0, flag="pink-dt", unit="s",
-                       help="integration step of the QP velocity (1 with gain 1: a full "
-                       "Gauss-Newton step)")
-    damping: float = option(1e-6, flag="pink-damping",
-                            help="Tikhonov damping of the QP (solve_ik's damping)")
-    position_cost: float = option(1.0, flag="pink-position-cost", unit="1/m",
-                                  help="FrameTask position cost")
-    orientation_cost: float = option(0.1, flag="pink-orientation-cost", unit="1/rad",
-                                     help="FrameTask orientation cost on the pointing axis's "
-                                     "tilt (roll free)")
-    limit_gain: float = option(0.5, flag="pink-limit-gain",
-                               help="ConfigurationLimit gain in (0, 1]")
-    qp_solver: str = option("daqp", flag="pink-qp-solver", help="qpsolvers backend")
-    tolerance: float = option(1e-6, flag="pink-tolerance", unit="m, rad",
-                              help="stop a point when position and pointing errors are below")
-    max_steps: int = option(100, flag="pink-max-steps", help="QP steps per goal point at most")
-    track_position_cost: float = option(
-        1000.0, flag="pink-track-position-cost", unit="1/m",
-        help="scheme track: FrameTask position cost (the goal point is the hard goal; the "
-        "pointing and posture costs are small against it)")
-    posture_cost: float = option(0.01, flag="pink-posture-cost", unit="1/rad",
-                                 help="scheme track: PostureTask cost towards the start-to-touch "
-                                 "posture (per pose unit: a motor degree for NICO)")
-    speed_fraction: float = option(
-        0.95, flag="pink-speed-fraction",
-        help="scheme track: each step moves every joint by at most this fraction of the "
-        "contract's speed-limit step and keeps the touch pose within reach at that speed (a "
-        "QP box constraint); 0: no box")
-    stall: float = option(1e-4, flag="pink-stall", unit="rad, m",
-                          help="scheme track: a step ends once the position is within the "
-                          "tolerance and the last QP step moved no joint more than this")
+    dt: float = qp_option("pink", "dt")
+    damping: float = qp_option("pink", "damping")
+    position_cost: float = qp_option("pink", "position_cost")
+    orientation_cost: float = qp_option("pink", "orientation_cost")
+    limit_gain: float = qp_option("pink", "limit_gain")
+    qp_solver: str = qp_option("pink", "qp_solver")
+    tolerance: float = qp_option("pink", "tolerance")
+    max_steps: int = qp_option("pink", "max_steps")
+    track_position_cost: float = qp_option("pink", "track_position_cost")
+    posture_cost: float = qp_option("pink", "posture_cost")
+    speed_fraction: float = qp_option("pink", "speed_fraction")
+    stall: float = qp_option("pink", "stall")
     clearance: float = option(5.0, flag="pink-clearance", unit="mm",
                               help="tasks with obstacles: SelfCollisionBarrier's d_min, the "
                               "least distance kept between the robot's capsules and the "
@@ -176,19 +143,10 @@ class PinkSettings:
 
     def __post_init__(self):
         check_choice(self, "scheme", SCHEMES)
-        check_positive(self, "dt", "position_cost", "track_position_cost", "limit_gain",
-                       "tolerance", "stall")
-        check_positive(self, "max_steps", integer=True)
-        if (self.limit_gain > 1 or self.damping < 0 or self.orientation_cost < 0
-                or self.posture_cost < 0 or not 0 <= self.speed_fraction <= 1):
-            raise InputError("--pink-limit-gain must be in (0, 1], --pink-speed-fraction in "
-                             "[0, 1], --pink-damping, --pink-orientation-cost and "
-                             "--pink-posture-cost >= 0")
         if not (self.clearance >= 0 and 0 < self.barrier_gain <= 1):
             raise InputError("--pink-clearance must be >= 0 [mm] and --pink-barrier-gain in "
                              "(0, 1]")
-        self.max_steps = int(self.max_steps)
-        check_qp_solver(self, "qp_solver")
+        check_qp_settings(self)
 
 
 def pink_model(robot: Robot, chain: Chain) -> tuple[Any, np.ndarray]:
@@ -284,9 +242,9 @@ def solve_chain(robot: Robot, chain: Chain, goals: Goals, settings: PinkSettings
     lower, upper = model.lowerPositionLimit, model.upperPositionLimit
     barriers = {} if avoid is None else {"barriers": avoid.barriers}
 
-    def run(i: int, q_warm: np.ndarray, barriers: dict) -> PointResult:
-        configuration = (pink.Configuration(model, data, q_warm) if avoid is None or not barriers
-                         else avoid.configuration(model, data, q_warm))
+    def run(i: int, q_warm: np.ndarray, avoiding: bool) -> PointResult:
+        configuration = (avoid.configuration(model, data, q_warm) if avoid and avoiding
+                         else pink.Configuration(model, data, q_warm))
 
         def frame():
             T = configuration.get_transform_frame_to_world(POINTING_FRAME)
@@ -296,7 +254,8 @@ def solve_chain(robot: Robot, chain: Chain, goals: Goals, settings: PinkSettings
             p_P, R_P = frame()
             task.set_target(pin.SE3(target_rotation(goals, i, R_P, R_EP), goals.points_m[i]))
             v = pink.solve_ik(configuration, [task], settings.dt, solver=settings.qp_solver,
-                              damping=settings.damping, limits=limits, **barriers)
+                              damping=settings.damping, limits=limits,
+                              **(barriers if avoiding else {}))
             configuration.update(np.clip(configuration.integrate(v, settings.dt), lower, upper))
 
         def measure():
@@ -308,20 +267,9 @@ def solve_chain(robot: Robot, chain: Chain, goals: Goals, settings: PinkSettings
 
     def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
         if avoid is None:
-            return run(i, q_warm, {})
-        spent = 0
-        if avoid.penetrating(model, data, q_warm):
-            # the barrier cannot start inside an obstacle (the walk's first warm start, the
-            # home pose, may be): reach the goal without it first
-            q_free, spent, _ = run(i, q_warm, {})
-            entered.append(i)
-            if not avoid.penetrating(model, data, q_free):  # else: stay, not deeper inside
-                q_warm = q_free
-        try:
-            q, steps, ok = run(i, q_warm, barriers)
-        except NoSolutionFound:  # the barrier's QP is infeasible here
-            q, steps, ok = q_warm, 0, False
-        return PointResult(q, spent + steps, ok)
+            return run(i, q_warm, False)
+        return solve_clear(i, q_warm, run, lambda q: avoid.penetrating(model, data, q),
+                           NoSolutionFound, entered)
 
     entered: list[int] = []
     walk = walk_back(solve_point, chain, goals)
@@ -353,10 +301,8 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: PinkSetti
     posture_task = PostureTask(cost=settings.posture_cost * posture_weights(robot))
     tasks = [frame_task, posture_task]
     limits: list = [ConfigurationLimit(model, config_limit_gain=settings.limit_gain)]
-    box = None
-    if step is not None and settings.speed_fraction > 0:
-        box = SpeedBox(settings.speed_fraction * step, plan.q_touch, len(plan) - 1, lower,
-                       upper, settings.limit_gain)
+    box = SpeedBox.of(plan, step, settings.speed_fraction, lower, upper, settings.limit_gain)
+    if box is not None:
 
         class SpeedLimit(Limit):
             """The speed box (:class:`ikbench.baselines._common.diffik.SpeedBox`) as a pink
@@ -367,18 +313,10 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: PinkSetti
                 return (G, h) if len(h) else None
 
         limits.append(SpeedLimit())
-    previous: dict[str, Any] = {"q": None}
+    warm_start = WarmStart(box, lambda q: np.clip(q, lower, upper), moving_on=scene is None)
 
     def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
-        q0 = q_warm
-        if box is not None:
-            box.set_step(i, q_warm)
-        # the last segment's motion again; not with obstacles: the barrier acts on QP steps
-        # only, and a warm start moved on without it may start inside an obstacle
-        if previous["q"] is not None and scene is None:
-            q0 = q_warm + (q_warm - previous["q"])
-            q0 = np.clip(box.clip(q0) if box is not None else q0, lower, upper)
-        previous["q"] = q_warm
+        q0 = warm_start(i, q_warm)
         configuration = (pink.Configuration(model, data, q0) if avoid is None
                          else avoid.configuration(model, data, q0))
         posture_task.set_target(plan.posture[i])
@@ -401,11 +339,8 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: PinkSetti
             p_P, R_P = frame()
             return track_errors(plan, i, p_P, R_P)
 
-        try:
-            steps, ok = settle(measure, step_once, settings.tolerance, settings.stall,
-                               settings.max_steps)
-        except NoSolutionFound:
-            steps, ok = 0, False
+        steps, ok = settle(measure, step_once, settings.tolerance, settings.stall,
+                           settings.max_steps, NoSolutionFound)
         return PointResult(configuration.q.copy(), steps, ok)
 
     walk = track(solve_point, chain, plan)
@@ -434,17 +369,11 @@ class PinkIK(AvoidsObstacles, LibraryMethod):
 
         pink_model(robot, chain_of(robot))
 
-    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
-        obstacles = current_obstacles()
-        scene = scene_of(robot, obstacles)
+    def solve_scene(self, robot: Robot, chain: Chain, goals: Goals,
+                    scene: Scene | None) -> ChainResult:
         if goals.track is not None:
-            result = solve_track(robot, chain, goals.track, self.settings, goals.max_step,
-                                 scene)
-        else:
-            result = solve_chain(robot, chain, goals, self.settings, scene)
-        result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),
-                                      self.settings.clearance))
-        return result
+            return solve_track(robot, chain, goals.track, self.settings, goals.max_step, scene)
+        return solve_chain(robot, chain, goals, self.settings, scene)
 
 
 class PinkSolver(PoseSolver):

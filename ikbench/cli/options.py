@@ -183,15 +183,18 @@ def add_progress_arguments(parser: argparse.ArgumentParser) -> None:
                         "library at the end")
 
 
-def begin(args: argparse.Namespace) -> None:
-    """The command's input is checked and its work starts: progress goes to a bar on a
-    terminal (not with --quiet) and as JSON lines to --log (:mod:`ikbench.runtime.progress`).
+def begin(args: argparse.Namespace, threads: int | None = None) -> None:
+    """The command's input is checked and its work starts: torch on ``threads`` threads when
+    given (:func:`set_threads`), progress to a bar on a terminal (not with --quiet) and as
+    JSON lines to --log (:mod:`ikbench.runtime.progress`).
 
     Every command calls it between checking its input and its first long or writing step.
     """
     from ikbench.core.chatter import set_verbose
     from ikbench.runtime.progress import configure
 
+    if threads is not None:
+        set_threads(threads)
     target = getattr(args, "progress_log", None)
     if target not in (None, "-"):
         from ikbench.core.io import check_writable
@@ -227,6 +230,16 @@ def set_threads(threads: int) -> None:
     import torch
 
     torch.set_num_threads(threads)
+
+
+def add_study_arguments(parser: argparse.ArgumentParser, output: str) -> None:
+    """The options a batched study (batch, sweep) ends with: ``--output`` (default
+    ``output``, under runs/, which git ignores), the progress options
+    (:func:`add_progress_arguments`) and the executor's (:func:`add_executor_arguments`)."""
+    parser.add_argument("--output", default=output, type=OUTPUT,
+                        help=f"output directory (default: {output}, which git ignores)")
+    add_progress_arguments(parser)
+    add_executor_arguments(parser)
 
 
 def add_executor_arguments(parser: argparse.ArgumentParser) -> None:

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ikbench.core.errors import InputError
+from ikbench.core.errors import InputError, refuse_unknown_keys
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -61,10 +61,7 @@ def _read_collision_file(path: Path) -> dict:
         raise InputError(f"{where}: not valid JSON (line {exc.lineno}): {exc.msg}") from None
     if not isinstance(doc, dict):
         raise InputError(f"{where}: must be a JSON object with keys {', '.join(CONFIG_KEYS)}")
-    unknown = [k for k in doc if k not in CONFIG_KEYS]
-    if unknown:
-        raise InputError(f"{where}: unknown key(s) {', '.join(unknown)}; allowed: "
-                         f"{', '.join(CONFIG_KEYS)}")
+    refuse_unknown_keys(doc, CONFIG_KEYS, where)
     capsules = []
     for k, item in enumerate(doc.get("capsules", [])):
         if not isinstance(item, dict) or sorted(item) != sorted(CAPSULE_KEYS):

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ikbench.core.errors import OutputError
 
@@ -112,6 +113,29 @@ def atomic_savefig(path: str | os.PathLike, fig: Figure, dpi: int = 120) -> Path
         fig.savefig(tmp, dpi=dpi, format="png", bbox_inches="tight")
     plt.close(fig)
     return Path(path)
+
+
+def atomic_write_json(path: str | os.PathLike, value: Any) -> Path:
+    """Write ``value`` as JSON (indented by 2, a final newline) atomically; return the path."""
+    return atomic_write_text(path, json.dumps(value, indent=2) + "\n")
+
+
+def write_study_files(output: str | os.PathLike, stem: str,
+                      tables: Mapping[str, tuple[pd.DataFrame, str]], record: Any,
+                      markdown: Callable[[], str],
+                      figures: Mapping[str, Callable[[], Figure]] | None = None) -> Path:
+    """A study's files in ``output``, each atomically, in this order: the ``tables``
+    (``{file name: (frame, float format)}``) as CSVs, ``record`` as ``<stem>.json``, the
+    ``figures`` (``{file name: function drawing it}``) as PNGs and ``markdown()`` as
+    ``<stem>.md``. Returns the first table's path."""
+    out = Path(output)
+    for name, (frame, float_format) in tables.items():
+        atomic_write_csv(out / name, frame, float_format=float_format)
+    atomic_write_json(out / f"{stem}.json", record)
+    for name, draw in (figures or {}).items():
+        atomic_savefig(out / name, draw())
+    atomic_write_text(out / f"{stem}.md", markdown())
+    return out / next(iter(tables))
 
 
 def check_folder_writable(path: str | os.PathLike) -> Path:

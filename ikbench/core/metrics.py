@@ -82,6 +82,13 @@ def criterion2_mm(points_mm: npt.ArrayLike, touch_point_mm: npt.ArrayLike,
     return out
 
 
+def statistics(name: str, values: np.ndarray, *kinds: str) -> dict[str, float]:
+    """``{name.format(kind): values.<kind>()}`` for each kind in order (``mean``, ``std``:
+    the population std, ``max``), e.g. ``line_distance_mean_mm`` from
+    ``"line_distance_{}_mm"``; ``name`` keeps the values' unit."""
+    return {name.format(kind): float(getattr(values, kind)()) for kind in kinds}
+
+
 def smoothness(poses_motor_deg: npt.ArrayLike) -> dict[str, float]:
     """Fluency figures of a trajectory (n+1, dof) [motor deg], per step (time-free).
 
@@ -150,10 +157,8 @@ def _line_metrics(task, poses, fk) -> dict[str, float]:
     deviations = pointing_deviations_deg(fk.direction[mask], task.goal_directions[mask])
 
     return {
-        "line_distance_mean_mm": float(distances.mean()),
-        "line_distance_std_mm": float(distances.std()),
-        "pointing_deviation_mean_deg": float(deviations.mean()),
-        "pointing_deviation_std_deg": float(deviations.std()),
+        **statistics("line_distance_{}_mm", distances, "mean", "std"),
+        **statistics("pointing_deviation_{}_deg", deviations, "mean", "std"),
         **_end_errors_and_smoothness(task, fk.point_mm, poses),
     }
 
@@ -182,14 +187,9 @@ def shape_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
     deviations = pointing_deviations_deg(fk.direction[mask], task.goal_directions[mask])
 
     return {
-        "curve_distance_mean_mm": float(distances.mean()),
-        "curve_distance_std_mm": float(distances.std()),
-        "curve_distance_max_mm": float(distances.max()),
-        "point_error_mean_mm": float(errors.mean()),
-        "point_error_max_mm": float(errors.max()),
-        "pointing_deviation_mean_deg": float(deviations.mean()),
-        "pointing_deviation_std_deg": float(deviations.std()),
-        "pointing_deviation_max_deg": float(deviations.max()),
+        **statistics("curve_distance_{}_mm", distances, "mean", "std", "max"),
+        **statistics("point_error_{}_mm", errors, "mean", "max"),
+        **statistics("pointing_deviation_{}_deg", deviations, "mean", "std", "max"),
         **_end_errors_and_smoothness(task, fk.point_mm, poses),
     }
 
@@ -245,10 +245,8 @@ def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[st
     lower, upper = task.limits(robot)
     within = bool(np.all(poses >= lower - 1e-9) and np.all(poses <= upper + 1e-9))
     out = {
-        "position_error_mean_mm": float(position.mean()),
-        "position_error_max_mm": float(position.max()),
-        "rotation_error_mean_deg": float(rotation.mean()),
-        "rotation_error_max_deg": float(rotation.max()),
+        **statistics("position_error_{}_mm", position, "mean", "max"),
+        **statistics("rotation_error_{}_deg", rotation, "mean", "max"),
         "max_joint_change_deg": float(np.abs(revolute).max()) if revolute.size else 0.0,
         "max_joint_change_mm": float(np.abs(prismatic).max()) if prismatic.size else np.nan,
         "joint_path_length_deg": float(np.abs(revolute).sum()),
@@ -320,8 +318,7 @@ def contract_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike,
     judged &= mask
     if contract.pointing and judged.any():
         deviations = pointing_deviations_deg(fk.direction[judged], task.goal_directions[judged])
-        out["pointing_deviation_judged_mean_deg"] = float(deviations.mean())
-        out["pointing_deviation_judged_max_deg"] = float(deviations.max())
+        out.update(statistics("pointing_deviation_judged_{}_deg", deviations, "mean", "max"))
     else:
         out["pointing_deviation_judged_mean_deg"] = float("nan")
         out["pointing_deviation_judged_max_deg"] = float("nan")

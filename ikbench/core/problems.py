@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ikbench.core.errors import InputError
+from ikbench.core.errors import InputError, refuse_unknown_keys
 from ikbench.core.kinematics.pinocchio_fk import chain_urdf_xml, link_frame_id
 from ikbench.core.obstacles import cppflow_obstacles
 from ikbench.core.robot import load_robot, shipped_robots
@@ -165,10 +165,7 @@ def read_problem(spec: str | Path) -> CartesianProblem:
     path = resolve_problem(spec)
     doc = _load_yaml(path)
     where = str(path)
-    unknown = [k for k in doc if k not in KEYS]
-    if unknown:
-        raise InputError(f"{where}: unknown key(s) {', '.join(map(repr, unknown))}; allowed: "
-                         f"{', '.join(KEYS)}")
+    refuse_unknown_keys(doc, KEYS, where)
     missing = [k for k in REQUIRED if k not in doc]
     if missing:
         raise InputError(f"{where}: missing key(s) {', '.join(missing)}; a problem needs "

@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.defaults import DEFAULT_ROBOT
-from ikbench.core.errors import InputError
+from ikbench.core.errors import InputError, refuse_unknown_keys
 from ikbench.core.kinematics.chain import ChainKinematics
 from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
 from ikbench.core.kinematics.torch_fk import TorchFK
@@ -441,10 +441,7 @@ def _read_config(path: Path) -> dict:
                       "motor_map": path.name}
     except (OSError, UnicodeDecodeError, ValueError, KeyError) as exc:
         raise InputError(f"robot config {str(path)!r} cannot be read: {exc}") from None
-    unknown = [k for k in config if k not in CONFIG_KEYS]
-    if unknown:
-        raise InputError(f"robot config {str(path)!r}: unknown key(s) "
-                         f"{', '.join(map(repr, unknown))}; allowed: {', '.join(CONFIG_KEYS)}")
+    refuse_unknown_keys(config, CONFIG_KEYS, f"robot config {str(path)!r}")
     missing = [k for k in ("urdf", "end_frame") if k not in config]
     if missing:
         raise InputError(f"robot config {str(path)!r}: missing key(s) {', '.join(missing)}")

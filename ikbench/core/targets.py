@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ikbench.core.errors import InputError, TargetsError
+from ikbench.core.errors import InputError, TargetsError, refuse_unknown_keys
 from ikbench.core.obstacles import load_file, named_sets, parse_obstacles
 from ikbench.core.robot import Robot, load_robot
 
@@ -190,10 +190,7 @@ def parse_targets(spec: dict, robot: Robot, source: str, folder: Path | None = N
     where = "targets file" if source == PAPER_TARGETS else source
     if not isinstance(spec, dict):
         raise TargetsError(f"{where}: top level must be a JSON object")
-    unknown = [k for k in spec if k not in KEYS]
-    if unknown:
-        raise TargetsError(f"{where}: unknown key(s) {', '.join(map(repr, unknown))}; "
-                           f"allowed: {', '.join(KEYS)}")
+    refuse_unknown_keys(spec, KEYS, where, TargetsError)
     missing = [k for k in ("joint_names", "start_pose", "targets") if k not in spec]
     if missing:
         raise TargetsError(

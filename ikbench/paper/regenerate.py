@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ikbench.core.errors import InputError
-from ikbench.core.io import atomic_write_text
+from ikbench.core.io import atomic_write_json
 from ikbench.core.provenance import REPO, git_state, load_average
 from ikbench.render.blocks import documents, render_files
 
@@ -214,7 +214,7 @@ def regenerate(output: str | Path = "results", only: Sequence[str] | None = None
                           "wall_s": round(wall, 1), "load_start": load_start,
                           "load_end": load_average(), "writes": list(s.writes)}
         out.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(out / RECORD, json.dumps(record, indent=2) + "\n")
+        atomic_write_json(out / RECORD, record)
         say(f"[{k + 1}/{len(studies)}] {s.name} done in {wall / 60:.1f} min")
     changed = render_files(documents(REPO), REPO) if out.resolve() == (REPO / "results") \
         .resolve() else []

@@ -21,7 +21,6 @@ solves them in one batched call per weight setting, measures every trajectory wi
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -35,7 +34,7 @@ import pandas as pd
 
 from ikbench.core.defaults import DEFAULT_ROBOT
 from ikbench.core.errors import InputError
-from ikbench.core.io import atomic_write_csv, atomic_write_text
+from ikbench.core.io import write_study_files
 from ikbench.core.losses import PAPER_WEIGHTS, TERMS, parse_weights
 from ikbench.core.metrics import trajectory_metrics
 from ikbench.core.provenance import provenance
@@ -320,13 +319,11 @@ def _summarise(label, weights, frame, solve_s, count, line_tol, end_tol, measure
 
 def write(report: BatchReport, output: str | Path) -> Path:
     """Write batch.csv, batch_trajectories.csv, touch_poses.csv, batch.json and batch.md."""
-    out = Path(output)
-    atomic_write_csv(out / "batch.csv", report.summary, float_format="%.6g")
-    atomic_write_csv(out / "batch_trajectories.csv", report.trajectories, float_format="%.6g")
-    atomic_write_csv(out / "touch_poses.csv", report.touch_poses, float_format="%.10g")
-    atomic_write_text(out / "batch.json", json.dumps(report.record, indent=2) + "\n")
-    atomic_write_text(out / "batch.md", markdown(report))
-    return out / "batch.csv"
+    return write_study_files(output, "batch",
+                             {"batch.csv": (report.summary, "%.6g"),
+                              "batch_trajectories.csv": (report.trajectories, "%.6g"),
+                              "touch_poses.csv": (report.touch_poses, "%.10g")},
+                             report.record, lambda: markdown(report))
 
 
 def markdown(report: BatchReport) -> str:

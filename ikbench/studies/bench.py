@@ -15,7 +15,6 @@ for ``ours``, which takes tens of seconds per round for the paper's seven target
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -26,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from ikbench.core.errors import InputError
-from ikbench.core.io import atomic_write_csv, atomic_write_text
+from ikbench.core.io import write_study_files
 from ikbench.core.losses import objective
 from ikbench.core.metrics import trajectory_metrics
 from ikbench.core.provenance import provenance
@@ -210,12 +209,9 @@ def summarise(robot: Robot, tasks: Sequence[Task], names: Sequence[str], runs: p
 
 def write(result: BenchResult, output: str | Path) -> Path:
     """Write benchmark.csv, benchmark_runs.csv, benchmark.json and benchmark.md."""
-    out = Path(output)
-    atomic_write_csv(out / "benchmark.csv", result.summary, float_format="%.6g")
-    atomic_write_csv(out / "benchmark_runs.csv", result.runs, float_format="%.6g")
-    atomic_write_text(out / "benchmark.json", json.dumps(result.record, indent=2) + "\n")
-    atomic_write_text(out / "benchmark.md", markdown(result))
-    return out / "benchmark.csv"
+    return write_study_files(output, "benchmark", {"benchmark.csv": (result.summary, "%.6g"),
+                                                   "benchmark_runs.csv": (result.runs, "%.6g")},
+                             result.record, lambda: markdown(result))
 
 
 def speedup_ranges(summary: pd.DataFrame, base: str) -> dict[str, tuple]:

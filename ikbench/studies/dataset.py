@@ -40,7 +40,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.errors import InputError
-from ikbench.core.io import atomic_path, atomic_write_text
+from ikbench.core.io import atomic_path, atomic_write_json
 from ikbench.core.losses import TERMS, parse_weights
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
@@ -219,7 +219,7 @@ def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
              f"({executor.workers} worker(s)) with {_solver_name(settings)}")
     log.advance(count - sum(s.count for s in missing))
     manifest = _manifest(config, count, specs, output, executor, None)
-    atomic_write_text(Path(output) / MANIFEST, json.dumps(manifest, indent=2) + "\n")
+    atomic_write_json(Path(output) / MANIFEST, manifest)
     began, written, done = time.perf_counter(), [], count - sum(s.count for s in missing)
     draws = 0
     if isinstance(executor, LocalExecutor):  # in this process: sample, solve, write overlap
@@ -241,7 +241,7 @@ def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
     except KeyboardInterrupt:  # complete shards stay (a rerun resumes); the manifest says so
         manifest = {**_manifest(config, count, specs, output, executor, None),
                     "interrupted": {"shards_built": len(written), "shards_kept": len(kept)}}
-        atomic_write_text(Path(output) / MANIFEST, json.dumps(manifest, indent=2) + "\n")
+        atomic_write_json(Path(output) / MANIFEST, manifest)
         raise
     finally:
         log.close()
@@ -251,7 +251,7 @@ def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
            "wall_s": wall, "trajectories_per_s": (sum(s.count for s in missing) / wall
                                                   if wall > 0 and missing else None)}
     manifest = _manifest(config, count, specs, output, executor, run)
-    atomic_write_text(Path(output) / MANIFEST, json.dumps(manifest, indent=2) + "\n")
+    atomic_write_json(Path(output) / MANIFEST, manifest)
     log.note(f"done: {count} trajectories in {output}/ "
              f"({manifest['summary']['converged_share']:.1%} converged); this run built "
              f"{len(written)} shard(s) in {wall:.1f} s")

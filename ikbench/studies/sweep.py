@@ -26,6 +26,7 @@ import json
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -35,7 +36,7 @@ import pandas as pd
 
 from ikbench.core.budget import check_memory
 from ikbench.core.errors import InputError
-from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text
+from ikbench.core.io import write_study_files
 from ikbench.core.letters import DEFAULT_SIZE_MM
 from ikbench.core.losses import PAPER_WEIGHTS, TERMS, objective
 from ikbench.core.metrics import shape_metrics, trajectory_metrics
@@ -537,15 +538,13 @@ def findings(table: pd.DataFrame, reference: str = "the paper's weights",
 
 def write(result: SweepResult, output: str | Path) -> Path:
     """Write sweep.csv, sweep_trajectories.csv, pareto.png, sweep.json and sweep.md."""
-    out = Path(output)
-    atomic_write_csv(out / "sweep.csv", result.settings, float_format="%.6g")
-    atomic_write_csv(out / "sweep_trajectories.csv", result.trajectories, float_format="%.6g")
-    atomic_write_text(out / "sweep.json", json.dumps(result.record, indent=2) + "\n")
-    atomic_savefig(out / "pareto.png", plot_pareto(
-        result.settings, reference=result.record.get("reference", "the paper's weights"),
-        method=result.record.get("method", "ours-lm")))
-    atomic_write_text(out / "sweep.md", markdown(result))
-    return out / "sweep.csv"
+    pareto = partial(plot_pareto, result.settings,
+                     reference=result.record.get("reference", "the paper's weights"),
+                     method=result.record.get("method", "ours-lm"))
+    return write_study_files(output, "sweep",
+                             {"sweep.csv": (result.settings, "%.6g"),
+                              "sweep_trajectories.csv": (result.trajectories, "%.6g")},
+                             result.record, lambda: markdown(result), {"pareto.png": pareto})
 
 
 def _exact_findings(table, reference_row, m: Measures, reference: str) -> list[str]:

@@ -19,7 +19,6 @@ timed round), ``throughput.json`` (device, CPU, versions) and ``throughput.md``.
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -30,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from ikbench.core.errors import InputError
-from ikbench.core.io import atomic_write_csv, atomic_write_text
+from ikbench.core.io import write_study_files
 from ikbench.core.losses import PAPER_WEIGHTS
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
@@ -232,12 +231,10 @@ def _versions(numba: bool, threads: int | None) -> dict:
 
 def write(result: ThroughputResult, output: str | Path) -> Path:
     """Write throughput.csv, throughput_runs.csv, throughput.json and throughput.md."""
-    out = Path(output)
-    atomic_write_csv(out / "throughput.csv", result.summary, float_format="%.6g")
-    atomic_write_csv(out / "throughput_runs.csv", result.runs, float_format="%.6g")
-    atomic_write_text(out / "throughput.json", json.dumps(result.record, indent=2) + "\n")
-    atomic_write_text(out / "throughput.md", markdown(result))
-    return out / "throughput.csv"
+    return write_study_files(output, "throughput",
+                             {"throughput.csv": (result.summary, "%.6g"),
+                              "throughput_runs.csv": (result.runs, "%.6g")},
+                             result.record, lambda: markdown(result))
 
 
 def markdown(result: ThroughputResult) -> str:

@@ -12,7 +12,6 @@ from ikbench.cli.options import (
     check_threads,
     method_from_args,
     robot_from_args,
-    set_threads,
     targets_from_args,
 )
 from ikbench.cli.values import OUTPUT
@@ -77,8 +76,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     check_folder_writable(Path(args.output) / "ablation")
-    set_threads(args.threads)
-    begin(args)
+    begin(args, threads=args.threads)
     weights = solver.settings.weights
     table = ablate(drops, args.method, targets=targets, output=args.output, options=options,
                    base_weights=weights if isinstance(weights, dict) else parse_weights(weights),

@@ -5,15 +5,14 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.options import (
-    add_executor_arguments,
-    add_progress_arguments,
     add_robot_arguments,
+    add_study_arguments,
     begin,
     check_executor_args,
     executor_from_args,
     robot_from_args,
 )
-from ikbench.cli.values import OUTPUT, SEED, STEPS, count, tolerance
+from ikbench.cli.values import SEED, STEPS, count, tolerance
 
 HELP = "sample random reachable touch poses, solve them in one batch (ours-lm)"
 #: A tolerance on a distance (up to 10 m).
@@ -58,10 +57,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"tolerance on the mean line distance (default {LINE_TOLERANCE_MM})")
     parser.add_argument("--end-tolerance-mm", type=TOLERANCE_MM, default=END_TOLERANCE_MM,
                         help=f"tolerance on the end point error (default {END_TOLERANCE_MM})")
-    parser.add_argument("--output", default="runs/batch", type=OUTPUT,
-                        help="output directory (default: runs/batch, which git ignores)")
-    add_progress_arguments(parser)
-    add_executor_arguments(parser)
+    add_study_arguments(parser, "runs/batch")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -10,7 +10,6 @@ from ikbench.cli.options import (
     begin,
     check_threads,
     robot_from_args,
-    set_threads,
     targets_from_args,
 )
 from ikbench.cli.values import OUTPUT, THREADS, count
@@ -102,8 +101,7 @@ def run(args: argparse.Namespace) -> int:
     robot = robot_from_args(args)
     targets = targets_from_args(args, robot)
     check_writable(Path(args.output) / "benchmark.csv")  # before the timed rounds
-    set_threads(args.threads or 1)
-    begin(args)
+    begin(args, threads=args.threads or 1)
     result = benchmark(names, repeat=args.repeat, warmup=args.warmup, targets=targets,
                        progress=not args.quiet, robot=robot)
     path = write(result, args.output)
@@ -152,8 +150,7 @@ def run_throughput(args: argparse.Namespace) -> int:
     assert device is not None, "the throughput mode runs with --device"
     robot = robot_from_args(args)
     check_writable(Path(args.output) / "throughput.csv")  # before the timed rounds
-    set_threads(args.threads or 1)
-    begin(args)
+    begin(args, threads=args.threads or 1)
     result = throughput(device, batches=batches, dtypes=dtypes, repeat=repeat,
                         warmup=args.warmup, numpy_max_batch=args.numpy_max_batch or 10_000,
                         steps=args.steps, targets=args.targets, robot=robot,

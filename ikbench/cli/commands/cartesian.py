@@ -12,7 +12,6 @@ from ikbench.cli.options import (
     add_progress_arguments,
     begin,
     check_threads,
-    set_threads,
 )
 from ikbench.cli.values import OUTPUT, THREADS
 from ikbench.core.errors import InputError
@@ -133,8 +132,7 @@ def run(args: argparse.Namespace) -> int:
         build_method(name, seeds[0], options.get(name))
     folder = Path(args.output) / FOLDER
     check_folder_writable(folder)
-    set_threads(args.threads)
-    begin(args)
+    begin(args, threads=args.threads)
     result = cartesian(problems, names, seeds, options, progress=not args.quiet)
     write(result, args.output, command_line(args, problems, seeds), args.trajectories)
     from ikbench.render.cartesian_report import summarise

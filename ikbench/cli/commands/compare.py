@@ -15,7 +15,6 @@ from ikbench.cli.options import (
     check_threads,
     executor_from_args,
     robot_from_args,
-    set_threads,
     targets_from_args,
 )
 from ikbench.cli.values import OUTPUT, count, duration_s
@@ -122,8 +121,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--reference: {args.reference!r} is not among --methods "
                          f"{', '.join(names)}")
     check_folder_writable(Path(args.output) / "compare")
-    set_threads(args.threads)
-    begin(args)
+    begin(args, threads=args.threads)
     from ikbench.runtime.harness import Interrupted
 
     try:

@@ -15,7 +15,6 @@ from ikbench.cli.options import (
     executor_from_args,
     method_from_args,
     robot_from_args,
-    set_threads,
 )
 from ikbench.cli.values import OUTPUT, SEED, STEPS, THREADS, count
 from ikbench.core.errors import InputError
@@ -89,8 +88,7 @@ def run(args: argparse.Namespace) -> int:
 
     load_targets(args.targets, robot)  # its start pose is used: checked up front
     check_writable(Path(args.output) / MANIFEST)  # before sampling and solving
-    set_threads(args.threads)
-    begin(args)
+    begin(args, threads=args.threads)
     report = build_dataset(args.count, seed=args.seed, steps=args.steps,
                            shard_size=args.shard_size, lm_settings=solver.settings,
                            targets=args.targets, robot=robot, output=args.output,

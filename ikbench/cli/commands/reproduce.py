@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.options import add_threads_and_quiet, begin, check_threads, set_threads
+from ikbench.cli.options import add_threads_and_quiet, begin, check_threads
 from ikbench.cli.values import OUTPUT
 from ikbench.core.errors import InputError
 
@@ -70,8 +70,7 @@ def run(args: argparse.Namespace) -> int:
 
     check_threads(args.threads)
     check_output(args.output, args.quick)
-    set_threads(args.threads)
-    begin(args)
+    begin(args, threads=args.threads)
     times = reproduce(args.output, quick=args.quick, progress=not args.quiet)
     width = max(map(len, times))
     for stage, seconds in times.items():

@@ -14,7 +14,6 @@ from ikbench.cli.options import (
     check_threads,
     method_from_args,
     robot_from_args,
-    set_threads,
 )
 from ikbench.cli.values import OUTPUT, STEPS, Number, Text, duration_s
 from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_ROBOT
@@ -197,8 +196,7 @@ def run(args: argparse.Namespace, shape: str | None = None, fixed: dict | None =
     note = lowercase_letters_note(shape)
     if note:
         print(note, file=sys.stderr)
-    set_threads(args.threads)
-    begin(args)
+    begin(args, threads=args.threads)
     record = {"shape": shape, "direction": args.direction, "duration_s": args.duration,
               "name": name, "size_mm": args.size, "timing": args.timing}
     return solve_write_report(solver, robot, targets, tasks, folder, record, args.quiet,
@@ -247,8 +245,7 @@ def run_problem(args: argparse.Namespace, fixed: dict | None = None) -> int:
     solver, robot, targets, tasks, record = prepare_problem(solver, args.problem, robot=robot)
     folder = Path(args.output) / (name or solver.name)
     check_folder_writable(folder)
-    set_threads(args.threads)
-    begin(args)
+    begin(args, threads=args.threads)
     record = {**record, "direction": None, "duration_s": args.duration, "name": name,
               "timing": args.timing}
     return solve_write_report(solver, robot, targets, tasks, folder, record, args.quiet,

@@ -7,14 +7,13 @@ import argparse
 from ikbench.cli.commands.letters import paper_start_pose
 from ikbench.cli.commands.run import add_task_arguments
 from ikbench.cli.options import (
-    add_executor_arguments,
-    add_progress_arguments,
+    add_study_arguments,
     begin,
     check_executor_args,
     executor_from_args,
     robot_from_args,
 )
-from ikbench.cli.values import MAX_LIST_CHARS, OUTPUT, Text
+from ikbench.cli.values import MAX_LIST_CHARS, Text
 
 HELP = ("solve the targets or a shape for a grid of loss weights (ours-lm or ours-exact); "
         "CSV, Pareto figure")
@@ -44,10 +43,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3 (line only)",
                        start_pose_default=f"the targets file's; for letters the robot's "
                        f"letter pose, NICO: the paper's {paper_start_pose()}")
-    parser.add_argument("--output", default="runs/sweep", type=OUTPUT,
-                        help="output directory (default: runs/sweep, which git ignores)")
-    add_progress_arguments(parser)
-    add_executor_arguments(parser)
+    add_study_arguments(parser, "runs/sweep")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -13,18 +13,20 @@ placements (``rotations``, ``translations``), ``axes``, their cross-product matr
 and ``urdf_per_unit``. Its twins take these arrays from it and read nothing else of the
 model: :class:`~ikbench.core.kinematics.chain_torch.TorchChainKinematics` (torch, any device
 and dtype, for ours-lm's torch backend) and :class:`ikbench.methods.ours_lm.compiled.Chain`
-(numba). The pass over the joints is written once per array library, not shared, because
-one loop for all three would need an array-namespace layer (eye, zeros, stack, sin, cos,
-cross, where) around twenty lines of algebra: numpy functions turn a CUDA tensor into an
-error or a host copy, torch functions take no ndarray, and numba compiles neither torch nor
-the batched ``(M, 3, 3) @ (3, 3)`` products used here (its matmul takes 1-D and 2-D arrays),
-so the compiled loop is written per pose in scalars. The loops are kept equal by tests
-instead: ``tests/test_ours_lm_torch.py`` (torch = numpy to 1e-12 on revolute, prismatic,
-continuous and unaligned axes) and ``tests/test_ours_lm_compiled.py`` (numba = numpy).
+(numba). numpy and torch share the pass over the joints (:func:`joint_product`): it needs
+only ``@``, ``+``, ``*`` and indexing, which both read alike, and each library hands it its
+own rotation about a joint axis (the sines and cosines are the part that differs: numpy
+functions turn a CUDA tensor into an error or a host copy, torch functions take no ndarray).
+numba compiles neither torch nor the batched ``(M, 3, 3) @ (3, 3)`` products used here (its
+matmul takes 1-D and 2-D arrays), so the compiled loop is written per pose in scalars. The
+loops are kept equal by tests: ``tests/test_ours_lm_torch.py`` (torch = numpy to 1e-12 on
+revolute, prismatic, continuous and unaligned axes) and ``tests/test_ours_lm_compiled.py``
+(numba = numpy).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
@@ -66,6 +68,25 @@ def cross_matrices(axes: npt.ArrayLike) -> np.ndarray:
     skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -a[:, 2], a[:, 1], -a[:, 0]
     skew -= skew.transpose(0, 2, 1)
     return skew
+
+
+def joint_product(rot: Any, pos: Any, q: Any, chain: Any, turn: Callable[[int, Any], Any]
+                  ) -> Iterator[tuple[Any, Any, Any]]:
+    """The pass over a chain's joints, on numpy arrays or torch tensors alike: from the frame
+    ``rot`` (M, 3, 3), ``pos`` (M, 3) [m], through each joint j's placement
+    (``chain.rotations[j]``, ``chain.translations[j]``) and its motion by ``q[:, j]`` [rad, m]:
+    along ``chain.axes[j]`` for a prismatic joint (``chain.prismatic[j]``), else the rotation
+    ``turn(j, q[:, j])`` (M, 3, 3) about it. Yields each joint's frame after its motion:
+    (rotation (M, 3, 3), origin (M, 3) [m], axis in the base frame (M, 3))."""
+    for j in range(len(chain.axes)):
+        pos = pos + rot @ chain.translations[j]
+        rot = rot @ chain.rotations[j]
+        axis = chain.axes[j]
+        if chain.prismatic[j]:
+            pos = pos + (rot @ axis) * q[:, j, None]
+        else:
+            rot = rot @ turn(j, q[:, j])
+        yield rot, pos, rot @ axis
 
 
 def axis_rotation(axis: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
@@ -132,20 +153,9 @@ class ChainKinematics:
         joint's frame (after its motion) in the base frame, for poses (M, dof)."""
         q = self.robot.to_urdf(np.asarray(poses, dtype=float))
         m = len(q)
-        rot = np.broadcast_to(np.eye(3), (m, 3, 3))
-        pos = np.zeros((m, 3))
-        rotations, axes_world, origins = [], [], []
-        for j in range(self.dof):
-            pos = pos + rot @ self.translations[j]
-            rot = rot @ self.rotations[j]
-            axis = self.axes[j]
-            if self.prismatic[j]:
-                pos = pos + (rot @ axis) * q[:, j, None]
-            else:
-                rot = rot @ axis_rotation(axis, q[:, j])
-            rotations.append(rot)
-            axes_world.append(rot @ axis)
-            origins.append(pos)
+        rotations, origins, axes_world = zip(*joint_product(
+            np.broadcast_to(np.eye(3), (m, 3, 3)), np.zeros((m, 3)), q, self,
+            lambda j, angle: axis_rotation(self.axes[j], angle)), strict=True)
         return np.stack(rotations, 1), np.stack(origins, 1), np.stack(axes_world, 1)
 
     def __call__(self, poses: npt.ArrayLike, jacobian: bool = True) -> Frames:

@@ -8,16 +8,18 @@ world axis w through o, dP/dq = w x (P - o) and dv/dq = w x v; for a prismatic j
 dP/dq = w and dv/dq = 0; times dq/dp, the URDF units per pose unit. In float64 its outputs
 equal the numpy chain's to about 1e-15 (``tests/test_ours_lm_torch.py`` holds them to 1e-12).
 
-Why the pass over the joints is written here again rather than shared with the numpy chain:
-it has to stay in torch operations on the tensors' device (numpy's functions reject CUDA
-tensors, torch's take no ndarray), and one loop for both would need an array-namespace layer
-(eye, zeros, stack, sin, cos, cross, where) around twenty lines of algebra; the chain module's
-docstring names the third twin, numba's.
+The pass over the joints is the numpy chain's,
+:func:`~ikbench.core.kinematics.chain.joint_product` (only ``@``, ``+``, ``*`` and indexing,
+alike on tensors), given the rotation about each joint axis in torch operations on the
+tensors' device (:func:`_rotation`); the chain module's docstring names the third twin,
+numba's.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
+
+from ikbench.core.kinematics.chain import joint_product
 
 if TYPE_CHECKING:
     import torch
@@ -83,19 +85,10 @@ class TorchChainKinematics:
         q = self.robot.to_urdf(poses)
         m = q.shape[0]
         eye = torch.eye(3, dtype=self.dtype, device=self.device)
-        rot = eye.expand(m, 3, 3)
-        pos = torch.zeros(m, 3, dtype=self.dtype, device=self.device)
-        axes_world, origins = [], []
-        for j in range(self.dof):
-            pos = pos + rot @ self.translations[j]
-            rot = rot @ self.rotations[j]
-            axis = self.axes[j]
-            if self.prismatic[j]:
-                pos = pos + (rot @ axis) * q[:, j, None]
-            else:
-                rot = rot @ _rotation(eye, self.skews[j], q[:, j])
-            axes_world.append(rot @ axis)
-            origins.append(pos)
+        rotations, origins, axes_world = zip(*joint_product(
+            eye.expand(m, 3, 3), torch.zeros(m, 3, dtype=self.dtype, device=self.device), q,
+            self, lambda j, angle: _rotation(eye, self.skews[j], angle)), strict=True)
+        rot, pos = rotations[-1], origins[-1]
         point = pos + rot @ self.tip_translation
         return (point, rot @ self.tip_rotation, torch.stack(axes_world, 1),
                 torch.stack(origins, 1))

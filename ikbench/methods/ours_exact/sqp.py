@@ -34,7 +34,7 @@ from ikbench.methods.ours_exact.problem import (
     evaluate,
     kinematics_at,
 )
-from ikbench.methods.ours_lm.solver import nielsen_update
+from ikbench.methods.ours_lm.solver import batch_bookkeeping, nielsen_update
 
 if TYPE_CHECKING:
     from ikbench.core.kinematics.chain import ChainKinematics
@@ -100,10 +100,7 @@ def solve(kinematics: ChainKinematics, problem: ExactProblem, initial: np.ndarra
     multipliers = np.zeros_like(current.residual)
     rho = np.zeros(b)
     mu = np.full(b, damping)
-    nu = np.full(b, 2.0)
-    iterations = np.zeros(b, dtype=int)
-    converged = np.zeros(b, dtype=bool)
-    active = np.arange(b)
+    nu, iterations, converged, active = batch_bookkeeping(b)
     while active.size:
         sub = problem.take(active)
         model = current.take(active)

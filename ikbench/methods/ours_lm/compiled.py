@@ -40,7 +40,7 @@ from numba import njit, prange
 
 from ikbench.core.losses import PAPER_WEIGHTS
 from ikbench.core.task import Task
-from ikbench.methods.ours_lm.compiled_chain import Chain, sin_cos
+from ikbench.methods.ours_lm.compiled_chain import Chain, joint_step, sin_cos
 from ikbench.methods.ours_lm.problem import CM_PER_M, Problem, Weights
 from ikbench.methods.ours_lm.settings import (
     BOUND_EPS_DEG,
@@ -280,8 +280,7 @@ def _residual_weights(c, n, k):
 def _kinematics(x, chain, point, direc, jp, jd, w_axes, origins, kt, derivatives=True):
     """End point [cm], direction and (``derivatives``) their Jacobians per pose unit for
     poses x (N, k); ``chain``: :meth:`Chain.arrays`."""
-    (trans, rots, rot_k, rot_k2, axes, prismatic, per_unit, mscale, moffset, msi, tip_t,
-     tip_axis) = chain
+    _, _, _, _, _, prismatic, per_unit, mscale, moffset, msi, tip_t, tip_axis = chain
     n = x.shape[0]
     k = len(kt)
     sines, versines = np.empty((n, k)), np.empty((n, k))
@@ -293,39 +292,10 @@ def _kinematics(x, chain, point, direc, jp, jd, w_axes, origins, kt, derivatives
         a, b, c, d, e, f, g, h, o = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
         p0 = p1 = p2 = 0.0
         for j in range(k):
-            t0, t1, t2 = trans[j, 0], trans[j, 1], trans[j, 2]
-            p0 += a * t0 + b * t1 + c * t2
-            p1 += d * t0 + e * t1 + f * t2
-            p2 += g * t0 + h * t1 + o * t2
-            sn, cs = sines[i, j], versines[i, j]
-            if prismatic[j]:
-                sn = cs = 0.0
-            m = rots[j]
-            s00 = m[0, 0] + sn * rot_k[j, 0, 0] + cs * rot_k2[j, 0, 0]
-            s01 = m[0, 1] + sn * rot_k[j, 0, 1] + cs * rot_k2[j, 0, 1]
-            s02 = m[0, 2] + sn * rot_k[j, 0, 2] + cs * rot_k2[j, 0, 2]
-            s10 = m[1, 0] + sn * rot_k[j, 1, 0] + cs * rot_k2[j, 1, 0]
-            s11 = m[1, 1] + sn * rot_k[j, 1, 1] + cs * rot_k2[j, 1, 1]
-            s12 = m[1, 2] + sn * rot_k[j, 1, 2] + cs * rot_k2[j, 1, 2]
-            s20 = m[2, 0] + sn * rot_k[j, 2, 0] + cs * rot_k2[j, 2, 0]
-            s21 = m[2, 1] + sn * rot_k[j, 2, 1] + cs * rot_k2[j, 2, 1]
-            s22 = m[2, 2] + sn * rot_k[j, 2, 2] + cs * rot_k2[j, 2, 2]
-            a, b, c, d, e, f, g, h, o = (
-                a * s00 + b * s10 + c * s20, a * s01 + b * s11 + c * s21,
-                a * s02 + b * s12 + c * s22, d * s00 + e * s10 + f * s20,
-                d * s01 + e * s11 + f * s21, d * s02 + e * s12 + f * s22,
-                g * s00 + h * s10 + o * s20, g * s01 + h * s11 + o * s21,
-                g * s02 + h * s12 + o * s22)
-            u0, u1, u2 = axes[j, 0], axes[j, 1], axes[j, 2]
-            w0 = a * u0 + b * u1 + c * u2
-            w1 = d * u0 + e * u1 + f * u2
-            w2 = g * u0 + h * u1 + o * u2
+            (a, b, c, d, e, f, g, h, o, p0, p1, p2, w0, w1, w2) = joint_step(
+                chain, j, (x[i, j] * mscale[j] + moffset[j]) * msi[j], sines[i, j],
+                versines[i, j], a, b, c, d, e, f, g, h, o, p0, p1, p2)
             w_axes[j, 0], w_axes[j, 1], w_axes[j, 2] = w0, w1, w2
-            if prismatic[j]:
-                q = (x[i, j] * mscale[j] + moffset[j]) * msi[j]
-                p0 += w0 * q
-                p1 += w1 * q
-                p2 += w2 * q
             origins[j, 0], origins[j, 1], origins[j, 2] = p0, p1, p2
         t0, t1, t2 = tip_t[0], tip_t[1], tip_t[2]
         point[i, 0] = p0 + a * t0 + b * t1 + c * t2

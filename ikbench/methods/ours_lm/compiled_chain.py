@@ -127,6 +127,58 @@ def sin_cos(angle: float) -> tuple[float, float]:
     return sin_sign * sin_r, cos_sign * cos_r
 
 
+@njit(cache=True, inline="always")
+def rotate(a: float, b: float, c: float, d: float, e: float, f: float, g: float, h: float,
+           o: float, s00: float, s01: float, s02: float, s10: float, s11: float, s12: float,
+           s20: float, s21: float, s22: float) -> tuple[float, ...]:
+    """The product of two rotations in scalars (row-major): (a .. o) (s00 .. s22)."""
+    return (a * s00 + b * s10 + c * s20, a * s01 + b * s11 + c * s21,
+            a * s02 + b * s12 + c * s22, d * s00 + e * s10 + f * s20,
+            d * s01 + e * s11 + f * s21, d * s02 + e * s12 + f * s22,
+            g * s00 + h * s10 + o * s20, g * s01 + h * s11 + o * s21,
+            g * s02 + h * s12 + o * s22)
+
+
+@njit(cache=True, inline="always")
+def joint_step(chain: tuple, j: int, q_urdf: float, sn: float, vs: float, a: float, b: float,
+               c: float, d: float, e: float, f: float, g: float, h: float, o: float, p0: float,
+               p1: float, p2: float) -> tuple[float, ...]:
+    """Joint ``j`` of the forward product on :meth:`Chain.arrays`' constants, in scalars: from
+    the frame before it, the rotation (a .. o, row-major) and origin (p0, p1, p2) [m], to its
+    own after its placement and its motion (``q_urdf`` [rad, m], ``sn`` = sin q_urdf, ``vs``
+    = 1 - cos q_urdf; a prismatic joint ignores the two). Returns (a .. o, p0, p1, p2, w0, w1,
+    w2): the rotation and origin after the joint and its axis in the base frame."""
+    trans, rots, rot_k, rot_k2, axes, prismatic = (chain[0], chain[1], chain[2], chain[3],
+                                                   chain[4], chain[5])
+    t0, t1, t2 = trans[j, 0], trans[j, 1], trans[j, 2]
+    p0 += a * t0 + b * t1 + c * t2
+    p1 += d * t0 + e * t1 + f * t2
+    p2 += g * t0 + h * t1 + o * t2
+    if prismatic[j]:
+        sn = vs = 0.0
+    m = rots[j]
+    a, b, c, d, e, f, g, h, o = rotate(
+        a, b, c, d, e, f, g, h, o,
+        m[0, 0] + sn * rot_k[j, 0, 0] + vs * rot_k2[j, 0, 0],
+        m[0, 1] + sn * rot_k[j, 0, 1] + vs * rot_k2[j, 0, 1],
+        m[0, 2] + sn * rot_k[j, 0, 2] + vs * rot_k2[j, 0, 2],
+        m[1, 0] + sn * rot_k[j, 1, 0] + vs * rot_k2[j, 1, 0],
+        m[1, 1] + sn * rot_k[j, 1, 1] + vs * rot_k2[j, 1, 1],
+        m[1, 2] + sn * rot_k[j, 1, 2] + vs * rot_k2[j, 1, 2],
+        m[2, 0] + sn * rot_k[j, 2, 0] + vs * rot_k2[j, 2, 0],
+        m[2, 1] + sn * rot_k[j, 2, 1] + vs * rot_k2[j, 2, 1],
+        m[2, 2] + sn * rot_k[j, 2, 2] + vs * rot_k2[j, 2, 2])
+    u0, u1, u2 = axes[j, 0], axes[j, 1], axes[j, 2]
+    w0 = a * u0 + b * u1 + c * u2
+    w1 = d * u0 + e * u1 + f * u2
+    w2 = g * u0 + h * u1 + o * u2
+    if prismatic[j]:
+        p0 += w0 * q_urdf
+        p1 += w1 * q_urdf
+        p2 += w2 * q_urdf
+    return a, b, c, d, e, f, g, h, o, p0, p1, p2, w0, w1, w2
+
+
 @njit(cache=True)
 def frame(spec: Array, k: int, q: Array, point: Array, rotation: Array, axes_world: Array,
           origins: Array, trig: Array) -> None:
@@ -149,21 +201,17 @@ def frame(spec: Array, k: int, q: Array, point: Array, rotation: Array, axes_wor
         prismatic = spec[j, PRISMATIC] != 0.0
         if prismatic:
             sn = vs = 0.0
-        s00 = spec[j, ROTATION] + sn * spec[j, ROT_K] + vs * spec[j, ROT_K2]
-        s01 = spec[j, ROTATION + 1] + sn * spec[j, ROT_K + 1] + vs * spec[j, ROT_K2 + 1]
-        s02 = spec[j, ROTATION + 2] + sn * spec[j, ROT_K + 2] + vs * spec[j, ROT_K2 + 2]
-        s10 = spec[j, ROTATION + 3] + sn * spec[j, ROT_K + 3] + vs * spec[j, ROT_K2 + 3]
-        s11 = spec[j, ROTATION + 4] + sn * spec[j, ROT_K + 4] + vs * spec[j, ROT_K2 + 4]
-        s12 = spec[j, ROTATION + 5] + sn * spec[j, ROT_K + 5] + vs * spec[j, ROT_K2 + 5]
-        s20 = spec[j, ROTATION + 6] + sn * spec[j, ROT_K + 6] + vs * spec[j, ROT_K2 + 6]
-        s21 = spec[j, ROTATION + 7] + sn * spec[j, ROT_K + 7] + vs * spec[j, ROT_K2 + 7]
-        s22 = spec[j, ROTATION + 8] + sn * spec[j, ROT_K + 8] + vs * spec[j, ROT_K2 + 8]
-        a, b, c, d, e, f, g, h, o = (
-            a * s00 + b * s10 + c * s20, a * s01 + b * s11 + c * s21,
-            a * s02 + b * s12 + c * s22, d * s00 + e * s10 + f * s20,
-            d * s01 + e * s11 + f * s21, d * s02 + e * s12 + f * s22,
-            g * s00 + h * s10 + o * s20, g * s01 + h * s11 + o * s21,
-            g * s02 + h * s12 + o * s22)
+        a, b, c, d, e, f, g, h, o = rotate(
+            a, b, c, d, e, f, g, h, o,
+            spec[j, ROTATION] + sn * spec[j, ROT_K] + vs * spec[j, ROT_K2],
+            spec[j, ROTATION + 1] + sn * spec[j, ROT_K + 1] + vs * spec[j, ROT_K2 + 1],
+            spec[j, ROTATION + 2] + sn * spec[j, ROT_K + 2] + vs * spec[j, ROT_K2 + 2],
+            spec[j, ROTATION + 3] + sn * spec[j, ROT_K + 3] + vs * spec[j, ROT_K2 + 3],
+            spec[j, ROTATION + 4] + sn * spec[j, ROT_K + 4] + vs * spec[j, ROT_K2 + 4],
+            spec[j, ROTATION + 5] + sn * spec[j, ROT_K + 5] + vs * spec[j, ROT_K2 + 5],
+            spec[j, ROTATION + 6] + sn * spec[j, ROT_K + 6] + vs * spec[j, ROT_K2 + 6],
+            spec[j, ROTATION + 7] + sn * spec[j, ROT_K + 7] + vs * spec[j, ROT_K2 + 7],
+            spec[j, ROTATION + 8] + sn * spec[j, ROT_K + 8] + vs * spec[j, ROT_K2 + 8])
         u0, u1, u2 = spec[j, AXIS], spec[j, AXIS + 1], spec[j, AXIS + 2]
         w0 = a * u0 + b * u1 + c * u2
         w1 = d * u0 + e * u1 + f * u2

@@ -25,7 +25,7 @@ import numpy as np
 from ikbench.core.errors import InputError
 from ikbench.core.losses import TERMS
 from ikbench.core.rotations import right_jacobian_inverse, so3_log
-from ikbench.methods.ours_lm.problem import Evaluation, Index, Weights
+from ikbench.methods.ours_lm.problem import Evaluation, Index, Weights, gauss_newton_blocks
 
 if TYPE_CHECKING:
     from ikbench.core.kinematics.chain import Frames
@@ -137,15 +137,6 @@ def evaluate_frames(kinematics: object, problem: FrameProblem, poses: np.ndarray
         return Evaluation(loss, terms)
     a0, a1, a6 = problem.residual_weights()
     assert j_point is not None and j_rot is not None  # asked for
-    j_point_t, j_rot_t = j_point.swapaxes(-1, -2), j_rot.swapaxes(-1, -2)
-    diagonal = (a0[:, None, None, None] * (j_point_t @ j_point)
-                + a1[:, None, None, None] * (j_rot_t @ j_rot))
-    gradient = (a0[:, None, None] * (j_point_t @ e_point[..., None])[..., 0]
-                + a1[:, None, None] * (j_rot_t @ e_rot[..., None])[..., 0])
-    gradient[:, :-1] -= a6[:, None, None] * steps
-    gradient[:, 1:] += a6[:, None, None] * steps
-    degree = np.full(n_poses, 2.0)
-    degree[[0, -1]] = 1.0
-    idx = np.arange(dof)
-    diagonal[:, :, idx, idx] += a6[:, None, None] * degree[None, :, None]
+    diagonal, gradient = gauss_newton_blocks((a0[:, None], j_point, e_point),
+                                             (a1[:, None], j_rot, e_rot), a6, steps)
     return Evaluation(loss, terms, gradient, diagonal, a6)

@@ -7,12 +7,18 @@ a numpy block-Thomas elimination, vectorised over the batch.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from ikbench.methods.ours_lm.problem import Evaluation
+
+class Blocks(Protocol):
+    """J^T J by its blocks: ``diagonal`` (B, N, dof, dof) and ``coupling`` (B,) (the
+    off-diagonal blocks are -coupling * I): a :class:`.problem.Evaluation` or a
+    :class:`.torch_backend.TorchEvaluation`."""
+
+    diagonal: Any
+    coupling: Any
 
 
 def solve_normal_equations(diagonal: np.ndarray, coupling: np.ndarray, rhs: np.ndarray,
@@ -84,8 +90,8 @@ def _solve_thomas(diag, off, rhs):
     return x, ok
 
 
-def block_matvec(evaluation: Evaluation, x: np.ndarray) -> np.ndarray:
-    """(J^T J) x for x (B, N, dof)."""
+def block_matvec(evaluation: Blocks, x: Any) -> Any:
+    """(J^T J) x for x (B, N, dof): numpy arrays, or torch tensors on any device."""
     out = (evaluation.diagonal @ x[..., None])[..., 0]
     c = evaluation.coupling[:, None, None]
     out[:, 1:] -= c * x[:, :-1]

@@ -134,23 +134,43 @@ def evaluate(kinematics: Kinematics, problem: Problem, poses: np.ndarray,
     w_point = np.repeat(a0[:, None], n_poses, axis=1)
     w_point[:, 0] += a4
     w_point[:, -1] += a5
-    j_point = j_point.reshape(b, n_poses, 3, dof)
-    j_dir = j_dir.reshape(b, n_poses, 3, dof)
-    j_point_t, j_dir_t = j_point.swapaxes(-1, -2), j_dir.swapaxes(-1, -2)
-    diagonal = (w_point[..., None, None] * (j_point_t @ j_point)
-                + a1[:, None, None, None] * (j_dir_t @ j_dir))
-    gradient = (w_point[..., None] * (j_point_t @ e_point[..., None])[..., 0]
-                + a1[:, None, None] * (j_dir_t @ e_dir[..., None])[..., 0])
-    gradient[:, 0] += a2[:, None] * e_start
-    gradient[:, -1] += a3[:, None] * e_end
+    diagonal, gradient = gauss_newton_blocks(
+        (w_point, j_point.reshape(b, n_poses, 3, dof), e_point),
+        (a1[:, None], j_dir.reshape(b, n_poses, 3, dof), e_dir), a6, steps,
+        (a2, e_start, a3, e_end))
+    return Evaluation(loss, terms, gradient, diagonal, a6)
+
+
+def gauss_newton_blocks(first: tuple[Any, Any, Any], second: tuple[Any, Any, Any], a6: Any,
+                        steps: Any, ends: tuple[Any, Any, Any, Any] | None = None
+                        ) -> tuple[Any, Any]:
+    """The diagonal blocks (B, N, dof, dof) of J^T J and J^T r (B, N, dof) of a path's
+    residuals: two per-pose residuals, each ``(w, J, e)`` (its squared scale w (B, N) or
+    (B, 1), Jacobian J (B, N, 3, dof) and value e (B, N, 3): sqrt(w) e), the steps
+    sqrt(a6) (p_{i+1} - p_i) (a6 (B,), ``steps`` (B, N - 1, dof); off-diagonal blocks
+    -a6 I) and, with ``ends`` = (a2, e_start, a3, e_end) ((B,), (B, dof) each), the fixed
+    poses sqrt(a2) e_start on the first pose and sqrt(a3) e_end on the last. Numpy arrays or
+    torch tensors (:mod:`.torch_backend` computes the same blocks on a device)."""
+    (w_p, j_p, e_p), (w_q, j_q, e_q) = first, second
+    j_p_t, j_q_t = j_p.swapaxes(-1, -2), j_q.swapaxes(-1, -2)
+    diagonal = w_p[..., None, None] * (j_p_t @ j_p) + w_q[..., None, None] * (j_q_t @ j_q)
+    gradient = (w_p[..., None] * (j_p_t @ e_p[..., None])[..., 0]
+                + w_q[..., None] * (j_q_t @ e_q[..., None])[..., 0])
+    if ends is not None:
+        gradient[:, 0] += ends[0][:, None] * ends[1]
+        gradient[:, -1] += ends[2][:, None] * ends[3]
     gradient[:, :-1] -= a6[:, None, None] * steps
     gradient[:, 1:] += a6[:, None, None] * steps
-    degree = np.full(n_poses, 2.0)
-    degree[[0, -1]] = 1.0
-    idx = np.arange(dof)
-    diagonal[:, :, idx, idx] += a6[:, None, None] * degree[None, :, None]
-    diagonal[:, 0, idx, idx] += a2[:, None]
-    diagonal[:, -1, idx, idx] += a3[:, None]
-    return Evaluation(loss, terms, gradient, diagonal, a6)
+    if isinstance(steps, np.ndarray):  # the diagonals as writable views (B, N, dof)
+        degree, diag = np.full(steps.shape[1] + 1, 2.0), np.einsum("...ii->...i", diagonal)
+    else:
+        degree, diag = (steps.new_full((steps.shape[1] + 1,), 2.0),
+                        diagonal.diagonal(dim1=-2, dim2=-1))
+    degree[[0, -1]] = 1.0  # neighbours of each pose
+    diag += a6[:, None, None] * degree[None, :, None]
+    if ends is not None:
+        diag[:, 0] += ends[0][:, None]
+        diag[:, -1] += ends[2][:, None]
+    return diagonal, gradient
 
 

@@ -150,10 +150,7 @@ def _solve_numpy(robot: Robot, problem: Problem | FrameProblem, poses: np.ndarra
     b = len(poses)
     current = evaluator(kin, problem, poses)
     damping = np.full(b, settings.damping)
-    nu = np.full(b, 2.0)
-    iterations = np.zeros(b, dtype=int)
-    converged = np.zeros(b, dtype=bool)
-    active = np.arange(b)
+    nu, iterations, converged, active = batch_bookkeeping(b)
     while active.size:
         sub = problem.take(active)
         ev = _take(current, active)
@@ -252,6 +249,13 @@ def _compiled(settings: LMSettings):
                              "use --lm-backend numpy") from None
         return None
     return compiled
+
+
+def batch_bookkeeping(b: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What a damped loop over a batch of ``b`` trajectories starts from: Nielsen's nu (b,)
+    = 2 (:func:`nielsen_update`), the iterations (b,) = 0, converged (b,) False, and the
+    indices of the trajectories still running: all."""
+    return np.full(b, 2.0), np.zeros(b, dtype=int), np.zeros(b, dtype=bool), np.arange(b)
 
 
 def nielsen_update(damping: np.ndarray, nu: np.ndarray, active: np.ndarray, accept: np.ndarray,

@@ -32,7 +32,8 @@ import torch
 from ikbench.core.kinematics.chain_torch import torch_chain_kinematics
 from ikbench.core.losses import resolve_weights
 from ikbench.methods.ours_lm.devices import torch_dtype
-from ikbench.methods.ours_lm.problem import CM_PER_M, Problem, Weights
+from ikbench.methods.ours_lm.linalg import block_matvec
+from ikbench.methods.ours_lm.problem import CM_PER_M, Problem, Weights, gauss_newton_blocks
 from ikbench.methods.ours_lm.settings import (
     BOUND_EPS_DEG,
     MAX_DAMPING,
@@ -158,34 +159,18 @@ def evaluate(kinematics: TorchChainKinematics, problem: TorchProblem, poses: tor
     w_point = a0[:, None].repeat(1, n_poses)
     w_point[:, 0] += a4
     w_point[:, -1] += a5
-    j_point = (j_point * CM_PER_M).reshape(b, n_poses, 3, dof)
-    j_dir = j_dir.reshape(b, n_poses, 3, dof)
-    j_point_t, j_dir_t = j_point.transpose(-1, -2), j_dir.transpose(-1, -2)
-    diagonal = (w_point[..., None, None] * (j_point_t @ j_point)
-                + a1[:, None, None, None] * (j_dir_t @ j_dir))
-    gradient = (w_point[..., None] * (j_point_t @ e_point[..., None])[..., 0]
-                + a1[:, None, None] * (j_dir_t @ e_dir[..., None])[..., 0])
-    gradient[:, 0] += a2[:, None] * e_start
-    gradient[:, -1] += a3[:, None] * e_end
-    gradient[:, :-1] -= a6[:, None, None] * steps
-    gradient[:, 1:] += a6[:, None, None] * steps
-    degree = torch.full((n_poses,), 2.0, dtype=poses.dtype, device=poses.device)
-    degree[[0, -1]] = 1.0
-    diag = diagonal.diagonal(dim1=-2, dim2=-1)                       # a view: (B, N, dof)
-    diag += a6[:, None, None] * degree[None, :, None]
-    diag[:, 0] += a2[:, None]
-    diag[:, -1] += a3[:, None]
+    diagonal, gradient = gauss_newton_blocks(
+        (w_point, (j_point * CM_PER_M).reshape(b, n_poses, 3, dof), e_point),
+        (a1[:, None], j_dir.reshape(b, n_poses, 3, dof), e_dir), a6, steps,
+        (a2, e_start, a3, e_end))
     return TorchEvaluation(loss, terms, gradient, diagonal, a6)
 
 
 def solve_normal_equations(diagonal: torch.Tensor, coupling: torch.Tensor, rhs: torch.Tensor,
                            free: torch.Tensor, method: str = "cyclic"
                            ) -> tuple[torch.Tensor, torch.Tensor]:
-    """Solve the block-tridiagonal system for the free variables, batched on the device.
-
-    The matrix has diagonal blocks ``diagonal`` (B, N, k, k) and off-diagonal blocks
-    ``-coupling (B,) * I``; rows and columns of variables with ``free`` (B, N, k) False are
-    replaced by the identity (their step is 0).
+    """:func:`.linalg.solve_normal_equations` (the same system, the same masking of the
+    variables that are not free), batched on the device.
 
     Args:
         method: ``"cyclic"`` (block cyclic reduction: log2(N) rounds, each on all blocks of
@@ -265,15 +250,6 @@ def _thomas(diag, off, rhs):
     for i in range(n_poses - 2, -1, -1):
         x[:, i] = (inverses[:, i] @ (y[:, i] + off[:, i] * x[:, i + 1])[..., None])[..., 0]
     return x, ok
-
-
-def block_matvec(evaluation: TorchEvaluation, x: torch.Tensor) -> torch.Tensor:
-    """(J^T J) x for x (B, N, dof)."""
-    out = (evaluation.diagonal @ x[..., None])[..., 0]
-    c = evaluation.coupling[:, None, None]
-    out[:, 1:] -= c * x[:, :-1]
-    out[:, :-1] -= c * x[:, 1:]
-    return out
 
 
 def _free_variables(problem: TorchProblem, poses, gradient):
