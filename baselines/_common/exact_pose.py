@@ -3,19 +3,27 @@
 
 A pointing goal fixes one axis of the end frame, not its roll; an exact-pose solver needs a
 whole rotation. Goal i asks for the warm start's end-frame rotation tilted by the smallest angle
-that puts the pointing axis on the goal direction (the roll carried over from the pose before).
+that puts the pointing axis on the goal direction (the walk: the roll carried over from the pose
+before; the track: then ramped, below).
 When the solver finds no solution for that roll, the roll is swept about the goal direction
 (+-step, +-2 step, ... up to +-max, :func:`rolls_rad`) and the first success kept. A point with
 no solution keeps its warm start and counts as not converged. 6-D goal frames are solved as
 given.
 
 The track (:mod:`ikbench.baselines._common.track`): step i asks for the plan's point and
-scheduled pointing direction; when the task asks no pointing, the step asks for the task's own
-goal direction (not judged; roll swept as above) and, when none of those rotations is solved,
-for the warm start's rotation itself. The seed of step i is the warm start moved
-``posture_seed`` of the way toward the plan's posture pose (start to touch pose, linearly): an
-exact-pose solver has no posture term. The walk
-(:mod:`ikbench.baselines._common.walk`) seeds each point with the pose after it.
+scheduled pointing direction (the plan already turns the pointing from the start pose's own over
+the unjudged first steps and onto the touch pose's over the last ones); when the task asks no
+pointing, the step asks for the task's own goal direction (not judged; roll swept as above) and,
+when none of those rotations is solved, for the warm start's rotation itself. The roll is not
+carried over but ramped onto the touch pose's (:func:`ramped_roll`): step i turns the warm
+start's tilted rotation about the pointing axis by the roll still between it and the touch
+pose's rotation (tilted onto the same direction) divided by the steps left, n - i, so the roll
+arrives at the touch pose's by step n - 1 in equal parts and the last segment does not spin the
+wrist onto it. The seed of step i is the warm start moved ``posture_seed`` of the way toward the
+plan's posture pose (start to touch pose, linearly): an exact-pose solver has no posture term.
+Each point is still one library call per rotation tried; ikbench only picks the rotations and
+the seed. The walk (:mod:`ikbench.baselines._common.walk`) seeds each point with the pose after
+it and carries the roll over.
 """
 
 from __future__ import annotations
@@ -26,7 +34,11 @@ from typing import Any
 import numpy as np
 
 from ikbench.baselines._common.chain import Chain, Goals
-from ikbench.baselines._common.geometry import closest_rotation_with_axis, rotation_about
+from ikbench.baselines._common.geometry import (
+    closest_rotation_with_axis,
+    roll_between_rad,
+    rotation_about,
+)
 from ikbench.baselines._common.track import track
 from ikbench.baselines._common.walk import PointResult, Walk, walk_back
 from ikbench.core.errors import InputError
@@ -71,6 +83,16 @@ def rolls_rad(step_deg: float, max_deg: float) -> list[float]:
     return rolls
 
 
+def ramped_roll(tilted: np.ndarray, touch: np.ndarray, axis_local: np.ndarray,
+                steps_left: int) -> np.ndarray:
+    """``tilted`` (3, 3) turned about its local ``axis_local`` (3,) by 1 / ``steps_left`` of the
+    roll between it and ``touch`` (3, 3; its ``axis_local`` along the same direction): the
+    track's goal rotation (see the module docstring). ``steps_left`` >= 1; 1 gives ``touch``'s
+    rotation."""
+    angle = roll_between_rad(tilted, touch, axis_local) / max(int(steps_left), 1)
+    return tilted @ rotation_about(axis_local, angle)
+
+
 def solve_exact_poses(chain: Chain, goals: Goals, solve: PoseIK,
                       end_rotation: Callable[[np.ndarray], np.ndarray], rolls: list[float],
                       posture_seed: float) -> tuple[Walk, dict[str, object]]:
@@ -92,6 +114,7 @@ def solve_exact_poses(chain: Chain, goals: Goals, solve: PoseIK,
     """
     plan = goals.track
     swept, off = [], []
+    touch_rotation = None if plan is None else end_rotation(plan.q_touch)
 
     def solve_pose(i: int, seed: np.ndarray, point: np.ndarray,
                    candidates: list[np.ndarray], q_warm: np.ndarray) -> PointResult:
@@ -107,10 +130,16 @@ def solve_exact_poses(chain: Chain, goals: Goals, solve: PoseIK,
                 return PointResult(q, k + 1, holds)
         return PointResult(q_warm, len(candidates), False)
 
-    def pointing_candidates(q_warm: np.ndarray, direction: np.ndarray) -> list[np.ndarray]:
-        """The warm start's rotation tilted onto ``direction``, then rolled about it."""
-        tilted = closest_rotation_with_axis(end_rotation(q_warm), chain.pointing_axis,
-                                            direction)
+    def pointing_candidates(q_warm: np.ndarray, direction: np.ndarray,
+                            steps_left: int = 0) -> list[np.ndarray]:
+        """The warm start's rotation tilted onto ``direction`` (its roll ramped onto the touch
+        pose's with ``steps_left`` > 0, :func:`ramped_roll`), then rolled about it."""
+        axis = chain.pointing_axis
+        tilted = closest_rotation_with_axis(end_rotation(q_warm), axis, direction)
+        if steps_left > 0:
+            assert touch_rotation is not None
+            tilted = ramped_roll(tilted, closest_rotation_with_axis(touch_rotation, axis,
+                                                                    direction), axis, steps_left)
         return [rotation_about(direction, r) @ tilted for r in rolls]
 
     def walk_point(i: int, q_warm: np.ndarray) -> PointResult:
@@ -121,7 +150,7 @@ def solve_exact_poses(chain: Chain, goals: Goals, solve: PoseIK,
     def track_point(i: int, q_warm: np.ndarray) -> PointResult:
         assert plan is not None
         candidates = pointing_candidates(q_warm, goals.directions[i] if plan.directions is None
-                                         else plan.directions[i])
+                                         else plan.directions[i], len(plan) - 1 - i)
         if plan.directions is None:  # no pointing asked: else the warm start's rotation
             candidates.append(end_rotation(q_warm))
         seed = chain.clip(q_warm + posture_seed * (plan.posture[i] - q_warm))

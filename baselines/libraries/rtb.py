@@ -31,9 +31,10 @@ succeeds on 35 %, ``slimit=100`` on 100 % at 136 us median per call.
 
 Per point (``compare``, :mod:`ikbench.baselines._common.exact_pose`): an exact-pose solver
 like TRAC-IK: pointing goals become whole rotations (the warm start's tilted onto the
-direction, the roll swept when none is solved), one ``ik_LM`` call per rotation from the warm
-start (``--rtb-slimit`` 1: no random jumps), the seed moved ``--rtb-posture-seed`` toward the
-plan's posture pose. Deterministic (with ``slimit=1`` nothing random is drawn).
+direction, on the track its roll ramped onto the touch pose's, the roll swept when none is
+solved), one ``ik_LM`` call per rotation from the warm start (``--rtb-slimit`` 1: no random
+jumps), the seed moved ``--rtb-posture-seed`` toward the plan's posture pose. Deterministic
+(with ``slimit=1`` nothing random is drawn).
 """
 
 from __future__ import annotations
