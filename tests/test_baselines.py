@@ -19,7 +19,7 @@ import pytest
 
 from ikbench import load_robot, load_targets
 from ikbench.baselines._common.chain import chain_of, poses_from_urdf, urdf_limits
-from ikbench.baselines._common.exact_pose import ramped_roll
+from ikbench.baselines._common.exact_pose import delayed_seed_fraction, ramped_roll
 from ikbench.baselines._common.geometry import (
     closest_rotation_with_axis,
     quaternion_xyzw,
@@ -324,6 +324,16 @@ def test_quaternion_and_rotation_helpers():
         np.testing.assert_allclose(Q, R, atol=1e-12)
     np.testing.assert_allclose(rotation_between([0, 0, 1], [0, 0, -1]) @ [0, 0, 1], [0, 0, -1],
                                atol=1e-12)
+
+
+def test_the_roll_free_track_pulls_toward_the_posture_after_the_turn():
+    """delayed_seed_fraction: 0 over the unjudged steps (where the pointing turns), then
+    linear up to the top over twice as many steps, then the top."""
+    fractions = [delayed_seed_fraction(i, 10, 0.8) for i in range(51)]
+    assert fractions[:11] == [0.0] * 11
+    assert fractions[20] == pytest.approx(0.4) and fractions[30:] == [0.8] * 21
+    assert np.all(np.diff(fractions) >= 0)
+    assert delayed_seed_fraction(1, 0, 0.5) == pytest.approx(0.25)  # judged from step 0
 
 
 def test_the_track_ramps_the_roll_onto_the_touch_poses():

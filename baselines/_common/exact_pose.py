@@ -24,6 +24,15 @@ plan's posture pose (start to touch pose, linearly): an exact-pose solver has no
 Each point is still one library call per rotation tried; ikbench only picks the rotations and
 the seed. The walk (:mod:`ikbench.baselines._common.walk`) seeds each point with the pose after
 it and carries the roll over.
+
+A library that can leave the roll free itself (roboticstoolbox's ``ik_LM`` with a mask: the
+``solve_free`` argument) is asked each pointing goal once, roll free, with the warm start's
+tilted rotation as the hint, no sweep and no ramp. On the track its seed is then the warm
+start moved toward the posture pose by a fraction that is 0 over the unjudged first steps
+(i < ``judged_from``, where the pointing turns) and rises linearly to ``posture_seed`` over
+the next 2 ``judged_from`` steps (:func:`delayed_seed_fraction`): a solver without a posture
+term that settles near its seed is pulled onto the touch pose gradually, and not while the
+turn already takes the wrist's allowed step.
 """
 
 from __future__ import annotations
@@ -62,13 +71,18 @@ def roll_max_option(prefix: str) -> Any:
                   help="largest roll change tried (0: no sweep)")
 
 
+def check_fraction(settings: Any, field_name: str) -> None:
+    """InputError naming the flag when the settings field ``field_name`` is not in [0, 1]."""
+    value = getattr(settings, field_name)
+    if not (np.isfinite(value) and 0 <= value <= 1):
+        raise InputError(f"{flag_of(settings, field_name)}: {value!r} must be in [0, 1]")
+
+
 def check_roll_settings(settings: Any) -> None:
     """InputError naming the flag for a bad ``roll_step``, ``roll_max`` [deg] or
     ``posture_seed`` of an exact-pose method's settings."""
     check_positive(settings, "roll_step")
-    if not (np.isfinite(settings.posture_seed) and 0 <= settings.posture_seed <= 1):
-        raise InputError(f"{flag_of(settings, 'posture_seed')}: {settings.posture_seed!r} "
-                         "must be in [0, 1]")
+    check_fraction(settings, "posture_seed")
     if not 0 <= settings.roll_max <= 180:
         raise InputError(f"{flag_of(settings, 'roll_max')}: {settings.roll_max!r} must be in "
                          "[0, 180] deg")
@@ -93,9 +107,18 @@ def ramped_roll(tilted: np.ndarray, touch: np.ndarray, axis_local: np.ndarray,
     return tilted @ rotation_about(axis_local, angle)
 
 
+def delayed_seed_fraction(i: int, judged_from: int, top: float) -> float:
+    """The roll-free track's seed fraction toward the posture pose at step ``i``: 0 before
+    ``judged_from``, then rising linearly to ``top`` over 2 ``judged_from`` steps (see the
+    module docstring)."""
+    ramp = 2 * max(int(judged_from), 1)
+    return float(top * np.clip((i - judged_from) / ramp, 0.0, 1.0))
+
+
 def solve_exact_poses(chain: Chain, goals: Goals, solve: PoseIK,
                       end_rotation: Callable[[np.ndarray], np.ndarray], rolls: list[float],
-                      posture_seed: float) -> tuple[Walk, dict[str, object]]:
+                      posture_seed: float, solve_free: PoseIK | None = None
+                      ) -> tuple[Walk, dict[str, object]]:
     """Track (``goals.track`` set) or walk the goals with ``solve`` (see the module docstring).
 
     Args:
@@ -106,7 +129,10 @@ def solve_exact_poses(chain: Chain, goals: Goals, solve: PoseIK,
             library's own FK.
         rolls: the roll angles [rad] tried in order (:func:`rolls_rad`).
         posture_seed: the track's seed moves this fraction from the warm start toward the
-            plan's posture pose.
+            plan's posture pose (with ``solve_free``: the top of :func:`delayed_seed_fraction`).
+        solve_free: the library's IK of a pointing goal with the roll about the pointing axis
+            left free (:data:`PoseIK`; the rotation's roll is only a hint), or None: then
+            pointing goals are solved with it, once each (see the module docstring).
 
     Returns:
         (the walk, figures for details: points whose roll was swept, points whose solution
@@ -142,13 +168,32 @@ def solve_exact_poses(chain: Chain, goals: Goals, solve: PoseIK,
                                                                     direction), axis, steps_left)
         return [rotation_about(direction, r) @ tilted for r in rolls]
 
+    def solve_roll_free(i: int, seed: np.ndarray, point: np.ndarray, direction: np.ndarray,
+                        q_warm: np.ndarray) -> PointResult:
+        """One ``solve_free`` call, the warm start's rotation tilted onto ``direction`` as the
+        hint; none: q_warm."""
+        assert solve_free is not None
+        hint = closest_rotation_with_axis(end_rotation(q_warm), chain.pointing_axis, direction)
+        out = solve_free(seed, point, hint)
+        if out is None:
+            return PointResult(q_warm, 1, False)
+        if not out[1]:
+            off.append(i)
+        return PointResult(out[0], 1, out[1])
+
     def walk_point(i: int, q_warm: np.ndarray) -> PointResult:
+        if goals.rotations is None and solve_free is not None:
+            return solve_roll_free(i, q_warm, goals.points_m[i], goals.directions[i], q_warm)
         candidates = ([goals.rotations[i]] if goals.rotations is not None
                       else pointing_candidates(q_warm, goals.directions[i]))
         return solve_pose(i, q_warm, goals.points_m[i], candidates, q_warm)
 
     def track_point(i: int, q_warm: np.ndarray) -> PointResult:
         assert plan is not None
+        if solve_free is not None and plan.directions is not None:
+            fraction = delayed_seed_fraction(i, plan.judged_from, posture_seed)
+            seed = chain.clip(q_warm + fraction * (plan.posture[i] - q_warm))
+            return solve_roll_free(i, seed, plan.points_m[i], plan.directions[i], q_warm)
         candidates = pointing_candidates(q_warm, goals.directions[i] if plan.directions is None
                                          else plan.directions[i], len(plan) - 1 - i)
         if plan.directions is None:  # no pointing asked: else the warm start's rotation
