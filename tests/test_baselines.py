@@ -19,7 +19,14 @@ import pytest
 
 from ikbench import load_robot, load_targets
 from ikbench.baselines._common.chain import chain_of, poses_from_urdf, urdf_limits
-from ikbench.baselines._common.geometry import quaternion_xyzw, rotation_between
+from ikbench.baselines._common.exact_pose import delayed_seed_fraction, ramped_roll
+from ikbench.baselines._common.geometry import (
+    closest_rotation_with_axis,
+    quaternion_xyzw,
+    roll_between_rad,
+    rotation_about,
+    rotation_between,
+)
 from ikbench.cli import main
 from ikbench.core.errors import InputError, SolverError
 from ikbench.core.metrics import pointing_deviations_deg, trajectory_metrics
@@ -307,6 +314,44 @@ def test_quaternion_and_rotation_helpers():
         np.testing.assert_allclose(Q, R, atol=1e-12)
     np.testing.assert_allclose(rotation_between([0, 0, 1], [0, 0, -1]) @ [0, 0, 1], [0, 0, -1],
                                atol=1e-12)
+
+
+def test_the_roll_free_track_pulls_toward_the_posture_after_the_turn():
+    """delayed_seed_fraction: 0 over the unjudged steps (where the pointing turns), then
+    linear up to the top over twice as many steps, then the top."""
+    fractions = [delayed_seed_fraction(i, 10, 0.8) for i in range(51)]
+    assert fractions[:11] == [0.0] * 11
+    assert fractions[20] == pytest.approx(0.4) and fractions[30:] == [0.8] * 21
+    assert np.all(np.diff(fractions) >= 0)
+    assert delayed_seed_fraction(1, 0, 0.5) == pytest.approx(0.25)  # judged from step 0
+
+
+def test_the_track_ramps_the_roll_onto_the_touch_poses():
+    """roll_between_rad is the signed turn about the local axis between two rotations sharing
+    that axis' direction; ramped_roll turns by 1 / steps_left of it, the whole of it with one
+    step left (the exact-pose track's goal rotation: docs/baselines.md)."""
+    rng = np.random.default_rng(5)
+    for axis in (np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]),
+                 rng.normal(size=3)):
+        axis = axis / np.linalg.norm(axis)
+        for _ in range(10):
+            a = rotation_between([0, 0, 1], rng.normal(size=3)) @ rotation_about(
+                rng.normal(size=3), rng.uniform(-np.pi, np.pi))
+            angle = rng.uniform(-np.pi + 1e-6, np.pi)
+            b = a @ rotation_about(axis, angle)
+            assert roll_between_rad(a, b, axis) == pytest.approx(angle, abs=1e-9)
+            np.testing.assert_allclose(ramped_roll(a, b, axis, 1), b, atol=1e-9)
+            quarter = ramped_roll(a, b, axis, 4)
+            np.testing.assert_allclose(quarter @ axis, a @ axis, atol=1e-12)  # same direction
+            assert roll_between_rad(a, quarter, axis) == pytest.approx(angle / 4, abs=1e-9)
+            # a rotation tilted onto another direction first: the roll is about the new one
+            d = rng.normal(size=3)
+            tilted = closest_rotation_with_axis(a, axis, d)
+            target = closest_rotation_with_axis(b, axis, d)
+            half = ramped_roll(tilted, target, axis, 2)
+            np.testing.assert_allclose(half @ axis, d / np.linalg.norm(d), atol=1e-9)
+            assert roll_between_rad(half, target, axis) == pytest.approx(
+                roll_between_rad(tilted, target, axis) / 2, abs=1e-9)
 
 
 def test_locked_joints_are_folded_into_the_urdf_the_libraries_load(tmp_path):

@@ -1,6 +1,7 @@
 """roboticstoolbox-python (baselines/libraries/rtb.py): its ETS of the chain agrees with
 Pinocchio's FK, its single-pose solvers solve FK targets under ``ikbench ik``'s interface, and
-rtb-lm's track in ``compare`` on NICO's paper target 1 is judged by the task contract.
+rtb-lm's track in ``compare`` meets the task contract on NICO's paper targets and the Panda
+lines (roll left free by ik_LM's mask), judged again from the CSVs it wrote.
 
 Skipped only when roboticstoolbox is not installed (``pip install -e '.[libs]'``).
 """
@@ -14,8 +15,14 @@ import pytest
 from ikbench import load_robot
 from ikbench.baselines._common.chain import chain_of
 from ikbench.cli import main
+from ikbench.core.contract import contract_for, judge
+from ikbench.core.metrics import contract_metrics
 from ikbench.core.robot_packages import robots_folder
+from ikbench.core.targets import load_targets
+from ikbench.core.task import line_tasks
+from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.methods.registry import method_status
+from tests.test_rangedik_placo import PANDA_LINES, assert_judged_from_csvs
 
 pytest.importorskip("roboticstoolbox")
 
@@ -25,6 +32,8 @@ from ikbench.baselines.libraries.rtb import (  # noqa: E402 (after the skip)
     RtbNRSolver,
     RtbSettings,
     check_fk,
+    goal_frame,
+    pointing_ets,
     rtb_ets,
 )
 
@@ -96,23 +105,99 @@ def test_the_settings_are_checked():
         RtbSettings(slimit=0)
     with pytest.raises(InputError, match=r"--rtb-posture-seed: 2.0 must be in \[0, 1\]"):
         RtbSettings(posture_seed=2.0)
+    with pytest.raises(InputError, match=r"--rtb-pointing-seed: -0.1 must be in \[0, 1\]"):
+        RtbSettings(pointing_seed=-0.1)
+    with pytest.raises(InputError, match="--rtb-orientation"):
+        RtbSettings(orientation="frame")
 
 
-def test_rtb_lm_tracks_nico_target_1_through_compare(tmp_path):
-    """The paper's task on NICO's target 1 (start and touch poses fixed, n = 50): rtb-lm's
-    track meets every criterion of the contract but the joints' speed limit: like TRAC-IK, an
-    exact-pose solver has no posture term and no bound on a step, and the last segment jumps
-    onto the touch pose."""
+def test_the_mask_frees_the_roll_about_the_pointing_direction_only():
+    """ik_LM's error is in its base frame: behind the rotation that turns the pointing
+    direction onto z, mask [1, 1, 1, 1, 1, 0] accepts a pose whose roll about that direction
+    is 40 deg off the goal's (and stays near the start), but not a 40 deg tilt."""
+    robot = load_robot("panda")
+    chain = chain_of(robot)
+    ets = rtb_ets(chain)
+    q = np.radians([10.0, -20, 30, -90, 10, 80, 20])
+    T = np.asarray(ets.fkine(q).A)
+    direction = T[:3, :3] @ chain.pointing_axis
+    turned, turn = pointing_ets(ets, direction)
+    np.testing.assert_allclose(turn[:3, :3] @ direction, [0, 0, 1], atol=1e-12)
+    mask = np.array([1.0, 1, 1, 1, 1, 0])
+    tilt_axis = np.cross(direction, [1.0, 0, 0])
+    for axis, solvable in ((direction, True), (tilt_axis, False)):
+        rotation = _rotation_about(axis, np.radians(40)) @ T[:3, :3]
+        out = turned.ik_LM(turn @ goal_frame(T[:3, 3], rotation), q0=q + 0.02, ilimit=30,
+                           slimit=1, tol=TOL, mask=mask, joint_limits=True)
+        reached = np.asarray(ets.fkine(out.q).A)
+        if solvable:
+            assert out.success and np.abs(reached[:3, 3] - T[:3, 3]).max() < 1e-6
+            np.testing.assert_allclose(reached[:3, :3] @ chain.pointing_axis, direction,
+                                       atol=1e-6)
+            assert np.abs(out.q - q).max() < 0.05  # not turned onto the goal's roll
+        else:
+            assert not out.success or np.abs(reached[:3, :3] @ chain.pointing_axis
+                                             - direction).max() > 0.1
+
+
+def _rotation_about(axis: np.ndarray, angle_rad: float) -> np.ndarray:
+    from ikbench.baselines._common.geometry import rotation_about
+
+    return rotation_about(axis, angle_rad)
+
+
+def test_rtb_lm_meets_the_contract_on_nico_paper_targets(tmp_path):
+    """The paper's task on NICO's seven targets (start and touch poses fixed, n = 50): rtb-lm's
+    track (orientation pointing, the default) meets every criterion, success recomputed from
+    the CSVs. With exact rotations (the roll ramped onto the touch pose's) its largest step
+    was 1.8 to 4.0 times the allowed one; with the roll free but the seed pulled toward the
+    posture from step 1, up to 1.07 times (the wrist's turn in steps 1 to 9; docs/baselines.md).
+    """
     assert method_status()["rtb-lm"].available
-    code = main(["compare", "--methods", "rtb-lm", "--only", "1", "--repeat", "1",
-                 "--output", str(tmp_path), "--quiet"])
-    assert code == 0
-    table = pd.read_csv(tmp_path / "compare" / "results.csv")
-    row = table[(table["method"] == "rtb-lm") & (table["task"] == "paper")].iloc[0]
-    assert row["status"] == "solved" and row["scheme"] == "track"
-    criteria = [c for c in table.columns if c.startswith("ok_")]
-    assert {"ok_start_pose", "ok_end_pose", "ok_limits", "ok_speed", "ok_line",
-            "ok_pointing"} <= set(criteria)
-    failed = [c for c in criteria if not bool(row[c])]
-    assert failed == ["ok_speed"], row[criteria].to_dict()
-    assert row["line_distance_max_mm"] < 0.01 and row["speed_limit_use"] > 1.0
+    robot = load_robot()
+    contract = contract_for(robot)
+    tasks = {t.name: t for t in line_tasks(robot, load_targets(None, robot), contract)}
+    assert main(["compare", "--methods", "rtb-lm", "--repeat", "1", "--output", str(tmp_path),
+                 "--quiet"]) == 0
+    table = pd.read_csv(tmp_path / "compare" / "results.csv", dtype={"trajectory": str})
+    results = table[table["task"] == "paper"]
+    assert sorted(results["trajectory"]) == [str(k) for k in range(1, 8)]
+    assert (results["scheme"].str.startswith("track")).all()
+    assert_judged_from_csvs(tmp_path / "compare", results, robot, tasks, contract)
+    assert results["success"].all(), results.to_dict("records")
+    assert (results["line_distance_max_mm"] < 0.01).all()
+
+
+def test_exact_rotations_fail_nico_on_speed_only(tmp_path):
+    """``--rtb-orientation pose`` (an exact rotation per point) on NICO's target 1: every
+    criterion but the speed limit, judged from the CSV ``ikbench run`` wrote."""
+    robot = load_robot()
+    contract = contract_for(robot)
+    task = line_tasks(robot, load_targets(None, robot).select("1"), contract)[0]
+    assert main(["run", "--method", "rtb-lm", "--rtb-orientation", "pose", "--only", "1",
+                 "--output", str(tmp_path), "--quiet"]) == 0
+    poses = read_trajectory_poses(tmp_path / "rtb-lm" / "trajectory_1.csv", robot)
+    figures = contract_metrics(robot, task, poses, contract)
+    failed = [c for c, ok in judge(contract, figures).items() if not ok]
+    assert failed == ["speed"], figures
+    assert figures["speed_limit_use"] > 1.2
+
+
+def test_rtb_lm_meets_the_contract_on_the_panda_lines(tmp_path):
+    """On the Panda's lines rtb-lm's track meets every criterion, success recomputed from the
+    CSVs. (In orientation pose, before the roll was ramped onto the touch pose's, the last
+    segment turned the flange joint onto it: 1.4 to 6.3 times the allowed step on six of the
+    seven lines.)"""
+    robot = load_robot("panda")
+    contract = contract_for(robot)
+    only = "3,4"
+    tasks = {t.name: t for t in line_tasks(robot, load_targets(PANDA_LINES, robot).select(only),
+                                           contract)}
+    assert main(["compare", "--robot", "panda", "--targets", str(PANDA_LINES), "--only", only,
+                 "--methods", "rtb-lm", "--repeat", "1", "--output", str(tmp_path),
+                 "--quiet"]) == 0
+    results = pd.read_csv(tmp_path / "compare" / "results.csv", dtype={"trajectory": str})
+    assert sorted(results["trajectory"]) == only.split(",")
+    assert_judged_from_csvs(tmp_path / "compare", results, robot, tasks, contract)
+    assert results["success"].all(), results.to_dict("records")
+    assert (results["line_distance_max_mm"] < 0.01).all()

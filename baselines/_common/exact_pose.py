@@ -3,19 +3,36 @@
 
 A pointing goal fixes one axis of the end frame, not its roll; an exact-pose solver needs a
 whole rotation. Goal i asks for the warm start's end-frame rotation tilted by the smallest angle
-that puts the pointing axis on the goal direction (the roll carried over from the pose before).
+that puts the pointing axis on the goal direction (the walk: the roll carried over from the pose
+before; the track: then ramped, below).
 When the solver finds no solution for that roll, the roll is swept about the goal direction
 (+-step, +-2 step, ... up to +-max, :func:`rolls_rad`) and the first success kept. A point with
 no solution keeps its warm start and counts as not converged. 6-D goal frames are solved as
 given.
 
 The track (:mod:`ikbench.baselines._common.track`): step i asks for the plan's point and
-scheduled pointing direction; when the task asks no pointing, the step asks for the task's own
-goal direction (not judged; roll swept as above) and, when none of those rotations is solved,
-for the warm start's rotation itself. The seed of step i is the warm start moved
-``posture_seed`` of the way toward the plan's posture pose (start to touch pose, linearly): an
-exact-pose solver has no posture term. The walk
-(:mod:`ikbench.baselines._common.walk`) seeds each point with the pose after it.
+scheduled pointing direction (the plan already turns the pointing from the start pose's own over
+the unjudged first steps and onto the touch pose's over the last ones); when the task asks no
+pointing, the step asks for the task's own goal direction (not judged; roll swept as above) and,
+when none of those rotations is solved, for the warm start's rotation itself. The roll is not
+carried over but ramped onto the touch pose's (:func:`ramped_roll`): step i turns the warm
+start's tilted rotation about the pointing axis by the roll still between it and the touch
+pose's rotation (tilted onto the same direction) divided by the steps left, n - i, so the roll
+arrives at the touch pose's by step n - 1 in equal parts and the last segment does not spin the
+wrist onto it. The seed of step i is the warm start moved ``posture_seed`` of the way toward the
+plan's posture pose (start to touch pose, linearly): an exact-pose solver has no posture term.
+Each point is still one library call per rotation tried; ikbench only picks the rotations and
+the seed. The walk (:mod:`ikbench.baselines._common.walk`) seeds each point with the pose after
+it and carries the roll over.
+
+A library that can leave the roll free itself (roboticstoolbox's ``ik_LM`` with a mask: the
+``solve_free`` argument) is asked each pointing goal once, roll free, with the warm start's
+tilted rotation as the hint, no sweep and no ramp. On the track its seed is then the warm
+start moved toward the posture pose by a fraction that is 0 over the unjudged first steps
+(i < ``judged_from``, where the pointing turns) and rises linearly to ``posture_seed`` over
+the next 2 ``judged_from`` steps (:func:`delayed_seed_fraction`): a solver without a posture
+term that settles near its seed is pulled onto the touch pose gradually, and not while the
+turn already takes the wrist's allowed step.
 """
 
 from __future__ import annotations
@@ -26,7 +43,11 @@ from typing import Any
 import numpy as np
 
 from ikbench.baselines._common.chain import Chain, Goals
-from ikbench.baselines._common.geometry import closest_rotation_with_axis, rotation_about
+from ikbench.baselines._common.geometry import (
+    closest_rotation_with_axis,
+    roll_between_rad,
+    rotation_about,
+)
 from ikbench.baselines._common.track import track
 from ikbench.baselines._common.walk import PointResult, Walk, walk_back
 from ikbench.core.errors import InputError
@@ -50,13 +71,18 @@ def roll_max_option(prefix: str) -> Any:
                   help="largest roll change tried (0: no sweep)")
 
 
+def check_fraction(settings: Any, field_name: str) -> None:
+    """InputError naming the flag when the settings field ``field_name`` is not in [0, 1]."""
+    value = getattr(settings, field_name)
+    if not (np.isfinite(value) and 0 <= value <= 1):
+        raise InputError(f"{flag_of(settings, field_name)}: {value!r} must be in [0, 1]")
+
+
 def check_roll_settings(settings: Any) -> None:
     """InputError naming the flag for a bad ``roll_step``, ``roll_max`` [deg] or
     ``posture_seed`` of an exact-pose method's settings."""
     check_positive(settings, "roll_step")
-    if not (np.isfinite(settings.posture_seed) and 0 <= settings.posture_seed <= 1):
-        raise InputError(f"{flag_of(settings, 'posture_seed')}: {settings.posture_seed!r} "
-                         "must be in [0, 1]")
+    check_fraction(settings, "posture_seed")
     if not 0 <= settings.roll_max <= 180:
         raise InputError(f"{flag_of(settings, 'roll_max')}: {settings.roll_max!r} must be in "
                          "[0, 180] deg")
@@ -71,9 +97,28 @@ def rolls_rad(step_deg: float, max_deg: float) -> list[float]:
     return rolls
 
 
+def ramped_roll(tilted: np.ndarray, touch: np.ndarray, axis_local: np.ndarray,
+                steps_left: int) -> np.ndarray:
+    """``tilted`` (3, 3) turned about its local ``axis_local`` (3,) by 1 / ``steps_left`` of the
+    roll between it and ``touch`` (3, 3; its ``axis_local`` along the same direction): the
+    track's goal rotation (see the module docstring). ``steps_left`` >= 1; 1 gives ``touch``'s
+    rotation."""
+    angle = roll_between_rad(tilted, touch, axis_local) / max(int(steps_left), 1)
+    return tilted @ rotation_about(axis_local, angle)
+
+
+def delayed_seed_fraction(i: int, judged_from: int, top: float) -> float:
+    """The roll-free track's seed fraction toward the posture pose at step ``i``: 0 before
+    ``judged_from``, then rising linearly to ``top`` over 2 ``judged_from`` steps (see the
+    module docstring)."""
+    ramp = 2 * max(int(judged_from), 1)
+    return float(top * np.clip((i - judged_from) / ramp, 0.0, 1.0))
+
+
 def solve_exact_poses(chain: Chain, goals: Goals, solve: PoseIK,
                       end_rotation: Callable[[np.ndarray], np.ndarray], rolls: list[float],
-                      posture_seed: float) -> tuple[Walk, dict[str, object]]:
+                      posture_seed: float, solve_free: PoseIK | None = None
+                      ) -> tuple[Walk, dict[str, object]]:
     """Track (``goals.track`` set) or walk the goals with ``solve`` (see the module docstring).
 
     Args:
@@ -84,7 +129,10 @@ def solve_exact_poses(chain: Chain, goals: Goals, solve: PoseIK,
             library's own FK.
         rolls: the roll angles [rad] tried in order (:func:`rolls_rad`).
         posture_seed: the track's seed moves this fraction from the warm start toward the
-            plan's posture pose.
+            plan's posture pose (with ``solve_free``: the top of :func:`delayed_seed_fraction`).
+        solve_free: the library's IK of a pointing goal with the roll about the pointing axis
+            left free (:data:`PoseIK`; the rotation's roll is only a hint), or None: then
+            pointing goals are solved with it, once each (see the module docstring).
 
     Returns:
         (the walk, figures for details: points whose roll was swept, points whose solution
@@ -92,6 +140,7 @@ def solve_exact_poses(chain: Chain, goals: Goals, solve: PoseIK,
     """
     plan = goals.track
     swept, off = [], []
+    touch_rotation = None if plan is None else end_rotation(plan.q_touch)
 
     def solve_pose(i: int, seed: np.ndarray, point: np.ndarray,
                    candidates: list[np.ndarray], q_warm: np.ndarray) -> PointResult:
@@ -107,21 +156,46 @@ def solve_exact_poses(chain: Chain, goals: Goals, solve: PoseIK,
                 return PointResult(q, k + 1, holds)
         return PointResult(q_warm, len(candidates), False)
 
-    def pointing_candidates(q_warm: np.ndarray, direction: np.ndarray) -> list[np.ndarray]:
-        """The warm start's rotation tilted onto ``direction``, then rolled about it."""
-        tilted = closest_rotation_with_axis(end_rotation(q_warm), chain.pointing_axis,
-                                            direction)
+    def pointing_candidates(q_warm: np.ndarray, direction: np.ndarray,
+                            steps_left: int = 0) -> list[np.ndarray]:
+        """The warm start's rotation tilted onto ``direction`` (its roll ramped onto the touch
+        pose's with ``steps_left`` > 0, :func:`ramped_roll`), then rolled about it."""
+        axis = chain.pointing_axis
+        tilted = closest_rotation_with_axis(end_rotation(q_warm), axis, direction)
+        if steps_left > 0:
+            assert touch_rotation is not None
+            tilted = ramped_roll(tilted, closest_rotation_with_axis(touch_rotation, axis,
+                                                                    direction), axis, steps_left)
         return [rotation_about(direction, r) @ tilted for r in rolls]
 
+    def solve_roll_free(i: int, seed: np.ndarray, point: np.ndarray, direction: np.ndarray,
+                        q_warm: np.ndarray) -> PointResult:
+        """One ``solve_free`` call, the warm start's rotation tilted onto ``direction`` as the
+        hint; none: q_warm."""
+        assert solve_free is not None
+        hint = closest_rotation_with_axis(end_rotation(q_warm), chain.pointing_axis, direction)
+        out = solve_free(seed, point, hint)
+        if out is None:
+            return PointResult(q_warm, 1, False)
+        if not out[1]:
+            off.append(i)
+        return PointResult(out[0], 1, out[1])
+
     def walk_point(i: int, q_warm: np.ndarray) -> PointResult:
+        if goals.rotations is None and solve_free is not None:
+            return solve_roll_free(i, q_warm, goals.points_m[i], goals.directions[i], q_warm)
         candidates = ([goals.rotations[i]] if goals.rotations is not None
                       else pointing_candidates(q_warm, goals.directions[i]))
         return solve_pose(i, q_warm, goals.points_m[i], candidates, q_warm)
 
     def track_point(i: int, q_warm: np.ndarray) -> PointResult:
         assert plan is not None
+        if solve_free is not None and plan.directions is not None:
+            fraction = delayed_seed_fraction(i, plan.judged_from, posture_seed)
+            seed = chain.clip(q_warm + fraction * (plan.posture[i] - q_warm))
+            return solve_roll_free(i, seed, plan.points_m[i], plan.directions[i], q_warm)
         candidates = pointing_candidates(q_warm, goals.directions[i] if plan.directions is None
-                                         else plan.directions[i])
+                                         else plan.directions[i], len(plan) - 1 - i)
         if plan.directions is None:  # no pointing asked: else the warm start's rotation
             candidates.append(end_rotation(q_warm))
         seed = chain.clip(q_warm + posture_seed * (plan.posture[i] - q_warm))

@@ -47,6 +47,17 @@ def closest_rotation_with_axis(rotation: np.ndarray, axis_local: npt.ArrayLike,
     return rotation_between(rotation @ np.asarray(axis_local, dtype=float), direction) @ rotation
 
 
+def roll_between_rad(a: np.ndarray, b: np.ndarray, axis_local: npt.ArrayLike) -> float:
+    """Signed angle [rad] in (-pi, pi] of the turn about the local ``axis_local`` (3,, unit)
+    that takes rotation ``a`` (3, 3) to ``b`` (3, 3), whose ``axis_local`` point the same way:
+    ``b = a @ rotation_about(axis_local, angle)``."""
+    relative = np.asarray(a, dtype=float).T @ np.asarray(b, dtype=float)
+    axis = np.asarray(axis_local, dtype=float)
+    vee = np.array([relative[2, 1] - relative[1, 2], relative[0, 2] - relative[2, 0],
+                    relative[1, 0] - relative[0, 1]])
+    return float(np.arctan2(axis @ vee / 2.0, (np.trace(relative) - 1.0) / 2.0))
+
+
 def frame_with_z_on(axis_local: npt.ArrayLike) -> np.ndarray:
     """A constant rotation R_EP (end frame E -> a pointing frame P) whose z-axis is
     ``axis_local`` (3,): libraries that free the roll about a frame's z-axis act on

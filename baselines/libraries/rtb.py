@@ -29,11 +29,25 @@ and run ``slimit`` searches whatever the time: they cannot honour the shared seq
 wall-clock budget. Measured on the same 1,000 Panda targets (load about 4): one search
 succeeds on 35 %, ``slimit=100`` on 100 % at 136 us median per call.
 
-Per point (``compare``, :mod:`ikbench.baselines._common.exact_pose`): an exact-pose solver
-like TRAC-IK: pointing goals become whole rotations (the warm start's tilted onto the
-direction, the roll swept when none is solved), one ``ik_LM`` call per rotation from the warm
-start (``--rtb-slimit`` 1: no random jumps), the seed moved ``--rtb-posture-seed`` toward the
-plan's posture pose. Deterministic (with ``slimit=1`` nothing random is drawn).
+Per point (``compare``, :mod:`ikbench.baselines._common.exact_pose`), ``--rtb-orientation``:
+
+- ``pointing`` (default): rtb's own mask leaves the roll about the pointing axis free.
+  ``ik_LM``'s error e is expressed in the ETS's base frame (rtb's ``angle_axis(Te, Tep)`` and
+  ``jacob0``), so the mask weighs base-frame axes: each pointing goal is solved on the ETS
+  behind a constant rotation that turns the goal direction onto z (:func:`pointing_ets`), with
+  ``mask=[1, 1, 1, 1, 1, 0]`` (:data:`POINTING_MASK`), one call per point, the warm start's
+  rotation tilted onto the direction as the goal (its roll only a hint). On the track the seed
+  is the warm start, moved toward the plan's posture pose from the first judged step on, the
+  fraction rising to ``--rtb-pointing-seed`` 0.8 (``delayed_seed_fraction``): rtb has no
+  posture term, and ik_LM from a warm start settles near it, so this is what brings the arm
+  onto the touch pose.
+- ``pose``: an exact-pose solver like TRAC-IK: pointing goals become whole rotations (the
+  warm start's tilted onto the direction, on the track its roll ramped onto the touch pose's,
+  the roll swept when none is solved), one ``ik_LM`` call per rotation, the seed moved
+  ``--rtb-posture-seed`` toward the plan's posture pose.
+
+Both: ``--rtb-slimit`` 1 (no random jumps), so deterministic (nothing random is drawn);
+6-D goal frames and tasks without pointing are solved as in ``pose``.
 """
 
 from __future__ import annotations
@@ -50,12 +64,14 @@ import numpy as np
 
 from ikbench.baselines._common.chain import Chain, Goals, chain_of
 from ikbench.baselines._common.exact_pose import (
+    check_fraction,
     check_roll_settings,
     roll_max_option,
     roll_step_option,
     rolls_rad,
     solve_exact_poses,
 )
+from ikbench.baselines._common.geometry import rotation_between
 from ikbench.baselines._common.method import ChainResult, LibraryMethod
 from ikbench.baselines._common.single_pose import LIBRARY_TOLERANCE, PoseOut, PoseSolver
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES
@@ -72,6 +88,10 @@ ILIMIT = 30
 FK_AGREEMENT = 1e-9
 #: Configurations the FK check compares.
 FK_CHECKS = 5
+#: What rtb-lm's per-point goals are (its ``orientation`` setting).
+ORIENTATIONS = ("pointing", "pose")
+#: ik_LM's mask in the pointing frame: position and the two tilts; the roll about z free.
+POINTING_MASK = np.array([1.0, 1, 1, 1, 1, 0])
 _ETS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -130,6 +150,17 @@ def check_fk(robot: Robot, ets: Any) -> float:
     return worst
 
 
+def pointing_ets(ets: Any, direction: np.ndarray) -> tuple[Any, np.ndarray]:
+    """(``ets`` behind the constant rotation R that turns the unit ``direction`` (3,) onto
+    z, R as a (4, 4) transform): ik_LM's error is in its base frame, so in this one
+    ``mask``'s sixth entry weighs the turn about ``direction``."""
+    from roboticstoolbox.ets.ET import ET
+
+    turn = np.eye(4)
+    turn[:3, :3] = rotation_between(direction, [0.0, 0.0, 1.0])
+    return ET.SE3(turn) * ets, turn
+
+
 def goal_frame(point_m: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """The goal end frame Tep (4, 4) [m] of a point and a rotation."""
     T = np.eye(4)
@@ -172,6 +203,10 @@ class RtbSettings:
     """Settings of rtb-lm's track and walk (see the module docstring)."""
 
     scheme: str = option("track", flag="scheme", choices=SCHEMES, help=SCHEME_HELP)
+    orientation: str = option("pointing", flag="rtb-orientation", choices=ORIENTATIONS,
+                              help="pointing (ik_LM's mask frees the roll about the pointing "
+                              "axis; the track's landing asks the ramped roll) or pose (an "
+                              "exact rotation per point, roll ramped onto the touch pose's)")
     ilimit: int = option(ILIMIT, flag="rtb-ilimit", help="ik_LM's iterations of one search")
     slimit: int = option(1, flag="rtb-slimit", help="ik_LM's searches per rotation asked: 1 "
                          "descends from the warm start only; more restart from rtb's own "
@@ -179,14 +214,20 @@ class RtbSettings:
     roll_step: float = roll_step_option("rtb")
     roll_max: float = roll_max_option("rtb")
     posture_seed: float = option(0.5, flag="rtb-posture-seed",
-                                 help="scheme track: ik_LM's start is the warm start moved "
-                                 "this fraction toward the step's posture pose (start to "
-                                 "touch pose, linearly); 0: the warm start")
+                                 help="scheme track, orientation pose: ik_LM's start is the "
+                                 "warm start moved this fraction toward the step's posture "
+                                 "pose (start to touch pose, linearly); 0: the warm start")
+    pointing_seed: float = option(0.8, flag="rtb-pointing-seed",
+                                  help="scheme track, orientation pointing: as "
+                                  "--rtb-posture-seed, the fraction 0 over the unjudged first "
+                                  "steps and rising to this over twice as many steps after")
 
     def __post_init__(self):
         check_choice(self, "scheme", SCHEMES)
+        check_choice(self, "orientation", ORIENTATIONS)
         check_positive(self, "ilimit", "slimit", integer=True)
         check_roll_settings(self)
+        check_fraction(self, "pointing_seed")
 
 
 def solve_chain(chain: Chain, goals: Goals, settings: RtbSettings) -> ChainResult:
@@ -201,24 +242,44 @@ def solve_chain(chain: Chain, goals: Goals, settings: RtbSettings) -> ChainResul
                         joint_limits=True)
         return (np.asarray(out.q, dtype=float), True) if out.success else None
 
+    turned: dict[bytes, tuple[Any, np.ndarray]] = {}
+
+    def solve_free(seed: np.ndarray, point: np.ndarray, rotation: np.ndarray
+                   ) -> tuple[np.ndarray, bool] | None:
+        direction = rotation @ chain.pointing_axis
+        key = direction.tobytes()
+        if key not in turned:
+            turned.clear()  # the direction changes only where the plan turns it
+            turned[key] = pointing_ets(ets, direction)
+        ets_p, turn = turned[key]
+        out = ets_p.ik_LM(turn @ goal_frame(point, rotation), q0=np.asarray(seed, dtype=float),
+                          ilimit=int(settings.ilimit), slimit=int(settings.slimit), tol=TOL,
+                          mask=POINTING_MASK, joint_limits=True)
+        return (np.asarray(out.q, dtype=float), True) if out.success else None
+
     def end_rotation(q: np.ndarray) -> np.ndarray:
         return np.asarray(ets.fkine(np.asarray(q, dtype=float)).A)[:3, :3]
 
-    walk, info = solve_exact_poses(chain, goals, solve, end_rotation,
-                                   rolls_rad(settings.roll_step, settings.roll_max),
-                                   settings.posture_seed)
+    rolls = rolls_rad(settings.roll_step, settings.roll_max)
+    if settings.orientation == "pointing":
+        walk, info = solve_exact_poses(chain, goals, solve, end_rotation, rolls,
+                                       settings.pointing_seed, solve_free)
+    else:
+        walk, info = solve_exact_poses(chain, goals, solve, end_rotation, rolls,
+                                       settings.posture_seed)
     return ChainResult.from_walk(walk, **info, iterations_are="ik_LM calls (one per rotation "
                                  "tried)")
 
 
 class RtbLM(LibraryMethod):
-    """roboticstoolbox-python's ik_LM per point (exact 6-D, roll carried over), tracked from
-    the start pose onto the touch pose (scheme track) or walked back from the touch pose."""
+    """roboticstoolbox-python's ik_LM per point (roll free by its mask, or exact 6-D), tracked
+    from the start pose onto the touch pose (scheme track) or walked back from the touch pose."""
 
     name = "rtb-lm"
-    description = ("library: roboticstoolbox-python's C++ ik_LM per point, the roll carried "
-                   "over from the previous pose, tracked from the start pose onto the touch "
-                   "pose (--scheme walk: back from it)")
+    description = ("library: roboticstoolbox-python's C++ ik_LM per point, the roll about the "
+                   "pointing axis left free by its mask (--rtb-orientation pose: exact "
+                   "rotations), tracked from the start pose onto the touch pose (--scheme "
+                   "walk: back from it)")
     library = "roboticstoolbox-python"
     Settings = RtbSettings
     supports_frames = True

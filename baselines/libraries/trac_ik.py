@@ -28,7 +28,9 @@ pose-error twist by ``eps`` in its own frame, so position [m] and rotation angle
 sqrt(3) eps (:data:`FK_CHECK`).
 
 The track (:mod:`ikbench.baselines._common.track`): row 0 is the start pose, row n the touch pose;
-step i asks for the plan's point and scheduled pointing direction, the rotation built as above. When
+step i asks for the plan's point and scheduled pointing direction, the rotation built as above
+but its roll ramped onto the touch pose's (:mod:`ikbench.baselines._common.exact_pose`) rather
+than carried over, so the last segment does not spin the wrist onto the touch pose. When
 the task asks no pointing, position only is impossible with an exact-pose solver: the step asks
 for the task's own goal direction (not judged; roll swept as above) and, when none of those
 rotations is solved, for the warm start's rotation itself. TRAC-IK has no posture term: its
@@ -36,8 +38,8 @@ redundancy resolution is SolveType ``Distance`` (default here; the solution near
 among those found within the timeout), and the seed of step i is the warm start moved
 ``posture_seed`` of the way toward the plan's posture pose (start to touch pose, linearly),
 the only way to steer it toward the touch pose. Nothing bounds a step's joint change: on NICO
-the 1-D self-motion left by the 6-D pose (wrist and finger about parallel axes, and the carried
-roll) drifts away from the touch pose, and the last segment jumps onto it.
+the first steps, where the pointing turns onto the line, move the wrist several times faster
+than its speed limit allows (docs/baselines.md).
 
 Not deterministic: each ``CartToJnt`` races a KDL Newton thread and an NLopt thread against a
 wall-clock timeout with random restarts and returns the best solution found when the race
