@@ -94,7 +94,14 @@ from ikbench.baselines._common.track import (
     speed_box,
 )
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Method, Solution, check_choice, check_positive, option
+from ikbench.methods.base import (
+    Capabilities,
+    Method,
+    Solution,
+    check_choice,
+    check_positive,
+    option,
+)
 
 if TYPE_CHECKING:
     from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
@@ -677,8 +684,7 @@ class SequentialIK(Method):
                    "(--scheme walk: back from the touch pose)")
     library = "pin"
     Settings = DLSSettings
-    requires_touch_pose = True
-    supports_frames = True
+    capabilities = Capabilities(needs_touch_pose=True, frames=True)
 
     def prepare(self, robot: Robot) -> None:
         robot.pinocchio_fk()

@@ -67,11 +67,9 @@ def current_obstacles() -> tuple:
 
 
 class AvoidsObstacles:
-    """Mixin for a library method that keeps the robot clear of the task's obstacles: sets
-    ``avoids_obstacles`` and makes the task's obstacles visible to ``solve_chain`` through
-    :func:`current_obstacles` for the time of the solve."""
-
-    avoids_obstacles = True
+    """Mixin for a library method that keeps the robot clear of the task's obstacles
+    (``Capabilities(obstacles=True)``): makes the task's obstacles visible to ``solve_chain``
+    through :func:`current_obstacles` for the time of the solve."""
 
     def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         token = _OBSTACLES.set(task_obstacles(task))

@@ -20,7 +20,7 @@ from ikbench.baselines._common.chain import require_touch_and_start as _require_
 from ikbench.baselines._common.track import plan_track, require_start_and_touch
 from ikbench.baselines._common.walk import Walk
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Method, Solution
+from ikbench.methods.base import Capabilities, Method, Solution
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -54,8 +54,9 @@ class LibraryMethod(Method):
     """Base class of the methods in ``baselines/`` that call another kinematics library.
 
     Class attributes (besides :class:`~ikbench.methods.base.Method`'s):
-        supports_frames: True when the library takes full 6-D goal frames
-            (``task.goal_rotations``); otherwise such tasks are refused before any solve.
+        capabilities: ``needs_touch_pose`` (the walks start at the touch pose, the trajectory
+            optimisers fix it); ``frames`` when the library takes full 6-D goal frames
+            (``task.goal_rotations``), otherwise such tasks are refused before any solve.
         whole_path: True for trajectory optimisers (the start and touch poses are both
             fixed; the result's rows are returned as solved, row n included); False for the
             sequential walks (row n is the touch pose exactly).
@@ -65,8 +66,7 @@ class LibraryMethod(Method):
     """
 
     library: ClassVar[str] = ""
-    requires_touch_pose: ClassVar[bool] = True
-    supports_frames: ClassVar[bool] = False
+    capabilities: ClassVar[Capabilities] = Capabilities(needs_touch_pose=True)
     whole_path: ClassVar[bool] = False
     loads_urdf: ClassVar[bool] = True
 
@@ -100,7 +100,7 @@ class LibraryMethod(Method):
                 _require_both(task, self.name)
             elif self.tracks(task):
                 require_start_and_touch(task, self.name)
-            if getattr(task, "goal_rotations", None) is not None and not self.supports_frames:
+            if task.has_frames and not self.capabilities.frames:
                 raise InputError(f"trajectory {task.name!r}: --method {self.name} takes goal "
                                  "points and pointing directions, not 6-D goal frames")
         super().check_tasks(robot, tasks)

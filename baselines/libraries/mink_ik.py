@@ -95,7 +95,7 @@ from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.baselines.libraries.pink_ik import check_qp_solver
 from ikbench.core.errors import InputError
-from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.base import Capabilities, check_choice, check_positive, option
 
 if TYPE_CHECKING:
     from ikbench.baselines._common.track import TrackPlan
@@ -498,7 +498,7 @@ class MinkIK(AvoidsObstacles, LibraryMethod):
                    "CollisionAvoidanceLimit on capsule geoms and the obstacles")
     library = "mink"
     Settings = MinkSettings
-    supports_frames = True
+    capabilities = Capabilities(needs_touch_pose=True, frames=True, obstacles=True)
 
     def prepare(self, robot: Robot) -> None:
         """Untimed: MuJoCo parses and compiles the URDF."""

@@ -312,7 +312,6 @@ class PyrokiTrajopt(LibraryMethod):
     library = "almond-pyroki"
     Settings = PyrokiSettings
     whole_path = True
-    supports_frames = False
 
     def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
         super().check_tasks(robot, tasks)

@@ -152,11 +152,12 @@ def columns_for(contract: Contract) -> list[str]:
     return [*COLUMNS, *(OBSTACLE_COLUMNS if contract.obstacles else [])]
 
 
-def avoids_obstacles(cls: type | Method | None, tasks: Sequence) -> bool:
-    """True when the method ``cls`` keeps clear of the obstacles of these tasks:
-    ``Method.avoids_obstacles`` covers pose paths (goal frames) only, so on line tasks no
-    method avoids them today."""
-    return bool(getattr(cls, "avoids_obstacles", False)) and all(t.has_frames for t in tasks)
+def avoids_obstacles(cls: type[Method] | Method | None, tasks: Sequence[Task]) -> bool:
+    """True when the method ``cls`` (None: not installed) keeps clear of the obstacles of these
+    tasks: ``Capabilities.obstacles`` covers pose paths (goal frames) only, so on line tasks
+    no method avoids them today."""
+    return (cls is not None and cls.capabilities.obstacles
+            and all(t.has_frames for t in tasks))
 
 
 def with_obstacles(targets: Targets, obstacles: str | Path | Sequence | None,
@@ -434,7 +435,7 @@ def solve_method(job: tuple) -> tuple[list, list]:
     single, batched = [], []
     for _ in range(warmup + repeat):
         single.append([solve_tasks(solver, robot, [task], quiet)[0] for task in tasks])
-        if solver.batched and len(tasks) > 1:
+        if solver.capabilities.batched and len(tasks) > 1:
             batched.append(solve_tasks(solver, robot, tasks, quiet))
     return single[warmup:], batched[warmup:]
 

@@ -59,7 +59,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     from ikbench.methods.registry import available_methods
 
     # sequential methods start at a touch pose, which a letter does not have
-    methods = {n: c for n, c in available_methods().items() if not c.requires_touch_pose}
+    methods = {n: c for n, c in available_methods().items() if not c.capabilities.needs_touch_pose}
     parser.add_argument("letters", type=letters_value,
                         help="letters A-Z, comma-separated, e.g. P or P,A,S "
                         "(lower case is drawn upper case)")

@@ -224,7 +224,7 @@ def solve_write_report(solver: Method, robot: Robot, targets: Targets, tasks: Se
             print(f"ikbench: interrupted before any trajectory was solved; {folder}/ is "
                   "unchanged", file=sys.stderr)
         return 130
-    return report_table(table, folder, batch=len(tasks) if solver.batched else None)
+    return report_table(table, folder, batch=len(tasks) if solver.capabilities.batched else None)
 
 
 def run_problem(args: argparse.Namespace, fixed: dict | None = None) -> int:

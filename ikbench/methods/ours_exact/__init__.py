@@ -33,6 +33,7 @@ import numpy as np
 from ikbench.core.errors import InputError
 from ikbench.core.validity import MAX_JOINT_CHANGE_DEG, MAX_JOINT_CHANGE_MM
 from ikbench.methods.base import (
+    Capabilities,
     Method,
     Solution,
     check_choice,
@@ -137,9 +138,7 @@ class OursExact(Method):
                    "joint limits), the paper's smoothness and pointing optimised: batched SQP "
                    "with a banded KKT solve")
     Settings = ExactSettings
-    batched = True
-    warm_starts = True
-    supports_frames = True
+    capabilities = Capabilities(frames=True, batched=True, warm_starts=True)
 
     def scheme_label(self) -> str:
         s = self.settings
