@@ -511,7 +511,7 @@ def track_joint_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
     q_rad = np.empty((n + 1, len(plan.q_start)))
     q_rad[0], q_rad[n] = plan.q_start, plan.q_touch
     up = None if plan.directions is None else _up_vector(settings, pin_fk, plan.q_touch)
-    step = (max_step_urdf(robot, getattr(task, "contract", None), task.steps)
+    step = (max_step_urdf(robot, task.contract, task.steps)
             if settings.max_speed_use > 0 else None)
     iterations, missed, worst_pos_mm, worst_angle_deg = 0, 0, 0.0, 0.0
     for i in range(1, n):

@@ -151,12 +151,12 @@ def goals_of(robot: Robot, task: Task) -> Goals:
     """The task's goals in URDF units (6-D rotations from ``task.goal_rotations`` if any)."""
     directions = np.asarray(task.goal_directions, dtype=float)
     directions = directions / np.linalg.norm(directions, axis=1, keepdims=True)
-    rotations = getattr(task, "goal_rotations", None)
+    rotations = task.goal_rotations
 
     def pose(value):
         return None if value is None else robot.to_urdf(np.asarray(value, dtype=float))
 
-    contract = getattr(task, "contract", None)
+    contract = task.contract
     return Goals(np.asarray(task.goal_points_mm, dtype=float) / 1000.0, directions,
                  None if rotations is None else np.asarray(rotations, dtype=float),
                  pose(task.start_pose_deg), pose(task.end_pose_deg),

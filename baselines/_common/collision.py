@@ -57,8 +57,8 @@ _OBSTACLES: contextvars.ContextVar[tuple] = contextvars.ContextVar("ikbench_obst
 
 
 def task_obstacles(task: Task) -> tuple:
-    """The task's obstacles (``()`` for tasks without the field)."""
-    return tuple(getattr(task, "obstacles", None) or ())
+    """The task's obstacles."""
+    return tuple(task.obstacles)
 
 
 def current_obstacles() -> tuple:

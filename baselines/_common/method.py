@@ -82,7 +82,7 @@ class LibraryMethod(Method):
     def tracks(self, task: Task) -> bool:
         """True when ``task`` is solved by the tracking scheme (a pose path is always
         walked forward from the home pose: it has no start pose to track from)."""
-        return self.scheme == "track" and getattr(task, "goal_rotations", None) is None
+        return self.scheme == "track" and not task.has_frames
 
     def fixed_poses(self) -> frozenset[str]:
         """Both poses for trajectory optimisers and the tracking scheme; the walk keeps only
