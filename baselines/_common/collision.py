@@ -1,12 +1,11 @@
 """What the library adapters share for obstacle avoidance (issue 23).
 
 A task's obstacles (``Task.obstacles``, :mod:`ikbench.core.obstacles`: boxes, spheres, capsules,
-half-spaces in the robot's base frame [mm]) reach an adapter's ``solve_chain`` through
-:class:`AvoidsObstacles` (a mixin before :class:`ikbench.baselines._common.method.LibraryMethod`):
-its ``solve`` keeps the task's obstacles in a context variable for the solve, and the adapter
-reads them with :func:`current_obstacles`. The robot's collision geometry is ikbench's own
-(:func:`ikbench.core.collision.collision_model`: capsules in link frames [mm] and the link
-pairs checked for self-collision); :func:`scene_of` gathers both in the libraries' units
+half-spaces in the robot's base frame [mm]) reach an adapter's ``solve_chain`` with its goals
+(``Goals.obstacles``, :func:`ikbench.baselines._common.chain.goals_of`); an adapter that keeps
+clear of them says so (``Capabilities(obstacles=True)``). The robot's collision geometry is
+ikbench's own (:func:`ikbench.core.collision.collision_model`: capsules in link frames [mm] and
+the link pairs checked for self-collision); :func:`scene_of` gathers both in the libraries' units
 (metres) as a :class:`Scene`, or None when there is nothing to avoid.
 
 **No obstacle, no change**: a task without obstacles gets ``None`` and every adapter runs
@@ -26,7 +25,6 @@ ikbench ships (under 1.5 m); Drake has no signed distance between a capsule and 
 
 from __future__ import annotations
 
-import contextvars
 import itertools
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
@@ -42,8 +40,6 @@ if TYPE_CHECKING:
     from ikbench.core.collision import Capsule
     from ikbench.core.obstacles import Obstacle
     from ikbench.core.robot import Robot
-    from ikbench.core.task import Task
-    from ikbench.methods.base import Progress, Solution
 
 #: A half-space as a box: edge along the plane [m] and depth behind it [m], centred on the
 #: plane's point nearest the robot's base (larger boxes cost the libraries' GJK precision:
@@ -51,32 +47,6 @@ if TYPE_CHECKING:
 HALFSPACE_BOX_M = 6.0
 HALFSPACE_DEPTH_M = 3.0
 MM = 1e-3
-
-_OBSTACLES: contextvars.ContextVar[tuple] = contextvars.ContextVar("ikbench_obstacles",
-                                                                   default=())
-
-
-def task_obstacles(task: Task) -> tuple:
-    """The task's obstacles."""
-    return tuple(task.obstacles)
-
-
-def current_obstacles() -> tuple:
-    """The obstacles of the task being solved (set by :class:`AvoidsObstacles`)."""
-    return _OBSTACLES.get()
-
-
-class AvoidsObstacles:
-    """Mixin for a library method that keeps the robot clear of the task's obstacles
-    (``Capabilities(obstacles=True)``): makes the task's obstacles visible to ``solve_chain``
-    through :func:`current_obstacles` for the time of the solve."""
-
-    def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
-        token = _OBSTACLES.set(task_obstacles(task))
-        try:
-            return super().solve(robot, task, progress)  # type: ignore[misc]
-        finally:
-            _OBSTACLES.reset(token)
 
 
 @dataclass(frozen=True)

@@ -61,9 +61,7 @@ import numpy as np
 
 from ikbench.baselines._common.chain import Chain, Goals, contract_step, urdf_step
 from ikbench.baselines._common.collision import (
-    AvoidsObstacles,
     Scene,
-    current_obstacles,
     no_avoidance_reason,
     scene_info,
     scene_of,
@@ -282,7 +280,7 @@ def pose_metric(robot: Robot) -> np.ndarray:
     return (nominal / per_unit) ** 2
 
 
-class DrakeIK(AvoidsObstacles, DrakeMethod):
+class DrakeIK(DrakeMethod):
     """Drake InverseKinematics per point, tracked from the start pose onto the touch pose
     (``--scheme track``) or walked back from the touch pose (``--scheme walk``)."""
 
@@ -300,7 +298,7 @@ class DrakeIK(AvoidsObstacles, DrakeMethod):
         step = None
         if goals.track is not None:
             step = contract_step(goals, STEP_MARGIN)
-        obstacles = current_obstacles()
+        obstacles = goals.obstacles
         scene = scene_of(robot, obstacles)
         result = solve_chain(chain, goals, self.settings, pose_metric(robot), step, scene)
         result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),

@@ -62,9 +62,7 @@ import numpy as np
 
 from ikbench.baselines._common.chain import Chain, Goals, contract_step
 from ikbench.baselines._common.collision import (
-    AvoidsObstacles,
     Scene,
-    current_obstacles,
     no_avoidance_reason,
     scene_info,
     scene_of,
@@ -329,7 +327,7 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings,
         "iterations_are": "program solves (Drake reports no SNOPT iteration count)"})
 
 
-class DrakeTrajopt(AvoidsObstacles, DrakeMethod):
+class DrakeTrajopt(DrakeMethod):
     """Drake KinematicTrajectoryOptimization of the whole path between start and touch pose."""
 
     name = "drake-trajopt"
@@ -350,7 +348,7 @@ class DrakeTrajopt(AvoidsObstacles, DrakeMethod):
             control_point_count(self.settings, len(task.goal_points_mm))
 
     def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
-        obstacles = current_obstacles()
+        obstacles = goals.obstacles
         scene = scene_of(robot, obstacles)
         contract = goals.contract
         if contract is None:  # no contract: as before it, every inner point pointed

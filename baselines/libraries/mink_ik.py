@@ -69,9 +69,7 @@ import numpy as np
 
 from ikbench.baselines._common.chain import Chain, Goals, chain_of
 from ikbench.baselines._common.collision import (
-    AvoidsObstacles,
     Scene,
-    current_obstacles,
     no_avoidance_reason,
     scene_info,
     scene_of,
@@ -486,7 +484,7 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: MinkSetti
                                  iterations_are="QP solves (mink.solve_ik calls)")
 
 
-class MinkIK(AvoidsObstacles, LibraryMethod):
+class MinkIK(LibraryMethod):
     """mink's QP differential IK on MuJoCo, tracking from the start pose onto the touch pose
     (or walked back from the touch pose: ``--scheme walk``)."""
 
@@ -506,7 +504,7 @@ class MinkIK(AvoidsObstacles, LibraryMethod):
         mink_model(chain_of(robot))
 
     def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
-        obstacles = current_obstacles()
+        obstacles = goals.obstacles
         scene = scene_of(robot, obstacles)
         if goals.track is not None:
             result = solve_track(robot, chain, goals.track, self.settings, goals.max_step,

@@ -83,9 +83,7 @@ import numpy as np
 
 from ikbench.baselines._common.chain import Chain, Goals, chain_of
 from ikbench.baselines._common.collision import (
-    AvoidsObstacles,
     Scene,
-    current_obstacles,
     no_avoidance_reason,
     scene_info,
     scene_of,
@@ -414,7 +412,7 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: PinkSetti
                                  iterations_are="QP solves (pink.solve_ik calls)")
 
 
-class PinkIK(AvoidsObstacles, LibraryMethod):
+class PinkIK(LibraryMethod):
     """pink's QP differential IK, tracking from the start pose onto the touch pose (or walked
     back from the touch pose: ``--scheme walk``)."""
 
@@ -435,7 +433,7 @@ class PinkIK(AvoidsObstacles, LibraryMethod):
         pink_model(robot, chain_of(robot))
 
     def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
-        obstacles = current_obstacles()
+        obstacles = goals.obstacles
         scene = scene_of(robot, obstacles)
         if goals.track is not None:
             result = solve_track(robot, chain, goals.track, self.settings, goals.max_step,

@@ -366,8 +366,9 @@ def step_limits(robot: Robot, task: Task, settings: ExactSettings) -> np.ndarray
     contract = task.contract
     if contract is not None:
         limit = np.minimum(limit, float(settings.max_step))
-        if contract.max_step(task.steps) is not None:
-            limit = np.minimum(limit, CONTRACT_STEP_SHARE * contract.max_step(task.steps))
+        contract_step = contract.max_step(task.steps)
+        if contract_step is not None:
+            limit = np.minimum(limit, CONTRACT_STEP_SHARE * contract_step)
     return limit
 
 
