@@ -286,7 +286,7 @@ def sweep_tasks(robot: Robot, targets: str | Path | Targets | None, shape: str,
     if kind == "letter" and start_pose is None:
         start_pose = letter_start_pose(robot, targets)
     if start_pose is not None:
-        targets = replace(targets, start_pose_deg=robot.check_pose(start_pose, "--start-pose"))
+        targets = replace(targets, start_pose_deg=robot.check_pose(start_pose, "start_pose"))
     if only and kind != "line":
         raise InputError(f"--only selects touch poses of the line shape; shape {shape!r} has "
                          "none (name the letters in the shape instead, e.g. letter:P,A)")
