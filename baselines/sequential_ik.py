@@ -94,7 +94,14 @@ from ikbench.baselines._common.track import (
     speed_box,
 )
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Method, Solution, check_choice, check_positive, option
+from ikbench.methods.base import (
+    Capabilities,
+    Method,
+    Solution,
+    check_choice,
+    check_positive,
+    option,
+)
 
 if TYPE_CHECKING:
     from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
@@ -504,7 +511,7 @@ def track_joint_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
     q_rad = np.empty((n + 1, len(plan.q_start)))
     q_rad[0], q_rad[n] = plan.q_start, plan.q_touch
     up = None if plan.directions is None else _up_vector(settings, pin_fk, plan.q_touch)
-    step = (max_step_urdf(robot, getattr(task, "contract", None), task.steps)
+    step = (max_step_urdf(robot, task.contract, task.steps)
             if settings.max_speed_use > 0 else None)
     iterations, missed, worst_pos_mm, worst_angle_deg = 0, 0, 0.0, 0.0
     for i in range(1, n):
@@ -677,8 +684,7 @@ class SequentialIK(Method):
                    "(--scheme walk: back from the touch pose)")
     library = "pin"
     Settings = DLSSettings
-    requires_touch_pose = True
-    supports_frames = True
+    capabilities = Capabilities(needs_touch_pose=True, frames=True)
 
     def prepare(self, robot: Robot) -> None:
         robot.pinocchio_fk()

@@ -152,7 +152,7 @@ def test_six_d_goal_frames_are_reached(robot, name):
     position, _, angle = goal_errors(robot, task, poses)
     rows = solved_rows(name)
     assert position[rows].max() < 1e-2 and angle[rows].max() < 0.1, (position, angle)
-    assert cls.supports_frames
+    assert cls.capabilities.frames
 
 
 def test_a_library_without_frames_refuses_them_before_solving(robot):

@@ -62,7 +62,7 @@ def position_errors_mm(robot, task, poses) -> np.ndarray:
 
 @pytest.mark.parametrize("name", AVOIDING)
 def test_avoiding_methods_say_so(name):
-    assert method_class(name).avoids_obstacles
+    assert method_class(name).capabilities.obstacles
 
 
 @pytest.mark.parametrize("name", AVOIDING)

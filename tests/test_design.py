@@ -77,7 +77,7 @@ def test_the_warm_start_solves_the_same_task_as_a_cold_solve(nico):
         shifted = cold + np.linspace(0.0, 1.0, len(cold))[:, None] * 2.0  # a nearby start
         warm = method.solve_from(nico, task, shifted)
         np.testing.assert_allclose(warm.poses_deg, cold, atol=0.05)
-        assert method.warm_starts and warm.iterations >= 1
+        assert method.capabilities.warm_starts and warm.iterations >= 1
 
 
 class Cold(Method):
@@ -95,7 +95,7 @@ def test_a_method_without_a_warm_start_solves_from_scratch(nico):
     task = ikbench.build_tasks(nico, ikbench.load_targets(None, nico).select("1"))[0]
     given = np.zeros((task.steps + 1, nico.dof))
     solution = Cold().solve_from(nico, task, given)
-    assert not Cold.warm_starts
+    assert not Cold.capabilities.warm_starts
     np.testing.assert_allclose(solution.poses_deg[[0, -1]],
                                [task.start_pose_deg, task.end_pose_deg])
 

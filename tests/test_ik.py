@@ -353,7 +353,7 @@ def test_a_robot_whose_kinematics_cannot_be_built_is_one_line_exit_2(capsys, tmp
                  "--output", str(tmp_path), "--quiet"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1, err
-    assert ("--robot panda: its kinematics cannot be built (RuntimeError: Several frames "
+    assert ("--robot: panda's kinematics cannot be built (RuntimeError: Several frames "
             "match the filter (more))") in err
     assert not (tmp_path / "ik").exists()
 

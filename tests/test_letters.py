@@ -158,7 +158,7 @@ def test_run_letter_with_start_pose_override(robot, tmp_path):
     assert table["trajectory"].tolist() == ["I"]
     record = json.loads((tmp_path / "ours" / "run.json").read_text())
     assert record["start_pose_deg"] == pose and record["targets"] == "paper"
-    with pytest.raises(InputError, match="--start-pose: r_shoulder_z = 99 motor deg is outside"):
+    with pytest.raises(InputError, match="^start_pose: r_shoulder_z = 99 motor deg is outside"):
         run("ours", shape="letter:I", start_pose=[99, 50, 10, 100, 170, 170, -140],
             output=None, progress=False)
 

@@ -111,3 +111,22 @@ def test_cli_bad_pose_one_line_exit_2(capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
     assert "r_elbow_y = 10 motor deg is outside its range [50, 180]" in err
+
+
+def test_a_robot_without_default_targets_names_the_field_and_the_cli_the_flag(tmp_path, capsys):
+    """core names the field (``targets``), the command line the option that sets it."""
+    import ikbench
+    from tests.conftest import REPO
+
+    urdf = REPO / "urdf" / "panda.urdf"
+    bare = ikbench.load_robot(urdf, end_frame="panda_link8")
+    with pytest.raises(TargetsError, match="^targets: robot panda ships no default targets; "
+                       "give a targets file"):
+        load_targets(None, bare)
+    code = main(["run", "--robot", str(urdf), "--end-frame", "panda_link8", "--method",
+                 "ours-lm", "--output", str(tmp_path), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("ikbench: error: --targets: robot panda ships no "
+                                        "default targets; give a targets file (start and "
+                                        "touch poses in joint deg")
+    assert not list(tmp_path.iterdir())

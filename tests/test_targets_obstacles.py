@@ -4,19 +4,21 @@ judged as the contract's "collisions" criterion; without obstacles nothing chang
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from ikbench.baselines._common.chain import goals_of
 from ikbench.cli import main
 from ikbench.core.contract import Contract, contract_for, judge
 from ikbench.core.errors import TargetsError
 from ikbench.core.metrics import contract_metrics
 from ikbench.core.robot import Robot
 from ikbench.core.targets import Targets, load_targets
-from ikbench.core.task import build_tasks, line_tasks
+from ikbench.core.task import Task, build_tasks, line_tasks
 from ikbench.studies.compare import COLUMNS, OBSTACLE_COLUMNS
 from tests.conftest import PAPER_START
 
@@ -67,6 +69,16 @@ def test_a_list_of_obstacles_goes_on_every_task(robot: Robot, tmp_path: Path) ->
     assert all(t.obstacles == targets.obstacles for t in build_tasks(robot, targets))
     letters = build_tasks(robot, targets, "letter:L", steps=8)
     assert letters[0].obstacles == targets.obstacles
+
+
+def test_a_task_holds_its_obstacles_as_a_tuple_and_hands_them_to_the_adapters(
+        robot: Robot, tmp_path: Path) -> None:
+    crate = load_targets(_write(tmp_path, obstacles=[BOX]), robot).obstacles[0]
+    task = Task("t", np.zeros((3, 3)), np.tile([1.0, 0.0, 0.0], (3, 1)), None, None,
+                obstacles=[crate])  # a list, as a user may give it
+    assert task.obstacles == (crate,) and task.pen_down.tolist() == [True] * 3
+    assert goals_of(robot, task).obstacles == (crate,)
+    assert goals_of(robot, replace(task, obstacles=())).obstacles == ()
 
 
 def test_a_named_set_and_a_relative_file(robot: Robot, tmp_path: Path) -> None:

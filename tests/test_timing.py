@@ -215,8 +215,8 @@ def test_execute_cli_emulator_topp(capsys):
 
 @pytest.mark.parametrize("args, words", [
     (["--timing", "fast"], "--timing: 'fast'; allowed: constant, min-jerk, topp"),
-    (["--timing", "topp", "--max-velocity", "-3"], "--max-velocity '-3'"),
-    (["--timing", "topp", "--max-acceleration", "1,2"], "--max-acceleration '1,2'"),
+    (["--timing", "topp", "--max-velocity", "-3"], "--max-velocity: '-3'; give one positive"),
+    (["--timing", "topp", "--max-acceleration", "1,2"], "--max-acceleration: '1,2'; give one"),
 ])
 def test_bad_timing_options_are_one_line_errors(tmp_path, capsys, args, words):
     code = main(["plan", str(PAPER[0]), "--out", str(tmp_path / "p.csv"), *args])

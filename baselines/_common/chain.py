@@ -35,6 +35,7 @@ from ikbench.core.errors import InputError, SolverError
 
 if TYPE_CHECKING:
     from ikbench.core.contract import Contract
+    from ikbench.core.obstacles import Obstacle
     from ikbench.core.robot import Robot
     from ikbench.core.task import Task
     from ikbench.core.urdf_model import UrdfModel
@@ -101,6 +102,9 @@ class Goals:
         contract: the task's contract (:class:`ikbench.core.contract.Contract`), or None.
         max_step: (dof,) the largest joint change per segment [rad, m]
             (:func:`max_step_urdf`), or None when no speed limit is known.
+        obstacles: the task's obstacles (:class:`ikbench.core.obstacles.Obstacle`, base frame
+            [mm], as given), for the adapters that keep clear of them
+            (:func:`ikbench.baselines._common.collision.scene_of`); empty: none.
     """
 
     points_m: np.ndarray
@@ -110,8 +114,9 @@ class Goals:
     q_touch: np.ndarray | None
     q_home: np.ndarray | None = None
     track: Any = None
-    contract: Any = None
+    contract: Contract | None = None
     max_step: np.ndarray | None = None
+    obstacles: tuple[Obstacle, ...] = ()
 
     def __len__(self) -> int:
         return len(self.points_m)
@@ -148,20 +153,22 @@ def chain_of(robot: Robot) -> Chain:
 
 
 def goals_of(robot: Robot, task: Task) -> Goals:
-    """The task's goals in URDF units (6-D rotations from ``task.goal_rotations`` if any)."""
+    """The task's goals in URDF units (6-D rotations from ``task.goal_rotations`` if any),
+    with its contract and obstacles."""
     directions = np.asarray(task.goal_directions, dtype=float)
     directions = directions / np.linalg.norm(directions, axis=1, keepdims=True)
-    rotations = getattr(task, "goal_rotations", None)
+    rotations = task.goal_rotations
 
     def pose(value):
         return None if value is None else robot.to_urdf(np.asarray(value, dtype=float))
 
-    contract = getattr(task, "contract", None)
+    contract = task.contract
     return Goals(np.asarray(task.goal_points_mm, dtype=float) / 1000.0, directions,
                  None if rotations is None else np.asarray(rotations, dtype=float),
                  pose(task.start_pose_deg), pose(task.end_pose_deg),
                  pose(task.reference_pose_deg), contract=contract,
-                 max_step=max_step_urdf(robot, contract, len(task.goal_points_mm) - 1))
+                 max_step=max_step_urdf(robot, contract, len(task.goal_points_mm) - 1),
+                 obstacles=task.obstacles)
 
 
 def urdf_step(robot: Robot, pose_step: npt.ArrayLike) -> np.ndarray:

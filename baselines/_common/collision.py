@@ -1,13 +1,13 @@
 """What the library adapters share for obstacle avoidance (issue 23).
 
 A task's obstacles (``Task.obstacles``, :mod:`ikbench.core.obstacles`: boxes, spheres, capsules,
-half-spaces in the robot's base frame [mm]) reach an adapter's ``solve_chain`` through
-:class:`AvoidsObstacles` (a mixin before :class:`ikbench.baselines._common.method.LibraryMethod`):
-its ``solve`` keeps the task's obstacles in a context variable for the solve
-(:func:`current_obstacles`), and its ``solve_chain`` hands the adapter's ``solve_scene`` their
-:class:`Scene`. The robot's collision geometry is ikbench's own
-(:func:`ikbench.core.collision.collision_model`: capsules in link frames [mm] and the link
-pairs checked for self-collision); :func:`scene_of` gathers both in the libraries' units
+half-spaces in the robot's base frame [mm]) reach an adapter's ``solve_chain`` with its goals
+(``Goals.obstacles``, :func:`ikbench.baselines._common.chain.goals_of`); an adapter that keeps
+clear of them says so (``Capabilities(obstacles=True)``) and mixes in :class:`AvoidsObstacles`
+(before :class:`ikbench.baselines._common.method.LibraryMethod`), whose ``solve_chain`` hands the
+adapter's ``solve_scene`` their :class:`Scene`. The robot's collision geometry is
+ikbench's own (:func:`ikbench.core.collision.collision_model`: capsules in link frames [mm] and
+the link pairs checked for self-collision); :func:`scene_of` gathers both in the libraries' units
 (metres) as a :class:`Scene`, or None when there is nothing to avoid.
 
 **No obstacle, no change**: a task without obstacles gets ``None`` and every adapter runs
@@ -27,7 +27,6 @@ ikbench ships (under 1.5 m); Drake has no signed distance between a capsule and 
 
 from __future__ import annotations
 
-import contextvars
 import itertools
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
@@ -45,8 +44,6 @@ if TYPE_CHECKING:
     from ikbench.core.collision import Capsule
     from ikbench.core.obstacles import Obstacle
     from ikbench.core.robot import Robot
-    from ikbench.core.task import Task
-    from ikbench.methods.base import Progress, Solution
 
 #: A half-space as a box: edge along the plane [m] and depth behind it [m], centred on the
 #: plane's point nearest the robot's base (larger boxes cost the libraries' GJK precision:
@@ -55,39 +52,15 @@ HALFSPACE_BOX_M = 6.0
 HALFSPACE_DEPTH_M = 3.0
 MM = 1e-3
 
-_OBSTACLES: contextvars.ContextVar[tuple] = contextvars.ContextVar("ikbench_obstacles",
-                                                                   default=())
-
-
-def task_obstacles(task: Task) -> tuple:
-    """The task's obstacles (``()`` for tasks without the field)."""
-    return tuple(getattr(task, "obstacles", None) or ())
-
-
-def current_obstacles() -> tuple:
-    """The obstacles of the task being solved (set by :class:`AvoidsObstacles`)."""
-    return _OBSTACLES.get()
-
-
 class AvoidsObstacles:
-    """Mixin for a library method that keeps the robot clear of the task's obstacles: sets
-    ``avoids_obstacles``, makes the task's obstacles visible through :func:`current_obstacles`
-    for the time of the solve, and solves each chain in its :class:`Scene`: the adapter
-    implements :meth:`solve_scene`, and the result's info gets :func:`scene_info` (with the
-    settings' ``clearance`` [mm])."""
-
-    avoids_obstacles = True
-
-    def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
-        token = _OBSTACLES.set(task_obstacles(task))
-        try:
-            return super().solve(robot, task, progress)  # type: ignore[misc]
-        finally:
-            _OBSTACLES.reset(token)
+    """Mixin for a library method that keeps the robot clear of the task's obstacles
+    (``Capabilities(obstacles=True)``): solves each chain in the :class:`Scene` of its goals'
+    obstacles (``Goals.obstacles``): the adapter implements :meth:`solve_scene`, and the
+    result's info gets :func:`scene_info` (with the settings' ``clearance`` [mm])."""
 
     def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
-        """:meth:`solve_scene` in the scene of the current obstacles (None without any)."""
-        obstacles = current_obstacles()
+        """:meth:`solve_scene` in the scene of the goals' obstacles (None without any)."""
+        obstacles = goals.obstacles
         scene = scene_of(robot, obstacles)
         result = self.solve_scene(robot, chain, goals, scene)
         result.info.update(scene_info(scene, no_avoidance_reason(robot, obstacles),

@@ -20,7 +20,7 @@ from ikbench.baselines._common.chain import require_touch_and_start as _require_
 from ikbench.baselines._common.track import plan_track, require_start_and_touch
 from ikbench.baselines._common.walk import Walk
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Method, Solution, option
+from ikbench.methods.base import Capabilities, Method, Solution, option
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -64,8 +64,9 @@ class LibraryMethod(Method):
     """Base class of the methods in ``baselines/`` that call another kinematics library.
 
     Class attributes (besides :class:`~ikbench.methods.base.Method`'s):
-        supports_frames: True when the library takes full 6-D goal frames
-            (``task.goal_rotations``); otherwise such tasks are refused before any solve.
+        capabilities: ``needs_touch_pose`` (the walks start at the touch pose, the trajectory
+            optimisers fix it); ``frames`` when the library takes full 6-D goal frames
+            (``task.goal_rotations``), otherwise such tasks are refused before any solve.
         whole_path: True for trajectory optimisers (the start and touch poses are both
             fixed; the result's rows are returned as solved, row n included); False for the
             sequential walks (row n is the touch pose exactly).
@@ -75,8 +76,7 @@ class LibraryMethod(Method):
     """
 
     library: ClassVar[str] = ""
-    requires_touch_pose: ClassVar[bool] = True
-    supports_frames: ClassVar[bool] = False
+    capabilities: ClassVar[Capabilities] = Capabilities(needs_touch_pose=True)
     whole_path: ClassVar[bool] = False
     loads_urdf: ClassVar[bool] = True
 
@@ -92,7 +92,7 @@ class LibraryMethod(Method):
     def tracks(self, task: Task) -> bool:
         """True when ``task`` is solved by the tracking scheme (a pose path is always
         walked forward from the home pose: it has no start pose to track from)."""
-        return self.scheme == "track" and getattr(task, "goal_rotations", None) is None
+        return self.scheme == "track" and not task.has_frames
 
     def fixed_poses(self) -> frozenset[str]:
         """Both poses for trajectory optimisers and the tracking scheme; the walk keeps only
@@ -110,7 +110,7 @@ class LibraryMethod(Method):
                 _require_both(task, self.name)
             elif self.tracks(task):
                 require_start_and_touch(task, self.name)
-            if getattr(task, "goal_rotations", None) is not None and not self.supports_frames:
+            if task.has_frames and not self.capabilities.frames:
                 raise InputError(f"trajectory {task.name!r}: --method {self.name} takes goal "
                                  "points and pointing directions, not 6-D goal frames")
         super().check_tasks(robot, tasks)

@@ -104,7 +104,7 @@ def require_start_and_touch(task: Task, method: str) -> None:
 
 def plan_track(robot: Robot, task: Task, goals: Goals) -> TrackPlan:
     """The per-step targets of the tracking scheme for ``task`` (see the module doc)."""
-    contract = getattr(task, "contract", None)
+    contract = task.contract
     pointing = True if contract is None else bool(contract.pointing)
     n = len(goals) - 1
     judged_from = (contract.judged_from(n) if contract is not None

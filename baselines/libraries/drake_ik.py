@@ -76,7 +76,7 @@ from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, speed_box, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
-from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.base import Capabilities, check_choice, check_positive, option
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -279,7 +279,7 @@ class DrakeIK(AvoidsObstacles, DrakeMethod):
                    "MinimumDistanceLowerBoundConstraint on the robot's capsules")
     library = "drake"
     Settings = DrakeIKSettings
-    supports_frames = True
+    capabilities = Capabilities(needs_touch_pose=True, frames=True, obstacles=True)
 
     def solve_scene(self, robot: Robot, chain: Chain, goals: Goals,
                     scene: Scene | None) -> ChainResult:

@@ -79,7 +79,7 @@ from ikbench.baselines.libraries import drake_ik
 from ikbench.baselines.libraries.drake_ik import STEP_MARGIN
 from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
-from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.base import Capabilities, check_choice, check_positive, option
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -328,7 +328,7 @@ class DrakeTrajopt(AvoidsObstacles, DrakeMethod):
                    "MinimumDistanceLowerBoundConstraint at the samples)")
     library = "drake"
     Settings = DrakeTrajoptSettings
-    supports_frames = True
+    capabilities = Capabilities(needs_touch_pose=True, frames=True, obstacles=True)
     whole_path = True
 
     def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:

@@ -70,7 +70,7 @@ from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, speed_box, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
-from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.base import Capabilities, check_choice, check_positive, option
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -289,7 +289,7 @@ class IkpyIK(LibraryMethod):
                    "(--scheme walk --ikpy-orientation position: the authors' call)")
     library = "ikpy"
     Settings = IkpySettings
-    supports_frames = True
+    capabilities = Capabilities(needs_touch_pose=True, frames=True)
 
     def check_robot(self, robot: Robot) -> None:
         """Pointing mode needs a coordinate pointing axis (ikpy's X / Y / Z modes)."""

@@ -91,7 +91,7 @@ from ikbench.baselines._common.single_pose import PoseOut, PoseSolver, steps_to_
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
-from ikbench.methods.base import check_choice, option
+from ikbench.methods.base import Capabilities, check_choice, option
 
 if TYPE_CHECKING:
     from ikbench.baselines._common.track import TrackPlan
@@ -446,7 +446,7 @@ class MinkIK(AvoidsObstacles, LibraryMethod):
                    "CollisionAvoidanceLimit on capsule geoms and the obstacles")
     library = "mink"
     Settings = MinkSettings
-    supports_frames = True
+    capabilities = Capabilities(needs_touch_pose=True, frames=True, obstacles=True)
 
     def prepare(self, robot: Robot) -> None:
         """Untimed: MuJoCo parses and compiles the URDF."""

@@ -106,7 +106,7 @@ from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
 from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.core.kinematics.pinocchio_fk import link_frame_id
-from ikbench.methods.base import check_choice, option
+from ikbench.methods.base import Capabilities, check_choice, option
 
 if TYPE_CHECKING:
     from ikbench.baselines._common.track import TrackPlan
@@ -361,7 +361,7 @@ class PinkIK(AvoidsObstacles, LibraryMethod):
                    "on the robot's capsules and the obstacles")
     library = "pin-pink"
     Settings = PinkSettings
-    supports_frames = True
+    capabilities = Capabilities(needs_touch_pose=True, frames=True, obstacles=True)
     loads_urdf = False  # the robot's own Pinocchio model
 
     def prepare(self, robot: Robot) -> None:

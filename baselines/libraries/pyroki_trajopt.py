@@ -312,7 +312,6 @@ class PyrokiTrajopt(LibraryMethod):
     library = "almond-pyroki"
     Settings = PyrokiSettings
     whole_path = True
-    supports_frames = False
 
     def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
         super().check_tasks(robot, tasks)
@@ -349,9 +348,9 @@ class PyrokiTrajopt(LibraryMethod):
         return result
 
 
-def _speed_limited(task) -> bool:
+def _speed_limited(task: Task) -> bool:
     """True when the task's contract bounds the joint steps (a speed limit is known)."""
-    contract = getattr(task, "contract", None)
+    contract = task.contract
     return contract is not None and contract.max_step(len(task.goal_points_mm) - 1) is not None
 
 

@@ -75,7 +75,7 @@ from ikbench.baselines._common.geometry import rotation_between
 from ikbench.baselines._common.method import ChainResult, LibraryMethod
 from ikbench.baselines._common.single_pose import LIBRARY_TOLERANCE, PoseOut, PoseSolver
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES
-from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.base import Capabilities, check_choice, check_positive, option
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -282,7 +282,7 @@ class RtbLM(LibraryMethod):
                    "walk: back from it)")
     library = "roboticstoolbox-python"
     Settings = RtbSettings
-    supports_frames = True
+    capabilities = Capabilities(needs_touch_pose=True, frames=True)
 
     def prepare(self, robot: Robot) -> None:
         """Untimed: rtb parses the URDF; its FK is checked against Pinocchio's."""

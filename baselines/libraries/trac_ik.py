@@ -69,7 +69,7 @@ from ikbench.baselines._common.method import ChainResult, LibraryMethod
 from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
 from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES
 from ikbench.core.chatter import quiet
-from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.base import Capabilities, check_choice, check_positive, option
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -196,7 +196,7 @@ class TracIK(LibraryMethod):
                    "race a timeout)")
     library = "pytracik"
     Settings = TracIKSettings
-    supports_frames = True
+    capabilities = Capabilities(needs_touch_pose=True, frames=True)
 
     def prepare(self, robot: Robot) -> None:
         """Untimed: KDL parses the URDF, TRAC-IK builds its solvers."""

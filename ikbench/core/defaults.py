@@ -1,7 +1,10 @@
 """The defaults that several layers share, each defined once here.
 
 This module imports nothing, so the command line can take its defaults from it at ``--help``
-time without loading numpy or a kinematics library.
+time without loading numpy or a kinematics library. It is the one module outside
+``ikbench/methods`` and ``baselines/`` that names methods: the rest of core, runtime, render,
+studies and cli take the names from here or from a method's class
+(``tests/test_architecture.py``).
 """
 
 #: The robot every command and function uses when none is named (NICO's right arm).
@@ -9,3 +12,18 @@ DEFAULT_ROBOT = "nico_right_arm"
 #: Default duration T of a movement [s] (the paper's): the time of a trajectory CSV's last
 #: row, the contract's speed limits, the motion plans of ``ikbench plan`` / ``execute``.
 DEFAULT_DURATION_S = 2.0
+
+# ----- defaults that name a method ---------------------------------------------------------
+#: The paper's method (Adam on the paper's loss): what ``ikbench run``, ``letters`` and
+#: ``ablate`` solve with when no method is named.
+DEFAULT_METHOD = "ours"
+#: The method the others are measured against: ``compare``'s time ratios (``--reference``)
+#: and its weight sweep, the README's leaderboard; the designer's fallback.
+REFERENCE_METHOD = "ours-lm"
+#: The method ``ikbench design`` re-solves with when none is named (the path and the fixed
+#: poses exact, warm-started).
+DESIGN_METHOD = "ours-exact"
+#: ``ikbench compare``'s methods when none are named.
+COMPARE_METHODS = ("ours-lm", "ours-exact", "sequential-ik")
+#: ``ikbench bench``'s methods when none are named.
+BENCH_METHODS = ("ours", "ours-lm")

@@ -257,7 +257,7 @@ def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[st
         "target_path_length_mm": float(np.linalg.norm(np.diff(task.goal_points_mm, axis=0),
                                                       axis=1).sum()),
         "within_limits": within,
-        **check_trajectory(robot, poses, getattr(task, "obstacles", ())),
+        **check_trajectory(robot, poses, task.obstacles),
         "initial_configuration_distance": initial_distance(robot, task, poses),
     }
     failures = validity_failures(out)
@@ -267,7 +267,7 @@ def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[st
 def initial_distance(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> float:
     """Euclidean distance (URDF units: rad, m) of the first pose from the task's initial pose
     (CppFlow's ``initial_q_norm_dist``); NaN when the task gives none."""
-    initial = getattr(task, "initial_pose_deg", None)
+    initial = task.initial_pose_deg
     if initial is None:
         return float("nan")
     first = robot.to_urdf(np.asarray(poses_deg, dtype=float)[0])
@@ -327,8 +327,7 @@ def contract_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike,
     out["max_step_limit_deg"] = float("nan") if max_step is None else float(np.min(max_step))
     lower, upper = task.limits(robot)
     out["within_limits"] = bool(np.all(poses >= lower - 1e-6) and np.all(poses <= upper + 1e-6))
-    if getattr(task, "obstacles", ()):
-
+    if task.obstacles:
         found = check_trajectory(robot, poses, task.obstacles)
         checked = found["collision_model"] != "none"
         for key in ("self_collisions", "env_collisions", "min_clearance_mm",

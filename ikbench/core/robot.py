@@ -326,7 +326,7 @@ class Robot:
             raise
         except Exception as exc:  # whatever Pinocchio or the URDF reader raises
             text = " ".join(str(exc).split())
-            raise InputError(f"--robot {self.name}: its kinematics cannot be built "
+            raise InputError(f"robot: {self.name}'s kinematics cannot be built "
                              f"({type(exc).__name__}: {text})") from None
 
     def chain_kinematics(self) -> ChainKinematics:

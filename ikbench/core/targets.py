@@ -235,8 +235,8 @@ def default_targets(robot: Robot) -> tuple[Path, str]:
     """(file, name) of the robot's default targets; TargetsError if it ships none."""
     entry = robot.config.get("targets")
     if not isinstance(entry, dict) or "file" not in entry:
-        raise TargetsError(f"robot {robot.name} ships no default targets; give --targets FILE "
-                           f"(start and touch poses in {robot.pose_unit}, joints "
+        raise TargetsError(f"targets: robot {robot.name} ships no default targets; give a "
+                           f"targets file (start and touch poses in {robot.pose_unit}, joints "
                            f"{', '.join(robot.joint_names)})")
     folder = Path(robot.config.get("config_path", robot.urdf_path)).parent
     return folder / entry["file"], str(entry.get("name") or "default")

@@ -21,26 +21,26 @@ path tangent (line, polyline, spline) or the drawing plane's normal (letters).
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
 
 from ikbench.core import letters
-from ikbench.core.contract import contract_for
+from ikbench.core.contract import Contract, contract_for
 from ikbench.core.errors import InputError
 from ikbench.core.losses import FRAME_WEIGHTS, PAPER_WEIGHTS
+from ikbench.core.obstacles import Obstacle
 from ikbench.core.robot import Robot
 from ikbench.core.shapes import Curve, catmull_rom, read_points_csv
 from ikbench.core.targets import Targets, load_targets
 
-if TYPE_CHECKING:
-    from ikbench.core.contract import Contract
-
 #: Below this distance [mm] start and touch points coincide and a line has no direction.
 MIN_LINE_LENGTH_MM = 1e-6
+#: ``Task.pen_down`` when none is given: every point is drawn (an (n+1,) array once built).
+_EVERY_POINT = np.ones(0, dtype=bool)
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,8 +54,8 @@ class Task:
         start_pose_deg: (dof,) start pose p^s [motor deg], or None when not constrained.
         end_pose_deg: (dof,) end (touch) pose p^e [motor deg], or None.
         shape: the shape's name (``"line"``, ...).
-        pen_down: (n+1,) True where the point belongs to the drawn shape (metrics skip the
-            others, e.g. pen-up moves between strokes).
+        pen_down: (n+1,) bool, True where the point belongs to the drawn shape (metrics skip
+            the others, e.g. pen-up moves between strokes); not given (or None): every point.
         curve: the target curve the goal points were sampled from; None for a line (the
             segment from P^s to P^e).
         default_weights: loss weights c0..c6 (keys L0..L6) this task is meant for, under any
@@ -85,19 +85,22 @@ class Task:
     start_pose_deg: np.ndarray | None
     end_pose_deg: np.ndarray | None
     shape: str = "line"
-    pen_down: Any = None          # (n+1,) bool after __post_init__
+    pen_down: np.ndarray = field(default_factory=lambda: _EVERY_POINT)
     curve: Curve | None = None
-    default_weights: dict | None = None
+    default_weights: dict[str, float] | None = None
     reference_pose_deg: np.ndarray | None = None
     goal_rotations: np.ndarray | None = None
     joint_limits: tuple[np.ndarray, np.ndarray] | None = None
-    contract: Any = None
-    obstacles: tuple = ()
+    contract: Contract | None = None
+    obstacles: tuple[Obstacle, ...] = ()
     initial_pose_deg: np.ndarray | None = None
 
-    def __post_init__(self):
-        if self.pen_down is None:
+    def __post_init__(self) -> None:
+        pen_down: Any = self.pen_down  # a user may still pass None (every point)
+        if pen_down is None or pen_down is _EVERY_POINT:
             object.__setattr__(self, "pen_down", np.ones(len(self.goal_points_mm), dtype=bool))
+        if not isinstance(self.obstacles, tuple):
+            object.__setattr__(self, "obstacles", tuple(self.obstacles))
 
     @property
     def has_frames(self) -> bool:

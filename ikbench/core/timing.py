@@ -151,7 +151,7 @@ def min_jerk(poses: np.ndarray, tip_mm: np.ndarray, duration_s: float, robot: Ro
     chord = np.linalg.norm(np.diff(tip_mm, axis=0), axis=1)
     if not chord.sum() > 1e-9:
         raise InputError("timing: min-jerk times the fingertip's path, and the fingertip does "
-                         "not move along this trajectory; use --timing constant or topp")
+                         "not move along this trajectory; use constant or topp timing")
     knots = path_parameter(tip_mm)
     path = spline(knots, poses)
     d1, d2 = path.derivative(1), path.derivative(2)

@@ -79,8 +79,8 @@ def urdf_limits(robot: Robot, velocity: npt.ArrayLike | None = None) -> Limits:
         velocity_urdf = np.asarray(velocity, dtype=float) / pose_units_per_urdf_unit(robot)
     missing = [n for n, v in zip(robot.joint_names, velocity_urdf) if not np.isfinite(v)]
     if missing:
-        raise InputError(f"{robot.urdf_path.name} gives no velocity limit for joint(s) "
-                         f"{', '.join(missing)}; give --max-velocity")
+        raise InputError(f"max_velocity: {robot.urdf_path.name} gives no velocity limit for "
+                         f"joint(s) {', '.join(missing)}; give one")
     acceleration_urdf = velocity_urdf / DEFAULT_ACCELERATION_TIME_S
     path, stated = limits_file(robot), []
     if path is not None:
@@ -101,7 +101,7 @@ def urdf_limits(robot: Robot, velocity: npt.ArrayLike | None = None) -> Limits:
     return Limits(velocity_urdf * per_unit, acceleration_urdf * per_unit, source)
 
 
-def parse_limit_option(text: str | None, dof: int, option: str) -> np.ndarray | None:
+def parse_limit_option(text: str | None, dof: int, field: str) -> np.ndarray | None:
     """``--max-velocity 90`` or ``--max-velocity 90,90,120,...`` (one value per joint) ->
     (dof,) values; None when not given."""
     if text is None:
@@ -110,10 +110,10 @@ def parse_limit_option(text: str | None, dof: int, option: str) -> np.ndarray | 
     try:
         values = np.array([float(p) for p in parts])
     except ValueError:
-        raise InputError(f"{option} {text!r}; give one positive number or {dof} "
+        raise InputError(f"{field}: {text!r}; give one positive number or {dof} "
                          "comma-separated ones (pose units, per second)") from None
     if len(values) not in (1, dof) or not (np.all(np.isfinite(values)) and np.all(values > 0)):
-        raise InputError(f"{option} {text!r}; give one positive number or {dof} "
+        raise InputError(f"{field}: {text!r}; give one positive number or {dof} "
                          "comma-separated ones (pose units, per second)")
     return np.broadcast_to(values, (dof,)).astype(float)
 

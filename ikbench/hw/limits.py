@@ -31,8 +31,8 @@ def timing_limits(robot: Robot, config: MotorConfig | None = None, max_velocity:
         max_velocity: ``--max-velocity`` (one value or one per joint), overriding.
         max_acceleration: ``--max-acceleration``, overriding.
     """
-    velocity = parse_limit_option(max_velocity, robot.dof, "--max-velocity")
-    acceleration = parse_limit_option(max_acceleration, robot.dof, "--max-acceleration")
+    velocity = parse_limit_option(max_velocity, robot.dof, "max_velocity")
+    acceleration = parse_limit_option(max_acceleration, robot.dof, "max_acceleration")
     if config is None and robot.config.get("hardware"):
         config = load_motor_config(None, robot)
     limits = motor_limits(config) if config is not None else urdf_limits(robot, velocity)

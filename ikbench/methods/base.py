@@ -6,12 +6,13 @@ from these fields (:func:`method_options`). Two methods may share an option name
 for ``ours`` and ``ours-lm``); the CLI then shows one option whose help names both.
 
 A method class sets ``name``, ``description``, ``Settings`` and ``solve`` (the one abstract
-method of :class:`Method`, an :class:`abc.ABC`); optionally
-``solve_many`` (batched methods), ``check_tasks`` (refuse before any solve), ``prepare``
-(untimed set-up, e.g. building kinematics) and ``solve_from`` (a warm start from given poses,
-``warm_starts = True``; the designer re-solves that way while a point is dragged). Methods
-that come from another library say so in ``library`` (its PyPI distribution, whose version is
-recorded with results).
+method of :class:`Method`, an :class:`abc.ABC`), and says what it can do beyond goal points and
+directions in one :class:`Capabilities` value (``capabilities = Capabilities(frames=True)``);
+optionally ``solve_many`` (batched methods), ``check_tasks`` (refuse before any solve),
+``prepare`` (untimed set-up, e.g. building kinematics) and ``solve_from`` (a warm start from
+given poses, ``Capabilities(warm_starts=True)``; the designer re-solves that way while a point
+is dragged). Methods that come from another library say so in ``library`` (its PyPI
+distribution, whose version is recorded with results).
 """
 
 from __future__ import annotations
@@ -20,8 +21,9 @@ import abc
 import copy
 import dataclasses
 import math
+import warnings
 from collections.abc import Callable, Collection, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
@@ -158,6 +160,60 @@ def check_seed(settings: Any, field_name: str = "seed") -> None:
                          "[0, 2^63)")
 
 
+@dataclass(frozen=True)
+class Capabilities:
+    """What a method can do beyond following goal points and directions (the class attribute
+    :attr:`Method.capabilities`; the studies, the CLI and :meth:`Method.check_tasks` read it).
+
+    Attributes:
+        needs_touch_pose: the method starts at, or walks back from, the task's touch pose, so it
+            cannot draw letters or curves (they pin no pose).
+        frames: follows goal frames (6-D pose paths, e.g. the CppFlow problems);
+            :meth:`Method.check_tasks` refuses such tasks for the others.
+        obstacles: keeps the robot clear of a task's obstacles (``Task.obstacles``) and of
+            itself; the others still solve such tasks, and the studies name "does not avoid
+            obstacles" beside a collision.
+        batched: ``solve_many`` solves all tasks in one call (timed as one).
+        warm_starts: :meth:`Method.solve_from` starts from the poses it is given (else it
+            solves from scratch).
+    """
+
+    needs_touch_pose: bool = False
+    frames: bool = False
+    obstacles: bool = False
+    batched: bool = False
+    warm_starts: bool = False
+
+
+#: The class attributes that :class:`Capabilities` replaces (0.3.0): old name -> its field.
+CAPABILITY_ALIASES = {"requires_touch_pose": "needs_touch_pose", "supports_frames": "frames",
+                      "avoids_obstacles": "obstacles", "batched": "batched",
+                      "warm_starts": "warm_starts"}
+
+
+class _CapabilityAlias:
+    """A deprecated read-only class attribute (``Method.supports_frames``) that reads its field
+    of ``capabilities``; kept for third-party methods for one release."""
+
+    def __init__(self, field_name: str) -> None:
+        self.field_name = field_name
+        self.name = field_name
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, instance: object, owner: Any = None) -> bool:
+        cls: Any = owner if owner is not None else type(instance)
+        capabilities = cls.capabilities
+        warnings.warn(f"Method.{self.name} is deprecated; read "
+                      f"Method.capabilities.{self.field_name}", DeprecationWarning, stacklevel=2)
+        return bool(getattr(capabilities, self.field_name))
+
+    def __set__(self, instance: object, value: object) -> None:
+        raise AttributeError(f"{self.name} is read-only; set the class's capabilities = "
+                             f"Capabilities({self.field_name}=...)")
+
+
 @dataclass
 class Solution:
     """A method's result for one task.
@@ -206,16 +262,11 @@ class Method(abc.ABC):
         description: one line, shown by ``ikbench methods`` and in ``--help``.
         Settings: the settings dataclass (fields made with :func:`option` are CLI options).
         library: the PyPI distribution the method is built on (its version is recorded).
-        requires_touch_pose: True for methods that start at the task's touch pose (they
-            cannot draw letters or curves, which pin no pose).
-        supports_frames: True for methods that follow goal frames (6-D pose paths, e.g. the
-            CppFlow problems); :meth:`check_tasks` refuses such tasks for the others.
-        avoids_obstacles: True for methods that keep the robot clear of a task's obstacles
-            (``Task.obstacles``) and of itself; the others still solve such tasks, and the
-            studies name "does not avoid obstacles" beside a collision.
-        batched: True when ``solve_many`` solves all tasks in one call (timed as one).
-        warm_starts: True when :meth:`solve_from` starts from the poses it is given (else it
-            solves from scratch).
+        capabilities: what the method can do (:class:`Capabilities`). The flags it replaces
+            (``requires_touch_pose``, ``supports_frames``, ``avoids_obstacles``, ``batched``,
+            ``warm_starts``) still read it, deprecated, and a subclass that sets one of them
+            as before gets it folded into its capabilities, with a DeprecationWarning
+            (until 0.4.0).
         bench_rounds: timed rounds ``ikbench bench`` gives the method by default.
     """
 
@@ -223,12 +274,31 @@ class Method(abc.ABC):
     description: ClassVar[str] = ""
     Settings: ClassVar[type] = NoSettings
     library: ClassVar[str] = "ikbench"
-    requires_touch_pose: ClassVar[bool] = False
-    supports_frames: ClassVar[bool] = False
-    avoids_obstacles: ClassVar[bool] = False
-    batched: ClassVar[bool] = False
-    warm_starts: ClassVar[bool] = False
+    capabilities: ClassVar[Capabilities] = Capabilities()
     bench_rounds: ClassVar[int] = 5
+    requires_touch_pose = _CapabilityAlias("needs_touch_pose")
+    supports_frames = _CapabilityAlias("frames")
+    avoids_obstacles = _CapabilityAlias("obstacles")
+    batched = _CapabilityAlias("batched")
+    warm_starts = _CapabilityAlias("warm_starts")
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Fold the flags a subclass sets the old way (``supports_frames = True``) into its
+        ``capabilities``, with a DeprecationWarning."""
+        super().__init_subclass__(**kwargs)
+        old = {alias: value for alias, value in vars(cls).items()
+               if alias in CAPABILITY_ALIASES and not isinstance(value, _CapabilityAlias)}
+        if not old:
+            return
+        # stacklevel 3: the class statement (this hook is called from ABCMeta.__new__)
+        warnings.warn(f"method {cls.__name__} sets {', '.join(old)}, deprecated; set "
+                      "capabilities = Capabilities("
+                      f"{', '.join(f'{CAPABILITY_ALIASES[a]}={v!r}' for a, v in old.items())})",
+                      DeprecationWarning, stacklevel=3)
+        for alias in old:
+            delattr(cls, alias)
+        cls.capabilities = replace(cls.capabilities, **{CAPABILITY_ALIASES[a]: bool(v)
+                                                        for a, v in old.items()})
 
     def __init__(self, settings: Any = None, **options: Any) -> None:
         """Build from a settings object or from its fields as keywords."""
@@ -300,16 +370,17 @@ class Method(abc.ABC):
     def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
         """Raise InputError before any solve if a task cannot be solved by this method."""
         for task in tasks:
-            if getattr(task, "goal_rotations", None) is not None and not self.supports_frames:
-                able = [name for name, cls in available_methods().items() if cls.supports_frames]
+            if task.has_frames and not self.capabilities.frames:
+                able = [name for name, cls in available_methods().items()
+                        if cls.capabilities.frames]
                 raise InputError(
                     f"trajectory {task.name!r}: --method {self.name} cannot follow goal frames "
                     f"(a 6-D pose path); methods that can: {', '.join(able) or 'none'}")
-        if self.requires_touch_pose:
+        if self.capabilities.needs_touch_pose:
             for task in tasks:
-                if task.end_pose_deg is None and getattr(task, "goal_rotations", None) is None:
+                if task.end_pose_deg is None and not task.has_frames:
                     planners = [f"--method {name}" for name, cls in available_methods().items()
-                                if not cls.requires_touch_pose]
+                                if not cls.capabilities.needs_touch_pose]
                     raise InputError(
                         f"trajectory {task.name!r}: {self.name} starts at the touch pose; the "
                         "task has no end pose (for letters, polylines and splines use "
@@ -322,7 +393,7 @@ class Method(abc.ABC):
     def solve_from(self, robot: Robot, task: Task, initial_poses: np.ndarray) -> Solution:
         """Solve ``task`` starting from ``initial_poses`` (n+1, dof) [pose units], e.g. the
         solution of a slightly different task (a warm start). Methods that cannot start from
-        given poses (``warm_starts`` False) solve from scratch: this default."""
+        given poses (``capabilities.warm_starts`` False) solve from scratch: this default."""
         return self.solve(robot, task)
 
     def solve_many(self, robot: Robot, tasks: Sequence[Task],

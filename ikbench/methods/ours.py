@@ -46,6 +46,7 @@ from ikbench.core.losses import (
     weighted_loss,
 )
 from ikbench.methods.base import (
+    Capabilities,
     Method,
     Progress,
     Solution,
@@ -192,7 +193,7 @@ class Ours(Method):
     library = "torch"
     Settings = AdamSettings
     bench_rounds = 3  # tens of seconds per round on the paper's seven targets
-    supports_frames = True  # 6-D pose paths: ikbench.methods.ours_frames
+    capabilities = Capabilities(frames=True)  # 6-D pose paths: ikbench.methods.ours_frames
 
     def runtime(self) -> dict[str, Any]:
         """Adam on torch on the CPU, in the settings' precision, on torch's threads."""

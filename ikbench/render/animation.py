@@ -89,7 +89,7 @@ class _Panel:
         self.task, self.arms = task, robot.skeleton_mm(poses)  # (n+1, dof+2, 3)
         self.tip = self.arms[:, -1]
         #: (n+1,) True where the pose collides; None: not checked (no obstacles or model)
-        self.colliding = colliding_waypoints(robot, poses, getattr(task, "obstacles", ()))
+        self.colliding = colliding_waypoints(robot, poses, task.obstacles)
         (self.path,) = ax.plot([], [], [], "-", color=color, lw=2.4, zorder=2, animated=True)
         self.goals = [ax.plot(*path.T, **GOAL_STYLE, zorder=2, animated=True)[0]
                       for path in _goal_paths(task)]
@@ -136,7 +136,7 @@ def render_frames(robot: Robot, tasks: Sequence[Task], poses_by_id: dict, title:
     plt = matplotlib_pyplot()
     rows, cols = _grid(len(tasks))
     panel_in = 2.7 if len(tasks) > 2 else 3.6
-    notes_in = 0.12 if any(getattr(t, "obstacles", ()) for t in tasks) else 0.0  # 3rd line
+    notes_in = 0.12 if any(t.obstacles for t in tasks) else 0.0  # 3rd line
     height_in = rows * (panel_in + 0.2) + 0.4 + notes_in
     fig = plt.figure(figsize=(cols * panel_in, height_in), dpi=dpi)
     fig.subplots_adjust(left=0.0, right=0.97, bottom=0.25 / height_in,
@@ -148,7 +148,7 @@ def render_frames(robot: Robot, tasks: Sequence[Task], poses_by_id: dict, title:
         panels.append(_Panel(ax, task, poses_by_id[task.name], robot, color))
     drawn = []
     for panel in panels:  # static: drawn once, into the background
-        obstacles = getattr(panel.task, "obstacles", ())
+        obstacles = panel.task.obstacles
         if obstacles:
             around = np.vstack([panel.arms.reshape(-1, 3), *_goal_paths(panel.task)])
             drawn.append(draw_obstacles(panel.ax, obstacles, around, label=False)[1])

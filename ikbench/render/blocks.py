@@ -53,6 +53,7 @@ from typing import Any
 
 import pandas as pd
 
+from ikbench.core.defaults import REFERENCE_METHOD
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_text
 from ikbench.render.leaderboard import readme_table
@@ -334,7 +335,7 @@ def render_compare_table(source: Path, options: dict[str, str], root: Path) -> s
     """README's leaderboard (:func:`ikbench.render.leaderboard.readme_table`) of a compare
     folder's ``leaderboard.csv``, then its provenance."""
     board = pd.read_csv(source)
-    return readme_table(board, options.get("reference", "ours-lm")) + "\n\n" + \
+    return readme_table(board, options.get("reference", REFERENCE_METHOD)) + "\n\n" + \
         render_provenance(source, {}, root)
 
 

@@ -19,7 +19,8 @@ from ikbench.core.metrics import line_distances_mm, pointing_deviations_deg
 from ikbench.core.robot import load_robot
 from ikbench.core.targets import load_targets
 from ikbench.core.task import line_tasks
-from ikbench.methods.registry import get_method
+from ikbench.methods.ours_exact import OursExact
+from ikbench.methods.ours_lm import OursLM
 from ikbench.render.arm_plots import matplotlib_pyplot
 
 if TYPE_CHECKING:
@@ -79,8 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     robot = load_robot()
     tasks = {t.name: t for t in line_tasks(robot, load_targets(None, robot))}
     task = tasks[args.target]
-    poses = {name: get_method(name)().solve(robot, task).poses_deg
-             for name in ("ours-lm", "ours-exact")}
+    poses = {cls.name: cls().solve(robot, task).poses_deg for cls in (OursLM, OursExact)}
     atomic_savefig(args.output, exact_figure(robot, task, poses))
     print(f"written to {args.output}")
     return 0

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ikbench.baselines.libraries.trac_ik import TracIKSolver
 from ikbench.core.io import atomic_savefig, staged_folder
 from ikbench.core.provenance import library_versions, provenance
 from ikbench.render.ik_published import published_for
@@ -265,7 +266,7 @@ def published_section(robot: str, summary: pd.DataFrame) -> list[str]:
     for p in figures:
         lines.append(f"| {p.solver} | {p.success_pct:g} % | {p.time_ms:g} | {p.time_is} "
                      f"| {p.protocol} | {p.source} |")
-    here = summary[summary["method"] == "trac-ik"]
+    here = summary[summary["method"] == TracIKSolver.name]
     if len(here):
         lines += ["", "This run's trac-ik (Python binding, this machine): " + "; ".join(
             f"`--attempts {r.attempts_rule}` {r.success_pct:.2f} %, median "

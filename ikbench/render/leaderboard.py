@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from ikbench.core.contract import TRACK_TITLES, Contract
+from ikbench.core.defaults import REFERENCE_METHOD
 from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text
 from ikbench.core.obstacles import parse_obstacles
 from ikbench.render.run_report import _matplotlib
@@ -280,7 +281,7 @@ def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Con
     return fig
 
 
-def readme_table(board: pd.DataFrame, reference: str = "ours-lm") -> str:
+def readme_table(board: pd.DataFrame, reference: str = REFERENCE_METHOD) -> str:
     """The compact table README.md shows, from ``leaderboard.csv``'s rows of the paper's
     track: success per criterion, time single and its ratio, line distance, pointing in the
     judged part, largest step."""

@@ -47,7 +47,7 @@ def reached(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[str, np.
     step = np.abs(revolute).max(axis=1) if revolute.size else np.zeros(len(points) - 1)
     out = {"points_mm": points, "position_mm": position, "rotation_deg": rotation,
            "step_deg": step}
-    colliding = colliding_waypoints(robot, poses_deg, getattr(task, "obstacles", ()))
+    colliding = colliding_waypoints(robot, poses_deg, task.obstacles)
     if colliding is not None:
         out["colliding"] = colliding
         if colliding.any():
@@ -83,7 +83,7 @@ def plot_pose_path(task: Task, curves: dict[str, dict[str, np.ndarray]], title: 
         ax3.plot(points[:, 0], points[:, 1], points[:, 2], "-", color=colors[k % 10], lw=1.2,
                  label=label)
         everything.append(points)
-    obstacles = getattr(task, "obstacles", ())
+    obstacles = task.obstacles
     if obstacles:
         _, drawn = draw_obstacles(ax3, obstacles, np.vstack(everything))
         everything.append(drawn)

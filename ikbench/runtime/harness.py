@@ -3,7 +3,8 @@
 :func:`solve_tasks` calls ``method.prepare`` (untimed), checks the tasks
 (``method.check_tasks``: bad input fails before any solve), then times each solve itself with
 ``time.perf_counter`` around the method's call - the same clock for every method. A batched
-method (``Method.batched``) is timed once for the whole batch and each task gets its share.
+method (``Method.capabilities.batched``) is timed once for the whole batch and each task gets
+its share.
 An exception in one solve becomes a failed :class:`Outcome` with its message instead of
 aborting the study; Ctrl-C stops solving and returns what was solved so far
 (:class:`Interrupted`, a ``KeyboardInterrupt``: no ``except Exception`` turns it into a failed
@@ -101,7 +102,7 @@ def solve_tasks(method: Method, robot: Robot, tasks: Sequence[Task],
     method.check_tasks(robot, tasks)
     method.prepare(robot)
     try:
-        if method.batched:
+        if method.capabilities.batched:
             return _solve_batched(method, robot, tasks, progress)
         outcomes: list[Outcome] = []
         for k, task in enumerate(tasks):

@@ -124,7 +124,8 @@ def benchmark(methods: list[str] | str, *, repeat: str | int | None = None,
     robot = as_robot(robot)
     targets = select_targets(targets, robot, only, steps)
     tasks = line_tasks(robot, targets)
-    solves = sum((warmup + counts[n]) * (len(tasks) + get_method(n).batched) for n in names)
+    solves = sum((warmup + counts[n]) * (len(tasks) + get_method(n).capabilities.batched)
+                 for n in names)
     log = Reporter("bench", total=solves, unit="solve", enabled=progress)
     runs, last = [], {}
     for name in names:
@@ -144,7 +145,7 @@ def benchmark(methods: list[str] | str, *, repeat: str | int | None = None,
                                  "trajectory": task.name, "wall_s": wall,
                                  "iterations": solution.iterations})
                     last[name, task.name] = solution
-            if solver.batched:
+            if solver.capabilities.batched:
                 t0 = time.perf_counter()
                 solver.solve_many(robot, tasks)
                 wall = time.perf_counter() - t0

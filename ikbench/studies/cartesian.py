@@ -2,7 +2,7 @@
 
 ``cartesian(problems="cppflow")`` solves every problem (CppFlow's 13 CppFlow/TORM problems, or
 names and files in CppFlow's format, :mod:`ikbench.core.problems`) with every method that
-follows goal frames (``Method.supports_frames``; a method added later joins by setting it), once
+follows goal frames (``Capabilities.frames``; a method added later joins by setting it), once
 per seed, through the study harness (each solve timed the same way, a failed solve kept as a
 row). It returns the long-form table, one row per problem x method x seed, with CppFlow's
 validity (:mod:`ikbench.core.validity`) and the time to a valid solution (every method stops at
@@ -75,7 +75,7 @@ class CartesianResult:
 
 def frame_methods() -> dict[str, type]:
     """name -> class of every available method that follows goal frames (registry order)."""
-    return {name: cls for name, cls in available_methods().items() if cls.supports_frames}
+    return {name: cls for name, cls in available_methods().items() if cls.capabilities.frames}
 
 
 def parse_seeds(text: str | int | Sequence[int | str]) -> tuple[int, ...]:
@@ -117,7 +117,7 @@ def parse_methods(text: str | Sequence[str] | None) -> list[str]:
         raise InputError(f"--methods: {text!r} names no method; available: {', '.join(able)}")
     for name in names:
         cls = get_method(name)
-        if not cls.supports_frames:
+        if not cls.capabilities.frames:
             raise InputError(f"--methods: {name} cannot follow goal frames (6-D pose paths); "
                              f"methods that can: {', '.join(able) or 'none'}")
     return names
@@ -193,7 +193,7 @@ def as_written(poses: npt.ArrayLike) -> np.ndarray:
 
 
 def _row(problem, robot, task, method, seed, outcome) -> dict:
-    avoids = bool(get_method(method).avoids_obstacles)
+    avoids = get_method(method).capabilities.obstacles
     base = {"problem": problem, "robot": robot.name, "waypoints": task.steps + 1,
             "method": method, "seed": seed, "duration_s": outcome.wall_s,
             "trajectory": f"{method}/trajectory_{problem}_seed{seed}.csv",

@@ -52,7 +52,7 @@ from ikbench.core.contract import (
     contract_for,
     judge,
 )
-from ikbench.core.defaults import DEFAULT_DURATION_S
+from ikbench.core.defaults import DEFAULT_DURATION_S, REFERENCE_METHOD
 from ikbench.core.errors import IkbenchError, InputError
 from ikbench.core.metrics import contract_metrics
 from ikbench.core.obstacles import read_obstacles
@@ -152,11 +152,12 @@ def columns_for(contract: Contract) -> list[str]:
     return [*COLUMNS, *(OBSTACLE_COLUMNS if contract.obstacles else [])]
 
 
-def avoids_obstacles(cls: type | Method | None, tasks: Sequence) -> bool:
-    """True when the method ``cls`` keeps clear of the obstacles of these tasks:
-    ``Method.avoids_obstacles`` covers pose paths (goal frames) only, so on line tasks no
-    method avoids them today."""
-    return bool(getattr(cls, "avoids_obstacles", False)) and all(t.has_frames for t in tasks)
+def avoids_obstacles(cls: type[Method] | Method | None, tasks: Sequence[Task]) -> bool:
+    """True when the method ``cls`` (None: not installed) keeps clear of the obstacles of these
+    tasks: ``Capabilities.obstacles`` covers pose paths (goal frames) only, so on line tasks
+    no method avoids them today."""
+    return (cls is not None and cls.capabilities.obstacles
+            and all(t.has_frames for t in tasks))
 
 
 def with_obstacles(targets: Targets, obstacles: str | Path | Sequence | None,
@@ -278,7 +279,7 @@ def run_comparison(spec: CompareSpec) -> CompareResult:
     started = time.perf_counter()
     rows, built, last = _solve_methods(spec, log)
     sweep_frame = (ours_lm_sweep(spec.robot, spec.tasks, spec.contract, spec.solvers)
-                   if spec.sweep and "ours-lm" in built else None)
+                   if spec.sweep and REFERENCE_METHOD in built else None)
     files = {name: trajectory_files(spec.robot, outcomes, spec.contract.duration_s)
              for name, outcomes in last.items()}
     results = measure(spec, pd.DataFrame(rows), built, files)
@@ -299,9 +300,10 @@ def run_comparison(spec: CompareSpec) -> CompareResult:
 
 
 def _reference_method(reference: str | None, names: list[str]) -> str:
-    """The method the time ratios are against: ``reference``, else ``ours-lm`` when compared,
-    else the first method. InputError when it is not among ``names``."""
-    reference = reference or ("ours-lm" if "ours-lm" in names else names[0])
+    """The method the time ratios are against: ``reference``, else
+    :data:`~ikbench.methods.registry.REFERENCE_METHOD` (ours-lm) when compared, else the first
+    method. InputError when it is not among ``names``."""
+    reference = reference or (REFERENCE_METHOD if REFERENCE_METHOD in names else names[0])
     if reference not in names:
         raise InputError(f"--reference: {reference!r} is not among --methods "
                          f"{', '.join(names)}")
@@ -434,7 +436,7 @@ def solve_method(job: tuple) -> tuple[list, list]:
     single, batched = [], []
     for _ in range(warmup + repeat):
         single.append([solve_tasks(solver, robot, [task], quiet)[0] for task in tasks])
-        if solver.batched and len(tasks) > 1:
+        if solver.capabilities.batched and len(tasks) > 1:
             batched.append(solve_tasks(solver, robot, tasks, quiet))
     return single[warmup:], batched[warmup:]
 
@@ -529,8 +531,8 @@ def ours_lm_sweep(robot: Robot, tasks: Sequence[Task], contract: Contract,
     (``line_distance_max_median_mm``) and the largest of them (``line_distance_max_worst_mm``,
     the leaderboard's figure), the median of the judged pointing means, the largest share of
     the speed limit used and the share of trajectories meeting the contract."""
-    base = solvers.get("ours-lm")
-    cls = type(base) if base is not None else get_method("ours-lm")
+    base = solvers.get(REFERENCE_METHOD)
+    cls = type(base) if base is not None else get_method(REFERENCE_METHOD)
     rows = []
     for c0 in SWEEP_C0:
         solver = cls(weights=f"c0={c0:g}")

@@ -156,7 +156,7 @@ def prepare(method: str | Method, *, robot: Robot | str | None = None,
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
     if start_pose is not None:
-        targets = replace(targets, start_pose_deg=robot.check_pose(start_pose, "--start-pose"))
+        targets = replace(targets, start_pose_deg=robot.check_pose(start_pose, "start_pose"))
     kind, _ = parse_shape(shape)
     if only and kind != "line":
         raise InputError(f"--only selects touch poses of the line shape; shape {shape!r} has "

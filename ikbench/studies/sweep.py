@@ -45,7 +45,7 @@ from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import build_tasks, letter_start_pose, parse_shape
 from ikbench.methods.ours_exact import ExactSettings, OursExact
-from ikbench.methods.ours_lm import LMSettings
+from ikbench.methods.ours_lm import LMSettings, OursLM
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.executors import Executor, LocalExecutor
 from ikbench.runtime.parallel import solve_parts
@@ -58,6 +58,9 @@ if TYPE_CHECKING:
     from ikbench.core.task import Task
     from ikbench.methods.ours_lm.solver import BatchResult
 
+#: The methods a sweep runs, named by their classes: ours-lm (the paper's objective, every
+#: weight) and ours-exact (the path and poses exact: the pointing and smoothness weights).
+OURS_LM, OURS_EXACT = OursLM.name, OursExact.name
 #: Per-trajectory figures averaged (mean) or taken at the worst target (max) per setting.
 MEAN_COLUMNS = ("line_distance_mean_mm", "pointing_deviation_mean_deg",
                 "mean_sq_joint_step_deg2", "loss", "paper_loss", "iterations")
@@ -121,11 +124,11 @@ EXACT_SHAPE_MEASURES = replace(
     colour="max_joint_step_deg", colour_name="largest joint step [deg]")
 
 
-def measures_of(frame: pd.DataFrame, method: str = "ours-lm") -> Measures:
+def measures_of(frame: pd.DataFrame, method: str = OURS_LM) -> Measures:
     """:data:`SHAPE_MEASURES` for a frame of shape figures, else :data:`LINE_MEASURES` (their
     ``EXACT_`` forms for ``ours-exact``, whose path is exact)."""
     shape = "point_error_mean_mm" in frame.columns
-    if method == "ours-exact":
+    if method == OURS_EXACT:
         return EXACT_SHAPE_MEASURES if shape else EXACT_LINE_MEASURES
     return SHAPE_MEASURES if shape else LINE_MEASURES
 
@@ -200,7 +203,7 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
           size_mm: float | None = None, start_pose: npt.ArrayLike | None = None,
           direction: str | npt.ArrayLike | None = None, lm_settings: LMSettings | None = None,
           progress: bool = True, robot: Robot | str | None = None,
-          executor: Executor | None = None, method: str = "ours-lm") -> SweepResult:
+          executor: Executor | None = None, method: str = OURS_LM) -> SweepResult:
     """Solve the tasks of a shape for every weight setting of ``grid`` (module docstring).
 
     Args:
@@ -239,13 +242,13 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
     all_tasks = [task for _ in settings for task in tasks]
     all_weights = [w for w in settings for _ in tasks]
     log = Reporter("sweep", total=len(all_tasks), unit="trajectory", enabled=progress)
-    how = ("one batched ours-lm solve" if method == "ours-lm"
+    how = ("one batched ours-lm solve" if method == OURS_LM
            else f"{len(settings)} batched ours-exact solves")
     log.note(f"{len(settings)} weight settings x {len(tasks)} tasks ({shape}): {how} of "
              f"{len(all_tasks)} trajectories, then each measured")
     log.say("solving")
     result: BatchResult | _ExactBatch
-    if method == "ours-lm":
+    if method == OURS_LM:
         result, _ = solve_parts(executor, robot, all_tasks, lm_settings or LMSettings(),
                                 all_weights)
     else:
@@ -259,7 +262,7 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
               "shape": shape, "size_mm": (size_mm or DEFAULT_SIZE_MM) if kind == "letter" else None,
               "direction": direction, "start_pose_deg": targets.start_pose_deg.tolist(),
               "reference_weights": {f"c{t[1]}": base[t] for t in TERMS},
-              "reference": reference_name(kind) if method == "ours-lm"
+              "reference": reference_name(kind) if method == OURS_LM
               else "ours-exact's default weights", "method": method,
               "trajectories": [t.name for t in tasks], "steps": tasks[0].steps,
               "solve_wall_time_s": result.duration_s, "trajectories_solved": len(all_tasks),
@@ -284,7 +287,7 @@ def sweep_tasks(robot: Robot, targets: str | Path | Targets | None, shape: str,
     if kind == "letter" and start_pose is None:
         start_pose = letter_start_pose(robot, targets)
     if start_pose is not None:
-        targets = replace(targets, start_pose_deg=robot.check_pose(start_pose, "--start-pose"))
+        targets = replace(targets, start_pose_deg=robot.check_pose(start_pose, "start_pose"))
     if only and kind != "line":
         raise InputError(f"--only selects touch poses of the line shape; shape {shape!r} has "
                          "none (name the letters in the shape instead, e.g. letter:P,A)")
@@ -309,7 +312,7 @@ def _sweep_settings(tasks: list[Task], grid: dict[str, list[float]], shape: str,
         raise InputError(f"--shape: {shape!r} makes tasks with different default weights; "
                          "sweep one kind of shape at a time")
     base = dict(tasks[0].default_weights or PAPER_WEIGHTS)
-    if method == "ours-exact":
+    if method == OURS_EXACT:
         base = exact_reference_weights()
     settings = grid_settings(grid, base)
     for weights in settings:
@@ -369,7 +372,7 @@ def check_grid_size(grid: dict[str, list[float]], tasks: list[Task], dof: int) -
 
 
 #: Methods a sweep can run, and the terms of the grid each can take.
-SWEEP_METHODS = {"ours-lm": TERMS, "ours-exact": ("L1", "L6")}
+SWEEP_METHODS = {OURS_LM: TERMS, OURS_EXACT: ("L1", "L6")}
 
 
 def check_sweep_method(method: str, grid: dict[str, list[float]], executor: Executor | None
@@ -383,7 +386,7 @@ def check_sweep_method(method: str, grid: dict[str, list[float]], executor: Exec
         raise InputError(f"--weight c{wrong[0][1]}: ours-exact holds the path and the fixed "
                          "poses exactly (constraints, no weights); its grid may hold c1 "
                          "(pointing) and c6 (smoothness)")
-    if method == "ours-exact" and executor is not None and executor.workers != 1:
+    if method == OURS_EXACT and executor is not None and executor.workers != 1:
         raise InputError("--executor: the ours-exact sweep runs in this process; use "
                          "--executor local")
 
@@ -426,7 +429,7 @@ def reference_name(kind: str) -> str:
     return "the paper's letter setting" if kind == "letter" else "the paper's weights"
 
 
-def summarise(per_traj: pd.DataFrame, method: str = "ours-lm") -> pd.DataFrame:
+def summarise(per_traj: pd.DataFrame, method: str = OURS_LM) -> pd.DataFrame:
     """One row per setting: means / worst values over the tasks, and the Pareto flag.
 
     Line figures (``line_distance_mean_mm``, ...) or shape figures (``point_error_mean_mm``,
@@ -447,7 +450,7 @@ def summarise(per_traj: pd.DataFrame, method: str = "ours-lm") -> pd.DataFrame:
 
 
 def plot_pareto(table: pd.DataFrame, title: str = "", reference: str = "the paper's weights",
-                method: str = "ours-lm") -> Figure:
+                method: str = OURS_LM) -> Figure:
     """Accuracy (line distance or point error) vs pointing deviation, smoothness as colour."""
     import matplotlib
 
@@ -501,11 +504,11 @@ def _describe(row, m: Measures) -> str:
 
 
 def findings(table: pd.DataFrame, reference: str = "the paper's weights",
-             method: str = "ours-lm") -> list[str]:
+             method: str = OURS_LM) -> list[str]:
     """Sentences saying what other weights achieve against the reference and at what cost."""
     m = measures_of(table, method)
     paper = table[table["paper_weights"]].iloc[0]
-    if method == "ours-exact":
+    if method == OURS_EXACT:
         return _exact_findings(table, paper, m, reference)
     objective_name = ("the paper's objective" if reference == "the paper's weights"
                       else f"the objective of {reference}")
@@ -540,7 +543,7 @@ def write(result: SweepResult, output: str | Path) -> Path:
     """Write sweep.csv, sweep_trajectories.csv, pareto.png, sweep.json and sweep.md."""
     pareto = partial(plot_pareto, result.settings,
                      reference=result.record.get("reference", "the paper's weights"),
-                     method=result.record.get("method", "ours-lm"))
+                     method=result.record.get("method", OURS_LM))
     return write_study_files(output, "sweep",
                              {"sweep.csv": (result.settings, "%.6g"),
                               "sweep_trajectories.csv": (result.trajectories, "%.6g")},
@@ -563,7 +566,7 @@ def _exact_findings(table, reference_row, m: Measures, reference: str) -> list[s
 def markdown(result: SweepResult) -> str:
     """sweep.md: the findings, the Pareto-optimal settings, and every setting."""
     rec, table = result.record, result.settings
-    method = rec.get("method", "ours-lm")
+    method = rec.get("method", OURS_LM)
     m = measures_of(table, method)
     reference = rec.get("reference", "the paper's weights")
     cols = list(m.table_columns)
@@ -590,7 +593,7 @@ def markdown(result: SweepResult) -> str:
                    "worst task); `point_error`: distance of each fingertip point from its own "
                    "goal point, `curve_distance`: from the nearest point of the target curve")
     ordered = table.sort_values(m.accuracy)
-    if rec.get("method", "ours-lm") == "ours-lm":
+    if rec.get("method", OURS_LM) == OURS_LM:
         what = "The paper's objective (L0..L6, cm and motor degrees) minimised by `ours-lm`"
         solved = "in one batched solve of"
     else:

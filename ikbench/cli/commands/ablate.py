@@ -15,6 +15,7 @@ from ikbench.cli.options import (
     targets_from_args,
 )
 from ikbench.cli.values import OUTPUT
+from ikbench.core.defaults import DEFAULT_METHOD
 from ikbench.core.errors import InputError
 
 HELP = ("loss-term ablation: run a method with terms of L0..L6 dropped, compare with "
@@ -43,8 +44,9 @@ def arguments(parser: argparse.ArgumentParser) -> None:
         help="terms to drop together, e.g. L1 or L2,L3,L4,L5; 'each' (its own --drop value, "
         "not in a list) runs every single-term ablation; repeat for more variants (--drop "
         "each --drop L2,L3,L4,L5). The full loss always runs too (default: each)")
-    parser.add_argument("--method", default="ours",
-                        help=f"a method with loss weights: {', '.join(methods)} (default: ours)")
+    parser.add_argument("--method", default=DEFAULT_METHOD,
+                        help=f"a method with loss weights: {', '.join(methods)} (default: "
+                        f"{DEFAULT_METHOD})")
     add_line_task_arguments(parser)
     parser.add_argument("--output", default="runs", type=OUTPUT,
                         help="results directory; writes OUTPUT/ablation/ (default: runs, which "

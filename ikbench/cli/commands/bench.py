@@ -13,10 +13,11 @@ from ikbench.cli.options import (
     targets_from_args,
 )
 from ikbench.cli.values import OUTPUT, THREADS, count
+from ikbench.core.defaults import BENCH_METHODS
 from ikbench.core.errors import InputError
 
 HELP = "time methods on the same targets (median/min/max, ratios, losses)"
-DEFAULT_METHODS = "ours,ours-lm"
+DEFAULT_METHODS = ",".join(BENCH_METHODS)
 #: At most this many untimed rounds.
 MAX_WARMUP = 100
 

@@ -18,11 +18,11 @@ from ikbench.cli.options import (
     targets_from_args,
 )
 from ikbench.cli.values import OUTPUT, count, duration_s
-from ikbench.core.defaults import DEFAULT_DURATION_S
+from ikbench.core.defaults import COMPARE_METHODS, DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
 
 HELP = "compare methods and libraries on the same robot and tasks: results.csv, leaderboard"
-DEFAULT_METHODS = "ours-lm,ours-exact,sequential-ik"
+DEFAULT_METHODS = ",".join(COMPARE_METHODS)
 DEFAULT_OUTPUT = "runs"
 #: At most this many solves per method and trajectory.
 MAX_REPEAT = 1000

@@ -40,7 +40,7 @@ DESCRIPTION = (
 
 
 def arguments(parser: argparse.ArgumentParser) -> None:
-    from ikbench.methods.registry import get_method
+    from ikbench.methods.ours_lm import OursLM
     from ikbench.studies.batch import MAX_COUNT as MAX_SHARD_SIZE
     from ikbench.studies.dataset import DEFAULT_SHARD_SIZE
 
@@ -67,22 +67,21 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         help="torch threads for --device cpu (default 1)")
     add_progress_arguments(parser)
     add_executor_arguments(parser)
-    add_method_options(parser, {"ours-lm": get_method("ours-lm")})
+    add_method_options(parser, {OursLM.name: OursLM})  # the dataset's solver
 
 
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ikbench.core.io import check_writable
-    from ikbench.methods.registry import get_method
+    from ikbench.methods.ours_lm import OursLM
     from ikbench.studies.dataset import MANIFEST, build_dataset, check_options
 
     check_sizes(args.count, args.shard_size)
     check_options(args.count, args.seed, args.steps, args.shard_size)
     check_threads(args.threads)
     check_executor_args(args)
-    cls = get_method("ours-lm")
-    solver = method_from_args(args, cls, {"ours-lm": cls})
+    solver = method_from_args(args, OursLM, {OursLM.name: OursLM})
     robot = robot_from_args(args)
     from ikbench.core.targets import load_targets
 

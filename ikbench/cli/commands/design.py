@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.options import add_robot_arguments, begin, robot_from_args
-from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_ROBOT
+from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_ROBOT, DESIGN_METHOD, REFERENCE_METHOD
 from ikbench.core.errors import InputError
 
 HELP = "design a trajectory by hand in the browser: drag a point, see it re-solved and judged"
@@ -45,12 +45,12 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--problem", default=None, metavar="FILE.yaml|NAME",
                         help="a 6-D pose path problem (CppFlow's format) whose waypoints are "
                         "dragged, instead of a line or letter")
-    parser.add_argument("--method", default="ours-exact",
-                        help="the method that re-solves (default ours-exact; ours-lm and "
+    parser.add_argument("--method", default=DESIGN_METHOD,
+                        help=f"the method that re-solves (default {DESIGN_METHOD}; ours-lm and "
                         "ours-exact start from the previous solution, others from scratch)")
-    parser.add_argument("--fallback", default="ours-lm",
+    parser.add_argument("--fallback", default=REFERENCE_METHOD,
                         help="the method shown where --method's solution is infeasible "
-                        "(default ours-lm; none: no fallback)")
+                        f"(default {REFERENCE_METHOD}; none: no fallback)")
     parser.add_argument("--timing", default="constant", metavar="NAME",
                         help="constant (default), min-jerk or topp (changeable in the panel)")
     parser.add_argument("--duration", type=float, default=DEFAULT_DURATION_S,

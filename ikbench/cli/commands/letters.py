@@ -13,6 +13,7 @@ from ikbench.cli.commands.run import (
 from ikbench.cli.commands.run import run as run_command
 from ikbench.cli.options import add_robot_arguments, robot_from_args
 from ikbench.cli.values import STEPS, Text
+from ikbench.core.defaults import DEFAULT_METHOD
 from ikbench.core.errors import InputError
 
 HELP = "draw letters A-Z in the air with the end point (the paper's letter experiment)"
@@ -59,7 +60,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     from ikbench.methods.registry import available_methods
 
     # sequential methods start at a touch pose, which a letter does not have
-    methods = {n: c for n, c in available_methods().items() if not c.requires_touch_pose}
+    methods = {n: c for n, c in available_methods().items() if not c.capabilities.needs_touch_pose}
     parser.add_argument("letters", type=letters_value,
                         help="letters A-Z, comma-separated, e.g. P or P,A,S "
                         "(lower case is drawn upper case)")
@@ -96,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
         robot = robot_from_args(args)
         args.start_pose = ",".join(f"{v:.17g}" for v in letter_start_pose(robot))
     fixed: dict[str, object] = {}
-    if args.method == "ours":  # the paper's letter script: a fixed number of iterations
+    if args.method == DEFAULT_METHOD:  # the paper's letter script: a fixed number of iterations
         if getattr(args, "opt_stop", None) is None:
             fixed["stop"] = "none"
         if getattr(args, "opt_max_iterations", None) is None:

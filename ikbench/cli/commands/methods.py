@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
                      "library": library, "version": version, "source": status.source,
                      "description": cls.description if cls else "",
                      "reason": status.reason,
-                     "goal_frames": bool(cls and cls.supports_frames),
+                     "goal_frames": bool(cls and cls.capabilities.frames),
                      "options": [f"--{o.flag}" for o in cls.options()] if cls else []})
     if args.json:
         print(json.dumps({"methods": rows}))

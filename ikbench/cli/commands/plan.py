@@ -94,11 +94,11 @@ def check_timing_args(args: argparse.Namespace) -> None:
     from ikbench.core.timing_limits import parse_limit_option
 
     check_timing(args.timing)
-    for option, text in (("--max-velocity", args.max_velocity),
-                         ("--max-acceleration", args.max_acceleration)):
+    for field, text in (("max_velocity", args.max_velocity),
+                        ("max_acceleration", args.max_acceleration)):
         if text is not None:
             count = len(str(text).split(","))
-            parse_limit_option(text, count, option)
+            parse_limit_option(text, count, field)
 
 
 def run(args: argparse.Namespace) -> int:

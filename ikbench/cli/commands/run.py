@@ -16,7 +16,7 @@ from ikbench.cli.options import (
     robot_from_args,
 )
 from ikbench.cli.values import OUTPUT, STEPS, Number, Text, duration_s
-from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_ROBOT
+from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_METHOD, DEFAULT_ROBOT
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -35,7 +35,6 @@ SHAPE_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "curve_distan
                  "curve_distance_max_mm", "point_error_mean_mm", "pointing_deviation_mean_deg"]
 PROBLEM_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "position_error_max_mm",
                    "rotation_error_max_deg", "max_joint_change_deg", "valid"]
-DEFAULT_METHOD = "ours"
 DEFAULT_OUTPUT = "runs"
 #: The console table's name of duration_s when it is a share of one batched solve.
 BATCH_SHARE_COLUMN = "duration_s (batch share)"
@@ -222,7 +221,7 @@ def solve_write_report(solver: Method, robot: Robot, targets: Targets, tasks: Se
             print(f"ikbench: interrupted before any trajectory was solved; {folder}/ is "
                   "unchanged", file=sys.stderr)
         return 130
-    return report_table(table, folder, batch=len(tasks) if solver.batched else None)
+    return report_table(table, folder, batch=len(tasks) if solver.capabilities.batched else None)
 
 
 def run_problem(args: argparse.Namespace, fixed: dict | None = None) -> int:

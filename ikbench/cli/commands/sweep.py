@@ -34,8 +34,11 @@ DESCRIPTION = (
 
 
 def arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--method", default="ours-lm", choices=("ours-lm", "ours-exact"),
-                        help="the method swept (default ours-lm)")
+    from ikbench.studies.sweep import SWEEP_METHODS
+
+    methods = tuple(SWEEP_METHODS)
+    parser.add_argument("--method", default=methods[0], choices=methods,
+                        help=f"the method swept (default {methods[0]})")
     parser.add_argument("--weight", action="append", metavar="TERM=V1,V2,...",
                         type=Text("a term and its values", max_chars=MAX_LIST_CHARS),
                         help="a term of the grid and its values, e.g. --weight c0=1,10,100,1000 "

@@ -33,6 +33,7 @@ import numpy as np
 from ikbench.core.errors import InputError
 from ikbench.core.validity import MAX_JOINT_CHANGE_DEG, MAX_JOINT_CHANGE_MM
 from ikbench.methods.base import (
+    Capabilities,
     Method,
     Solution,
     check_choice,
@@ -137,9 +138,7 @@ class OursExact(Method):
                    "joint limits), the paper's smoothness and pointing optimised: batched SQP "
                    "with a banded KKT solve")
     Settings = ExactSettings
-    batched = True
-    warm_starts = True
-    supports_frames = True
+    capabilities = Capabilities(frames=True, batched=True, warm_starts=True)
 
     def scheme_label(self) -> str:
         s = self.settings
@@ -367,8 +366,9 @@ def step_limits(robot: Robot, task: Task, settings: ExactSettings) -> np.ndarray
     contract = task.contract
     if contract is not None:
         limit = np.minimum(limit, float(settings.max_step))
-        if contract.max_step(task.steps) is not None:
-            limit = np.minimum(limit, CONTRACT_STEP_SHARE * contract.max_step(task.steps))
+        contract_step = contract.max_step(task.steps)
+        if contract_step is not None:
+            limit = np.minimum(limit, CONTRACT_STEP_SHARE * contract_step)
     return limit
 
 

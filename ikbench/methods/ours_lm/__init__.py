@@ -30,7 +30,7 @@ import numpy as np
 
 from ikbench.core.kinematics.chain_torch import torch_chain_kinematics
 from ikbench.core.losses import TERMS, format_weights, resolve_weights
-from ikbench.methods.base import Method, Solution
+from ikbench.methods.base import Capabilities, Method, Solution
 from ikbench.methods.ours_lm.avoidance import (
     Avoidance,
     avoidance_for,
@@ -75,10 +75,8 @@ class OursLM(Method):
                    "Levenberg-Marquardt with analytic Jacobians and joint-limit boxes; 6-D pose "
                    "paths: seeded start search, then the same LM")
     Settings = OursLMSettings
-    batched = True
-    warm_starts = True
-    supports_frames = True
-    avoids_obstacles = True     # on 6-D pose paths (:mod:`.avoidance`); 3-D tasks: none
+    # obstacles: on 6-D pose paths (:mod:`.avoidance`); 3-D tasks: none
+    capabilities = Capabilities(frames=True, obstacles=True, batched=True, warm_starts=True)
 
     def settings_for(self, task: Task) -> LMSettings:
         """The settings for one task, with its complete weights."""

@@ -134,7 +134,7 @@ def scene_for(robot: Robot, task: Task) -> CapsuleScene | None:
     from ikbench.core.capsules import capsule_model
 
     model = capsule_model(robot)
-    return None if model is None else model.scene(getattr(task, "obstacles", ()))
+    return None if model is None else model.scene(task.obstacles)
 
 
 def turns(robot: Robot, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
@@ -231,7 +231,7 @@ class _Search:
         for a, anchor in enumerate(anchors):
             if anchor == 0 and self.task.reference_pose_deg is not None:
                 seeds[a, 0] = self.task.reference_pose_deg
-            if anchor == 0 and getattr(self.task, "initial_pose_deg", None) is not None:
+            if anchor == 0 and self.task.initial_pose_deg is not None:
                 seeds[a, 1 % count] = self.task.initial_pose_deg
         q, position, rotation, iterations = first_waypoint_ik(
             self.spec_frames, np.repeat(self.goals_p[anchors], count, axis=0),
@@ -287,7 +287,7 @@ class _Search:
 
     def _restrict_start(self, tracks: np.ndarray, nodes: np.ndarray) -> None:
         """With an initial configuration, only first poses near it are nodes."""
-        initial = getattr(self.task, "initial_pose_deg", None)
+        initial = self.task.initial_pose_deg
         if initial is None:
             return
         urdf = self.robot.to_urdf(np.nan_to_num(tracks[:, 0]))
@@ -334,7 +334,7 @@ class _Search:
         return poses, loss, terms, iterations + used, converged, valid, figures
 
     def first_pose_ok(self, poses: np.ndarray) -> bool:
-        initial = getattr(self.task, "initial_pose_deg", None)
+        initial = self.task.initial_pose_deg
         if initial is None:
             return True
         distance = np.linalg.norm(self.robot.to_urdf(poses[0])

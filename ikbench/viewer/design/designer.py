@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ikbench.core.defaults import DEFAULT_DURATION_S
+from ikbench.core.defaults import DEFAULT_DURATION_S, DESIGN_METHOD, REFERENCE_METHOD
 from ikbench.core.errors import InputError
 from ikbench.core.problems import load_problem
 from ikbench.core.robot import Robot, as_robot
@@ -49,9 +49,6 @@ from ikbench.viewer.design import save as saving
 from ikbench.viewer.design.criteria import Criterion, judge_design
 from ikbench.viewer.design.kinds import LetterDesign, LineDesign, PathDesign, design_for
 from ikbench.viewer.design.reach import REACH_TOLERANCE_MM, Reach
-
-DEFAULT_METHOD = "ours-exact"
-DEFAULT_FALLBACK = "ours-lm"
 
 
 @dataclass(frozen=True)
@@ -82,7 +79,7 @@ class DesignSpec:
     problem: str | Path | None = None
     duration_s: float = DEFAULT_DURATION_S
     timing: str = "constant"
-    fallback: str | None = DEFAULT_FALLBACK
+    fallback: str | None = REFERENCE_METHOD
 
 
 @dataclass
@@ -140,7 +137,7 @@ class Designer:
     """
 
     def __init__(self, robot: Robot | str | Path | None = None,
-                 method: str | Method = DEFAULT_METHOD, spec: DesignSpec | None = None
+                 method: str | Method = DESIGN_METHOD, spec: DesignSpec | None = None
                  ) -> None:
         self.spec = spec = spec or DesignSpec()
         check_timing(spec.timing)

@@ -94,7 +94,7 @@ def add_panel(server: viser.ViserServer, view: DesignerView) -> dict[str, Any]:
     gui: dict[str, Any] = {}
     with server.gui.add_folder("Design"):
         server.gui.add_markdown(_what(designer.kind, designer.robot.name))
-        names = [n for n, c in available_methods().items() if c.warm_starts]
+        names = [n for n, c in available_methods().items() if c.capabilities.warm_starts]
         names = list(dict.fromkeys([designer.method.name, *names]))
         gui["method"] = server.gui.add_dropdown("method", names,
                                                 initial_value=designer.method.name)
