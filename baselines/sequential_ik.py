@@ -430,14 +430,14 @@ def walk_joint_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
     Raises:
         InputError: the task has no touch pose, or the up vector is parallel to the line.
     """
-    if task.end_pose_deg is None:
+    if task.end_pose is None:
         raise InputError(f"trajectory {task.name!r}: sequential-ik starts at the touch pose; "
                          "the task has no end pose (for letters, polylines and splines use "
                          "--method ours or --method ours-lm)")
     pin_fk = robot.pinocchio_fk()
     data = pin_fk.model.createData()
     lower, upper = pin_fk.model.lowerPositionLimit, pin_fk.model.upperPositionLimit
-    q = robot.motor_to_joint_rad(np.asarray(task.end_pose_deg, dtype=float))
+    q = robot.motor_to_joint_rad(np.asarray(task.end_pose, dtype=float))
     up = _up_vector(settings, pin_fk, q)
     n = task.steps
     q_rad = np.empty((n + 1, len(q)))
@@ -473,7 +473,7 @@ def walk_path_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
     # a negative motor scale (NICO) swaps the mapped limits: min / max of the two
     lower = np.maximum(pin_fk.model.lowerPositionLimit, np.minimum(low, high))
     upper = np.minimum(pin_fk.model.upperPositionLimit, np.maximum(low, high))
-    home = task.start_pose_deg if task.start_pose_deg is not None else task.reference_pose_deg
+    home = task.start_pose if task.start_pose is not None else task.reference_pose
     q = robot.to_urdf(np.zeros(robot.dof) if home is None else np.asarray(home, dtype=float))
     q_rad = np.empty((task.steps + 1, len(q)))
     iterations, missed, worst_pos_mm, worst_angle_deg = 0, 0, 0.0, 0.0
@@ -552,9 +552,9 @@ def walk(robot: Robot, task: Task, settings: DLSSettings) -> Solution:
         poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), *task.limits(robot))
     else:
         raw = walk_joint_rad(robot, task, settings)
-        poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), robot.lower_motor_deg,
-                            robot.upper_motor_deg)
-        poses_deg[-1] = task.end_pose_deg  # exactly the touch pose, no round trip
+        poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), robot.lower,
+                            robot.upper)
+        poses_deg[-1] = task.end_pose  # exactly the touch pose, no round trip
     return _solution(raw, poses_deg, settings, started, "walk")
 
 
@@ -564,10 +564,10 @@ def track(robot: Robot, task: Task, settings: DLSSettings) -> Solution:
     :func:`walk`'s)."""
     started = time.perf_counter()
     raw = track_joint_rad(robot, task, settings)
-    poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), robot.lower_motor_deg,
-                        robot.upper_motor_deg)
-    poses_deg[0] = task.start_pose_deg
-    poses_deg[-1] = task.end_pose_deg
+    poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), robot.lower,
+                        robot.upper)
+    poses_deg[0] = task.start_pose
+    poses_deg[-1] = task.end_pose
     return _solution(raw, poses_deg, settings, started, "track")
 
 
@@ -594,7 +594,7 @@ def _solution(raw: Walk, poses_deg, settings: DLSSettings, started: float,
     if scheme == "track":
         info = {**info, "points_solved": len(poses_deg) - 2, "scheme": "track",
                 "posture_gain": settings.posture_gain}
-    return Solution(poses_deg=poses_deg, iterations=raw.iterations, duration_s=duration,
+    return Solution(poses=poses_deg, iterations=raw.iterations, duration_s=duration,
                     loss=None, converged=missed == 0, info=info)
 
 
@@ -611,7 +611,7 @@ def check_tasks(robot: Robot, tasks: Sequence[Task], settings: DLSSettings,
         tracked = settings.scheme == "track"
         if tracked:
             require_start_and_touch(task, method)
-        elif task.end_pose_deg is None:
+        elif task.end_pose is None:
             raise InputError(f"trajectory {task.name!r}: {method} starts at the touch "
                              "pose; the task has no end pose (for letters, polylines and "
                              "splines use --method ours or --method ours-lm)")
@@ -623,7 +623,7 @@ def check_tasks(robot: Robot, tasks: Sequence[Task], settings: DLSSettings,
             if directions is None:  # nothing to point: position only
                 continue
         up = _up_vector(settings, pin_fk,
-                        robot.motor_to_joint_rad(np.asarray(task.end_pose_deg, dtype=float)))
+                        robot.motor_to_joint_rad(np.asarray(task.end_pose, dtype=float)))
         for d in np.unique(np.asarray(directions, dtype=float), axis=0):
             check_up_vector(cast(np.ndarray, up), d, f"trajectory {task.name}")  # frame mode
 

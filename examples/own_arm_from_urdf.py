@@ -34,9 +34,9 @@ print(f"line from {first_mm} to {last_mm} mm (base frame)")
 
 solver = ikbench.get_method("ours-lm")(weights="c0=100,c1=0")
 solution = solver.solve(robot, task)
-metrics = ikbench.trajectory_metrics(robot, task, solution.poses_deg)
+metrics = ikbench.trajectory_metrics(robot, task, solution.poses)
 print(f"solved in {solution.iterations} iterations, {solution.duration_s * 1000:.1f} ms: "
       f"line distance mean {metrics['line_distance_mean_mm']:.4f} mm, end point error "
       f"{metrics['end_point_error_mm']:.4f} mm, largest joint step "
       f"{metrics['max_joint_step_deg']:.2f} deg, within limits: "
-      f"{robot.within_limits(solution.poses_deg)}")
+      f"{robot.within_limits(solution.poses)}")

@@ -23,7 +23,7 @@ from ikbench.hw.plan import make_plan
 
 robot = ikbench.load_robot()  # NICO's right arm: poses in motor degrees
 task = ikbench.build_tasks(robot, ikbench.load_targets(robot=robot))[0]  # trajectory 1
-poses_deg = ikbench.get_method("ours-lm")().solve(robot, task).poses_deg
+poses_deg = ikbench.get_method("ours-lm")().solve(robot, task).poses
 
 config = load_motor_config()  # NICO's motor ids, orientations, limits (ikbench/data/)
 plan = make_plan(poses_deg, config, duration_s=2.0)

@@ -7,7 +7,7 @@ The public API, in a few names::
     targets = ikbench.load_targets(robot=robot)         # the robot's start and touch poses
     tasks = ikbench.build_tasks(robot, targets)         # goal points [mm] and directions
     solution = ikbench.get_method("ours-lm")().solve(robot, tasks[0])
-    metrics = ikbench.trajectory_metrics(robot, tasks[0], solution.poses_deg)
+    metrics = ikbench.trajectory_metrics(robot, tasks[0], solution.poses)
     table = ikbench.run("ours-lm", robot=robot, output=None)   # a pandas DataFrame
 
 Poses are in the robot's units (motor degrees for NICO; joint degrees, mm for prismatic

@@ -118,7 +118,7 @@ def test_fk_goals_are_solved_back_within_limits_and_deterministically(robot, nam
     method.prepare(robot)
     first, second = method.solve(robot, task), method.solve(robot, task)
     for solution in (first, second):
-        poses = solution.poses_deg
+        poses = solution.poses
         assert poses.shape == (STEPS + 1, robot.dof)
         assert robot.within_limits(poses, tol_deg=0.0)  # (b): not even round-off outside
         position, pointing, _ = goal_errors(robot, task, poses)
@@ -127,18 +127,18 @@ def test_fk_goals_are_solved_back_within_limits_and_deterministically(robot, nam
         if pointing_tol is not None:
             assert pointing[rows].max() < pointing_tol, (name, pointing)
         if whole:
-            assert np.abs(poses[0] - task.start_pose_deg).max() < 0.5
-            assert np.abs(poses[-1] - task.end_pose_deg).max() < 0.5
+            assert np.abs(poses[0] - task.start_pose).max() < 0.5
+            assert np.abs(poses[-1] - task.end_pose).max() < 0.5
         else:
-            np.testing.assert_array_equal(poses[-1], task.end_pose_deg)
+            np.testing.assert_array_equal(poses[-1], task.end_pose)
     if name != "trac-ik":  # (c); TRAC-IK races threads against a timeout: both runs solve
-        np.testing.assert_array_equal(first.poses_deg, second.poses_deg)
+        np.testing.assert_array_equal(first.poses, second.poses)
 
 
 def test_ikpy_pointing_mode_points(robot):
     cls = method_class("ikpy")
     task = fk_task(robot, seed=9)
-    poses = cls(orientation="pointing", scheme="walk").solve(robot, task).poses_deg
+    poses = cls(orientation="pointing", scheme="walk").solve(robot, task).poses
     position, pointing, _ = goal_errors(robot, task, poses)
     assert position[:-1].max() < 0.1 and pointing[:-1].max() < 0.1  # scipy's ftol stops early
     assert robot.within_limits(poses, tol_deg=0.0)
@@ -148,7 +148,7 @@ def test_ikpy_pointing_mode_points(robot):
 def test_six_d_goal_frames_are_reached(robot, name):
     cls = method_class(name)
     task = fk_task(robot, seed=3, frames=True)
-    poses = cls().solve(robot, task).poses_deg
+    poses = cls().solve(robot, task).poses
     position, _, angle = goal_errors(robot, task, poses)
     rows = solved_rows(name)
     assert position[rows].max() < 1e-2 and angle[rows].max() < 0.1, (position, angle)
@@ -186,7 +186,7 @@ def _run_and_check(tmp_path, robot, name, targets, touch, *extra) -> pd.DataFram
 def test_cli_run_on_the_papers_targets(tmp_path, robot, name):
     method_class(name)
     targets = load_targets(None, robot).select("1,7").with_steps(STEPS)
-    table = _run_and_check(tmp_path, robot, name, targets, targets.touch_poses_deg,
+    table = _run_and_check(tmp_path, robot, name, targets, targets.touch_poses,
                            "--only", "1,7")
     # ikpy's points are FK-checked to its --ikpy-position-tolerance 0.1 mm; others to 1 um
     assert (table["line_distance_mean_mm"] < (0.1 if name == "ikpy" else 1e-2)).all()
@@ -208,7 +208,7 @@ def test_cli_run_on_an_unseen_robot(tmp_path, arm, name):
 
     extra = ("--robot", str(ARM), "--end-frame", "tool", "--targets", str(ARM_TARGETS))
     if name == "ikpy":
-        table = _run_and_check(tmp_path, arm, name, targets, targets.touch_poses_deg, *extra)
+        table = _run_and_check(tmp_path, arm, name, targets, targets.touch_poses, *extra)
         assert (table["line_distance_mean_mm"] < 1e-2).all()  # position only
         return
     tasks = build_tasks(arm, targets, "line", STEPS, None, ARM_DIRECTION)
@@ -216,7 +216,7 @@ def test_cli_run_on_an_unseen_robot(tmp_path, arm, name):
                  "--quiet", "--direction", ARM_DIRECTION, *extra]) == 0
     for task in tasks:
         poses = read_trajectory_poses(tmp_path / name / f"trajectory_{task.name}.csv", arm)
-        assert np.abs(poses[-1] - task.end_pose_deg).max() < 0.5 and arm.within_limits(poses)
+        assert np.abs(poses[-1] - task.end_pose).max() < 0.5 and arm.within_limits(poses)
         position, pointing, _ = goal_errors(arm, task, poses)
         assert position[solved_rows(name)].max() < 0.2  # b's last goal: 1.3 deg out of reach
 

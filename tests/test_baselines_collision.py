@@ -73,15 +73,15 @@ def test_a_six_d_path_keeps_clear_of_a_ball_it_hits_without_avoidance(panda, nam
     method = cls()
     method.prepare(panda)
     plain = method.solve(panda, dataclasses.replace(task, obstacles=()))
-    assert model.check(plain.poses_deg, ball).summary()["env_collisions"] > 0
+    assert model.check(plain.poses, ball).summary()["env_collisions"] > 0
     assert "collision_avoidance" not in plain.info  # no obstacle, no change
     solution = method.solve(panda, task)
-    report = model.check(solution.poses_deg, ball).summary()
+    report = model.check(solution.poses, ball).summary()
     assert solution.info["collision_avoidance"] == "on"
     assert report["env_collisions"] == 0 and report["self_collisions"] == 0
     assert report["min_clearance_mm"] > CLEARANCE_MM - 0.5
     assert solution.converged
-    assert position_errors_mm(panda, task, solution.poses_deg).max() < 0.01
+    assert position_errors_mm(panda, task, solution.poses).max() < 0.01
 
 
 @pytest.mark.parametrize("name", AVOIDING)
@@ -96,12 +96,12 @@ def test_a_tracked_pointing_path_keeps_clear_of_the_ball(panda, name):
     method.prepare(panda)
     model = collision_model(panda)
     plain = method.solve(panda, dataclasses.replace(task, obstacles=()))
-    assert model.check(plain.poses_deg, ball).summary()["env_collisions"] > 0
+    assert model.check(plain.poses, ball).summary()["env_collisions"] > 0
     solution = method.solve(panda, task)
-    report = model.check(solution.poses_deg, ball).summary()
+    report = model.check(solution.poses, ball).summary()
     assert report["env_collisions"] == 0 and report["self_collisions"] == 0
     assert report["min_clearance_mm"] > CLEARANCE_MM - 0.5
-    assert position_errors_mm(panda, task, solution.poses_deg).max() < 0.01
+    assert position_errors_mm(panda, task, solution.poses).max() < 0.01
 
 
 def _obstacles():

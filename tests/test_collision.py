@@ -108,7 +108,7 @@ def test_a_trajectory_through_a_box_is_invalid_with_its_first_colliding_waypoint
     free = dataclasses.replace(task, obstacles=())
     from ikbench.methods.ours_lm import OursLM
 
-    poses = OursLM(seed=1).solve(robot, free).poses_deg       # ignores the cube
+    poses = OursLM(seed=1).solve(robot, free).poses       # ignores the cube
     report = collision_model(robot).check(poses, task.obstacles)
     first = report.first_collision()
     assert first is not None
@@ -127,7 +127,7 @@ def test_ours_lm_keeps_clear_of_the_cube():
     from ikbench.methods.ours_lm import OursLM
 
     solution = OursLM(seed=2).solve(robot, task)
-    metrics = frame_metrics(robot, task, solution.poses_deg)
+    metrics = frame_metrics(robot, task, solution.poses)
     assert metrics["valid"], metrics["failed_criteria"]
     assert metrics["min_clearance_mm"] > 0 and metrics["env_collisions"] == 0
 
@@ -166,7 +166,7 @@ def test_nicos_touchscreen_is_a_named_obstacle_set_and_the_touches_clear_it():
     from ikbench.core.targets import load_targets
 
     targets = load_targets(None, robot)
-    touches = np.array(list(targets.touch_poses_deg.values()))
+    touches = np.array(list(targets.touch_poses.values()))
     report = collision_model(robot).check(touches, (screen,))
     assert not report.env_colliding.any() and not report.self_colliding.any()
     assert math.isfinite(report.min_clearance_mm(env=True))
@@ -198,7 +198,7 @@ def test_an_initial_configuration_is_part_of_validity(tmp_path):
     robot, task, _ = load_problem("fetch_arm__hello")
     from ikbench.methods.ours_lm import OursLM
 
-    poses = OursLM(seed=1).solve(robot, task).poses_deg
+    poses = OursLM(seed=1).solve(robot, task).poses
     first_rad = robot.to_urdf(poses[0])
     text = shipped_problems()["fetch_arm__hello"].read_text()
     for offset, ok in ((0.05, True), (0.5, False)):

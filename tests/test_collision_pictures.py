@@ -26,7 +26,7 @@ def _colliding():
     from ikbench.methods.ours_lm import OursLM
 
     robot, task, _ = load_problem("panda__1cube")
-    poses = OursLM(seed=1).solve(robot, dataclasses.replace(task, obstacles=())).poses_deg
+    poses = OursLM(seed=1).solve(robot, dataclasses.replace(task, obstacles=())).poses
     return robot, task, np.asarray(poses, dtype=float)
 
 

@@ -34,7 +34,7 @@ class Walker(Straight):
         return frozenset({"touch_pose"})
 
     def solve(self, robot, task, progress=None) -> Solution:
-        poses = np.repeat(task.end_pose_deg[None], task.steps + 1, axis=0)
+        poses = np.repeat(task.end_pose[None], task.steps + 1, axis=0)
         return Solution(poses, iterations=1, duration_s=0.0, loss=None)
 
 

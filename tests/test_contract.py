@@ -93,9 +93,9 @@ def test_judge_fails_nan_and_checks_each_criterion():
 
 def test_contract_metrics_against_a_direct_computation(robot, paper_targets):
     contract = contract_for(robot)
-    task = replace(line_task(robot, paper_targets.start_pose_deg,
-                             paper_targets.touch_poses_deg["3"], 20, "3"), contract=contract)
-    poses = np.linspace(task.start_pose_deg, task.end_pose_deg, 21)  # joint interpolation
+    task = replace(line_task(robot, paper_targets.start_pose,
+                             paper_targets.touch_poses["3"], 20, "3"), contract=contract)
+    poses = np.linspace(task.start_pose, task.end_pose, 21)  # joint interpolation
     poses[5, 0] += 3.0  # one joint jumps: two larger steps
     figures = contract_metrics(robot, task, poses, contract)
     steps = np.abs(np.diff(poses, axis=0))

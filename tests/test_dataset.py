@@ -75,9 +75,9 @@ def test_shards_are_seeded_by_seed_and_index(robot, paper_targets):
     assert shard_seed(7, 0) != shard_seed(7, 1) != shard_seed(8, 1)
     assert shard_seed(7, 1) == shard_seed(7, 1) and 0 <= shard_seed(2**63 - 1, 5) < 2**63
     touch = np.array([[33, 39, 25, 134, 102, 77, -168], [57, 33, 40, 134, 80, 36, -159.0]])
-    tasks, _, _ = line_tasks(robot, paper_targets.start_pose_deg, touch, 10, first=40)
+    tasks, _, _ = line_tasks(robot, paper_targets.start_pose, touch, 10, first=40)
     for task, pose in zip(tasks, touch):
-        reference = line_task(robot, paper_targets.start_pose_deg, pose, 10)
+        reference = line_task(robot, paper_targets.start_pose, pose, 10)
         np.testing.assert_allclose(task.goal_points_mm, reference.goal_points_mm, atol=1e-9)
         np.testing.assert_allclose(task.goal_directions, reference.goal_directions, atol=1e-12)
     assert [t.name for t in tasks] == ["40", "41"]
@@ -169,11 +169,11 @@ def test_line_problem_equals_the_problem_of_line_tasks(robot, paper_targets):
 
     touch = np.array([[33, 39, 25, 134, 102, 77, -168], [57, 33, 40, 134, 80, 36, -159.0]])
     weights = dict(PAPER_WEIGHTS)
-    tasks, start_mm, touch_mm = line_tasks(robot, paper_targets.start_pose_deg, touch, 12)
-    problem, initial, start2, touch2 = line_problem(robot, paper_targets.start_pose_deg,
+    tasks, start_mm, touch_mm = line_tasks(robot, paper_targets.start_pose, touch, 12)
+    problem, initial, start2, touch2 = line_problem(robot, paper_targets.start_pose,
                                                     touch, 12, weights)
     reference = Problem.from_tasks(robot, tasks, weights)
-    for name in ("goal_points_cm", "goal_directions", "start_pose_deg", "end_pose_deg",
+    for name in ("goal_points_cm", "goal_directions", "start_pose", "end_pose",
                  "weights", "lower_deg", "upper_deg"):
         assert np.array_equal(getattr(problem, name), getattr(reference, name)), name
     assert np.array_equal(initial, initial_poses(robot, tasks))
@@ -209,8 +209,8 @@ def test_the_pipeline_gives_the_shards_build_shard_gives(robot, paper_targets):
 
     settings = replace(LMSettings(), weights=parse_weights(None))
     workspace = WorkspaceFilter.of(robot)
-    config = dataset_config(robot, paper_targets.start_pose_deg, 8, 3, 4, workspace, settings)
-    specs = plan(11, config, robot, paper_targets.start_pose_deg, settings, workspace)
+    config = dataset_config(robot, paper_targets.start_pose, 8, 3, 4, workspace, settings)
+    specs = plan(11, config, robot, paper_targets.start_pose, settings, workspace)
     piped = list(pipelined(specs))
     assert len(piped) == 3
     for spec, result in zip(specs, piped):

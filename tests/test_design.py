@@ -38,16 +38,16 @@ def nico():
 def test_twenty_moves_of_the_touch_point_each_re_solve(nico, method):
     designer = Designer(nico, method)
     touch = designer.handles()["touch"]
-    seen = [designer.update.poses_deg]
+    seen = [designer.update.poses]
     for k in range(20):
         goal = touch + np.array([0.0, 2.0 * k, 1.5 * k])
         update = designer.move_touch(goal)
         assert update.method == method and update.reach is not None and update.reach.reachable
         # the touch pose was found for the point, and the trajectory ends there
-        np.testing.assert_allclose(nico.fk(update.poses_deg[-1]).point_mm[0], goal, atol=0.5)
+        np.testing.assert_allclose(nico.fk(update.poses[-1]).point_mm[0], goal, atol=0.5)
         np.testing.assert_allclose(update.task.end_point_mm, update.reach.point_mm, atol=1e-9)
         assert update.solution.iterations >= 1 and update.elapsed_s > 0
-        seen.append(update.poses_deg)
+        seen.append(update.poses)
     changes = [np.abs(b - a).max() for a, b in zip(seen[1:-1], seen[2:])]
     assert min(changes) > 0.01  # every move changed the trajectory
     if method == "ours-exact":  # hard constraints: on the line, at both poses
@@ -61,10 +61,10 @@ def test_settle_solves_from_scratch_what_a_long_drag_solved_warm(nico):
         update = designer.move_touch(centre + 20 * np.array([0, np.cos(angle) - 1,
                                                               np.sin(angle)]))
         assert update.warm
-    cold = designer.method.solve(nico, update.task).poses_deg
+    cold = designer.method.solve(nico, update.task).poses
     settled = designer.settle()
     assert not settled.warm and settled.task is not update.task
-    np.testing.assert_array_equal(settled.poses_deg, cold)
+    np.testing.assert_array_equal(settled.poses, cold)
     np.testing.assert_array_equal(settled.task.goal_points_mm, update.task.goal_points_mm)
     assert settled.reach is update.reach
 
@@ -73,10 +73,10 @@ def test_the_warm_start_solves_the_same_task_as_a_cold_solve(nico):
     task = ikbench.build_tasks(nico, ikbench.load_targets(None, nico).select("3"))[0]
     for name in ("ours-lm", "ours-exact"):
         method = get_method(name)()
-        cold = method.solve(nico, task).poses_deg
+        cold = method.solve(nico, task).poses
         shifted = cold + np.linspace(0.0, 1.0, len(cold))[:, None] * 2.0  # a nearby start
         warm = method.solve_from(nico, task, shifted)
-        np.testing.assert_allclose(warm.poses_deg, cold, atol=0.05)
+        np.testing.assert_allclose(warm.poses, cold, atol=0.05)
         assert method.capabilities.warm_starts and warm.iterations >= 1
 
 
@@ -87,7 +87,7 @@ class Cold(Method):
 
     def solve(self, robot, task, progress=None) -> Solution:
         t = np.linspace(0.0, 1.0, task.steps + 1)[:, None]
-        return Solution(task.start_pose_deg + t * (task.end_pose_deg - task.start_pose_deg),
+        return Solution(task.start_pose + t * (task.end_pose - task.start_pose),
                         0, 0.0, None)
 
 
@@ -96,14 +96,14 @@ def test_a_method_without_a_warm_start_solves_from_scratch(nico):
     given = np.zeros((task.steps + 1, nico.dof))
     solution = Cold().solve_from(nico, task, given)
     assert not Cold.capabilities.warm_starts
-    np.testing.assert_allclose(solution.poses_deg[[0, -1]],
-                               [task.start_pose_deg, task.end_pose_deg])
+    np.testing.assert_allclose(solution.poses[[0, -1]],
+                               [task.start_pose, task.end_pose])
 
 
 def test_the_criteria_are_the_contracts_judgement(nico):
     designer = Designer(nico, "ours-lm")  # ours-lm leaves the line by > 5 mm on trajectory 1
     update = designer.update
-    figures = contract_metrics(nico, update.task, update.poses_deg, update.task.contract)
+    figures = contract_metrics(nico, update.task, update.poses, update.task.contract)
     verdict = judge(update.task.contract, figures)
     shown = {c.name: c.ok for c in update.criteria}
     assert {k: shown[k] for k in verdict} == verdict
@@ -163,7 +163,7 @@ def test_the_start_pose_from_a_recorded_pose_or_a_dragged_start_point(nico):
     designer = Designer(nico, "ours-lm")
     targets = ikbench.load_targets(None, nico)
     update = designer.use_start_pose("7")  # touch pose 7 as the start
-    np.testing.assert_allclose(update.task.start_pose_deg, targets.touch_poses_deg["7"])
+    np.testing.assert_allclose(update.task.start_pose, targets.touch_poses["7"])
     start = designer.handles()["start"] + np.array([0.0, 0.0, -20.0])
     moved = designer.move("start", start)
     np.testing.assert_allclose(moved.task.start_point_mm, start, atol=0.5)
@@ -177,17 +177,17 @@ def test_saving_writes_what_ikbench_run_writes_on_the_saved_targets(nico, tmp_pa
     designer = Designer(nico, "ours-exact", DesignSpec(trajectory="2", duration_s=2.5))
     for _ in range(3):
         designer.move_touch(designer.handles()["touch"] + np.array([0.0, 8.0, 4.0]))
-    shown = designer.update.poses_deg.copy()
+    shown = designer.update.poses.copy()
     saved = designer.save(tmp_path / "out", "mine")
     assert saved.files == (tmp_path / "out" / "mine.targets.json",)
     assert saved.folder == tmp_path / "out" / "mine"
     doc = json.loads(saved.files[0].read_text())
     assert list(doc["targets"]) == ["2"] and doc["steps"] == 50
-    assert doc["start_pose"] == designer.update.task.start_pose_deg.tolist()
+    assert doc["start_pose"] == designer.update.task.start_pose.tolist()
     assert saved.command.startswith("ikbench run --method ours-exact --robot nico_right_arm "
                                     f"--targets {saved.files[0]} --steps 50 --duration 2.5")
     assert saved.change_deg < 0.05  # solved from scratch, it is the trajectory shown
-    np.testing.assert_allclose(designer.update.poses_deg, shown, atol=0.05)
+    np.testing.assert_allclose(designer.update.poses, shown, atol=0.05)
     designer.settle()  # at rest the designer shows what ikbench run solves: no change
     assert designer.save(tmp_path / "out", "mine").change_deg < 1e-6
     record = json.loads((saved.folder / "run.json").read_text())
@@ -258,7 +258,7 @@ def test_the_panda_and_a_bare_urdf(tmp_path):
     saved = bare.save(tmp_path, "arm")
     assert "--end-frame tool" in saved.command
     again = ikbench.load_targets(saved.files[0], arm)
-    np.testing.assert_array_equal(again.touch_poses_deg["design"],
+    np.testing.assert_array_equal(again.touch_poses["design"],
                                   bare.design.touch_pose)
 
 
@@ -287,7 +287,7 @@ def test_a_pose_path_waypoint_drags_its_neighbours(tmp_path):
 
 def test_reach_points_along_the_asked_direction(nico):
     targets = ikbench.load_targets(None, nico)
-    start = targets.touch_poses_deg["4"]
+    start = targets.touch_poses["4"]
     goal = nico.fk(start).point_mm[0] + np.array([5.0, -5.0, 5.0])
     direction = np.array([-1.0, 0.0, -0.3])
     found = reach(nico, goal, start, direction)

@@ -44,7 +44,7 @@ def test_twenty_drags_redraw_the_paths_and_the_arm(view):
     view.scene_s.clear()
     for k in range(20):
         update = view.drag("touch", touch + np.array([0.0, 2.0 * k, 1.0 * k]))
-        tips_m = robot.fk(update.poses_deg).point_mm / 1000.0  # NICO: base = URDF root
+        tips_m = robot.fk(update.poses).point_mm / 1000.0  # NICO: base = URDF root
         drawn = view.handles["tip_path"].points
         np.testing.assert_allclose(drawn[:, 0], tips_m[:-1], atol=1e-6)
         np.testing.assert_allclose(drawn[-1, 1], tips_m[-1], atol=1e-6)
@@ -53,10 +53,10 @@ def test_twenty_drags_redraw_the_paths_and_the_arm(view):
     assert len(view.scene_s) == 20 and all(s > 0 for s in view.scene_s)
     # the arm at the time slider's pose (the touch pose at 1.0), as yourdfpy draws it
     end = view.model.get_transform(robot.end_frame)[:3, 3]
-    np.testing.assert_allclose(end, robot.fk(update.poses_deg[-1]).point_mm[0] / 1000, atol=1e-9)
+    np.testing.assert_allclose(end, robot.fk(update.poses[-1]).point_mm[0] / 1000, atol=1e-9)
     view.gui["time"].value = 0.0
     _wait(lambda: np.allclose(view.model.get_transform(robot.end_frame)[:3, 3],
-                              robot.fk(update.poses_deg[0]).point_mm[0] / 1000, atol=1e-9))
+                              robot.fk(update.poses[0]).point_mm[0] / 1000, atol=1e-9))
     assert "ours-lm (warm start): solved, timed and judged in" in view.gui["status"].content
     settled = view.release()  # from scratch, as ikbench run solves it
     assert not settled.warm and "(from scratch)" in view.gui["status"].content
@@ -94,7 +94,7 @@ def test_the_panel_changes_timing_and_saves(view, tmp_path):
     assert saved.command in view.gui["saved"].content
     assert "--timing min-jerk" in saved.command and "--duration 3" in saved.command
     view.gui["start"].value = "3"
-    _wait(lambda: np.allclose(view.designer.update.task.start_pose_deg,
+    _wait(lambda: np.allclose(view.designer.update.task.start_pose,
                               view.designer.design.recorded_poses["3"]))
     start_m = view.designer.update.task.start_point_mm / 1000  # NICO: base = URDF root
     _wait(lambda: np.allclose(view.gizmos["start"].position, start_m, atol=1e-6))

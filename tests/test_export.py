@@ -28,7 +28,7 @@ DATA = Path(__file__).parent / "data"
 
 def _trajectory(robot, targets, target, steps=50):
     """Joint interpolation from the start to a touch pose with a wiggle (not linear)."""
-    start, end = targets.start_pose_deg, targets.touch_poses_deg[target]
+    start, end = targets.start_pose, targets.touch_poses[target]
     s = np.linspace(0.0, 1.0, steps + 1)[:, None]
     return start + (s - 0.05 * np.sin(2 * np.pi * s)) * (end - start)
 

@@ -128,7 +128,7 @@ def test_validity_figures_fail_for_each_criterion():
     robot, task, _ = load_problem("fetch_arm__rot_yz2")
     from ikbench.methods.ours_lm import OursLM
 
-    poses = OursLM(seed=2).solve(robot, task).poses_deg
+    poses = OursLM(seed=2).solve(robot, task).poses
     good = frame_metrics(robot, task, poses)
     assert good["valid"] and good["failed_criteria"] == ""
     cases = {"joint_change": (60, 0, 10.0), "position": (100, 3, 0.2)}
@@ -159,8 +159,8 @@ def test_start_search_is_valid_and_deterministic():
     from ikbench.methods.ours_lm import OursLM
 
     a, b = OursLM(seed=5).solve(robot, task), OursLM(seed=5).solve(robot, task)
-    np.testing.assert_array_equal(a.poses_deg, b.poses_deg)
-    metrics = frame_metrics(robot, task, a.poses_deg)
+    np.testing.assert_array_equal(a.poses, b.poses)
+    metrics = frame_metrics(robot, task, a.poses)
     assert a.converged and metrics["valid"]
     assert metrics["position_error_max_mm"] < 0.09 and metrics["rotation_error_max_deg"] < 0.09
     assert a.info["stitch_tracks"] >= 1   # IK solutions carried along the path

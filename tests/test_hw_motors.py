@@ -36,8 +36,8 @@ def test_default_config_matches_nico(robot):
     assert dict(zip(config.joint_names, config.ids)) == NICO_IDS
     assert config.baudrate == 1_000_000
     assert all(m.offset_deg == 0 and m.orientation == "direct" for m in config.motors)
-    np.testing.assert_array_equal(config.lower_deg, robot.lower_motor_deg)
-    np.testing.assert_array_equal(config.upper_deg, robot.upper_motor_deg)
+    np.testing.assert_array_equal(config.lower_deg, robot.lower)
+    np.testing.assert_array_equal(config.upper_deg, robot.upper)
 
 
 @pytest.mark.parametrize("deg, raw", [(0.0, 2048), (90.0, 3072), (-90.0, 1024), (45.0, 2560),

@@ -56,7 +56,7 @@ def test_standard_ry_convention():
 @pytest.fixture(scope="module")
 def random_poses(robot):
     rng = np.random.default_rng(1234)
-    return rng.uniform(robot.lower_motor_deg, robot.upper_motor_deg, size=(1000, robot.dof))
+    return rng.uniform(robot.lower, robot.upper, size=(1000, robot.dof))
 
 
 def test_backends_agree_float64(robot, random_poses):
@@ -129,8 +129,8 @@ def test_urdf_loads_in_yourdfpy_with_motor_limits(robot):
     urdf = yourdfpy.URDF.load(str(robot.urdf_path), load_meshes=False)
     assert tuple(urdf.actuated_joint_names) == robot.joint_names
     assert robot.end_frame in urdf.link_map and urdf.base_link == robot.root_link
-    for name, lo, hi, s, o in zip(robot.joint_names, robot.lower_motor_deg,
-                                  robot.upper_motor_deg, robot.scale, robot.offset_deg):
+    for name, lo, hi, s, o in zip(robot.joint_names, robot.lower,
+                                  robot.upper, robot.scale, robot.offset_deg):
         limit = urdf.joint_map[name].limit
         ends = sorted([math.radians(s * lo + o), math.radians(s * hi + o)])
         assert limit.lower == pytest.approx(ends[0], abs=1e-12)

@@ -67,9 +67,9 @@ def test_letter_task_in_the_papers_setting(robot):
     assert task.name == "P" and task.shape == "letter" and task.steps == 40
     assert np.allclose(task.goal_points_mm[:, 0], tip[0])
     assert np.allclose(task.goal_directions, [-1, 0, 0])
-    assert task.start_pose_deg is None and task.end_pose_deg is None
+    assert task.start_pose is None and task.end_pose is None
     assert task.default_weights == LETTER_WEIGHTS and task.pen_down.all()
-    assert np.allclose(task.reference_pose_deg, PAPER_START_POSE_DEG)
+    assert np.allclose(task.reference_pose, PAPER_START_POSE_DEG)
     projected = task.curve.plane.project(np.concatenate(task.curve.strokes_mm))
     box_centre = (projected.max(axis=0) + projected.min(axis=0)) / 2
     assert np.allclose(box_centre, 0, atol=1e-9)  # the box is centred on the fingertip
@@ -100,7 +100,7 @@ def test_ours_stop_none_runs_every_iteration_and_keeps_the_best(robot):
     solution = Ours(stop="none", max_iterations=80, dtype="float64").solve(robot, task)
     assert solution.iterations == 80 and solution.converged
     assert solution.info["weights"] == "c0=1,c1=50,c2=0,c3=0,c4=0,c5=0,c6=1"
-    final, _ = objective(robot, task, solution.poses_deg, LETTER_WEIGHTS)
+    final, _ = objective(robot, task, solution.poses, LETTER_WEIGHTS)
     assert final == pytest.approx(solution.loss, rel=1e-9)
     first = Ours(stop="none", max_iterations=1, dtype="float64").solve(robot, task)
     assert solution.loss < 0.5 * first.loss
@@ -113,10 +113,10 @@ def test_interpolation_init_of_a_letter_starts_at_the_reference_pose(robot):
 
     task = letter_task(robot, "O", PAPER_START_POSE_DEG, steps=6)
     z = initial_logits(robot, task, torch.float64, init="interpolation")
-    poses = robot.lower_motor_deg + torch.sigmoid(z).numpy() * (
-        robot.upper_motor_deg - robot.lower_motor_deg)
-    clipped = np.clip(PAPER_START_POSE_DEG, robot.lower_motor_deg + 1e-3,
-                      robot.upper_motor_deg - 1e-3)
+    poses = robot.lower + torch.sigmoid(z).numpy() * (
+        robot.upper - robot.lower)
+    clipped = np.clip(PAPER_START_POSE_DEG, robot.lower + 1e-3,
+                      robot.upper - 1e-3)
     assert np.allclose(poses, clipped, atol=1e-3)
 
 
@@ -195,7 +195,7 @@ def test_ours_reproduces_the_authors_letter_p(robot):
     task = Task("P", goal, np.tile([-1.0, 0, 0], (66, 1)), None, None, shape="letter",
                 curve=Curve((goal,)), default_weights=dict(LETTER_WEIGHTS))
     solution = Ours(stop="none", max_iterations=2000).solve(robot, task)
-    m = shape_metrics(robot, task, solution.poses_deg)
+    m = shape_metrics(robot, task, solution.poses)
     assert m["point_error_mean_mm"] == pytest.approx(15, abs=1.5)
     assert m["point_error_max_mm"] == pytest.approx(51, abs=4)
     assert m["pointing_deviation_mean_deg"] == pytest.approx(11, abs=1)
@@ -226,5 +226,5 @@ def test_ours_lm_draws_a_letter_with_the_letter_weights_under_user_changes(robot
     solution = OursLM(weights="c6=2").solve(robot, task)
     weights = {**LETTER_WEIGHTS, "L6": 2.0}
     assert solution.info["weights"] == "c0=1,c1=50,c2=0,c3=0,c4=0,c5=0,c6=2"
-    assert solution.loss == pytest.approx(objective(robot, task, solution.poses_deg,
+    assert solution.loss == pytest.approx(objective(robot, task, solution.poses,
                                                     weights)[0], rel=1e-9)

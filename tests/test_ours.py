@@ -49,7 +49,7 @@ def test_loss_equals_independent_computation(robot):
     task = line_task(robot, PAPER_START, TOUCH_1, n, "1")
     rng = np.random.default_rng(7)
     poses = np.linspace(PAPER_START, TOUCH_1, n + 1) + rng.normal(0, 3, (n + 1, 7))
-    poses = np.clip(poses, robot.lower_motor_deg, robot.upper_motor_deg)
+    poses = np.clip(poses, robot.lower, robot.upper)
     total, terms = objective(robot, task, poses)
     expected_total, expected_terms = _independent_loss(poses, np.array(PAPER_START),
                                                        np.array(TOUCH_1, float), n)
@@ -63,18 +63,18 @@ def test_small_run_decreases_and_meets_constraints(robot):
     # With n = 10 the smoothness term alone stays above the paper's threshold of 10 (steps are
     # 5x larger than at n = 50), so the run ends at the cap with the best loss seen.
     settings = AdamSettings(max_iterations=1500)
-    initial, _ = objective(robot, task, robot.lower_motor_deg
-                           + (robot.upper_motor_deg - robot.lower_motor_deg)
+    initial, _ = objective(robot, task, robot.lower
+                           + (robot.upper - robot.lower)
                            * torch.sigmoid(initial_logits(robot, task, torch.float64)).numpy())
     solution = optimise(robot, task, settings)
-    final, _ = objective(robot, task, solution.poses_deg)
+    final, _ = objective(robot, task, solution.poses)
     assert solution.iterations == 1500 and solution.info["hit_cap"]
     assert solution.loss < initial / 50
     assert final == pytest.approx(solution.loss, rel=1e-4)
-    assert robot.within_limits(solution.poses_deg)
-    assert np.max(np.abs(solution.poses_deg[0] - PAPER_START)) <= 0.2
-    assert np.max(np.abs(solution.poses_deg[-1] - TOUCH_1)) <= 0.2
-    end_mm = robot.fk(solution.poses_deg[-1]).point_mm[0]
+    assert robot.within_limits(solution.poses)
+    assert np.max(np.abs(solution.poses[0] - PAPER_START)) <= 0.2
+    assert np.max(np.abs(solution.poses[-1] - TOUCH_1)) <= 0.2
+    end_mm = robot.fk(solution.poses[-1]).point_mm[0]
     assert np.linalg.norm(end_mm - task.end_point_mm) <= 0.5
 
 
@@ -86,14 +86,14 @@ def test_paper_trajectory_3_iterations_reproduce(robot):
     assert 0.65 * 374 <= solution.iterations <= 1.35 * 374
     assert solution.loss < 10
     # under the stopping rule too, the poses returned are those the reported loss was taken at
-    assert objective(robot, task, solution.poses_deg)[0] == pytest.approx(solution.loss, rel=1e-4)
+    assert objective(robot, task, solution.poses)[0] == pytest.approx(solution.loss, rel=1e-4)
 
 
 def test_float32_and_float64_agree(robot):
     task = line_task(robot, PAPER_START, TOUCH_1, 10, "1")
     rng = np.random.default_rng(3)
     poses = np.clip(np.linspace(PAPER_START, TOUCH_1, 11) + rng.normal(0, 2, (11, 7)),
-                    robot.lower_motor_deg, robot.upper_motor_deg)
+                    robot.lower, robot.upper)
     from ikbench.core.losses import LossGoals, loss_terms, weighted_loss
 
     values = {}
@@ -105,7 +105,7 @@ def test_float32_and_float64_agree(robot):
     assert values[torch.float32] == pytest.approx(values[torch.float64], rel=1e-5)
     runs = [optimise(robot, task, AdamSettings(max_iterations=60, dtype=d, stop_below=0))
             for d in ("float32", "float64")]
-    assert np.max(np.abs(runs[0].poses_deg - runs[1].poses_deg)) < 0.05
+    assert np.max(np.abs(runs[0].poses - runs[1].poses)) < 0.05
     assert runs[0].loss == pytest.approx(runs[1].loss, rel=1e-3)
 
 
@@ -114,15 +114,15 @@ def test_seeded_init_is_deterministic(robot):
     a = optimise(robot, task, AdamSettings(max_iterations=50, seed=5))
     b = optimise(robot, task, AdamSettings(max_iterations=50, seed=5))
     c = optimise(robot, task, AdamSettings(max_iterations=50, seed=6))
-    assert np.array_equal(a.poses_deg, b.poses_deg)
-    assert not np.array_equal(a.poses_deg, c.poses_deg)
+    assert np.array_equal(a.poses, b.poses)
+    assert not np.array_equal(a.poses, c.poses)
 
 
 def test_interpolation_init_starts_at_interpolation(robot):
     task = line_task(robot, PAPER_START, TOUCH_1, 10, "1")
     z = initial_logits(robot, task, torch.float64, init="interpolation")
-    poses = robot.lower_motor_deg + torch.sigmoid(z).numpy() * (
-        robot.upper_motor_deg - robot.lower_motor_deg)
+    poses = robot.lower + torch.sigmoid(z).numpy() * (
+        robot.upper - robot.lower)
     assert np.allclose(poses, np.linspace(PAPER_START, TOUCH_1, 11), atol=1e-6)
 
 

@@ -94,7 +94,7 @@ def test_model_gradient_and_gauss_newton_match_finite_differences(robot):
     problem = build_problem(robot, [task], settings)
     kin = robot.chain_kinematics()
     rng = np.random.default_rng(0)
-    x = np.linspace(task.start_pose_deg, task.end_pose_deg, task.steps + 1)[None]
+    x = np.linspace(task.start_pose, task.end_pose, task.steps + 1)[None]
     x = x + rng.normal(0.0, 1.0, x.shape)
     model = evaluate(kin, problem, x)
     direction = rng.normal(size=x.shape)
@@ -165,7 +165,7 @@ def test_tighter_than_ours_lm_on_the_line(robot):
     task = _line(robot, n=20)
     exact = OursExact().solve(robot, task)
     lm = get_method("ours-lm")().solve(robot, task)
-    line = [contract_metrics(robot, task, s.poses_deg, task.contract)["line_distance_max_mm"]
+    line = [contract_metrics(robot, task, s.poses, task.contract)["line_distance_max_mm"]
             for s in (exact, lm)]
     assert exact.converged and exact.info["feasible"]
     assert line[0] < 1e-6 < 0.1 < line[1]
@@ -179,7 +179,7 @@ def test_batched_equals_one_at_a_time(robot):
     together = method.solve_many(robot, tasks)
     for task, joint in zip(tasks, together):
         alone = method.solve(robot, task)
-        np.testing.assert_allclose(joint.poses_deg, alone.poses_deg, atol=1e-9)
+        np.testing.assert_allclose(joint.poses, alone.poses, atol=1e-9)
 
 
 def test_unreachable_point_is_reported_not_silent(robot):

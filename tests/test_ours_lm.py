@@ -37,9 +37,9 @@ def _task(robot, key="1", n=10):
 
 def _random_poses(robot, task, seed=0, noise=4.0):
     rng = np.random.default_rng(seed)
-    poses = np.linspace(task.start_pose_deg, task.end_pose_deg, task.steps + 1)
+    poses = np.linspace(task.start_pose, task.end_pose, task.steps + 1)
     poses = poses + rng.normal(0.0, noise, poses.shape)
-    return np.clip(poses, robot.lower_motor_deg, robot.upper_motor_deg)
+    return np.clip(poses, robot.lower, robot.upper)
 
 
 def _dense_residuals(robot, task, poses, weights=PAPER_WEIGHTS):
@@ -52,8 +52,8 @@ def _dense_residuals(robot, task, poses, weights=PAPER_WEIGHTS):
     return np.concatenate([
         np.sqrt(c[0] / (3 * n_poses)) * (points - goals).ravel(),
         np.sqrt(c[1] / (2 * n_poses)) * (dirs - d).ravel(),
-        np.sqrt(c[2]) * (poses[0] - task.start_pose_deg),
-        np.sqrt(c[3]) * (poses[-1] - task.end_pose_deg),
+        np.sqrt(c[2]) * (poses[0] - task.start_pose),
+        np.sqrt(c[3]) * (poses[-1] - task.end_pose),
         np.sqrt(c[4]) * (points[0] - goals[0]),
         np.sqrt(c[5]) * (points[-1] - goals[-1]),
         np.sqrt(c[6] / ((n_poses - 1) * dof)) * np.diff(poses, axis=0).ravel(),
@@ -74,7 +74,7 @@ def test_loss_equals_objective_and_sum_of_squared_residuals(robot, weights):
 
 
 def test_numpy_kinematics_match_pinocchio_frame_jacobian(robot):
-    poses = np.random.default_rng(1).uniform(robot.lower_motor_deg, robot.upper_motor_deg,
+    poses = np.random.default_rng(1).uniform(robot.lower, robot.upper,
                                              (20, robot.dof))
     ours = ChainKinematics(robot)(poses)
     reference = pinocchio_kinematics(robot, poses)
@@ -83,7 +83,7 @@ def test_numpy_kinematics_match_pinocchio_frame_jacobian(robot):
 
 
 def test_jacobian_matches_finite_differences(robot):
-    poses = np.random.default_rng(2).uniform(robot.lower_motor_deg, robot.upper_motor_deg,
+    poses = np.random.default_rng(2).uniform(robot.lower, robot.upper,
                                              (5, robot.dof))
     kin = ChainKinematics(robot)
     _, _, j_point, j_dir = kin(poses)
@@ -147,7 +147,7 @@ def test_batched_equals_one_at_a_time(robot):
     batch = solve_batch(robot, tasks)
     for k, task in enumerate(tasks):
         single = solve_batch(robot, [task])
-        np.testing.assert_allclose(batch.poses_deg[k], single.poses_deg[0], atol=1e-10)
+        np.testing.assert_allclose(batch.poses[k], single.poses[0], atol=1e-10)
         assert batch.loss[k] == pytest.approx(single.loss[0], rel=1e-12)
         assert batch.iterations[k] == single.iterations[0]
 
@@ -157,7 +157,7 @@ def test_per_task_weights_equal_separate_solves(robot):
     strong = parse_weights("c0=100")
     both = solve_batch(robot, [task, task], weights=[PAPER_WEIGHTS, strong])
     alone = solve_batch(robot, [task], weights=strong)
-    np.testing.assert_allclose(both.poses_deg[1], alone.poses_deg[0], atol=1e-10)
+    np.testing.assert_allclose(both.poses[1], alone.poses[0], atol=1e-10)
     assert both.loss[0] != pytest.approx(both.loss[1])
 
 
@@ -165,9 +165,9 @@ def test_limits_respected_and_kkt_at_the_bound(robot):
     # with n = 50, r_arm_x runs into its upper limit 70 in the middle of trajectory 1
     task = _task(robot, "1", n=50)
     result = solve_batch(robot, [task])
-    poses = result.poses_deg[0]
+    poses = result.poses[0]
     assert robot.within_limits(poses, tol_deg=0.0)
-    at_upper = poses >= robot.upper_motor_deg
+    at_upper = poses >= robot.upper
     assert at_upper[:, 2].sum() >= 2 and result.converged[0]
     problem = Problem.from_tasks(robot, [task], PAPER_WEIGHTS)
     gradient = evaluate(ChainKinematics(robot), problem, poses[None]).gradient[0]
@@ -188,8 +188,8 @@ def test_lm_reaches_a_loss_no_higher_than_adam(robot):
     adam = optimise(robot, task, AdamSettings(max_iterations=150, dtype="float64",
                                               init="interpolation"))
     solution = OursLM().solve(robot, task)
-    lm_loss, _ = objective(robot, task, solution.poses_deg)
-    adam_loss, _ = objective(robot, task, adam.poses_deg)
+    lm_loss, _ = objective(robot, task, solution.poses)
+    adam_loss, _ = objective(robot, task, adam.poses)
     assert solution.loss == pytest.approx(lm_loss, rel=1e-12)
     assert lm_loss <= adam_loss
     assert solution.converged and solution.iterations < 50
@@ -230,7 +230,7 @@ def test_letter_starts_at_the_reference_pose_with_the_letter_weights(robot):
 
     task = letter_task(robot, "P", PAPER_START_POSE_DEG, steps=20)
     start = initial_poses(robot, [task])[0]
-    expected = np.clip(PAPER_START_POSE_DEG, robot.lower_motor_deg, robot.upper_motor_deg)
+    expected = np.clip(PAPER_START_POSE_DEG, robot.lower, robot.upper)
     np.testing.assert_allclose(start, np.repeat(expected[None], 21, axis=0))
     assert OursLM().settings_for(task).weights == LETTER_WEIGHTS
     assert OursLM(weights="c0=100").settings_for(task).weights == {**LETTER_WEIGHTS,
@@ -241,13 +241,13 @@ def test_letter_starts_at_the_reference_pose_with_the_letter_weights(robot):
     assert OursLM(weights="c0=100").settings_for(line).weights == parse_weights("c0=100")
 
     solution = OursLM().solve(robot, task)
-    loss, _ = objective(robot, task, solution.poses_deg, LETTER_WEIGHTS)
+    loss, _ = objective(robot, task, solution.poses, LETTER_WEIGHTS)
     assert solution.loss == pytest.approx(loss, rel=1e-9)
     assert solution.info["weights"] == "c0=1,c1=50,c2=0,c3=0,c4=0,c5=0,c6=1"
-    assert solution.converged and robot.within_limits(solution.poses_deg, tol_deg=0.0)
+    assert solution.converged and robot.within_limits(solution.poses, tol_deg=0.0)
     assert loss < 0.5 * objective(robot, task, start, LETTER_WEIGHTS)[0]
     # the paper's weights would add the start/end point terms (c4, c5): another optimum
-    paper, _ = objective(robot, task, solution.poses_deg, PAPER_WEIGHTS)
+    paper, _ = objective(robot, task, solution.poses, PAPER_WEIGHTS)
     assert paper > loss
 
 
@@ -260,11 +260,11 @@ def test_letter_loss_no_higher_than_adam_and_c0_draws_closer(robot):
     task = letter_task(robot, "L", PAPER_START_POSE_DEG, steps=12)
     adam = Ours(stop="none", max_iterations=300, dtype="float64").solve(robot, task)
     lm = OursLM().solve(robot, task)
-    assert lm.loss <= objective(robot, task, adam.poses_deg, LETTER_WEIGHTS)[0]
+    assert lm.loss <= objective(robot, task, adam.poses, LETTER_WEIGHTS)[0]
     close = OursLM(weights="c0=100").solve(robot, task)
     assert close.info["weights"] == "c0=100,c1=50,c2=0,c3=0,c4=0,c5=0,c6=1"
-    near = shape_metrics(robot, task, close.poses_deg)["point_error_mean_mm"]
-    assert near < 0.2 * shape_metrics(robot, task, lm.poses_deg)["point_error_mean_mm"]
+    near = shape_metrics(robot, task, close.poses)["point_error_mean_mm"]
+    assert near < 0.2 * shape_metrics(robot, task, lm.poses)["point_error_mean_mm"]
 
 
 def test_line_and_letter_in_one_batch_each_with_its_own_weights(robot):
@@ -276,7 +276,7 @@ def test_line_and_letter_in_one_batch_each_with_its_own_weights(robot):
     both = method.solve_many(robot, [line, letter])
     for task, solution in zip((line, letter), both):
         alone = solve_batch(robot, [task], weights=method.settings_for(task).weights)
-        np.testing.assert_allclose(solution.poses_deg, alone.poses_deg[0], atol=1e-10)
+        np.testing.assert_allclose(solution.poses, alone.poses[0], atol=1e-10)
     assert both[0].info["weights"] == "c0=10,c1=50,c2=5,c3=100,c4=10,c5=200,c6=1"
     assert both[1].info["weights"] == "c0=10,c1=50,c2=0,c3=0,c4=0,c5=0,c6=1"
 
@@ -290,14 +290,14 @@ def test_polyline_starts_at_its_reference_pose_and_a_bare_task_is_refused(robot,
     path = tmp_path / "zig.csv"
     path.write_text("\n".join(",".join(f"{v:.3f}" for v in tip + offset) for offset in
                           ([0, 0, 0], [0, -40, 30], [0, -80, 0])) + "\n")
-    task = file_task("polyline", path, 10, reference_pose_deg=PAPER_START)
+    task = file_task("polyline", path, 10, reference_pose=PAPER_START)
     np.testing.assert_allclose(initial_poses(robot, [task])[0, 5], PAPER_START)
     solution = OursLM().solve(robot, task)
-    assert solution.loss == pytest.approx(objective(robot, task, solution.poses_deg)[0],
+    assert solution.loss == pytest.approx(objective(robot, task, solution.poses)[0],
                                           rel=1e-9)
     with pytest.raises(InputError, match="'zig': ours-lm needs a start and an end pose or a "
                                          "reference pose"):
-        initial_poses(robot, [replace(task, reference_pose_deg=None)])
+        initial_poses(robot, [replace(task, reference_pose=None)])
 
 
 def test_letters_cli_with_ours_lm(tmp_path, capsys):

@@ -38,13 +38,13 @@ def _assert_equal(numpy, numba, rtol=RTOL):
     assert np.allclose(numba.terms, numpy.terms, rtol=1e-5, atol=1e-9)
     assert np.array_equal(numba.converged, numpy.converged)
     assert np.abs(numba.iterations - numpy.iterations).max() <= 1
-    assert np.abs(numba.poses_deg - numpy.poses_deg).max() < 1e-4
+    assert np.abs(numba.poses - numpy.poses).max() < 1e-4
 
 
 def _sampled(robot, count, steps, seed=0):
     targets = load_targets(None, robot)
-    touch, _ = sample_touch_poses(robot, targets.start_pose_deg, count, seed=seed)
-    tasks, _, _ = sampled_line_tasks(robot, targets.start_pose_deg, touch, steps)
+    touch, _ = sample_touch_poses(robot, targets.start_pose, count, seed=seed)
+    tasks, _, _ = sampled_line_tasks(robot, targets.start_pose, touch, steps)
     return tasks
 
 
@@ -61,8 +61,8 @@ def test_sampled_touch_poses_equal_numpy(robot):
     tasks = _sampled(robot, 60, 30)
     numpy, numba = _both(robot, tasks)
     _assert_equal(numpy, numba)
-    lower, upper = robot.lower_motor_deg, robot.upper_motor_deg
-    assert ((numba.poses_deg >= lower) & (numba.poses_deg <= upper)).all()
+    lower, upper = robot.lower, robot.upper
+    assert ((numba.poses >= lower) & (numba.poses <= upper)).all()
 
 
 def test_joint_limits_active_and_odd_weights_equal_numpy(robot):
@@ -71,8 +71,8 @@ def test_joint_limits_active_and_odd_weights_equal_numpy(robot):
     weights = parse_weights("c0=5,c1=200,c2=1,c3=1,c4=3,c5=3,c6=0.01")
     numpy, numba = _both(robot, tasks, weights=weights, max_iterations=40)
     _assert_equal(numpy, numba)
-    at_bound = np.isclose(numpy.poses_deg, robot.lower_motor_deg) \
-        | np.isclose(numpy.poses_deg, robot.upper_motor_deg)
+    at_bound = np.isclose(numpy.poses, robot.lower) \
+        | np.isclose(numpy.poses, robot.upper)
     assert at_bound.any()
 
 
@@ -109,15 +109,15 @@ def test_threads_and_batching_do_not_change_the_numbers(robot):
     one = solve_batch(robot, tasks, LMSettings(backend="numba", threads=1), weights=w)
     two = solve_batch(robot, tasks, LMSettings(backend="numba", threads=2), weights=w)
     alone = solve_batch(robot, tasks[33:34], LMSettings(backend="numba"), weights=w)
-    assert np.array_equal(one.poses_deg, two.poses_deg)
+    assert np.array_equal(one.poses, two.poses)
     assert np.array_equal(one.loss, two.loss) and np.array_equal(one.iterations, two.iterations)
-    assert np.array_equal(alone.poses_deg[0], one.poses_deg[33])
+    assert np.array_equal(alone.poses[0], one.poses[33])
 
 
 def test_initial_poses_and_iteration_cap(robot):
     tasks = _sampled(robot, 4, 10, seed=2)
     rng = np.random.default_rng(0)
-    initial = np.linspace(tasks[0].start_pose_deg, tasks[0].end_pose_deg, 11)[None] \
+    initial = np.linspace(tasks[0].start_pose, tasks[0].end_pose, 11)[None] \
         + rng.normal(0.0, 3.0, (4, 11, robot.dof))
     w = dict(PAPER_WEIGHTS)
     numpy = solve_batch(robot, tasks, LMSettings(backend="numpy", max_iterations=3),
@@ -191,7 +191,7 @@ def test_compiled_forward_kinematics_equal_the_numpy_chain(robot):
     from ikbench.methods.ours_lm.compiled import forward
 
     rng = np.random.default_rng(0)
-    poses = rng.uniform(robot.lower_motor_deg, robot.upper_motor_deg, (301, robot.dof))
+    poses = rng.uniform(robot.lower, robot.upper, (301, robot.dof))
     point_m, direction, _, _ = robot.chain_kinematics()(poses, False)
     mine_point, mine_direction = forward(robot, poses, threads=2)
     np.testing.assert_allclose(mine_point, point_m, rtol=0, atol=1e-14)
@@ -208,7 +208,7 @@ def test_solve_problem_equals_solve_batch_on_both_cpu_backends(robot):
         settings = LMSettings(backend=backend)
         a = solve_batch(robot, tasks, settings, weights=w)
         b = solve_problem(robot, problem, initial, settings)
-        assert np.array_equal(a.poses_deg, b.poses_deg) and np.array_equal(a.loss, b.loss)
+        assert np.array_equal(a.poses, b.poses) and np.array_equal(a.loss, b.loss)
 
 
 def test_the_compiled_sine_and_cosine_are_within_an_ulp_of_numpy():

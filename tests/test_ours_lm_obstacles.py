@@ -17,7 +17,7 @@ from ikbench.methods.ours_lm.start_search import STITCH_MAX_STEP, stitch
 def _free_solution(name: str, seed: int = 1):
     robot, task, _ = load_problem(name)
     free = dataclasses.replace(task, obstacles=())
-    return robot, task, OursLM(seed=seed).solve(robot, free).poses_deg
+    return robot, task, OursLM(seed=seed).solve(robot, free).poses
 
 
 def test_stitch_switches_between_partial_tracks_where_they_meet():
@@ -44,7 +44,7 @@ def test_stitch_switches_between_partial_tracks_where_they_meet():
 def test_ours_lm_passes_between_the_flappy_bird_boxes():
     robot, task, _ = load_problem("panda__flappy_bird")
     solution = OursLM(seed=2).solve(robot, task)
-    metrics = frame_metrics(robot, task, solution.poses_deg)
+    metrics = frame_metrics(robot, task, solution.poses)
     assert metrics["valid"], metrics["failed_criteria"]
     assert metrics["env_collisions"] == 0 and metrics["min_clearance_mm"] > 0
     assert solution.info["stitched"]
@@ -65,6 +65,6 @@ def test_a_users_problem_file_with_the_cube_moved(tmp_path):
                                   "obstacle_xyz_offset: [0.05, -0.04, 0.03]"))
     robot, task, _ = load_problem(moved)
     np.testing.assert_allclose(task.obstacles[0].center_mm, [50.0, 160.0, 730.0])
-    metrics = frame_metrics(robot, task, OursLM(seed=1).solve(robot, task).poses_deg)
+    metrics = frame_metrics(robot, task, OursLM(seed=1).solve(robot, task).poses)
     assert metrics["valid"], metrics["failed_criteria"]
     assert metrics["min_clearance_mm"] > 0

@@ -153,7 +153,7 @@ def test_the_pose_path_lm_equals_numpy(penalty):
     assert iterations == numpy.iterations[0] and valid == bool(numpy.converged[0])
     assert loss == pytest.approx(numpy.loss[0], rel=1e-9)
     np.testing.assert_allclose(terms, numpy.terms[0], rtol=1e-8, atol=1e-12)
-    np.testing.assert_allclose(poses, numpy.poses_deg[0], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(poses, numpy.poses[0], rtol=0, atol=1e-8)
 
 
 def test_continuous_joints_wrap_and_unwrap():
@@ -181,7 +181,7 @@ def test_self_collision_is_avoided_without_obstacles(name, seed):
     method.check_tasks(robot, [task])
     method.prepare(robot)
     solution = method.solve(robot, task)
-    metrics = frame_metrics(robot, task, solution.poses_deg)
+    metrics = frame_metrics(robot, task, solution.poses)
     assert metrics["valid"], metrics["failed_criteria"]
     assert metrics["self_collisions"] == 0 and metrics["min_self_clearance_mm"] > 0
     assert solution.info["search"] == "compiled" and solution.info["self_collision_avoided"]
@@ -194,11 +194,11 @@ def test_the_search_is_deterministic_and_the_numpy_search_still_runs():
                                 goal_rotations=task.goal_rotations[:40],
                                 goal_directions=task.goal_directions[:40])
     a, b = OursLM(seed=4).solve(robot, short), OursLM(seed=4).solve(robot, short)
-    np.testing.assert_array_equal(a.poses_deg, b.poses_deg)
-    assert frame_metrics(robot, short, a.poses_deg)["valid"]
+    np.testing.assert_array_equal(a.poses, b.poses)
+    assert frame_metrics(robot, short, a.poses)["valid"]
     numpy = OursLM(seed=4, backend="numpy").solve(robot, short)
     assert "search" not in numpy.info           # the numpy search (coal for collisions)
-    metrics = frame_metrics(robot, short, numpy.poses_deg)
+    metrics = frame_metrics(robot, short, numpy.poses)
     assert metrics["self_collisions"] == 0 and metrics["env_collisions"] == 0
 
 
@@ -214,8 +214,8 @@ def test_3d_trajectories_clear_of_themselves_are_unchanged(robot):
     weights = [resolve_weights(method.settings.weights, t) for t in tasks]
     plain = solve_batch(robot, tasks, method.settings, weights=weights)
     solutions = method.solve_many(robot, tasks)
-    for solution, poses in zip(solutions, plain.poses_deg):
-        np.testing.assert_array_equal(solution.poses_deg, poses)
+    for solution, poses in zip(solutions, plain.poses):
+        np.testing.assert_array_equal(solution.poses, poses)
         assert not solution.info["solved_again_without_self_collision"]
 
 
@@ -234,12 +234,12 @@ def test_a_3d_trajectory_through_the_robot_itself_is_solved_again():
     weights = [resolve_weights(method.settings.weights, t) for t in tasks]
     checker = collision_checker(panda)
     rng = np.random.default_rng(0)
-    samples = rng.uniform(panda.lower_motor_deg, panda.upper_motor_deg, (2000, panda.dof))
+    samples = rng.uniform(panda.lower, panda.upper, (2000, panda.dof))
     touching = samples[checker.check(samples).self_colliding]
     bent = solve_batch(panda, tasks, method.settings, weights=weights)
-    assert self_colliding(checker, bent.poses_deg)[0] == 0
-    middle = len(bent.poses_deg[0]) // 2
-    bent.poses_deg[0, middle - 2:middle + 2] = touching[0]
-    assert self_colliding(checker, bent.poses_deg)[0] >= 4
+    assert self_colliding(checker, bent.poses)[0] == 0
+    middle = len(bent.poses[0]) // 2
+    bent.poses[0, middle - 2:middle + 2] = touching[0]
+    assert self_colliding(checker, bent.poses)[0] >= 4
     assert method._without_self_collisions(panda, tasks, bent, weights) == [0]
-    assert self_colliding(checker, bent.poses_deg)[0] == 0
+    assert self_colliding(checker, bent.poses)[0] == 0

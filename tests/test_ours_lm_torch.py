@@ -48,8 +48,8 @@ def paper_tasks(robot, paper_targets):
 @pytest.fixture(scope="module")
 def random_tasks(robot, paper_targets):
     """200 reachable touch poses from the batch sampler (seed 3), n = 50."""
-    touch, _ = sample_touch_poses(robot, paper_targets.start_pose_deg, 200, seed=3)
-    return [line_task(robot, paper_targets.start_pose_deg, pose, 50, str(k))
+    touch, _ = sample_touch_poses(robot, paper_targets.start_pose, 200, seed=3)
+    return [line_task(robot, paper_targets.start_pose, pose, 50, str(k))
             for k, pose in enumerate(touch)]
 
 
@@ -75,7 +75,7 @@ def test_torch_chain_equals_numpy_chain(robot, robot_spec):
 
 def test_torch_jacobians_match_finite_differences(robot):
     kin = torch_chain_kinematics(robot, torch.float64)
-    poses = np.random.default_rng(2).uniform(robot.lower_motor_deg, robot.upper_motor_deg,
+    poses = np.random.default_rng(2).uniform(robot.lower, robot.upper,
                                              (5, robot.dof))
     _, _, j_point, j_dir = kin(torch.as_tensor(poses))
     for k, jacobian in ((0, j_point), (1, j_dir)):  # m/deg, 1/deg
@@ -96,10 +96,10 @@ def test_evaluation_equals_numpy(robot, paper_tasks):
     weights = [PAPER_WEIGHTS, parse_weights("c0=100,c1=3,c6=0.5")] * 4
     tasks = [*paper_tasks, paper_tasks[0]]
     problem = Problem.from_tasks(robot, tasks, weights[:len(tasks)])
-    poses = np.stack([np.linspace(t.start_pose_deg, t.end_pose_deg, t.steps + 1)
+    poses = np.stack([np.linspace(t.start_pose, t.end_pose, t.steps + 1)
                       for t in tasks])
     poses += np.random.default_rng(0).normal(0.0, 3.0, poses.shape)
-    poses = np.clip(poses, robot.lower_motor_deg, robot.upper_motor_deg)
+    poses = np.clip(poses, robot.lower, robot.upper)
     reference = evaluate(robot.chain_kinematics(), problem, poses)
     ours = tb.evaluate(torch_chain_kinematics(robot), tb.TorchProblem.of(
         problem, torch.float64, "cpu"), torch.as_tensor(poses))
@@ -135,9 +135,9 @@ def test_paper_targets_float64_equal_numpy(robot, paper_tasks):
     np.testing.assert_allclose(ours.loss, reference.loss, rtol=LOSS_RTOL)
     np.testing.assert_allclose(ours.terms, reference.terms, rtol=1e-5, atol=1e-9)
     assert ours.iterations.tolist() == reference.iterations.tolist()
-    assert ours.converged.all() and robot.within_limits(ours.poses_deg, tol_deg=0.0)
+    assert ours.converged.all() and robot.within_limits(ours.poses, tol_deg=0.0)
     for k, task in enumerate(paper_tasks):       # the loss is the objective of the poses
-        assert ours.loss[k] == pytest.approx(objective(robot, task, ours.poses_deg[k])[0],
+        assert ours.loss[k] == pytest.approx(objective(robot, task, ours.poses[k])[0],
                                              rel=1e-12)
 
 
@@ -153,8 +153,8 @@ def test_random_batch_float32_converges_to_the_float64_losses(robot, random_solv
     reference, ours = random_solves["numpy"], random_solves["float32"]
     assert ours.converged.all()
     np.testing.assert_allclose(ours.loss, reference.loss, rtol=FLOAT32_LOSS_RTOL)
-    assert ours.loss.dtype == np.float64 and ours.poses_deg.dtype == np.float64
-    assert robot.within_limits(ours.poses_deg, tol_deg=0.0)
+    assert ours.loss.dtype == np.float64 and ours.poses.dtype == np.float64
+    assert robot.within_limits(ours.poses, tol_deg=0.0)
 
 
 def test_a_trajectory_does_not_depend_on_its_batch(robot, random_tasks):
@@ -163,7 +163,7 @@ def test_a_trajectory_does_not_depend_on_its_batch(robot, random_tasks):
     batch = solve_batch(robot, tasks, TORCH, weights=weights)
     for k in (0, 3):
         alone = solve_batch(robot, [tasks[k]], TORCH, weights=weights[k])
-        np.testing.assert_allclose(batch.poses_deg[k], alone.poses_deg[0], atol=1e-10)
+        np.testing.assert_allclose(batch.poses[k], alone.poses[0], atol=1e-10)
         assert batch.iterations[k] == alone.iterations[0]
 
 

@@ -38,13 +38,13 @@ def test_every_line_is_in_the_workspace_near_the_start_pose_and_reachable():
     targets = load_targets(FILE, robot)
     module = generator()
     assert len(targets.ids) == module.COUNT and targets.steps == module.STEPS
-    poses = np.stack(list(targets.touch_poses_deg.values()))
-    assert robot.within_limits(poses) and robot.within_limits(targets.start_pose_deg[None])
-    assert np.abs(poses - targets.start_pose_deg).max() <= module.REACH_DEG
+    poses = np.stack(list(targets.touch_poses.values()))
+    assert robot.within_limits(poses) and robot.within_limits(targets.start_pose[None])
+    assert np.abs(poses - targets.start_pose).max() <= module.REACH_DEG
     fk = robot.fk(poses)
-    start_mm = robot.fk(targets.start_pose_deg).point_mm[0]
+    start_mm = robot.fk(targets.start_pose).point_mm[0]
     assert WorkspaceFilter.of(robot).accept(fk.point_mm, fk.direction, start_mm).all()
-    assert all(module.reachable(robot, targets.start_pose_deg, pose) for pose in poses)
+    assert all(module.reachable(robot, targets.start_pose, pose) for pose in poses)
 
 
 def test_docs_panda_table_is_a_generated_block_of_the_committed_leaderboard():

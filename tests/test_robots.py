@@ -186,8 +186,8 @@ def test_whole_path_methods_start_at_the_start_pose_and_end_at_the_touch_pose(
     targets = load_targets(TARGETS, arm)
     for _, row in table.iterrows():
         poses = read_trajectory_poses(folder / f"trajectory_{row['trajectory']}.csv", arm)
-        assert np.abs(poses[0] - targets.start_pose_deg).max() < 0.5
-        assert np.abs(poses[-1] - targets.touch_poses_deg[row["trajectory"]]).max() < 0.5
+        assert np.abs(poses[0] - targets.start_pose).max() < 0.5
+        assert np.abs(poses[-1] - targets.touch_poses[row["trajectory"]]).max() < 0.5
         assert row["start_point_error_mm"] < 0.5 and row["end_point_error_mm"] < 0.5
         assert arm.within_limits(poses)
     record = json.loads((folder / "run.json").read_text())
@@ -200,7 +200,7 @@ def test_sequential_ik_walks_from_the_touch_pose_to_the_start_point(tmp_path, ar
     targets = load_targets(TARGETS, arm)
     for _, row in table.iterrows():
         poses = read_trajectory_poses(folder / f"trajectory_{row['trajectory']}.csv", arm)
-        np.testing.assert_array_equal(poses[-1], targets.touch_poses_deg[row["trajectory"]])
+        np.testing.assert_array_equal(poses[-1], targets.touch_poses[row["trajectory"]])
         assert row["start_point_error_mm"] < 1e-3 and row["line_distance_mean_mm"] < 1e-2
         assert arm.within_limits(poses)
 
@@ -247,12 +247,12 @@ def test_a_trajectory_file_may_pass_a_limit_by_a_float32_ulp_not_more(tmp_path):
     from ikbench.core.trajectory import read_trajectory_poses, write_trajectory_csv
 
     robot = load_robot("panda")
-    poses = np.tile((robot.lower_motor_deg + robot.upper_motor_deg) / 2, (3, 1))
-    poses[1, -1] = robot.upper_motor_deg[-1] + 5e-6          # 166.003067 as ours wrote it
+    poses = np.tile((robot.lower + robot.upper) / 2, (3, 1))
+    poses[1, -1] = robot.upper[-1] + 5e-6          # 166.003067 as ours wrote it
     write_trajectory_csv(tmp_path / "ulp.csv", robot, poses)
     read = read_trajectory_poses(tmp_path / "ulp.csv", robot)
-    assert read[1, -1] > robot.upper_motor_deg[-1] and not robot.within_limits(read[1])
-    poses[1, -1] = robot.upper_motor_deg[-1] + 10 * FILE_RANGE_TOLERANCE_DEG
+    assert read[1, -1] > robot.upper[-1] and not robot.within_limits(read[1])
+    poses[1, -1] = robot.upper[-1] + 10 * FILE_RANGE_TOLERANCE_DEG
     write_trajectory_csv(tmp_path / "far.csv", robot, poses)
     with pytest.raises(InputError, match="panda_joint7 = .* is outside its range"):
         read_trajectory_poses(tmp_path / "far.csv", robot)

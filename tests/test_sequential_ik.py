@@ -31,7 +31,7 @@ TOUCH_7 = [34, 17, 39, 107, 106, 78, -180]  # the paper's touch pose 7
 def _random_poses(robot, count, seed):
     """Poses [motor deg] well inside the motor ranges (10 % margin), seeded."""
     rng = np.random.default_rng(seed)
-    lo, hi = robot.lower_motor_deg, robot.upper_motor_deg
+    lo, hi = robot.lower, robot.upper
     return lo + (0.1 + 0.8 * rng.random((count, robot.dof))) * (hi - lo)
 
 
@@ -157,11 +157,11 @@ def test_walk_joint_values_respect_the_limits_and_the_walk_is_deterministic(
         assert np.all(raw.q_rad >= lower) and np.all(raw.q_rad <= upper)
         # ... and so inside the motor ranges: walk()'s final clip moves nothing
         motor_deg = robot.joint_rad_to_motor_deg(raw.q_rad)
-        assert np.all(motor_deg >= robot.lower_motor_deg - 1e-9)
-        assert np.all(motor_deg <= robot.upper_motor_deg + 1e-9)
+        assert np.all(motor_deg >= robot.lower - 1e-9)
+        assert np.all(motor_deg <= robot.upper + 1e-9)
         first, second = walk(robot, task, settings), walk(robot, task, settings)
-        assert np.max(np.abs(first.poses_deg - motor_deg)) <= 1e-9
-        assert np.array_equal(first.poses_deg, second.poses_deg)
+        assert np.max(np.abs(first.poses - motor_deg)) <= 1e-9
+        assert np.array_equal(first.poses, second.poses)
         assert first.iterations == raw.iterations >= task.steps and first.loss is None
         assert first.info["points_not_converged"] == raw.points_not_converged
         assert first.converged == (raw.points_not_converged == 0)
@@ -177,12 +177,12 @@ def test_the_walk_starts_at_the_touch_pose_and_solves_point_n_minus_1_from_it(
         raw = walk_joint_rad(robot, task, settings)
         # row n is the touch pose in radians: its conversion back changes it by round-off only
         assert np.max(np.abs(robot.joint_rad_to_motor_deg(raw.q_rad[-1])
-                             - task.end_pose_deg)) < 1e-9
+                             - task.end_pose)) < 1e-9
         solution = walk(robot, task, settings)
-        fk = robot.fk(solution.poses_deg, backend="torch")
+        fk = robot.fk(solution.poses, backend="torch")
         error_mm = np.linalg.norm(fk.point_mm - task.goal_points_mm, axis=1)
         assert error_mm[-1] < 1e-9  # P_n = P_e
-        assert 0.0 < np.max(np.abs(solution.poses_deg[-2] - solution.poses_deg[-1]))
+        assert 0.0 < np.max(np.abs(solution.poses[-2] - solution.poses[-1]))
         # the largest point error the solver reports is what the written poses show
         assert np.max(error_mm[:-1]) == pytest.approx(
             solution.info["max_position_error_mm"], abs=1e-6)
@@ -195,7 +195,7 @@ def test_reachable_modes_follow_the_line_exactly(robot, paper_targets, orientati
     for task in line_tasks(robot, paper_targets):
         solution = walk(robot, task, DLSSettings(orientation=orientation))
         assert solution.info["points_not_converged"] == 0
-        fk = robot.fk(solution.poses_deg, backend="torch")
+        fk = robot.fk(solution.poses, backend="torch")
         assert np.max(line_distances_mm(fk.point_mm, task.start_point_mm,
                                         task.end_point_mm)) < 1e-2
         assert np.linalg.norm(fk.point_mm[0] - task.start_point_mm) < 1e-2
@@ -208,7 +208,7 @@ def test_the_walk_starts_next_to_the_touch_pose(robot):
     task = line_task(robot, PAPER_START, TOUCH_7, 50, "7")
     solution = walk(robot, task, DLSSettings(orientation="position"))
     # pose n-1 is solved from the touch pose for a point 1/50 of the line away: a small step
-    assert np.max(np.abs(solution.poses_deg[-2] - solution.poses_deg[-1])) < 5.0
+    assert np.max(np.abs(solution.poses[-2] - solution.poses[-1])) < 5.0
 
 
 def test_frame_target_with_the_touch_roll_is_reached_on_trajectory_7(robot):

@@ -147,9 +147,9 @@ def test_parse_shape():
 
 def test_file_tasks(robot, tmp_path):
     path = _write(tmp_path, "0,0,0\n100,0,0\n100,100,0\n", "corner.csv")
-    poly = file_task("polyline", path, 4, reference_pose_deg=PAPER_START)
+    poly = file_task("polyline", path, 4, reference_pose=PAPER_START)
     assert poly.name == "corner" and poly.shape == "polyline" and poly.steps == 4
-    assert poly.start_pose_deg is None and poly.end_pose_deg is None
+    assert poly.start_pose is None and poly.end_pose is None
     assert np.allclose(poly.goal_points_mm[2], [100, 0, 0])
     spline = file_task("spline", path, 20, direction="0,0,-2")
     assert np.allclose(spline.goal_directions, [0, 0, -1])

@@ -67,7 +67,7 @@ def test_sweep_matches_separate_solves_and_writes(tmp_path, robot):
     paper_rows = result.trajectories[result.trajectories["paper_weights"]]
     for _, row in paper_rows.iterrows():
         assert row["paper_loss"] == pytest.approx(row["loss"], rel=1e-12)
-    assert objective(robot, tasks[0], alone.poses_deg[0])[0] == pytest.approx(
+    assert objective(robot, tasks[0], alone.poses[0])[0] == pytest.approx(
         rows.iloc[0]["paper_loss"], rel=1e-9)
     write(result, tmp_path)
     for name in ("sweep.csv", "sweep_trajectories.csv", "pareto.png", "sweep.json", "sweep.md"):
@@ -144,7 +144,7 @@ def test_sweep_on_a_letter_uses_the_letter_setting_and_equals_ours_lm(tmp_path, 
         solution = OursLM(weights=label).solve(robot, task)
         assert rows.loc[label, "loss"] == pytest.approx(solution.loss, rel=1e-9)
         assert rows.loc[label, "paper_loss"] == pytest.approx(
-            objective(robot, task, solution.poses_deg, LETTER_WEIGHTS)[0], rel=1e-9)
+            objective(robot, task, solution.poses, LETTER_WEIGHTS)[0], rel=1e-9)
     write(result, tmp_path)
     md = (tmp_path / "sweep.md").read_text()
     assert "shape `letter:P`" in md and "the paper's letter setting" in md

@@ -19,8 +19,8 @@ NAMES = ["r_shoulder_z", "r_shoulder_y", "r_arm_x", "r_elbow_y", "r_wrist_z", "r
 def test_paper_targets_shipped(paper_targets):
     assert paper_targets.is_paper and paper_targets.steps == 50
     assert paper_targets.ids == [str(i) for i in range(1, 8)]
-    assert np.allclose(paper_targets.start_pose_deg, PAPER_START)
-    assert list(paper_targets.touch_poses_deg["4"]) == [51, 54, 37, 161, 92, 38, -174]
+    assert np.allclose(paper_targets.start_pose, PAPER_START)
+    assert list(paper_targets.touch_poses["4"]) == [51, 54, 37, 161, 92, 38, -174]
 
 
 def test_select_and_steps(paper_targets):
@@ -49,7 +49,7 @@ def _write(tmp_path, doc, raw=None):
 def test_changed_start_pose_is_not_the_paper_task(paper_targets):
     from dataclasses import replace
 
-    moved = replace(paper_targets, start_pose_deg=np.array([0, 45, 0, 90, 0, 0, 0], float))
+    moved = replace(paper_targets, start_pose=np.array([0, 45, 0, 90, 0, 0, 0], float))
     assert paper_targets.is_paper and not moved.is_paper
 
 

@@ -50,7 +50,7 @@ def test_default_targets_have_no_obstacles(robot: Robot, paper_targets: Targets)
     tasks = line_tasks(robot, paper_targets)
     assert all(t.obstacles == () for t in tasks)
     assert not tasks[0].contract.obstacles and "collisions" not in tasks[0].contract.criteria()
-    figures = contract_metrics(robot, tasks[0], np.repeat(paper_targets.start_pose_deg[None],
+    figures = contract_metrics(robot, tasks[0], np.repeat(paper_targets.start_pose[None],
                                                            tasks[0].steps + 1, axis=0),
                                tasks[0].contract)
     assert not {"self_collisions", "env_collisions", "min_clearance_mm"} & set(figures)
@@ -157,7 +157,7 @@ def test_contract_round_trip_and_judge() -> None:
 def test_contract_metrics_count_the_collisions(robot: Robot, tmp_path: Path) -> None:
     targets = load_targets(_write(tmp_path, obstacles=[_hand_box(robot)]), robot)
     task = line_tasks(robot, targets, contract_for(robot))[0]
-    held = np.repeat(targets.start_pose_deg[None], task.steps + 1, axis=0)
+    held = np.repeat(targets.start_pose[None], task.steps + 1, axis=0)
     figures = contract_metrics(robot, task, held, task.contract)
     assert figures["env_collisions"] == task.steps + 1 and figures["self_collisions"] == 0
     assert figures["min_clearance_mm"] < 0 and figures["first_collision_waypoint"] == 0

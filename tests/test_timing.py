@@ -115,7 +115,7 @@ def test_min_jerk_moves_the_fingertip_on_the_analytic_bell(path):
 
 def test_min_jerk_refuses_a_path_where_the_fingertip_does_not_move():
     robot = ikbench.load_robot()
-    poses = np.repeat(ikbench.load_targets(None, robot).start_pose_deg[None], 5, axis=0)
+    poses = np.repeat(ikbench.load_targets(None, robot).start_pose[None], 5, axis=0)
     with pytest.raises(ikbench.InputError, match="fingertip does not move"):
         retime(robot, poses, "min-jerk")
 

@@ -47,7 +47,7 @@ def solve_all(method, robot, tasks):
 
 
 def figures(robot, task, solution):
-    return contract_metrics(robot, task, solution.poses_deg, task.contract)
+    return contract_metrics(robot, task, solution.poses, task.contract)
 
 
 # ----- the conversions (no library needed) ------------------------------------------------------
@@ -55,7 +55,7 @@ def test_the_contracts_step_in_urdf_units(robot):
     contract = contract_for(robot)
     pose_step = contract.max_step(50)  # 10.8 motor deg for every NICO joint
     targets = load_targets(None, robot)
-    task = replace(line_task(robot, targets.start_pose_deg, targets.touch_poses_deg["1"], 50,
+    task = replace(line_task(robot, targets.start_pose, targets.touch_poses["1"], 50,
                              "1"), contract=contract)
     step = contract_step(goals_of(robot, task), pyroki_trajopt.STEP_MARGIN)
     expected = 0.99 * np.radians(np.abs(np.asarray(robot.scale)) * pose_step)
@@ -81,8 +81,8 @@ def test_drake_ik_tracks_from_the_start_pose_onto_the_touch_pose(robot):
     assert method.settings.scheme == "track"
     assert method.fixed_poses() == frozenset({"start_pose", "touch_pose"})
     for task, solution in zip(tasks, solve_all(method, robot, tasks)):
-        np.testing.assert_array_equal(solution.poses_deg[0], task.start_pose_deg)
-        np.testing.assert_array_equal(solution.poses_deg[-1], task.end_pose_deg)
+        np.testing.assert_array_equal(solution.poses[0], task.start_pose)
+        np.testing.assert_array_equal(solution.poses[-1], task.end_pose)
         found = figures(robot, task, solution)
         assert judge(task.contract, found) == dict.fromkeys(task.contract.criteria(), True), \
             (task.name, found)
@@ -100,7 +100,7 @@ def test_drake_ik_walk_keeps_the_authors_scheme(robot):
     (solution,) = solve_all(method, robot, tasks)
     found = figures(robot, tasks[0], solution)
     assert found["start_pose_error_deg"] > 1.0  # the walk ends wherever it ends
-    np.testing.assert_array_equal(solution.poses_deg[-1], tasks[0].end_pose_deg)
+    np.testing.assert_array_equal(solution.poses[-1], tasks[0].end_pose)
     assert solution.info["scheme"] == "walk"
 
 

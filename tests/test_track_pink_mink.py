@@ -47,8 +47,8 @@ def contract(robot):
 def tasks(robot, paper_targets, contract):
     """Two paper targets as /tmp/check_contract.py builds them: the line from FK(start) to
     FK(touch) in 50 steps, with the paper track's contract."""
-    return [replace(line_task(robot, paper_targets.start_pose_deg,
-                              paper_targets.touch_poses_deg[name], STEPS, name),
+    return [replace(line_task(robot, paper_targets.start_pose,
+                              paper_targets.touch_poses[name], STEPS, name),
                     contract=contract) for name in TARGETS]
 
 
@@ -64,10 +64,10 @@ def test_track_meets_the_contract_from_start_to_touch_pose(robot, tasks, contrac
     assert method.settings.scheme == "track"
     assert method.fixed_poses() == frozenset({"start_pose", "touch_pose"})
     for task, solution in zip(tasks, solve_all(robot, method, tasks)):
-        poses = solution.poses_deg
+        poses = solution.poses
         assert poses.shape == (STEPS + 1, robot.dof)
-        np.testing.assert_array_equal(poses[0], task.start_pose_deg)
-        np.testing.assert_array_equal(poses[-1], task.end_pose_deg)
+        np.testing.assert_array_equal(poses[0], task.start_pose)
+        np.testing.assert_array_equal(poses[-1], task.end_pose)
         figures = contract_metrics(robot, task, poses, contract)
         verdict = judge(contract, figures)
         assert set(verdict) >= {"start_pose", "end_pose", "speed", "line", "pointing"}
@@ -87,8 +87,8 @@ def test_walk_lands_on_the_touch_pose_but_leaves_the_start_pose(robot, tasks, na
     method = method_class(name)(scheme="walk")
     assert method.fixed_poses() == frozenset({"touch_pose"})
     for task, solution in zip(tasks, solve_all(robot, method, tasks)):
-        np.testing.assert_array_equal(solution.poses_deg[-1], task.end_pose_deg)
-        assert np.abs(solution.poses_deg[0] - task.start_pose_deg).max() > 1.0
+        np.testing.assert_array_equal(solution.poses[-1], task.end_pose)
+        assert np.abs(solution.poses[0] - task.start_pose).max() > 1.0
 
 
 @pytest.mark.parametrize("name", list(LIBRARIES))
@@ -97,7 +97,7 @@ def test_track_without_pointing_tracks_the_position_only(robot, tasks, name):
     task = replace(tasks[0], contract=off)
     method = method_class(name)()
     (solution,) = solve_all(robot, method, [task])
-    figures = contract_metrics(robot, task, solution.poses_deg, off)
+    figures = contract_metrics(robot, task, solution.poses, off)
     assert "pointing" not in judge(off, figures)
     assert all(judge(off, figures).values()), figures
     assert figures["line_distance_max_mm"] < 1e-3

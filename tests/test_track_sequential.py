@@ -42,14 +42,14 @@ def solve_judged(method, robot, task):
     method.check_tasks(robot, [task])
     method.prepare(robot)
     solution = method.solve(robot, task)
-    figures = contract_metrics(robot, task, solution.poses_deg, task.contract)
+    figures = contract_metrics(robot, task, solution.poses, task.contract)
     return solution, figures, judge(task.contract, figures)
 
 
 def assert_fixed_rows(solution, task):
     """Row 0 is the start pose and row n the touch pose, exactly as given."""
-    np.testing.assert_array_equal(solution.poses_deg[0], task.start_pose_deg)
-    np.testing.assert_array_equal(solution.poses_deg[-1], task.end_pose_deg)
+    np.testing.assert_array_equal(solution.poses[0], task.start_pose)
+    np.testing.assert_array_equal(solution.poses[-1], task.end_pose)
 
 
 # ----- sequential-ik ----------------------------------------------------------------------------
@@ -66,7 +66,7 @@ def test_sequential_ik_tracks_onto_the_touch_pose_and_meets_the_contract(robot, 
         assert figures["line_distance_max_mm"] < 0.1
         assert solution.info["scheme"] == "track"
         # deterministic
-        np.testing.assert_array_equal(method.solve(robot, task).poses_deg, solution.poses_deg)
+        np.testing.assert_array_equal(method.solve(robot, task).poses, solution.poses)
 
 
 @needs("pinocchio")
@@ -81,12 +81,12 @@ def test_sequential_ik_track_without_speed_bounds_breaks_the_speed_limit(robot, 
 @needs("pinocchio")
 def test_sequential_ik_track_refuses_tasks_without_a_start_pose(robot, paper_targets):
     task = paper_tasks(robot, paper_targets, "1")[0]
-    no_start = replace(task, start_pose_deg=None)
+    no_start = replace(task, start_pose=None)
     with pytest.raises(InputError, match="no start pose"):
         get_method("sequential-ik")().check_tasks(robot, [no_start])
     get_method("sequential-ik-walk")().check_tasks(robot, [no_start])  # the walk needs none
     with pytest.raises(InputError, match="no end pose"):
-        get_method("sequential-ik-walk")().check_tasks(robot, [replace(task, end_pose_deg=None)])
+        get_method("sequential-ik-walk")().check_tasks(robot, [replace(task, end_pose=None)])
 
 
 @needs("pinocchio")
@@ -96,14 +96,14 @@ def test_sequential_ik_keeps_walking_pose_paths_forward(robot):
     from ikbench.baselines.sequential_ik import walk
     from tests.test_baselines import fk_task
 
-    task = replace(fk_task(robot, seed=5, frames=True), end_pose_deg=None)
+    task = replace(fk_task(robot, seed=5, frames=True), end_pose=None)
     method = get_method("sequential-ik")()
     method.check_tasks(robot, [task])
     solution = method.solve(robot, task)
     frame = replace(method.settings, orientation="frame")  # a pose path follows its frames
-    np.testing.assert_array_equal(solution.poses_deg, walk(robot, task, frame).poses_deg)
+    np.testing.assert_array_equal(solution.poses, walk(robot, task, frame).poses)
     assert "scheme" not in solution.info
-    T = robot.fk_transform(solution.poses_deg)
+    T = robot.fk_transform(solution.poses)
     assert np.linalg.norm(T[:, :3, 3] * 1000 - task.goal_points_mm, axis=1).max() < 1e-3
     rel = np.einsum("nji,njk->nik", T[:, :3, :3], task.goal_rotations)
     cos = (np.trace(rel, axis1=1, axis2=2) - 1) / 2
@@ -120,11 +120,11 @@ def test_sequential_ik_walk_is_the_papers_table_2_scheme(robot, paper_targets):
     assert get_method("sequential-ik")(scheme="walk").fixed_poses() == frozenset({"touch_pose"})
     for task in paper_tasks(robot, paper_targets, "1,7"):
         solution, figures, met = solve_judged(method, robot, task)
-        np.testing.assert_array_equal(solution.poses_deg[-1], task.end_pose_deg)
+        np.testing.assert_array_equal(solution.poses[-1], task.end_pose)
         assert figures["start_pose_error_deg"] > 1.0 and not met["start_pose"]
         # the walk as it always was: frame mode, the touch pose's roll
         same = walk(robot, task, DLSSettings(orientation="frame"))
-        np.testing.assert_array_equal(solution.poses_deg, same.poses_deg)
+        np.testing.assert_array_equal(solution.poses, same.poses)
         assert solution.info == same.info
 
 
@@ -153,7 +153,7 @@ def test_trac_ik_walk_keeps_the_touch_pose_only(robot, paper_targets):
     assert method.fixed_poses() == frozenset({"touch_pose"})
     task = paper_tasks(robot, paper_targets, "7", steps=10)[0]
     solution, figures, _ = solve_judged(method, robot, task)
-    np.testing.assert_array_equal(solution.poses_deg[-1], task.end_pose_deg)
+    np.testing.assert_array_equal(solution.poses[-1], task.end_pose)
     assert figures["start_pose_error_deg"] > 1.0
 
 
@@ -179,11 +179,11 @@ def test_ikpy_walk_is_the_authors_call(robot, paper_targets):
     assert method.fixed_poses() == frozenset({"touch_pose"})
     task = paper_tasks(robot, paper_targets, "1", steps=10)[0]
     solution, figures, _ = solve_judged(method, robot, task)
-    np.testing.assert_array_equal(solution.poses_deg[-1], task.end_pose_deg)
+    np.testing.assert_array_equal(solution.poses[-1], task.end_pose)
     assert figures["start_pose_error_deg"] > 1.0
     assert solution.converged  # every point within 0.1 mm, by FK
     same = IkpyIK(scheme="walk", orientation="position").solve(robot, task)
-    np.testing.assert_array_equal(solution.poses_deg, same.poses_deg)
+    np.testing.assert_array_equal(solution.poses, same.poses)
 
 
 @needs("ikpy")

@@ -165,8 +165,8 @@ def goals_of(robot: Robot, task: Task) -> Goals:
     contract = task.contract
     return Goals(np.asarray(task.goal_points_mm, dtype=float) / 1000.0, directions,
                  None if rotations is None else np.asarray(rotations, dtype=float),
-                 pose(task.start_pose_deg), pose(task.end_pose_deg),
-                 pose(task.reference_pose_deg), contract=contract,
+                 pose(task.start_pose), pose(task.end_pose),
+                 pose(task.reference_pose), contract=contract,
                  max_step=max_step_urdf(robot, contract, len(task.goal_points_mm) - 1),
                  obstacles=task.obstacles)
 
@@ -229,9 +229,9 @@ def element_path(chain: Chain) -> list[tuple[str, str, str]]:
 def require_touch_and_start(task: Task, method: str) -> None:
     """InputError unless the task fixes both the start and the touch pose (whole-path
     methods pin both ends)."""
-    if task.start_pose_deg is None or task.end_pose_deg is None:
+    if task.start_pose is None or task.end_pose is None:
         raise InputError(f"trajectory {task.name!r}: {method} optimises the path between the "
                          "fixed start and touch poses; the task fixes "
-                         f"{'no start pose' if task.start_pose_deg is None else 'no touch pose'}"
+                         f"{'no start pose' if task.start_pose is None else 'no touch pose'}"
                          " (for letters, polylines and splines use --method ours or "
                          "--method ours-lm)")

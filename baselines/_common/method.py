@@ -137,10 +137,10 @@ class LibraryMethod(Method):
             goals = replace(goals, track=plan_track(robot, task, goals))
         result = self.solve_chain(robot, chain_of(robot), goals)
         poses = poses_from_urdf(robot, result.q)
-        if not self.whole_path and task.end_pose_deg is not None:
-            poses[-1] = task.end_pose_deg  # the walk's start / the track's end, as given
+        if not self.whole_path and task.end_pose is not None:
+            poses[-1] = task.end_pose  # the walk's start / the track's end, as given
         if self.tracks(task):
-            poses[0] = task.start_pose_deg  # the track's start, exactly as given
-        return Solution(poses_deg=poses, iterations=int(result.iterations),
+            poses[0] = task.start_pose  # the track's start, exactly as given
+        return Solution(poses=poses, iterations=int(result.iterations),
                         duration_s=time.perf_counter() - started, loss=None,
                         converged=bool(result.converged), info=dict(result.info))

@@ -111,8 +111,8 @@ class LossGoals:
 
     goal_points_cm: Any         # (n+1, 3) tensor
     goal_directions: Any        # (n+1, 3) unit
-    start_pose_deg: Any         # (dof,) or None
-    end_pose_deg: Any           # (dof,) or None
+    start_pose: Any         # (dof,) or None
+    end_pose: Any           # (dof,) or None
 
     @classmethod
     def from_task(cls, task: Task, dtype: torch.dtype, device: str | torch.device = "cpu"
@@ -123,7 +123,7 @@ class LossGoals:
             return None if x is None else torch.as_tensor(x, dtype=dtype, device=device)
 
         return cls(tensor(task.goal_points_mm / MM_PER_CM), tensor(task.goal_directions),
-                   tensor(task.start_pose_deg), tensor(task.end_pose_deg))
+                   tensor(task.start_pose), tensor(task.end_pose))
 
 
 def loss_terms(points_cm: Tensor, directions: Tensor, poses_deg: Tensor,
@@ -140,10 +140,10 @@ def loss_terms(points_cm: Tensor, directions: Tensor, poses_deg: Tensor,
     return {
         "L0": ((points_cm - goals.goal_points_cm) ** 2).mean(),
         "L1": (1.0 - (directions * goals.goal_directions).sum(-1)).mean(),
-        "L2": zero if goals.start_pose_deg is None
-        else ((poses_deg[0] - goals.start_pose_deg) ** 2).sum(),
-        "L3": zero if goals.end_pose_deg is None
-        else ((poses_deg[-1] - goals.end_pose_deg) ** 2).sum(),
+        "L2": zero if goals.start_pose is None
+        else ((poses_deg[0] - goals.start_pose) ** 2).sum(),
+        "L3": zero if goals.end_pose is None
+        else ((poses_deg[-1] - goals.end_pose) ** 2).sum(),
         "L4": ((points_cm[0] - goals.goal_points_cm[0]) ** 2).sum(),
         "L5": ((points_cm[-1] - goals.goal_points_cm[-1]) ** 2).sum(),
         "L6": (poses_deg.diff(dim=0) ** 2).mean(),

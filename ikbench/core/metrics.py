@@ -125,8 +125,8 @@ def _end_errors_and_smoothness(task, points_mm, poses) -> dict[str, float]:
     return {
         "start_point_error_mm": float(np.linalg.norm(points_mm[0] - task.start_point_mm)),
         "end_point_error_mm": float(np.linalg.norm(points_mm[-1] - task.end_point_mm)),
-        "start_pose_error_deg": pose_error(poses[0], task.start_pose_deg),
-        "end_pose_error_deg": pose_error(poses[-1], task.end_pose_deg),
+        "start_pose_error_deg": pose_error(poses[0], task.start_pose),
+        "end_pose_error_deg": pose_error(poses[-1], task.end_pose),
         **smoothness(poses),
     }
 
@@ -267,7 +267,7 @@ def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[st
 def initial_distance(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> float:
     """Euclidean distance (URDF units: rad, m) of the first pose from the task's initial pose
     (CppFlow's ``initial_q_norm_dist``); NaN when the task gives none."""
-    initial = task.initial_pose_deg
+    initial = task.initial_pose
     if initial is None:
         return float("nan")
     first = robot.to_urdf(np.asarray(poses_deg, dtype=float)[0])

@@ -18,7 +18,7 @@ STILL_DEG = 1e-3
 
 def line_metrics(points_mm: npt.ArrayLike, directions: npt.ArrayLike, poses_deg: npt.ArrayLike,
                  start_point_mm: npt.ArrayLike, end_point_mm: npt.ArrayLike,
-                 start_pose_deg: npt.ArrayLike, end_pose_deg: npt.ArrayLike
+                 start_pose: npt.ArrayLike, end_pose: npt.ArrayLike
                  ) -> dict[str, np.ndarray]:
     """Figures of B line trajectories against their lines from P^s to P^e.
 
@@ -28,7 +28,7 @@ def line_metrics(points_mm: npt.ArrayLike, directions: npt.ArrayLike, poses_deg:
         poses_deg: (B, N, dof) poses [pose units].
         start_point_mm / end_point_mm: (B, 3) P^s and P^e [mm]; the goal direction is the
             unit vector from P^s to P^e.
-        start_pose_deg / end_pose_deg: (B, dof) the pinned start and touch poses.
+        start_pose / end_pose: (B, dof) the pinned start and touch poses.
 
     Returns:
         The keys of :func:`ikbench.core.metrics.trajectory_metrics`, each a (B,) array:
@@ -54,8 +54,8 @@ def line_metrics(points_mm: npt.ArrayLike, directions: npt.ArrayLike, poses_deg:
         "pointing_deviation_std_deg": deviations.std(axis=1),
         "start_point_error_mm": np.linalg.norm(points[:, 0] - start[:, 0], axis=-1),
         "end_point_error_mm": np.linalg.norm(points[:, -1] - end[:, 0], axis=-1),
-        "start_pose_error_deg": np.max(np.abs(poses[:, 0] - start_pose_deg), axis=-1),
-        "end_pose_error_deg": np.max(np.abs(poses[:, -1] - end_pose_deg), axis=-1),
+        "start_pose_error_deg": np.max(np.abs(poses[:, 0] - start_pose), axis=-1),
+        "end_pose_error_deg": np.max(np.abs(poses[:, -1] - end_pose), axis=-1),
         **smoothness(poses),
     }
 

@@ -334,9 +334,9 @@ def problem_task(problem: CartesianProblem, robot: Robot) -> Task:
                              f"{robot.dof} joints ({', '.join(robot.joint_names)})")
         initial = robot.from_urdf(problem.initial_configuration)
     return frame_task(robot, problem.name, points_mm, rotations,
-                      reference_pose_deg=home_pose(robot) if initial is None else initial,
+                      reference_pose=home_pose(robot) if initial is None else initial,
                       joint_limits=(robot.validity_lower, robot.validity_upper),
-                      obstacles=problem.obstacles, initial_pose_deg=initial)
+                      obstacles=problem.obstacles, initial_pose=initial)
 
 
 def home_pose(robot: Robot) -> np.ndarray:
@@ -345,7 +345,7 @@ def home_pose(robot: Robot) -> np.ndarray:
     pose = np.zeros(robot.dof)
     if isinstance(robot.config.get("targets"), dict):
 
-        pose = load_targets(None, robot).start_pose_deg
+        pose = load_targets(None, robot).start_pose
     return np.clip(pose, robot.validity_lower, robot.validity_upper)
 
 

@@ -37,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.defaults import DEFAULT_ROBOT
+from ikbench.core.deprecation import renamed_fields
 from ikbench.core.errors import InputError, refuse_unknown_keys
 from ikbench.core.kinematics.chain import ChainKinematics
 from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
@@ -80,6 +81,7 @@ class FKResult(NamedTuple):
     direction: np.ndarray
 
 
+@renamed_fields({"lower_motor_deg": "lower", "upper_motor_deg": "upper"})
 @dataclass(frozen=True, eq=False)
 class Robot:
     """A serial chain of a URDF, with its pose units, limits and conventions.
@@ -92,8 +94,8 @@ class Robot:
         joint_names: the chain's movable joints, base to end, in pose order.
         scale: (dof,) joint value = scale * pose + offset (1 and 0 without a motor map).
         offset_deg: (dof,) see ``scale`` (deg for rotational joints, mm for prismatic).
-        lower_motor_deg: (dof,) lower limits [pose units] (-inf for continuous joints).
-        upper_motor_deg: (dof,) upper limits [pose units] (+inf for continuous joints).
+        lower: (dof,) lower limits [pose units] (-inf for continuous joints).
+        upper: (dof,) upper limits [pose units] (+inf for continuous joints).
         joint_types: (dof,) ``revolute``, ``continuous`` or ``prismatic``.
         pointing_axis: (3,) unit axis of the end frame that "points" (default z).
         has_motor_map: True when poses are motor degrees (a ``*.motors.json`` map).
@@ -112,8 +114,8 @@ class Robot:
     joint_names: tuple[str, ...]
     scale: np.ndarray
     offset_deg: np.ndarray
-    lower_motor_deg: np.ndarray
-    upper_motor_deg: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
     joint_types: tuple[str, ...] = ()
     pointing_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
     has_motor_map: bool = True
@@ -137,24 +139,14 @@ class Robot:
                        for t in self.joint_types])
         object.__setattr__(self, "_si_per_unit", si)
         if self.validity_lower is None:
-            object.__setattr__(self, "validity_lower", self.lower_motor_deg)
+            object.__setattr__(self, "validity_lower", self.lower)
         if self.validity_upper is None:
-            object.__setattr__(self, "validity_upper", self.upper_motor_deg)
+            object.__setattr__(self, "validity_upper", self.upper)
 
     @property
     def dof(self) -> int:
         """Number of movable joints of the chain."""
         return len(self.joint_names)
-
-    @property
-    def lower(self) -> np.ndarray:
-        """(dof,) lower limits [pose units]; the same array as ``lower_motor_deg``."""
-        return self.lower_motor_deg
-
-    @property
-    def upper(self) -> np.ndarray:
-        """(dof,) upper limits [pose units]; the same array as ``upper_motor_deg``."""
-        return self.upper_motor_deg
 
     @property
     def prismatic(self) -> np.ndarray:
@@ -271,7 +263,7 @@ class Robot:
                 f"{self.pose_unit}), got {pose.size}"
             )
         for j, (name, value, lo, hi) in enumerate(zip(
-                self.joint_names, pose, self.lower_motor_deg, self.upper_motor_deg)):
+                self.joint_names, pose, self.lower, self.upper)):
             if not math.isfinite(value):
                 raise InputError(f"{what}: {name} = {value} is not a finite number")
             if value < lo - tol_deg or value > hi + tol_deg:
@@ -293,8 +285,8 @@ class Robot:
         """True when every pose in (..., dof) lies within the limits (+- ``tol_deg``)."""
         poses = np.asarray(poses_motor_deg, dtype=float)
         return bool(
-            np.all(poses >= self.lower_motor_deg - tol_deg)
-            and np.all(poses <= self.upper_motor_deg + tol_deg)
+            np.all(poses >= self.lower - tol_deg)
+            and np.all(poses <= self.upper + tol_deg)
         )
 
     # ----- kinematics -------------------------------------------------------------------------
@@ -494,7 +486,7 @@ def robot_from_config(path: Path, end_frame: str | None = None) -> Robot:
                                                 upper, path)
     return Robot(name=str(config.get("name") or urdf_path.stem), urdf_path=urdf_path,
                  end_frame=end, root_link=base, joint_names=names, scale=scale,
-                 offset_deg=offset, lower_motor_deg=lower, upper_motor_deg=upper,
+                 offset_deg=offset, lower=lower, upper=upper,
                  joint_types=types,
                  pointing_axis=_unit_axis(config.get("pointing_axis", (0, 0, 1)),
                                           f"{path.name}: pointing_axis"),
@@ -568,8 +560,8 @@ def robot_from_urdf(urdf_path: Path, end_frame: str, base_link: str | None = Non
     return Robot(name=urdf_path.stem, urdf_path=urdf_path.resolve(), end_frame=end_frame,
                  root_link=base, joint_names=tuple(j.name for j in joints),
                  scale=np.ones(len(joints)), offset_deg=np.zeros(len(joints)),
-                 lower_motor_deg=np.array([j.lower for j in joints]) * per_unit,
-                 upper_motor_deg=np.array([j.upper for j in joints]) * per_unit,
+                 lower=np.array([j.lower for j in joints]) * per_unit,
+                 upper=np.array([j.upper for j in joints]) * per_unit,
                  joint_types=types, has_motor_map=False,
                  config={"description": f"{urdf_path.name}, chain {base} -> {end_frame}",
                          "source": str(urdf_path)},

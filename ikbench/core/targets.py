@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ikbench.core.deprecation import renamed_fields
 from ikbench.core.errors import InputError, TargetsError, refuse_unknown_keys
 from ikbench.core.obstacles import load_file, named_sets, parse_obstacles
 from ikbench.core.robot import Robot, load_robot
@@ -47,14 +48,15 @@ KEYS = ("joint_names", "start_pose", "targets", "steps", "obstacles", "descripti
 ID_PATTERN = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 
 
+@renamed_fields({"start_pose_deg": "start_pose", "touch_poses_deg": "touch_poses"})
 @dataclass(frozen=True)
 class Targets:
-    """A start pose and touch poses [motor deg].
+    """A start pose and touch poses [pose units].
 
     Attributes:
         joint_names: joint order of every pose.
-        start_pose_deg: (dof,) start pose [pose units].
-        touch_poses_deg: trajectory id -> (dof,) touch (end) pose, in file order.
+        start_pose: (dof,) start pose [pose units].
+        touch_poses: trajectory id -> (dof,) touch (end) pose, in file order.
         steps: number of segments n (a trajectory has n + 1 poses).
         source: the name of a robot's default targets (``"paper"``), else the file path.
         shipped: the default targets document as shipped (None for other files).
@@ -65,8 +67,8 @@ class Targets:
     """
 
     joint_names: tuple[str, ...]
-    start_pose_deg: np.ndarray
-    touch_poses_deg: dict[str, np.ndarray]
+    start_pose: np.ndarray
+    touch_poses: dict[str, np.ndarray]
     steps: int
     source: str
     shipped: dict | None = None
@@ -79,9 +81,9 @@ class Targets:
         if self.shipped is None:
             return False
         spec = self.shipped
-        return (np.array_equal(self.start_pose_deg, np.asarray(spec["start_pose"], float))
+        return (np.array_equal(self.start_pose, np.asarray(spec["start_pose"], float))
                 and all(np.array_equal(pose, np.asarray(spec["targets"][key], float))
-                        for key, pose in self.touch_poses_deg.items()))
+                        for key, pose in self.touch_poses.items()))
 
     @property
     def is_paper(self) -> bool:
@@ -92,14 +94,14 @@ class Targets:
     @property
     def ids(self) -> list[str]:
         """Trajectory ids in file order."""
-        return list(self.touch_poses_deg)
+        return list(self.touch_poses)
 
     def select(self, only: str | list[str] | None) -> Targets:
         """Keep only the given trajectory ids (``"1,3"`` or a list); None keeps all."""
         if only is None:
             return self
         wanted = [s.strip() for s in only.split(",")] if isinstance(only, str) else list(only)
-        unknown = [w for w in wanted if w not in self.touch_poses_deg]
+        unknown = [w for w in wanted if w not in self.touch_poses]
         if "" in wanted:
             raise TargetsError(f"only: {only!r} names an empty trajectory id; give ids such "
                                f"as 1,3 (available: {', '.join(self.ids)})")
@@ -108,8 +110,8 @@ class Targets:
                 f"only: unknown trajectory id(s) {', '.join(map(repr, unknown)) or repr(only)}; "
                 f"available: {', '.join(self.ids)}"
             )
-        poses = {k: self.touch_poses_deg[k] for k in dict.fromkeys(wanted)}
-        return replace(self, touch_poses_deg=poses)
+        poses = {k: self.touch_poses[k] for k in dict.fromkeys(wanted)}
+        return replace(self, touch_poses=poses)
 
     def with_steps(self, steps: int | None) -> Targets:
         """A copy with another number of segments (None keeps the file's)."""

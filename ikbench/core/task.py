@@ -1,7 +1,7 @@
 """Tasks: the goal points and goal directions a trajectory must follow.
 
 A :class:`Task` holds n+1 goal points P^g_i [mm] and unit goal directions v^g_i, plus the
-start and end poses [motor deg] that the start/end loss terms pin. The paper's task is the
+start and end poses [pose units] that the start/end loss terms pin. The paper's task is the
 straight line of Eq. 1 from FK(start pose) to FK(touch pose), pointing along it.
 
 :func:`build_tasks` makes the tasks of any shape (``--shape``):
@@ -30,6 +30,7 @@ import numpy.typing as npt
 
 from ikbench.core import letters
 from ikbench.core.contract import Contract, contract_for
+from ikbench.core.deprecation import renamed_fields, renamed_keywords
 from ikbench.core.errors import InputError
 from ikbench.core.losses import FRAME_WEIGHTS, PAPER_WEIGHTS
 from ikbench.core.obstacles import Obstacle
@@ -43,6 +44,8 @@ MIN_LINE_LENGTH_MM = 1e-6
 _EVERY_POINT = np.ones(0, dtype=bool)
 
 
+@renamed_fields({"start_pose_deg": "start_pose", "end_pose_deg": "end_pose",
+                 "reference_pose_deg": "reference_pose", "initial_pose_deg": "initial_pose"})
 @dataclass(frozen=True, eq=False)
 class Task:
     """What a method must achieve for one trajectory.
@@ -51,8 +54,9 @@ class Task:
         name: trajectory id (e.g. ``"1"``).
         goal_points_mm: (n+1, 3) goal points P^g_i in the robot root frame [mm].
         goal_directions: (n+1, 3) unit goal pointing directions v^g_i.
-        start_pose_deg: (dof,) start pose p^s [motor deg], or None when not constrained.
-        end_pose_deg: (dof,) end (touch) pose p^e [motor deg], or None.
+        start_pose: (dof,) start pose p^s [pose units: ``Robot.pose_unit``], or None when
+            not constrained.
+        end_pose: (dof,) end (touch) pose p^e [pose units], or None.
         shape: the shape's name (``"line"``, ...).
         pen_down: (n+1,) bool, True where the point belongs to the drawn shape (metrics skip
             the others, e.g. pen-up moves between strokes); not given (or None): every point.
@@ -60,7 +64,7 @@ class Task:
             segment from P^s to P^e).
         default_weights: loss weights c0..c6 (keys L0..L6) this task is meant for, under any
             the user sets; None: the method's own defaults (the paper's).
-        reference_pose_deg: (dof,) the pose the shape was placed from (a letter's start pose);
+        reference_pose: (dof,) the pose the shape was placed from (a letter's start pose);
             pinned by no loss term, a starting guess for methods that need one.
         goal_rotations: (n+1, 3, 3) goal frames' rotations (end frame in the base frame) of a
             6-D pose path, or None. A task with goal frames asks for the full orientation;
@@ -75,25 +79,25 @@ class Task:
         obstacles: the obstacles the robot must not touch, in the base frame
             (:class:`ikbench.core.obstacles.Obstacle`); empty: none. Judged with the robot's
             collision model (:mod:`ikbench.core.collision`) where the robot has one.
-        initial_pose_deg: (dof,) [pose units] the pose a 6-D pose path must start near (a
+        initial_pose: (dof,) [pose units] the pose a 6-D pose path must start near (a
             CppFlow problem's ``initial_configuration``), or None.
     """
 
     name: str
     goal_points_mm: np.ndarray
     goal_directions: np.ndarray
-    start_pose_deg: np.ndarray | None
-    end_pose_deg: np.ndarray | None
+    start_pose: np.ndarray | None
+    end_pose: np.ndarray | None
     shape: str = "line"
     pen_down: np.ndarray = field(default_factory=lambda: _EVERY_POINT)
     curve: Curve | None = None
     default_weights: dict[str, float] | None = None
-    reference_pose_deg: np.ndarray | None = None
+    reference_pose: np.ndarray | None = None
     goal_rotations: np.ndarray | None = None
     joint_limits: tuple[np.ndarray, np.ndarray] | None = None
     contract: Contract | None = None
     obstacles: tuple[Obstacle, ...] = ()
-    initial_pose_deg: np.ndarray | None = None
+    initial_pose: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         pen_down: Any = self.pen_down  # a user may still pass None (every point)
@@ -111,7 +115,7 @@ class Task:
         """(lower, upper) (dof,) [pose units]: the task's joint limits, else the robot's."""
         if self.joint_limits is not None:
             return self.joint_limits
-        return robot.lower_motor_deg, robot.upper_motor_deg
+        return robot.lower, robot.upper
 
     @property
     def steps(self) -> int:
@@ -129,19 +133,20 @@ class Task:
         return self.goal_points_mm[-1]
 
 
-def line_task(robot: Robot, start_pose_deg: npt.ArrayLike, end_pose_deg: npt.ArrayLike,
+@renamed_keywords({"start_pose_deg": "start_pose", "end_pose_deg": "end_pose"})
+def line_task(robot: Robot, start_pose: npt.ArrayLike, end_pose: npt.ArrayLike,
               steps: int, name: str = "") -> Task:
     """The paper's straight-line task (Eq. 1) from FK(start pose) to FK(end pose).
 
     Args:
         robot: the robot.
-        start_pose_deg: (dof,) start pose [motor deg].
-        end_pose_deg: (dof,) touch pose [motor deg].
+        start_pose: (dof,) start pose [pose units].
+        end_pose: (dof,) touch pose [pose units].
         steps: number of segments n (n+1 goal points).
         name: trajectory id.
     """
-    start = np.asarray(start_pose_deg, dtype=float)
-    end = np.asarray(end_pose_deg, dtype=float)
+    start = np.asarray(start_pose, dtype=float)
+    end = np.asarray(end_pose, dtype=float)
     fk = robot.fk(np.stack([start, end]))
     p_start_mm, p_end_mm = fk.point_mm
     length_mm = float(np.linalg.norm(p_end_mm - p_start_mm))
@@ -167,7 +172,7 @@ def frame_task(robot: Robot, name: str, points_mm: npt.ArrayLike, rotations: npt
         name: trajectory id.
         points_mm: (n+1, 3) goal points [mm].
         rotations: (n+1, 3, 3) goal rotations.
-        **fields: further :class:`Task` fields (``reference_pose_deg``, ``joint_limits``...);
+        **fields: further :class:`Task` fields (``reference_pose``, ``joint_limits``...);
             the default weights are the 6-D objective's
             (:data:`ikbench.core.losses.FRAME_WEIGHTS`).
     """
@@ -179,7 +184,7 @@ def frame_task(robot: Robot, name: str, points_mm: npt.ArrayLike, rotations: npt
     if len(points) < 2:
         raise InputError(f"trajectory {name!r}: a path needs at least 2 poses, got "
                          f"{len(points)}")
-    fields = {"start_pose_deg": None, "end_pose_deg": None, "shape": "path",
+    fields = {"start_pose": None, "end_pose": None, "shape": "path",
               "default_weights": dict(FRAME_WEIGHTS), **fields}
     return Task(name, points, rotations @ robot.pointing_axis, goal_rotations=rotations,
                 **fields)
@@ -199,9 +204,9 @@ def line_tasks(robot: Robot, targets: Targets, contract: Contract | None = None)
         contract = replace(contract, obstacles=True)
     weights = None if contract.pointing else {**PAPER_WEIGHTS, "L1": 0.0}
     return [
-        replace(line_task(robot, targets.start_pose_deg, pose, targets.steps, name),
+        replace(line_task(robot, targets.start_pose, pose, targets.steps, name),
                 contract=contract, default_weights=weights, obstacles=tuple(targets.obstacles))
-        for name, pose in targets.touch_poses_deg.items()
+        for name, pose in targets.touch_poses.items()
     ]
 
 
@@ -236,7 +241,7 @@ def curve_task(curve: Curve, steps: int, name: str, shape: str,
         **fields: further :class:`Task` fields (start/end poses default to None).
     """
     samples = curve.resample(steps)
-    fields = {"start_pose_deg": None, "end_pose_deg": None, **fields}
+    fields = {"start_pose": None, "end_pose": None, **fields}
     return Task(name, samples.points_mm, goal_directions(curve, samples.tangents, direction),
                 shape=shape, pen_down=samples.pen_down, curve=curve, **fields)
 
@@ -287,10 +292,11 @@ def letter_start_pose(robot: Robot, targets: Targets | None = None) -> np.ndarra
     if targets is None:
 
         targets = load_targets(None, robot)
-    return targets.start_pose_deg
+    return targets.start_pose
 
 
-def letter_task(robot: Robot, letter: str, start_pose_deg: npt.ArrayLike,
+@renamed_keywords({"start_pose_deg": "start_pose"})
+def letter_task(robot: Robot, letter: str, start_pose: npt.ArrayLike,
                 steps: int = letters.DEFAULT_STEPS, size_mm: float = letters.DEFAULT_SIZE_MM,
                 direction: str | npt.ArrayLike = "normal") -> Task:
     """The paper's letter in the air: ``letter`` on the robot's letter plane through the end
@@ -301,20 +307,21 @@ def letter_task(robot: Robot, letter: str, start_pose_deg: npt.ArrayLike,
     normal (NICO: (-1, 0, 0)); no pose pinned, default weights
     :data:`ikbench.core.letters.LETTER_WEIGHTS`.
     """
-    start = np.asarray(start_pose_deg, dtype=float)
+    start = np.asarray(start_pose, dtype=float)
     tip_mm = robot.fk(start).point_mm[0]
     curve = letters.letter_curve(letter, size_mm, tip_mm, *letter_plane(robot))
     return curve_task(curve, steps, letter, "letter", direction,
-                      default_weights=dict(letters.LETTER_WEIGHTS), reference_pose_deg=start)
+                      default_weights=dict(letters.LETTER_WEIGHTS), reference_pose=start)
 
 
+@renamed_keywords({"reference_pose_deg": "reference_pose"})
 def file_task(kind: str, path: str | Path, steps: int, direction: str | npt.ArrayLike = "tangent",
-              reference_pose_deg: np.ndarray | None = None) -> Task:
+              reference_pose: np.ndarray | None = None) -> Task:
     """A polyline or spline task through the control points [mm] of a CSV file."""
     points = read_points_csv(path)
     curve = Curve((points if kind == "polyline" else catmull_rom(points),))
     return curve_task(curve, steps, Path(path).stem, kind, direction,
-                      reference_pose_deg=reference_pose_deg)
+                      reference_pose=reference_pose)
 
 
 def build_tasks(robot: Robot, targets: Targets, shape: str = "line", steps: int | None = None,
@@ -354,6 +361,6 @@ def _shape_tasks(robot: Robot, targets: Targets, shape: str, steps: int | None,
     steps = letters.DEFAULT_STEPS if steps is None else targets.with_steps(steps).steps
     if kind == "letter":
         size = letters.DEFAULT_SIZE_MM if size_mm is None else size_mm
-        return [letter_task(robot, ch, targets.start_pose_deg, steps, size, direction or "normal")
+        return [letter_task(robot, ch, targets.start_pose, steps, size, direction or "normal")
                 for ch in dict.fromkeys(letters.parse_letters(arg))]
-    return [file_task(kind, arg, steps, direction or "tangent", targets.start_pose_deg)]
+    return [file_task(kind, arg, steps, direction or "tangent", targets.start_pose)]

@@ -225,7 +225,7 @@ def plan_trajectory_file(path: str | Path, config: MotorConfig,
     robot = robot or load_robot()
     if not strict:
         unbounded = np.full(robot.dof, np.inf)
-        robot = dataclasses.replace(robot, lower_motor_deg=-unbounded, upper_motor_deg=unbounded,
+        robot = dataclasses.replace(robot, lower=-unbounded, upper=unbounded,
                                     _cache={})
     frame = read_trajectory_csv(path, robot)
     poses = frame[list(config.joint_names)].to_numpy(dtype=float)  # the robot's order too

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
+from ikbench.core.deprecation import renamed_fields
 from ikbench.core.errors import InputError
 from ikbench.methods.registry import available_methods
 
@@ -214,12 +215,13 @@ class _CapabilityAlias:
                              f"Capabilities({self.field_name}=...)")
 
 
+@renamed_fields({"poses_deg": "poses"})
 @dataclass
 class Solution:
     """A method's result for one task.
 
     Attributes:
-        poses_deg: (n+1, dof) poses [pose units: motor deg for NICO].
+        poses: (n+1, dof) poses [pose units: ``Robot.pose_unit``, motor deg for NICO].
         iterations: optimiser iterations (total IK iterations for sequential methods).
         duration_s: wall time of the solve as the method measured it [s] (the study harness
             measures its own, the same way for every method).
@@ -228,7 +230,7 @@ class Solution:
         info: extra method-specific figures (written to details.csv).
     """
 
-    poses_deg: np.ndarray
+    poses: np.ndarray
     iterations: int
     duration_s: float
     loss: float | None
@@ -378,7 +380,7 @@ class Method(abc.ABC):
                     f"(a 6-D pose path); methods that can: {', '.join(able) or 'none'}")
         if self.capabilities.needs_touch_pose:
             for task in tasks:
-                if task.end_pose_deg is None and not task.has_frames:
+                if task.end_pose is None and not task.has_frames:
                     planners = [f"--method {name}" for name, cls in available_methods().items()
                                 if not cls.capabilities.needs_touch_pose]
                     raise InputError(

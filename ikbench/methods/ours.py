@@ -174,7 +174,7 @@ def optimise(robot: Robot, task: Task, settings: AdamSettings, progress: Progres
     converged = converged or settings.stop == "none"
     assert best_poses is not None  # at least one iteration ran
     return Solution(
-        poses_deg=best_poses.to(torch.float64).numpy(),
+        poses=best_poses.to(torch.float64).numpy(),
         iterations=iterations,
         duration_s=duration,
         loss=best_loss,

@@ -119,7 +119,7 @@ def optimise_frames(robot: Robot, task: Task, settings: AdamSettings,
     duration = time.perf_counter() - start
     assert best_poses is not None
     return Solution(
-        poses_deg=best_poses.to(torch.float64).numpy(), iterations=iterations,
+        poses=best_poses.to(torch.float64).numpy(), iterations=iterations,
         duration_s=duration, loss=best_loss, converged=valid,
         info={"iterations_per_s": iterations / max(duration, 1e-12), "valid_by_search": valid,
               "dtype": settings.dtype, "init": settings.init, "seed": settings.seed,

@@ -45,10 +45,10 @@ def initial_logits(robot: Robot, task: Task, dtype: torch.dtype, init: str = "ra
         raise InputError(f"--init: {init!r} is not one of {', '.join(INITS)}")
     lo, hi = robot.sample_lower, robot.sample_upper  # continuous joints: +-180 deg
     t = np.linspace(0.0, 1.0, task.steps + 1)[:, None]
-    if task.start_pose_deg is not None and task.end_pose_deg is not None:
-        poses = task.start_pose_deg + t * (task.end_pose_deg - task.start_pose_deg)
-    elif task.reference_pose_deg is not None:
-        poses = task.reference_pose_deg + 0.0 * t
+    if task.start_pose is not None and task.end_pose is not None:
+        poses = task.start_pose + t * (task.end_pose - task.start_pose)
+    elif task.reference_pose is not None:
+        poses = task.reference_pose + 0.0 * t
     else:
         raise InputError(f"trajectory {task.name!r}: ours --init interpolation needs a start "
                          "and an end pose or a reference pose")

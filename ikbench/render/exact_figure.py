@@ -80,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     robot = load_robot()
     tasks = {t.name: t for t in line_tasks(robot, load_targets(None, robot))}
     task = tasks[args.target]
-    poses = {cls.name: cls().solve(robot, task).poses_deg for cls in (OursLM, OursExact)}
+    poses = {cls.name: cls().solve(robot, task).poses for cls in (OursLM, OursExact)}
     atomic_savefig(args.output, exact_figure(robot, task, poses))
     print(f"written to {args.output}")
     return 0

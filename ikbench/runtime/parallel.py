@@ -82,5 +82,5 @@ def _concatenate(results):
     def cat(name):
         return np.concatenate([getattr(r, name) for r in results])
 
-    return BatchResult(cat("poses_deg"), cat("loss"), cat("terms"), cat("iterations"),
+    return BatchResult(cat("poses"), cat("loss"), cat("terms"), cat("iterations"),
                        cat("converged"), 0.0)

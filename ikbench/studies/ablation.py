@@ -151,8 +151,8 @@ def check_method(name: str) -> type[Method]:
     return cls
 
 
-def joint_interpolation_distance_deg(poses_motor_deg: npt.ArrayLike, start_pose_deg: npt.ArrayLike,
-                                     end_pose_deg: npt.ArrayLike) -> float:
+def joint_interpolation_distance_deg(poses_motor_deg: npt.ArrayLike, start_pose: npt.ArrayLike,
+                                     end_pose: npt.ArrayLike) -> float:
     """How far a trajectory is from linear motion in joint space [motor deg].
 
     The mean over the n+1 poses of the largest absolute joint difference between pose i and
@@ -160,20 +160,20 @@ def joint_interpolation_distance_deg(poses_motor_deg: npt.ArrayLike, start_pose_
 
     Args:
         poses_motor_deg: (n+1, dof) trajectory.
-        start_pose_deg: (dof,) start pose p^s.
-        end_pose_deg: (dof,) touch pose p^e.
+        start_pose: (dof,) start pose p^s.
+        end_pose: (dof,) touch pose p^e.
     """
     poses = np.asarray(poses_motor_deg, dtype=float)
-    line = joint_interpolation(start_pose_deg, end_pose_deg, len(poses))
+    line = joint_interpolation(start_pose, end_pose, len(poses))
     return float(np.abs(poses - line).max(axis=1).mean())
 
 
-def joint_interpolation(start_pose_deg: npt.ArrayLike, end_pose_deg: npt.ArrayLike,
+def joint_interpolation(start_pose: npt.ArrayLike, end_pose: npt.ArrayLike,
                         count: int) -> np.ndarray:
     """(count, dof) poses linearly interpolated from start to end pose [motor deg]."""
-    start = np.asarray(start_pose_deg, dtype=float)
+    start = np.asarray(start_pose, dtype=float)
     t = np.linspace(0.0, 1.0, count)[:, None]
-    return start + t * (np.asarray(end_pose_deg, dtype=float) - start)
+    return start + t * (np.asarray(end_pose, dtype=float) - start)
 
 
 def joint_interpolation_by_joint(robot: Robot, tasks: Sequence[Task],
@@ -193,9 +193,9 @@ def joint_interpolation_by_joint(robot: Robot, tasks: Sequence[Task],
     for name, poses in poses_by_variant.items():
         per_task = []
         for task in tasks:
-            assert task.start_pose_deg is not None and task.end_pose_deg is not None, \
+            assert task.start_pose is not None and task.end_pose is not None, \
                 "the ablation's tasks are lines between two poses"
-            line = joint_interpolation(task.start_pose_deg, task.end_pose_deg, task.steps + 1)
+            line = joint_interpolation(task.start_pose, task.end_pose, task.steps + 1)
             per_task.append(np.abs(poses[task.name] - line).mean(axis=0))
         rows[name] = np.mean(per_task, axis=0)
     return pd.DataFrame.from_dict(rows, orient="index", columns=list(robot.joint_names))
@@ -321,7 +321,7 @@ def _write_variant(robot: Robot, solver: Method, variant: Variant, outcomes: lis
             "hit_cap": bool(solution.info.get("hit_cap", not solution.converged)),
             "paper_loss": objective(robot, task, poses[task.name])[0],
             "joint_interpolation_distance_deg": joint_interpolation_distance_deg(
-                poses[task.name], task.start_pose_deg, task.end_pose_deg),
+                poses[task.name], task.start_pose, task.end_pose),
         })
     extra = pd.DataFrame(extra)
     rows = table.assign(variant=variant.name, dropped=",".join(variant.dropped),
@@ -524,9 +524,9 @@ def plot_joints(robot: Robot, task: Task, poses_by_variant: dict[str, np.ndarray
     plt = _matplotlib()
     fig, axes = _grid(plt, len(poses_by_variant), size=(3.8, 2.8))
     steps = np.arange(task.steps + 1)
-    assert task.start_pose_deg is not None and task.end_pose_deg is not None, \
+    assert task.start_pose is not None and task.end_pose is not None, \
         "the ablation's tasks are lines between two poses"
-    line = joint_interpolation(task.start_pose_deg, task.end_pose_deg, task.steps + 1)
+    line = joint_interpolation(task.start_pose, task.end_pose, task.steps + 1)
     colors = plt.cm.tab10(np.linspace(0, 1, 10))
     for ax, (name, poses) in zip(axes, poses_by_variant.items()):
         for j in range(poses.shape[1]):

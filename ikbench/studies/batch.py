@@ -126,7 +126,7 @@ class WorkspaceFilter:
         return ", ".join(parts)
 
 
-def sample_touch_poses(robot: Robot, start_pose_deg: npt.ArrayLike, count: int, seed: int = 0,
+def sample_touch_poses(robot: Robot, start_pose: npt.ArrayLike, count: int, seed: int = 0,
                        workspace: WorkspaceFilter | None = None) -> tuple[np.ndarray, int]:
     """``count`` touch poses (count, dof) [motor deg] in the front workspace, reproducibly.
 
@@ -141,7 +141,7 @@ def sample_touch_poses(robot: Robot, start_pose_deg: npt.ArrayLike, count: int, 
     check_seed(seed)
     workspace = workspace or WorkspaceFilter.of(robot)
     kin = robot.chain_kinematics()
-    start_mm = robot.fk(start_pose_deg).point_mm[0]
+    start_mm = robot.fk(start_pose).point_mm[0]
     rng = np.random.default_rng(seed)
     kept: list[np.ndarray] = []
     draws = 0
@@ -230,11 +230,11 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
     reporter = Reporter("batch", total=len(settings), unit="setting", enabled=progress)
     log = reporter.say
     t0 = time.perf_counter()
-    touch, draws = sample_touch_poses(robot, targets.start_pose_deg, count, seed, workspace)
+    touch, draws = sample_touch_poses(robot, targets.start_pose, count, seed, workspace)
     sample_s = time.perf_counter() - t0
     log(f"sampled {count} touch poses from {draws} draws ({100 * count / draws:.1f}% in the "
         f"front workspace) in {sample_s:.2f} s")
-    tasks = [line_task(robot, targets.start_pose_deg, pose, steps, str(k))
+    tasks = [line_task(robot, targets.start_pose, pose, steps, str(k))
              for k, pose in enumerate(touch)]
     rows: list[dict[str, Any]] = []
     summary: list[dict[str, Any]] = []
@@ -267,7 +267,7 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
     poses = pd.DataFrame(touch, columns=list(robot.joint_names))
     poses.insert(0, "trajectory", np.arange(count))
     record = {"count": count, "seed": seed, "steps": steps, "draws": draws,
-              "sampling_s": sample_s, "start_pose_deg": targets.start_pose_deg.tolist(),
+              "sampling_s": sample_s, "start_pose_deg": targets.start_pose.tolist(),
               "robot": robot.describe(), "workspace_filter": asdict(workspace),
               "workspace": workspace.describe(),
               "line_tolerance_mm": line_tolerance_mm, "end_tolerance_mm": end_tolerance_mm,
@@ -281,11 +281,11 @@ def measure_batch(robot: Robot, tasks: Sequence[Task], weights: Sequence[dict[st
     """One row per trajectory of a solved batch: loss, convergence, the line metrics."""
     rows = []
     for k, task in enumerate(tasks):
-        m = trajectory_metrics(robot, task, result.poses_deg[k])
+        m = trajectory_metrics(robot, task, result.poses[k])
         rows.append({"setting": label, "trajectory": int(task.name), "loss": float(result.loss[k]),
                      "iterations": int(result.iterations[k]),
                      "converged": bool(result.converged[k]),
-                     "within_limits": robot.within_limits(result.poses_deg[k]),
+                     "within_limits": robot.within_limits(result.poses[k]),
                      "line_length_mm": float(np.linalg.norm(task.end_point_mm
                                                             - task.start_point_mm)),
                      **{key: m[key] for key in (

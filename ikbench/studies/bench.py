@@ -179,15 +179,15 @@ def summarise(robot: Robot, tasks: Sequence[Task], names: Sequence[str], runs: p
         single = mine[mine["mode"] == "single"]
         for task in tasks:
             solution = last[name, task.name]
-            loss, _ = objective(robot, task, solution.poses_deg)
-            metrics = trajectory_metrics(robot, task, solution.poses_deg)
+            loss, _ = objective(robot, task, solution.poses)
+            metrics = trajectory_metrics(robot, task, solution.poses)
             rows.append({"method": name, "trajectory": task.name,
                          **_stats(single[single["trajectory"] == task.name]["wall_s"]),
                          "iterations": solution.iterations, "loss": loss,
                          "line_distance_mean_mm": metrics["line_distance_mean_mm"],
                          "pointing_deviation_mean_deg": metrics["pointing_deviation_mean_deg"],
                          "end_point_error_mm": metrics["end_point_error_mm"],
-                         "within_limits": robot.within_limits(solution.poses_deg)})
+                         "within_limits": robot.within_limits(solution.poses)})
         per_round = single.groupby("round")["wall_s"].sum()
         rows.append({"method": name, "trajectory": TOTAL, **_stats(per_round),
                      "loss": sum(r["loss"] for r in rows[-len(tasks):])})

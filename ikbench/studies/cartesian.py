@@ -173,8 +173,8 @@ def cartesian(problems: str | Path | Sequence[str | Path] = BENCHMARK,
                 except IkbenchError as exc:  # refused before solving: a row saying why
                     outcome = Outcome(task, None, 0.0, f"refused: {exc}")
                 if outcome.solution is not None:  # the table describes the poses as written
-                    outcome.solution.poses_deg = as_written(outcome.solution.poses_deg)
-                    poses[(problem, name, seed)] = outcome.solution.poses_deg
+                    outcome.solution.poses = as_written(outcome.solution.poses)
+                    poses[(problem, name, seed)] = outcome.solution.poses
                 row = _row(problem, robot, task, name, seed, outcome)
                 rows.append(row)
                 verdict = "valid" if row["valid"] else f"not valid ({row['failed_criteria']})"
@@ -201,7 +201,7 @@ def _row(problem, robot, task, method, seed, outcome) -> dict:
     if not outcome.ok:
         return {**base, "valid": False, "failed_criteria": "failure",
                 "failure": outcome.failure, "trajectory": ""}
-    metrics = frame_metrics(robot, task, outcome.solution.poses_deg)
+    metrics = frame_metrics(robot, task, outcome.solution.poses)
     failure = ""
     if metrics["env_collisions"] and not avoids:
         failure = NO_AVOIDANCE

@@ -369,7 +369,7 @@ def identical_methods(last: dict[str, list[Outcome]], tolerance: float = IDENTIC
     def poses(outcomes: list[Outcome]) -> list[np.ndarray] | None:
         if any(o.solution is None for o in outcomes):
             return None
-        return [np.asarray(o.solution.poses_deg) for o in outcomes]  # type: ignore[union-attr]
+        return [np.asarray(o.solution.poses) for o in outcomes]  # type: ignore[union-attr]
 
     solved = {name: p for name, outcomes in last.items() if (p := poses(outcomes)) is not None}
     groups: list[list[str]] = []
@@ -537,7 +537,7 @@ def ours_lm_sweep(robot: Robot, tasks: Sequence[Task], contract: Contract,
     for c0 in SWEEP_C0:
         solver = cls(weights=f"c0={c0:g}")
         outcomes = solve_tasks(solver, robot, tasks, Progress("sweep", enabled=False))
-        figures = [contract_metrics(robot, o.task, o.solution.poses_deg, contract)
+        figures = [contract_metrics(robot, o.task, o.solution.poses, contract)
                    for o in outcomes if o.solution is not None]
         met = [all(judge(contract, f).values()) for f in figures]
         rows.append({"c0": c0, "weights": f"c0={c0:g} (others the paper's)",

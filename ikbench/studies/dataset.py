@@ -95,7 +95,7 @@ def check_options(count: Any, seed: Any, steps: Any, shard_size: Any) -> None:
                          f"{SCALE_EXTRA}")
 
 
-def dataset_config(robot: Robot, start_pose_deg: np.ndarray, steps: int, seed: int,
+def dataset_config(robot: Robot, start_pose: np.ndarray, steps: int, seed: int,
                    shard_size: int, workspace: WorkspaceFilter, settings: LMSettings
                    ) -> dict[str, Any]:
     """Everything that determines the shards' content (hashed into each shard)."""
@@ -112,7 +112,7 @@ def dataset_config(robot: Robot, start_pose_deg: np.ndarray, steps: int, seed: i
     return {"format": FORMAT, "version": VERSION,
             "robot": {"name": robot.name, "urdf_sha256": robot.urdf_sha256,
                       "end_frame": robot.end_frame, "joints": list(robot.joint_names)},
-            "start_pose_deg": [float(v) for v in start_pose_deg], "steps": steps,
+            "start_pose_deg": [float(v) for v in start_pose], "steps": steps,
             "seed": seed, "shard_size": shard_size, "workspace": asdict(workspace),
             "weights": {f"c{t[1]}": weights[t] for t in TERMS}, "solver": solver}
 
@@ -122,12 +122,12 @@ def config_hash(config: dict) -> str:
     return hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def plan(count: int, config: dict[str, Any], robot: Robot, start_pose_deg: npt.ArrayLike,
+def plan(count: int, config: dict[str, Any], robot: Robot, start_pose: npt.ArrayLike,
          settings: LMSettings, workspace: WorkspaceFilter) -> list[ShardSpec]:
     """The shards of a dataset of ``count`` trajectories, in order."""
     size, digest = config["shard_size"], config_hash(config)
     portable = portable_robot(robot)
-    return [ShardSpec(portable, np.asarray(start_pose_deg, dtype=float), config["steps"],
+    return [ShardSpec(portable, np.asarray(start_pose, dtype=float), config["steps"],
                       config["seed"], s, s * size, min(size, count - s * size), settings,
                       workspace, digest)
             for s in range(math.ceil(count / size))]
@@ -205,11 +205,11 @@ def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
     settings = replace(settings, weights=settings.weights if isinstance(settings.weights, dict)
                        else parse_weights(settings.weights))
     workspace = WorkspaceFilter.of(robot)
-    config = dataset_config(robot, targets.start_pose_deg, steps, seed, shard_size, workspace,
+    config = dataset_config(robot, targets.start_pose, steps, seed, shard_size, workspace,
                             settings)
     check_manifest(output, config, count)
     executor = executor or LocalExecutor()
-    specs = plan(count, config, robot, targets.start_pose_deg, settings, workspace)
+    specs = plan(count, config, robot, targets.start_pose, settings, workspace)
     _remove_temporary_files(output)
     kept = [s.shard for s in specs if is_complete(output, s)]
     missing = [s for s in specs if s.shard not in set(kept)]

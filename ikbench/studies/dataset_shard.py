@@ -52,7 +52,7 @@ class ShardSpec:
 
     Attributes:
         robot: the robot (without caches).
-        start_pose_deg: (dof,) the start pose of every line [pose units].
+        start_pose: (dof,) the start pose of every line [pose units].
         steps: segments n per trajectory.
         seed: the dataset's seed.
         shard: shard index.
@@ -64,7 +64,7 @@ class ShardSpec:
     """
 
     robot: Any
-    start_pose_deg: np.ndarray
+    start_pose: np.ndarray
     steps: int
     seed: int
     shard: int
@@ -98,7 +98,7 @@ def shard_seed(seed: int, shard: int) -> int:
     return int(state) >> 1
 
 
-def line_tasks(robot: Robot, start_pose_deg: npt.ArrayLike, touch_poses_deg: np.ndarray,
+def line_tasks(robot: Robot, start_pose: npt.ArrayLike, touch_poses: np.ndarray,
                steps: int, first: int = 0) -> tuple[list[Task], np.ndarray, np.ndarray]:
     """The paper's line tasks (as :func:`ikbench.core.task.line_task`) for many touch poses,
     with one vectorised FK; task names are the global ids ``first``, ``first + 1``, ...
@@ -107,12 +107,12 @@ def line_tasks(robot: Robot, start_pose_deg: npt.ArrayLike, touch_poses_deg: np.
         (tasks, start_point_mm (3,), touch_points_mm (B, 3)).
     """
     kin = robot.chain_kinematics()
-    start = np.asarray(start_pose_deg, dtype=float)
-    point_m, _, _, _ = kin(np.vstack([start, touch_poses_deg]), jacobian=False)
+    start = np.asarray(start_pose, dtype=float)
+    point_m, _, _, _ = kin(np.vstack([start, touch_poses]), jacobian=False)
     start_mm, touch_mm = point_m[0] * MM_PER_M, point_m[1:] * MM_PER_M
     t = np.linspace(0.0, 1.0, steps + 1)[:, None]
     tasks = []
-    for k, (pose, end_mm) in enumerate(zip(touch_poses_deg, touch_mm)):
+    for k, (pose, end_mm) in enumerate(zip(touch_poses, touch_mm)):
         line = end_mm - start_mm
         direction = line / np.linalg.norm(line)
         tasks.append(Task(str(first + k), start_mm + t * line,
@@ -120,7 +120,7 @@ def line_tasks(robot: Robot, start_pose_deg: npt.ArrayLike, touch_poses_deg: np.
     return tasks, start_mm, touch_mm
 
 
-def line_problem(robot: Robot, start_pose_deg: npt.ArrayLike, touch_poses_deg: npt.ArrayLike,
+def line_problem(robot: Robot, start_pose: npt.ArrayLike, touch_poses: npt.ArrayLike,
                  steps: int, weights: dict[str, float]
                  ) -> tuple[Problem, np.ndarray, np.ndarray, np.ndarray]:
     """The least-squares problem of the lines of :func:`line_tasks` and their initial poses,
@@ -132,8 +132,8 @@ def line_problem(robot: Robot, start_pose_deg: npt.ArrayLike, touch_poses_deg: n
     """
 
     kin = robot.chain_kinematics()
-    start = np.asarray(start_pose_deg, dtype=float)
-    touch = np.asarray(touch_poses_deg, dtype=float)
+    start = np.asarray(start_pose, dtype=float)
+    touch = np.asarray(touch_poses, dtype=float)
     point_m, _, _, _ = kin(np.vstack([start, touch]), jacobian=False)
     start_mm, touch_mm = point_m[0] * MM_PER_M, point_m[1:] * MM_PER_M
     t = np.linspace(0.0, 1.0, steps + 1)[:, None]
@@ -145,9 +145,9 @@ def line_problem(robot: Robot, start_pose_deg: npt.ArrayLike, touch_poses_deg: n
     w = np.tile([float(weights.get(k, 0.0)) for k in TERMS], (b, 1))
     starts = np.broadcast_to(start, touch.shape).copy()
     problem = Problem(goal_mm / MM_PER_CM, np.repeat(direction[:, None], steps + 1, axis=1),
-                      starts, touch.copy(), w, robot.lower_motor_deg, robot.upper_motor_deg)
+                      starts, touch.copy(), w, robot.lower, robot.upper)
     initial = np.clip(start[None, None] + t[None] * (touch - start)[:, None, :],
-                      robot.lower_motor_deg, robot.upper_motor_deg)
+                      robot.lower, robot.upper)
     return problem, initial, start_mm, touch_mm
 
 
@@ -172,10 +172,10 @@ class _Prepared:
 
 def prepare_shard(spec: ShardSpec) -> _Prepared:
     """The shard's touch poses (the batch sampler) and their line problem."""
-    touch, draws = sample_touch_poses(spec.robot, spec.start_pose_deg, spec.count,
+    touch, draws = sample_touch_poses(spec.robot, spec.start_pose, spec.count,
                                       shard_seed(spec.seed, spec.shard), spec.workspace)
     problem, initial, start_mm, touch_mm = line_problem(
-        spec.robot, spec.start_pose_deg, touch, spec.steps, spec.settings.weights)
+        spec.robot, spec.start_pose, touch, spec.steps, spec.settings.weights)
     return _Prepared(touch, draws, problem, initial, start_mm, touch_mm)
 
 
@@ -184,7 +184,7 @@ def solve_shard(spec: ShardSpec, prepared: _Prepared
     """(the solver's BatchResult, end points [m] (B*N, 3), directions (B*N, 3))."""
 
     result = solve_problem(spec.robot, prepared.problem, prepared.initial, spec.settings)
-    point_m, direction = _forward(spec.robot, result.poses_deg.reshape(-1, spec.robot.dof),
+    point_m, direction = _forward(spec.robot, result.poses.reshape(-1, spec.robot.dof),
                                   spec.settings)
     return result, point_m, direction
 
@@ -195,11 +195,11 @@ def finish_shard(spec: ShardSpec, prepared: _Prepared,
     result, point_m, direction = solved
     robot, touch, start_mm, touch_mm = spec.robot, prepared.touch, prepared.start_mm, \
         prepared.touch_mm
-    poses = result.poses_deg                                        # (B, N, dof)
+    poses = result.poses                                        # (B, N, dof)
     b, n_poses, dof = poses.shape
     points_mm = (point_m * MM_PER_M).reshape(b, n_poses, 3)
     directions = direction.reshape(b, n_poses, 3)
-    start_pose = np.broadcast_to(spec.start_pose_deg, (b, dof))
+    start_pose = np.broadcast_to(spec.start_pose, (b, dof))
     metrics = line_metrics(points_mm, directions, poses, np.broadcast_to(start_mm, (b, 3)),
                            touch_mm, start_pose, touch)
     ids = np.arange(spec.first, spec.first + b, dtype=np.int64)
@@ -285,9 +285,9 @@ def _trajectories_table(spec, robot, ids, start_pose, touch, start_mm, touch_mm,
         columns[term] = np.ascontiguousarray(result.terms[:, k])
     columns["iterations"] = result.iterations.astype(np.int32)
     columns["converged"] = result.converged.astype(bool)
-    lower, upper = robot.lower_motor_deg, robot.upper_motor_deg
+    lower, upper = robot.lower, robot.upper
     tol = RANGE_TOLERANCE_DEG  # as Robot.within_limits
-    columns["within_limits"] = np.all((result.poses_deg >= lower - tol)
-                                      & (result.poses_deg <= upper + tol), axis=(1, 2))
+    columns["within_limits"] = np.all((result.poses >= lower - tol)
+                                      & (result.poses <= upper + tol), axis=(1, 2))
     columns.update(metrics)
     return _table(columns, spec.metadata("trajectories"))

@@ -156,7 +156,7 @@ def prepare(method: str | Method, *, robot: Robot | str | None = None,
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
     if start_pose is not None:
-        targets = replace(targets, start_pose_deg=robot.check_pose(start_pose, "start_pose"))
+        targets = replace(targets, start_pose=robot.check_pose(start_pose, "start_pose"))
     kind, _ = parse_shape(shape)
     if only and kind != "line":
         raise InputError(f"--only selects touch poses of the line shape; shape {shape!r} has "
@@ -196,8 +196,8 @@ def prepare_problem(method: str | Method, problem: str | Path, *,
     if isinstance(problem_robot.config.get("targets"), dict):
         targets = load_targets(None, problem_robot)
     else:
-        assert task.reference_pose_deg is not None  # problem_task sets it
-        targets = Targets(problem_robot.joint_names, task.reference_pose_deg, {}, task.steps,
+        assert task.reference_pose is not None  # problem_task sets it
+        targets = Targets(problem_robot.joint_names, task.reference_pose, {}, task.steps,
                           "problem")
     solver = method if isinstance(method, Method) else get_method(method)(**(options or {}))
     solver.check_tasks(problem_robot, [task])
@@ -334,7 +334,7 @@ def trajectory_files(robot: Robot, outcomes: Sequence[Outcome], duration_s: floa
     """The trajectory CSVs of the solved outcomes, by trajectory id, serialised in memory
     (:class:`ikbench.runtime.record.TrajectoryFile`: text and poses read back; pose paths
     with their end-frame orientation)."""
-    return {o.task.name: TrajectoryFile.of(robot, o.task.name, o.solution.poses_deg, duration_s,
+    return {o.task.name: TrajectoryFile.of(robot, o.task.name, o.solution.poses, duration_s,
                                            quaternion=o.task.goal_rotations is not None)
             for o in outcomes if o.solution is not None}
 
@@ -381,7 +381,7 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
             trajectories=[t.name for t in tasks],
             failed=[o.task.name for o in outcomes if not o.ok], steps=tasks[0].steps,
             shape=record.get("shape", "line"), direction=record.get("direction"),
-            size_mm=record.get("size_mm"), start_pose_deg=targets.start_pose_deg.tolist(),
+            size_mm=record.get("size_mm"), start_pose_deg=targets.start_pose.tolist(),
             # weights a task asks for (letters); ours applies --weights changes on top
             # and details.csv names the weights each trajectory was solved with
             task_default_weights=tasks[0].default_weights, duration_s=duration_s,
@@ -412,7 +412,7 @@ def _figures(solver: Method, robot: Robot, outcomes: Sequence[Outcome],
         for outcome in outcomes:
             if outcome.solution is not None:
                 task = outcome.task
-                curve = reached(robot, task, outcome.solution.poses_deg)
+                curve = reached(robot, task, outcome.solution.poses)
                 figures.append((f"pose path {task.name}", f"pose_path_{task.name}.png",
                                 plot_pose_path(task, {solver.name: curve},
                                                f"{task.name}: {title}", robot)))

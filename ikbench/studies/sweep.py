@@ -185,8 +185,8 @@ def grid_settings(grid: dict[str, list[float]], base: dict | None = None) -> lis
 
 def effective_weights(weights: dict[str, float], task: Task) -> dict[str, float]:
     """``weights`` with c2 / c3 set to 0 where ``task`` pins no start / end pose."""
-    return {**weights, "L2": weights["L2"] if task.start_pose_deg is not None else 0.0,
-            "L3": weights["L3"] if task.end_pose_deg is not None else 0.0}
+    return {**weights, "L2": weights["L2"] if task.start_pose is not None else 0.0,
+            "L3": weights["L3"] if task.end_pose is not None else 0.0}
 
 
 @dataclass
@@ -260,7 +260,7 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
     record = {"grid": {f"c{t[1]}": v for t, v in grid.items()}, "robot": robot.describe(),
               "targets": targets.source,
               "shape": shape, "size_mm": (size_mm or DEFAULT_SIZE_MM) if kind == "letter" else None,
-              "direction": direction, "start_pose_deg": targets.start_pose_deg.tolist(),
+              "direction": direction, "start_pose_deg": targets.start_pose.tolist(),
               "reference_weights": {f"c{t[1]}": base[t] for t in TERMS},
               "reference": reference_name(kind) if method == OURS_LM
               else "ours-exact's default weights", "method": method,
@@ -287,7 +287,7 @@ def sweep_tasks(robot: Robot, targets: str | Path | Targets | None, shape: str,
     if kind == "letter" and start_pose is None:
         start_pose = letter_start_pose(robot, targets)
     if start_pose is not None:
-        targets = replace(targets, start_pose_deg=robot.check_pose(start_pose, "start_pose"))
+        targets = replace(targets, start_pose=robot.check_pose(start_pose, "start_pose"))
     if only and kind != "line":
         raise InputError(f"--only selects touch poses of the line shape; shape {shape!r} has "
                          "none (name the letters in the shape instead, e.g. letter:P,A)")
@@ -334,7 +334,7 @@ def _trajectory_rows(robot: Robot, kind: str, grid: dict[str, list[float]],
     measure = trajectory_metrics if kind == "line" else shape_metrics
     rows = []
     for k, (task, weights) in enumerate(zip(all_tasks, all_weights)):
-        poses = result.poses_deg[k]
+        poses = result.poses[k]
         metrics = measure(robot, task, poses)
         rows.append({"setting": setting_label(weights, grid), "paper_weights": weights == base,
                      "trajectory": task.name,
@@ -403,7 +403,7 @@ def exact_reference_weights() -> dict:
 class _ExactBatch:
     """ours-exact's solutions in the shape of ours-lm's BatchResult (what sweep reads)."""
 
-    poses_deg: np.ndarray
+    poses: np.ndarray
     loss: np.ndarray
     iterations: np.ndarray
     converged: np.ndarray
@@ -417,7 +417,7 @@ def _solve_exact(robot, tasks, settings) -> _ExactBatch:
     for weights in settings:
         method = OursExact(pointing_weight=weights["L1"], smoothness_weight=weights["L6"])
         solutions += method.solve_many(robot, tasks)
-    return _ExactBatch(np.stack([s.poses_deg for s in solutions]),
+    return _ExactBatch(np.stack([s.poses for s in solutions]),
                        np.array([s.loss for s in solutions]),
                        np.array([s.iterations for s in solutions]),
                        np.array([s.converged for s in solutions]),

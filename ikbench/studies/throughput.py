@@ -152,8 +152,8 @@ def _task_pool(robot, targets, batches) -> dict:
     largest = max([b for b in batches if b != len(targets.ids)] or [0])
     pool: dict[int, list] = {}
     if largest:
-        touch, _ = sample_touch_poses(robot, targets.start_pose_deg, largest, seed=0)
-        sampled, _, _ = sampled_line_tasks(robot, targets.start_pose_deg, touch, targets.steps)
+        touch, _ = sample_touch_poses(robot, targets.start_pose, largest, seed=0)
+        sampled, _, _ = sampled_line_tasks(robot, targets.start_pose, touch, targets.steps)
     for b in batches:
         pool[b] = line_tasks(robot, targets) if b == len(targets.ids) else sampled[:b]
     return pool

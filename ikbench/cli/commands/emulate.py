@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     robot = robot_from_args(args)
     config = load_motor_config(args.motors, robot)
     pose = parse_pose(args.pose, robot, "--pose") if args.pose else \
-        load_targets(None, robot).start_pose_deg
+        load_targets(None, robot).start_pose
     unknown = [i for i in args.missing if i not in config.ids]
     if unknown:
         raise InputError(f"--missing {unknown[0]} is not a motor id; ids: {list(config.ids)}")

@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
 
     robot = robot_from_args(args)
     if args.pose is None:
-        pose = load_targets(None, robot).start_pose_deg
+        pose = load_targets(None, robot).start_pose
     else:
         pose = parse_pose(args.pose, robot, "--pose")
     begin(args)

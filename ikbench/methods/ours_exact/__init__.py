@@ -236,7 +236,7 @@ class OursExact(Method):
         problem = build_problem(robot, [task], s)
         initial = np.clip(np.array(initial_poses, dtype=float)[None], problem.lower,
                           problem.upper)
-        for fixed, pose in ((0, task.start_pose_deg), (-1, task.end_pose_deg)):
+        for fixed, pose in ((0, task.start_pose), (-1, task.end_pose)):
             if pose is not None:
                 initial[0, fixed] = pose
         result = solve(robot.chain_kinematics(), problem, initial,
@@ -265,7 +265,7 @@ class OursExact(Method):
             if k in fallback:
                 info["collision"] = fallback[k]
             solutions.append(Solution(
-                poses_deg=result.poses[k], iterations=int(result.iterations[k]),
+                poses=result.poses[k], iterations=int(result.iterations[k]),
                 duration_s=wall_s / size, loss=float(result.objective[k]),
                 converged=bool(result.converged[k]) and feasible, info=info))
         return solutions
@@ -394,8 +394,8 @@ def build_problem(robot: Robot, tasks: Sequence[Task], settings: ExactSettings) 
     n = tasks[0].steps
     dof = robot.dof
     fixed = np.zeros((len(tasks), n + 1), dtype=bool)
-    fixed[:, 0] = [t.start_pose_deg is not None for t in tasks]
-    fixed[:, -1] = [t.end_pose_deg is not None for t in tasks]
+    fixed[:, 0] = [t.start_pose is not None for t in tasks]
+    fixed[:, -1] = [t.end_pose is not None for t in tasks]
     frames = tasks[0].has_frames
     lower, upper = (np.asarray(v, dtype=float) for v in tasks[0].limits(robot))
     lower, upper = lower + BOUND_MARGIN, upper - BOUND_MARGIN
@@ -417,7 +417,7 @@ def build_problem(robot: Robot, tasks: Sequence[Task], settings: ExactSettings) 
 def initial_trajectories(robot: Robot, tasks: Sequence[Task], settings: ExactSettings
                          ) -> tuple[np.ndarray, list[str]]:
     """(poses (B, N, k) to start from, a word per task saying which)."""
-    both = [t.start_pose_deg is not None and t.end_pose_deg is not None for t in tasks]
+    both = [t.start_pose is not None and t.end_pose is not None for t in tasks]
     use_lm = [settings.init == "ours-lm" or (settings.init == "auto" and not ok)
               for ok in both]
     for task, ok, lm in zip(tasks, both, use_lm):
@@ -430,12 +430,12 @@ def initial_trajectories(robot: Robot, tasks: Sequence[Task], settings: ExactSet
     if any(use_lm):
         chosen = [t for t, lm in zip(tasks, use_lm) if lm]
         solved = OursLM(seed=settings.seed).solve_many(robot, chosen)
-        poses = iter(s.poses_deg for s in solved)
+        poses = iter(s.poses for s in solved)
         stacked = [next(poses) if lm else out[k] for k, lm in enumerate(use_lm)]
         out = np.stack(stacked)
     for k, task in enumerate(tasks):  # the fixed poses exactly, whatever the start
-        if task.start_pose_deg is not None:
-            out[k, 0] = task.start_pose_deg
-        if task.end_pose_deg is not None:
-            out[k, -1] = task.end_pose_deg
+        if task.start_pose is not None:
+            out[k, 0] = task.start_pose
+        if task.end_pose is not None:
+            out[k, -1] = task.end_pose
     return out, ["ours-lm" if lm else "interpolation" for lm in use_lm]

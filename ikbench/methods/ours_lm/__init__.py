@@ -172,19 +172,19 @@ class OursLM(Method):
         checker = collision_checker(robot)
         if checker is None:
             return []
-        before = self_colliding(checker, result.poses_deg)
+        before = self_colliding(checker, result.poses)
         again = [int(k) for k in np.flatnonzero(before)]
         if not again:
             return []
         avoid = Avoidance(checker, (), self.settings.clearance_mm, self.settings.collision_weight)
         sub = solve_batch(robot, [tasks[k] for k in again], replace(self.settings, backend="numpy"),
                           weights=[weights[k] for k in again],
-                          initial=result.poses_deg[again], evaluator=avoid.evaluator(evaluate))
-        after = self_colliding(checker, sub.poses_deg)
+                          initial=result.poses[again], evaluator=avoid.evaluator(evaluate))
+        after = self_colliding(checker, sub.poses)
         kept = []
         for j, k in enumerate(again):
             if after[j] < before[k]:
-                result.poses_deg[k], result.loss[k] = sub.poses_deg[j], sub.loss[j]
+                result.poses[k], result.loss[k] = sub.poses[j], sub.loss[j]
                 result.terms[k], result.converged[k] = sub.terms[j], sub.converged[j]
                 result.iterations[k] += sub.iterations[j]
                 kept.append(k)
@@ -207,7 +207,7 @@ class OursLM(Method):
             problem=FrameProblem.from_tasks(robot, [task], [weights], frames),
             evaluator=evaluate_frames if avoid is None else avoid.evaluator(evaluate_frames))
         solution = _solution(result, 0, weights)
-        solution.converged = bool(check_paths(robot, task, result.poses_deg, frames, 1.0,
+        solution.converged = bool(check_paths(robot, task, result.poses, frames, 1.0,
                                               avoid)[0][0])
         return solution
 
@@ -217,7 +217,7 @@ class OursLM(Method):
         weights = resolve_weights(self.settings.weights, task)
         result = search(robot, task, self.settings, weights)
         return Solution(
-            poses_deg=result.poses_deg, iterations=result.iterations,
+            poses=result.poses, iterations=result.iterations,
             duration_s=time.perf_counter() - started, loss=result.loss,
             converged=result.valid,
             info={"valid_by_search": result.valid, "lm_converged": result.converged,
@@ -227,9 +227,9 @@ class OursLM(Method):
 
 def _solution(result: BatchResult, k: int, weights: dict) -> Solution:
     """Trajectory ``k`` of a batch as a Solution (duration_s: its share of the batch)."""
-    size = len(result.poses_deg)
+    size = len(result.poses)
     return Solution(
-        poses_deg=result.poses_deg[k], iterations=int(result.iterations[k]),
+        poses=result.poses[k], iterations=int(result.iterations[k]),
         duration_s=result.duration_s / size, loss=float(result.loss[k]),
         converged=bool(result.converged[k]),
         info={"batch_size": size, "batch_wall_time_s": result.duration_s,

@@ -106,7 +106,7 @@ def solve_problem(chain: Chain, problem: Problem, poses: np.ndarray, max_iterati
     converged = np.zeros(b, dtype=np.bool_)
     count = thread_count(b, threads)
     args = (f64(problem.goal_points_cm, dtype=float), f64(problem.goal_directions, dtype=float),
-            f64(problem.start_pose_deg, dtype=float), f64(problem.end_pose_deg, dtype=float),
+            f64(problem.start_pose, dtype=float), f64(problem.end_pose, dtype=float),
             f64(problem.weights, dtype=float), f64(problem.lower_deg, dtype=float),
             f64(problem.upper_deg, dtype=float), chain.arrays(), poses, loss, terms,
             iterations, converged, int(max_iterations), float(tolerance), float(damping))
@@ -153,7 +153,7 @@ def warm_up(robot: Robot) -> None:
     """Compile (or load from numba's cache) the kernels outside any timed region."""
 
     k = robot.dof
-    pose = np.clip(np.zeros(k), robot.lower_motor_deg, robot.upper_motor_deg)
+    pose = np.clip(np.zeros(k), robot.lower, robot.upper)
     goal = np.zeros((3, 3))
     direction = np.tile([1.0, 0.0, 0.0], (3, 1))
     task = Task("warm-up", goal, direction, pose, pose)

@@ -143,7 +143,7 @@ def turns(robot: Robot, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     pose is equivalent modulo a turn and its steps are judged wrapped."""
     kin = robot.chain_kinematics()
     period = 2.0 * np.pi / np.abs(kin.urdf_per_unit)
-    continuous = ~np.isfinite(robot.lower_motor_deg) & ~np.isfinite(robot.upper_motor_deg) \
+    continuous = ~np.isfinite(robot.lower) & ~np.isfinite(robot.upper) \
         & ~kin.prismatic
     return np.where(continuous & (upper - lower >= period * (1.0 - 1e-9)), period, 0.0)
 
@@ -179,7 +179,7 @@ def warm_up(robot: Robot) -> None:
     points_mm = np.repeat(point * 1000.0, 3, axis=0)
     far = box("warm-up", points_mm[0] + 5000.0, [10.0, 10.0, 10.0])
     task = Task("warm-up", points_mm, np.tile([1.0, 0.0, 0.0], (3, 1)), None, None,
-                goal_rotations=np.repeat(rotation, 3, axis=0), reference_pose_deg=pose,
+                goal_rotations=np.repeat(rotation, 3, axis=0), reference_pose=pose,
                 obstacles=(far,))
 
     s = _Search(robot, task, OursLMSettings(max_iterations=2))
@@ -229,10 +229,10 @@ class _Search:
         dof = self.robot.dof
         seeds = self.rng.uniform(self.low, self.high, (len(anchors), count, dof))
         for a, anchor in enumerate(anchors):
-            if anchor == 0 and self.task.reference_pose_deg is not None:
-                seeds[a, 0] = self.task.reference_pose_deg
-            if anchor == 0 and self.task.initial_pose_deg is not None:
-                seeds[a, 1 % count] = self.task.initial_pose_deg
+            if anchor == 0 and self.task.reference_pose is not None:
+                seeds[a, 0] = self.task.reference_pose
+            if anchor == 0 and self.task.initial_pose is not None:
+                seeds[a, 1 % count] = self.task.initial_pose
         q, position, rotation, iterations = first_waypoint_ik(
             self.spec_frames, np.repeat(self.goals_p[anchors], count, axis=0),
             np.repeat(self.goals_R[anchors], count, axis=0), seeds.reshape(-1, dof),
@@ -287,7 +287,7 @@ class _Search:
 
     def _restrict_start(self, tracks: np.ndarray, nodes: np.ndarray) -> None:
         """With an initial configuration, only first poses near it are nodes."""
-        initial = self.task.initial_pose_deg
+        initial = self.task.initial_pose
         if initial is None:
             return
         urdf = self.robot.to_urdf(np.nan_to_num(tracks[:, 0]))
@@ -334,7 +334,7 @@ class _Search:
         return poses, loss, terms, iterations + used, converged, valid, figures
 
     def first_pose_ok(self, poses: np.ndarray) -> bool:
-        initial = self.task.initial_pose_deg
+        initial = self.task.initial_pose
         if initial is None:
             return True
         distance = np.linalg.norm(self.robot.to_urdf(poses[0])

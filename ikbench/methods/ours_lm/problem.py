@@ -43,15 +43,15 @@ class Problem:
 
     Attributes:
         goal_points_cm: (B, N, 3).  goal_directions: (B, N, 3).
-        start_pose_deg / end_pose_deg: (B, dof) (zeros where a task fixes none).
+        start_pose / end_pose: (B, dof) (zeros where a task fixes none).
         weights: (B, 7) c0..c6 per trajectory (c2/c3 set to 0 where a pose is not fixed).
         lower_deg / upper_deg: (dof,) motor ranges.
     """
 
     goal_points_cm: np.ndarray
     goal_directions: np.ndarray
-    start_pose_deg: np.ndarray
-    end_pose_deg: np.ndarray
+    start_pose: np.ndarray
+    end_pose: np.ndarray
     weights: np.ndarray
     lower_deg: np.ndarray
     upper_deg: np.ndarray
@@ -66,18 +66,18 @@ class Problem:
                         else [weights] * len(tasks))  # a list or tuple: one dict per task
         w = np.array([[float(ws.get(k, 0.0)) for k in TERMS] for ws in per_task])
         zero = np.zeros(robot.dof)
-        start = np.stack([zero if t.start_pose_deg is None else t.start_pose_deg for t in tasks])
-        end = np.stack([zero if t.end_pose_deg is None else t.end_pose_deg for t in tasks])
-        w[:, 2] *= [t.start_pose_deg is not None for t in tasks]
-        w[:, 3] *= [t.end_pose_deg is not None for t in tasks]
+        start = np.stack([zero if t.start_pose is None else t.start_pose for t in tasks])
+        end = np.stack([zero if t.end_pose is None else t.end_pose for t in tasks])
+        w[:, 2] *= [t.start_pose is not None for t in tasks]
+        w[:, 3] *= [t.end_pose is not None for t in tasks]
         return cls(np.stack([t.goal_points_mm for t in tasks]) / MM_PER_CM,
                    np.stack([t.goal_directions for t in tasks]), start, end, w,
-                   robot.lower_motor_deg, robot.upper_motor_deg)
+                   robot.lower, robot.upper)
 
     def take(self, index: Index) -> Problem:
         """The sub-problem of trajectories ``index``."""
         return Problem(self.goal_points_cm[index], self.goal_directions[index],
-                       self.start_pose_deg[index], self.end_pose_deg[index],
+                       self.start_pose[index], self.end_pose[index],
                        self.weights[index], self.lower_deg, self.upper_deg)
 
     def residual_weights(self) -> tuple[np.ndarray, ...]:
@@ -117,8 +117,8 @@ def evaluate(kinematics: Kinematics, problem: Problem, poses: np.ndarray,
     direction = direction.reshape(b, n_poses, 3)
     e_point = point - problem.goal_points_cm
     e_dir = direction - problem.goal_directions
-    e_start = poses[:, 0] - problem.start_pose_deg
-    e_end = poses[:, -1] - problem.end_pose_deg
+    e_start = poses[:, 0] - problem.start_pose
+    e_end = poses[:, -1] - problem.end_pose
     steps = np.diff(poses, axis=1)
     terms = np.stack([
         np.mean(e_point**2, axis=(1, 2)),

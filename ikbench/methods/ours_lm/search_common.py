@@ -94,7 +94,7 @@ class OursLMSettings(LMSettings):
 class SearchResult:
     """The start search's outcome for one task (poses in pose units)."""
 
-    poses_deg: np.ndarray          # (N, dof)
+    poses: np.ndarray          # (N, dof)
     loss: float
     terms: np.ndarray              # (7,) L0..L6 of the 6-D objective
     valid: bool

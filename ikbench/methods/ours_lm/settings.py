@@ -117,7 +117,7 @@ class LMSettings:
 class BatchResult:
     """Result of :func:`solve_batch`: arrays over the B trajectories."""
 
-    poses_deg: np.ndarray        # (B, N, dof)
+    poses: np.ndarray        # (B, N, dof)
     loss: np.ndarray             # (B,)
     terms: np.ndarray            # (B, 7) L0..L6
     iterations: np.ndarray       # (B,) LM iterations (accepted + rejected steps)
@@ -137,24 +137,24 @@ def initial_poses(robot: Robot, tasks: Sequence[Task]) -> np.ndarray:
     out = []
     for task in tasks:
         t = np.linspace(0.0, 1.0, task.steps + 1)[:, None]
-        if task.start_pose_deg is not None and task.end_pose_deg is not None:
-            out.append(task.start_pose_deg + t * (task.end_pose_deg - task.start_pose_deg))
-        elif task.reference_pose_deg is not None:
-            out.append(np.asarray(task.reference_pose_deg, dtype=float) + 0.0 * t)
+        if task.start_pose is not None and task.end_pose is not None:
+            out.append(task.start_pose + t * (task.end_pose - task.start_pose))
+        elif task.reference_pose is not None:
+            out.append(np.asarray(task.reference_pose, dtype=float) + 0.0 * t)
         else:
             raise InputError(f"trajectory {task.name!r}: ours-lm needs a start and an end pose "
                              "or a reference pose to start from")
-    return np.clip(np.stack(out), robot.lower_motor_deg, robot.upper_motor_deg)
+    return np.clip(np.stack(out), robot.lower, robot.upper)
 
 
 def initial_poses_batched(robot: Robot, tasks: Sequence[Task]) -> np.ndarray:
     """:func:`~.solver.initial_poses` without a loop over tasks when every task pins a start
     and a touch pose (the same operations, so the same numbers)."""
-    if not all(t.start_pose_deg is not None and t.end_pose_deg is not None for t in tasks) \
+    if not all(t.start_pose is not None and t.end_pose is not None for t in tasks) \
             or len({t.steps for t in tasks}) != 1:
         return initial_poses(robot, tasks)
     # every task pins both (checked above)
-    start = np.stack([cast(np.ndarray, t.start_pose_deg) for t in tasks])[:, None, :]
-    end = np.stack([cast(np.ndarray, t.end_pose_deg) for t in tasks])[:, None, :]
+    start = np.stack([cast(np.ndarray, t.start_pose) for t in tasks])[:, None, :]
+    end = np.stack([cast(np.ndarray, t.end_pose) for t in tasks])[:, None, :]
     t = np.linspace(0.0, 1.0, tasks[0].steps + 1)[None, :, None]
-    return np.clip(start + t * (end - start), robot.lower_motor_deg, robot.upper_motor_deg)
+    return np.clip(start + t * (end - start), robot.lower, robot.upper)

@@ -261,8 +261,8 @@ def search_numpy(robot: Robot, task: Task, settings: OursLMSettings, weights: di
     rng = np.random.default_rng(settings.seed)
     avoid = avoidance_for(robot, task, settings.clearance_mm, settings.collision_weight)
     seeds = rng.uniform(low, high, (settings.ik_seeds, robot.dof))
-    if task.reference_pose_deg is not None:
-        seeds[0] = task.reference_pose_deg
+    if task.reference_pose is not None:
+        seeds[0] = task.reference_pose
     q0, pos, rot, ik_iterations = first_waypoint_ik(
         frames, task.goal_points_mm[0], cast(np.ndarray, task.goal_rotations)[0], seeds, lower,
         upper)
@@ -300,7 +300,7 @@ def search_numpy(robot: Robot, task: Task, settings: OursLMSettings, weights: di
                                  robot, task, poses, frames, SEARCH_MARGIN, avoid)[0].any()))
         refined += len(chosen)
         lm_iterations += int(result.iterations.max())
-        valid, position, rotation, step = check_paths(robot, task, result.poses_deg, frames,
+        valid, position, rotation, step = check_paths(robot, task, result.poses, frames,
                                                       SEARCH_MARGIN, avoid)
         k = int(np.argmin(np.where(valid, result.loss, np.inf) if valid.any()
                           else result.loss))
@@ -321,7 +321,7 @@ def search_numpy(robot: Robot, task: Task, settings: OursLMSettings, weights: di
             "carried_candidates_colliding": int(np.sum(colliding > 0)), **stitch_info,
             "seeds_s": t_seeds - started, "carry_s": t_carry - t_seeds,
             "refine_s": t_end - t_carry}
-    return SearchResult(result.poses_deg[k], float(result.loss[k]), result.terms[k],
+    return SearchResult(result.poses[k], float(result.loss[k]), result.terms[k],
                         is_valid, ik_iterations + carry_iterations + lm_iterations,
                         bool(result.converged[k]), info)
 
@@ -415,8 +415,8 @@ def _carry_from(frames, task, avoid: Avoidance, anchors, reach: int, lower, uppe
     iterations, forward = 0, None
     for anchor in anchors:
         seeds = rng.uniform(low, high, (STITCH_SEEDS, dof))
-        if anchor == 0 and task.reference_pose_deg is not None:
-            seeds[0] = task.reference_pose_deg
+        if anchor == 0 and task.reference_pose is not None:
+            seeds[0] = task.reference_pose
         q, position, rotation, _ = first_waypoint_ik(
             frames, task.goal_points_mm[anchor], task.goal_rotations[anchor], seeds, lower, upper)
         found = distinct(q, (position < SEED_TOLERANCE) & (rotation < SEED_TOLERANCE))

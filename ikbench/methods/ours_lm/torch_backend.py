@@ -78,13 +78,13 @@ class TorchBatchResult(BatchResult):
 @dataclass
 class TorchProblem:
     """:class:`~.problem.Problem` as tensors on one device: goal_points_cm (B, N, 3),
-    goal_directions (B, N, 3), start/end_pose_deg (B, dof), weights (B, 7), lower/upper_deg
+    goal_directions (B, N, 3), start/end_pose (B, dof), weights (B, 7), lower/upper_deg
     (dof,)."""
 
     goal_points_cm: Any
     goal_directions: Any
-    start_pose_deg: Any
-    end_pose_deg: Any
+    start_pose: Any
+    end_pose: Any
     weights: Any
     lower_deg: Any
     upper_deg: Any
@@ -100,7 +100,7 @@ class TorchProblem:
         if index is None:
             return self
         return TorchProblem(self.goal_points_cm[index], self.goal_directions[index],
-                            self.start_pose_deg[index], self.end_pose_deg[index],
+                            self.start_pose[index], self.end_pose[index],
                             self.weights[index], self.lower_deg, self.upper_deg)
 
     def residual_weights(self) -> tuple[torch.Tensor, ...]:
@@ -142,8 +142,8 @@ def evaluate(kinematics: TorchChainKinematics, problem: TorchProblem, poses: tor
     direction = direction.reshape(b, n_poses, 3)
     e_point = point - problem.goal_points_cm
     e_dir = direction - problem.goal_directions
-    e_start = poses[:, 0] - problem.start_pose_deg
-    e_end = poses[:, -1] - problem.end_pose_deg
+    e_start = poses[:, 0] - problem.start_pose
+    e_end = poses[:, -1] - problem.end_pose
     steps = poses.diff(dim=1)
     terms = torch.stack([
         (e_point**2).mean(dim=(1, 2)),

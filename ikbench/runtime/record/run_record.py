@@ -199,7 +199,7 @@ class RunRecord:
         """
         targets = load_targets(self.targets, robot)
         if self.start_pose_deg:
-            targets = replace(targets, start_pose_deg=np.asarray(self.start_pose_deg,
+            targets = replace(targets, start_pose=np.asarray(self.start_pose_deg,
                                                                  dtype=float))
         return targets
 

@@ -111,9 +111,9 @@ class Update:
     warm: bool = False
 
     @property
-    def poses_deg(self) -> np.ndarray:
+    def poses(self) -> np.ndarray:
         """(n+1, dof) the poses shown [pose units]."""
-        return self.solution.poses_deg
+        return self.solution.poses
 
     @property
     def failed(self) -> list[str]:
@@ -178,8 +178,8 @@ class Designer:
         point = np.asarray(point_mm, dtype=float).reshape(3)
         if not np.all(np.isfinite(point)):
             raise InputError(f"{handle}: {point.tolist()} is not a finite point [mm]")
-        found = self.design.move(handle, point, self.update.poses_deg)
-        return self._solve(self.update.poses_deg, found, started)
+        found = self.design.move(handle, point, self.update.poses)
+        return self._solve(self.update.poses, found, started)
 
     def set_method(self, method: str | Method) -> Update:
         """Solve with ``method`` (a name or a configured :class:`Method`) from now on, and
@@ -219,7 +219,7 @@ class Designer:
                                  f"{', '.join(recorded)}")
             pose = recorded[pose]
         self.design.use_pose(pose)
-        return self._solve(self.update.poses_deg, None, started)
+        return self._solve(self.update.poses, None, started)
 
     def set_size(self, size_mm: float) -> Update:
         """A letter's height [mm]."""
@@ -227,7 +227,7 @@ class Designer:
         if not isinstance(self.design, LetterDesign):
             raise InputError("--size: only letters are scaled")
         self.design.set_size(size_mm)
-        return self._solve(self.update.poses_deg, None, started)
+        return self._solve(self.update.poses, None, started)
 
     def select_waypoint(self, waypoint: int) -> None:
         """Drag waypoint ``waypoint`` of a pose path from now on."""
@@ -243,7 +243,7 @@ class Designer:
         if duration_s is not None:
             self.duration_s = _check_duration(duration_s)
         update = self.update
-        timed = self._timed(update.poses_deg)
+        timed = self._timed(update.poses)
         self.update = replace(update, timed=timed,
                               criteria=self._judge(update.task, timed, update.reach),
                               elapsed_s=time.perf_counter() - started)
@@ -261,7 +261,7 @@ class Designer:
         if found is not None and not found.reachable:
             message = (f"out of reach: the arm gets within {found.distance_mm:.1f} mm of the "
                        "point; the nearest point is shown" + (f"; {message}" if message else ""))
-        timed = self._timed(solution.poses_deg)
+        timed = self._timed(solution.poses)
         self.update = Update(task, solution, method, timed, self._judge(task, timed, found),
                              time.perf_counter() - started, message, found,
                              initial is not None)
@@ -325,8 +325,8 @@ class Designer:
         table = saving.save_run(method, arguments, output, name, self.duration_s, self.timing)
         tid = name if isinstance(design, PathDesign) else self.update.task.name
         poses = read_trajectory_poses(folder / f"trajectory_{tid}.csv", self.robot)
-        change = float(np.abs(poses - self.update.poses_deg).max())
-        solution = replace(self.update.solution, poses_deg=poses)
+        change = float(np.abs(poses - self.update.poses).max())
+        solution = replace(self.update.solution, poses=poses)
         timed = self._timed(poses)
         self.update = replace(self.update, solution=solution, timed=timed, method=method.name,
                               criteria=self._judge(self.update.task, timed, None), reach=None,

@@ -49,7 +49,7 @@ def _own_targets(robot: Robot, targets: str | Path | Targets | None) -> Targets 
 
 def _middle_pose(robot: Robot) -> np.ndarray:
     """(dof,) the middle of each joint's range (0 for a joint without limits)."""
-    lower, upper = robot.lower_motor_deg, robot.upper_motor_deg
+    lower, upper = robot.lower, robot.upper
     finite = np.isfinite(lower) & np.isfinite(upper)
     return np.where(finite, (np.where(finite, lower, 0.0) + np.where(finite, upper, 0.0)) / 2,
                     0.0)
@@ -75,24 +75,24 @@ class LineDesign:
         self.robot = robot
         own = _own_targets(robot, targets)
         start = (robot.check_pose(start_pose, "--start-pose") if start_pose is not None
-                 else own.start_pose_deg if own is not None else _middle_pose(robot))
+                 else own.start_pose if own is not None else _middle_pose(robot))
         if own is None:
             tip = robot.fk(start)
             found = reach(robot, tip.point_mm[0] + NEW_LINE_MM * tip.direction[0], start)
             own = Targets(robot.joint_names, start, {"design": found.pose}, steps or 50,
                           "design")
         self.trajectory = trajectory or own.ids[0]
-        if self.trajectory not in own.touch_poses_deg:
+        if self.trajectory not in own.touch_poses:
             raise InputError(f"--trajectory {self.trajectory!r} is not a touch pose of the "
                              f"targets; available: {', '.join(own.ids)}")
         self.targets = own.with_steps(steps)
         self.start_pose = np.asarray(start, dtype=float)
-        self.touch_pose = np.asarray(own.touch_poses_deg[self.trajectory], dtype=float)
+        self.touch_pose = np.asarray(own.touch_poses[self.trajectory], dtype=float)
 
     @property
     def recorded_poses(self) -> dict[str, np.ndarray]:
         """The targets' poses by name (``start``, then every touch pose's id)."""
-        return {"start": self.targets.start_pose_deg, **self.targets.touch_poses_deg}
+        return {"start": self.targets.start_pose, **self.targets.touch_poses}
 
     def handles(self) -> dict[str, np.ndarray]:
         points = self.robot.fk(np.stack([self.touch_pose, self.start_pose])).point_mm
@@ -100,8 +100,8 @@ class LineDesign:
 
     def saved_targets(self) -> Targets:
         """The targets ``ikbench run`` gets from the saved file: this start and touch pose."""
-        return replace(self.targets, start_pose_deg=self.start_pose,
-                       touch_poses_deg={self.trajectory: self.touch_pose})
+        return replace(self.targets, start_pose=self.start_pose,
+                       touch_poses={self.trajectory: self.touch_pose})
 
     def task(self) -> Task:
         return build_tasks(self.robot, self.saved_targets(), "line", self.targets.steps)[0]
@@ -130,8 +130,8 @@ class LineDesign:
         """The previous poses (n+1, dof) with their ends moved onto the task's start and touch
         poses, the change spread linearly along the path."""
         t = np.linspace(0.0, 1.0, len(previous))[:, None]
-        start = np.asarray(task.start_pose_deg, dtype=float)
-        end = np.asarray(task.end_pose_deg, dtype=float)
+        start = np.asarray(task.start_pose, dtype=float)
+        end = np.asarray(task.end_pose, dtype=float)
         return previous + (1.0 - t) * (start - previous[0]) + t * (end - previous[-1])
 
 
@@ -180,8 +180,8 @@ class LetterDesign:
     def saved_targets(self) -> Targets:
         """The saved targets: the reference pose as the start pose (``ikbench run`` places
         letters from it); the one touch pose ``centre`` repeats it (a targets file needs one)."""
-        return replace(self.targets, start_pose_deg=self.reference_pose,
-                       touch_poses_deg={"centre": self.reference_pose})
+        return replace(self.targets, start_pose=self.reference_pose,
+                       touch_poses={"centre": self.reference_pose})
 
     def task(self) -> Task:
         return build_tasks(self.robot, self.saved_targets(), self.shape, self.steps,
@@ -257,7 +257,7 @@ class PathDesign:
         distance = np.abs(np.arange(n + 1) - k) / span
         weight = np.where(distance < 1.0, 0.5 * (1.0 + np.cos(np.pi * distance)), 0.0)
         self.offsets_mm = self.offsets_mm + weight[:, None] * delta
-        start = np.asarray(self.base_task.reference_pose_deg if poses is None else poses[k],
+        start = np.asarray(self.base_task.reference_pose if poses is None else poses[k],
                            dtype=float)
         return reach(self.robot, point_mm, start, self.base_task.goal_directions[k])
 

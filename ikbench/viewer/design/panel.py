@@ -55,7 +55,7 @@ def limits_html(robot: Robot, update: Update) -> str:
     """Per joint: its range (grey), the part the trajectory uses (blue; red within
     :data:`NEAR_LIMIT` of a limit), and the numbers."""
     lower, upper = (np.asarray(v, dtype=float) for v in update.task.limits(robot))
-    poses = update.poses_deg
+    poses = update.poses
     rows = []
     for j, name in enumerate(robot.joint_names):
         low, high = float(poses[:, j].min()), float(poses[:, j].max())

@@ -62,9 +62,9 @@ def targets_document(robot: Robot, targets: Targets, description: str) -> dict[s
     set's name when they come from one, else as a list)."""
     doc: dict[str, Any] = {
         "joint_names": list(robot.joint_names),
-        "start_pose": [float(v) for v in targets.start_pose_deg],
+        "start_pose": [float(v) for v in targets.start_pose],
         "targets": {key: [float(v) for v in pose]
-                    for key, pose in targets.touch_poses_deg.items()},
+                    for key, pose in targets.touch_poses.items()},
         "steps": int(targets.steps), "description": description}
     if targets.obstacles:
         source = targets.obstacles_source

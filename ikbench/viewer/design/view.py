@@ -151,7 +151,7 @@ class DesignerView:
     def show(self, started: float | None = None) -> None:
         """Draw the designer's update: paths, markers, gizmos, panel."""
         update, robot = self.update, self.designer.robot
-        tips = sc.to_root_m(self.T_root_base, robot.fk(update.poses_deg).point_mm)
+        tips = sc.to_root_m(self.T_root_base, robot.fk(update.poses).point_mm)
         goal = np.asarray(update.task.goal_points_mm, dtype=float)
         down = np.asarray(update.task.pen_down, dtype=bool)
         segments = sc.segments(sc.to_root_m(self.T_root_base, goal))[down[:-1] & down[1:]]
@@ -302,7 +302,7 @@ def _framing(view: DesignerView) -> list[np.ndarray]:
     """Points [m] the initial camera frames: the arm along the motion, the goal path and a
     margin around each gizmo (room to drag)."""
     robot, update = view.designer.robot, view.update
-    poses = update.poses_deg[:: max(1, update.task.steps // 10)]
+    poses = update.poses[:: max(1, update.task.steps // 10)]
     out = [sc.to_root_m(view.T_root_base, robot.skeleton_mm(poses)).reshape(-1, 3),
            sc.to_root_m(view.T_root_base, update.task.goal_points_mm)]
     for gizmo in view.gizmos.values():
