@@ -50,7 +50,7 @@ def main() -> None:
                 started = time.perf_counter()
                 solution = method.solve(robot, task)
                 wall = time.perf_counter() - started
-                valid = frame_metrics(robot, task, solution.poses_deg)["valid"]
+                valid = frame_metrics(robot, task, solution.poses)["valid"]
                 rows.append({"problem": problem.name, "waypoints": task.steps + 1, "seed": seed,
                              "repetition": repetition, "wall_s": wall, "valid": valid,
                              **{k: solution.info[k] for k in ("seeds_s", "carry_s", "refine_s",

@@ -86,8 +86,8 @@ def paper_chain_fk(q):
 def time_iterations(robot, task, fk_kind: str, iterations: int) -> float:
     """Iterations per second of Adam on ``task`` with the given FK."""
     dtype = torch.float32
-    lo = torch.as_tensor(robot.lower_motor_deg, dtype=dtype)
-    span = torch.as_tensor(robot.upper_motor_deg - robot.lower_motor_deg, dtype=dtype)
+    lo = torch.as_tensor(robot.lower, dtype=dtype)
+    span = torch.as_tensor(robot.upper - robot.lower, dtype=dtype)
     goals = LossGoals.from_task(task, dtype)
     z = initial_logits(robot, task, dtype).requires_grad_(True)
     optimiser = torch.optim.Adam([z], lr=0.1)
