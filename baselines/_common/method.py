@@ -9,7 +9,7 @@ is here.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -73,12 +73,18 @@ class LibraryMethod(Method):
         loads_urdf: True when the library parses the URDF itself (the chain's URDF text
             from :func:`ikbench.baselines._common.chain.chain_urdf_text`, locked joints folded into
             fixed ones).
+        chain_check: ``staticmethod(f)``, ``f(chain)`` raising InputError for a chain the
+            library cannot model (run by :meth:`check_robot`), or None.
+        chain_model: ``staticmethod(f)``, ``f(chain)`` building (and caching) the library's
+            model of the chain, untimed (run by :meth:`prepare`), or None.
     """
 
     library: ClassVar[str] = ""
     capabilities: ClassVar[Capabilities] = Capabilities(needs_touch_pose=True)
     whole_path: ClassVar[bool] = False
     loads_urdf: ClassVar[bool] = True
+    chain_check: ClassVar[Callable[..., object] | None] = None
+    chain_model: ClassVar[Callable[..., object] | None] = None
 
     @property
     def scheme(self) -> str:
@@ -117,11 +123,17 @@ class LibraryMethod(Method):
         self.check_robot(robot)
 
     def check_robot(self, robot: Robot) -> None:
-        """InputError when the library cannot model this robot (default: it can)."""
+        """InputError when the library cannot model this robot (:attr:`chain_check`; without
+        one it can)."""
+        if self.chain_check is not None:
+            self.chain_check(chain_of(robot))
 
     def prepare(self, robot: Robot) -> None:
-        """Untimed: build the chain in URDF units (parses the URDF once)."""
-        chain_of(robot)
+        """Untimed: build the chain in URDF units (parses the URDF once) and the library's
+        model of it (:attr:`chain_model`)."""
+        chain = chain_of(robot)
+        if self.chain_model is not None:
+            self.chain_model(chain)
 
     def solve_chain(self, robot: Robot, chain: Chain,
                     goals: Goals) -> ChainResult:  # pragma: no cover

@@ -290,17 +290,13 @@ class IkpyIK(LibraryMethod):
     library = "ikpy"
     Settings = IkpySettings
     capabilities = Capabilities(needs_touch_pose=True, frames=True)
+    #: untimed: parse the URDF and build ikpy's chain (sympy-compiled link matrices)
+    chain_model = staticmethod(ikpy_chain)
 
     def check_robot(self, robot: Robot) -> None:
         """Pointing mode needs a coordinate pointing axis (ikpy's X / Y / Z modes)."""
         if self.settings.orientation == "pointing":
-
             axis_mode(chain_of(robot))
-
-    def prepare(self, robot: Robot) -> None:
-        """Untimed: parse the URDF and build ikpy's chain (sympy-compiled link matrices)."""
-
-        ikpy_chain(chain_of(robot))
 
     def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         return solve_chain(chain, goals, self.settings,

@@ -67,7 +67,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals, chain_of
+from ikbench.baselines._common.chain import Chain, Goals
 from ikbench.baselines._common.collision import AvoidsObstacles, Scene
 from ikbench.baselines._common.diffik import (
     SpeedBox,
@@ -447,11 +447,7 @@ class MinkIK(AvoidsObstacles, LibraryMethod):
     library = "mink"
     Settings = MinkSettings
     capabilities = Capabilities(needs_touch_pose=True, frames=True, obstacles=True)
-
-    def prepare(self, robot: Robot) -> None:
-        """Untimed: MuJoCo parses and compiles the URDF."""
-
-        mink_model(chain_of(robot))
+    chain_model = staticmethod(mink_model)  # untimed: MuJoCo parses and compiles the URDF
 
     def solve_scene(self, robot: Robot, chain: Chain, goals: Goals,
                     scene: Scene | None) -> ChainResult:

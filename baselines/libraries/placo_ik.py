@@ -51,7 +51,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals, chain_of
+from ikbench.baselines._common.chain import Chain, Goals
 from ikbench.baselines._common.diffik import SpeedBox, posture_weights, settle
 from ikbench.baselines._common.geometry import angle_between_rad, rotation_angle_rad
 from ikbench.baselines._common.method import ChainResult, LibraryMethod
@@ -292,14 +292,8 @@ class Placo(LibraryMethod):
                    "back from the touch pose)")
     library = "placo"
     Settings = PlacoSettings
-
-    def check_robot(self, robot: Robot) -> None:
-        """InputError for continuous joints."""
-        check_chain(chain_of(robot))
-
-    def prepare(self, robot: Robot) -> None:
-        """Untimed: placo parses the URDF."""
-        placo_model(chain_of(robot))
+    chain_check = staticmethod(check_chain)  # InputError for continuous joints
+    chain_model = staticmethod(placo_model)  # untimed: placo parses the URDF
 
     def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         if goals.track is not None:

@@ -81,7 +81,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals, chain_of, element_path
+from ikbench.baselines._common.chain import Chain, Goals, element_path
 from ikbench.baselines._common.diffik import settle
 from ikbench.baselines._common.geometry import (
     angle_between_rad,
@@ -340,14 +340,8 @@ class RangedIK(LibraryMethod):
                    "pose (--scheme walk: back from it)")
     library = "relaxed-ik-core"
     Settings = RangedIKSettings
-
-    def check_robot(self, robot: Robot) -> None:
-        """InputError for joint axes RangedIK cannot model (not along x, y or z)."""
-        check_axes(chain_of(robot))
-
-    def prepare(self, robot: Robot) -> None:
-        """Untimed: write the settings, let the library load them."""
-        rangedik_solver(chain_of(robot))
+    chain_check = staticmethod(check_axes)  # InputError for axes not along x, y or z
+    chain_model = staticmethod(rangedik_solver)  # untimed: write the settings, load them
 
     def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         return solve_chain(chain, goals, self.settings)

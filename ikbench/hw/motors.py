@@ -127,6 +127,11 @@ class Motor:
         return ends[0], ends[1]
 
 
+def _per_motor(field: str) -> property:
+    """A read-only property: the motors' ``field`` as an array, one value per motor."""
+    return property(lambda self: np.array([getattr(m, field) for m in self.motors]))
+
+
 @dataclass(frozen=True)
 class MotorConfig:
     """The motors of a robot, in the robot's joint order.
@@ -149,21 +154,12 @@ class MotorConfig:
     def ids(self) -> tuple[int, ...]:
         return tuple(m.id for m in self.motors)
 
-    @property
-    def lower_deg(self) -> np.ndarray:
-        return np.array([m.lower_deg for m in self.motors])
-
-    @property
-    def upper_deg(self) -> np.ndarray:
-        return np.array([m.upper_deg for m in self.motors])
-
-    @property
-    def max_speed_deg_s(self) -> np.ndarray:
-        return np.array([m.max_speed_deg_s for m in self.motors])
-
-    @property
-    def max_acceleration_deg_s2(self) -> np.ndarray:
-        return np.array([m.max_acceleration_deg_s2 for m in self.motors])
+    #: The motors' limits, one per motor (arrays): angles [deg], speed [deg/s], acceleration
+    #: [deg/s^2].
+    lower_deg = _per_motor("lower_deg")
+    upper_deg = _per_motor("upper_deg")
+    max_speed_deg_s = _per_motor("max_speed_deg_s")
+    max_acceleration_deg_s2 = _per_motor("max_acceleration_deg_s2")
 
     def label(self, index: int) -> str:
         """``"id 5 (r_elbow_y)"`` for the motor at ``index``."""
