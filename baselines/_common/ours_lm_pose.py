@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from ikbench.baselines._common.single_pose import MAX_STEPS, BatchOut, PoseOut, PoseSolver
-from ikbench.methods.ours_lm.devices import numba_threads
+from ikbench.methods.ours_lm.devices import compiled_module, numba_threads
 from ikbench.methods.ours_lm.single_pose import solve_poses
 
 #: Iterations of one attempt before the next row (the numpy reference's ``restart_after``).
@@ -56,9 +56,7 @@ class OursLMSolver(PoseSolver):
         """Build (and compile or load) the compiled solver when numba is installed."""
         self.compiled = None
         if compiled_available():
-            # numba is optional: its module is imported only where it runs
-            from ikbench.methods.ours_lm.single_pose_compiled import SinglePoseLM
-
+            SinglePoseLM = compiled_module("single_pose_compiled").SinglePoseLM  # noqa: N806
             self.compiled = SinglePoseLM(self.robot, self.kind, self.tolerance)
             self.descent = SinglePoseLM(self.robot, self.kind, self.tolerance,
                                         max_iterations=MAX_STEPS)

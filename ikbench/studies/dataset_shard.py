@@ -30,7 +30,7 @@ from ikbench.core.metrics_batch import line_metrics
 from ikbench.core.robot import MM_PER_M, RANGE_TOLERANCE_DEG
 from ikbench.core.task import Task
 from ikbench.methods.ours_lm import solve_problem
-from ikbench.methods.ours_lm.devices import cpu_backend
+from ikbench.methods.ours_lm.devices import compiled_module, cpu_backend
 from ikbench.methods.ours_lm.problem import Problem
 from ikbench.studies.batch import sample_touch_poses
 
@@ -236,7 +236,7 @@ def _forward(robot, poses, settings):
 
     if settings.device is None and cpu_backend(settings) == "numba":
         try:
-            from ikbench.methods.ours_lm.compiled import forward
+            forward = compiled_module().forward
         except ImportError:  # as the solver: auto falls back to numpy
             pass
         else:

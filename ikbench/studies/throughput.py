@@ -36,7 +36,12 @@ from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import line_tasks
 from ikbench.methods.ours_lm import LMSettings, solve_batch
-from ikbench.methods.ours_lm.devices import check_device, device_name, numba_installed
+from ikbench.methods.ours_lm.devices import (
+    check_device,
+    compiled_module,
+    device_name,
+    numba_installed,
+)
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.progress import Reporter
 from ikbench.studies.batch import sample_touch_poses
@@ -140,10 +145,8 @@ def throughput(device: str, *, batches: Sequence[int] = DEFAULT_BATCHES,
 
 
 def _warm_up_numba(robot, log) -> None:
-    from ikbench.methods.ours_lm.compiled import warm_up
-
     start = time.perf_counter()
-    warm_up(robot)
+    compiled_module().warm_up(robot)
     log(f"numba backend compiled or loaded from its cache in {time.perf_counter() - start:.1f} s")
 
 
@@ -220,8 +223,8 @@ def _versions(numba: bool, threads: int | None) -> dict:
     if numba:
         import numba as nb
 
-        from ikbench.methods.ours_lm.compiled import PER_THREAD, max_threads
-
+        compiled = compiled_module()
+        PER_THREAD, max_threads = compiled.PER_THREAD, compiled.max_threads  # noqa: N806
         out.update(numba=nb.__version__, numba_threads=min(threads or max_threads(),
                                                             max_threads()),
                    numba_threads_rule=f"one thread per {PER_THREAD} trajectories, at most "

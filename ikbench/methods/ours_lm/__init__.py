@@ -39,6 +39,7 @@ from ikbench.methods.ours_lm.avoidance import (
 )
 from ikbench.methods.ours_lm.devices import (
     BACKENDS,
+    compiled_module,
     cpu_backend,
     numba_threads,
     torch_dtype,
@@ -101,9 +102,7 @@ class OursLM(Method):
             robot.chain_kinematics().frames(np.zeros((1, robot.dof)))
             if cpu_backend(self.settings) == "numba":  # compiled (or loaded) outside timing
                 if not self._only_pose_paths_ahead:
-                    from ikbench.methods.ours_lm.compiled import warm_up
-
-                    warm_up(robot)
+                    compiled_module().warm_up(robot)
                 if self._pose_paths_ahead:
 
                     warm_up_search(robot, self.settings)

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ikbench.core.collision import collision_model
+from ikbench.methods.ours_lm.devices import compiled_module
 from ikbench.methods.ours_lm.problem import Evaluation
 
 if TYPE_CHECKING:
@@ -143,10 +144,10 @@ def collision_checker(robot: Robot) -> Any:
     if model is None:
         return None
     try:
-        from ikbench.core.capsules import capsule_model
+        capsules = compiled_module("capsules")
     except ImportError:
         return model
-    return capsule_model(robot) or model
+    return capsules.capsule_model(robot) or model
 
 
 def self_colliding(checker: Any, poses: np.ndarray) -> np.ndarray:

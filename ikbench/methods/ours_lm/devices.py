@@ -11,8 +11,10 @@ imported only when they run.
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
 import re
+from types import ModuleType
 from typing import TYPE_CHECKING
 
 from ikbench.core.errors import InputError
@@ -25,6 +27,11 @@ if TYPE_CHECKING:
 
 DTYPES = ("float64", "float32")
 BACKENDS = ("auto", "numpy", "numba")
+#: The modules that import numba, by short name (:func:`compiled_module`).
+COMPILED_MODULES = {"compiled": "ikbench.methods.ours_lm.compiled",
+                    "single_pose_compiled": "ikbench.methods.ours_lm.single_pose_compiled",
+                    "path_search": "ikbench.methods.ours_lm.path_search",
+                    "capsules": "ikbench.core.capsules"}
 FAST_EXTRA = "pip install -c constraints.txt -e '.[fast]'"
 _DEVICE = re.compile(r"^(cpu|cuda(:\d+)?)$")
 
@@ -155,3 +162,22 @@ def _check_cpu_backend(settings) -> None:
     if not numba_installed():
         raise InputError(f"--lm-backend numba: numba is not installed; {FAST_EXTRA}, or "
                          "use --lm-backend numpy")
+
+
+def compiled_module(name: str = "compiled") -> ModuleType:
+    """A module that imports numba, by its short name in :data:`COMPILED_MODULES`
+    (``compiled``: ours-lm's trajectory solver and FK; ``single_pose_compiled``: the
+    single-pose LM; ``path_search``: the compiled pose-path search; ``capsules``: capsule
+    distances), imported here on first use: numba is an optional library and importing these
+    modules compiles or loads their kernels, so nothing else imports them. ImportError when
+    numba is not installed."""
+    if name not in COMPILED_MODULES:
+        raise ValueError(f"{name!r} is not one of ours-lm's compiled modules "
+                         f"{', '.join(COMPILED_MODULES)}")
+    return importlib.import_module(COMPILED_MODULES[name])
+
+
+def torch_module() -> ModuleType:
+    """ours-lm's torch backend (:mod:`.torch_backend`), imported here on first use (torch
+    loads in seconds; the numpy and numba solvers never need it)."""
+    return importlib.import_module("ikbench.methods.ours_lm.torch_backend")

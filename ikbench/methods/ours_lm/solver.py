@@ -19,9 +19,7 @@ import numpy.typing as npt
 from ikbench.core.errors import InputError
 from ikbench.core.kinematics.chain import pinocchio_kinematics
 from ikbench.core.losses import resolve_weights
-from ikbench.methods.ours_lm.devices import (
-    cpu_backend,
-)
+from ikbench.methods.ours_lm.devices import compiled_module, cpu_backend, torch_module
 from ikbench.methods.ours_lm.linalg import block_matvec, solve_normal_equations
 from ikbench.methods.ours_lm.problem import Evaluation, Problem, Weights, evaluate
 from ikbench.methods.ours_lm.settings import (  # noqa: F401  (moved; re-exported)
@@ -92,9 +90,7 @@ def solve_batch(robot: Robot, tasks: Sequence[Task], settings: LMSettings | None
     """
     settings = settings or LMSettings()
     if settings.device is not None:  # the same algorithm in torch on a device
-        from ikbench.methods.ours_lm import torch_backend
-
-        return torch_backend.solve_batch(robot, tasks, settings, weights, initial, progress)
+        return torch_module().solve_batch(robot, tasks, settings, weights, initial, progress)
     compiled = (_compiled(settings) if problem is None and evaluator is evaluate
                 and until is None else None)
     if compiled is not None:  # the same loop compiled
@@ -121,9 +117,7 @@ def solve_problem(robot: Robot, problem: Problem, initial: npt.ArrayLike,
     a device); no Task objects (e.g. the lines of a dataset's shard)."""
     settings = settings or LMSettings()
     if settings.device is not None:
-        from ikbench.methods.ours_lm import torch_backend
-
-        return torch_backend.solve_problem(robot, problem, initial, settings, progress)
+        return torch_module().solve_problem(robot, problem, initial, settings, progress)
     start = time.perf_counter()
     poses = np.array(initial, dtype=float)
     compiled = _compiled(settings)
@@ -242,7 +236,7 @@ def _compiled(settings: LMSettings):
     if cpu_backend(settings) != "numba":
         return None
     try:
-        from ikbench.methods.ours_lm import compiled
+        compiled = compiled_module()
     except ImportError as error:
         if settings.backend == "numba":
             raise InputError(f"--lm-backend numba: numba does not import ({error}); "

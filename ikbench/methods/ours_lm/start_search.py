@@ -45,7 +45,7 @@ from ikbench.core.validity import (
     MAX_ROTATION_ERROR_DEG,
 )
 from ikbench.methods.ours_lm.avoidance import Avoidance, avoidance_for
-from ikbench.methods.ours_lm.devices import cpu_backend
+from ikbench.methods.ours_lm.devices import compiled_module, cpu_backend
 from ikbench.methods.ours_lm.frames import FrameProblem, errors_from_frames, evaluate_frames
 from ikbench.methods.ours_lm.search_common import (  # noqa: F401  (moved; re-exported)
     AVOIDANCE_GAIN,
@@ -241,7 +241,7 @@ def _compiled_search(robot: Robot, settings: OursLMSettings) -> Any:
     if settings.device is not None or cpu_backend(settings) != "numba":
         return None
     try:
-        from ikbench.methods.ours_lm import path_search
+        path_search = compiled_module("path_search")
     except ImportError:
         if settings.backend == "numba":
             raise InputError("--lm-backend numba: numba does not import; use --lm-backend "
