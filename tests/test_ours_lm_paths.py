@@ -21,14 +21,14 @@ from ikbench.methods.ours_lm.avoidance import (
     SELF_CLEARANCE_MM,
     Avoidance,
 )
-from ikbench.methods.ours_lm.frames import FrameProblem, evaluate_frames
+from ikbench.methods.ours_lm.frames import FrameProblem, errors_from_frames, evaluate_frames
 from ikbench.methods.ours_lm.solver import LMSettings, solve_batch
 
 pytest.importorskip("numba")
 
 from ikbench.core.capsules import capsule_model  # noqa: E402  (needs numba)
+from ikbench.methods.ours_lm import anchor_ik, path_search, self_motion  # noqa: E402
 from ikbench.methods.ours_lm import compiled_paths as kernels  # noqa: E402
-from ikbench.methods.ours_lm import path_search  # noqa: E402
 
 CARRY = np.array([reference.CARRY_ITERATIONS, reference.CARRY_RETRY, reference.DROP_MM_DEG,
                   reference.CARRY_DAMPING, reference.AVOIDANCE_GAIN, ACTIVATION_MM, CARRY_GAIN,
@@ -154,6 +154,84 @@ def test_the_pose_path_lm_equals_numpy(penalty):
     assert loss == pytest.approx(numpy.loss[0], rel=1e-9)
     np.testing.assert_allclose(terms, numpy.terms[0], rtol=1e-8, atol=1e-12)
     np.testing.assert_allclose(poses, numpy.poses[0], rtol=0, atol=1e-8)
+
+
+def test_anchor_ik_equals_numpy():
+    """The compiled IK of single waypoints against :func:`.search_common.first_waypoint_ik`,
+    from random seeds at random waypoints (one goal per seed)."""
+    robot, task, _ = load_problem("panda__1cube")
+    frames = robot.chain_kinematics().frames
+    lower, upper = (np.asarray(v, dtype=float) for v in task.limits(robot))
+    rng = np.random.default_rng(3)
+    at = rng.integers(0, len(task.goal_points_mm), 40)
+    seeds = rng.uniform(robot.sample_lower, robot.sample_upper, (40, robot.dof))
+    goals = task.goal_points_mm[at], task.goal_rotations[at]
+    q, position, rotation, iterations = reference.first_waypoint_ik(frames, *goals, seeds,
+                                                                   lower, upper)
+    spec = kernels.PathSpec(robot, lower, upper, None)
+    cq, cposition, crotation, citerations = anchor_ik.first_waypoint_ik(spec, *goals, seeds)
+    assert citerations == iterations
+    assert np.sum((position < 1e-3) & (rotation < 1e-3)) >= 5
+    np.testing.assert_allclose(cq, q, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(cposition, position, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(crotation, rotation, rtol=0, atol=1e-9)
+
+
+def test_a_sweep_equals_numpy_and_stays_on_the_pose():
+    """The compiled sweep of a waypoint's self-motion manifold against
+    :func:`.self_motion.sweep_reference`; every sample reaches the goal, consecutive samples
+    are at most a step apart, and the sweep travels far along the manifold."""
+    robot, task, frames, (lower, upper), caps, starts = _setting("panda__flappy_bird")
+    spec = kernels.PathSpec(robot, lower, upper, caps.scene(task.obstacles))
+    steps, point, rotation = 60, task.goal_points_mm[0], task.goal_rotations[0]
+    assert len(starts) >= 2
+    swept = self_motion.sweep_manifolds(spec, task.goal_points_mm, task.goal_rotations,
+                                        np.zeros(len(starts), dtype=int), starts, steps)
+    for row, start in zip(swept, starts):
+        numpy = self_motion.sweep_reference(frames, point, rotation, start, lower, upper, steps)
+        np.testing.assert_allclose(row, numpy, rtol=0, atol=1e-6)   # NaN where numpy's are
+        samples = row[~np.isnan(row[:, 0])]
+        assert len(samples) > steps
+        assert np.abs(samples - start).max() > 60.0
+        assert np.abs(np.diff(samples, axis=0)).max() <= self_motion.SWEEP_STEP * (
+            1.0 + self_motion.SWEEP_BEND)
+        p, r, _, _ = frames(samples, False)
+        e_point, e_rot, _, _ = errors_from_frames(p, r, None, None, point, rotation)
+        assert np.abs(e_point).max() < self_motion.SWEEP_TOLERANCE
+        assert np.abs(e_rot).max() < self_motion.SWEEP_TOLERANCE
+        assert np.all((samples >= lower) & (samples <= upper))
+
+
+def test_a_repair_window_holds_the_steps_below_the_limit():
+    """A carried path with 20 of its poses moved ~25 deg along the arm's self-motion (two
+    jumps) is repaired within the window: every step below the limit, the window's ends kept,
+    every pose on its goal and collision-free."""
+    robot, task, frames, (lower, upper), caps, starts = _setting("panda__1cube", seed=3,
+                                                                 count=16)
+    carried, _ = reference.carry(frames, task, starts, lower, upper)
+    clear = [k for k in range(len(carried))
+             if caps.check(carried[k], task.obstacles).distances_mm.min() > 1.0]
+    path = carried[clear[0]]
+    spec = kernels.PathSpec(robot, lower, upper, caps.scene(task.obstacles))
+    moved = np.arange(40, 60)
+    swept = self_motion.sweep_manifolds(spec, task.goal_points_mm, task.goal_rotations, moved,
+                                        path[moved], 20)
+    offset = next(o for o in (16, -16, 12, -12) if not np.isnan(swept[:, 20 + o]).any())
+    broken = path.copy()
+    broken[moved] = swept[:, 20 + offset]
+    limit = np.full(robot.dof, 0.99 * MAX_JOINT_CHANGE_DEG)
+    assert np.abs(np.diff(broken, axis=0)).max() > 20.0
+    weights, _ = reference.stitch_costs(robot)
+    repaired = self_motion.repair_window(spec, task.goal_points_mm, task.goal_rotations,
+                                         broken, 10, 89, 100, weights, limit,
+                                         reference.STITCH_JUMP_COST, np.zeros(robot.dof), 1.0)
+    assert repaired is not None
+    assert np.abs(np.diff(repaired, axis=0)).max() <= limit[0]
+    np.testing.assert_array_equal(repaired[:11], broken[:11])
+    np.testing.assert_array_equal(repaired[89:], broken[89:])
+    metrics = frame_metrics(robot, dataclasses.replace(task), repaired)
+    assert metrics["position_error_max_mm"] < 1.0 and metrics["rotation_error_max_deg"] < 1.0
+    assert metrics["env_collisions"] == 0 and metrics["self_collisions"] == 0
 
 
 def test_continuous_joints_wrap_and_unwrap():

@@ -8,8 +8,10 @@ runs the same steps in compiled kernels (:mod:`.compiled_paths`) with the robot'
 1. **Anchors and seeds.** :data:`ANCHORS` waypoints spread over the path (both ends among
    them); at each, IK from :data:`SEEDS` poses drawn within the task's limits (the reference
    pose and a given initial configuration at the first), all anchors in one batched solve
-   (:func:`.start_search.first_waypoint_ik`); the distinct converged solutions that collide
-   with nothing are kept.
+   (:func:`.anchor_ik.first_waypoint_ik`, compiled :func:`.start_search.first_waypoint_ik`);
+   the distinct converged solutions that collide with nothing are kept (where all collide,
+   the clearest collision-free samples of their self-motion manifolds,
+   :meth:`_Search.free_on_manifolds`).
 2. **Tracks.** Each is carried forward to the last waypoint and backward to the first
    (:func:`.compiled_paths.carry_tracks`: damped least squares with joint-limit and collision
    avoidance in the null space), so every waypoint has a node from every anchor's solutions
@@ -18,8 +20,19 @@ runs the same steps in compiled kernels (:mod:`.compiled_paths`) with the robot'
 3. **Stitch.** Dynamic programming picks one node per waypoint minimising the weighted joint
    path length (:func:`.start_search.stitch_costs`), a step above the stitch's limits costing
    :data:`.start_search.STITCH_JUMP_COST`: the shortest collision-free path through the
-   nodes, switching between tracks where they meet. While it still jumps, more anchors are
-   placed around the jumps (:data:`ROUNDS` rounds at most).
+   nodes, switching between tracks where they meet. Where a step still exceeds CppFlow's
+   limit, the window of waypoints around it is **repaired** (:meth:`_Search.repair`,
+   :func:`.self_motion.repair_window`): the arm's self-motion manifold is swept at every
+   waypoint of the window from the path's pose there, and the window is replaced by the
+   shortest path through the collision-free samples with its steps below the limit. While
+   the stitch still jumps: the first round's tracks that ran into something (an obstacle
+   along any link, the robot itself, a joint limit) are carried again with the collision push
+   from :data:`RESUME` waypoints before (:meth:`_Search.resume`); an end of the path with
+   fewer than :data:`FEW_AT_ENDS` collision-free IK solutions gets the collision-free samples
+   of its solutions' manifolds, and of those from more seeds (:meth:`_Search.augment_ends`);
+   then more anchors are placed around the jumps (:data:`ROUNDS` rounds at most). A step
+   that none of this brings below the limit has the whole path's manifolds swept through the
+   stitch's poses, every sample a node (:meth:`_Search.add_sweeps`), once.
 4. **Refine.** The pose-path LM (:func:`.compiled_paths.solve_path`; c0 L0 + c1 L1 + c6 L6 and
    the clearance penalty against obstacles and between the robot's own links) runs from the
    stitch to its stopping rule or :data:`LM_ITERATIONS`, and returns its last iterate that
@@ -39,6 +52,8 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
+from ikbench.core.capsules import capsule_model
+from ikbench.core.collision import collision_model
 from ikbench.core.errors import InputError
 from ikbench.core.obstacles import box
 from ikbench.core.task import Task
@@ -49,6 +64,7 @@ from ikbench.core.validity import (
     MAX_POSITION_ERROR_MM,
     MAX_ROTATION_ERROR_DEG,
 )
+from ikbench.methods.ours_lm import anchor_ik, self_motion
 from ikbench.methods.ours_lm import compiled_paths as kernels
 from ikbench.methods.ours_lm.avoidance import (
     ACTIVATION_MM,
@@ -69,7 +85,6 @@ from ikbench.methods.ours_lm.search_common import (
     OursLMSettings,
     SearchResult,
     distinct,
-    first_waypoint_ik,
     stitch_costs,
 )
 
@@ -91,6 +106,30 @@ ANCHOR_TOLERANCE = 0.5
 ROUNDS = 3
 AROUND = np.array([-20, -8, 0, 1, 9, 21])
 JUMPS = 4
+#: Repairs of the stitch's steps above CppFlow's limit (:func:`.self_motion.repair_window`)
+#: at most; the window reaches this many waypoints beyond the steps it repairs (steps this
+#: close together are repaired in one window), its sweeps this many samples each way, and the
+#: repaired steps are held below this share of CppFlow's limits.
+REPAIRS = 3
+REPAIR_WINDOW = 30
+REPAIR_SAMPLES = 100
+REPAIR_STEP = 0.99
+#: Steps above this many times CppFlow's limits are left to more anchors (a window rarely
+#: repairs them: they join two of the arm's branches).
+REPAIRABLE = 60.0 / 7.0
+#: Sweeps of the self-motion manifold (:func:`.self_motion.sweep_manifolds`): samples each
+#: way; at an anchor where every IK solution collides, the collision-free samples of their
+#: manifolds are its solutions, this far apart [pose units] at least.
+SWEEP_SAMPLES = 150
+SPREAD_DEG = 10.0
+#: Where the stitch still jumps, an end of the path (which the stitch cannot jump around)
+#: where the first round found fewer collision-free IK solutions than this gets the sweeps'
+#: samples of its IK solutions and of those from this many times the seeds.
+FEW_AT_ENDS = 3
+MORE = 4
+#: A track carried without the collision push that stops being a node is carried again,
+#: with it, from this many waypoints before.
+RESUME = 10
 #: Waypoints each way the tracks of those rounds are carried.
 REACH = 40
 #: A stitched step above this [pose units] is a jump that more anchors are placed around; the
@@ -101,7 +140,7 @@ RETRACK_STEP = 2.0 * MAX_JOINT_CHANGE_DEG
 #: validity not checked (the pose errors grow to millimetres while the path straightens out; a
 #: strong one may press the path against an obstacle where the poses cannot be reached again:
 #: hence the wider clearance while shortening).
-SHORTEN = (((10.0, 40, 10.0), (1.0, 20, 5.0)), ((0.1, 60, 0.5),), ())
+SHORTEN = (((10.0, 40, 10.0), (1.0, 20, 5.0)), ())
 #: LM iterations of the refinement's last phase (the task's weights) at most.
 LM_ITERATIONS = 40
 #: Further stitches refined when a refinement ends without a valid path, each without the
@@ -120,19 +159,12 @@ LIMITS = np.array([MAX_POSITION_ERROR_MM, MAX_ROTATION_ERROR_DEG, 0.999 * MAX_JO
 
 def available(robot: Robot) -> bool:
     """True when the compiled search can run for ``robot``: numba imports and its collision
-    geometry (if any) is capsules and spheres."""
-    try:
-        from ikbench.core.capsules import capsule_model
-        from ikbench.core.collision import collision_model
-    except ImportError:
-        return False
+    geometry (if any) is capsules and spheres (this module imports only where numba does)."""
     return collision_model(robot) is None or capsule_model(robot) is not None
 
 
 def scene_for(robot: Robot, task: Task) -> CapsuleScene | None:
     """The capsule scene of the robot with the task's obstacles (None without a model)."""
-    from ikbench.core.capsules import capsule_model
-
     model = capsule_model(robot)
     return None if model is None else model.scene(task.obstacles)
 
@@ -190,8 +222,12 @@ def warm_up(robot: Robot) -> None:
         finally:
             kernels.set_threads(previous)
     path, _ = s.stitch()
-    s.refine(np.repeat(pose[None], 3, axis=0) if path is None else path,
-             {"L0": 1.0, "L1": 1.0, "L6": 0.001}, SHORTEN[0])
+    path = np.repeat(pose[None], 3, axis=0) if path is None else path
+    s.refine(path, {"L0": 1.0, "L1": 1.0, "L6": 0.001}, SHORTEN[0])
+    s.add_sweeps(path)
+    s.free_on_manifolds(0, path[:1], 2)
+    self_motion.repair_window(s.spec, s.goals_p, s.goals_R, path, 0, 2, 2, s.weights,
+                              s.step_limit, STITCH_JUMP_COST, s.period, STITCH_REACHED)
 
 
 class _Search:
@@ -215,6 +251,7 @@ class _Search:
         self.n = len(self.goals_p)
         self.rng = np.random.default_rng(settings.seed)
         self.weights, self.max_step = stitch_costs(robot)
+        self.step_limit = LIMITS[2:4][robot.chain_kinematics().prismatic.astype(int)]
         self.tracks = np.zeros((0, self.n, robot.dof))
         self.nodes = np.zeros((0, self.n), dtype=bool)
         self.carry_settings = np.array([CARRY_ITERATIONS, CARRY_RETRY, DROP_MM_DEG, CARRY_DAMPING,
@@ -223,6 +260,10 @@ class _Search:
         self.ik_iterations = self.carry_iterations = 0
         self.first_solutions = 0
         self.choice: np.ndarray | None = None
+        self.repairs = 0
+        self.swept = False
+        self.cut: list[tuple[int, int, int, np.ndarray]] = []
+        self.at_ends: dict[int, tuple] = {}
 
     def seeds_at(self, anchors: np.ndarray, count: int) -> np.ndarray:
         """(A, count) IK solutions per anchor, NaN where none; distinct and collision-free."""
@@ -233,24 +274,80 @@ class _Search:
                 seeds[a, 0] = self.task.reference_pose
             if anchor == 0 and self.task.initial_pose is not None:
                 seeds[a, 1 % count] = self.task.initial_pose
-        q, position, rotation, iterations = first_waypoint_ik(
-            self.spec_frames, np.repeat(self.goals_p[anchors], count, axis=0),
-            np.repeat(self.goals_R[anchors], count, axis=0), seeds.reshape(-1, dof),
-            self.lower, self.upper)
+        q, position, rotation, iterations = anchor_ik.first_waypoint_ik(
+            self.spec, np.repeat(self.goals_p[anchors], count, axis=0),
+            np.repeat(self.goals_R[anchors], count, axis=0), seeds.reshape(-1, dof))
         self.ik_iterations += iterations
         q = q.reshape(len(anchors), count, dof)
         ok = ((position < ANCHOR_TOLERANCE) & (rotation < ANCHOR_TOLERANCE)).reshape(
             len(anchors), count)
         out = np.full_like(q, np.nan)
         for a in range(len(anchors)):
-            found = distinct(q[a], ok[a])
+            converged = distinct(q[a], ok[a])
+            found = converged
             if found.size and self.scene is not None:
                 d, _, _, _ = self.scene.distances(q[a, found], 0.0)
                 found = found[np.all(d > 0.0, axis=1)]
-            out[a, :found.size] = q[a, found]
-            if anchor == 0:
-                self.first_solutions = max(self.first_solutions, int(found.size))
+            solutions = q[a, found]
+            if not found.size and converged.size and self.scene is not None:
+                solutions = self.free_on_manifolds(int(anchors[a]), q[a, converged], count)
+            if anchors[a] in (0, self.n - 1):
+                self.at_ends[int(anchors[a])] = (solutions, q[a, converged], count)
+            out[a, :len(solutions)] = solutions
+            if anchors[a] == 0:
+                self.first_solutions = max(self.first_solutions, len(solutions))
         return out
+
+    def augment_ends(self) -> bool:
+        """At each end of the path (which the stitch cannot jump around) where the first
+        round found fewer than :data:`FEW_AT_ENDS` collision-free IK solutions: the
+        collision-free samples of the self-motion manifolds of its IK solutions and of those
+        from :data:`MORE` times as many seeds (other branches of the arm), carried along the
+        whole path as the first round's; False when there was nothing to add."""
+        starts, anchor_of, direction = [], [], []
+        for anchor, (solutions, converged, count) in self.at_ends.items():
+            if len(solutions) >= FEW_AT_ENDS or self.scene is None:
+                continue
+            sources = np.concatenate([converged, self.more_solutions(anchor, MORE * count)])
+            more = [m for m in self.free_on_manifolds(anchor, sources, count)
+                    if all(np.abs(m - f).max() > SPREAD_DEG for f in solutions)]
+            starts += more
+            anchor_of += [anchor] * len(more)
+            direction += [1 if anchor == 0 else -1] * len(more)
+        self.at_ends = {}
+        if starts:
+            self._carry(np.array(anchor_of), np.array(direction), np.full(len(starts), self.n),
+                        np.array(starts), False)
+        return bool(starts)
+
+    def more_solutions(self, waypoint: int, count: int) -> np.ndarray:
+        """Distinct IK solutions (M, k) at ``waypoint`` from ``count`` more random seeds."""
+        seeds = self.rng.uniform(self.low, self.high, (count, self.robot.dof))
+        q, position, rotation, iterations = anchor_ik.first_waypoint_ik(
+            self.spec, self.goals_p[waypoint], self.goals_R[waypoint], seeds)
+        self.ik_iterations += iterations
+        return q[distinct(q, (position < ANCHOR_TOLERANCE) & (rotation < ANCHOR_TOLERANCE))]
+
+    def free_on_manifolds(self, waypoint: int, poses: np.ndarray, count: int) -> np.ndarray:
+        """Up to ``count`` collision-free poses (M, k) on the self-motion manifolds of IK
+        solutions ``poses`` (K, k) at ``waypoint``: their sweeps' collision-free samples, the
+        clearest first, :data:`SPREAD_DEG` apart."""
+        assert self.scene is not None
+        sweeps = self_motion.sweep_manifolds(self.spec, self.goals_p, self.goals_R,
+                                             np.full(len(poses), waypoint), poses,
+                                             SWEEP_SAMPLES).reshape(-1, self.robot.dof)
+        sweeps = sweeps[~np.isnan(sweeps[:, 0])]
+        if not len(sweeps):
+            return sweeps
+        d, _, _, _ = self.scene.distances(sweeps)
+        clearance = d.min(axis=1)
+        chosen: list[np.ndarray] = []
+        for k in np.argsort(-clearance, kind="stable"):
+            if clearance[k] <= 0.0 or len(chosen) == count:
+                break
+            if all(np.abs(sweeps[k] - c).max() > SPREAD_DEG for c in chosen):
+                chosen.append(sweeps[k])
+        return np.array(chosen).reshape(-1, self.robot.dof)
 
     @property
     def spec_frames(self):
@@ -272,11 +369,18 @@ class _Search:
                 anchor_of += [anchor] * len(found)
                 direction += [sign] * len(found)
                 length += [size] * len(found)
-        if not starts:
-            return
+        if starts:
+            self._carry(np.array(anchor_of), np.array(direction), np.array(length),
+                        np.array(starts), avoid and self.scene is not None)
+
+    def _carry(self, anchors: np.ndarray, direction: np.ndarray, length: np.ndarray,
+               starts: np.ndarray, avoid: bool) -> None:
+        """Carry ``starts`` (T, k) from their anchors (T,) in their directions over their
+        lengths (:func:`.compiled_paths.carry_tracks`) and add the tracks and their nodes; a
+        track carried without the collision push whose nodes stop before its end is noted for
+        :meth:`resume`."""
         tracks, iterations = kernels.carry_tracks(
-            self.spec, self.goals_p, self.goals_R, np.array(anchor_of), np.array(direction),
-            np.array(length), np.array(starts), avoid and self.scene is not None,
+            self.spec, self.goals_p, self.goals_R, anchors, direction, length, starts, avoid,
             self.carry_settings)
         self.carry_iterations += int(iterations.sum())
         nodes = kernels.track_nodes(self.spec, self.goals_p, self.goals_R, tracks,
@@ -284,6 +388,24 @@ class _Search:
         self._restrict_start(tracks, nodes)
         self.tracks = np.concatenate([self.tracks, tracks])
         self.nodes = np.concatenate([self.nodes, nodes])
+        if avoid or self.scene is None:
+            return
+        for t in range(len(tracks)):
+            span = anchors[t] + direction[t] * np.arange(length[t])
+            run = np.flatnonzero(~nodes[t, span])
+            if run.size and run[0] > 0:
+                at = max(0, run[0] - RESUME)
+                self.cut.append((span[at], direction[t], length[t] - at, tracks[t, span[at]]))
+
+    def resume(self) -> bool:
+        """Carry the tracks cut short so far (carried without the collision push, they stop
+        being nodes before their end: an obstacle, the robot itself or a joint limit) again
+        from :data:`RESUME` waypoints before, with the push; False when there were none."""
+        cut, self.cut = self.cut, []
+        if cut:
+            anchors, direction, length, starts = (np.array(v) for v in zip(*cut))
+            self._carry(anchors, direction, length, starts, True)
+        return bool(cut)
 
     def _restrict_start(self, tracks: np.ndarray, nodes: np.ndarray) -> None:
         """With an initial configuration, only first poses near it are nodes."""
@@ -304,9 +426,56 @@ class _Search:
         if self.choice is None:
             return None, np.zeros(0, dtype=int)
         path = unwrap(self.tracks[self.choice, np.arange(self.n)], self.period)
-        limit = np.maximum(self.max_step, RETRACK_STEP / self.weights)
-        jumps = np.flatnonzero(np.any(np.abs(np.diff(path, axis=0)) > limit, axis=1))
-        return path, jumps
+        return path, self.jumps(path)
+
+    def too_large(self, path: np.ndarray) -> np.ndarray:
+        """Waypoints i whose step to i + 1 is above CppFlow's limits."""
+        return self_motion.too_large(path, self.step_limit)
+
+    def jumps(self, path: np.ndarray) -> np.ndarray:
+        """Waypoints i whose step to i + 1 is a jump (above :data:`RETRACK_STEP`)."""
+        return self_motion.too_large(path, np.maximum(self.max_step,
+                                                      RETRACK_STEP / self.weights))
+
+    def repair(self, path: np.ndarray) -> np.ndarray:
+        """The path with its steps above CppFlow's limits repaired, window by window, worst
+        first (:func:`.self_motion.repair_window`), while that lowers its largest step."""
+        limit = REPAIR_STEP * self.step_limit
+        for _ in range(REPAIRS):
+            bad = self.too_large(path)
+            if not bad.size:
+                break
+            steps = (np.abs(np.diff(path, axis=0)) / limit).max(axis=1)
+            bad = bad[steps[bad] * REPAIR_STEP < REPAIRABLE]
+            if not bad.size:
+                break
+            centre = bad[np.argmax(steps[bad])]
+            near = bad[np.abs(bad - centre) <= 2 * REPAIR_WINDOW]
+            first = max(0, int(near.min()) - REPAIR_WINDOW)
+            last = min(self.n - 1, int(near.max()) + 1 + REPAIR_WINDOW)
+            repaired = self_motion.repair_window(
+                self.spec, self.goals_p, self.goals_R, path, first, last, REPAIR_SAMPLES,
+                self.weights, limit, STITCH_JUMP_COST, self.period, STITCH_REACHED)
+            if repaired is None or (np.abs(np.diff(repaired[first:last + 1], axis=0)) / limit
+                                    ).max() >= steps[first:last].max():
+                break
+            path = repaired
+            self.repairs += 1
+        return path
+
+    def add_sweeps(self, path: np.ndarray) -> None:
+        """Sweep the self-motion manifold through the path's pose at every waypoint
+        (:data:`SWEEP_SAMPLES` each way); each sample index across the waypoints becomes a
+        track, its collision-free samples nodes of the stitch."""
+        sweeps = self_motion.sweep_manifolds(self.spec, self.goals_p, self.goals_R,
+                                             np.arange(self.n), path, SWEEP_SAMPLES)
+        tracks = np.ascontiguousarray(sweeps.transpose(1, 0, 2))
+        nodes = kernels.track_nodes(self.spec, self.goals_p, self.goals_R, tracks,
+                                    STITCH_REACHED)
+        self._restrict_start(tracks, nodes)
+        self.tracks = np.concatenate([self.tracks, tracks])
+        self.nodes = np.concatenate([self.nodes, nodes])
+        self.swept = True
 
     def gaps(self) -> np.ndarray:
         """Waypoints without any node."""
@@ -354,7 +523,22 @@ def search_compiled(robot: Robot, task: Task, settings: OursLMSettings,
         t_seeds = time.perf_counter()
         path, jumps = s.stitch()
         rounds = 1
-        while (path is None or jumps.size) and rounds <= ROUNDS:
+        while True:
+            if path is not None:
+                path = s.repair(path)
+                jumps = s.jumps(path)
+                if ((not jumps.size or rounds > ROUNDS) and not s.swept
+                        and s.too_large(path).size):
+                    s.add_sweeps(path)
+                    path, _ = s.stitch()
+                    assert path is not None
+                    path = s.repair(path)
+                    jumps = s.jumps(path)
+            if (path is not None and not jumps.size) or rounds > ROUNDS:
+                break
+            if s.resume() or s.augment_ends():
+                path, jumps = s.stitch()
+                continue
             where = s.gaps() if path is None else jumps
             if not where.size:
                 where = np.linspace(0, s.n - 1, ANCHORS + 2)[1:-1].round().astype(int)
@@ -407,7 +591,8 @@ def search_compiled(robot: Robot, task: Task, settings: OursLMSettings,
     lengths = np.abs(np.diff(poses, axis=0)) @ s.weights
     info = {"search": "compiled", "ik_seeds": SEEDS, "anchors": ANCHORS,
             "seeds_reaching_first_waypoint": s.first_solutions,
-            "stitch_tracks": int(len(s.tracks)), "stitch_rounds": rounds,
+            "stitch_tracks": int(len(s.tracks)), "stitch_rounds": rounds, "repairs": s.repairs,
+            "swept": s.swept,
             "stitched": True, "candidates_refined": refined, "lm_iterations": lm_iterations,
             "seed": settings.seed, "search_max_position_error_mm": float(figures[0]),
             "search_max_rotation_error_deg": float(figures[1]),
