@@ -189,6 +189,18 @@ SPECIFICATION = {
     "times CppFlow's 20 mm / 7 deg)",
     "jumps by more than 14 deg": "the path search's RETRACK_STEP, twice CppFlow's 7 deg step",
     "closer than 40 mm": "the collision push's ACTIVATION_MM (ikbench/methods/ours_lm)",
+    "above CppFlow's 7 deg (below 60 deg)": "the path search's repair range: CppFlow's step "
+    "limit up to REPAIRABLE x 7 deg (ikbench/methods/ours_lm/path_search.py)",
+    "steps of 1.5 deg along the null vector": "the self-motion sweep's SWEEP_STEP",
+    "every step below 6.93 deg": "REPAIR_STEP x CppFlow's 7 deg",
+    "A step above 7 deg that is left": "CppFlow's step limit (ikbench.core.validity)",
+    "the least excess over 7 deg": "CppFlow's step limit (ikbench.core.validity)",
+    "every path steps more than 7 deg": "CppFlow's step limit (ikbench.core.validity)",
+    "Where the stitch steps above 7 deg": "CppFlow's step limit (ikbench.core.validity)",
+    "moved 1, 2 and 3 cm along each of +-x, +-y, +-z": "the moved-obstacles check's offsets "
+    "(benchmarks/moved_obstacles.py)",
+    "with its boxes 3 cm higher": "one of the moved-obstacles check's offsets",
+    "their obstacles moved 1-3 cm in six directions": "the moved-obstacles check's offsets",
     # docs/hardware.md
     "2048 = 0 deg": "the MX goal position register's centre (Dynamixel MX control table)",
     "+180 deg (raw 4096) is sent as 4095 (179.91 deg)": "the MX encoder's top step, "
