@@ -186,14 +186,15 @@ def pose_error(solver: Any, q: npt.ArrayLike, point: npt.ArrayLike, rotation: np
 
 
 class TracIK(LibraryMethod):
-    """TRAC-IK per point (exact 6-D, roll carried over), tracked from the start pose onto the
-    touch pose (scheme track) or walked back from the touch pose (walk)."""
+    """TRAC-IK per point (exact 6-D; the roll ramped onto the touch pose's on the track,
+    carried over on the walk), tracked from the start pose onto the touch pose (scheme track)
+    or walked back from the touch pose (walk)."""
 
     name = "trac-ik"
-    description = ("library: TRAC-IK (pytracik) per point, the roll carried over from the "
-                   "previous pose, SolveType Distance, tracked from the start pose onto the "
-                   "touch pose (--scheme walk: back from it); not bit-deterministic (threads "
-                   "race a timeout)")
+    description = ("library: TRAC-IK (pytracik) per point, exact 6-D poses whose roll is "
+                   "ramped onto the touch pose's, SolveType Distance, tracked from the start "
+                   "pose onto the touch pose (--scheme walk: back from it, the roll carried "
+                   "over); not bit-deterministic (threads race a timeout)")
     library = "pytracik"
     Settings = TracIKSettings
     capabilities = Capabilities(needs_touch_pose=True, frames=True)
