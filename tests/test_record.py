@@ -38,8 +38,7 @@ RESULTS = Path(__file__).resolve().parents[1] / "results"
 RECORDS = sorted(RESULTS.rglob("run.json"))
 #: run.json files written before the robot, files and failures were recorded: copies of the
 #: letters runs as results/letters held them until their regeneration (a user's old folders).
-OLD = set((Path(__file__).resolve().parent / "data" / "old_records").glob("*/run.json")) | {
-    RESULTS / "letters" / "ours" / "run.json"}  # still the old run until letters is regenerated
+OLD = set((Path(__file__).resolve().parent / "data" / "old_records").glob("*/run.json"))
 
 
 def test_results_hold_a_run_json_of_every_kind():

@@ -1,0 +1,80 @@
+"""Every committed result names the clean commit that made it (issue 36): an ancestor of HEAD,
+with no change since to the code that produced its numbers (the methods, the library
+adapters, the kinematics). A result made from a modified tree, or before its solver changed,
+fails here: regenerate it (``ikbench reproduce --all``)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import REPO
+
+RESULTS = REPO / "results"
+#: The records a results folder holds (run.json of runs and studies, the benchmarks').
+RECORDS = ("run.json", "benchmark.json", "throughput.json", "batch.json", "sweep.json",
+           "dataset.json")
+#: The code a result's numbers come from: a commit after it that touches these makes it stale.
+SOLVER_CODE = ("ikbench/methods", "baselines", "ikbench/core/kinematics")
+
+
+def _git(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True, timeout=60)
+
+
+pytestmark = pytest.mark.skipif(not (REPO / ".git").exists() or _git("rev-parse", "HEAD")
+                                .returncode != 0, reason="needs the git checkout")
+
+
+def _records() -> list[Path]:
+    """Every JSON record under results/, and the CSVs that carry their provenance per row."""
+    jsons = [p for name in RECORDS for p in RESULTS.rglob(name)]
+    csvs = [p for p in RESULTS.glob("*.csv") if "git_commit" in p.read_text().split("\n", 1)[0]]
+    return sorted(jsons + csvs)
+
+
+def _load(path: Path) -> dict:
+    if path.suffix == ".csv":  # the first row's provenance columns
+        head, first = path.read_text().split("\n")[:2]
+        row = dict(zip(head.split(","), first.split(",")))
+        return {"git_commit": row["git_commit"], "git_clean": row.get("git_clean") == "True"}
+    return json.loads(path.read_text())
+
+
+def _commit(record: dict) -> tuple[str | None, bool | None]:
+    record = record.get("provenance", record)
+    commit = record.get("git_commit") or record.get("git_revision")
+    return commit, record.get("git_clean", None if commit is None
+                                          else not str(commit).endswith("-dirty"))
+
+
+def test_every_results_folder_has_a_record():
+    assert len(_records()) >= 20
+
+
+@pytest.mark.parametrize("path", _records(), ids=lambda p: str(p.relative_to(RESULTS)))
+def test_a_committed_result_names_a_clean_ancestor_with_its_solvers_unchanged(path):
+    commit, clean = _commit(_load(path))
+    assert commit, f"{path}: no git commit recorded"
+    assert clean, f"{path}: made from a modified tree ({commit})"
+    commit = str(commit).removesuffix("-dirty")
+    assert _git("merge-base", "--is-ancestor", commit, "HEAD").returncode == 0, (
+        f"{path}: {commit} is not an ancestor of HEAD")
+    changed = _git("diff", "--name-only", commit, "HEAD", "--", *SOLVER_CODE).stdout.split()
+    assert not changed, f"{path}: made at {commit[:12]}; changed since: {changed[:10]}"
+
+
+def test_every_study_of_the_regeneration_record_is_clean_and_current():
+    """results/regenerated.json (``ikbench reproduce --all``): each study from a clean tree, at
+    an ancestor of HEAD with its solvers unchanged since."""
+    record = json.loads((RESULTS / "regenerated.json").read_text())
+    assert record
+    for name, study in record.items():
+        assert study["clean"], name
+        assert _git("merge-base", "--is-ancestor", study["commit"], "HEAD").returncode == 0, name
+        changed = _git("diff", "--name-only", study["commit"], "HEAD", "--",
+                       *SOLVER_CODE).stdout.split()
+        assert not changed, (name, changed[:10])
