@@ -52,3 +52,34 @@ def test_ctrl_c_while_a_dataset_is_built(tmp_path):
     manifest = json.loads((out / "dataset.json").read_text())
     assert manifest["complete"] is False and manifest["interrupted"]["shards_built"] >= 1
     assert not list(out.rglob("*.tmp"))  # no half-written shard
+
+
+def test_a_ctrl_c_a_library_swallows_stops_the_command_at_its_next_progress_event(monkeypatch):
+    """A KeyboardInterrupt raised inside a ctypes callback (llvmlite's, while numba compiles or
+    loads a kernel) cannot propagate: Python prints it as ignored and goes on. The CLI's
+    unraisable hook keeps it, and the next progress event raises it again, once."""
+    import ctypes
+    import sys
+
+    from ikbench import cli
+    from ikbench.runtime.progress import Reporter
+
+    others = []
+    monkeypatch.setattr(sys, "unraisablehook", cli._ctrl_c_not_swallowed(others.append))
+
+    def callback():
+        raise KeyboardInterrupt
+
+    ctypes.CFUNCTYPE(None)(callback)()  # swallowed: returns normally
+    reporter = Reporter("test", total=3, enabled=False)
+    with pytest.raises(KeyboardInterrupt):
+        reporter.advance()
+    reporter.advance()  # raised once
+    reporter.say("on")
+
+    def failing():
+        raise ValueError("not a Ctrl-C")
+
+    ctypes.CFUNCTYPE(None)(failing)()
+    assert [u.exc_type for u in others] == [ValueError]
+    reporter.note("still on")

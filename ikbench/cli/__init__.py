@@ -10,7 +10,9 @@ anything heavy loads.
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib
+import os
 import pkgutil
 import re
 import signal
@@ -147,6 +149,8 @@ def main(argv: list[str] | None = None) -> int:
     """
     console = argv is None
     argv = sys.argv[1:] if argv is None else list(argv)
+    if console:
+        sys.unraisablehook = _ctrl_c_not_swallowed(sys.unraisablehook)
     try:
         try:
             parser = build_parser(argv)
@@ -155,7 +159,38 @@ def main(argv: list[str] | None = None) -> int:
             return exc.exit_code
         return run_parsed(parser, argv)
     except KeyboardInterrupt:
-        return interrupted(ignore_more=console)
+        code = interrupted(ignore_more=console)
+        if console:
+            _exit_now(code)
+        return code
+
+
+def _ctrl_c_not_swallowed(previous):  # type: ignore[no-untyped-def]
+    """A ``sys.unraisablehook`` that hands a swallowed Ctrl-C (a KeyboardInterrupt raised in a
+    library's callback, which Python can only print and drop) to the next progress event, which
+    raises it again; anything else goes to ``previous``."""
+
+    def hook(unraisable):  # type: ignore[no-untyped-def]
+        if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+            progress.ctrl_c_swallowed()
+            return
+        previous(unraisable)
+
+    return hook
+
+
+def _exit_now(code: int) -> None:
+    """End the process with ``code`` after Ctrl-C: the exit handlers run and the streams are
+    flushed, then the process exits at once. Python would otherwise end it by SIGINT (exit
+    status -2) when the KeyboardInterrupt passed through an ``exec`` of a string on its way
+    (numba compiles that way), although it was handled here."""
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
 
 
 def run_parsed(parser: argparse.ArgumentParser, argv: list[str]) -> int:

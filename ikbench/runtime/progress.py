@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import sys
+import threading
 import time
 from typing import Any, TextIO
 
@@ -30,6 +31,21 @@ LINES_EVERY_S = 1.0
 LOG_EVERY_S = 0.5
 
 _config: dict[str, Any] = {"mode": "lines", "log": None, "owned": False}
+#: Set when a Ctrl-C's KeyboardInterrupt was swallowed by a library (llvmlite's ctypes
+#: callbacks, while numba compiles or loads a kernel, print it as "Exception ignored"): the
+#: next progress event raises it again, so the command stops as it was asked to.
+_swallowed_ctrl_c = threading.Event()
+
+
+def ctrl_c_swallowed() -> None:
+    """Say that a KeyboardInterrupt was swallowed (the CLI's ``sys.unraisablehook``)."""
+    _swallowed_ctrl_c.set()
+
+
+def _raise_swallowed_ctrl_c() -> None:
+    if _swallowed_ctrl_c.is_set():
+        _swallowed_ctrl_c.clear()
+        raise KeyboardInterrupt
 
 
 def configure(mode: str = "lines", log: TextIO | None = None, owned: bool = False) -> None:
@@ -77,6 +93,7 @@ class Reporter:
     # ----- what studies call ---------------------------------------------------------------
     def say(self, text: str) -> None:
         """What is happening now (the bar's status; a line at most once a second)."""
+        _raise_swallowed_ctrl_c()
         if not self.enabled:
             return
         self._log("say", text)
@@ -87,6 +104,7 @@ class Reporter:
 
     def note(self, text: str) -> None:
         """A line that stays (a failure, a method that is not installed)."""
+        _raise_swallowed_ctrl_c()
         if not self.enabled:
             return
         self._log("note", text)
@@ -99,6 +117,7 @@ class Reporter:
 
     def advance(self, amount: int = 1, text: str | None = None) -> None:
         """``amount`` more units done; ``text``: what was just done."""
+        _raise_swallowed_ctrl_c()
         self.completed += amount
         if not self.enabled:
             return
