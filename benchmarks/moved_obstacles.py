@@ -33,7 +33,6 @@ import yaml
 
 from ikbench.core.metrics import frame_metrics
 from ikbench.core.problems import load_problem, read_problem, resolve_problems
-from ikbench.core.validity import MAX_JOINT_CHANGE_DEG
 from ikbench.methods.ours_lm import anchor_ik, path_search, self_motion
 from ikbench.methods.ours_lm import compiled_paths as kernels
 from ikbench.methods.ours_lm.search_common import (
@@ -149,8 +148,7 @@ def feasibility(spec: str | Path, seed: int = 0) -> dict:
     out = {"problem": problem.name, "samples_median": int(np.median([len(v) for v in samples])),
            "free_samples_fewest": int(free.min()),
            "waypoints_without_free_sample": np.flatnonzero(free == 0).tolist()}
-    limit = np.where(robot.chain_kinematics().prismatic, 0.999 * 20.0,
-                     0.999 * MAX_JOINT_CHANGE_DEG)
+    limit = s.step_limit  # CppFlow's step limits, a hair inside, as the search holds them
     choice = None if free.min() == 0 else kernels.stitch_choice(
         np.nan_to_num(tracks), nodes, s.weights, limit, STITCH_JUMP_COST, s.period)
     if choice is None:

@@ -5,6 +5,7 @@ fails here: regenerate it (``ikbench reproduce --all``)."""
 
 from __future__ import annotations
 
+import csv
 import json
 import subprocess
 from pathlib import Path
@@ -29,17 +30,21 @@ pytestmark = pytest.mark.skipif(not (REPO / ".git").exists() or _git("rev-parse"
                                 .returncode != 0, reason="needs the git checkout")
 
 
+def _first_row(path: Path) -> dict[str, str]:
+    with path.open(newline="") as stream:
+        return next(csv.DictReader(stream), {})
+
+
 def _records() -> list[Path]:
     """Every JSON record under results/, and the CSVs that carry their provenance per row."""
     jsons = [p for name in RECORDS for p in RESULTS.rglob(name)]
-    csvs = [p for p in RESULTS.glob("*.csv") if "git_commit" in p.read_text().split("\n", 1)[0]]
+    csvs = [p for p in RESULTS.glob("*.csv") if "git_commit" in _first_row(p)]
     return sorted(jsons + csvs)
 
 
 def _load(path: Path) -> dict:
     if path.suffix == ".csv":  # the first row's provenance columns
-        head, first = path.read_text().split("\n")[:2]
-        row = dict(zip(head.split(","), first.split(",")))
+        row = _first_row(path)
         return {"git_commit": row["git_commit"], "git_clean": row.get("git_clean") == "True"}
     return json.loads(path.read_text())
 

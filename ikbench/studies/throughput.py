@@ -224,11 +224,10 @@ def _versions(numba: bool, threads: int | None) -> dict:
         import numba as nb
 
         compiled = compiled_module()
-        PER_THREAD, max_threads = compiled.PER_THREAD, compiled.max_threads  # noqa: N806
-        out.update(numba=nb.__version__, numba_threads=min(threads or max_threads(),
-                                                            max_threads()),
-                   numba_threads_rule=f"one thread per {PER_THREAD} trajectories, at most "
-                   "numba_threads")
+        most = compiled.max_threads()
+        out.update(numba=nb.__version__, numba_threads=min(threads or most, most),
+                   numba_threads_rule=f"one thread per {compiled.PER_THREAD} trajectories, "
+                   "at most numba_threads")
     return out
 
 
