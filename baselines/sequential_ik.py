@@ -3,7 +3,7 @@
 Two schemes (``scheme``):
 
 - ``"track"`` (default, ``sequential-ik``; the paper's task,
-:mod:`ikbench.baselines._common.track`):
+:mod:`ikbench.schemes.track`):
   pose 0 *is* the start pose and pose n the touch pose (both exactly as given); points 1..n-1 are
   solved forward, each from the pose before, towards the plan's goal point and scheduled
   pointing direction (position only when the task asks no pointing). Three additions make
@@ -79,20 +79,6 @@ from typing import TYPE_CHECKING, Any, NamedTuple, cast
 import numpy as np
 import numpy.typing as npt
 
-from ikbench.baselines._common.chain import goals_of, max_step_urdf
-from ikbench.baselines._common.single_pose import (
-    LIBRARY_TOLERANCE,
-    MAX_STEPS,
-    PoseOut,
-    PoseSolver,
-)
-from ikbench.baselines._common.track import (
-    SCHEME_HELP,
-    SCHEMES,
-    plan_track,
-    require_start_and_touch,
-    speed_box,
-)
 from ikbench.core.errors import InputError
 from ikbench.methods.base import (
     Capabilities,
@@ -101,6 +87,21 @@ from ikbench.methods.base import (
     check_choice,
     check_positive,
     option,
+)
+from ikbench.methods.registry import Adapter
+from ikbench.schemes.chain import goals_of, max_step_urdf
+from ikbench.schemes.single_pose import (
+    LIBRARY_TOLERANCE,
+    MAX_STEPS,
+    PoseOut,
+    PoseSolver,
+)
+from ikbench.schemes.track import (
+    SCHEME_HELP,
+    SCHEMES,
+    plan_track,
+    require_start_and_touch,
+    speed_box,
 )
 
 if TYPE_CHECKING:
@@ -717,10 +718,11 @@ class SequentialIKWalk(SequentialIK):
 
 
 class DLSSolver(PoseSolver):
-    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`): the
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.schemes.single_pose`): the
     damped least squares of :func:`solve_point` on Pinocchio, frame mode (position only for
     points), until the error is below the library tolerance or 100 steps."""
 
+    rank = 50
     name, library, modules = "sequential-ik", "pin", ("pinocchio",)
     iterations_are = "DLS steps"
 
@@ -734,3 +736,8 @@ class DLSSolver(PoseSolver):
         residual = Residual(self.fk, self.data, mode, point_m, rotation)
         out = solve_point(residual, q_init, self.settings, self.chain.lower, self.chain.upper)
         return PoseOut(out.q_rad, out.iterations, out.converged)
+
+
+#: What this library brings (found by :mod:`ikbench.methods.registry`).
+ADAPTER = Adapter(library="pin", requires=("pinocchio",),
+                  methods=(SequentialIK, SequentialIKWalk), solvers=(DLSSolver,), rank=40)

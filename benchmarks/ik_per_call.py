@@ -12,7 +12,7 @@ target (seeded, independent of the target) that every solver gets as its first s
   ``slimit`` searches of ``ilimit`` iterations: no time budget), the ETS built from the same
   chain URDF TRAC-IK parses (ikbench's base link to its end frame; FK checked equal);
   ``rtb-lm-tight`` the same with ``tol=1e-10`` (1e-6 stops up to 1.41 mm off);
-- ``trac-ik``: pytracik through :class:`ikbench.baselines.libraries.trac_ik.TracIKSolver`
+- ``trac-ik``: pytracik through :class:`ikbench.baselines.trac_ik.TracIKSolver`
   (``ikbench ik``'s adapter: timeout 5 ms, eps 1e-5, Speed).
 
 Each call is timed with ``time.perf_counter`` around it alone (inputs prepared before,
@@ -46,8 +46,8 @@ import numpy as np
 import pandas as pd
 
 from ikbench import load_robot
-from ikbench.baselines._common.chain import chain_of
-from ikbench.baselines.libraries.trac_ik import TracIKSolver
+from ikbench.schemes.chain import chain_of
+from ikbench.baselines.trac_ik import TracIKSolver
 from ikbench.core.io import atomic_write_csv, check_writable
 from ikbench.core.provenance import provenance
 from ikbench.core.rotations import geodesic_angle

@@ -6,7 +6,7 @@ still to annotate).
 
 What counts as a public function: every function at a module's top level and every method in
 a class body (nested classes included), in every module of ``ikbench/`` and ``baselines/``
-(private modules such as ``baselines/_common/chain.py`` too: the other modules use them), whose name
+(private modules such as ``ikbench/schemes/chain.py`` too: the other modules use them), whose name
 does not start with ``_``, plus ``__init__`` (the constructor's signature is public). Not
 counted: other dunder and private names, functions nested in functions, methods of private
 classes (``class _Run``).

@@ -15,7 +15,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 #: Layer of each top-level part; a module may import only its own layer or lower ones.
-LAYERS = {"core": 0, "methods": 1, "baselines": 1, "runtime": 2, "render": 2, "studies": 3,
+LAYERS = {"core": 0, "methods": 1, "schemes": 1, "baselines": 1, "runtime": 2, "render": 2, "studies": 3,
           "hw": 3, "paper": 4, "viewer": 4, "cli": 5}
 
 
@@ -88,10 +88,9 @@ GENERIC = ("core", "runtime", "render", "studies", "cli")
 def _method_names() -> set[str]:
     """Every registered method's name (the registry's built-ins) and every single-pose
     solver's (``ikbench ik``)."""
-    from ikbench.baselines._common.single_pose import SOLVERS
-    from ikbench.methods.registry import BUILTIN
+    from ikbench.methods.registry import method_status, solver_status
 
-    return {entry.name for entry in BUILTIN} | set(SOLVERS)
+    return set(method_status()) | set(solver_status())
 
 
 def test_generic_code_names_no_method():
@@ -222,9 +221,13 @@ def test_a_method_whose_library_is_missing_breaks_nothing(broken_plugins):
 def test_a_built_in_method_with_its_library_missing_is_listed_with_the_extra(monkeypatch):
     from ikbench.methods import registry
 
-    monkeypatch.setattr(registry, "BUILTIN", (
-        *registry.BUILTIN, registry.Entry("needs-lib", "ikbench.baselines.nothing:X",
-                                          ("not_a_real_kinematics_library",))))
+    class NeedsLib:
+        name = "needs-lib"
+
+    needs = registry.Adapter(library="x", requires=("not_a_real_kinematics_library",),
+                             methods=(NeedsLib,))
+    monkeypatch.setattr(registry, "_FOUND", [*registry._found(),
+                                             registry._Found(needs, "built-in", "x")])
     monkeypatch.setattr(registry, "_STATUS", None)
     status = registry.method_status()["needs-lib"]
     assert not status.available

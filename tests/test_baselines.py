@@ -18,21 +18,21 @@ import pandas as pd
 import pytest
 
 from ikbench import load_robot, load_targets
-from ikbench.baselines._common.chain import chain_of, poses_from_urdf, urdf_limits
-from ikbench.baselines._common.exact_pose import delayed_seed_fraction, ramped_roll
-from ikbench.baselines._common.geometry import (
-    closest_rotation_with_axis,
-    quaternion_xyzw,
-    roll_between_rad,
-    rotation_about,
-    rotation_between,
-)
 from ikbench.cli import main
 from ikbench.core.errors import InputError, SolverError
 from ikbench.core.metrics import pointing_deviations_deg, trajectory_metrics
 from ikbench.core.task import Task, line_tasks
 from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.methods.registry import LIBS_EXTRA
+from ikbench.schemes.chain import chain_of, poses_from_urdf, urdf_limits
+from ikbench.schemes.exact_pose import delayed_seed_fraction, ramped_roll
+from ikbench.schemes.geometry import (
+    closest_rotation_with_axis,
+    quaternion_xyzw,
+    roll_between_rad,
+    rotation_about,
+    rotation_between,
+)
 from tests.conftest import method_class
 
 DATA = Path(__file__).parent / "data"
@@ -359,8 +359,8 @@ def test_locked_joints_are_folded_into_the_urdf_the_libraries_load(tmp_path):
     holds that motion: Pinocchio on the text agrees with the robot's own FK."""
     import pinocchio as pin
 
-    from ikbench.baselines._common.chain import chain_urdf_text
     from ikbench.core.robot import load_robot
+    from ikbench.schemes.chain import chain_urdf_text
 
     config = tmp_path / "locked.toml"
     config.write_text(f'urdf = "{DATA / "unaligned_arm.urdf"}"\nend_frame = "tool"\n'

@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 from ikbench import load_robot
-from ikbench.baselines._common.collision import obstacle_shape, scene_of
 from ikbench.core.collision import collision_model
 from ikbench.core.obstacles import box, capsule, halfspace, sphere
 from ikbench.core.task import Task
+from ikbench.schemes.collision import obstacle_shape, scene_of
 from tests.conftest import method_class
 
 AVOIDING = ("drake-ik", "drake-trajopt", "pink", "mink")
@@ -146,8 +146,8 @@ def test_drakes_geometry_is_ikbenchs(panda):
     """Drake's signed distances on the plant with collision geometry equal the checker's
     (within 0.1 mm) for a box, a sphere, a capsule and a half-space (a large box for Drake)."""
     pytest.importorskip("pydrake")
-    from ikbench.baselines._common.chain import chain_of
-    from ikbench.baselines._common.drake import drake_scene_chain
+    from ikbench.baselines.drake.common import drake_scene_chain
+    from ikbench.schemes.chain import chain_of
 
     obstacles, scene, poses, expected, links = _scene_and_distances(panda)
     drake = drake_scene_chain(chain_of(panda), scene)
@@ -176,8 +176,8 @@ def test_mujocos_geometry_is_ikbenchs(panda):
     checker's (within 0.1 mm)."""
     mujoco = pytest.importorskip("mujoco")
     pytest.importorskip("mink")
-    from ikbench.baselines._common.chain import chain_of
-    from ikbench.baselines.libraries.mink_ik import mink_scene_model
+    from ikbench.baselines.mink_ik import mink_scene_model
+    from ikbench.schemes.chain import chain_of
 
     _, scene, poses, expected, links = _scene_and_distances(panda)
     m = mink_scene_model(chain_of(panda), scene)

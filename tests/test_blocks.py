@@ -172,9 +172,9 @@ SPECIFICATION = {
     "seven": "the GPU issue's aims for the torch backend (targets, not measurements)",
     # docs/baselines.md
     "the touch pose's own over the last 20 %": "the tracking scheme's landing share "
-    "(LANDING_FRACTION, baselines/_common/track.py)",
+    "(LANDING_FRACTION, ikbench/schemes/track.py)",
     "a warm start on a limit is nudged 1e-3 rad inside": "the ikpy adapter's margin inside "
-    "the bounds (INSIDE, baselines/libraries/ikpy_ik.py)",
+    "the bounds (INSIDE, baselines/ikpy_ik.py)",
     "allows |e| up to 1.4e-3 m": "sqrt(2 x 1e-6): the bound rtb's default tol on "
     "E = 1/2 |e|^2 implies, not a measurement",
     # docs/collisions.md

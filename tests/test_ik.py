@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import json
 import logging
+import subprocess
+import sys
 from pathlib import Path
 from typing import ClassVar
 
@@ -14,12 +16,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from ikbench.baselines._common.chain import chain_of
-from ikbench.baselines._common.single_pose import SOLVERS, PoseOut, PoseSolver, solver_class
 from ikbench.cli import main
 from ikbench.core.errors import InputError
 from ikbench.core.robot import Robot, load_robot, shipped_robots
 from ikbench.core.robot_packages import resolve_package_uri, robots_folder
+from ikbench.methods.registry import MethodStatus, solver_status
+from ikbench.schemes.chain import chain_of
+from ikbench.schemes.single_pose import PoseOut, PoseSolver
 from ikbench.studies.ik import (
     AUTO_ROWS,
     AttemptCheck,
@@ -33,8 +36,14 @@ from ikbench.studies.ik import (
 
 needs_erd = pytest.mark.skipif(robots_folder("example-robot-data") is None,
                                reason="needs example_robot_data")
-DETERMINISTIC = [n for n in ("ours-lm", "sequential-ik", "pink")
-                 if n in SOLVERS and solver_class(n).available()]
+
+
+def _solver(name: str) -> type[PoseSolver] | None:
+    """The solver class of ``name``; None when its library is missing."""
+    return solver_status()[name].cls
+
+
+DETERMINISTIC = [n for n in ("ours-lm", "sequential-ik", "pink") if _solver(n) is not None]
 #: Settings under which every deterministic method gives the same answers on any machine:
 #: no wall-clock budget, a fixed number of attempts.
 FIXED = dict(budget_ms=float("inf"), attempts=(8,))
@@ -84,6 +93,9 @@ class _SelfRestarting(PoseSolver):
     restarts_itself, pose_units = True, True
     seen: ClassVar[list] = []
 
+    def solve(self, q_init, point_m, rotation) -> PoseOut:
+        return self.solve_within(q_init[None], point_m, rotation, float("inf"))
+
     def solve_within(self, initials, point_m, rotation, budget_s) -> PoseOut:
         type(self).seen.append((np.array(initials), budget_s))
         return PoseOut(initials[-1] + 10.0, 5, False, len(initials))
@@ -91,8 +103,9 @@ class _SelfRestarting(PoseSolver):
 
 @pytest.fixture
 def fakes(monkeypatch):
-    monkeypatch.setitem(SOLVERS, "recorder", _Recorder)
-    monkeypatch.setitem(SOLVERS, "self-restarting", _SelfRestarting)
+    monkeypatch.setitem(solver_status(), "recorder", MethodStatus("recorder", _Recorder))
+    monkeypatch.setitem(solver_status(), "self-restarting",
+                        MethodStatus("self-restarting", _SelfRestarting))
     monkeypatch.setattr(_Recorder, "seen", [])
     monkeypatch.setattr(_SelfRestarting, "seen", [])
 
@@ -160,13 +173,13 @@ def test_restart_starts_no_attempt_once_the_budget_is_spent():
 
 def test_attempts_1_is_one_descent_from_the_first_row_for_every_method():
     robot = load_robot("panda")
-    names = [n for n in ("ours-lm", "sequential-ik", "rtb-lm") if solver_class(n).available()]
+    names = [n for n in ("ours-lm", "sequential-ik", "rtb-lm") if _solver(n) is not None]
     settings = IKSettings(count=4, seed=6, attempts=(1,), budget_ms=float("inf"))
     result = run_ik(robot, settings, names, progress=False)
     assert (result.table["attempts"] == 1).all()
     targets = result.targets
     for name in names:
-        solver = solver_class(name)(robot, "pose", (1.0, 0.5), float("inf"))
+        solver = _solver(name)(robot, "pose", (1.0, 0.5), float("inf"))
         solver.prepare()
         rows = result.table[result.table["method"] == name]
         for k in range(4):
@@ -231,7 +244,7 @@ def test_every_success_is_rechecked_by_fk_and_a_wrong_answer_is_rejected(monkeyp
     outside[:, 3] = robot.upper[3] + 1.0
     assert not judge(robot, targets.T_target, outside, settings)["within_limits"].any()
 
-    monkeypatch.setitem(SOLVERS, "liar", _Liar)
+    monkeypatch.setitem(solver_status(), "liar", MethodStatus("liar", _Liar))
     table = run_ik(robot, IKSettings(count=6, seed=2, attempts=(2,)), ["liar"],
                    progress=False).table
     assert table["library_ok"].all() and not table["success"].any()
@@ -246,9 +259,12 @@ class _Unbuildable(PoseSolver):
     def prepare(self) -> None:
         raise ValueError("no model for this robot")
 
+    def solve(self, q_init, point_m, rotation) -> PoseOut:  # pragma: no cover - never set up
+        raise AssertionError("solved without a model")
+
 
 def test_a_library_that_cannot_be_set_up_gives_failed_rows(monkeypatch):
-    monkeypatch.setitem(SOLVERS, "unbuildable", _Unbuildable)
+    monkeypatch.setitem(solver_status(), "unbuildable", MethodStatus("unbuildable", _Unbuildable))
     robot = load_robot("panda")
     table = run_ik(robot, IKSettings(count=4, seed=1, **FIXED), ["unbuildable", "ours-lm"],
                    progress=False).table
@@ -282,7 +298,7 @@ def _fk_recomputed(robot, table: pd.DataFrame, targets: pd.DataFrame, record: di
 
 def test_the_cli_writes_the_folder_and_every_row_recomputes_from_its_solution(tmp_path):
     out = tmp_path / "out"
-    names = DETERMINISTIC + [n for n in ("rtb-lm",) if solver_class(n).available()]
+    names = DETERMINISTIC + [n for n in ("rtb-lm",) if _solver(n) is not None]
     assert main(["ik", "--robot", "panda", "--count", "6", "--seed", "1", "--methods",
                  ",".join(names), "--attempts", "auto,1", "--output", str(out),
                  "--quiet"]) == 0
@@ -361,23 +377,23 @@ def test_a_robot_whose_kinematics_cannot_be_built_is_one_line_exit_2(capsys, tmp
 def test_a_method_that_cannot_take_the_kind_is_refused():
     from ikbench.studies.ik import parse_methods
 
-    if not solver_class("trac-ik").available():
+    if _solver("trac-ik") is None:
         pytest.skip("needs pytracik")
     with pytest.raises(InputError, match="trac-ik takes pose targets, not --kind position"):
         parse_methods("trac-ik", "position")
 
 
-def test_the_solver_list_imports_nothing_until_asked():
-    """Each solver sits in its method's module, named by a string: listing them imports no
-    library."""
-    import sys
-
-    assert all(isinstance(SOLVERS[n], str) for n in ("rtb-lm", "trac-ik", "pink", "ours-lm"))
-    assert solver_class("pink").__module__ == "ikbench.baselines.libraries.pink_ik"
-    assert solver_class("sequential-ik").__module__ == "ikbench.baselines.sequential_ik"
-    if "roboticstoolbox" not in sys.modules:  # nothing else in this process imported it
-        assert solver_class("rtb-lm").available() in (True, False)
-        assert "roboticstoolbox" not in sys.modules
+def test_the_solver_list_imports_no_library():
+    """Each solver sits in its library's module of baselines/, found by the registry's scan;
+    the scan imports those modules, never the libraries (they are imported inside functions)."""
+    code = ("import sys; from ikbench.methods.registry import solver_status; s = solver_status(); "
+            "print(s['pink'].cls.__module__, s['sequential-ik'].cls.__module__); "
+            "print(sorted(m for m in ('roboticstoolbox', 'pytracik', 'pink', 'placo', 'pydrake', "
+            "'jax', 'mink', 'ikpy', 'relaxed_ik_lib') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.splitlines()
+    assert out[0] == "ikbench.baselines.pink_ik ikbench.baselines.sequential_ik"
+    assert out[1] == "[]"
 
 
 @needs_erd
@@ -408,7 +424,7 @@ def test_an_end_frame_named_like_a_joint_is_the_link_and_z1_runs(tmp_path):
     assert np.abs(T[:, :3, 3] - point).max() < 1e-12
     assert np.abs(T[:, :3, :3] - rotation).max() < 1e-12
     names = ["ours-lm", "sequential-ik"] + [n for n in ("rtb-lm", "pink")
-                                            if solver_class(n).available()]
+                                            if _solver(n) is not None]
     assert main(["ik", "--robot", "example-robot-data:z1", "--end-frame", "gripperStator",
                  "--count", "3", "--methods", ",".join(names), "--budget-ms", "inf",
                  "--attempts", "8", "--output", str(tmp_path), "--quiet"]) == 0
@@ -421,7 +437,7 @@ def test_drakes_friction_warnings_become_one_line(caplog):
     pytest.importorskip("pydrake")
     from pydrake.multibody.plant import MultibodyPlant
 
-    from ikbench.baselines._common.drake import add_urdf
+    from ikbench.baselines.drake.common import add_urdf
 
     joints = "".join(
         f'<joint name="j{k}" type="revolute"><parent link="l{k}"/><child link="l{k + 1}"/>'

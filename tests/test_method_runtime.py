@@ -39,7 +39,7 @@ def test_every_method_names_a_backend(name):
 def test_ik_runs_the_compiled_single_pose_lm_where_numba_is_installed(robot):
     """``ikbench ik``'s ours-lm is the compiled solver with numba, the numpy reference
     without; both answer the same target within the tolerance."""
-    from ikbench.baselines._common.ours_lm_pose import OursLMSolver
+    from ikbench.methods.ours_lm.pose_solver import OursLMSolver
 
     solver = OursLMSolver(robot, "pose", (1.0, 0.5), 0.005)
     solver.prepare()

@@ -105,7 +105,7 @@ def test_the_wheel_installs_no_top_level_package_but_ikbench(tmp_path):
     shipped = {n for n in names if n.endswith(".py")}
     expected = {f"{name.replace('.', '/')}/{path.name}"
                 for name, folder in package_dirs().items() for path in folder.glob("*.py")}
-    assert "ikbench/baselines/libraries/trac_ik.py" in expected
+    assert "ikbench/baselines/trac_ik.py" in expected
     assert shipped == expected
 
 

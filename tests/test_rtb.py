@@ -1,4 +1,4 @@
-"""roboticstoolbox-python (baselines/libraries/rtb.py): its ETS of the chain agrees with
+"""roboticstoolbox-python (baselines/rtb.py): its ETS of the chain agrees with
 Pinocchio's FK, its single-pose solvers solve FK targets under ``ikbench ik``'s interface, and
 rtb-lm's track in ``compare`` meets the task contract on NICO's paper targets and the Panda
 lines (roll left free by ik_LM's mask), judged again from the CSVs it wrote.
@@ -13,7 +13,6 @@ import pandas as pd
 import pytest
 
 from ikbench import load_robot
-from ikbench.baselines._common.chain import chain_of
 from ikbench.cli import main
 from ikbench.core.contract import contract_for, judge
 from ikbench.core.metrics import contract_metrics
@@ -22,11 +21,12 @@ from ikbench.core.targets import load_targets
 from ikbench.core.task import line_tasks
 from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.methods.registry import method_status
+from ikbench.schemes.chain import chain_of
 from tests.test_rangedik_placo import PANDA_LINES, assert_judged_from_csvs
 
 pytest.importorskip("roboticstoolbox")
 
-from ikbench.baselines.libraries.rtb import (  # noqa: E402 (after the skip)
+from ikbench.baselines.rtb import (  # noqa: E402 (after the skip)
     TOL,
     RtbLMSolver,
     RtbNRSolver,
@@ -141,7 +141,7 @@ def test_the_mask_frees_the_roll_about_the_pointing_direction_only():
 
 
 def _rotation_about(axis: np.ndarray, angle_rad: float) -> np.ndarray:
-    from ikbench.baselines._common.geometry import rotation_about
+    from ikbench.schemes.geometry import rotation_about
 
     return rotation_about(axis, angle_rad)
 

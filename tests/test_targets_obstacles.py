@@ -11,7 +11,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from ikbench.baselines._common.chain import goals_of
 from ikbench.cli import main
 from ikbench.core.contract import Contract, contract_for, judge
 from ikbench.core.errors import TargetsError
@@ -19,6 +18,7 @@ from ikbench.core.metrics import contract_metrics
 from ikbench.core.robot import Robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.core.task import Task, build_tasks, line_tasks
+from ikbench.schemes.chain import goals_of
 from ikbench.studies.compare import COLUMNS, OBSTACLE_COLUMNS
 from tests.conftest import PAPER_START
 

@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 
 from ikbench import load_robot, load_targets
-from ikbench.baselines._common.chain import contract_step, goals_of
-from ikbench.baselines.libraries import pyroki_trajopt
-from ikbench.baselines.libraries.drake_ik import pose_metric
-from ikbench.baselines.libraries.pyroki_trajopt import pointing_weights
+from ikbench.baselines import pyroki_trajopt
+from ikbench.baselines.drake.ik import pose_metric
+from ikbench.baselines.pyroki_trajopt import pointing_weights
 from ikbench.core.contract import contract_for, judge
 from ikbench.core.metrics import contract_metrics
 from ikbench.core.task import line_task, line_tasks
 from ikbench.methods.registry import get_method
+from ikbench.schemes.chain import contract_step, goals_of
 
 needs_drake = pytest.mark.skipif(importlib.util.find_spec("pydrake") is None,
                                  reason="needs drake (pip install -e '.[libs]')")

@@ -1,4 +1,4 @@
-"""pink and mink on the tracking scheme (baselines/_common/track.py): from the recorded start pose
+"""pink and mink on the tracking scheme (ikbench/schemes/track.py): from the recorded start pose
 along the goal points onto the touch pose, judged by the task contract on two of NICO's paper
 targets; the walk (``scheme="walk"``) still lands on the touch pose but leaves the start pose.
 
@@ -13,12 +13,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ikbench.baselines._common.chain import goals_of
-from ikbench.baselines._common.diffik import SpeedBox, posture_weights
 from ikbench.core.contract import contract_for, judge
 from ikbench.core.errors import InputError
 from ikbench.core.metrics import contract_metrics
 from ikbench.core.task import line_task
+from ikbench.schemes.chain import goals_of
+from ikbench.schemes.diffik import SpeedBox, posture_weights
 
 LIBRARIES = {"pink": "pink", "mink": "mink"}
 TARGETS = ("1", "7")
@@ -30,10 +30,10 @@ def method_class(name: str):
     if importlib.util.find_spec(LIBRARIES[name]) is None:
         pytest.skip(f"{name} is not installed")
     if name == "pink":
-        from ikbench.baselines.libraries.pink_ik import PinkIK
+        from ikbench.baselines.pink_ik import PinkIK
 
         return PinkIK
-    from ikbench.baselines.libraries.mink_ik import MinkIK
+    from ikbench.baselines.mink_ik import MinkIK
 
     return MinkIK
 

@@ -13,12 +13,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ikbench.baselines._common.chain import chain_of, goals_of
 from ikbench.core.contract import contract_for, judge
 from ikbench.core.errors import InputError
 from ikbench.core.metrics import contract_metrics
 from ikbench.core.task import line_task, line_tasks
 from ikbench.methods.registry import get_method
+from ikbench.schemes.chain import chain_of, goals_of
 
 BOTH = frozenset({"start_pose", "touch_pose"})
 
@@ -172,7 +172,7 @@ def test_ikpy_tracks_onto_the_touch_pose_and_meets_the_contract(robot, paper_tar
 
 @needs("ikpy")
 def test_ikpy_walk_is_the_authors_call(robot, paper_targets):
-    from ikbench.baselines.libraries.ikpy_ik import IkpyIK
+    from ikbench.baselines.ikpy_ik import IkpyIK
 
     method = get_method("ikpy-walk")()
     assert method.settings.scheme == "walk" and method.settings.orientation == "position"
@@ -190,7 +190,7 @@ def test_ikpy_walk_is_the_authors_call(robot, paper_targets):
 @pytest.mark.parametrize("orientation", ["position", "pointing"])
 def test_ikpy_flags_a_point_it_cannot_reach(robot, orientation):
     """ikpy reports no success: the adapter checks FK, so a goal 5 m away is not solved."""
-    from ikbench.baselines.libraries.ikpy_ik import IkpySettings, solve_chain
+    from ikbench.baselines.ikpy_ik import IkpySettings, solve_chain
 
     task = line_task(robot, [-24.92, 81.45, 46.55, 94.37, -59.03, 28.0, 45.67],
                      [34, 17, 39, 107, 106, 78, -180], 2, "far")

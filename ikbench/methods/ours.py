@@ -57,6 +57,7 @@ from ikbench.methods.base import (
 )
 from ikbench.methods.ours_frames import optimise_frames
 from ikbench.methods.ours_init import INITS, initial_logits
+from ikbench.methods.registry import Adapter
 
 if TYPE_CHECKING:
     from torch import Tensor
@@ -217,3 +218,8 @@ class Ours(Method):
         if task.goal_rotations is not None:
             return optimise_frames(robot, task, self.settings_for(task), progress)
         return optimise(robot, task, self.settings_for(task), progress)
+
+
+#: What ikbench brings (found by :mod:`ikbench.methods.registry`).
+ADAPTER = Adapter(library="ikbench", requires=("torch", "pytorch_kinematics"),
+                  methods=(Ours,), solvers=(), rank=10)

@@ -27,6 +27,8 @@ from pathlib import Path
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_json
 from ikbench.core.provenance import REPO, git_state, load_average
+from ikbench.methods.ours import Ours
+from ikbench.methods.registry import method_status
 from ikbench.render.blocks import documents, render_files
 
 #: The record of finished studies, in the results directory.
@@ -56,22 +58,40 @@ class Study:
     script: str = ""
     rows_may_fail: bool = False
 
+    def arguments(self, out: Path) -> list[str]:
+        """The arguments with ``{out}`` and ``{compare_methods}`` filled in."""
+        return [a.replace("{out}", str(out)).replace("{compare_methods}", compare_methods())
+                for a in self.argv]
+
     def command(self, out: Path) -> list[str]:
         """The command line to run, for the results directory ``out``."""
-        args = [a.replace("{out}", str(out)) for a in self.argv]
+        args = self.arguments(out)
         if self.script:
             return [sys.executable, str(REPO / self.script), *args]
         return [sys.executable, "-m", "ikbench.cli", *args]
 
     def shown(self, out: Path) -> str:
         """The command as a reader would type it."""
-        args = [a.replace("{out}", str(out)) for a in self.argv]
+        args = self.arguments(out)
         head = ["python", self.script] if self.script else ["ikbench"]
         return shlex.join([*head, *args])
 
 
-COMPARE_METHODS = ("ours-lm,ours-exact,sequential-ik,ikpy,pink,trac-ik,rtb-lm,mink,drake-ik,"
-                   "drake-trajopt,pyroki,rangedik,placo,sequential-ik-walk,ikpy-walk")
+
+
+def compare_methods() -> str:
+    """The NICO comparison's methods: every registered method in registry order but the
+    paper's Adam (the ``paper`` study runs it), the walks last (they do not keep the start
+    pose, so they cannot meet the paper's contract: shown for the authors' scheme)."""
+    names = [n for n in method_status() if n != Ours.name]
+    walks = [n for n in names if _walks(n)]
+    return ",".join([n for n in names if n not in walks] + walks)
+
+
+def _walks(name: str) -> bool:
+    cls = method_status()[name].cls
+    return cls is not None and "start_pose" not in cls().fixed_poses()
+
 #: ``ikbench ik``'s options in every IK study (docs/ik.md): 2,000 targets, seed 1, both tables
 #: (restarts within the budget; one descent each). Every method solves every target one call at
 #: a time, so a robot's study is minutes (about 0.1 s per target for the whole panel).
@@ -82,7 +102,7 @@ STUDIES: tuple[Study, ...] = (
           ("README.md", "report.md", "pointing_deviation_per_step.png", "ours",
            "sequential-ik", "sequential-ik-pointing", "sequential-ik-position", "ikpy",
            "ours-init-interpolation", "ablation"), 4.5),
-    Study("compare", ("compare", "--methods", COMPARE_METHODS, "--output", "{out}"),
+    Study("compare", ("compare", "--methods", "{compare_methods}", "--output", "{out}"),
           ("compare",), 19.0, rows_may_fail=True),
     Study("compare-panda", ("compare", "--robot", "panda", "--targets",
                             "urdf/panda_lines.targets.json", "--methods", "all", "--output",

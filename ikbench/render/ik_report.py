@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ikbench.baselines.libraries.trac_ik import TracIKSolver
+from ikbench.baselines.trac_ik import TracIKSolver
 from ikbench.core.io import atomic_savefig, staged_folder
 from ikbench.core.provenance import library_versions, provenance
 from ikbench.render.ik_published import published_for

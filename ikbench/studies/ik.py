@@ -56,16 +56,16 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
-from ikbench.baselines._common.single_pose import SOLVERS, solver_class
 from ikbench.core.errors import InputError
+from ikbench.methods.registry import available_solvers, solver_status
 from ikbench.render.ik_report import robot_slug, write_folder
 from ikbench.runtime.harness import Progress, describe
 
 if TYPE_CHECKING:
     from pathlib import Path
 
-    from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
     from ikbench.core.robot import Robot
+    from ikbench.schemes.single_pose import PoseOut, PoseSolver
 
 FOLDER = "ik"
 KINDS = ("pose", "position")
@@ -255,21 +255,20 @@ def parse_methods(text: str | Sequence[str] | None, kind: str = "pose") -> list[
     """Method names (comma-separated or a list); None: every installed one that takes
     ``kind`` targets. InputError for unknown, missing or unsuitable ones."""
 
+    status = solver_status()
     if text is None:
-        classes = {n: solver_class(n) for n in SOLVERS}
-        return [n for n, c in classes.items() if c.available() and kind in c.kinds]
+        return [n for n, c in available_solvers().items() if kind in c.kinds]
     items = text if isinstance(text, (list, tuple)) else str(text).split(",")
     names = list(dict.fromkeys(s.strip() for s in items if s.strip()))
     if not names:
-        raise InputError(f"--methods: {text!r} names no method; known: {', '.join(SOLVERS)}")
+        raise InputError(f"--methods: {text!r} names no method; known: {', '.join(status)}")
     for name in names:
-        if name not in SOLVERS:
+        if name not in status:
             raise InputError(f"--methods: {name!r} is not a single-pose IK method; known: "
-                             f"{', '.join(SOLVERS)}")
-        cls = solver_class(name)
-        if not cls.available():
-            raise InputError(f"--methods: {name} needs {', '.join(cls.modules)} "
-                             "(pip install 'ikbench[libs]')")
+                             f"{', '.join(status)}")
+        cls = status[name].cls
+        if cls is None:
+            raise InputError(f"--methods: {name} {status[name].reason}")
         if kind not in cls.kinds:
             raise InputError(f"--methods: {name} takes {', '.join(cls.kinds)} targets, not "
                              f"--kind {kind}")
@@ -419,7 +418,7 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
     for rule in settings.attempts:
         batches[str(rule)] = {}
         for name in names:
-            cls = solver_class(name)
+            cls = solver_status()[name].cls
             count = min(settings.count, settings.max_count.get(name, settings.count))
             info[name] = {"library": cls.library, "deterministic": cls.deterministic,
                           "restarts_itself": cls.restarts_itself,

@@ -34,14 +34,16 @@ DESCRIPTION = (
 
 
 def arguments(parser: argparse.ArgumentParser) -> None:
+    # the registry scans the adapters: only when this command's parser is built (CLI start-up)
+    from ikbench.methods.registry import solver_status
+
     add_robot_arguments(parser)
     parser.add_argument("--count", type=int, default=1000, help="targets (default 1000)")
     parser.add_argument("--seed", type=int, default=1, help="seed of targets and initial "
                         "configurations (default 1)")
     parser.add_argument("--methods", default=None,
-                        help="comma-separated methods (default: every installed one: ours-lm, "
-                        "rtb-lm, trac-ik, rtb-nr, sequential-ik, pink, mink, drake-ik, pyroki, "
-                        "ikpy, placo)")
+                        help="comma-separated methods (default: every installed one: "
+                        f"{', '.join(solver_status())})")
     parser.add_argument("--budget-ms", type=BUDGET, default=BUDGET_MS,
                         help="wall-clock budget per target [ms], the same for every method; "
                         f"inf: none (default {BUDGET_MS:g}: TRAC-IK's default timeout)")

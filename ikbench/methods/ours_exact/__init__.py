@@ -46,6 +46,7 @@ from ikbench.methods.ours_exact.problem import TERMS, ExactProblem, evaluate
 from ikbench.methods.ours_exact.sqp import RESTORATIONS, SQPResult, solve
 from ikbench.methods.ours_lm import OursLM, initial_poses
 from ikbench.methods.ours_lm.avoidance import collision_checker
+from ikbench.methods.registry import Adapter
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -439,3 +440,8 @@ def initial_trajectories(robot: Robot, tasks: Sequence[Task], settings: ExactSet
         if task.end_pose is not None:
             out[k, -1] = task.end_pose
     return out, ["ours-lm" if lm else "interpolation" for lm in use_lm]
+
+
+#: What ikbench brings (found by :mod:`ikbench.methods.registry`).
+ADAPTER = Adapter(library="ikbench", requires=("scipy", "pinocchio"),
+                  methods=(OursExact,), solvers=(), rank=30)

@@ -46,6 +46,7 @@ from ikbench.methods.ours_lm.devices import (
     torch_threads,
 )
 from ikbench.methods.ours_lm.frames import FrameProblem, evaluate_frames
+from ikbench.methods.ours_lm.pose_solver import OursLMSolver
 from ikbench.methods.ours_lm.problem import Evaluation, Problem, evaluate
 from ikbench.methods.ours_lm.solver import (
     KINEMATICS,
@@ -57,6 +58,7 @@ from ikbench.methods.ours_lm.solver import (
     solve_problem,
 )
 from ikbench.methods.ours_lm.start_search import OursLMSettings, check_paths, search, warm_up_search
+from ikbench.methods.registry import Adapter
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -234,3 +236,8 @@ def _solution(result: BatchResult, k: int, weights: dict) -> Solution:
         info={"batch_size": size, "batch_wall_time_s": result.duration_s,
               "weights": format_weights(weights),
               **{f"{t}": float(v) for t, v in zip(TERMS, result.terms[k])}})
+
+
+#: What ikbench brings (found by :mod:`ikbench.methods.registry`).
+ADAPTER = Adapter(library="ikbench", requires=("scipy", "pinocchio"),
+                  methods=(OursLM,), solvers=(OursLMSolver,), rank=20)

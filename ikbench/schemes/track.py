@@ -32,10 +32,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals
-from ikbench.baselines._common.walk import PointResult, Walk
 from ikbench.core.contract import DEFAULT_POINTING_FROM
 from ikbench.core.errors import InputError
+from ikbench.schemes.chain import Chain, Goals
+from ikbench.schemes.walk import PointResult, Walk
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -153,7 +153,7 @@ def track(solve_point: Callable[[int, np.ndarray], PointResult], chain: Chain,
         plan: the targets (:func:`plan_track`).
 
     Returns:
-        A :class:`ikbench.baselines._common.walk.Walk`; row 0 the start pose, row n the touch pose.
+        A :class:`ikbench.schemes.walk.Walk`; row 0 the start pose, row n the touch pose.
     """
     n_points = len(plan)
     q = np.empty((n_points, chain.dof))

@@ -29,7 +29,7 @@ and run ``slimit`` searches whatever the time: they cannot honour the shared seq
 wall-clock budget. Measured on the same 1,000 Panda targets (load about 4): one search
 succeeds on 35 %, ``slimit=100`` on 100 % at 136 us median per call.
 
-Per point (``compare``, :mod:`ikbench.baselines._common.exact_pose`), ``--rtb-orientation``:
+Per point (``compare``, :mod:`ikbench.schemes.exact_pose`), ``--rtb-orientation``:
 
 - ``pointing`` (default): rtb's own mask leaves the roll about the pointing axis free.
   ``ik_LM``'s error e is expressed in the ETS's base frame (rtb's ``angle_axis(Te, Tep)`` and
@@ -62,8 +62,10 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals, chain_of
-from ikbench.baselines._common.exact_pose import (
+from ikbench.methods.base import Capabilities, check_choice, check_positive, option
+from ikbench.methods.registry import Adapter
+from ikbench.schemes.chain import Chain, Goals, chain_of
+from ikbench.schemes.exact_pose import (
     check_fraction,
     check_roll_settings,
     roll_max_option,
@@ -71,11 +73,10 @@ from ikbench.baselines._common.exact_pose import (
     rolls_rad,
     solve_exact_poses,
 )
-from ikbench.baselines._common.geometry import rotation_between
-from ikbench.baselines._common.method import ChainResult, LibraryMethod
-from ikbench.baselines._common.single_pose import LIBRARY_TOLERANCE, PoseOut, PoseSolver
-from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES
-from ikbench.methods.base import Capabilities, check_choice, check_positive, option
+from ikbench.schemes.geometry import rotation_between
+from ikbench.schemes.method import ChainResult, LibraryMethod
+from ikbench.schemes.single_pose import LIBRARY_TOLERANCE, PoseOut, PoseSolver
+from ikbench.schemes.track import SCHEME_HELP, SCHEMES
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -169,10 +170,11 @@ def goal_frame(point_m: np.ndarray, rotation: np.ndarray) -> np.ndarray:
 
 
 class RtbLMSolver(PoseSolver):
-    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`):
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.schemes.single_pose`):
     ``ets.ik_LM(Tep, q0, ilimit=30, slimit=1, tol=TOL, joint_limits=True)``, one search per
     attempt, restarted by the study (see the module docstring)."""
 
+    rank = 20
     name, library, modules = "rtb-lm", "roboticstoolbox-python", ("roboticstoolbox",)
     iterations_are = "rtb iterations (ik_LM's count)"
     #: The ETS method called.
@@ -193,6 +195,7 @@ class RtbLMSolver(PoseSolver):
 class RtbNRSolver(RtbLMSolver):
     """As :class:`RtbLMSolver` with ``ets.ik_NR`` (Newton-Raphson, pseudo-inverse)."""
 
+    rank = 40
     name = "rtb-nr"
     iterations_are = "rtb iterations (ik_NR's count)"
     call = "ik_NR"
@@ -290,3 +293,8 @@ class RtbLM(LibraryMethod):
 
     def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         return solve_chain(chain, goals, self.settings)
+
+
+#: What this library brings (found by :mod:`ikbench.methods.registry`).
+ADAPTER = Adapter(library="roboticstoolbox-python", requires=("roboticstoolbox",),
+                  methods=(RtbLM,), solvers=(RtbLMSolver, RtbNRSolver), rank=80)

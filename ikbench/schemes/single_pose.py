@@ -1,13 +1,12 @@
-"""Single-pose IK (``ikbench ik``): the interface every method implements, and their list.
+"""Single-pose IK (``ikbench ik``): the interface every method implements.
 
 A :class:`PoseSolver` takes one target in the chain's base frame (a point [m] and the end
 frame's rotation (3, 3); ``kind="position"``: the point only) and initial configurations, and
 returns the method's answer (:class:`PoseOut`). Each method's solver lives beside its method:
-the libraries' in their modules of ``baselines/libraries/`` (``trac_ik``, ``rtb``, ``pink_ik``,
-``mink_ik``, ``drake_ik``, ``pyroki_trajopt``, ``ikpy_ik``), sequential-ik's in
-``baselines/sequential_ik.py``, ours-lm's in :mod:`ikbench.baselines._common.ours_lm_pose`;
-:data:`SOLVERS` names them as ``"module:Class"`` and :func:`solver_class` imports one only
-when it is asked for (a missing library breaks nothing else).
+the libraries' in their modules of ``baselines/``, sequential-ik's in
+``baselines/sequential_ik.py``, ours-lm's in :mod:`ikbench.methods.ours_lm.pose_solver`.
+Each module's ``ADAPTER`` lists its solvers, and :mod:`ikbench.methods.registry` finds them
+(:func:`~ikbench.methods.registry.available_solvers`; a missing library breaks nothing else).
 
 The protocol (:mod:`ikbench.studies.ik`): each target has a seeded sequence of initial
 configurations and a wall-clock budget. A solver that restarts by itself
@@ -25,14 +24,14 @@ below the study's (:data:`LIBRARY_TOLERANCE`: the study's tolerance decides succ
 
 from __future__ import annotations
 
-import importlib
+import abc
 import importlib.util
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 import numpy as np
 
-from ikbench.baselines._common.chain import chain_of
+from ikbench.schemes.chain import chain_of
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -75,7 +74,7 @@ class BatchOut(NamedTuple):
     threads: int
 
 
-class PoseSolver:
+class PoseSolver(abc.ABC):
     """One method's single-pose IK (see the module docstring).
 
     Class attributes:
@@ -93,6 +92,7 @@ class PoseSolver:
         pose_units: takes initial configurations and returns answers in the robot's pose
             units (deg, mm) instead of URDF units (rad, m).
         iterations_are: what ``iterations`` counts.
+        rank: the solver's place in listings and leaderboards (lower first).
 
     Args:
         robot: the robot.
@@ -112,6 +112,7 @@ class PoseSolver:
     batched: ClassVar[bool] = False
     pose_units: ClassVar[bool] = False
     iterations_are: ClassVar[str] = "iterations"
+    rank: ClassVar[int] = 1000
 
     def __init__(self, robot: Robot, kind: str = "pose",
                  tolerance: tuple[float, float] = (1.0, 0.5), budget_s: float = BUDGET_S
@@ -132,26 +133,25 @@ class PoseSolver:
         library by default; ikbench's own solver names its backend."""
         return {"backend": self.library}
 
-    def prepare(self) -> None:
+    def prepare(self) -> None:  # noqa: B027  (an optional hook, empty by default)
         """Untimed set-up (models, compilation)."""
 
-    def solve(self, q_init: np.ndarray, point_m: np.ndarray,
-              rotation: np.ndarray) -> PoseOut:  # pragma: no cover - interface
+    @abc.abstractmethod
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         """One descent from ``q_init`` (dof,) toward the point [m] and rotation (3, 3)."""
-        raise NotImplementedError
 
     def solve_within(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
                      budget_s: float) -> PoseOut:  # pragma: no cover - interface
         """``restarts_itself`` only: from ``initials`` (A, dof), in order, until the answer
         holds, the rows are used up or ``budget_s`` [s] is spent."""
-        raise NotImplementedError
+        raise TypeError(f"{self.name} does not restart itself (restarts_itself is False)")
 
     def solve_batch(self, initials: np.ndarray, points_m: np.ndarray, rotations: np.ndarray,
                     budget_s: float, threads: int | None = None
                     ) -> BatchOut:  # pragma: no cover - interface
         """``batched`` only: B targets, points (B, 3) [m], rotations (B, 3, 3), each from its
         own rows ``initials`` (B, A, dof) [pose units] within ``budget_s`` [s] per target."""
-        raise NotImplementedError
+        raise TypeError(f"{self.name} solves one target per call (batched is False)")
 
 
 def steps_to_tolerance(measure: Callable[[], tuple[float, float]], step: Callable[[], None]
@@ -165,37 +165,3 @@ def steps_to_tolerance(measure: Callable[[], tuple[float, float]], step: Callabl
         if steps < MAX_STEPS:
             step()
     return MAX_STEPS, False
-
-
-#: Every single-pose solver, in the leaderboard's order: name -> ``"module:Class"`` (or the
-#: class itself, for solvers defined at run time).
-SOLVERS: dict[str, str | type[PoseSolver]] = {
-    "ours-lm": "ikbench.baselines._common.ours_lm_pose:OursLMSolver",
-    "rtb-lm": "ikbench.baselines.libraries.rtb:RtbLMSolver",
-    "trac-ik": "ikbench.baselines.libraries.trac_ik:TracIKSolver",
-    "rtb-nr": "ikbench.baselines.libraries.rtb:RtbNRSolver",
-    "sequential-ik": "ikbench.baselines.sequential_ik:DLSSolver",
-    "pink": "ikbench.baselines.libraries.pink_ik:PinkSolver",
-    "mink": "ikbench.baselines.libraries.mink_ik:MinkSolver",
-    "drake-ik": "ikbench.baselines.libraries.drake_ik:DrakeSolver",
-    "pyroki": "ikbench.baselines.libraries.pyroki_trajopt:PyrokiSolver",
-    "ikpy": "ikbench.baselines.libraries.ikpy_ik:IkpySolver",
-    "placo": "ikbench.baselines.libraries.placo_ik:PlacoSolver",
-}
-
-
-def solver_class(name: str) -> type[PoseSolver]:
-    """The solver class of ``name`` (imports its ikbench module, not its library); KeyError
-    for an unknown name."""
-    entry = SOLVERS[name]
-    if not isinstance(entry, str):
-        return entry
-    module, _, attribute = entry.partition(":")
-    cls: type[PoseSolver] = getattr(importlib.import_module(module), attribute)
-    return cls
-
-
-def available_solvers() -> dict[str, type[PoseSolver]]:
-    """The solvers whose libraries are installed (list order)."""
-    classes = {name: solver_class(name) for name in SOLVERS}
-    return {name: cls for name, cls in classes.items() if cls.available()}

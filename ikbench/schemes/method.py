@@ -2,12 +2,13 @@
 result to a :class:`~ikbench.methods.base.Solution` in pose units, the method's own timer.
 
 A library method implements :meth:`LibraryMethod.solve_chain` on the chain and goals in URDF
-units (:mod:`ikbench.baselines._common.chain`) and returns a :class:`ChainResult`; everything else
+units (:mod:`ikbench.schemes.chain`) and returns a :class:`ChainResult`; everything else
 is here.
 """
 
 from __future__ import annotations
 
+import abc
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -15,12 +16,12 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals, chain_of, goals_of, poses_from_urdf
-from ikbench.baselines._common.chain import require_touch_and_start as _require_both
-from ikbench.baselines._common.track import plan_track, require_start_and_touch
-from ikbench.baselines._common.walk import Walk
 from ikbench.core.errors import InputError
 from ikbench.methods.base import Capabilities, Method, Solution, option
+from ikbench.schemes.chain import Chain, Goals, chain_of, goals_of, poses_from_urdf
+from ikbench.schemes.chain import require_touch_and_start as _require_both
+from ikbench.schemes.track import plan_track, require_start_and_touch
+from ikbench.schemes.walk import Walk
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -56,7 +57,7 @@ class ChainResult:
 
     @classmethod
     def from_walk(cls, walk: Walk, **info: object) -> ChainResult:
-        """The result of a sequential walk (:func:`ikbench.baselines._common.walk.walk_back`)."""
+        """The result of a sequential walk (:func:`ikbench.schemes.walk.walk_back`)."""
         return cls(walk.q, walk.iterations, not walk.failed, {**walk.info(), **info})
 
 
@@ -71,7 +72,7 @@ class LibraryMethod(Method):
             fixed; the result's rows are returned as solved, row n included); False for the
             sequential walks (row n is the touch pose exactly).
         loads_urdf: True when the library parses the URDF itself (the chain's URDF text
-            from :func:`ikbench.baselines._common.chain.chain_urdf_text`, locked joints folded into
+            from :func:`ikbench.schemes.chain.chain_urdf_text`, locked joints folded into
             fixed ones).
         chain_check: ``staticmethod(f)``, ``f(chain)`` raising InputError for a chain the
             library cannot model (run by :meth:`check_robot`), or None.
@@ -89,8 +90,8 @@ class LibraryMethod(Method):
     @property
     def scheme(self) -> str:
         """``track`` (from the start pose onto the touch pose,
-        :mod:`ikbench.baselines._common.track`), ``walk`` (back from the touch pose,
-        :mod:`ikbench.baselines._common.walk`) or ``whole-path`` (trajectory optimisers)."""
+        :mod:`ikbench.schemes.track`), ``walk`` (back from the touch pose,
+        :mod:`ikbench.schemes.walk`) or ``whole-path`` (trajectory optimisers)."""
         if self.whole_path:
             return "whole-path"
         return str(getattr(self.settings, "scheme", "walk"))
@@ -135,11 +136,10 @@ class LibraryMethod(Method):
         if self.chain_model is not None:
             self.chain_model(chain)
 
-    def solve_chain(self, robot: Robot, chain: Chain,
-                    goals: Goals) -> ChainResult:  # pragma: no cover
+    @abc.abstractmethod
+    def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         """Solve one task in URDF units (implemented by each library method); ``robot`` for
         methods that work on the robot's own model (pink: its Pinocchio model)."""
-        raise NotImplementedError
 
     def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
         """Solve ``task`` with the library; poses in the robot's pose units."""

@@ -2,9 +2,9 @@
 
 A task's obstacles (``Task.obstacles``, :mod:`ikbench.core.obstacles`: boxes, spheres, capsules,
 half-spaces in the robot's base frame [mm]) reach an adapter's ``solve_chain`` with its goals
-(``Goals.obstacles``, :func:`ikbench.baselines._common.chain.goals_of`); an adapter that keeps
+(``Goals.obstacles``, :func:`ikbench.schemes.chain.goals_of`); an adapter that keeps
 clear of them says so (``Capabilities(obstacles=True)``) and mixes in :class:`AvoidsObstacles`
-(before :class:`ikbench.baselines._common.method.LibraryMethod`), whose ``solve_chain`` hands the
+(before :class:`ikbench.schemes.method.LibraryMethod`), whose ``solve_chain`` hands the
 adapter's ``solve_scene`` their :class:`Scene`. The robot's collision geometry is
 ikbench's own (:func:`ikbench.core.collision.collision_model`: capsules in link frames [mm] and
 the link pairs checked for self-collision); :func:`scene_of` gathers both in the libraries' units
@@ -27,6 +27,7 @@ ikbench ships (under 1.5 m); Drake has no signed distance between a capsule and 
 
 from __future__ import annotations
 
+import abc
 import itertools
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
@@ -39,11 +40,11 @@ from ikbench.core.collision import collision_model
 from ikbench.core.obstacles import frame_with_z
 
 if TYPE_CHECKING:
-    from ikbench.baselines._common.chain import Chain, Goals
-    from ikbench.baselines._common.method import ChainResult
     from ikbench.core.collision import Capsule
     from ikbench.core.obstacles import Obstacle
     from ikbench.core.robot import Robot
+    from ikbench.schemes.chain import Chain, Goals
+    from ikbench.schemes.method import ChainResult
 
 #: A half-space as a box: edge along the plane [m] and depth behind it [m], centred on the
 #: plane's point nearest the robot's base (larger boxes cost the libraries' GJK precision:
@@ -52,7 +53,7 @@ HALFSPACE_BOX_M = 6.0
 HALFSPACE_DEPTH_M = 3.0
 MM = 1e-3
 
-class AvoidsObstacles:
+class AvoidsObstacles(abc.ABC):
     """Mixin for a library method that keeps the robot clear of the task's obstacles
     (``Capabilities(obstacles=True)``): solves each chain in the :class:`Scene` of its goals'
     obstacles (``Goals.obstacles``): the adapter implements :meth:`solve_scene`, and the
@@ -67,11 +68,11 @@ class AvoidsObstacles:
                                       self.settings.clearance))  # type: ignore[attr-defined]
         return result
 
+    @abc.abstractmethod
     def solve_scene(self, robot: Robot, chain: Chain, goals: Goals,
-                    scene: Scene | None) -> ChainResult:  # pragma: no cover
+                    scene: Scene | None) -> ChainResult:
         """Solve one task in URDF units keeping the robot clear in ``scene`` (None: nothing
         to avoid, solve as without obstacles); implemented by each adapter."""
-        raise NotImplementedError
 
 
 @dataclass(frozen=True)

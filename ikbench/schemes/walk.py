@@ -16,7 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals
+from ikbench.schemes.chain import Chain, Goals
 
 
 class PointResult(NamedTuple):

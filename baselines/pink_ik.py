@@ -13,7 +13,7 @@ among the limits: the joint limits are QP constraints ``q_min - q <= v dt <= q_m
 (scaled by the gain), so no step leaves them. pink's frame error is P's body twist
 log(T_P^-1 T_target), so a zero orientation cost on P's z frees the roll.
 
-**Track** (:mod:`ikbench.baselines._common.track`; tasks with a start and a touch pose and no 6-D
+**Track** (:mod:`ikbench.schemes.track`; tasks with a start and a touch pose and no 6-D
 goal frames). Row 0 is the start pose, row n the touch pose; steps 1 .. n-1 are solved forward, each
 from the step before moved on by the last segment's motion (a constant-speed warm start).
 Per step i, QP steps of
@@ -25,9 +25,9 @@ Per step i, QP steps of
 - ``pink.tasks.PostureTask(cost=posture_cost * weights)`` with ``set_target(posture[i])``,
   the start-to-touch interpolation; the weights make every pose unit cost alike (NICO: a motor
   degree; its wrist and finger motors turn their joints only 0.5 and 0.22 URDF degree per
-  motor degree), :func:`ikbench.baselines._common.diffik.posture_weights`;
+  motor degree), :func:`ikbench.schemes.diffik.posture_weights`;
 - a speed box (a ``pink.limits.Limit`` beside the ConfigurationLimit,
-  :class:`ikbench.baselines._common.diffik.SpeedBox`): every joint moves at most ``speed_fraction``
+  :class:`ikbench.schemes.diffik.SpeedBox`): every joint moves at most ``speed_fraction``
   of the contract's largest change per segment from step i-1, and stays within (n - i) such changes
   of the touch pose, so the arm lands on it without a jump,
 
@@ -42,9 +42,9 @@ leave the pointing a few degrees from its schedule at most), speed fraction 0.95
 to the contract's limit), stall 1e-4 rad (2-4 QP solves per step, ~40-70 ms per 50-step
 trajectory).
 
-**Walk** (:mod:`ikbench.baselines._common.walk`; also every 6-D pose path). Per goal point the
+**Walk** (:mod:`ikbench.schemes.walk`; also every 6-D pose path). Per goal point the
 scheme of
-:mod:`ikbench.baselines._common.diffik`: ``FrameTask(P, position_cost, orientation_cost=[w, w,
+:mod:`ikbench.schemes.diffik`: ``FrameTask(P, position_cost, orientation_cost=[w, w,
 0])`` (all three for 6-D goals) and the ConfigurationLimit only. Defaults: dt 1 s with task gain 1
 (a full damped Gauss-Newton step per QP), damping 1e-6 (the 7-DoF arm is redundant: a
 positive-definite QP Hessian, minimum-norm steps), position cost 1 /m and orientation cost
@@ -81,9 +81,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals, chain_of
-from ikbench.baselines._common.collision import AvoidsObstacles, Scene
-from ikbench.baselines._common.diffik import (
+from ikbench.core.errors import InputError
+from ikbench.core.kinematics.pinocchio_fk import link_frame_id
+from ikbench.methods.base import Capabilities, check_choice, option
+from ikbench.methods.registry import Adapter
+from ikbench.schemes.chain import Chain, Goals, chain_of
+from ikbench.schemes.collision import AvoidsObstacles, Scene
+from ikbench.schemes.diffik import (
     SpeedBox,
     WarmStart,
     check_qp_settings,
@@ -99,18 +103,15 @@ from ikbench.baselines._common.diffik import (
     track_orientation_costs,
     track_target_rotation,
 )
-from ikbench.baselines._common.geometry import frame_with_z_on, rotation_angle_rad
-from ikbench.baselines._common.method import ChainResult, LibraryMethod
-from ikbench.baselines._common.single_pose import PoseOut, PoseSolver, steps_to_tolerance
-from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
-from ikbench.baselines._common.walk import PointResult, walk_back
-from ikbench.core.errors import InputError
-from ikbench.core.kinematics.pinocchio_fk import link_frame_id
-from ikbench.methods.base import Capabilities, check_choice, option
+from ikbench.schemes.geometry import frame_with_z_on, rotation_angle_rad
+from ikbench.schemes.method import ChainResult, LibraryMethod
+from ikbench.schemes.single_pose import PoseOut, PoseSolver, steps_to_tolerance
+from ikbench.schemes.track import SCHEME_HELP, SCHEMES, track
+from ikbench.schemes.walk import PointResult, walk_back
 
 if TYPE_CHECKING:
-    from ikbench.baselines._common.track import TrackPlan
     from ikbench.core.robot import Robot
+    from ikbench.schemes.track import TrackPlan
 
 POINTING_FRAME = "ikbench_pointing_frame"
 _MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -282,7 +283,7 @@ def solve_chain(robot: Robot, chain: Chain, goals: Goals, settings: PinkSettings
 def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: PinkSettings,
                 step: np.ndarray | None = None, scene: Scene | None = None) -> ChainResult:
     """pink's track from the start pose onto the touch pose (``plan``: a
-    :class:`ikbench.baselines._common.track.TrackPlan`; ``step``: (dof,) the contract's largest
+    :class:`ikbench.schemes.track.TrackPlan`; ``step``: (dof,) the contract's largest
     joint change per segment [rad, m], or None: no speed box). See the module docstring."""
     import pink
     import pinocchio as pin
@@ -305,7 +306,7 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: PinkSetti
     if box is not None:
 
         class SpeedLimit(Limit):
-            """The speed box (:class:`ikbench.baselines._common.diffik.SpeedBox`) as a pink
+            """The speed box (:class:`ikbench.schemes.diffik.SpeedBox`) as a pink
             limit."""
 
             def compute_qp_inequalities(self, configuration, dt):
@@ -377,10 +378,11 @@ class PinkIK(AvoidsObstacles, LibraryMethod):
 
 
 class PinkSolver(PoseSolver):
-    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`): a
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.schemes.single_pose`): a
     FrameTask on the end frame, ConfigurationLimit, daqp; dt 1 s (full steps) until both
     errors are below the library tolerance or 100 QP steps."""
 
+    rank = 60
     name, library, modules = "pink", "pin-pink", ("pink", "qpsolvers", "daqp")
     iterations_are = "QP solves (pink.solve_ik calls)"
 
@@ -415,3 +417,8 @@ class PinkSolver(PoseSolver):
 
         steps, ok = steps_to_tolerance(measure, step)
         return PoseOut(configuration.q.copy(), steps, ok)
+
+
+#: What this library brings (found by :mod:`ikbench.methods.registry`).
+ADAPTER = Adapter(library="pin-pink", requires=("pink", "qpsolvers", "daqp"),
+                  methods=(PinkIK,), solvers=(PinkSolver,), rank=60)

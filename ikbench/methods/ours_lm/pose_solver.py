@@ -1,5 +1,5 @@
 """ours-lm's single-pose IK under the protocol of ``ikbench ik`` (ikbench's own method, not a
-library: its adapter sits beside the interface, :mod:`ikbench.baselines._common.single_pose`).
+library: its adapter sits beside the interface, :mod:`ikbench.schemes.single_pose`).
 
 ours-lm restarts by itself: :meth:`OursLMSolver.solve_within` takes the target's whole
 sequence of initial configurations [pose units] and the budget. With numba installed (the
@@ -10,12 +10,12 @@ from Python, and :meth:`OursLMSolver.solve_batch` solves every target over numba
 each with its own budget. Without numba it runs the numpy reference,
 :func:`ikbench.methods.ours_lm.single_pose.solve_poses`, one target per call: an attempt from
 row a stops after :data:`RESTART_AFTER` iterations without success (the last row's after
-:data:`~ikbench.baselines._common.single_pose.MAX_STEPS`), and the next row starts while the
+:data:`~ikbench.schemes.single_pose.MAX_STEPS`), and the next row starts while the
 budget lasts (checked between attempts: numpy cannot stop inside one); its batch is one numpy
 call without a deadline. :meth:`OursLMSolver.runtime` says which ran.
 
 One descent (``--attempts 1``: one row) stops after
-:data:`~ikbench.baselines._common.single_pose.MAX_STEPS` iterations, as the other methods'
+:data:`~ikbench.schemes.single_pose.MAX_STEPS` iterations, as the other methods'
 descents do.
 """
 
@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from ikbench.baselines._common.single_pose import MAX_STEPS, BatchOut, PoseOut, PoseSolver
 from ikbench.methods.ours_lm.devices import compiled_module, numba_threads
 from ikbench.methods.ours_lm.single_pose import solve_poses
+from ikbench.schemes.single_pose import MAX_STEPS, BatchOut, PoseOut, PoseSolver
 
 #: Iterations of one attempt before the next row (the numpy reference's ``restart_after``).
 RESTART_AFTER = 15
@@ -46,6 +46,7 @@ class OursLMSolver(PoseSolver):
     """ours-lm's projected LM on ``[e_point / tol_mm, e_rot / tol_deg]`` (see the module
     docstring)."""
 
+    rank = 10
     name, library, modules = "ours-lm", "ikbench", ()
     restarts_itself = True
     batched = True

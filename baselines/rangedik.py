@@ -1,7 +1,7 @@
 """RangedIK (PyPI ``relaxed-ik-core``, module ``relaxed_ik_lib``): the real-time motion
 synthesis of RelaxedIK / RangedIK (Rakita et al.; Wang et al., ICRA 2023), tracked from the
 start pose onto the touch pose (``scheme`` track, the default) or walked back from the touch
-pose (walk, :mod:`ikbench.baselines._common.walk`).
+pose (walk, :mod:`ikbench.schemes.walk`).
 
 The wheel (relaxed-ik-core 0.1.4, Rust) holds two interfaces in one shared library:
 
@@ -21,7 +21,7 @@ This adapter solves through the C functions (ctypes on the same file) and checks
 result with the Python class's ``forward`` (the library's own FK).
 
 **Settings** are generated per robot into a temporary folder: the chain's URDF text
-(:func:`ikbench.baselines._common.chain.chain_urdf_text`) as ``configs/urdfs/robot.urdf`` and
+(:func:`ikbench.schemes.chain.chain_urdf_text`) as ``configs/urdfs/robot.urdf`` and
 ``settings.yaml`` with ``urdf: robot.urdf``, ``base_links: [<base link>]``, ``ee_links:
 [<end frame>]`` (or a fixed child frame whose z-axis is the pointing axis, when that is not
 the end frame's z) and ``starting_config`` (the chain's limits' midpoint, clipped; every
@@ -43,7 +43,7 @@ objective, so tasks with obstacles are solved without them and ``compare`` judge
 collisions). Each ``solve_position`` call is one real-time step: PANOC from the last
 solution, at most 100 iterations, tolerance 5e-4.
 
-**Goals per step** (the track, :mod:`ikbench.baselines._common.track`): the goal point, and
+**Goals per step** (the track, :mod:`ikbench.schemes.track`): the goal point, and
 the rotation nearest the pointing frame's whose z-axis is the scheduled pointing direction,
 with tolerances (0, 0, 0, tilt, tilt, roll): position exact, the roll about the pointing axis
 free (``roll_tolerance`` 180 deg), the tilt ``tilt_tolerance`` (default 0); without pointing
@@ -51,7 +51,7 @@ in the task, every rotation tolerance is 180 deg (position only). One call rarel
 goal point (its smoothness objectives hold it back): the step repeats ``solve_position`` on
 the same goals, up to ``calls`` times, until the position error by ``forward`` is within
 ``tolerance`` and either the pointing is within 1e-3 rad of its goal or the last call moved
-no joint more than ``stall`` (:func:`ikbench.baselines._common.diffik.settle`). A step counts
+no joint more than ``stall`` (:func:`ikbench.schemes.diffik.settle`). A step counts
 as converged when its position error is within ``tolerance``. Between steps the library keeps
 its own state (its last three solutions); a trajectory starts with ``reset(q_start)`` (the
 walk: ``reset(q_touch)``), and on the track each step first resets to its warm start moved
@@ -81,20 +81,21 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals, element_path
-from ikbench.baselines._common.diffik import settle
-from ikbench.baselines._common.geometry import (
+from ikbench.core.errors import InputError
+from ikbench.core.urdf_model import with_fixed_frame
+from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.registry import Adapter
+from ikbench.schemes.chain import Chain, Goals, element_path
+from ikbench.schemes.diffik import settle
+from ikbench.schemes.geometry import (
     angle_between_rad,
     closest_rotation_with_axis,
     frame_with_z_on,
     quaternion_xyzw,
 )
-from ikbench.baselines._common.method import ChainResult, LibraryMethod
-from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
-from ikbench.baselines._common.walk import PointResult, walk_back
-from ikbench.core.errors import InputError
-from ikbench.core.urdf_model import with_fixed_frame
-from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.schemes.method import ChainResult, LibraryMethod
+from ikbench.schemes.track import SCHEME_HELP, SCHEMES, track
+from ikbench.schemes.walk import PointResult, walk_back
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -345,3 +346,8 @@ class RangedIK(LibraryMethod):
 
     def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         return solve_chain(chain, goals, self.settings)
+
+
+#: What this library brings (found by :mod:`ikbench.methods.registry`).
+ADAPTER = Adapter(library="relaxed-ik-core", requires=("relaxed_ik_lib",),
+                  methods=(RangedIK,), solvers=(), rank=120)

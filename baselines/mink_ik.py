@@ -10,9 +10,9 @@ depend on it). A site on the end body, its z-axis on the pointing axis
 The chain's limits replace ``model.jnt_range`` (continuous joints stay unlimited); goals are
 turned from the base body's frame into MuJoCo's world frame.
 
-Two schemes, as pink's (:mod:`ikbench.baselines.libraries.pink_ik`): **track** (``--scheme track``,
+Two schemes, as pink's (:mod:`ikbench.baselines.pink_ik`): **track** (``--scheme track``,
 the default: from the start pose along the goal points onto the touch pose,
-:mod:`ikbench.baselines._common.track`) and **walk** (``--scheme walk``: back from the touch pose,
+:mod:`ikbench.schemes.track`) and **walk** (``--scheme walk``: back from the touch pose,
 the start pose free; also every 6-D pose path). Both call ``mink.Configuration(model, q)``,
 ``mink.solve_ik(configuration, tasks, dt, qp_solver, damping=..., limits=limits)`` with
 ``mink.ConfigurationLimit(model, gain)`` among the limits, and ``configuration.integrate(v, dt)`` /
@@ -27,8 +27,8 @@ the last segment's motion): the FrameTask at the goal point (``track_position_co
 scheduled pointing direction (the rotation nearest P's with that z-axis; orientation cost 0
 when the task asks no pointing), ``mink.PostureTask(model, cost=posture_cost * weights)`` with
 ``set_target(posture[i])`` (the start-to-touch interpolation, every pose unit weighted alike:
-:func:`ikbench.baselines._common.diffik.posture_weights`), and a speed box (a ``mink.Limit``
-returning a ``mink.Constraint``, :class:`ikbench.baselines._common.diffik.SpeedBox`: every joint
+:func:`ikbench.schemes.diffik.posture_weights`), and a speed box (a ``mink.Limit``
+returning a ``mink.Constraint``, :class:`ikbench.schemes.diffik.SpeedBox`: every joint
 within ``speed_fraction`` of the contract's largest change per segment from step i-1 and within
 (n - i) such changes of the touch pose); QP steps until the position error is below
 ``tolerance`` and the last step moved no joint more than ``stall``, at most ``max_steps``. A
@@ -36,7 +36,7 @@ step is converged when the site's position (MuJoCo's FK) is within ``tolerance``
 as pink's (position cost 1000 /m, orientation cost 0.1 /rad, posture cost 0.01 /rad, speed
 fraction 0.95, stall 1e-4 rad; the reasons are given there).
 
-Walk, per goal point: the scheme of :mod:`ikbench.baselines._common.diffik` (the FrameTask, all
+Walk, per goal point: the scheme of :mod:`ikbench.schemes.diffik` (the FrameTask, all
 three orientation costs for 6-D goals, and the ConfigurationLimit only). Defaults as pink's except
 the limit gain: mink's own default 0.95 (both schemes). ``iterations`` counts QP solves.
 
@@ -67,9 +67,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals
-from ikbench.baselines._common.collision import AvoidsObstacles, Scene
-from ikbench.baselines._common.diffik import (
+from ikbench.core.errors import InputError
+from ikbench.methods.base import Capabilities, check_choice, option
+from ikbench.methods.registry import Adapter
+from ikbench.schemes.chain import Chain, Goals
+from ikbench.schemes.collision import AvoidsObstacles, Scene
+from ikbench.schemes.diffik import (
     SpeedBox,
     WarmStart,
     check_qp_settings,
@@ -85,17 +88,15 @@ from ikbench.baselines._common.diffik import (
     track_orientation_costs,
     track_target_rotation,
 )
-from ikbench.baselines._common.geometry import frame_with_z_on, rotation_angle_rad
-from ikbench.baselines._common.method import ChainResult, LibraryMethod
-from ikbench.baselines._common.single_pose import PoseOut, PoseSolver, steps_to_tolerance
-from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, track
-from ikbench.baselines._common.walk import PointResult, walk_back
-from ikbench.core.errors import InputError
-from ikbench.methods.base import Capabilities, check_choice, option
+from ikbench.schemes.geometry import frame_with_z_on, rotation_angle_rad
+from ikbench.schemes.method import ChainResult, LibraryMethod
+from ikbench.schemes.single_pose import PoseOut, PoseSolver, steps_to_tolerance
+from ikbench.schemes.track import SCHEME_HELP, SCHEMES, track
+from ikbench.schemes.walk import PointResult, walk_back
 
 if TYPE_CHECKING:
-    from ikbench.baselines._common.track import TrackPlan
     from ikbench.core.robot import Robot
+    from ikbench.schemes.track import TrackPlan
 
 SITE = "ikbench_pointing_site"
 POINTING_TASKS = ("frame", "axis-align")
@@ -175,7 +176,7 @@ _SCENE_MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 def mink_scene_model(chain: Chain, scene: Scene) -> MinkModel:
     """The chain's :class:`MinkModel` with the collision geometry of ``scene``
-    (:class:`ikbench.baselines._common.collision.Scene`; see the module docstring), cached per
+    (:class:`ikbench.schemes.collision.Scene`; see the module docstring), cached per
     chain and scene."""
     cache = _SCENE_MODELS.setdefault(chain, {})
     if scene.key not in cache:
@@ -347,7 +348,7 @@ def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings,
 def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: MinkSettings,
                 step: np.ndarray | None = None, scene: Scene | None = None) -> ChainResult:
     """mink's track from the start pose onto the touch pose (``plan``: a
-    :class:`ikbench.baselines._common.track.TrackPlan`; ``step``: (dof,) the contract's largest
+    :class:`ikbench.schemes.track.TrackPlan`; ``step``: (dof,) the contract's largest
     joint change per segment [rad, m], or None: no speed box). See the module docstring."""
     import mink
     from mink.exceptions import NoSolutionFound
@@ -377,7 +378,7 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: MinkSetti
     if box is not None:
 
         class SpeedLimit(mink.Limit):
-            """The speed box (:class:`ikbench.baselines._common.diffik.SpeedBox`) as a mink
+            """The speed box (:class:`ikbench.schemes.diffik.SpeedBox`) as a mink
             limit."""
 
             def compute_qp_inequalities(self, configuration, dt):
@@ -457,10 +458,11 @@ class MinkIK(AvoidsObstacles, LibraryMethod):
 
 
 class MinkSolver(PoseSolver):
-    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`): a
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.schemes.single_pose`): a
     FrameTask on the end site, ConfigurationLimit, daqp; dt 1 s (full steps) until both
     errors are below the library tolerance or 100 QP steps."""
 
+    rank = 70
     name, library, modules = "mink", "mink", ("mink", "mujoco", "qpsolvers", "daqp")
     iterations_are = "QP solves (mink.solve_ik calls)"
 
@@ -497,3 +499,8 @@ class MinkSolver(PoseSolver):
 
         steps, ok = steps_to_tolerance(measure, step)
         return PoseOut(configuration.q[m.qpos].copy(), steps, ok)
+
+
+#: What this library brings (found by :mod:`ikbench.methods.registry`).
+ADAPTER = Adapter(library="mink", requires=("mink", "mujoco", "qpsolvers", "daqp"),
+                  methods=(MinkIK,), solvers=(MinkSolver,), rank=90)

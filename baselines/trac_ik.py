@@ -1,6 +1,6 @@
 """TRAC-IK (PyPI ``pytracik``): one exact 6-D IK per goal point, warm-started: tracked from the
 start pose onto the touch pose (``scheme`` track, the default) or walked back from the touch
-pose (walk, :mod:`ikbench.baselines._common.walk`).
+pose (walk, :mod:`ikbench.schemes.walk`).
 
 pytracik 0.0.3 ships only its compiled binding (module ``pytracik``; the ``trac_ik`` Python
 wrapper of its README is not in the wheel; source: github.com/chenhaox/pytracik
@@ -27,9 +27,9 @@ converged. 6-D goal frames are solved as given. A returned solution counts as so
 pose-error twist by ``eps`` in its own frame, so position [m] and rotation angle [rad] within
 sqrt(3) eps (:data:`FK_CHECK`).
 
-The track (:mod:`ikbench.baselines._common.track`): row 0 is the start pose, row n the touch pose;
+The track (:mod:`ikbench.schemes.track`): row 0 is the start pose, row n the touch pose;
 step i asks for the plan's point and scheduled pointing direction, the rotation built as above
-but its roll ramped onto the touch pose's (:mod:`ikbench.baselines._common.exact_pose`) rather
+but its roll ramped onto the touch pose's (:mod:`ikbench.schemes.exact_pose`) rather
 than carried over, so the last segment does not spin the wrist onto the touch pose. When
 the task asks no pointing, position only is impossible with an exact-pose solver: the step asks
 for the task's own goal direction (not judged; roll swept as above) and, when none of those
@@ -56,20 +56,21 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ikbench.baselines._common.chain import Chain, Goals, chain_of
-from ikbench.baselines._common.exact_pose import (
+from ikbench.core.chatter import quiet
+from ikbench.methods.base import Capabilities, check_choice, check_positive, option
+from ikbench.methods.registry import Adapter
+from ikbench.schemes.chain import Chain, Goals, chain_of
+from ikbench.schemes.exact_pose import (
     check_roll_settings,
     roll_max_option,
     roll_step_option,
     rolls_rad,
     solve_exact_poses,
 )
-from ikbench.baselines._common.geometry import quaternion_xyzw, rotation_angle_rad
-from ikbench.baselines._common.method import ChainResult, LibraryMethod
-from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
-from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES
-from ikbench.core.chatter import quiet
-from ikbench.methods.base import Capabilities, check_choice, check_positive, option
+from ikbench.schemes.geometry import quaternion_xyzw, rotation_angle_rad
+from ikbench.schemes.method import ChainResult, LibraryMethod
+from ikbench.schemes.single_pose import PoseOut, PoseSolver
+from ikbench.schemes.track import SCHEME_HELP, SCHEMES
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -214,12 +215,13 @@ POSE_EPS, POSE_SOLVE_TYPE, POSE_UNBOUNDED_TIMEOUT_S = 1e-5, "Speed", 1.0
 
 
 class TracIKSolver(PoseSolver):
-    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`):
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.schemes.single_pose`):
     ``ik(solver, seed, x, y, z, qx, qy, qz, qw)`` from the first initial configuration, with
     the budget as TRAC-IK's timeout (its own random restarts within it: it restarts itself,
     from its own draws; the sequence's further rows are not used), eps 1e-5, Speed. Poses
     only: the binding cannot free the rotation (no tolerance twist)."""
 
+    rank = 30
     name, library, modules = "trac-ik", "pytracik", ("pytracik",)
     kinds = ("pose",)
     deterministic = False
@@ -249,3 +251,8 @@ class TracIKSolver(PoseSolver):
             raise ValueError(f"TRAC-IK's timeout is the budget it was built with, "
                              f"{self.budget_s} s, not {budget_s} s")
         return self.solve(initials[0], point_m, rotation)
+
+
+#: What this library brings (found by :mod:`ikbench.methods.registry`).
+ADAPTER = Adapter(library="pytracik", requires=("pytracik",),
+                  methods=(TracIK,), solvers=(TracIKSolver,), rank=70)

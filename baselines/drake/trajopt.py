@@ -34,7 +34,7 @@ contract's largest step per segment at n (``contract.max_step(n)``, pose units) 
 it bounds the spline's derivative at its free duration, not the steps between the samples.
 
 Initial guess (``--drake-init``): ``ik`` (default) fits the spline to the Drake IK walk
-(:mod:`ikbench.baselines.libraries.drake_ik`, ``--scheme walk``: it ends away from the start pose,
+(:mod:`ikbench.baselines.drake.ik`, ``--scheme walk``: it ends away from the start pose,
 so the guess jumps in its first segment) by least squares with the ends fixed; ``linear``
 interpolates the control points between the two poses. Solved by SNOPT (``Solve``'s choice) with
 feasibility 1e-8, optimality 1e-6 and at most 1000 major iterations; the poses are
@@ -42,14 +42,14 @@ feasibility 1e-8, optimality 1e-6 and at most 1000 major iterations; the poses a
 (row 0 is the start pose and row n the touch pose to the feasibility tolerance).
 
 Obstacles (a task with ``obstacles``; without them nothing here changes): the plant with
-collision geometry (:func:`ikbench.baselines._common.drake.drake_scene_chain`: the robot's
+collision geometry (:func:`ikbench.baselines.drake.common.drake_scene_chain`: the robot's
 capsules, the obstacles, the collision model's self pairs and the robot-obstacle pairs), and
 ``AddPathPositionConstraint(MinimumDistanceLowerBoundConstraint(plant, clearance,
 plant_context, None, influence), s)`` at every inner goal sample s_i (and, with
 ``--drake-collision-samples`` k > 1, at k - 1 further samples within each segment): the
 clearance ``--drake-clearance`` (default 5 mm) between every such pair where the waypoints
 are judged; between samples the spline is not checked. The ``ik`` initial guess is the Drake
-IK walk with the same constraint (:mod:`ikbench.baselines.libraries.drake_ik`).
+IK walk with the same constraint (:mod:`ikbench.baselines.drake.ik`).
 """
 
 from __future__ import annotations
@@ -60,9 +60,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals, contract_step
-from ikbench.baselines._common.collision import AvoidsObstacles, Scene
-from ikbench.baselines._common.drake import (
+from ikbench.baselines.drake import ik as drake_ik
+from ikbench.baselines.drake.common import (
     SOLVERS,
     DrakeMethod,
     drake_chain,
@@ -74,12 +73,13 @@ from ikbench.baselines._common.drake import (
     set_tolerances,
     solve,
 )
-from ikbench.baselines._common.method import ChainResult
-from ikbench.baselines.libraries import drake_ik
-from ikbench.baselines.libraries.drake_ik import STEP_MARGIN
+from ikbench.baselines.drake.ik import STEP_MARGIN
 from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
 from ikbench.methods.base import Capabilities, check_choice, check_positive, option
+from ikbench.schemes.chain import Chain, Goals, contract_step
+from ikbench.schemes.collision import AvoidsObstacles, Scene
+from ikbench.schemes.method import ChainResult
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -223,7 +223,7 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeTrajoptSettings,
         max_step: (dof,) the largest joint change per segment [rad, m] between the samples
             s_i and s_i+1 (the contract's speed limit), or None: no such bound.
         scene: the robot's capsules and the task's obstacles
-            (:class:`ikbench.baselines._common.collision.Scene`) kept ``settings.clearance`` apart
+            (:class:`ikbench.schemes.collision.Scene`) kept ``settings.clearance`` apart
             at the samples, or None (no obstacles: the program as without them).
     """
     from pydrake.math import RotationMatrix

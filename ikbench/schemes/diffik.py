@@ -4,13 +4,13 @@ Per goal point, from the warm start, repeat until the position error is below ``
 [m] and the pointing error below ``tolerance`` [rad], or ``max_steps`` steps:
 
 1. measure the pointing frame P (the end frame turned so that its z-axis is the pointing
-   axis, :func:`ikbench.baselines._common.geometry.frame_with_z_on`) and the errors;
+   axis, :func:`ikbench.schemes.geometry.frame_with_z_on`) and the errors;
 2. set the frame task's target: the goal point, and the rotation nearest P's whose z-axis is
    the goal direction (so the roll error is 0 and the orientation cost ``[w, w, 0]`` on P's
    body twist frees the roll); for 6-D goals the goal rotation itself, cost ``[w, w, w]``;
 3. one QP: ``v = solve_ik(configuration, tasks, dt, damping, limits)``, q <- q + v dt.
 
-That is the walk's solve. The tracking scheme (:mod:`ikbench.baselines._common.track`) shares the
+That is the walk's solve. The tracking scheme (:mod:`ikbench.schemes.track`) shares the
 rest of this module: the frame task's target at step i (:func:`track_target_rotation`: the scheduled
 pointing direction, roll free, or none), the errors (:func:`track_errors`), the stop rule
 (:func:`settle`: position within the tolerance and the last QP step stalled, since the
@@ -27,20 +27,20 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ikbench.baselines._common.chain import Goals
-from ikbench.baselines._common.geometry import (
+from ikbench.core.errors import InputError
+from ikbench.methods.base import check_positive, flag_of
+from ikbench.schemes.chain import Goals
+from ikbench.schemes.geometry import (
     angle_between_rad,
     closest_rotation_with_axis,
     rotation_angle_rad,
 )
-from ikbench.baselines._common.method import shared_option
-from ikbench.baselines._common.walk import PointResult
-from ikbench.core.errors import InputError
-from ikbench.methods.base import check_positive, flag_of
+from ikbench.schemes.method import shared_option
+from ikbench.schemes.walk import PointResult
 
 if TYPE_CHECKING:
-    from ikbench.baselines._common.track import TrackPlan
     from ikbench.core.robot import Robot
+    from ikbench.schemes.track import TrackPlan
 
 Z = np.array([0.0, 0.0, 1.0])
 #: The options of the scheme, alike in pink and mink (``--<library>-<field>``,
@@ -143,13 +143,13 @@ def converge(measure: Callable[[], tuple[float, float]], step: Callable[[], None
         steps += 1
 
 
-# --- the tracking scheme (ikbench.baselines._common.track): one solve per step from the start pose
+# --- the tracking scheme (ikbench.schemes.track): one solve per step from the start pose
 # -
 
 
 def track_target_rotation(plan: TrackPlan, i: int, R_P: np.ndarray) -> np.ndarray:
     """The rotation (3, 3) the frame task asks of P at step ``i`` of a
-    :class:`ikbench.baselines._common.track.TrackPlan`: the rotation nearest P's whose z-axis is the
+    :class:`ikbench.schemes.track.TrackPlan`: the rotation nearest P's whose z-axis is the
     scheduled direction (roll kept), or P's own rotation when the plan asks no pointing."""
     if plan.directions is None:
         return np.asarray(R_P, dtype=float)

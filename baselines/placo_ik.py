@@ -1,9 +1,9 @@
 """placo (PyPI ``placo``, Rhoban): QP task-space kinematics on Pinocchio, tracking the goal
 points from the start pose onto the touch pose (``scheme`` track, the default) or walked back
-from the touch pose (walk, :mod:`ikbench.baselines._common.walk`); and its single-pose IK for
+from the touch pose (walk, :mod:`ikbench.schemes.walk`); and its single-pose IK for
 ``ikbench ik`` (:class:`PlacoSolver`).
 
-placo loads the chain's URDF text (:func:`ikbench.baselines._common.chain.chain_urdf_text`)
+placo loads the chain's URDF text (:func:`ikbench.schemes.chain.chain_urdf_text`)
 with ``placo.RobotWrapper("", placo.Flags.ignore_collisions, urdf_text)`` (a floating base,
 masked: ``solver.mask_fbase(True)``), once per robot. Every solve builds a
 ``placo.KinematicsSolver(robot)`` and calls ``solver.solve(True)`` (one QP: a joint
@@ -21,11 +21,11 @@ Tasks (all ``soft``: a weighted least-squares QP; placo weights squared errors):
   asks no pointing;
 - one ``solver.add_joints_task()`` per joint, ``set_joints({joint: posture_i})``, weight
   ``posture_weight`` times the square of the joint's per-pose-unit factor
-  (:func:`ikbench.baselines._common.diffik.posture_weights`: a motor degree of NICO's wrist
+  (:func:`ikbench.schemes.diffik.posture_weights`: a motor degree of NICO's wrist
   costs as much as one of its shoulder): the posture toward the start-to-touch joint line;
 - joint limits: ``solver.enable_joint_limits(True)`` (hard: q + dq within
   ``robot.set_joint_limits``). The speed limit enters here too: at step i every joint's limits
-  are narrowed to the speed box (:class:`ikbench.baselines._common.diffik.SpeedBox`: within
+  are narrowed to the speed box (:class:`ikbench.schemes.diffik.SpeedBox`: within
   ``speed_fraction`` of the contract's largest change per segment from step i-1 and within
   (n - i) such changes of the touch pose), so no QP of the step leaves it. placo's own
   velocity limit (``enable_velocity_limits``: |dq| <= dt v_max) bounds each QP, not a
@@ -34,7 +34,7 @@ Tasks (all ``soft``: a weighted least-squares QP; placo weights squared errors):
 Per step, from the step before moved on by the last segment's motion (a constant-speed warm
 start, clipped into the box), QPs until the position error is below ``tolerance`` and either
 the pointing is within ``tolerance`` [rad] of its schedule or the last QP moved no joint more
-than ``stall`` (:func:`ikbench.baselines._common.diffik.settle`), at most ``max_steps``. A step
+than ``stall`` (:func:`ikbench.schemes.diffik.settle`), at most ``max_steps``. A step
 counts as converged when its position error, by placo's FK, is within ``tolerance``.
 ``iterations`` counts QP solves (``solver.solve`` calls).
 
@@ -51,15 +51,16 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals
-from ikbench.baselines._common.diffik import SpeedBox, posture_weights, settle
-from ikbench.baselines._common.geometry import angle_between_rad, rotation_angle_rad
-from ikbench.baselines._common.method import ChainResult, LibraryMethod
-from ikbench.baselines._common.single_pose import PoseOut, PoseSolver, steps_to_tolerance
-from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, TrackPlan, track
-from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.registry import Adapter
+from ikbench.schemes.chain import Chain, Goals
+from ikbench.schemes.diffik import SpeedBox, posture_weights, settle
+from ikbench.schemes.geometry import angle_between_rad, rotation_angle_rad
+from ikbench.schemes.method import ChainResult, LibraryMethod
+from ikbench.schemes.single_pose import PoseOut, PoseSolver, steps_to_tolerance
+from ikbench.schemes.track import SCHEME_HELP, SCHEMES, TrackPlan, track
+from ikbench.schemes.walk import PointResult, walk_back
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -180,7 +181,7 @@ def new_solver(model: PlacoModel) -> Any:
 def settle_point(model: PlacoModel, chain: Chain, solver: Any, point_m: np.ndarray,
                  direction: np.ndarray | None, settings: PlacoSettings) -> PointResult:
     """QPs from the robot's current joints until the step settles
-    (:func:`ikbench.baselines._common.diffik.settle`): the goal point ``point_m`` (3,) [m]
+    (:func:`ikbench.schemes.diffik.settle`): the goal point ``point_m`` (3,) [m]
     and, unless None, the pointing ``direction`` (3,) (base frame)."""
 
     def measure() -> tuple[float, float]:
@@ -306,6 +307,7 @@ class PlacoSolver(PoseSolver):
     joint limits on, one ``solver.solve(True)`` QP per step until both errors are below the
     library tolerance."""
 
+    rank = 110
     name, library, modules = "placo", "placo", ("placo",)
     iterations_are = "QP solves (placo solver.solve calls)"
 
@@ -337,3 +339,8 @@ class PlacoSolver(PoseSolver):
 
         steps, ok = steps_to_tolerance(measure, step)
         return PoseOut(model.get_q(chain), steps, ok)
+
+
+#: What this library brings (found by :mod:`ikbench.methods.registry`).
+ADAPTER = Adapter(library="placo", requires=("placo",),
+                  methods=(Placo,), solvers=(PlacoSolver,), rank=130)

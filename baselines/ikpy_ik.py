@@ -22,7 +22,7 @@ Orientation modes (``--ikpy-orientation``):
 
 Tasks with 6-D goal frames use ``orientation_mode="all"`` (``[p - p_goal, R - R_goal]``).
 
-The track (:mod:`ikbench.baselines._common.track`): row 0 is the start pose, row n the touch pose;
+The track (:mod:`ikbench.schemes.track`): row 0 is the start pose, row n the touch pose;
 step i asks for the plan's point and scheduled pointing direction (position only when the task asks
 no pointing), from the pose before. ikpy has no posture term; two things make the poses
 playable:
@@ -63,14 +63,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ikbench.baselines._common.chain import Chain, Goals, chain_of, element_path
-from ikbench.baselines._common.geometry import angle_between_rad, rotation_angle_rad
-from ikbench.baselines._common.method import ChainResult, LibraryMethod
-from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
-from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, speed_box, track
-from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import Capabilities, check_choice, check_positive, option
+from ikbench.methods.registry import Adapter
+from ikbench.schemes.chain import Chain, Goals, chain_of, element_path
+from ikbench.schemes.geometry import angle_between_rad, rotation_angle_rad
+from ikbench.schemes.method import ChainResult, LibraryMethod
+from ikbench.schemes.single_pose import PoseOut, PoseSolver
+from ikbench.schemes.track import SCHEME_HELP, SCHEMES, speed_box, track
+from ikbench.schemes.walk import PointResult, walk_back
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -313,10 +314,11 @@ class IkpyWalk(IkpyIK):
 
 
 class IkpySolver(PoseSolver):
-    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`):
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.schemes.single_pose`):
     ``Chain.inverse_kinematics_frame`` (scipy least squares within the bounds),
     ``orientation_mode="all"`` for poses, None (position only) for points."""
 
+    rank = 100
     name, library, modules = "ikpy", "ikpy", ("ikpy",)
     iterations_are = "ikpy calls (ikpy reports no iteration count)"
     #: A start on a bound is moved this far inside (scipy's trf wants strictly feasible).
@@ -337,3 +339,8 @@ class IkpySolver(PoseSolver):
             full = np.asarray(self.ik_chain.inverse_kinematics_frame(
                 target=frame, initial_position=start, **kwargs), dtype=float)
         return PoseOut(full[self.active], 1, None)
+
+
+#: What this library brings (found by :mod:`ikbench.methods.registry`).
+ADAPTER = Adapter(library="ikpy", requires=("ikpy",),
+                  methods=(IkpyIK, IkpyWalk), solvers=(IkpySolver,), rank=50)

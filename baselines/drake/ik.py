@@ -3,7 +3,7 @@ start pose onto the touch pose (``--scheme track``, default) or walked back from
 pose (``--scheme walk``, the authors' scheme).
 
 Walk (and any pose path): per goal point i, warm start q_w (the previous solution), on the
-plant of :mod:`ikbench.baselines._common.drake`::
+plant of :mod:`ikbench.baselines.drake.common`::
 
     ik = InverseKinematics(plant, with_joint_limits=False)       # the chain's limits below
     ik.AddPositionConstraint(end_frame, [0, 0, 0], base_frame, p_i - tol, p_i + tol)
@@ -21,7 +21,7 @@ The warm-start cost pulls the pointing to the edge of its 0.01 deg cone. ``itera
 solves (Drake reports no SNOPT iteration count); a point whose result is not a success counts
 as not converged.
 
-Track (:mod:`ikbench.baselines._common.track`): steps 1..n-1 forward from the start pose (row 0),
+Track (:mod:`ikbench.schemes.track`): steps 1..n-1 forward from the start pose (row 0),
 each warm-started at the step before; row n is the touch pose. Per step i the same program with
 the plan's goals: the position constraint at ``plan.points_m[i]``; the pointing constraint on
 the scheduled direction ``plan.directions[i]`` (none when the contract does not ask for
@@ -39,7 +39,7 @@ again with the pointing as ``AddAngleBetweenVectorsCost`` c (1 - cos angle)
 step is solved when Drake reports success and FK puts the end point within 1e-3 mm of its box.
 
 Obstacles (a task with ``obstacles``; without them nothing here changes): the plant is the one with
-collision geometry (:func:`ikbench.baselines._common.drake.drake_scene_chain`: the robot's
+collision geometry (:func:`ikbench.baselines.drake.common.drake_scene_chain`: the robot's
 capsules, the obstacles, only the collision model's self pairs and the robot-obstacle pairs
 unfiltered), ``InverseKinematics(plant, plant_context, with_joint_limits=False)`` on its diagram's
 plant context, and every program gains ``ik.AddMinimumDistanceLowerBoundConstraint(clearance,
@@ -59,9 +59,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals, contract_step, urdf_step
-from ikbench.baselines._common.collision import AvoidsObstacles, Scene
-from ikbench.baselines._common.drake import (
+from ikbench.baselines.drake.common import (
     SOLVERS,
     DrakeMethod,
     drake_chain,
@@ -71,12 +69,14 @@ from ikbench.baselines._common.drake import (
     set_tolerances,
     solve,
 )
-from ikbench.baselines._common.method import ChainResult
-from ikbench.baselines._common.single_pose import PoseOut, PoseSolver
-from ikbench.baselines._common.track import SCHEME_HELP, SCHEMES, speed_box, track
-from ikbench.baselines._common.walk import PointResult, walk_back
 from ikbench.core.errors import InputError
 from ikbench.methods.base import Capabilities, check_choice, check_positive, option
+from ikbench.schemes.chain import Chain, Goals, contract_step, urdf_step
+from ikbench.schemes.collision import AvoidsObstacles, Scene
+from ikbench.schemes.method import ChainResult
+from ikbench.schemes.single_pose import PoseOut, PoseSolver
+from ikbench.schemes.track import SCHEME_HELP, SCHEMES, speed_box, track
+from ikbench.schemes.walk import PointResult, walk_back
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -137,7 +137,7 @@ def solve_chain(chain: Chain, goals: Goals, settings: DrakeIKSettings,
         max_step: (dof,) the largest joint step per segment [rad, m] the track may take, or
             None (no speed limit known; the walk ignores it).
         scene: the robot's capsules and the task's obstacles
-            (:class:`ikbench.baselines._common.collision.Scene`) to keep ``settings.clearance``
+            (:class:`ikbench.schemes.collision.Scene`) to keep ``settings.clearance``
             apart, or None (no obstacles: the programs as without them).
     """
     from pydrake.math import RotationMatrix
@@ -295,10 +295,11 @@ POSE_ANGLE_RAD, POSE_FEASIBILITY = 1e-6, 1e-9
 
 
 class DrakeSolver(PoseSolver):
-    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`):
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.schemes.single_pose`):
     ``InverseKinematics`` with position and orientation constraints (position only for
     points), the limits as a bounding box, a quadratic cost to the initial pose; SNOPT."""
 
+    rank = 80
     name, library, modules = "drake-ik", "drake", ("pydrake",)
     iterations_are = "solves (Drake reports no iteration count)"
 

@@ -53,11 +53,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals, chain_of, contract_step
-from ikbench.baselines._common.method import ChainResult, LibraryMethod
-from ikbench.baselines._common.single_pose import MAX_STEPS, PoseOut, PoseSolver
 from ikbench.core.errors import InputError
 from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.registry import Adapter
+from ikbench.schemes.chain import Chain, Goals, chain_of, contract_step
+from ikbench.schemes.method import ChainResult, LibraryMethod
+from ikbench.schemes.single_pose import MAX_STEPS, PoseOut, PoseSolver
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -355,11 +356,12 @@ def _speed_limited(task: Task) -> bool:
 
 
 class PyrokiSolver(PoseSolver):
-    """Single-pose IK (``ikbench ik``, :mod:`ikbench.baselines._common.single_pose`):
+    """Single-pose IK (``ikbench ik``, :mod:`ikbench.schemes.single_pose`):
     ``pyroki.costs.pose_cost_analytic_jac`` (orientation weight 0 for points) and the limits
     as jaxls inequality constraints, one jitted jaxls least-squares solve per target (compiled
     in ``prepare``), 100 steps at most."""
 
+    rank = 90
     name, library, modules = "pyroki", "almond-pyroki", ("pyroki", "jaxls", "jax")
     iterations_are = "jaxls Levenberg-Marquardt steps"
 
@@ -413,3 +415,8 @@ class PyrokiSolver(PoseSolver):
         out = np.empty(self.chain.dof)
         out[self.order] = np.asarray(q, dtype=float)
         return PoseOut(out, int(iterations), bool(int(iterations) < MAX_STEPS))
+
+
+#: What this library brings (found by :mod:`ikbench.methods.registry`).
+ADAPTER = Adapter(library="almond-pyroki", requires=("pyroki", "jax", "jaxls"),
+                  methods=(PyrokiTrajopt,), solvers=(PyrokiSolver,), rank=110)

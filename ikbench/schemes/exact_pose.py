@@ -10,7 +10,7 @@ When the solver finds no solution for that roll, the roll is swept about the goa
 no solution keeps its warm start and counts as not converged. 6-D goal frames are solved as
 given.
 
-The track (:mod:`ikbench.baselines._common.track`): step i asks for the plan's point and
+The track (:mod:`ikbench.schemes.track`): step i asks for the plan's point and
 scheduled pointing direction (the plan already turns the pointing from the start pose's own over
 the unjudged first steps and onto the touch pose's over the last ones); when the task asks no
 pointing, the step asks for the task's own goal direction (not judged; roll swept as above) and,
@@ -22,7 +22,7 @@ arrives at the touch pose's by step n - 1 in equal parts and the last segment do
 wrist onto it. The seed of step i is the warm start moved ``posture_seed`` of the way toward the
 plan's posture pose (start to touch pose, linearly): an exact-pose solver has no posture term.
 Each point is still one library call per rotation tried; ikbench only picks the rotations and
-the seed. The walk (:mod:`ikbench.baselines._common.walk`) seeds each point with the pose after
+the seed. The walk (:mod:`ikbench.schemes.walk`) seeds each point with the pose after
 it and carries the roll over.
 
 A library that can leave the roll free itself (roboticstoolbox's ``ik_LM`` with a mask: the
@@ -42,16 +42,16 @@ from typing import Any
 
 import numpy as np
 
-from ikbench.baselines._common.chain import Chain, Goals
-from ikbench.baselines._common.geometry import (
+from ikbench.core.errors import InputError
+from ikbench.methods.base import check_positive, flag_of, option
+from ikbench.schemes.chain import Chain, Goals
+from ikbench.schemes.geometry import (
     closest_rotation_with_axis,
     roll_between_rad,
     rotation_about,
 )
-from ikbench.baselines._common.track import track
-from ikbench.baselines._common.walk import PointResult, Walk, walk_back
-from ikbench.core.errors import InputError
-from ikbench.methods.base import check_positive, flag_of, option
+from ikbench.schemes.track import track
+from ikbench.schemes.walk import PointResult, Walk, walk_back
 
 #: ``solve(seed, point, rotation)``: seed (dof,) [rad, m], goal point (3,) [m], goal rotation
 #: (3, 3) -> (q (dof,), holds) when the library returns a solution (``holds``: its FK is

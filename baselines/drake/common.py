@@ -16,7 +16,7 @@ IPOPT's ``constr_viol_tol`` / ``tol``, NLopt's ``xtol_rel`` (optimality only).
 Obstacles (:func:`drake_scene_chain`, only for a task with obstacles: without them the plant
 above is used unchanged). The same URDF in a ``DiagramBuilder`` with
 ``AddMultibodyPlantSceneGraph(builder, 0.0)``; the robot's capsules
-(:mod:`ikbench.baselines._common.collision`) registered on their links' bodies
+(:mod:`ikbench.schemes.collision`) registered on their links' bodies
 (``plant.RegisterCollisionGeometry(body, X_BG, Capsule(radius, length), ...)``, the capsule's
 axis its local z, X_BG from its two end points), the obstacles on the world body (``Box``,
 ``Sphere``, ``Capsule``; a half-space as a large box). Collision filters
@@ -38,14 +38,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ikbench.baselines._common.chain import Chain, chain_of
-from ikbench.baselines._common.method import LibraryMethod, shared_option
 from ikbench.core.chatter import quiet
 from ikbench.core.errors import InputError
+from ikbench.schemes.chain import Chain, chain_of
+from ikbench.schemes.method import LibraryMethod, shared_option
 
 if TYPE_CHECKING:
-    from ikbench.baselines._common.collision import Scene
     from ikbench.core.robot import Robot
+    from ikbench.schemes.collision import Scene
 
 SOLVERS = ("auto", "snopt", "ipopt", "nlopt")
 #: The options both Drake methods take (``--drake-<field>``, :func:`drake_option`).
@@ -155,7 +155,7 @@ _SCENE_PLANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 def drake_scene_chain(chain: Chain, scene: Scene) -> DrakeChain:
     """The chain's plant with the collision geometry of ``scene``
-    (:class:`ikbench.baselines._common.collision.Scene`) in a SceneGraph (see the module
+    (:class:`ikbench.schemes.collision.Scene`) in a SceneGraph (see the module
     docstring); cached per chain and scene."""
     cache = _SCENE_PLANTS.setdefault(chain, {})
     if scene.key in cache:

@@ -97,14 +97,14 @@ class Goals:
         q_home: (dof,) where a walk without a touch pose starts (a pose path: the task's
             reference pose, the robot's home), or None.
         track: the per-step targets of the tracking scheme
-            (:class:`ikbench.baselines._common.track.TrackPlan`) when the method tracks from the
+            (:class:`ikbench.schemes.track.TrackPlan`) when the method tracks from the
             start pose, else None (the walk).
         contract: the task's contract (:class:`ikbench.core.contract.Contract`), or None.
         max_step: (dof,) the largest joint change per segment [rad, m]
             (:func:`max_step_urdf`), or None when no speed limit is known.
         obstacles: the task's obstacles (:class:`ikbench.core.obstacles.Obstacle`, base frame
             [mm], as given), for the adapters that keep clear of them
-            (:func:`ikbench.baselines._common.collision.scene_of`); empty: none.
+            (:func:`ikbench.schemes.collision.scene_of`); empty: none.
     """
 
     points_m: np.ndarray
