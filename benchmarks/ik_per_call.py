@@ -46,12 +46,12 @@ import numpy as np
 import pandas as pd
 
 from ikbench import load_robot
-from ikbench.schemes.chain import chain_of
 from ikbench.baselines.trac_ik import TracIKSolver
 from ikbench.core.io import atomic_write_csv, check_writable
 from ikbench.core.provenance import provenance
 from ikbench.core.rotations import geodesic_angle
 from ikbench.methods.ours_lm.single_pose_compiled import SinglePoseLM, random_initials
+from ikbench.schemes.chain import chain_of
 
 ROBOTS = "panda,example-robot-data:ur5,example-robot-data:xarm7,fetch"
 METHODS = ("ours-lm", "rtb-lm", "rtb-lm-tight", "trac-ik")
