@@ -48,10 +48,13 @@ DESCRIPTION = (
 
 
 def arguments(parser: argparse.ArgumentParser) -> None:
+    # the registry scans the adapters: only when this command's parser is built (CLI start-up)
+    from ikbench.methods.registry import method_status
+
     parser.add_argument("--methods", default=None,
                         help=f"comma-separated methods (default {DEFAULT_METHODS}; with "
                         "--problems every method that takes goal frames); 'all' for every "
-                        "registered method")
+                        f"registered method: {', '.join(method_status())}")
     parser.add_argument("--problems", action="append", default=None,
                         metavar="cppflow|NAME,...|FILE",
                         help="compare on Cartesian pose-path problems instead of touch poses: "
