@@ -64,7 +64,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Capabilities, check_choice, check_positive, option
+from ikbench.methods.base import Capabilities
+from ikbench.methods.options import check_choice, check_positive, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import Chain, Goals, chain_of, element_path
 from ikbench.schemes.geometry import angle_between_rad, rotation_angle_rad

@@ -68,7 +68,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Capabilities, check_choice, option
+from ikbench.methods.base import Capabilities
+from ikbench.methods.options import check_choice, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import Chain, Goals
 from ikbench.schemes.collision import AvoidsObstacles, Scene

@@ -83,7 +83,8 @@ import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.core.kinematics.pinocchio_fk import link_frame_id
-from ikbench.methods.base import Capabilities, check_choice, option
+from ikbench.methods.base import Capabilities
+from ikbench.methods.options import check_choice, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import Chain, Goals, chain_of
 from ikbench.schemes.collision import AvoidsObstacles, Scene

@@ -54,7 +54,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ikbench.core.errors import InputError
-from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.options import check_choice, check_positive, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import Chain, Goals, chain_of, contract_step
 from ikbench.schemes.method import ChainResult, LibraryMethod

@@ -83,7 +83,7 @@ import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.core.urdf_model import with_fixed_frame
-from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.options import check_choice, check_positive, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import Chain, Goals, element_path
 from ikbench.schemes.diffik import settle

@@ -62,7 +62,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from ikbench.methods.base import Capabilities, check_choice, check_positive, option
+from ikbench.methods.base import Capabilities
+from ikbench.methods.options import check_choice, check_positive, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import Chain, Goals, chain_of
 from ikbench.schemes.exact_pose import (

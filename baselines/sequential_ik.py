@@ -80,14 +80,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.errors import InputError
-from ikbench.methods.base import (
-    Capabilities,
-    Method,
-    Solution,
-    check_choice,
-    check_positive,
-    option,
-)
+from ikbench.methods.base import Capabilities, Method, Solution
+from ikbench.methods.options import check_choice, check_positive, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import goals_of, max_step_urdf
 from ikbench.schemes.single_pose import (

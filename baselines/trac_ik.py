@@ -57,7 +57,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.chatter import quiet
-from ikbench.methods.base import Capabilities, check_choice, check_positive, option
+from ikbench.methods.base import Capabilities
+from ikbench.methods.options import check_choice, check_positive, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import Chain, Goals, chain_of
 from ikbench.schemes.exact_pose import (

@@ -22,7 +22,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-__version__ = "0.3.0"
+__version__ = "0.4.0"
 
 #: public name -> module that defines it
 _EXPORTS = {
@@ -34,7 +34,7 @@ _EXPORTS = {
     "line_task": "ikbench.core.task", "line_tasks": "ikbench.core.task",
     "trajectory_metrics": "ikbench.core.metrics", "shape_metrics": "ikbench.core.metrics",
     "Method": "ikbench.methods.base", "Solution": "ikbench.methods.base",
-    "option": "ikbench.methods.base",
+    "option": "ikbench.methods.options",
     "get_method": "ikbench.methods.registry", "available_methods": "ikbench.methods.registry",
     "method_status": "ikbench.methods.registry",
     "run": "ikbench.studies.run",
@@ -50,7 +50,8 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from ikbench.core.robot import Robot, load_robot
     from ikbench.core.targets import Targets, load_targets
     from ikbench.core.task import Task, build_tasks, line_task, line_tasks
-    from ikbench.methods.base import Method, Solution, option
+    from ikbench.methods.base import Method, Solution
+    from ikbench.methods.options import option
     from ikbench.methods.registry import available_methods, get_method, method_status
     from ikbench.studies.run import run
 

@@ -21,7 +21,7 @@ PLUGIN = textwrap.dedent('''
     from dataclasses import dataclass
 
     from ikbench.baselines.sequential_ik import DLSSolver
-    from ikbench.methods.base import option
+    from ikbench.methods.options import option
     from ikbench.methods.ours_lm import OursLM, OursLMSettings
     from ikbench.methods.registry import Adapter
 

@@ -16,7 +16,8 @@ from ikbench.core.metrics import contract_metrics
 from ikbench.core.task import line_tasks
 from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.methods import registry
-from ikbench.methods.base import Solution, option
+from ikbench.methods.base import Solution
+from ikbench.methods.options import option
 from ikbench.render.leaderboard import fmt
 from ikbench.studies.compare import COLUMNS, CONTRACT_METRICS, compare
 from tests.conftest import exit_code, interrupt_while, register_temporarily

@@ -87,7 +87,8 @@ def test_every_cited_source_file_exists(page):
     """A path of this repository written in backticks (`ikbench/schemes/track.py`) names a
     file or folder that exists (docs/baselines.md cited moved files; issue 45). The worked
     example of docs/contributing.md (an imaginary library) is the one exception."""
-    cited = re.findall(r"`((?:%s)[\w./-]*)`" % "|".join(_CITED_ROOTS), page.read_text())
+    roots = "|".join(_CITED_ROOTS)
+    cited = re.findall(rf"`((?:{roots})[\w./-]*)`", page.read_text())
     installed = {"ikbench/robots/": "urdf/", "ikbench/baselines/": "baselines/"}  # the wheel's
     for name, folder in installed.items():
         cited = [folder + c.removeprefix(name) if c.startswith(name) else c for c in cited]

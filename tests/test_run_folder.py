@@ -11,7 +11,8 @@ import pytest
 
 from ikbench.cli import main
 from ikbench.core.errors import SolverError
-from ikbench.methods.base import Method, Solution, option
+from ikbench.methods.base import Method, Solution
+from ikbench.methods.options import option
 from tests.conftest import register_temporarily
 
 

@@ -76,7 +76,8 @@ from ikbench.baselines.drake.common import (
 from ikbench.baselines.drake.ik import STEP_MARGIN
 from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Capabilities, check_choice, check_positive, option
+from ikbench.methods.base import Capabilities
+from ikbench.methods.options import check_choice, check_positive, option
 from ikbench.schemes.chain import Chain, Goals, contract_step
 from ikbench.schemes.collision import AvoidsObstacles, Scene
 from ikbench.schemes.method import ChainResult

@@ -1,7 +1,7 @@
 """Options shared by the subcommands: ``--robot``, the methods' generated options, checks.
 
 Method options are generated from each method's settings dataclass
-(:func:`ikbench.methods.base.option`); an option name shared by several methods is added
+(:func:`ikbench.methods.options.option`); an option name shared by several methods is added
 once, its help naming each method. Values are checked by the settings themselves when the
 chosen method is built (:func:`method_from_args`), so bad input fails before any solve.
 """

@@ -37,7 +37,6 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.defaults import DEFAULT_ROBOT
-from ikbench.core.deprecation import renamed_fields
 from ikbench.core.errors import InputError, refuse_unknown_keys
 from ikbench.core.kinematics.chain import ChainKinematics
 from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
@@ -81,7 +80,6 @@ class FKResult(NamedTuple):
     direction: np.ndarray
 
 
-@renamed_fields({"lower_motor_deg": "lower", "upper_motor_deg": "upper"})
 @dataclass(frozen=True, eq=False)
 class Robot:
     """A serial chain of a URDF, with its pose units, limits and conventions.

@@ -33,7 +33,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ikbench.core.deprecation import renamed_fields
 from ikbench.core.errors import InputError, TargetsError, refuse_unknown_keys
 from ikbench.core.obstacles import load_file, named_sets, parse_obstacles
 from ikbench.core.robot import Robot, load_robot
@@ -48,7 +47,6 @@ KEYS = ("joint_names", "start_pose", "targets", "steps", "obstacles", "descripti
 ID_PATTERN = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 
 
-@renamed_fields({"start_pose_deg": "start_pose", "touch_poses_deg": "touch_poses"})
 @dataclass(frozen=True)
 class Targets:
     """A start pose and touch poses [pose units].

@@ -30,7 +30,6 @@ import numpy.typing as npt
 
 from ikbench.core import letters
 from ikbench.core.contract import Contract, contract_for
-from ikbench.core.deprecation import renamed_fields, renamed_keywords
 from ikbench.core.errors import InputError
 from ikbench.core.losses import FRAME_WEIGHTS, PAPER_WEIGHTS
 from ikbench.core.obstacles import Obstacle
@@ -44,8 +43,6 @@ MIN_LINE_LENGTH_MM = 1e-6
 _EVERY_POINT = np.ones(0, dtype=bool)
 
 
-@renamed_fields({"start_pose_deg": "start_pose", "end_pose_deg": "end_pose",
-                 "reference_pose_deg": "reference_pose", "initial_pose_deg": "initial_pose"})
 @dataclass(frozen=True, eq=False)
 class Task:
     """What a method must achieve for one trajectory.
@@ -133,7 +130,6 @@ class Task:
         return self.goal_points_mm[-1]
 
 
-@renamed_keywords({"start_pose_deg": "start_pose", "end_pose_deg": "end_pose"})
 def line_task(robot: Robot, start_pose: npt.ArrayLike, end_pose: npt.ArrayLike,
               steps: int, name: str = "") -> Task:
     """The paper's straight-line task (Eq. 1) from FK(start pose) to FK(end pose).
@@ -295,7 +291,6 @@ def letter_start_pose(robot: Robot, targets: Targets | None = None) -> np.ndarra
     return targets.start_pose
 
 
-@renamed_keywords({"start_pose_deg": "start_pose"})
 def letter_task(robot: Robot, letter: str, start_pose: npt.ArrayLike,
                 steps: int = letters.DEFAULT_STEPS, size_mm: float = letters.DEFAULT_SIZE_MM,
                 direction: str | npt.ArrayLike = "normal") -> Task:
@@ -314,7 +309,6 @@ def letter_task(robot: Robot, letter: str, start_pose: npt.ArrayLike,
                       default_weights=dict(letters.LETTER_WEIGHTS), reference_pose=start)
 
 
-@renamed_keywords({"reference_pose_deg": "reference_pose"})
 def file_task(kind: str, path: str | Path, steps: int, direction: str | npt.ArrayLike = "tangent",
               reference_pose: np.ndarray | None = None) -> Task:
     """A polyline or spline task through the control points [mm] of a CSV file."""

@@ -9,7 +9,8 @@
   :mod:`ikbench.baselines` (the checkout's top-level ``baselines/`` folder).
 """
 
-from ikbench.methods.base import Method, MethodOption, Solution, option
+from ikbench.methods.base import Method, Solution
+from ikbench.methods.options import MethodOption, option
 from ikbench.methods.registry import (
     available_methods,
     get_method,

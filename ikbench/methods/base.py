@@ -1,9 +1,8 @@
 """What every method is: a settings dataclass, ``solve(robot, task) -> Solution``.
 
-A method's options live in one place, its settings dataclass: each field declared with
-:func:`option` carries its default, type, help and unit, and the CLI options are generated
-from these fields (:func:`method_options`). Two methods may share an option name (``--weights``
-for ``ours`` and ``ours-lm``); the CLI then shows one option whose help names both.
+A method's options live in its settings dataclass, each field declared with
+:func:`ikbench.methods.options.option` (the option machinery and its checks:
+:mod:`ikbench.methods.options`).
 
 A method class sets ``name``, ``description``, ``Settings`` and ``solve`` (the one abstract
 method of :class:`Method`, an :class:`abc.ABC`), and says what it can do beyond goal points and
@@ -18,148 +17,20 @@ distribution, whose version is recorded with results).
 from __future__ import annotations
 
 import abc
-import copy
 import dataclasses
-import math
-import warnings
-from collections.abc import Callable, Collection, Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
-from ikbench.core.deprecation import renamed_fields
 from ikbench.core.errors import InputError
+from ikbench.methods.options import MethodOption, method_options
 from ikbench.methods.registry import available_methods
 
 if TYPE_CHECKING:  # the robot module imports pinocchio: for type checkers only
     from ikbench.core.robot import Robot
     from ikbench.core.task import Task
-
-#: Metadata key of the option description in a settings field.
-OPTION = "ikbench_option"
-
-
-@dataclass(frozen=True)
-class OptionSpec:
-    """How a settings field appears on the command line.
-
-    Attributes:
-        help: one line (without the default; it is appended).
-        unit: the value's unit (shown in the help), e.g. ``"m, rad"``.
-        flag: the option name without dashes (default: the field name with ``-`` for ``_``).
-        choices: allowed values (shown in the help and checked by :func:`check_choice`).
-        type: the CLI value's type (default: the type of the field's default).
-        show_default: how the default is shown in the help (default: the value).
-    """
-
-    help: str
-    unit: str | None = None
-    flag: str | None = None
-    choices: tuple[Any, ...] | None = None
-    type: Callable[[str], Any] | None = None
-    show_default: str | None = None
-
-
-def option(default: Any, *, help: str, unit: str | None = None, flag: str | None = None,
-           choices: Sequence[Any] | None = None, type: Callable[[str], Any] | None = None,
-           show_default: str | None = None) -> Any:
-    """A settings field that is also a CLI option (see :class:`OptionSpec`).
-
-    Mutable defaults (dicts, lists) are copied for every instance.
-    """
-    spec = OptionSpec(help, unit, flag, tuple(choices) if choices else None, type, show_default)
-    metadata = {OPTION: spec}
-    if isinstance(default, (dict, list, set)):
-        return field(default_factory=lambda: copy.copy(default), metadata=metadata)
-    return field(default=default, metadata=metadata)
-
-
-@dataclass(frozen=True)
-class MethodOption:
-    """One CLI option of one method: the flag, the settings field it sets, how."""
-
-    flag: str
-    field: str
-    spec: OptionSpec
-    default: Any
-
-    @property
-    def dest(self) -> str:
-        """The argparse ``dest`` of the flag."""
-        return self.flag.replace("-", "_")
-
-    def help_text(self) -> str:
-        """The option's ``--help`` line: help, unit and default."""
-        unit = f" [{self.spec.unit}]" if self.spec.unit else ""
-        shown = self.spec.show_default if self.spec.show_default is not None else self.default
-        return f"{self.spec.help}{unit} (default {shown})"
-
-    def value_type(self) -> Callable[[str], Any]:
-        """What turns the command-line text into the value (argparse ``type``)."""
-        if self.spec.type is not None:
-            return self.spec.type
-        if isinstance(self.default, bool) or self.default is None:
-            return str
-        if isinstance(self.default, (int, float)):
-            return type(self.default)
-        return str
-
-
-def method_options(settings_class: type) -> list[MethodOption]:
-    """The CLI options declared by a settings dataclass, in field order."""
-    out: list[MethodOption] = []
-    for f in dataclasses.fields(settings_class):
-        spec = f.metadata.get(OPTION)
-        if spec is None:
-            continue
-        if f.default is not dataclasses.MISSING:
-            default = f.default
-        elif f.default_factory is not dataclasses.MISSING:
-            default = f.default_factory()
-        else:
-            default = None
-        out.append(MethodOption(spec.flag or f.name.replace("_", "-"), f.name, spec, default))
-    return out
-
-
-def flag_of(settings: Any, field_name: str) -> str:
-    """``--lm-max-iterations`` for the field ``max_iterations`` of ``settings``."""
-    for opt in method_options(type(settings)):
-        if opt.field == field_name:
-            return f"--{opt.flag}"
-    return field_name
-
-
-def check_choice(settings: Any, field_name: str, allowed: Collection[Any]) -> None:
-    """InputError naming the flag when ``settings.<field_name>`` is not in ``allowed``."""
-    value = getattr(settings, field_name)
-    if value not in allowed:
-        raise InputError(f"{flag_of(settings, field_name)}: {value!r} is not one of "
-                         f"{', '.join(map(str, allowed))}")
-
-
-def check_positive(settings: Any, *field_names: str, integer: bool = False) -> None:
-    """InputError naming the flag when a field is not a positive (integer) number."""
-    for name in field_names:
-        value = getattr(settings, name)
-        number = isinstance(value, (int, float)) and not isinstance(value, bool)
-        ok = number and math.isfinite(value) and value > 0
-        if integer:
-            ok = ok and float(value).is_integer()
-        if not ok:
-            kind = "an integer >= 1" if integer else "a positive number"
-            raise InputError(f"{flag_of(settings, name)}: {value!r} must be {kind}")
-
-
-def check_seed(settings: Any, field_name: str = "seed") -> None:
-    """InputError naming the flag when ``settings.<field_name>`` is not an integer in
-    [0, 2^63) (what numpy's and torch's generators take)."""
-    value = getattr(settings, field_name)
-    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < 2**63:
-        raise InputError(f"{flag_of(settings, field_name)}: {value!r} must be an integer in "
-                         "[0, 2^63)")
-
 
 @dataclass(frozen=True)
 class Capabilities:
@@ -186,36 +57,6 @@ class Capabilities:
     warm_starts: bool = False
 
 
-#: The class attributes that :class:`Capabilities` replaces (0.3.0): old name -> its field.
-CAPABILITY_ALIASES = {"requires_touch_pose": "needs_touch_pose", "supports_frames": "frames",
-                      "avoids_obstacles": "obstacles", "batched": "batched",
-                      "warm_starts": "warm_starts"}
-
-
-class _CapabilityAlias:
-    """A deprecated read-only class attribute (``Method.supports_frames``) that reads its field
-    of ``capabilities``; kept for third-party methods for one release."""
-
-    def __init__(self, field_name: str) -> None:
-        self.field_name = field_name
-        self.name = field_name
-
-    def __set_name__(self, owner: type, name: str) -> None:
-        self.name = name
-
-    def __get__(self, instance: object, owner: Any = None) -> bool:
-        cls: Any = owner if owner is not None else type(instance)
-        capabilities = cls.capabilities
-        warnings.warn(f"Method.{self.name} is deprecated; read "
-                      f"Method.capabilities.{self.field_name}", DeprecationWarning, stacklevel=2)
-        return bool(getattr(capabilities, self.field_name))
-
-    def __set__(self, instance: object, value: object) -> None:
-        raise AttributeError(f"{self.name} is read-only; set the class's capabilities = "
-                             f"Capabilities({self.field_name}=...)")
-
-
-@renamed_fields({"poses_deg": "poses"})
 @dataclass
 class Solution:
     """A method's result for one task.
@@ -264,11 +105,7 @@ class Method(abc.ABC):
         description: one line, shown by ``ikbench methods`` and in ``--help``.
         Settings: the settings dataclass (fields made with :func:`option` are CLI options).
         library: the PyPI distribution the method is built on (its version is recorded).
-        capabilities: what the method can do (:class:`Capabilities`). The flags it replaces
-            (``requires_touch_pose``, ``supports_frames``, ``avoids_obstacles``, ``batched``,
-            ``warm_starts``) still read it, deprecated, and a subclass that sets one of them
-            as before gets it folded into its capabilities, with a DeprecationWarning
-            (until 0.4.0).
+        capabilities: what the method can do (:class:`Capabilities`).
         bench_rounds: timed rounds ``ikbench bench`` gives the method by default.
     """
 
@@ -278,29 +115,6 @@ class Method(abc.ABC):
     library: ClassVar[str] = "ikbench"
     capabilities: ClassVar[Capabilities] = Capabilities()
     bench_rounds: ClassVar[int] = 5
-    requires_touch_pose = _CapabilityAlias("needs_touch_pose")
-    supports_frames = _CapabilityAlias("frames")
-    avoids_obstacles = _CapabilityAlias("obstacles")
-    batched = _CapabilityAlias("batched")
-    warm_starts = _CapabilityAlias("warm_starts")
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        """Fold the flags a subclass sets the old way (``supports_frames = True``) into its
-        ``capabilities``, with a DeprecationWarning."""
-        super().__init_subclass__(**kwargs)
-        old = {alias: value for alias, value in vars(cls).items()
-               if alias in CAPABILITY_ALIASES and not isinstance(value, _CapabilityAlias)}
-        if not old:
-            return
-        # stacklevel 3: the class statement (this hook is called from ABCMeta.__new__)
-        warnings.warn(f"method {cls.__name__} sets {', '.join(old)}, deprecated; set "
-                      "capabilities = Capabilities("
-                      f"{', '.join(f'{CAPABILITY_ALIASES[a]}={v!r}' for a, v in old.items())})",
-                      DeprecationWarning, stacklevel=3)
-        for alias in old:
-            delattr(cls, alias)
-        cls.capabilities = replace(cls.capabilities, **{CAPABILITY_ALIASES[a]: bool(v)
-                                                        for a, v in old.items()})
 
     def __init__(self, settings: Any = None, **options: Any) -> None:
         """Build from a settings object or from its fields as keywords."""

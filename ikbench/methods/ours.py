@@ -45,16 +45,8 @@ from ikbench.core.losses import (
     resolve_weights,
     weighted_loss,
 )
-from ikbench.methods.base import (
-    Capabilities,
-    Method,
-    Progress,
-    Solution,
-    check_choice,
-    check_positive,
-    check_seed,
-    option,
-)
+from ikbench.methods.base import Capabilities, Method, Progress, Solution
+from ikbench.methods.options import check_choice, check_positive, check_seed, option
 from ikbench.methods.ours_frames import optimise_frames
 from ikbench.methods.ours_init import INITS, initial_logits
 from ikbench.methods.registry import Adapter

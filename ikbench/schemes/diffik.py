@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.errors import InputError
-from ikbench.methods.base import check_positive, flag_of
+from ikbench.methods.options import check_positive, flag_of
 from ikbench.schemes.chain import Goals
 from ikbench.schemes.geometry import (
     angle_between_rad,

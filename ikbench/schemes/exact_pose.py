@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from ikbench.core.errors import InputError
-from ikbench.methods.base import check_positive, flag_of, option
+from ikbench.methods.options import check_positive, flag_of, option
 from ikbench.schemes.chain import Chain, Goals
 from ikbench.schemes.geometry import (
     closest_rotation_with_axis,

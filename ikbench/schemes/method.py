@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Capabilities, Method, Solution, option
+from ikbench.methods.base import Capabilities, Method, Solution
+from ikbench.methods.options import option
 from ikbench.schemes.chain import Chain, Goals, chain_of, goals_of, poses_from_urdf
 from ikbench.schemes.chain import require_touch_and_start as _require_both
 from ikbench.schemes.track import plan_track, require_start_and_touch
@@ -32,7 +33,7 @@ if TYPE_CHECKING:
 def shared_option(options: Mapping[str, Mapping[str, Any]], prefix: str, name: str,
                   **changes: Any) -> Any:
     """A settings field that several methods declare alike: ``options[name]`` (the
-    arguments of :func:`ikbench.methods.base.option`, ``default`` among them) as the flag
+    arguments of :func:`ikbench.methods.options.option`, ``default`` among them) as the flag
     ``--<prefix>-<name with dashes>``; ``changes`` replace some of them (another default or
     help) for one method."""
     spec = {**options[name], **changes}

@@ -32,16 +32,8 @@ import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.core.validity import MAX_JOINT_CHANGE_DEG, MAX_JOINT_CHANGE_MM
-from ikbench.methods.base import (
-    Capabilities,
-    Method,
-    Solution,
-    check_choice,
-    check_positive,
-    check_seed,
-    flag_of,
-    option,
-)
+from ikbench.methods.base import Capabilities, Method, Solution
+from ikbench.methods.options import check_choice, check_positive, check_seed, flag_of, option
 from ikbench.methods.ours_exact.problem import TERMS, ExactProblem, evaluate
 from ikbench.methods.ours_exact.sqp import RESTORATIONS, SQPResult, solve
 from ikbench.methods.ours_lm import OursLM, initial_poses

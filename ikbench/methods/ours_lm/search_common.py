@@ -16,7 +16,7 @@ from ikbench.core.validity import (
     MAX_JOINT_CHANGE_DEG,
     MAX_JOINT_CHANGE_MM,
 )
-from ikbench.methods.base import check_positive, check_seed, option
+from ikbench.methods.options import check_positive, check_seed, option
 from ikbench.methods.ours_lm.frames import errors_from_frames
 from ikbench.methods.ours_lm.solver import LMSettings
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.core.losses import PAPER_WEIGHTS_TEXT, check_weights
-from ikbench.methods.base import check_choice, check_positive, option
+from ikbench.methods.options import check_choice, check_positive, option
 from ikbench.methods.ours_lm.devices import (
     BACKENDS,
     DTYPES,
