@@ -165,11 +165,13 @@ def protocol(result: StudyResult) -> str:
                      "allows and the budget in one call.")
     if restarted:
         lines.append(f"{', '.join(restarted)} are restarted by the study from the next row "
-                     "until the answer holds (checked as the judge checks it, inside the timed "
-                     "call) or the budget is spent (an attempt started before it runs out "
+                     "until the answer holds (checked as the judge checks it, outside the "
+                     "clock) or the budget is spent (an attempt started before it runs out "
                      "finishes).")
-    lines.append("**Times**: wall time of each call, one target per call, all its attempts "
-                 "included (`time.perf_counter`, set-up untimed): median, mean, p95, max. "
+    lines.append("**Times** (the solver's clock): `time.perf_counter` around the solver's "
+                 "calls only, one target per call, all its attempts included; the study's "
+                 "check of each attempt, its bookkeeping and the set-up are untimed, and the "
+                 "budget is counted on the same clock: median, mean, p95, max. "
                  "Batched throughput (every target in one call, the same rows and budget per "
                  "target) is its own column, in targets per second.")
     return " ".join(lines)
