@@ -1,0 +1,117 @@
+"""EAIK (``pip install eaik``): analytic IK by subproblem decomposition, every branch at once.
+
+EAIK (Ostermeier, Külz, Althoff, "Automatic Geometric Decomposition for Analytical Inverse
+Kinematics", IEEE RA-L 2025) solves a 6R arm whose axes decompose into the Paden-Kahan-style
+subproblems of IK-Geo (spherical wrist, three parallel axes, intersecting pairs, ...) in closed
+form and returns all its solutions. ``ikbench ik`` uses it as the analytic limit: the robot's
+chain is given to EAIK as its joint axes ``H`` (N, 3) and the offsets between them ``P``
+(N+1, 3) at the zero configuration, in the chain's base frame, from Pinocchio
+(``eaik.IK_HP.HPRobot(H, P)``: the end frame's rotation is the identity there, so a target's
+rotation is taken as ``R_target R_end(0)^T``). A chain EAIK cannot decompose (most 7-DoF arms
+unless a joint is locked, prismatic joints) is refused when it is prepared, with EAIK's
+reason, and its rows fail saying so.
+
+Of the solutions (``IKSolution.Q``, the exact ones; ``is_LS`` marks least-squares answers to
+unreachable targets), those within the joint limits are kept, each joint moved by whole turns
+toward the initial configuration where its limits allow (a joint of UR5's +-360 deg has two
+representatives of every angle), and the one nearest the initial configuration (row 0 of the
+protocol) is the answer: one call, no restarts, deterministic. :meth:`EaikSolver.branches`
+gives the whole set within the limits. The library is imported inside functions only.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ikbench.methods.registry import Adapter
+from ikbench.schemes.single_pose import PoseOut, PoseSolver
+
+#: Pinocchio's revolute joints with a fixed axis (their shortname -> the axis in the joint).
+_AXES = {"JointModelRX": (1.0, 0.0, 0.0), "JointModelRY": (0.0, 1.0, 0.0),
+         "JointModelRZ": (0.0, 0.0, 1.0), "JointModelRUBX": (1.0, 0.0, 0.0),
+         "JointModelRUBY": (0.0, 1.0, 0.0), "JointModelRUBZ": (0.0, 0.0, 1.0)}
+
+
+def chain_axes(model, data, frame_id: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The chain at its zero configuration as EAIK takes it: ``H`` (N, 3) unit joint axes,
+    ``P`` (N+1, 3) offsets [m] (base to joint 1, joint to joint, last joint to the end frame),
+    both in the base frame, and the end frame's rotation (3, 3) there. ValueError for a joint
+    that is not revolute."""
+    import pinocchio as pin
+
+    pin.framesForwardKinematics(model, data, pin.neutral(model))
+    axes, origins = [], []
+    for i in range(1, model.njoints):
+        joint = model.joints[i]
+        name = joint.shortname()
+        if name in _AXES:
+            axis = np.asarray(_AXES[name])
+        elif name in ("JointModelRevoluteUnaligned", "JointModelRevoluteUnboundedUnaligned"):
+            axis = np.asarray(joint.extract().axis, dtype=float)
+        else:
+            raise ValueError(f"joint {model.names[i]} is {name}: EAIK takes revolute joints only")
+        axes.append(data.oMi[i].rotation @ axis)
+        origins.append(data.oMi[i].translation.copy())
+    end = data.oMf[frame_id]
+    offsets = [origins[0], *np.diff(origins, axis=0), end.translation - origins[-1]]
+    return np.array(axes), np.array(offsets), end.rotation.copy()
+
+
+class EaikSolver(PoseSolver):
+    """``ikbench ik``: EAIK's analytic IK, the branch nearest the initial configuration (see
+    the module docstring)."""
+
+    rank = 5
+    name, library, modules = "eaik", "eaik", ("eaik",)
+    kinds = ("pose",)
+    restarts_itself = True  # one call answers from row 0; no restarts to make
+    iterations_are = "solutions (all branches, within the limits)"
+
+    def prepare(self) -> None:
+        from eaik.IK_HP import HPRobot
+
+        fk = self.robot.pinocchio_fk()
+        H, P, self.R_end0 = chain_axes(fk.model, fk.model.createData(), fk.frame_id)
+        try:
+            self.eaik = HPRobot(H, P)
+        except RuntimeError as exc:  # EAIK's own refusal (e.g. more than 6 joints)
+            raise ValueError(f"EAIK cannot solve this {len(H)}-joint chain: {exc}") from None
+        if not self.eaik.hasKnownDecomposition():
+            raise ValueError(f"EAIK knows no decomposition of this {len(H)}-joint chain "
+                             f"({self.eaik.getKinematicFamily()}); 7-DoF arms need a joint "
+                             "locked")
+        self.lower, self.upper = self.chain.lower, self.chain.upper
+
+    def branches(self, point_m: np.ndarray, rotation: np.ndarray,
+                 near: np.ndarray | None = None) -> np.ndarray:
+        """Every exact solution within the limits (S, dof) [rad, m], each joint moved by whole
+        turns toward ``near`` (default the middle of the limits) where the limits allow."""
+        T = np.eye(4)
+        T[:3, :3] = rotation @ self.R_end0.T
+        T[:3, 3] = point_m
+        solution = self.eaik.IK(T)
+        Q = np.asarray(solution.Q, dtype=float).reshape(-1, len(self.lower))
+        Q = Q[~np.asarray(solution.is_LS, dtype=bool)] if len(Q) else Q
+        ref = (self.lower + self.upper) / 2 if near is None else np.asarray(near, dtype=float)
+        turns = np.round((ref - Q) / (2 * math.pi))
+        shifted = Q + 2 * math.pi * turns
+        shifted = np.where((shifted >= self.lower) & (shifted <= self.upper), shifted, Q)
+        inside = np.all((shifted >= self.lower - 1e-9) & (shifted <= self.upper + 1e-9), axis=1)
+        return shifted[inside]
+
+    def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
+        found = self.branches(point_m, rotation, q_init)
+        if not len(found):  # unreachable, or only outside the limits: EAIK says no
+            return PoseOut(np.asarray(q_init, dtype=float), 0, False)
+        nearest = found[np.argmin(np.linalg.norm(found - q_init, axis=1))]
+        return PoseOut(nearest, len(found), True)
+
+    def solve_within(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
+                     budget_s: float) -> PoseOut:
+        return self.solve(initials[0], point_m, rotation)
+
+
+#: What this library brings (found by :mod:`ikbench.methods.registry`).
+ADAPTER = Adapter(library="eaik", requires=("eaik",), solvers=(EaikSolver,), rank=140)

@@ -1,0 +1,63 @@
+"""EAIK, the analytic limit of ``ikbench ik`` (issue 46): every branch within the limits is an
+exact solution, the answer is the branch nearest the initial configuration, and a chain EAIK
+cannot decompose is refused with its reason."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("eaik")
+
+from ikbench.baselines.eaik_ik import EaikSolver  # noqa: E402 (after the skip)
+from ikbench.core.robot import load_robot  # noqa: E402
+from ikbench.core.robot_packages import robots_folder  # noqa: E402
+from ikbench.studies.ik import IKSettings, recheck, run_ik, sample_targets  # noqa: E402
+
+needs_erd = pytest.mark.skipif(robots_folder("example-robot-data") is None,
+                               reason="needs example_robot_data")
+
+
+@needs_erd
+def test_every_branch_is_exact_and_within_the_limits_and_the_nearest_is_the_answer():
+    robot = load_robot("example-robot-data:ur5")
+    solver = EaikSolver(robot)
+    solver.prepare()
+    fk = robot.pinocchio_fk()
+    targets = sample_targets(robot, IKSettings(count=20, seed=3))
+    lower, upper = solver.chain.lower, solver.chain.upper
+    for k in range(20):
+        T = targets.T_target[k]
+        q_init = robot.to_urdf(targets.initials(k, 1)[0])
+        found = solver.branches(T[:3, 3], T[:3, :3], q_init)
+        assert 1 <= len(found) <= 16
+        assert np.all(found >= lower - 1e-9) and np.all(found <= upper + 1e-9)
+        for q in found:
+            M = fk.placement(q)
+            assert np.linalg.norm(M.translation - T[:3, 3]) < 1e-9
+            assert np.linalg.norm(M.rotation - T[:3, :3]) < 1e-9
+        out = solver.solve(q_init, T[:3, 3], T[:3, :3])
+        distances = np.linalg.norm(found - q_init, axis=1)
+        assert out.ok and np.linalg.norm(out.q - q_init) == pytest.approx(distances.min())
+        # the sampled configuration itself is one of the branches (modulo whole turns)
+        q_target = robot.to_urdf(targets.q_target[k])
+        wrapped = np.angle(np.exp(1j * (found - q_target)))
+        assert np.min(np.abs(wrapped).max(axis=1)) < 1e-6
+
+
+@needs_erd
+def test_a_seven_dof_arm_is_refused_with_the_reason():
+    solver = EaikSolver(load_robot("example-robot-data:panda"))
+    with pytest.raises(ValueError, match="EAIK cannot solve this 7-joint chain: .*1-6R"):
+        solver.prepare()
+
+
+@needs_erd
+def test_eaik_in_ikbench_ik_solves_every_target_and_its_answers_recheck():
+    robot = load_robot("example-robot-data:ur5")
+    settings = IKSettings(count=30, seed=1, attempts=(1,))
+    result = run_ik(robot, settings, methods="eaik", progress=False)
+    table = result.table
+    assert table["success"].all()
+    assert np.array_equal(recheck(robot, table, result.targets.T_target, settings),
+                          table["success"].to_numpy())
