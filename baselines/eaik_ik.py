@@ -66,6 +66,7 @@ class EaikSolver(PoseSolver):
     rank = 5
     name, library, modules = "eaik", "eaik", ("eaik",)
     kinds = ("pose",)
+    analytic = True
     restarts_itself = True  # one call answers from row 0; no restarts to make
     iterations_are = "solutions (all branches, within the limits)"
 

@@ -61,3 +61,29 @@ def test_eaik_in_ikbench_ik_solves_every_target_and_its_answers_recheck():
     assert table["success"].all()
     assert np.array_equal(recheck(robot, table, result.targets.T_target, settings),
                           table["success"].to_numpy())
+
+
+@needs_erd
+def test_answers_are_matched_to_their_branch_and_the_nearest_one_costs_nothing():
+    from ikbench.studies.ik_truth import analytic_solver, branch_columns, solution_sets
+
+    robot = load_robot("example-robot-data:ur5")
+    solver = analytic_solver(robot)
+    assert solver is not None and solver.name == "eaik"
+    targets = sample_targets(robot, IKSettings(count=12, seed=5))
+    sets = solution_sets(solver, robot, targets.T_target, targets.q_init)
+    assert all(len(s) >= 1 for s in sets)
+    nearest = np.stack([s[np.argmin(np.linalg.norm(s - q0, axis=1))]
+                        for s, q0 in zip(sets, targets.q_init)])
+    ok = np.ones(12, dtype=bool)
+    on_nearest = branch_columns(robot, sets, targets.q_init, nearest, ok)
+    assert np.all(on_nearest["on_nearest_branch"] == 1)
+    assert np.allclose(on_nearest["branch_excess_deg"], 0)
+    # the sampled configuration is a branch; where it is not the nearest one, it costs more
+    other = branch_columns(robot, sets, targets.q_init, targets.q_target, ok)
+    assert np.all(np.isfinite(other["on_nearest_branch"]))
+    far = other["on_nearest_branch"] == 0
+    assert np.all(other["branch_excess_deg"][far] > 0)
+    assert np.allclose(other["branch_excess_deg"][~far], 0, atol=1e-6)
+    failed = branch_columns(robot, sets, targets.q_init, targets.q_target, ~ok)
+    assert np.all(np.isnan(failed["on_nearest_branch"]))

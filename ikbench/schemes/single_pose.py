@@ -93,6 +93,8 @@ class PoseSolver(abc.ABC):
             units (deg, mm) instead of URDF units (rad, m).
         iterations_are: what ``iterations`` counts.
         rank: the solver's place in listings and leaderboards (lower first).
+        analytic: gives every solution of a target in closed form (``branches(point_m,
+            rotation, near)``: (S, dof) [rad, m]); the study's ground truth where one applies.
 
     Args:
         robot: the robot.
@@ -113,6 +115,7 @@ class PoseSolver(abc.ABC):
     pose_units: ClassVar[bool] = False
     iterations_are: ClassVar[str] = "iterations"
     rank: ClassVar[int] = 1000
+    analytic: ClassVar[bool] = False
 
     def __init__(self, robot: Robot, kind: str = "pose",
                  tolerance: tuple[float, float] = (1.0, 0.5), budget_s: float = BUDGET_S

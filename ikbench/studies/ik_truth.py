@@ -1,0 +1,113 @@
+"""Ground truth of ``ikbench ik``: every analytic branch of each target, and silent failures.
+
+**Branches.** Where an analytic solver can take the robot (a single-pose solver whose class
+says ``analytic``: EAIK on the 6R arms it decomposes), each target's full solution set within
+the joint limits is computed once (:func:`solution_sets`) and stored beside the targets
+(``branches.csv``). A numerical solver lands on one of those branches; the branch nearest the
+initial configuration (row 0 of the target's sequence) is the one that keeps a tracked motion
+continuous. A successful answer that lies on one of the branches (within
+:data:`SAME_BRANCH_DEG`, whole turns aside) gets two columns (:func:`branch_columns`):
+``on_nearest_branch`` (it is the configuration nearest the initial one: the same branch a
+whole turn away is not) and
+``branch_excess_deg``: its joint distance from the initial configuration minus that nearest
+branch's [deg, the Euclidean norm over the joints in pose units], 0 when it is on it.
+
+**Silent failures** (:func:`claims`): the library's own verdict (``library_ok``) against the
+judge's (``success``): answers the library called a success that the judge rejects, and the
+reverse.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from ikbench.methods.registry import available_solvers
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+    from ikbench.schemes.single_pose import PoseSolver
+
+#: An answer lies on a branch when every joint is within this of it, whole turns aside [deg].
+SAME_BRANCH_DEG = 1.0
+
+
+def analytic_solver(robot: Robot) -> PoseSolver | None:
+    """The first installed analytic solver that can take ``robot``, prepared; None if none."""
+    for cls in available_solvers().values():
+        if not getattr(cls, "analytic", False):
+            continue
+        solver = cls(robot)
+        try:
+            solver.prepare()
+        except Exception:  # it refuses this robot (its rows say why): no ground truth here
+            continue
+        return solver
+    return None
+
+
+def solution_sets(solver: PoseSolver, robot: Robot, T_target: np.ndarray,
+                  q_init: np.ndarray) -> list[np.ndarray]:
+    """Each target's solutions within the limits (S_k, dof) [pose units], every joint moved by
+    whole turns toward that target's initial configuration ``q_init`` (B, dof) [pose units]
+    where the limits allow."""
+    sets = []
+    for T, q0 in zip(T_target, q_init):
+        found = solver.branches(T[:3, 3], T[:3, :3], robot.to_urdf(q0))  # type: ignore[attr-defined]
+        sets.append(robot.from_urdf(found) if len(found) else np.zeros((0, robot.dof)))
+    return sets
+
+
+def _turn_units(robot: Robot) -> np.ndarray:
+    """One whole turn of each joint in pose units (0 for a prismatic joint)."""
+    return np.abs(robot.from_urdf(np.full(robot.dof, 2 * math.pi)) - robot.from_urdf(
+        np.zeros(robot.dof)))
+
+
+def branch_columns(robot: Robot, sets: list[np.ndarray], q_init: np.ndarray,
+                   poses: np.ndarray, success: np.ndarray) -> dict[str, np.ndarray]:
+    """``on_nearest_branch`` and ``branch_excess_deg`` of B answers ``poses`` (B, dof) [pose
+    units] to the targets of ``sets`` (see the module docstring); NaN where the answer failed,
+    the target has no branch, or the answer lies on none of them."""
+    turn = _turn_units(robot)
+    on_nearest = np.full(len(poses), np.nan)
+    excess = np.full(len(poses), np.nan)
+    for k, (found, q0, q) in enumerate(zip(sets, q_init, poses)):
+        if not success[k] or not len(found):
+            continue
+        gap = found - q
+        gap = np.where(turn > 0, gap - turn * np.round(gap / np.where(turn > 0, turn, 1)), gap)
+        lies = np.abs(gap).max(axis=1) <= SAME_BRANCH_DEG
+        if not lies.any():
+            continue
+        nearest = int(np.argmin(np.linalg.norm(found - q0, axis=1)))
+        on_nearest[k] = float(np.abs(found[nearest] - q).max() <= SAME_BRANCH_DEG)
+        excess[k] = max(0.0, float(np.linalg.norm(q - q0) - np.linalg.norm(found[nearest] - q0)))
+    return {"on_nearest_branch": on_nearest, "branch_excess_deg": excess}
+
+
+def branches_frame(sets: list[np.ndarray]) -> pd.DataFrame:
+    """branches.csv: one row per target and branch (``target``, ``branch``, ``q0`` ...) [pose
+    units]."""
+    rows = [(k, b, *q) for k, found in enumerate(sets) for b, q in enumerate(found)]
+    dof = max((s.shape[1] for s in sets), default=0)
+    return pd.DataFrame(rows, columns=["target", "branch", *[f"q{j}" for j in range(dof)]])
+
+
+def claims(table: pd.DataFrame) -> pd.DataFrame:
+    """Per method and rule: answers the library claimed but the judge rejects
+    (``claimed_rejected``), and answers it denied that hold (``denied_holding``), of the rows
+    where the library says anything (``claims``)."""
+    said = table[table["library_ok"].notna()].copy()
+    said["claimed"] = said["library_ok"].astype(bool)
+    said["holds"] = said["success"].astype(bool)
+    said["claimed_rejected"] = said["claimed"] & ~said["holds"]
+    said["denied_holding"] = ~said["claimed"] & said["holds"]
+    keys = ["attempts_rule", "method"]
+    out = said.groupby(keys, sort=False).agg(claims=("claimed", "size"),
+                                             claimed_rejected=("claimed_rejected", "sum"),
+                                             denied_holding=("denied_holding", "sum"))
+    return out.reset_index()
