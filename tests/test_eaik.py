@@ -87,3 +87,32 @@ def test_answers_are_matched_to_their_branch_and_the_nearest_one_costs_nothing()
     assert np.allclose(other["branch_excess_deg"][~far], 0, atol=1e-6)
     failed = branch_columns(robot, sets, targets.q_init, targets.q_target, ~ok)
     assert np.all(np.isnan(failed["on_nearest_branch"]))
+
+
+@needs_erd
+@pytest.mark.parametrize("name", ["example-robot-data:ur5", "example-robot-data:panda"])
+def test_unreachable_targets_are_beyond_every_configuration(name):
+    """The reach bound holds for random configurations, and an unreachable target is farther
+    from its centre than any of them."""
+    from ikbench.studies.ik_truth import reach_bound_m, unreachable_targets
+
+    robot = load_robot(name)
+    centre, radius = reach_bound_m(robot)
+    targets = sample_targets(robot, IKSettings(count=400, seed=2))
+    distances = np.linalg.norm(targets.T_target[:, :3, 3] - centre, axis=1)
+    assert distances.max() <= radius
+    far = unreachable_targets(robot, targets.T_target[:50], np.random.default_rng(0))
+    assert np.all(np.linalg.norm(far[:, :3, 3] - centre, axis=1) >= 1.1 * radius - 1e-9)
+    assert np.allclose(far[:, :3, :3], targets.T_target[:50, :3, :3])
+
+
+@needs_erd
+def test_stress_is_small_at_a_singularity_and_the_margin_is_the_nearest_limit():
+    from ikbench.studies.ik_truth import stress
+
+    robot = load_robot("example-robot-data:ur5")
+    bent = np.array([10.0, -60.0, 90.0, -120.0, -90.0, 150.0])
+    stretched = np.zeros(robot.dof)  # UR5's zero: arm stretched out, wrist aligned
+    out = stress(robot, np.stack([bent, stretched]))
+    assert out["sigma_min"][1] < 1e-6 < 1e-2 < out["sigma_min"][0]
+    assert out["limit_margin_deg"][0] == pytest.approx(90.0)  # the elbow, 90 from its 180

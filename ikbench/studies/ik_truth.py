@@ -111,3 +111,59 @@ def claims(table: pd.DataFrame) -> pd.DataFrame:
                                              claimed_rejected=("claimed_rejected", "sum"),
                                              denied_holding=("denied_holding", "sum"))
     return out.reset_index()
+
+
+def stress(robot: Robot, q_target: np.ndarray) -> dict[str, np.ndarray]:
+    """What makes a target hard, from the configuration it was sampled from (B, dof) [pose
+    units]: ``sigma_min``, the smallest singular value of the end frame's 6 x dof Jacobian
+    (Pinocchio, LOCAL_WORLD_ALIGNED; translation rows in m, rotation rows in rad, per rad or m
+    of joint motion: near 0 at a singularity), and ``limit_margin_deg``, the smallest
+    distance of a joint from its limits [pose units: deg, mm for prismatic joints]."""
+    import pinocchio as pin
+
+    fk = robot.pinocchio_fk()
+    data = fk.model.createData()
+    sigma = np.empty(len(q_target))
+    for k, q in enumerate(robot.to_urdf(np.atleast_2d(q_target))):
+        pin.computeJointJacobians(fk.model, data, q)
+        pin.updateFramePlacements(fk.model, data)
+        J = pin.getFrameJacobian(fk.model, data, fk.frame_id, pin.LOCAL_WORLD_ALIGNED)
+        sigma[k] = np.linalg.svd(J, compute_uv=False).min()
+    margin = np.minimum(q_target - robot.lower, robot.upper - q_target).min(axis=1)
+    return {"sigma_min": sigma, "limit_margin_deg": margin}
+
+
+def reach_bound_m(robot: Robot) -> tuple[np.ndarray, float]:
+    """A sphere no end-frame position can leave: its centre, the first joint's origin at the
+    zero configuration [m, base frame], and its radius, the sum of the distances between
+    consecutive joint origins and from the last one to the end frame [m] (the triangle
+    inequality: every joint moves the points after it rigidly about an axis through its
+    origin, so their distances to that origin never change)."""
+    import pinocchio as pin
+
+    fk = robot.pinocchio_fk()
+    data = fk.model.createData()
+    pin.framesForwardKinematics(fk.model, data, pin.neutral(fk.model))
+    origins = [data.oMi[i].translation.copy() for i in range(1, fk.model.njoints)]
+    points = [*origins, data.oMf[fk.frame_id].translation.copy()]
+    radius = float(sum(np.linalg.norm(b - a) for a, b in zip(points, points[1:])))
+    return origins[0], radius
+
+
+#: Unreachable targets lie this far beyond the reach bound (times its radius) at least.
+BEYOND_REACH = 1.1
+
+
+def unreachable_targets(robot: Robot, T_reachable: np.ndarray, rng: np.random.Generator
+                        ) -> np.ndarray:
+    """Frames (B, 4, 4) [m] no configuration reaches: each of ``T_reachable``'s rotations at a
+    position pushed along the ray from the reach bound's centre to between
+    :data:`BEYOND_REACH` and twice the bound's radius (:func:`reach_bound_m`)."""
+    centre, radius = reach_bound_m(robot)
+    out = np.array(T_reachable, dtype=float, copy=True)
+    ray = out[:, :3, 3] - centre
+    norm = np.linalg.norm(ray, axis=1, keepdims=True)
+    ray = np.where(norm > 1e-9, ray / np.maximum(norm, 1e-12), np.array([1.0, 0.0, 0.0]))
+    distance = radius * rng.uniform(BEYOND_REACH, 2.0, (len(out), 1))
+    out[:, :3, 3] = centre + ray * distance
+    return out
