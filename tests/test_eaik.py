@@ -116,3 +116,36 @@ def test_stress_is_small_at_a_singularity_and_the_margin_is_the_nearest_limit():
     out = stress(robot, np.stack([bent, stretched]))
     assert out["sigma_min"][1] < 1e-6 < 1e-2 < out["sigma_min"][0]
     assert out["limit_margin_deg"][0] == pytest.approx(90.0)  # the elbow, 90 from its 180
+
+
+@needs_erd
+def test_ik_with_unreachable_targets_reports_the_ground_truth(tmp_path):
+    """Through the CLI: --unreachable 0.2 mixes in targets no method may succeed on; the
+    leaderboard's ground truth shows zero judged successes there, every method's claims and
+    time to give up, and the branch columns; branches.csv and stress.png are written."""
+    import subprocess
+    import sys
+
+    import pandas as pd
+
+    out = subprocess.run([sys.executable, "-m", "ikbench.cli", "ik", "--robot",
+                          "example-robot-data:ur5", "--count", "40", "--unreachable", "0.2",
+                          "--methods", "eaik,sequential-ik", "--attempts", "2",
+                          "--budget-ms", "inf", "--output", str(tmp_path), "--quiet"],
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    folder = tmp_path / "ik" / "ur5"
+    targets = pd.read_csv(folder / "targets.csv")
+    assert (~targets["reachable"]).sum() == 8 and targets["sigma_min"].notna().all()
+    assert (targets.loc[targets["reachable"], "branches"] >= 1).all()
+    assert (targets.loc[~targets["reachable"], "branches"] == 0).all()
+    results = pd.read_csv(folder / "results.csv")
+    assert not results.loc[~results["reachable"], "success"].any()
+    eaik = results[(results["method"] == "eaik") & results["reachable"]]
+    assert eaik["success"].all() and (eaik["on_nearest_branch"] == 1).all()
+    board = (folder / "leaderboard.md").read_text()
+    assert "## Ground truth" in board and "8 of 40 targets are beyond" in board
+    assert (folder / "branches.csv").exists() and (folder / "stress.png").exists()
+    summary = pd.read_csv(folder / "summary.csv")
+    assert (summary["unreachable_judged_success"] == 0).all()
+    assert (summary.loc[summary["method"] == "eaik", "success_pct"] == 100).all()

@@ -342,7 +342,8 @@ def test_the_cli_writes_the_folder_and_every_row_recomputes_from_its_solution(tm
     (["--count", "1000000000000"], "--count: 1000000000000 targets need about"),
     (["--tolerance-mm", "-1"], "--tolerance-mm: -1.0 must be a finite number > 0"),
     (["--seed", "-2"], "--seed: -2 must be an integer in [0, 2^63)"),
-    (["--methods", "nope"], "--methods: 'nope' is not a single-pose IK method; known: ours-lm"),
+    (["--methods", "nope"],
+     "--methods: 'nope' is not a single-pose IK method; known: eaik, ours-lm"),
     (["--max-count-per-method", "ikpy"], "--max-count-per-method: 'ikpy' is not METHOD=N"),
     (["--robot", "example-robot-data:nope"], "example-robot-data:nope"),
     (["--budget-ms", "0"], "argument --budget-ms: 0 is out of range; give a budget [ms] more "

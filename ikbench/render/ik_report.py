@@ -8,11 +8,17 @@
 - ``summary.csv``: the leaderboard's figures, one row per attempts rule and method
   (:func:`summarise`).
 - ``targets.csv`` (``targets.parquet`` alike): each target's configuration [pose units],
-  end-frame pose (position [mm], rotation matrix) and initial pose (row 0 of its sequence);
+  end-frame pose (position [mm], rotation matrix), initial pose (row 0 of its sequence),
+  whether it is reachable, its stress (``sigma_min``, ``limit_margin_deg``) and, where an
+  analytic solver takes the robot, its number of branches;
+- ``branches.csv``: those branches, one row per target and solution [pose units];
 - ``leaderboard.md``: the task, tolerances and protocol (budget, initial configurations,
-  attempts rule) above one table per attempts rule, the published figures for the robot
-  (labelled as published, with their source), the machine and versions;
+  attempts rule) above one table per attempts rule, the ground truth (silent failures,
+  branches, unreachable targets: :func:`ground_truth_section`), the published figures for the
+  robot (labelled as published, with their source), the machine and versions;
 - ``times.png``: the distribution of per-call times per rule; ``success_vs_tolerance.png``;
+  ``stress.csv`` and ``stress.png``: success and median time per quantile bin of the targets'
+  smallest Jacobian singular value;
 - ``run.json``: command, settings, per-method facts, batched throughput, the solution
   columns, provenance (machine and versions).
 """
@@ -96,11 +102,27 @@ def _targets(result: StudyResult, tmp: Path) -> None:
             columns[f"R{i}{j}"] = t.T_target[:, i, j]
     for j, name in enumerate(robot.joint_names):
         columns[f"init_{name}"] = t.q_init[:, j]
+    if t.reachable is not None:
+        columns["reachable"] = t.reachable
+    if t.sigma_min is not None and t.limit_margin_deg is not None:
+        columns["sigma_min"], columns["limit_margin_deg"] = t.sigma_min, t.limit_margin_deg
+    if t.branches is not None:
+        columns["branches"] = [len(b) for b in t.branches]
+        branches_frame(t.branches).to_csv(tmp / "branches.csv", index=False,
+                                          float_format="%.17g")
     frame = pd.DataFrame(columns).rename_axis("target").reset_index()
     if parquet(result):
         frame.to_parquet(tmp / "targets.parquet", index=False)
     else:
         frame.to_csv(tmp / "targets.csv", index=False, float_format="%.17g")
+
+
+def branches_frame(sets: list[np.ndarray]) -> pd.DataFrame:
+    """branches.csv: one row per target and analytic branch (``target``, ``branch``, ``q0``
+    ...) [pose units]."""
+    rows = [(k, b, *q) for k, found in enumerate(sets) for b, q in enumerate(found)]
+    dof = max((s.shape[1] for s in sets), default=0)
+    return pd.DataFrame(rows, columns=["target", "branch", *[f"q{j}" for j in range(dof)]])
 
 
 def _record(result: StudyResult, command: str) -> dict:
@@ -229,6 +251,7 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
                 f"| {_fmt(row.joint_distance_median_deg)} | {_fmt(row.iterations_median)} "
                 f"| {row.failed_calls} |")
         lines.append("")
+    lines += ground_truth_section(result, summary)
     capped = {m: f["count"] for m, f in result.methods.items() if f["count"] < s.count}
     if capped:
         lines += ["Capped (`--max-count-per-method`, the first targets only): " + ", ".join(
@@ -248,10 +271,61 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
         "",
         f"Command: `{record['command']}`" if record["command"] else "",
         "",
-        "![per-call time](times.png) ![success against tolerance](success_vs_tolerance.png)",
+        "![per-call time](times.png) ![success against tolerance](success_vs_tolerance.png) "
+        "![success and time against the distance to a singularity](stress.png)",
         "",
     ]
     return "\n".join(lines)
+
+
+def ground_truth_section(result: StudyResult, summary: pd.DataFrame) -> list[str]:
+    """What the judge knows beyond each answer (:mod:`ikbench.studies.ik_truth`): silent
+    failures, the analytic branches, the unreachable targets; one table per attempts rule."""
+    t = result.targets
+    if "claims" not in summary:
+        return []
+    text = ["## Ground truth", "",
+            "**Silent failures**: of the answers a library judged itself (`library_ok`), those "
+            "it called a success that the judge rejects, and those it called a failure that "
+            "hold."]
+    if t.branches is not None:
+        text.append(f"**Branches**: every target's solutions within the limits, by "
+                    f"{t.branches_by} (analytic, `branches.csv`); of each method's successes, "
+                    "the share on the configuration nearest the initial one (the one that "
+                    "keeps a tracked motion continuous), and how much farther from the "
+                    "initial configuration the others are [deg, norm over the joints].")
+    else:
+        text.append("**Branches**: no analytic solver takes this robot (or the targets are "
+                    "positions): no branch columns.")
+    unreachable = int((~t.reachable).sum()) if t.reachable is not None else 0
+    if unreachable:
+        text.append(f"**Unreachable targets**: {unreachable} of {len(t.reachable)} targets are "
+                    "beyond the robot's reach bound (`--unreachable`); the tables above count "
+                    "the reachable ones only. Here: judged successes on them (none can hold), "
+                    "the library's own claims, and the time it took to give up.")
+    lines = [" ".join(text), ""]
+    for rule, table in summary.groupby("attempts_rule", sort=False):
+        head = ["method", "claimed, judge rejects", "denied, holds"]
+        if t.branches is not None:
+            head += ["on the nearest branch", "excess median [deg]", "excess p95 [deg]"]
+        if unreachable:
+            head += ["unreachable: judged success", "claimed", "give up median [ms]",
+                     "give up p95 [ms]"]
+        lines += [f"### {rule_title(str(rule), result.auto_rows)}", "",
+                  "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        for row in table.itertuples(index=False):
+            cells = [row.method, f"{row.claimed_rejected} of {row.claims}",
+                     f"{row.denied_holding} of {row.claims}"]
+            if t.branches is not None:
+                cells += ["-" if not np.isfinite(row.on_nearest_branch_pct)
+                          else f"{row.on_nearest_branch_pct:.1f} %",
+                          _fmt(row.branch_excess_median_deg), _fmt(row.branch_excess_p95_deg)]
+            if unreachable:
+                cells += [str(row.unreachable_judged_success), str(row.unreachable_claimed),
+                          _fmt(row.give_up_median_ms), _fmt(row.give_up_p95_ms)]
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+    return lines
 
 
 def published_section(robot: str, summary: pd.DataFrame) -> list[str]:
@@ -324,6 +398,62 @@ def _figures(result: StudyResult, tmp: Path) -> None:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
     atomic_savefig(tmp / "success_vs_tolerance.png", fig)
+    if result.targets.sigma_min is not None:
+        stress_table(result).to_csv(tmp / "stress.csv", index=False, float_format="%.6g")
+        _stress_figure(result, tmp / "stress.png")
+
+
+#: Bins of the stress figure: quantiles of the targets' smallest singular value.
+STRESS_BINS = 6
+
+
+def stress_table(result: StudyResult) -> pd.DataFrame:
+    """Success [%] and median time per call [ms] per method and bin of the targets' smallest
+    Jacobian singular value (reachable targets, the first attempts rule): one row each."""
+    t, table = result.targets, result.table
+    rule = table["attempts_rule"].iloc[0]
+    part = table[table["attempts_rule"] == rule]
+    if "reachable" in part:
+        part = part[part["reachable"].astype(bool)]
+    sigma = np.asarray(t.sigma_min)[part["target"].to_numpy(dtype=int)]
+    reachable = t.sigma_min if t.reachable is None else t.sigma_min[t.reachable]
+    edges = np.unique(np.quantile(reachable, np.linspace(0, 1, STRESS_BINS + 1)))
+    bins = np.clip(np.searchsorted(edges, sigma, side="right") - 1, 0, len(edges) - 2)
+    part = part.assign(bin=bins)
+    rows = []
+    for (method, b), g in part.groupby(["method", "bin"], sort=False):
+        rows.append({"attempts_rule": rule, "method": method, "sigma_low": edges[b],
+                     "sigma_high": edges[b + 1], "targets": len(g),
+                     "success_pct": 100.0 * g["success"].astype(bool).mean(),
+                     "time_median_ms": 1000.0 * g["time_s"].median()})
+    return pd.DataFrame(rows).sort_values(["method", "sigma_low"], kind="stable")
+
+
+def _stress_figure(result: StudyResult, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    table = pd.read_csv(path.with_name("stress.csv"))
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8.5, 6.4), sharex=True)
+    for k, (method, g) in enumerate(table.groupby("method", sort=False)):
+        middle = np.sqrt(np.maximum(g["sigma_low"], 1e-12) * g["sigma_high"])
+        style = dict(color=f"C{k % 10}", marker="o", ms=3, label=method,
+                     ls="-" if k < 10 else "--")
+        top.plot(middle, g["success_pct"], **style)
+        bottom.plot(middle, g["time_median_ms"], **style)
+    top.set_ylabel("success [%]")
+    top.set_ylim(-2, 102)
+    bottom.set_ylabel("time per call, median [ms] (log)")
+    bottom.set_yscale("log")
+    bottom.set_xscale("log")
+    bottom.set_xlabel("smallest singular value of the target configuration's Jacobian "
+                      f"(log; {STRESS_BINS} quantile bins; near 0: a singularity)")
+    rule = table["attempts_rule"].iloc[0] if len(table) else ""
+    top.set_title(f"{result.robot.name}: success and time against the distance to a "
+                  f"singularity, --attempts {rule}")
+    for ax in (top, bottom):
+        ax.grid(True, which="both", alpha=0.3)
+    top.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    atomic_savefig(path, fig)
 
 
 def summarise(table: pd.DataFrame, batches: dict | None = None) -> pd.DataFrame:
@@ -335,6 +465,9 @@ def summarise(table: pd.DataFrame, batches: dict | None = None) -> pd.DataFrame:
     batches = batches or {}
     rows = []
     for (rule, method), g in table.groupby(["attempts_rule", "method"], sort=False):
+        unreachable = g[~g["reachable"].astype(bool)] if "reachable" in g else g.iloc[:0]
+        if "reachable" in g:
+            g = g[g["reachable"].astype(bool)]
         ok = g[g["success"].astype(bool)]
         times = g["time_s"] * 1000.0
         batch = batches.get(str(rule), {}).get(method, {})
@@ -354,8 +487,33 @@ def summarise(table: pd.DataFrame, batches: dict | None = None) -> pd.DataFrame:
             "joint_distance_median_deg": ok["joint_distance_deg"].median(),
             "iterations_median": g["iterations"].median(),
             "failed_calls": int((g["failure"].fillna("") != "").sum()),
+            **_truth(g, ok, unreachable),
         })
     return pd.DataFrame(rows)
+
+
+def _truth(g: pd.DataFrame, ok: pd.DataFrame, unreachable: pd.DataFrame) -> dict[str, Any]:
+    """The ground-truth figures of one method's rows (:mod:`ikbench.studies.ik_truth`): its
+    claims against the judge's verdict, its answers' branches, its unreachable targets."""
+    said = g[g["library_ok"].notna()]
+    claimed = said["library_ok"].astype(bool)
+    holds = said["success"].astype(bool)
+    on = ok["on_nearest_branch"] if "on_nearest_branch" in ok else pd.Series(dtype=float)
+    excess = ok["branch_excess_deg"] if "branch_excess_deg" in ok else pd.Series(dtype=float)
+    out = {"claims": len(said), "claimed_rejected": int((claimed & ~holds).sum()),
+           "denied_holding": int((~claimed & holds).sum()),
+           "on_nearest_branch_pct": 100.0 * on.mean() if on.notna().any() else np.nan,
+           "branch_excess_median_deg": excess.median(),
+           "branch_excess_p95_deg": excess.quantile(0.95) if excess.notna().any() else np.nan,
+           "unreachable_targets": len(unreachable)}
+    if len(unreachable):
+        out.update({
+            "unreachable_judged_success": int(unreachable["success"].astype(bool).sum()),
+            "unreachable_claimed": int(unreachable["library_ok"].fillna(False).astype(bool)
+                                       .sum()),
+            "give_up_median_ms": unreachable["time_s"].median() * 1000.0,
+            "give_up_p95_ms": unreachable["time_s"].quantile(0.95) * 1000.0})
+    return out
 
 
 def success_curve(table: pd.DataFrame, kind: str, ratio_deg_per_mm: float,

@@ -60,6 +60,13 @@ from ikbench.core.errors import InputError
 from ikbench.methods.registry import available_solvers, solver_status
 from ikbench.render.ik_report import robot_slug, write_folder
 from ikbench.runtime.harness import Progress, describe
+from ikbench.studies.ik_truth import (
+    analytic_solver,
+    branch_columns,
+    solution_sets,
+    stress,
+    unreachable_targets,
+)
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -69,7 +76,7 @@ if TYPE_CHECKING:
 
 FOLDER = "ik"
 KINDS = ("pose", "position")
-INITS = ("random", "nearby")
+INITS = ("random", "nominal", "nearby")
 AUTO = "auto"
 MAX_SEED = 2**63
 #: The default wall-clock budget per target [ms] (see the module docstring).
@@ -78,6 +85,10 @@ BUDGET_MS = 5.0
 #: a few milliseconds), and the most ``--attempts N`` may ask.
 AUTO_ROWS = 256
 MAX_ATTEMPTS = 1000
+#: ``--unreachable``: at most this fraction of the targets.
+MAX_UNREACHABLE = 0.9
+#: The generator of the unreachable targets: ``default_rng([seed, UNREACHABLE_STREAM])``.
+UNREACHABLE_STREAM = 46
 #: Bytes held per target (the batched solve's arrays, the targets) and per result row; a
 #: batched method also holds each target's rows (8 bytes per value, twice).
 BYTES_PER_TARGET, BYTES_PER_ROW, BYTES_PER_START = 32_000, 1_000, 16
@@ -106,6 +117,8 @@ class IKSettings:
         budget_ms: wall-clock budget per target [ms] (``inf``: none).
         attempts: the attempts rules, one table each: ``"auto"`` or an integer >= 1.
         threads: threads of the batched throughput runs (None: every core).
+        unreachable: the fraction of the targets replaced by provably unreachable ones
+            (:func:`ikbench.studies.ik_truth.unreachable_targets`), 0 to 0.9.
     """
 
     count: int = 1000
@@ -119,6 +132,7 @@ class IKSettings:
     budget_ms: float = BUDGET_MS
     attempts: tuple[Rule, ...] = (AUTO,)
     threads: int | None = None
+    unreachable: float = 0.0
 
     def __post_init__(self):
         check_settings(self)
@@ -140,6 +154,12 @@ class Targets:
         seed: the run's seed (rows 1.. of target k: numpy's k-th child of the seed,
             ``SeedSequence(seed).spawn(...)[k]``, independent of the targets' own draws).
         sample_lower, sample_upper: (dof,) where rows 1.. are drawn [pose units].
+        reachable: (B,) False for the targets made unreachable (``--unreachable``).
+        sigma_min, limit_margin_deg: (B,) the stress of each target's configuration
+            (:func:`ikbench.studies.ik_truth.stress`); NaN until annotated.
+        branches: each target's analytic solutions within the limits (S_k, dof) [pose
+            units], where an analytic solver takes the robot
+            (:func:`ikbench.studies.ik_truth.solution_sets`); None elsewhere.
     """
 
     q_target: np.ndarray
@@ -148,6 +168,11 @@ class Targets:
     seed: int = 0
     sample_lower: np.ndarray | None = None
     sample_upper: np.ndarray | None = None
+    reachable: np.ndarray | None = None
+    sigma_min: np.ndarray | None = None
+    limit_margin_deg: np.ndarray | None = None
+    branches: list[np.ndarray] | None = None
+    branches_by: str = ""
 
     def initials(self, k: int, rows: int) -> np.ndarray:
         """Target ``k``'s first ``rows`` initial configurations (rows, dof) [pose units]: row
@@ -235,6 +260,9 @@ def check_settings(s: IKSettings) -> None:
     for name, n in s.max_count.items():
         if not isinstance(n, (int, np.integer)) or n < 1:
             raise InputError(f"--max-count-per-method: {name}={n!r} must be an integer >= 1")
+    if not (isinstance(s.unreachable, (int, float)) and 0 <= s.unreachable <= MAX_UNREACHABLE):
+        raise InputError(f"--unreachable: {s.unreachable!r} must be a fraction in "
+                         f"[0, {MAX_UNREACHABLE:g}]")
 
 
 def check_memory(count: int, methods: int, rows: int = 1, dof: int = 7) -> None:
@@ -283,10 +311,31 @@ def sample_targets(robot: Robot, settings: IKSettings) -> Targets:
     T = robot.fk_transform(q_target)
     if settings.init == "random":
         q_init = rng.uniform(lo, hi, (settings.count, robot.dof))
+    elif settings.init == "nominal":  # the middle of the limits, as TRAC-IK's benchmark seeds
+        q_init = np.tile((np.asarray(lo) + np.asarray(hi)) / 2.0, (settings.count, 1))
     else:
         step = rng.uniform(-settings.perturb_deg, settings.perturb_deg, q_target.shape)
         q_init = np.clip(q_target + step, lo, hi)
-    return Targets(q_target, T, q_init, int(settings.seed), np.asarray(lo), np.asarray(hi))
+    reachable = np.ones(settings.count, dtype=bool)
+    if settings.unreachable > 0:  # their own generator: the other draws stay as without
+        mixer = np.random.default_rng([int(settings.seed), UNREACHABLE_STREAM])
+        n = int(round(settings.unreachable * settings.count))
+        chosen = np.sort(mixer.choice(settings.count, n, replace=False))
+        T[chosen] = unreachable_targets(robot, T[chosen], mixer)
+        reachable[chosen] = False
+    return Targets(q_target, T, q_init, int(settings.seed), np.asarray(lo), np.asarray(hi),
+                   reachable)
+
+
+def annotate(robot: Robot, targets: Targets, settings: IKSettings) -> None:
+    """The ground truth of the targets (:mod:`ikbench.studies.ik_truth`): each one's stress,
+    and, where an analytic solver takes the robot (6-D targets only), its solution set."""
+    load = stress(robot, targets.q_target)
+    targets.sigma_min, targets.limit_margin_deg = load["sigma_min"], load["limit_margin_deg"]
+    truth = analytic_solver(robot) if settings.kind == "pose" else None
+    if truth is not None:
+        targets.branches = solution_sets(truth, robot, targets.T_target, targets.q_init)
+        targets.branches_by = truth.name
 
 
 def _errors(T: np.ndarray, T_target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -412,6 +461,7 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
     check_memory(settings.count, len(names) * len(settings.attempts), rows, robot.dof)
     robot.check_loads()
     targets = sample_targets(robot, settings)
+    annotate(robot, targets, settings)
     check = AttemptCheck(robot, settings)
     say = Progress(FOLDER, enabled=progress).say
     frames, info = [], {}
@@ -530,12 +580,19 @@ def _rows(robot: Robot, name: str, rule: Rule, targets: Targets, count: int,
     verdict = judge(robot, targets.T_target[:count], poses, settings)
     distance = np.linalg.norm(poses - targets.q_init[:count], axis=1)
     solutions = {f"q{j}": outcome.q_urdf[:, j] for j in range(robot.dof)}
+    reachable = (np.ones(count, dtype=bool) if targets.reachable is None
+                 else targets.reachable[:count])
+    branch = ({"on_nearest_branch": np.full(count, np.nan),
+               "branch_excess_deg": np.full(count, np.nan)} if targets.branches is None
+              else branch_columns(robot, targets.branches[:count], targets.q_init[:count],
+                                  poses, verdict["success"]))
     return pd.DataFrame({
         "robot": robot.name, "method": name, "attempts_rule": str(rule),
         "target": np.arange(count), "kind": settings.kind, "init": settings.init,
         "budget_ms": settings.budget_ms, **verdict, "library_ok": outcome.library_ok,
         "failure": outcome.failures, "time_s": outcome.times, "attempts": outcome.attempts,
-        "joint_distance_deg": distance, "iterations": outcome.iterations, **solutions})
+        "joint_distance_deg": distance, "iterations": outcome.iterations, **solutions,
+        "reachable": reachable, **branch})
 
 
 def recheck(robot: Robot, table: pd.DataFrame, T_target: np.ndarray, settings: IKSettings

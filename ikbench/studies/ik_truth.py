@@ -12,9 +12,11 @@ whole turn away is not) and
 ``branch_excess_deg``: its joint distance from the initial configuration minus that nearest
 branch's [deg, the Euclidean norm over the joints in pose units], 0 when it is on it.
 
-**Silent failures** (:func:`claims`): the library's own verdict (``library_ok``) against the
-judge's (``success``): answers the library called a success that the judge rejects, and the
-reverse.
+**Stress** (:func:`stress`): how near a singularity and a joint limit each target's
+configuration is. **Unreachable targets** (:func:`unreachable_targets`): frames beyond a reach
+bound no configuration leaves (:func:`reach_bound_m`). The report
+(:mod:`ikbench.render.ik_report`) sets the library's own verdicts against the judge's (silent
+failures), bins success and time by stress, and times the giving up on unreachable targets.
 """
 
 from __future__ import annotations
@@ -23,7 +25,6 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from ikbench.methods.registry import available_solvers
 
@@ -87,30 +88,6 @@ def branch_columns(robot: Robot, sets: list[np.ndarray], q_init: np.ndarray,
         on_nearest[k] = float(np.abs(found[nearest] - q).max() <= SAME_BRANCH_DEG)
         excess[k] = max(0.0, float(np.linalg.norm(q - q0) - np.linalg.norm(found[nearest] - q0)))
     return {"on_nearest_branch": on_nearest, "branch_excess_deg": excess}
-
-
-def branches_frame(sets: list[np.ndarray]) -> pd.DataFrame:
-    """branches.csv: one row per target and branch (``target``, ``branch``, ``q0`` ...) [pose
-    units]."""
-    rows = [(k, b, *q) for k, found in enumerate(sets) for b, q in enumerate(found)]
-    dof = max((s.shape[1] for s in sets), default=0)
-    return pd.DataFrame(rows, columns=["target", "branch", *[f"q{j}" for j in range(dof)]])
-
-
-def claims(table: pd.DataFrame) -> pd.DataFrame:
-    """Per method and rule: answers the library claimed but the judge rejects
-    (``claimed_rejected``), and answers it denied that hold (``denied_holding``), of the rows
-    where the library says anything (``claims``)."""
-    said = table[table["library_ok"].notna()].copy()
-    said["claimed"] = said["library_ok"].astype(bool)
-    said["holds"] = said["success"].astype(bool)
-    said["claimed_rejected"] = said["claimed"] & ~said["holds"]
-    said["denied_holding"] = ~said["claimed"] & said["holds"]
-    keys = ["attempts_rule", "method"]
-    out = said.groupby(keys, sort=False).agg(claims=("claimed", "size"),
-                                             claimed_rejected=("claimed_rejected", "sum"),
-                                             denied_holding=("denied_holding", "sum"))
-    return out.reset_index()
 
 
 def stress(robot: Robot, q_target: np.ndarray) -> dict[str, np.ndarray]:

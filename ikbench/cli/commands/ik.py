@@ -61,10 +61,15 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         help="position tolerance of a success [mm] (default 1)")
     parser.add_argument("--tolerance-deg", type=float, default=0.5,
                         help="rotation tolerance of a success [deg] (default 0.5)")
-    parser.add_argument("--init", choices=("random", "nearby"), default="random",
+    parser.add_argument("--init", choices=("random", "nominal", "nearby"), default="random",
                         help="the first initial configuration: random (uniform within the "
-                        "limits, default) or nearby (the target's configuration perturbed by "
-                        "--perturb-deg); the further ones are uniform draws")
+                        "limits, default), nominal (the middle of the limits, as TRAC-IK's "
+                        "benchmark seeds) or nearby (the target's configuration perturbed by "
+                        "--perturb-deg, the tracking case); the further ones are uniform draws")
+    parser.add_argument("--unreachable", type=float, default=0.0, metavar="FRACTION",
+                        help="replace this fraction of the targets (0 to 0.9) by frames beyond "
+                        "the robot's reach: no method may succeed on them; the report gives "
+                        "each library's claims on them and its time to give up (default 0)")
     parser.add_argument("--perturb-deg", type=float, default=10.0,
                         help="--init nearby: largest change per joint [deg] (default 10)")
     parser.add_argument("--max-count-per-method", default=None, metavar="METHOD=N,...",
@@ -111,6 +116,8 @@ def command_line(args: argparse.Namespace) -> str:
         words += ["--perturb-deg", f"{args.perturb_deg:g}"]
     if args.max_count_per_method:
         words += ["--max-count-per-method", args.max_count_per_method]
+    if args.unreachable:
+        words += ["--unreachable", f"{args.unreachable:g}"]
     words += ["--output", args.output]
     return " ".join(shlex.quote(w) for w in words)
 
@@ -135,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
     settings = IKSettings(args.count, args.seed, args.kind, args.tolerance_mm,
                           args.tolerance_deg, args.init, args.perturb_deg,
                           parse_caps(args.max_count_per_method), args.budget_ms,
-                          parse_attempts(args.attempts), args.threads)
+                          parse_attempts(args.attempts), args.threads, args.unreachable)
     robot = robot_from_args(args)
     names = parse_methods(args.methods, args.kind)
     robot.check_loads()
