@@ -3,6 +3,7 @@ threads, and the base install without numba (no timed assertions)."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -228,3 +229,25 @@ def test_the_compiled_sine_and_cosine_are_within_an_ulp_of_numpy():
     both(angles, s, c)
     assert np.abs(s - np.sin(angles)).max() <= 2.3e-16
     assert np.abs(c - np.cos(angles)).max() <= 2.3e-16
+
+
+def test_compiling_is_said_once_when_the_cache_is_empty(tmp_path):
+    """An empty numba cache: one progress line before the kernels compile, once per process
+    (nothing is compiled here: the check reads numba's cache index only)."""
+    code = ("from ikbench.methods.ours_lm.devices import compiled_module, say_if_compiling\n"
+            "print(say_if_compiling(compiled_module('path_search')),\n"
+            "      say_if_compiling(compiled_module('compiled')))\n")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, env=env)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["True", "True"]
+    assert [line for line in out.stderr.splitlines() if "compiling" in line] == [
+        devices_module.COMPILING]
+
+
+def test_compiling_is_not_said_when_the_kernels_are_loaded(robot):
+    from ikbench.methods.ours_lm import compiled
+
+    compiled.warm_up(robot)
+    assert not devices_module.say_if_compiling(compiled)

@@ -11,9 +11,11 @@ imported only when they run.
 
 from __future__ import annotations
 
+import functools
 import importlib
 import importlib.util
 import re
+import sys
 from types import ModuleType
 from typing import TYPE_CHECKING
 
@@ -162,6 +164,45 @@ def _check_cpu_backend(settings) -> None:
     if not numba_installed():
         raise InputError(f"--lm-backend numba: numba is not installed; {FAST_EXTRA}, or "
                          "use --lm-backend numpy")
+
+
+#: Said once per process before ours-lm's kernels compile (numba's cache holds none of them).
+COMPILING = "compiling ours-lm kernels (first run on this machine, about a minute)"
+
+
+def say_if_compiling(module: ModuleType) -> bool:
+    """Print :data:`COMPILING` on stderr (once per process) when the kernels of ``module``
+    (one of :data:`COMPILED_MODULES`, with the ikbench modules it imports) are about to
+    compile: none of them is loaded in this process, and numba's on-disk cache holds a fresh
+    index for none of them (an index is written by one numba version and stamped with its
+    source file's time and size; a missing or stale one means compiling). A first run on
+    this machine, or after a numba upgrade; a source edit that recompiles one file is not
+    announced. True when it printed."""
+    from numba.core.dispatcher import Dispatcher
+
+    modules = [module] + [v for v in vars(module).values() if isinstance(v, ModuleType)
+                          and v.__name__.startswith("ikbench.")]
+    kernels = [v for m in modules for v in vars(m).values() if isinstance(v, Dispatcher)
+               and v.targetoptions.get("inline") != "always"]
+    if not kernels or any(k.signatures or _cached(k) for k in kernels):
+        return False
+    _say_compiling()
+    return True
+
+
+@functools.cache
+def _say_compiling() -> None:
+    print(COMPILING, file=sys.stderr, flush=True)
+
+
+def _cached(dispatcher) -> bool:
+    """True when numba's cache index holds a fresh entry for ``dispatcher``."""
+    cache = getattr(dispatcher, "_cache", None)
+    index = getattr(cache, "_cache_file", None)
+    try:
+        return bool(index._load_index()) if index is not None else False
+    except Exception:  # an unreadable index is recompiled by numba too
+        return False
 
 
 def compiled_module(name: str = "compiled") -> ModuleType:
