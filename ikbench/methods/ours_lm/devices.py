@@ -1,9 +1,10 @@
 """Which solver ``ours-lm`` runs: numpy, numba (compiled), or the torch backend on a device.
 
 ``--device`` None (the default) runs on the CPU in float64: ``--lm-backend numpy`` is the
-numpy solver (the reference; LAPACK), ``numba`` the same loop compiled (:mod:`.compiled`,
-the ``[fast]`` extra), ``auto`` (default) numba when it is installed and the settings allow
-it, else numpy (:func:`cpu_backend`). ``cpu``, ``cuda`` or ``cuda:N`` runs the torch backend
+numpy solver (the reference; LAPACK), ``numba`` the same loop compiled (:mod:`.compiled`;
+numba is a core dependency), ``auto`` (default) numba when it imports and the settings allow
+it, else numpy (:func:`cpu_backend`), said once on stderr (:func:`numpy_fallback`).
+``cpu``, ``cuda`` or ``cuda:N`` runs the torch backend
 (:mod:`.torch_backend`) there, in ``--dtype`` float64 (default) or float32. Checked when the
 settings are made, so a bad choice fails before any work with one line; torch and numba are
 imported only when they run.
@@ -34,7 +35,8 @@ COMPILED_MODULES = {"compiled": "ikbench.methods.ours_lm.compiled",
                     "single_pose_compiled": "ikbench.methods.ours_lm.single_pose_compiled",
                     "path_search": "ikbench.methods.ours_lm.path_search",
                     "capsules": "ikbench.core.capsules"}
-FAST_EXTRA = "pip install -c constraints.txt -e '.[fast]'"
+#: How to get numba back (a core dependency since 0.3.0; ``[fast]`` is kept as an alias).
+FAST_EXTRA = "pip install -c constraints.txt -e ."
 _DEVICE = re.compile(r"^(cpu|cuda(:\d+)?)$")
 
 
@@ -113,6 +115,29 @@ def numba_installed() -> bool:
         return False
 
 
+@functools.cache
+def numba_unavailable() -> str | None:
+    """Why numba cannot run here (``"numba is not installed"``, or the import's error), or
+    None when it imports. Imported once per process, only when ours-lm asks."""
+    if not numba_installed():
+        return "numba is not installed"
+    try:
+        import numba  # noqa: F401
+    except Exception as error:  # an ImportError, or a broken llvmlite/numpy pairing
+        return f"{type(error).__name__}: {error}".splitlines()[0]
+    return None
+
+
+@functools.cache
+def numpy_fallback() -> str:
+    """The line, said once per process on stderr, that ours-lm runs its numpy reference
+    because numba cannot import (and why); returned for the leaderboards' headers."""
+    line = (f"ours-lm runs its numpy reference, not the compiled solver: numba cannot import "
+            f"({numba_unavailable()}); {FAST_EXTRA}")
+    print(line, file=sys.stderr, flush=True)
+    return line
+
+
 def numba_threads() -> int:
     """The threads numba runs on at most (``NUMBA_NUM_THREADS``; all cores by default),
     without importing numba."""
@@ -132,14 +157,16 @@ def torch_threads() -> int:
 def cpu_backend(settings: LMSettings) -> str:
     """The CPU solver the settings run: ``"numpy"`` or ``"numba"`` (``--device`` None).
 
-    ``auto``: numba when it is installed and the settings are the compiled loop's (chain
-    kinematics ``numpy``, linear solver ``banded``), else numpy.
+    ``auto``: numba when the settings are the compiled loop's (chain kinematics ``numpy``,
+    linear solver ``banded``) and it imports, else numpy; numpy because numba cannot import
+    is said once on stderr (:func:`numpy_fallback`).
     """
     if settings.backend != "auto":
         return settings.backend
-    if settings.kinematics == "numpy" and settings.linear_solver == "banded" \
-            and numba_installed():
-        return "numba"
+    if settings.kinematics == "numpy" and settings.linear_solver == "banded":
+        if numba_unavailable() is None:
+            return "numba"
+        numpy_fallback()
     return "numpy"
 
 
