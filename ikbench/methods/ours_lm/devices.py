@@ -194,7 +194,7 @@ def _check_cpu_backend(settings) -> None:
 
 
 #: Said once per process before ours-lm's kernels compile (numba's cache holds none of them).
-COMPILING = "compiling ours-lm kernels (first run on this machine, about a minute)"
+COMPILING = "compiling ours-lm kernels (first run on this machine, a minute or more)"
 
 
 def say_if_compiling(module: ModuleType) -> bool:
