@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ikbench.methods.base import Solution
-from ikbench.render.leaderboard import construction_notes
+from ikbench.render.leaderboard import backend_notes, construction_notes
 from ikbench.runtime.harness import Outcome
 from ikbench.studies.compare import identical_methods
 
@@ -37,3 +37,22 @@ def test_the_notes_name_the_scheme_the_twins_and_the_backends():
     assert "Same trajectories: pink and mink" in text
     assert "Backends: ours-lm numba (2 threads); pink pin-pink." in text
     assert construction_notes({}) == []
+
+
+def test_the_header_says_when_ours_lm_did_not_run_compiled():
+    """numba is the published configuration: any other backend of ours-lm is named above
+    the table (issue 50), with numba's import error when that was the reason."""
+    numpy = {"ours-lm": {"backend": "numpy", "threads": 1, "numba": "numba is not installed"}}
+    text = "\n".join(construction_notes({"runtimes": numpy}))
+    assert "**ours-lm ran on numpy** (numba cannot import: numba is not installed)" in text
+    assert backend_notes({"ours-lm": {"backend": "numba", "threads": 2}}) == []
+    assert backend_notes({"pink": {"backend": "pin-pink"}}) == []
+    assert "ours-lm ran on torch (cpu, float64)" in "\n".join(
+        backend_notes({"ours-lm": {"backend": "torch (cpu, float64)"}}))
+
+
+def test_run_json_records_numba_and_llvmlite():
+    from ikbench.core.provenance import provenance
+
+    packages = provenance()["packages"]
+    assert packages["numba"] and packages["llvmlite"]

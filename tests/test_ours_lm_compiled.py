@@ -3,6 +3,7 @@ threads, and the base install without numba (no timed assertions)."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -144,8 +145,9 @@ def test_auto_is_numba_when_installed_else_numpy(monkeypatch):
     assert cpu_backend(LMSettings(linear_solver="thomas")) == "numpy"
     assert cpu_backend(LMSettings(kinematics="pinocchio")) == "numpy"
     monkeypatch.setattr(devices_module, "numba_installed", lambda: False)
+    monkeypatch.setattr(devices_module, "numba_unavailable", lambda: "numba is not installed")
     assert cpu_backend(LMSettings()) == "numpy"
-    with pytest.raises(InputError, match=r"numba is not installed; pip install .*\[fast\]"):
+    with pytest.raises(InputError, match=r"numba is not installed; pip install -c constr"):
         LMSettings(backend="numba")
 
 
@@ -179,12 +181,18 @@ def test_base_install_without_numba_falls_back_to_numpy():
         "tasks = line_tasks(robot, load_targets(None, robot).with_steps(8))[:2]\n"
         "assert cpu_backend(LMSettings()) == 'numpy'\n"
         "r = solve_batch(robot, tasks)\n"
+        "r = solve_batch(robot, tasks)\n"
         "assert r.converged.all() and 'ikbench.methods.ours_lm.compiled' not in sys.modules\n"
-        "print('ok')\n")
+        "from ikbench.methods.ours_lm import OursLM\n"
+        "print(OursLM().runtime())\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=300)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "ok"
+    assert out.stdout.strip() == ("{'backend': 'numpy', 'threads': 1, "
+                                  "'numba': 'numba is not installed'}")
+    said = [line for line in out.stderr.splitlines() if "numba" in line]  # once per process
+    assert said == ["ours-lm runs its numpy reference, not the compiled solver: numba cannot "
+                    "import (numba is not installed); pip install -c constraints.txt -e ."]
 
 
 def test_compiled_forward_kinematics_equal_the_numpy_chain(robot):
@@ -228,3 +236,25 @@ def test_the_compiled_sine_and_cosine_are_within_an_ulp_of_numpy():
     both(angles, s, c)
     assert np.abs(s - np.sin(angles)).max() <= 2.3e-16
     assert np.abs(c - np.cos(angles)).max() <= 2.3e-16
+
+
+def test_compiling_is_said_once_when_the_cache_is_empty(tmp_path):
+    """An empty numba cache: one progress line before the kernels compile, once per process
+    (nothing is compiled here: the check reads numba's cache index only)."""
+    code = ("from ikbench.methods.ours_lm.devices import compiled_module, say_if_compiling\n"
+            "print(say_if_compiling(compiled_module('path_search')),\n"
+            "      say_if_compiling(compiled_module('compiled')))\n")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, env=env)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["True", "True"]
+    assert [line for line in out.stderr.splitlines() if "compiling" in line] == [
+        devices_module.COMPILING]
+
+
+def test_compiling_is_not_said_when_the_kernels_are_loaded(robot):
+    from ikbench.methods.ours_lm import compiled
+
+    compiled.warm_up(robot)
+    assert not devices_module.say_if_compiling(compiled)

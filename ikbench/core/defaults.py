@@ -27,3 +27,6 @@ DESIGN_METHOD = "ours-exact"
 COMPARE_METHODS = ("ours-lm", "ours-exact", "sequential-ik")
 #: ``ikbench bench``'s methods when none are named.
 BENCH_METHODS = ("ours", "ours-lm")
+#: The backend a method's published figures ran on: a leaderboard whose run used another
+#: says so above its table (``Method.runtime()["backend"]``; issue 50).
+PUBLISHED_BACKENDS = {"ours-lm": "numba"}

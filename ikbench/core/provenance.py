@@ -15,7 +15,7 @@ from typing import Any
 
 #: Distributions whose versions are recorded (scipy: ours-lm's banded Cholesky, LAPACK pbsv).
 PACKAGES = ("ikbench", "torch", "pytorch-kinematics", "pin", "numpy", "scipy", "pandas",
-            "matplotlib", "yourdfpy", "dynamixel-sdk")
+            "matplotlib", "yourdfpy", "numba", "llvmlite", "dynamixel-sdk")
 REPO = Path(__file__).resolve().parents[2]
 
 

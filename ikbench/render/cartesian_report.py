@@ -27,6 +27,7 @@ from ikbench.core.trajectory import write_trajectory_csv
 from ikbench.core.validity import SOURCE, describe
 from ikbench.methods.ours_lm.start_search import REACH_SEEDS, waypoint_reach
 from ikbench.methods.registry import get_method
+from ikbench.render.leaderboard import backend_notes
 from ikbench.render.pose_paths import plot_pose_path, reached
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.record import RECORD_FILE, RunRecord, files_written_by, jsonable
@@ -128,7 +129,7 @@ def write_folder(result: StudyResult, folder: Path, command: str = "",
             study={"problems": {p: str(v[2].source.name) for p, v in result.problems.items()},
                    "seeds": list(result.seeds), "options": result.options,
                    "validity": describe(), "validity_source": SOURCE,
-                   "wall_time_s": result.wall_s})
+                   "wall_time_s": result.wall_s, "runtimes": result.runtimes})
         atomic_write_text(tmp / RECORD_FILE, record.to_json())
         atomic_write_text(tmp / "report.md", report(result, summary, published, figures,
                                                     reach, record.to_dict()))
@@ -200,6 +201,7 @@ def report(result: StudyResult, summary: pd.DataFrame, published: pd.DataFrame,
         "harness (wall time of the method's solve, set-up excluded). Every method stops at its "
         "first valid solution or gives up, so time_to_valid_s is its solve time when valid.", "",
         f"Valid, as CppFlow defines it ({SOURCE}): {describe()}.", "",
+        *backend_notes(result.runtimes),
         "## Summary", "",
         "Per problem and method: valid runs of all runs; time to a valid solution [s], median "
         "(min-max) over the valid runs; the worst position [mm] and rotation [deg] errors and "

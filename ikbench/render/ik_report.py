@@ -39,6 +39,7 @@ from ikbench.baselines.trac_ik import TracIKSolver
 from ikbench.core.io import atomic_savefig, staged_folder
 from ikbench.core.provenance import library_versions, provenance
 from ikbench.render.ik_published import published_for
+from ikbench.render.leaderboard import backend_notes
 
 #: The study's result (:class:`ikbench.studies.ik.IKResult`): render takes it as it
 #: comes, without importing the study (render is below the studies).
@@ -259,6 +260,7 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
     lines += ["Iterations count: " + "; ".join(f"{m}: {f['iterations_are']}"
                                               for m, f in result.methods.items()) + ".", ""]
     runtimes = {m: f.get("runtime") for m, f in result.methods.items() if f.get("runtime")}
+    lines += backend_notes(runtimes)
     if runtimes:
         lines += ["Backends: " + "; ".join(f"{m} {r['backend']}" for m, r in runtimes.items())
                   + ".", ""]

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from ikbench.core.contract import TRACK_TITLES, Contract
-from ikbench.core.defaults import REFERENCE_METHOD
+from ikbench.core.defaults import PUBLISHED_BACKENDS, REFERENCE_METHOD
 from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text
 from ikbench.core.obstacles import parse_obstacles
 from ikbench.render.run_report import _matplotlib
@@ -198,11 +198,29 @@ def construction_notes(record: dict) -> list[str]:
                   "trajectory (within 1e-6 of a pose unit): one result shown "
                   f"{len(group)} times.", ""]
     runtimes = record.get("runtimes") or {}
+    lines += backend_notes(runtimes)
     if runtimes:
         lines += ["Backends: " + "; ".join(
             f"{m} {r.get('backend')}" + (f" ({r['threads']} thread{'s' * (r['threads'] != 1)})"
                                          if r.get("threads") else "")
             for m, r in runtimes.items()) + ".", ""]
+    return lines
+
+
+def backend_notes(runtimes: dict) -> list[str]:
+    """A header paragraph per method that ran on another backend than its published figures
+    (:data:`~ikbench.core.defaults.PUBLISHED_BACKENDS`: ours-lm's compiled numba solver):
+    ``runtimes`` maps a method to its ``runtime()`` (run.json)."""
+    lines = []
+    for method, published in PUBLISHED_BACKENDS.items():
+        runtime = runtimes.get(method) or {}
+        backend = runtime.get("backend")
+        if not backend or backend == published:
+            continue
+        why = f" (numba cannot import: {runtime['numba']})" if runtime.get("numba") else ""
+        lines += [f"**{method} ran on {backend}**{why}, not on {published}, the backend of "
+                  "the published tables: its times (and, under a time budget, its success) "
+                  "are not theirs.", ""]
     return lines
 
 

@@ -61,6 +61,7 @@ class CartesianResult:
         methods: the methods' names, in order; settings: name -> the settings used (seed 0).
         seeds: the seeds.
         wall_s: the whole study's wall time [s].
+        runtimes: name -> what ran its solves (``Method.runtime()``: backend, threads).
     """
 
     table: pd.DataFrame
@@ -71,6 +72,7 @@ class CartesianResult:
     seeds: tuple[int, ...]
     wall_s: float
     options: dict = field(default_factory=dict)
+    runtimes: dict = field(default_factory=dict)
 
 
 def frame_methods() -> dict[str, type]:
@@ -181,10 +183,11 @@ def cartesian(problems: str | Path | Sequence[str | Path] = BENCHMARK,
                 log.advance(1, f"{problem} {name} seed {seed}: {verdict}, "
                             f"{row['duration_s']:.2f} s")
     log.close()
-    settings = {name: build_method(name, seeds[0], options.get(name)).settings
-                for name in names}
-    return CartesianResult(pd.DataFrame(rows, columns=COLUMNS), loaded, poses, names, settings,
-                           seeds, time.perf_counter() - started, options)
+    built = {name: build_method(name, seeds[0], options.get(name)) for name in names}
+    return CartesianResult(pd.DataFrame(rows, columns=COLUMNS), loaded, poses, names,
+                           {n: m.settings for n, m in built.items()}, seeds,
+                           time.perf_counter() - started, options,
+                           {n: m.runtime() for n, m in built.items()})
 
 
 def as_written(poses: npt.ArrayLike) -> np.ndarray:

@@ -42,6 +42,7 @@ from ikbench.methods.ours_lm.devices import (
     compiled_module,
     cpu_backend,
     numba_threads,
+    numba_unavailable,
     torch_dtype,
     torch_threads,
 )
@@ -94,7 +95,8 @@ class OursLM(Method):
         backend = cpu_backend(s)
         if backend == "numba":
             return {"backend": "numba", "threads": s.threads or numba_threads()}
-        return {"backend": "numpy", "threads": 1}
+        why = numba_unavailable() if s.backend == "auto" else None
+        return {"backend": "numpy", "threads": 1, **({"numba": why} if why else {})}
 
     def prepare(self, robot: Robot) -> None:
         if self.settings.device is not None:  # the torch backend's kinematics on its device

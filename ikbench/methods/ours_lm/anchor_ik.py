@@ -105,10 +105,13 @@ def first_waypoint_ik(spec: PathSpec, goal_mm: np.ndarray, goal_R: np.ndarray,
         (poses (K, k), position errors (K,) [mm], rotation errors (K,) [deg], iterations (the
         most any seed took)).
     """
-    seeds = np.ascontiguousarray(seeds, dtype=float)
+    # writeable C-contiguous copies, always: numba compiles one specialisation per argument
+    # layout, and np.broadcast_to's read-only views (kept as they are by ascontiguousarray
+    # when already contiguous) made a second one, compiled inside a timed solve
+    seeds = np.array(seeds, dtype=float, order="C", copy=True)
     m, k = seeds.shape
-    goals_p = np.ascontiguousarray(np.broadcast_to(goal_mm, (m, 3)), dtype=float)
-    goals_R = np.ascontiguousarray(np.broadcast_to(goal_R, (m, 3, 3)), dtype=float)
+    goals_p = np.array(np.broadcast_to(goal_mm, (m, 3)), dtype=float, order="C", copy=True)
+    goals_R = np.array(np.broadcast_to(goal_R, (m, 3, 3)), dtype=float, order="C", copy=True)
     q, out = np.empty((m, k)), np.empty((m, 2))
     iterations = np.zeros(m, dtype=np.int64)
     if m:

@@ -30,6 +30,7 @@ caches them (``__pycache__``), so later processes load them in about a second.
 from __future__ import annotations
 
 import math
+import sys
 import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
@@ -41,6 +42,7 @@ from numba import njit, prange
 from ikbench.core.losses import PAPER_WEIGHTS
 from ikbench.core.task import Task
 from ikbench.methods.ours_lm.compiled_chain import Chain, joint_step, sin_cos
+from ikbench.methods.ours_lm.devices import say_if_compiling
 from ikbench.methods.ours_lm.problem import CM_PER_M, Problem, Weights
 from ikbench.methods.ours_lm.settings import (
     BOUND_EPS_DEG,
@@ -151,7 +153,7 @@ def forward(robot: Robot, poses: npt.ArrayLike, threads: int | None = None
 
 def warm_up(robot: Robot) -> None:
     """Compile (or load from numba's cache) the kernels outside any timed region."""
-
+    say_if_compiling(sys.modules[__name__])
     k = robot.dof
     pose = np.clip(np.zeros(k), robot.lower, robot.upper)
     goal = np.zeros((3, 3))

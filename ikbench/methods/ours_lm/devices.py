@@ -1,9 +1,10 @@
 """Which solver ``ours-lm`` runs: numpy, numba (compiled), or the torch backend on a device.
 
 ``--device`` None (the default) runs on the CPU in float64: ``--lm-backend numpy`` is the
-numpy solver (the reference; LAPACK), ``numba`` the same loop compiled (:mod:`.compiled`,
-the ``[fast]`` extra), ``auto`` (default) numba when it is installed and the settings allow
-it, else numpy (:func:`cpu_backend`). ``cpu``, ``cuda`` or ``cuda:N`` runs the torch backend
+numpy solver (the reference; LAPACK), ``numba`` the same loop compiled (:mod:`.compiled`;
+numba is a core dependency), ``auto`` (default) numba when it imports and the settings allow
+it, else numpy (:func:`cpu_backend`), said once on stderr (:func:`numpy_fallback`).
+``cpu``, ``cuda`` or ``cuda:N`` runs the torch backend
 (:mod:`.torch_backend`) there, in ``--dtype`` float64 (default) or float32. Checked when the
 settings are made, so a bad choice fails before any work with one line; torch and numba are
 imported only when they run.
@@ -11,9 +12,11 @@ imported only when they run.
 
 from __future__ import annotations
 
+import functools
 import importlib
 import importlib.util
 import re
+import sys
 from types import ModuleType
 from typing import TYPE_CHECKING
 
@@ -32,7 +35,8 @@ COMPILED_MODULES = {"compiled": "ikbench.methods.ours_lm.compiled",
                     "single_pose_compiled": "ikbench.methods.ours_lm.single_pose_compiled",
                     "path_search": "ikbench.methods.ours_lm.path_search",
                     "capsules": "ikbench.core.capsules"}
-FAST_EXTRA = "pip install -c constraints.txt -e '.[fast]'"
+#: How to get numba back (a core dependency since 0.3.0; ``[fast]`` is kept as an alias).
+FAST_EXTRA = "pip install -c constraints.txt -e ."
 _DEVICE = re.compile(r"^(cpu|cuda(:\d+)?)$")
 
 
@@ -111,6 +115,29 @@ def numba_installed() -> bool:
         return False
 
 
+@functools.cache
+def numba_unavailable() -> str | None:
+    """Why numba cannot run here (``"numba is not installed"``, or the import's error), or
+    None when it imports. Imported once per process, only when ours-lm asks."""
+    if not numba_installed():
+        return "numba is not installed"
+    try:
+        import numba  # noqa: F401
+    except Exception as error:  # an ImportError, or a broken llvmlite/numpy pairing
+        return f"{type(error).__name__}: {error}".splitlines()[0]
+    return None
+
+
+@functools.cache
+def numpy_fallback() -> str:
+    """The line, said once per process on stderr, that ours-lm runs its numpy reference
+    because numba cannot import (and why); returned for the leaderboards' headers."""
+    line = (f"ours-lm runs its numpy reference, not the compiled solver: numba cannot import "
+            f"({numba_unavailable()}); {FAST_EXTRA}")
+    print(line, file=sys.stderr, flush=True)
+    return line
+
+
 def numba_threads() -> int:
     """The threads numba runs on at most (``NUMBA_NUM_THREADS``; all cores by default),
     without importing numba."""
@@ -130,14 +157,16 @@ def torch_threads() -> int:
 def cpu_backend(settings: LMSettings) -> str:
     """The CPU solver the settings run: ``"numpy"`` or ``"numba"`` (``--device`` None).
 
-    ``auto``: numba when it is installed and the settings are the compiled loop's (chain
-    kinematics ``numpy``, linear solver ``banded``), else numpy.
+    ``auto``: numba when the settings are the compiled loop's (chain kinematics ``numpy``,
+    linear solver ``banded``) and it imports, else numpy; numpy because numba cannot import
+    is said once on stderr (:func:`numpy_fallback`).
     """
     if settings.backend != "auto":
         return settings.backend
-    if settings.kinematics == "numpy" and settings.linear_solver == "banded" \
-            and numba_installed():
-        return "numba"
+    if settings.kinematics == "numpy" and settings.linear_solver == "banded":
+        if numba_unavailable() is None:
+            return "numba"
+        numpy_fallback()
     return "numpy"
 
 
@@ -162,6 +191,45 @@ def _check_cpu_backend(settings) -> None:
     if not numba_installed():
         raise InputError(f"--lm-backend numba: numba is not installed; {FAST_EXTRA}, or "
                          "use --lm-backend numpy")
+
+
+#: Said once per process before ours-lm's kernels compile (numba's cache holds none of them).
+COMPILING = "compiling ours-lm kernels (first run on this machine, a minute or more)"
+
+
+def say_if_compiling(module: ModuleType) -> bool:
+    """Print :data:`COMPILING` on stderr (once per process) when the kernels of ``module``
+    (one of :data:`COMPILED_MODULES`, with the ikbench modules it imports) are about to
+    compile: none of them is loaded in this process, and numba's on-disk cache holds a fresh
+    index for none of them (an index is written by one numba version and stamped with its
+    source file's time and size; a missing or stale one means compiling). A first run on
+    this machine, or after a numba upgrade; a source edit that recompiles one file is not
+    announced. True when it printed."""
+    from numba.core.dispatcher import Dispatcher
+
+    modules = [module] + [v for v in vars(module).values() if isinstance(v, ModuleType)
+                          and v.__name__.startswith("ikbench.")]
+    kernels = [v for m in modules for v in vars(m).values() if isinstance(v, Dispatcher)
+               and v.targetoptions.get("inline") != "always"]
+    if not kernels or any(k.signatures or _cached(k) for k in kernels):
+        return False
+    _say_compiling()
+    return True
+
+
+@functools.cache
+def _say_compiling() -> None:
+    print(COMPILING, file=sys.stderr, flush=True)
+
+
+def _cached(dispatcher) -> bool:
+    """True when numba's cache index holds a fresh entry for ``dispatcher``."""
+    cache = getattr(dispatcher, "_cache", None)
+    index = getattr(cache, "_cache_file", None)
+    try:
+        return bool(index._load_index()) if index is not None else False
+    except Exception:  # an unreadable index is recompiled by numba too
+        return False
 
 
 def compiled_module(name: str = "compiled") -> ModuleType:

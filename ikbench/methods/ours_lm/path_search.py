@@ -47,6 +47,7 @@ Deterministic for a seed and a thread count (the tracks do not depend on the thr
 
 from __future__ import annotations
 
+import sys
 import time
 from typing import TYPE_CHECKING, cast
 
@@ -72,6 +73,7 @@ from ikbench.methods.ours_lm.avoidance import (
     CARRY_MAX_STEP,
     SELF_CLEARANCE_MM,
 )
+from ikbench.methods.ours_lm.devices import say_if_compiling
 from ikbench.methods.ours_lm.frames import errors_from_frames
 from ikbench.methods.ours_lm.search_common import (
     AVOIDANCE_GAIN,
@@ -205,6 +207,7 @@ def wrap(poses: np.ndarray, period: np.ndarray, lower: np.ndarray) -> np.ndarray
 def warm_up(robot: Robot) -> None:
     """Compile (or load from numba's cache) the search's kernels outside any timed region: a
     three-waypoint path of the robot's current end frame, with a box."""
+    say_if_compiling(sys.modules[__name__])
 
     pose = np.clip(np.zeros(robot.dof), robot.sample_lower, robot.sample_upper)
     point, rotation, _, _ = robot.chain_kinematics().frames(pose[None], False)
@@ -221,6 +224,10 @@ def warm_up(robot: Robot) -> None:
             s.add_tracks(np.array([0, 2]), 2)
         finally:
             kernels.set_threads(previous)
+    # the carry, from the pose itself: add_tracks carries nothing when the pose's IK
+    # solutions collide (the Panda's clipped zero pose touches itself)
+    s._carry(np.array([0]), np.array([1]), np.array([3]), pose[None], True)
+    s.more_solutions(0, 2)  # the anchor IK from one goal (add_tracks gave it one per seed)
     path, _ = s.stitch()
     path = np.repeat(pose[None], 3, axis=0) if path is None else path
     s.refine(path, {"L0": 1.0, "L1": 1.0, "L6": 0.001}, SHORTEN[0])

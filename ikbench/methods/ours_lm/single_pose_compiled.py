@@ -45,6 +45,7 @@ import numpy as np
 from ikbench.core.errors import InputError
 from ikbench.methods.ours_lm import single_pose_kernels as kernels
 from ikbench.methods.ours_lm.compiled_chain import WIDTH, Chain, pack
+from ikbench.methods.ours_lm.devices import say_if_compiling
 
 if TYPE_CHECKING:
     import numpy.typing as npt
@@ -175,7 +176,7 @@ class SinglePoseLM:
         """
         points, rot = self._goals(np.asarray(targets, dtype=float), rotations)
         b = len(points)
-        starts = np.ascontiguousarray(initials, dtype=float)
+        starts = np.array(initials, dtype=float, order="C", copy=True)  # writeable
         if starts.ndim != 3 or starts.shape[0] != b or starts.shape[2] != self.dof \
                 or starts.shape[1] < 1:
             raise InputError(f"initials: shape {starts.shape} is not ({b}, A, {self.dof})")
@@ -203,17 +204,21 @@ class SinglePoseLM:
                 raise InputError(f"targets: frames must be (B, 4, 4), not {targets.shape}")
             return (np.ascontiguousarray(targets[:, :3, 3] * 1000.0),
                     np.ascontiguousarray(targets[:, :3, :3]))
-        points = np.ascontiguousarray(targets).reshape(-1, 3)
+        points = np.array(targets, order="C", copy=True).reshape(-1, 3)  # writeable
         if rotations is None or self.kind == "position":
             if self.kind == "pose":
                 raise InputError("point targets need their rotations (B, 3, 3), or pass "
                                  "frames (B, 4, 4)")
-            return points, np.ascontiguousarray(np.broadcast_to(self._identity,
-                                                                (len(points), 3, 3)))
-        return points, np.ascontiguousarray(rotations, dtype=float).reshape(len(points), 3, 3)
+            # a writeable copy: one target's read-only broadcast view would be a second
+            # argument layout, compiled again inside a timed call
+            return points, np.array(np.broadcast_to(self._identity, (len(points), 3, 3)),
+                                    order="C", copy=True)
+        return points, np.array(rotations, dtype=float, order="C", copy=True).reshape(
+            len(points), 3, 3)
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) every kernel, outside any timed region."""
+        say_if_compiling(kernels)
         pose = np.clip(np.zeros(self.dof), self.robot.sample_lower, self.robot.sample_upper)
         T = self.robot.fk_transform(pose)[0]
         self.solve(T[:3, 3] * 1000.0, np.ascontiguousarray(T[:3, :3]), pose[None], 0.0)
@@ -237,7 +242,9 @@ def max_threads() -> int:
 
 
 def _f64(array: npt.ArrayLike) -> np.ndarray:
-    """``array`` itself when it is a C-ordered float64 ndarray (no copy), else a copy."""
-    if type(array) is np.ndarray and array.dtype == np.float64 and array.flags.c_contiguous:
+    """``array`` itself when it is a writeable C-ordered float64 ndarray (no copy), else a
+    copy (read-only arrays too: numba compiles them as another argument layout)."""
+    if type(array) is np.ndarray and array.dtype == np.float64 and array.flags.c_contiguous \
+            and array.flags.writeable:
         return array
     return np.ascontiguousarray(array, dtype=float)
