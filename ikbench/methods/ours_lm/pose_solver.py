@@ -2,8 +2,8 @@
 library: its adapter sits beside the interface, :mod:`ikbench.schemes.single_pose`).
 
 ours-lm restarts by itself: :meth:`OursLMSolver.solve_within` takes the target's whole
-sequence of initial configurations [pose units] and the budget. With numba installed (the
-``[fast]`` extra; the default wherever it is) it runs the compiled single-pose LM
+sequence of initial configurations [pose units] and the budget. With numba (a core
+dependency, where it imports) it runs the compiled single-pose LM
 (:class:`ikbench.methods.ours_lm.single_pose_compiled.SinglePoseLM`): the restarts from the
 rows in order and the wall-clock deadline are inside its compiled loop, one target per call
 from Python, and :meth:`OursLMSolver.solve_batch` solves every target over numba threads,
@@ -21,13 +21,17 @@ descents do.
 
 from __future__ import annotations
 
-import importlib.util
 import time
 from typing import Any
 
 import numpy as np
 
-from ikbench.methods.ours_lm.devices import compiled_module, numba_threads
+from ikbench.methods.ours_lm.devices import (
+    compiled_module,
+    numba_threads,
+    numba_unavailable,
+    numpy_fallback,
+)
 from ikbench.methods.ours_lm.single_pose import solve_poses
 from ikbench.schemes.single_pose import MAX_STEPS, BatchOut, PoseOut, PoseSolver
 
@@ -38,8 +42,12 @@ BATCH_MAX_ITERATIONS = 1500
 
 
 def compiled_available() -> bool:
-    """True when numba is installed (the compiled solver runs)."""
-    return importlib.util.find_spec("numba") is not None
+    """True when numba imports (the compiled solver runs); else the numpy reference runs and
+    one line on stderr says so (:func:`~ikbench.methods.ours_lm.devices.numpy_fallback`)."""
+    if numba_unavailable() is None:
+        return True
+    numpy_fallback()
+    return False
 
 
 class OursLMSolver(PoseSolver):
