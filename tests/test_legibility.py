@@ -11,6 +11,7 @@ import pytest
 
 from ikbench.core import legibility as L
 from ikbench.core import metrics
+from ikbench.core.legibility import LEGIBILITY_COLUMNS
 
 REPO = Path(__file__).resolve().parents[1]
 GOALS = np.array([[100.0, 30.0, 0.0], [100.0, -30.0, 0.0]])
@@ -121,7 +122,6 @@ def test_a_true_goal_outside_the_set_is_added():
 
 
 def test_compare_writes_the_columns_and_figures_for_nico(tmp_path):
-    from ikbench.core.legibility import LEGIBILITY_COLUMNS
     from ikbench.studies.compare import COLUMNS, compare
 
     result = compare("sequential-ik", only="3", steps=10, repeat=1, warmup=0, sweep=False,
@@ -133,7 +133,7 @@ def test_compare_writes_the_columns_and_figures_for_nico(tmp_path):
     assert 0.0 < row["pointing_legibility"] < 1.0
     assert row["predictability"] == pytest.approx(1.0, abs=1e-3)  # the straight line
     board = result.leaderboard
-    assert list(board.columns[-len(LEGIBILITY_COLUMNS):]) == LEGIBILITY_COLUMNS
+    assert list(board.columns[-len(LEGIBILITY_COLUMNS):]) == LEGIBILITY_COLUMNS  # no obstacles
     folder = tmp_path / "compare"
     assert (folder / "legibility.png").stat().st_size > 0
     assert (folder / "legibility_sequential-ik.png").stat().st_size > 0
@@ -162,3 +162,21 @@ def test_goals_override_the_goal_set(tmp_path):
                     output=None, progress=False).results["pointing_legibility"].iloc[0]
     # fewer rivals: the observer is surer of the true goal
     assert two > seven
+
+
+def test_a_run_report_gains_the_legibility_section(tmp_path):
+    """ikbench run (line shape): details.csv has the columns, report.md the section; with
+    --only the goal set is still every touch point of the targets (the CLI's default)."""
+    import pandas as pd
+
+    from ikbench.cli import main
+
+    code = main(["run", "--method", "sequential-ik", "--only", "3", "--steps", "10",
+                 "--no-animation", "--output", str(tmp_path), "--quiet"])
+    assert code == 0
+    details = pd.read_csv(tmp_path / "sequential-ik" / "details.csv")
+    assert set(LEGIBILITY_COLUMNS) <= set(details.columns)
+    assert details["position_final_p"].iloc[0] == pytest.approx(1.0)
+    # seven goals: the observer starts at chance, so legibility is well below 1
+    assert details["position_legibility"].iloc[0] < 0.9
+    assert "## Legibility" in (tmp_path / "sequential-ik" / "report.md").read_text()

@@ -103,11 +103,12 @@ def _board_row(name, group, track, judged: Contract, success: str, ref) -> dict:
     row["time_vs_reference"] = (row["time_median_s"] / ref if ref and ref > 0
                                 else np.nan)
     row["note"] = "" if len(solved) else str(group["failure"].iloc[0])
+    # after the earlier obstacle-free columns, so older readers keep theirs (as results.csv
+    # has them: before the obstacle columns); medians over the trajectories
+    row.update({column: agg(column, "median") for column in LEGIBILITY_COLUMNS})
     if judged.obstacles:  # after every obstacle-free column, so those stay as they were
         row.update(min_clearance_mm=agg("min_clearance_mm", "min"),
                    avoids_obstacles=bool(group["avoids_obstacles"].astype(bool).any()))
-    # after every other column, so older readers keep theirs: medians over the trajectories
-    row.update({column: agg(column, "median") for column in LEGIBILITY_COLUMNS})
     return row
 
 
@@ -132,8 +133,8 @@ def _table(board: pd.DataFrame, reference: str, judged: Contract) -> list[str]:
                "pointing all [deg]", "pointing judged [deg]", "max step [deg]",
                "speed use", "jerk [deg^2]", "time single [s] median (min-max)",
                "time batched [s]", f"x {reference}"]
-            + (["min clearance [mm]", "avoids obstacles"] if judged.obstacles else [])
-            + list(LEGIBILITY_TITLES.values()))
+            + list(LEGIBILITY_TITLES.values())
+            + (["min clearance [mm]", "avoids obstacles"] if judged.obstacles else []))
     lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
     for _, row in board.iterrows():
         n = int(row["trajectories"])
@@ -152,10 +153,10 @@ def _table(board: pd.DataFrame, reference: str, judged: Contract) -> list[str]:
                   fmt(row["max_joint_step_deg"]), fmt(row["speed_limit_use"]),
                   fmt(row["mean_sq_jerk_deg2"]), time, fmt(row["time_batched_s"]),
                   fmt(row["time_vs_reference"])]
+        cells += [fmt(row.get(column, np.nan)) for column in LEGIBILITY_TITLES]
         if judged.obstacles:
             cells += [fmt(row["min_clearance_mm"]),
                       "yes" if row["avoids_obstacles"] else "no"]
-        cells += [fmt(row.get(column, np.nan)) for column in LEGIBILITY_TITLES]
         if row["note"]:
             cells[3] += f": {row['note'][:120]}"
         lines.append("| " + " | ".join(cells) + " |")

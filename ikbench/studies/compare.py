@@ -309,7 +309,8 @@ def run_comparison(spec: CompareSpec) -> CompareResult:
     with RunFolder(root).staged(keep=keep_nothing) as stage:
         for name, outcomes in last.items():
             write_run(built[name], spec.robot, spec.targets, outcomes, stage.path / name,
-                      {"shape": "line", "name": name, "duration_s": spec.contract.duration_s},
+                      {"shape": "line", "name": name, "duration_s": spec.contract.duration_s,
+                       "goals": spec.goals},
                       trajectories=files[name])
         record.total_wall_time_s = time.perf_counter() - started
         _write_tables(stage, results, board, record, spec.contract, sweep_frame)
