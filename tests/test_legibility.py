@@ -180,3 +180,17 @@ def test_a_run_report_gains_the_legibility_section(tmp_path):
     # seven goals: the observer starts at chance, so legibility is well below 1
     assert details["position_legibility"].iloc[0] < 0.9
     assert "## Legibility" in (tmp_path / "sequential-ik" / "report.md").read_text()
+
+
+def test_a_straight_constant_speed_line_never_falls_below_its_prior_share():
+    """C + V_G(Q, tau) = V_G(S) for the goal the line heads to and >= for the others, so its
+    P(G*) stays >= 1/K at every point (random goal sets, seeded)."""
+    rng = np.random.default_rng(48)
+    times = L.constant_times_s(31, 2.0)
+    for _ in range(20):
+        goals = rng.uniform(-300.0, 300.0, size=(5, 3)) + np.array([400.0, 0.0, 0.0])
+        true = int(rng.integers(5))
+        points = _line(np.zeros(3), goals[true], 0.0, n=30)
+        p = L.position_probabilities(points, goals, times)[:, true]
+        assert np.all(p >= 1 / 5 - 1e-12)
+        assert p[-1] == pytest.approx(1.0)
