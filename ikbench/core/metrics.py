@@ -335,3 +335,17 @@ def contract_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike,
             out[key] = found[key] if checked else float("nan")
         out["first_collision_pair"] = found["first_collision_pair"]
     return out
+
+
+# ----- legibility, predictability, smoothness (ikbench.core.legibility) ------------------------
+from ikbench.core.legibility import (  # noqa: E402,F401  (re-exported: ikbench.core.metrics.*)
+    LEGIBILITY_COLUMNS,
+    dimensionless_jerk,
+    legibility_metrics,
+    peak_joint_jerk,
+    pointing_legibility,
+    pointing_probabilities,
+    position_legibility,
+    position_probabilities,
+    predictability,
+)

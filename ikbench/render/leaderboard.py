@@ -24,6 +24,7 @@ import pandas as pd
 from ikbench.core.contract import TRACK_TITLES, Contract
 from ikbench.core.defaults import PUBLISHED_BACKENDS, REFERENCE_METHOD
 from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text
+from ikbench.core.legibility import LEGIBILITY_COLUMNS
 from ikbench.core.obstacles import parse_obstacles
 from ikbench.render.run_report import _matplotlib
 from ikbench.runtime.record import RunFolder
@@ -37,6 +38,14 @@ if TYPE_CHECKING:
 CRITERION_TITLES = {"start_pose": "start", "end_pose": "touch", "limits": "limits",
                     "speed": "speed", "line": "line", "pointing": "pointing",
                     "collisions": "no collision"}
+#: Legibility column -> its title (medians over the trajectories; ikbench.core.legibility).
+LEGIBILITY_TITLES = {"position_legibility": "position legibility",
+                     "position_inferred_s": "position inferred [s]",
+                     "pointing_legibility": "pointing legibility",
+                     "pointing_inferred_s": "pointing inferred [s]",
+                     "predictability": "predictability",
+                     "dimensionless_jerk": "dimensionless jerk",
+                     "peak_joint_jerk_deg_s3": "peak joint jerk [deg/s^3]"}
 
 
 def leaderboard(results: pd.DataFrame, reference: str, contract: Contract) -> pd.DataFrame:
@@ -73,6 +82,8 @@ def _board_row(name, group, track, judged: Contract, success: str, ref) -> dict:
             row[f"{criterion}_count"] = np.nan
 
     def agg(column, how):
+        if column not in solved:  # a results.csv from before the column
+            return np.nan
         values = solved[column].astype(float).dropna()
         return float(getattr(values, how)()) if len(values) else np.nan
 
@@ -92,6 +103,9 @@ def _board_row(name, group, track, judged: Contract, success: str, ref) -> dict:
     row["time_vs_reference"] = (row["time_median_s"] / ref if ref and ref > 0
                                 else np.nan)
     row["note"] = "" if len(solved) else str(group["failure"].iloc[0])
+    # after the earlier obstacle-free columns, so older readers keep theirs (as results.csv
+    # has them: before the obstacle columns); medians over the trajectories
+    row.update({column: agg(column, "median") for column in LEGIBILITY_COLUMNS})
     if judged.obstacles:  # after every obstacle-free column, so those stay as they were
         row.update(min_clearance_mm=agg("min_clearance_mm", "min"),
                    avoids_obstacles=bool(group["avoids_obstacles"].astype(bool).any()))
@@ -119,6 +133,7 @@ def _table(board: pd.DataFrame, reference: str, judged: Contract) -> list[str]:
                "pointing all [deg]", "pointing judged [deg]", "max step [deg]",
                "speed use", "jerk [deg^2]", "time single [s] median (min-max)",
                "time batched [s]", f"x {reference}"]
+            + list(LEGIBILITY_TITLES.values())
             + (["min clearance [mm]", "avoids obstacles"] if judged.obstacles else []))
     lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
     for _, row in board.iterrows():
@@ -138,6 +153,7 @@ def _table(board: pd.DataFrame, reference: str, judged: Contract) -> list[str]:
                   fmt(row["max_joint_step_deg"]), fmt(row["speed_limit_use"]),
                   fmt(row["mean_sq_jerk_deg2"]), time, fmt(row["time_batched_s"]),
                   fmt(row["time_vs_reference"])]
+        cells += [fmt(row.get(column, np.nan)) for column in LEGIBILITY_TITLES]
         if judged.obstacles:
             cells += [fmt(row["min_clearance_mm"]),
                       "yes" if row["avoids_obstacles"] else "no"]
@@ -163,7 +179,9 @@ def leaderboard_markdown(board: pd.DataFrame, record: dict, contract: Contract) 
              "time batched: a batching method's share of one call that solves all "
              f"trajectories; x {record['reference']}: time single over "
              f"`{record['reference']}`'s, measured in the same run. Speed use: the largest "
-             "joint step over the step the speed limit allows (1 = at the limit).", ""]
+             "joint step over the step the speed limit allows (1 = at the limit). Legibility, "
+             "inferred times, predictability and jerk (`ikbench.core.legibility`, "
+             "docs/legibility.md): medians over the trajectories.", ""]
     if record.get("obstacles"):
         lines += _obstacles_paragraph(record["obstacles"])
     for track in dict.fromkeys(board["track"]):

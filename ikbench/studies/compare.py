@@ -54,6 +54,15 @@ from ikbench.core.contract import (
 )
 from ikbench.core.defaults import DEFAULT_DURATION_S, REFERENCE_METHOD
 from ikbench.core.errors import IkbenchError, InputError
+from ikbench.core.legibility import (
+    LEGIBILITY_COLUMNS,
+    constant_times_s,
+    goal_points_mm,
+    legibility_metrics,
+    pointing_probabilities,
+    position_probabilities,
+    true_goal_index,
+)
 from ikbench.core.metrics import contract_metrics
 from ikbench.core.obstacles import read_obstacles
 from ikbench.core.provenance import library_versions, provenance
@@ -63,6 +72,7 @@ from ikbench.core.task import Task, line_tasks
 from ikbench.methods.base import Method
 from ikbench.methods.registry import get_method, method_status
 from ikbench.render.leaderboard import leaderboard, leaderboard_markdown, plot_pareto
+from ikbench.render.legibility_plots import plot_legibility_summary, plot_method_legibility
 from ikbench.runtime.executors import Executor, LocalExecutor, portable_robot
 from ikbench.runtime.harness import Outcome, Progress, describe, solve_tasks
 from ikbench.runtime.record import (
@@ -94,7 +104,7 @@ COLUMNS = ["method", "library", "library_version", "robot", "task", "trajectory"
            "success", "failure", "time_median_s", "time_min_s", "time_max_s", "repetitions",
            "iterations", "within_limits", *METRICS,
            "track", "scheme", "fixed_poses", "success_touch", "time_batched_s",
-           *CONTRACT_METRICS, *OK_COLUMNS]
+           *CONTRACT_METRICS, *OK_COLUMNS, *LEGIBILITY_COLUMNS]
 #: Columns results.csv gains when the tasks carry obstacles (after :data:`COLUMNS`).
 OBSTACLE_COLUMNS = ["obstacles", "avoids_obstacles", "self_collisions", "env_collisions",
                     "min_clearance_mm", "first_collision_waypoint", "first_collision_pair",
@@ -196,6 +206,8 @@ class CompareSpec:
         sweep: solve ours-lm's weight sweep for pareto.png (when ours-lm is compared).
         output: the results directory (``output/compare/``); None writes nothing.
         progress: progress lines on stderr.
+        goals: the goal set of the legibility columns (:mod:`ikbench.core.legibility`):
+            a targets file's touch poses; None: the targets' own (all their ids).
     """
 
     methods: list[str]
@@ -211,6 +223,7 @@ class CompareSpec:
     sweep: bool = True
     output: Path | None = None
     progress: bool = True
+    goals: Targets | None = None
 
 
 def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
@@ -222,7 +235,8 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
             contract: Contract | None = None, tolerances: str | dict | None = None,
             pointing: str | bool = "auto", duration_s: float = DEFAULT_DURATION_S,
             sweep: bool = True,
-            obstacles: str | Path | Sequence | None = None) -> CompareResult:
+            obstacles: str | Path | Sequence | None = None,
+            goals: str | Path | Targets | None = None) -> CompareResult:
     """Run every method on every task ``repeat`` times; write ``output/compare/``.
 
     Args:
@@ -251,6 +265,9 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
         obstacles: obstacles for every task instead of the targets' (a file, a named set of
             the robot such as ``"touchscreen"``, ``"none"``, or parsed obstacles); None keeps
             the targets file's. With obstacles the contract judges collisions.
+        goals: the goal set of the legibility columns: a targets file (or
+            :class:`Targets`) whose touch poses' fingertip points are the goals; None: the
+            targets' own touch points, every id (NICO's: the seven touch points).
 
     Returns:
         A :class:`CompareResult`.
@@ -261,6 +278,7 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
     names = parse_methods(methods)
     repeat = check_repeat(repeat)
     robot = as_robot(robot)
+    goal_set = select_targets(goals if goals is not None else targets, robot, None, None)
     targets = with_obstacles(select_targets(targets, robot, only, steps), obstacles, robot)
     contract = contract or contract_for(robot, tolerances=tolerances, pointing=pointing,
                                         duration_s=duration_s)
@@ -269,7 +287,7 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
         names, robot, targets, line_tasks(robot, targets, contract), contract,
         _reference_method(reference, names), repeat, warmup, dict(solvers or {}),
         executor or LocalExecutor(), sweep, None if output is None else Path(output),
-        progress))
+        progress, goal_set))
 
 
 def run_comparison(spec: CompareSpec) -> CompareResult:
@@ -291,10 +309,12 @@ def run_comparison(spec: CompareSpec) -> CompareResult:
     with RunFolder(root).staged(keep=keep_nothing) as stage:
         for name, outcomes in last.items():
             write_run(built[name], spec.robot, spec.targets, outcomes, stage.path / name,
-                      {"shape": "line", "name": name, "duration_s": spec.contract.duration_s},
+                      {"shape": "line", "name": name, "duration_s": spec.contract.duration_s,
+                       "goals": spec.goals},
                       trajectories=files[name])
         record.total_wall_time_s = time.perf_counter() - started
         _write_tables(stage, results, board, record, spec.contract, sweep_frame)
+        _write_legibility_figures(stage, spec, files)
     log.say(f"written to {root}/ in {time.perf_counter() - started:.1f} s")
     return CompareResult(results, board, record.to_dict(), spec.contract)
 
@@ -477,9 +497,10 @@ def measure(spec: CompareSpec, results: pd.DataFrame, built: dict[str, Method],
     :func:`ikbench.studies.run.trajectory_files`) and judge it on both tracks."""
     contract = spec.contract
     by_name = {t.name: t for t in spec.tasks}
-    figures = {(name, tid): contract_metrics(spec.robot, by_name[tid], file.poses, contract)
+    figures = {(name, tid): {**contract_metrics(spec.robot, by_name[tid], file.poses, contract),
+                             **_legibility(spec, by_name[tid], file.poses)}
                for name, method_files in files.items() for tid, file in method_files.items()}
-    columns = ("within_limits", *METRICS, *CONTRACT_METRICS,
+    columns = ("within_limits", *METRICS, *CONTRACT_METRICS, *LEGIBILITY_COLUMNS,
                *(COLLISION_METRICS if contract.obstacles else ()))
     status = method_status()
     rows = []
@@ -551,3 +572,49 @@ def ours_lm_sweep(robot: Robot, tasks: Sequence[Task], contract: Contract,
                      "success_share": float(np.mean(met)) if met else 0.0,
                      "trajectories": len(figures)})
     return pd.DataFrame(rows)
+
+
+# ----- legibility (ikbench.core.legibility) ----------------------------------------------------
+def goal_set_mm(spec: CompareSpec) -> np.ndarray:
+    """The goals (K, 3) [mm] of the legibility columns: the touch points of ``spec.goals``,
+    else of the spec's targets."""
+    return goal_points_mm(spec.robot, spec.goals or spec.targets)[1]
+
+
+def _legibility(spec: CompareSpec, task: Task, poses: np.ndarray) -> dict[str, float]:
+    """:data:`LEGIBILITY_COLUMNS` of one trajectory as its CSV holds it (constant timing over
+    the contract's duration, the CSV's time column), its task's touch point the true goal."""
+    fk = spec.robot.fk(poses)
+    goals, true = true_goal_index(goal_set_mm(spec), task.end_point_mm)
+    return legibility_metrics(fk.point_mm, fk.direction, poses, goals, true,
+                              constant_times_s(len(poses), spec.contract.duration_s))
+
+
+def legibility_curves(spec: CompareSpec, files: dict[str, dict[str, TrajectoryFile]]
+                      ) -> dict[str, dict[str, dict[str, np.ndarray]]]:
+    """By method, by trajectory: ``times_s``, ``position`` and ``pointing`` P(true goal)
+    (n+1,) of the position and pointing observers."""
+    by_name = {t.name: t for t in spec.tasks}
+    curves: dict[str, dict[str, dict[str, np.ndarray]]] = {}
+    for name, method_files in files.items():
+        for tid, file in method_files.items():
+            fk = spec.robot.fk(file.poses)
+            goals, true = true_goal_index(goal_set_mm(spec), by_name[tid].end_point_mm)
+            times_s = constant_times_s(len(file.poses), spec.contract.duration_s)
+            curves.setdefault(name, {})[tid] = {
+                "times_s": times_s,
+                "position": position_probabilities(fk.point_mm, goals, times_s)[:, true],
+                "pointing": pointing_probabilities(fk.point_mm, fk.direction, goals)[:, true]}
+    return curves
+
+
+def _write_legibility_figures(stage: RunStage, spec: CompareSpec,
+                              files: dict[str, dict[str, TrajectoryFile]]) -> None:
+    """legibility_<method>.png per method and legibility.png across methods."""
+    curves = legibility_curves(spec, files)
+    goals = len(goal_set_mm(spec))
+    for name, by_trajectory in curves.items():
+        stage.figure(f"legibility_{name}.png",
+                     plot_method_legibility(name, by_trajectory, goals))
+    if curves:
+        stage.figure("legibility.png", plot_legibility_summary(curves, goals))

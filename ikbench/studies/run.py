@@ -35,6 +35,13 @@ import pandas as pd
 from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_ROBOT
 from ikbench.core.errors import InputError
 from ikbench.core.io import check_folder_writable
+from ikbench.core.legibility import (
+    LEGIBILITY_COLUMNS,
+    constant_times_s,
+    goal_points_mm,
+    legibility_metrics,
+    true_goal_index,
+)
 from ikbench.core.metrics import frame_metrics, shape_metrics, trajectory_metrics
 from ikbench.core.problems import load_problem, shipped_problems
 from ikbench.core.provenance import provenance
@@ -94,9 +101,15 @@ def check_name(name: str) -> str:
 
 
 def evaluate(robot: Robot, outcomes: Sequence[Outcome], trajectories: dict[str, TrajectoryFile],
-             method_name: str) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, np.ndarray]]:
+             method_name: str, goals_mm: np.ndarray | None = None,
+             duration_s: float = DEFAULT_DURATION_S
+             ) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, np.ndarray]]:
     """Metrics of the trajectories as their files hold them (:func:`trajectory_files`):
     returns (table, details, points_by_id).
+
+    Line tasks with ``goals_mm`` (K, 3) also get the legibility figures
+    (:data:`ikbench.core.legibility.LEGIBILITY_COLUMNS`, on the files' constant timing over
+    ``duration_s``) in details.
 
     Line tasks get :func:`ikbench.core.metrics.trajectory_metrics` and the Table 1/2 columns;
     tasks with a target curve :func:`ikbench.core.metrics.shape_metrics` and
@@ -123,6 +136,8 @@ def evaluate(robot: Robot, outcomes: Sequence[Outcome], trajectories: dict[str, 
             continue
         poses = trajectories[task.name].poses
         metrics = measure(robot, task, poses)
+        if goals_mm is not None and not (shaped or framed):
+            metrics.update(_legibility(robot, task, poses, goals_mm, duration_s))
         if framed:
             metrics["time_to_valid_s"] = solution.duration_s if metrics["valid"] else np.nan
         points_by_id[task.name] = robot.fk(poses).point_mm
@@ -139,6 +154,27 @@ def evaluate(robot: Robot, outcomes: Sequence[Outcome], trajectories: dict[str, 
                         **extra, "method_duration_s": solution.duration_s,
                         "harness_wall_s": outcome.wall_s, **solution.info, "failure": ""})
     return pd.DataFrame(rows, columns=columns), pd.DataFrame(details), points_by_id
+
+
+def _legibility(robot: Robot, task: Task, poses: np.ndarray, goals_mm: np.ndarray,
+                duration_s: float) -> dict[str, float]:
+    """The legibility figures of one line trajectory, its touch point the true goal."""
+    fk = robot.fk(poses)
+    goals, true = true_goal_index(goals_mm, task.end_point_mm)
+    return legibility_metrics(fk.point_mm, fk.direction, poses, goals, true,
+                              constant_times_s(len(poses), duration_s))
+
+
+def goals_of(robot: Robot, targets: Targets, record: dict) -> np.ndarray | None:
+    """The goal set (K, 3) [mm] of a run: ``record["goals"]`` (a targets file or
+    :class:`Targets`), else the run's targets; None for shapes other than the line and
+    problems."""
+    if record.get("shape", "line") != "line" or record.get("problem"):
+        return None
+    goals = record.get("goals")
+    chosen = targets if goals is None else goals if isinstance(goals, Targets) \
+        else load_targets(goals, robot)
+    return goal_points_mm(robot, chosen)[1]
 
 
 def prepare(method: str | Method, *, robot: Robot | str | None = None,
@@ -221,7 +257,7 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
         start_pose: npt.ArrayLike | None = None, direction: str | npt.ArrayLike | None = None,
         name: str | None = None,
         animation: bool = True, problem: str | Path | None = None,
-        timing: str = "constant") -> pd.DataFrame:
+        timing: str = "constant", goals: str | Path | Targets | None = None) -> pd.DataFrame:
     """Solve every selected target (or a Cartesian path problem) with ``method`` and write
     the results.
 
@@ -251,6 +287,9 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
             ``trajectory_<problem name>.csv`` and :data:`FRAME_TABLE_COLUMNS`.
         timing: the timing of ``animation.gif``: ``constant``, ``min-jerk`` or ``topp``
             (:mod:`ikbench.core.timing`; the trajectory files are not retimed).
+        goals: the line shape's goal set of the legibility figures (details.csv,
+            report.md): a targets file or :class:`Targets` whose touch points are the goals;
+            None: the run's targets (those ``only`` keeps).
 
     Returns:
         The table (one row per trajectory, columns :data:`ikbench.render.run_report.TABLE_COLUMNS`,
@@ -276,7 +315,7 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
             method, robot=robot, targets=targets, only=only, steps=steps, options=options,
             shape=shape, size_mm=size_mm, start_pose=start_pose, direction=direction)
         record = {"shape": shape, "direction": direction, "duration_s": duration_s,
-                  "size_mm": size_mm, "timing": timing}
+                  "size_mm": size_mm, "timing": timing, "goals": goals}
     if output is None:
         return solve_and_write(solver, robot, targets, tasks, None, record, progress,
                                animation=False)
@@ -319,7 +358,7 @@ def solve_and_write(solver: Method, robot: Robot, targets: Targets, tasks: Seque
         outcomes, interrupted = stop.outcomes, True
     if folder is None:
         files = trajectory_files(robot, outcomes, record.get("duration_s", DEFAULT_DURATION_S))
-        table = evaluate(robot, outcomes, files, solver.name)[0]
+        table = evaluate(robot, outcomes, files, solver.name)[0]  # the table only
     else:
         table = write_run(solver, robot, targets, outcomes, folder, {
             **record, "name": folder.name, "interrupted": interrupted,
@@ -357,7 +396,8 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
     with RunFolder(folder).staged() as stage:
         for file in files.values():
             stage.trajectory(file)
-        table, details, points = evaluate(robot, outcomes, files, solver.name)
+        table, details, points = evaluate(robot, outcomes, files, solver.name,
+                                          goals_of(robot, targets, record), duration_s)
         stage.csv("table.csv", table)
         stage.csv("details.csv", details)
         solved = [o.task for o in outcomes if o.ok]
@@ -478,6 +518,16 @@ def method_report(solver: Method, table: pd.DataFrame, details: pd.DataFrame, ta
                   "(its nearest point); point_error: from the point's own goal point; "
                   "pointing deviation: from the goal direction (letters: the drawing plane's "
                   "normal). Points on pen-up moves are skipped.", ""]
+    if "position_legibility" in details:
+        legible = details[["trajectory", *LEGIBILITY_COLUMNS]]
+        lines += ["## Legibility", "",
+                  "How soon an observer of the fingertip's path (position) or of the pointing "
+                  "finger (pointing) infers the touch point among the goal set, predictability "
+                  "against the straight line and jerk, on the trajectory files' timing "
+                  "(`ikbench.core.legibility`; docs/legibility.md).", "",
+                  markdown_table(legible, {**{c: 3 for c in LEGIBILITY_COLUMNS},
+                                          "dimensionless_jerk": 6,
+                                          "peak_joint_jerk_deg_s3": 0}), ""]
     lines += report_sections("run", method=solver.name, table=table, record=record,
                              targets=targets)
     if figures:

@@ -84,6 +84,10 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         "of the robot (e.g. touchscreen for NICO) or none; the contract then "
                         "judges collisions (no self-collision, no obstacle collision; default: "
                         "the targets file's obstacles, none for the shipped targets)")
+    parser.add_argument("--goals", default=None, metavar="FILE",
+                        help="goal set of the legibility columns: a targets file whose touch "
+                        "poses' fingertip points are the goals (default: the targets' own, "
+                        "every id; NICO's seven touch points; docs/legibility.md)")
     parser.add_argument("--reference", default=None,
                         help="method the ratios are against (default ours-lm if compared, "
                         "else the first)")
@@ -120,6 +124,10 @@ def run(args: argparse.Namespace) -> int:
     from ikbench.studies.compare import with_obstacles
 
     targets = with_obstacles(targets, args.obstacles, robot)
+    from ikbench.core.targets import load_targets
+
+    # the goal set: --goals, else every id of the targets file (--only keeps fewer tasks)
+    goals = load_targets(args.goals or args.targets, robot)
     if args.reference is not None and args.reference not in names:
         raise InputError(f"--reference: {args.reference!r} is not among --methods "
                          f"{', '.join(names)}")
@@ -131,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
         result = compare(names, robot=robot, targets=targets, repeat=args.repeat,
                          output=args.output, reference=args.reference,
                          progress=not args.quiet, executor=executor_from_args(args),
-                         contract=contract)
+                         contract=contract, goals=goals)
     except (Interrupted, KeyboardInterrupt):
         print(f"ikbench: interrupted; {Path(args.output) / 'compare'}/ left unchanged",
               file=sys.stderr)
@@ -169,8 +177,8 @@ def run_problems(args: argparse.Namespace) -> int:
     from ikbench.studies.cartesian import DEFAULT_SEEDS
 
     if args.targets or args.only or args.steps is not None or args.reference \
-            or args.obstacles is not None:
-        raise InputError("--targets, --only, --steps, --obstacles and --reference do not "
+            or args.obstacles is not None or args.goals is not None:
+        raise InputError("--targets, --only, --steps, --obstacles, --goals and --reference do not "
                          "apply to --problems (the problem files define the paths and their "
                          "obstacles)")
     given = argparse.Namespace(

@@ -82,6 +82,11 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         "of pose errors, joint changes, path lengths and CppFlow's validity")
     add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3",
                        start_pose_default="the targets file's")
+    parser.add_argument("--goals", default=None, metavar="FILE",
+                        help="line shape: goal set of the legibility figures in details.csv "
+                        "and report.md, a targets file whose touch poses' fingertip points "
+                        "are the goals (default: every touch point of --targets; "
+                        "docs/legibility.md)")
     add_solve_arguments(parser, methods)
 
 
@@ -198,6 +203,14 @@ def run(args: argparse.Namespace, shape: str | None = None, fixed: dict | None =
     begin(args, threads=args.threads)
     record = {"shape": shape, "direction": args.direction, "duration_s": args.duration,
               "name": name, "size_mm": args.size, "timing": args.timing}
+    if shape == "line":  # the goal set: --goals, else every id of the targets (not --only's)
+        from ikbench.core.targets import load_targets
+
+        record["goals"] = load_targets(args.goals or args.targets, robot)
+    elif args.goals is not None:
+        from ikbench.core.errors import InputError
+
+        raise InputError("--goals applies to the line shape only (the touch poses' goals)")
     return solve_write_report(solver, robot, targets, tasks, folder, record, args.quiet,
                               animation=not args.no_animation)
 
