@@ -62,6 +62,9 @@ ARMS: dict[str, dict[str, Arm]] = {"example-robot-data": {
     "tiago_arm": Arm("tiago_description/robots/tiago.urdf", "torso_lift_link",
                      "arm_tool_link", "PAL Tiago arm, 7 joints, torso_lift_link -> "
                      "arm_tool_link (torso lift locked at 0)"),
+    "z1": Arm("z1_description/urdf/z1.urdf", "link00", "gripperStator",
+              "Unitree Z1, 6 joints, link00 -> gripperStator (the gripper's fixed jaw; "
+              "its moving jaw left out)"),
 }}
 
 

@@ -1,0 +1,88 @@
+"""The first call of a single-pose solver in a fresh process: import, set-up, first solve.
+
+Steady-state times per call say nothing of what a user waits for before the first answer:
+the library's import, building its model of the robot (and compiling: JAX for PyRoki,
+numba's kernels for ours-lm, which load from numba's cache after the first run on a machine)
+and the first solve. :func:`first_call` runs :func:`main` in a new Python process for one
+method and one target and returns those three times [s]; ``ikbench ik`` measures it for every
+method after its timed runs (so numba's cache is as the study left it: warm).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from typing import Any
+
+import numpy as np
+
+#: The longest a first call may take before it is given up [s] (a compile from scratch is
+#: minutes; beyond this the row says so).
+FIRST_CALL_TIMEOUT_S = 600.0
+
+
+def robot_spec(robot: Any) -> tuple[str, str]:
+    """What loads ``robot`` again in another process: its config file, its package name
+    (``example-robot-data:ur5``) or its URDF, and its end frame."""
+    config = robot.config.get("config_path")
+    source = str(robot.config.get("source", ""))
+    if config:
+        return str(config), robot.end_frame
+    if ":" in source and not source.startswith("/"):
+        return source, robot.end_frame
+    return str(robot.urdf_path), robot.end_frame
+
+
+def first_call(robot: Any, method: str, kind: str, tolerance: tuple[float, float],
+               budget_s: float, T_target: np.ndarray, initials: np.ndarray,
+               timeout_s: float = FIRST_CALL_TIMEOUT_S) -> dict[str, Any]:
+    """``import_s``, ``setup_s``, ``solve_s`` and their sum ``first_call_s`` of ``method``
+    solving one target (T_target (4, 4) [m]; ``initials`` (A, dof) [pose units]) in a fresh
+    process; ``error`` instead when it fails or passes ``timeout_s``."""
+    spec, end_frame = robot_spec(robot)
+    job = {"robot": spec, "end_frame": end_frame, "method": method, "kind": kind,
+           "tolerance": list(tolerance), "budget_s": budget_s,
+           "T_target": np.asarray(T_target).tolist(), "initials": np.asarray(initials).tolist()}
+    try:
+        done = subprocess.run([sys.executable, "-m", "ikbench.studies.first_call",
+                               json.dumps(job)], capture_output=True, text=True,
+                              timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        return {"error": f"no first answer within {timeout_s:g} s"}
+    if done.returncode != 0 or not done.stdout.strip():
+        lines = (done.stderr or "no output").strip().splitlines()
+        return {"error": lines[-1] if lines else f"exit code {done.returncode}"}
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def main(argv: list[str]) -> int:
+    """In the fresh process: time the import of the registry and the method's module, the
+    set-up (robot, solver, ``prepare``) and the first solve; print them as JSON."""
+    job = json.loads(argv[0])
+    started = time.perf_counter()
+    from ikbench.core.robot import load_robot  # noqa: PLC0415 - what is timed
+    from ikbench.methods.registry import solver_status  # noqa: PLC0415 - what is timed
+
+    cls = solver_status()[job["method"]].cls
+    imported = time.perf_counter()
+    robot = load_robot(job["robot"], end_frame=job["end_frame"])
+    solver = cls(robot, job["kind"], tuple(job["tolerance"]), job["budget_s"])
+    solver.prepare()
+    ready = time.perf_counter()
+    T = np.asarray(job["T_target"], dtype=float)
+    initials = np.asarray(job["initials"], dtype=float)
+    starts = initials if solver.pose_units else robot.to_urdf(initials)
+    if solver.restarts_itself:
+        solver.solve_within(np.ascontiguousarray(starts), T[:3, 3], T[:3, :3], job["budget_s"])
+    else:
+        solver.solve(np.ascontiguousarray(starts[0]), T[:3, 3], T[:3, :3])
+    solved = time.perf_counter()
+    print(json.dumps({"import_s": imported - started, "setup_s": ready - imported,
+                      "solve_s": solved - ready, "first_call_s": solved - started}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
