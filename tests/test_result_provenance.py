@@ -1,7 +1,8 @@
 """Every committed result names the clean commit that made it (issue 36): an ancestor of HEAD,
 with no change since to the code that produced its numbers (the methods, the library
-adapters, the kinematics). A result made from a modified tree, or before its solver changed,
-fails here: regenerate it (``ikbench reproduce --all``)."""
+adapters, the planning schemes, the kinematics, and the studies: the judge, the restart loop,
+the clock). A result made from a modified tree, or before its solver or study changed, fails
+here: regenerate it (``ikbench reproduce --all``)."""
 
 from __future__ import annotations
 
@@ -18,8 +19,21 @@ RESULTS = REPO / "results"
 #: The records a results folder holds (run.json of runs and studies, the benchmarks').
 RECORDS = ("run.json", "benchmark.json", "throughput.json", "batch.json", "sweep.json",
            "dataset.json")
-#: The code a result's numbers come from: a commit after it that touches these makes it stale.
-SOLVER_CODE = ("ikbench/methods", "baselines", "ikbench/core/kinematics")
+#: The code a result's numbers come from: a commit after it that touches these makes it stale
+#: (a module added to baselines/ too: the registry finds it, and "every installed method"
+#: changes).
+SOLVER_CODE = ("ikbench/methods", "baselines", "ikbench/schemes", "ikbench/core/kinematics")
+#: The studies (the judge, the restart loop, the clock): a change to a module that ran makes a
+#: result stale; a module added since (a new study) did not run.
+STUDY_CODE = ("ikbench/studies",)
+
+
+def _changed(commit: str) -> list[str]:
+    """The solver and study files changed from ``commit`` to HEAD (see the constants)."""
+    solvers = _git("diff", "--name-only", commit, "HEAD", "--", *SOLVER_CODE).stdout.split()
+    studies = _git("diff", "--name-only", "--diff-filter=MDR", commit, "HEAD", "--",
+                   *STUDY_CODE).stdout.split()
+    return solvers + studies
 
 
 def _git(*args: str) -> subprocess.CompletedProcess:
@@ -68,7 +82,7 @@ def test_a_committed_result_names_a_clean_ancestor_with_its_solvers_unchanged(pa
     commit = str(commit).removesuffix("-dirty")
     assert _git("merge-base", "--is-ancestor", commit, "HEAD").returncode == 0, (
         f"{path}: {commit} is not an ancestor of HEAD")
-    changed = _git("diff", "--name-only", commit, "HEAD", "--", *SOLVER_CODE).stdout.split()
+    changed = _changed(commit)
     assert not changed, f"{path}: made at {commit[:12]}; changed since: {changed[:10]}"
 
 
@@ -80,6 +94,5 @@ def test_every_study_of_the_regeneration_record_is_clean_and_current():
     for name, study in record.items():
         assert study["clean"], name
         assert _git("merge-base", "--is-ancestor", study["commit"], "HEAD").returncode == 0, name
-        changed = _git("diff", "--name-only", study["commit"], "HEAD", "--",
-                       *SOLVER_CODE).stdout.split()
+        changed = _changed(study["commit"])
         assert not changed, (name, changed[:10])
