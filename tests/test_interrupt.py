@@ -83,3 +83,41 @@ def test_a_ctrl_c_a_library_swallows_stops_the_command_at_its_next_progress_even
     ctypes.CFUNCTYPE(None)(failing)()
     assert [u.exc_type for u in others] == [ValueError]
     reporter.note("still on")
+
+
+def _snapshot(folder):
+    return {p.relative_to(folder).as_posix(): p.read_bytes()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.parametrize("first, again, when, folder", [
+    (["run", "--method", "sequential-ik", "--only", "1"],
+     ["run", "--method", "sequential-ik", "--steps", "400"], "trajectory 2", "sequential-ik"),
+    (["compare", "--methods", "sequential-ik", "--only", "1"],
+     ["compare", "--methods", "sequential-ik,pink", "--repeat", "20"], "sequential-ik: ",
+     "compare"),
+    (["ik", "--robot", "panda", "--methods", "sequential-ik", "--count", "10"],
+     ["ik", "--robot", "panda", "--methods", "sequential-ik", "--count", "5000"], "solving",
+     "ik/panda"),
+    (["cartesian", "--problems", "fetch_arm__hello", "--methods", "sequential-ik", "--seeds",
+      "1"],
+     ["cartesian", "--problems", "fetch_arm__hello", "--methods", "sequential-ik", "--seeds",
+      "1,2,3,4,5,6,7,8"], "seed 1", "cartesian"),
+])
+def test_ctrl_c_never_replaces_a_complete_run(tmp_path, first, again, when, folder):
+    """Issue 49: each long command interrupted over a complete run of its own leaves that run
+    byte for byte as it was."""
+    import subprocess
+    import sys
+
+    from tests.conftest import REPO
+
+    out = tmp_path / "out"
+    done = subprocess.run([sys.executable, "-m", "ikbench.cli", *first, "--output", str(out),
+                           "--quiet"], capture_output=True, text=True, cwd=REPO, timeout=600)
+    assert done.returncode in (0, 1), done.stderr  # 1: a row that misses the contract
+    before = _snapshot(out / folder)
+    assert before
+    code, err = interrupt_while([*again, "--output", str(out)], tmp_path, when)
+    assert code == 130, err
+    assert _snapshot(out / folder) == before

@@ -77,17 +77,23 @@ def test_a_failed_solve_is_a_row_and_the_others_are_written(tmp_path, straight, 
     assert "**Failed solves**: 2" in (folder / "report.md").read_text()
 
 
-def test_ctrl_c_while_solving_keeps_the_solved_trajectories_and_says_so(tmp_path, straight,
-                                                                          capsys):
+def test_ctrl_c_while_solving_keeps_the_complete_run_and_the_solved_trajectories_beside_it(
+        tmp_path, straight, capsys):
+    """Issue 49: an interrupted run never replaces a complete one; what it solved goes to
+    ``<name>.interrupted/``, and the message says where."""
     assert _run(tmp_path, "--only", "1,2,3") == 0
-    assert _run(tmp_path, "--only", "1,2,3", "--interrupt-on", "3") == 130
-    assert "holds the 2 trajectories solved before Ctrl-C" in capsys.readouterr().err
     folder = tmp_path / "straight"
-    record = json.loads((folder / "run.json").read_text())
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    assert _run(tmp_path, "--only", "1,2,3", "--interrupt-on", "3") == 130
+    beside = tmp_path / "straight.interrupted"
+    assert (f"{folder}/ is unchanged; the 2 trajectories solved before Ctrl-C are in "
+            f"{beside}/") in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before  # the complete run
+    record = json.loads((beside / "run.json").read_text())
     assert record["interrupted"] is True and record["trajectories"] == ["1", "2"]
-    assert sorted(p.name for p in folder.glob("trajectory_*.csv")) == [
+    assert sorted(p.name for p in beside.glob("trajectory_*.csv")) == [
         "trajectory_1.csv", "trajectory_2.csv"]
-    assert "Interrupted (Ctrl-C)" in (folder / "report.md").read_text()
+    assert "Interrupted (Ctrl-C)" in (beside / "report.md").read_text()
 
 
 def test_ctrl_c_before_any_solve_leaves_the_folder_unchanged(tmp_path, straight, capsys):

@@ -13,6 +13,8 @@ row), so the caller can keep it and say so.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -50,11 +52,13 @@ class Outcome:
 
 
 class Interrupted(KeyboardInterrupt):
-    """Ctrl-C while solving; ``outcomes`` holds the tasks solved before it."""
+    """Ctrl-C while solving; ``outcomes`` holds the tasks solved before it, ``written`` the
+    folder they were written to (None: not written)."""
 
-    def __init__(self, outcomes: list[Outcome]):
+    def __init__(self, outcomes: list[Outcome], written: Path | None = None):
         super().__init__(f"interrupted after {len(outcomes)} solved trajectories")
         self.outcomes = outcomes
+        self.written = written
 
 
 class Progress(Reporter):

@@ -11,8 +11,10 @@ trajectory, :mod:`ikbench.render.animation`; ``animation=False`` skips it) and `
 The folder is replaced whole or not at all (:meth:`ikbench.runtime.record.RunFolder.staged`): files
 an earlier run wrote there and this one does not are gone, files it did not write (notes,
 ``ikbench plan``'s ``*.plan.csv``) are kept. The study harness times every solve and keeps a
-failed solve as a row (NaN figures, the failure in details.csv); Ctrl-C while solving writes
-the trajectories solved so far (run.json says ``"interrupted": true``) or nothing.
+failed solve as a row (NaN figures, the failure in details.csv); Ctrl-C while solving never
+touches the output folder (a complete run there stays): the trajectories solved so far go
+beside it, to ``output/<name>.interrupted/`` (run.json says ``"interrupted": true``), or
+nothing is written.
 
 Shapes other than the paper's line (``shape=``, see :func:`ikbench.core.task.build_tasks`)
 use no touch poses: a letter shape gives one trajectory per letter (``trajectory_P.csv``), a
@@ -336,6 +338,10 @@ def check_problem_options(**given: Any) -> None:
                              "the path, its waypoints and the robot)")
 
 
+#: The folder beside the output folder that an interrupted run writes to.
+INTERRUPTED_SUFFIX = ".interrupted"
+
+
 def solve_and_write(solver: Method, robot: Robot, targets: Targets, tasks: Sequence[Task],
                     folder: Path | None, record: dict, progress: bool = True,
                     animation: bool = True) -> pd.DataFrame:
@@ -359,12 +365,13 @@ def solve_and_write(solver: Method, robot: Robot, targets: Targets, tasks: Seque
     if folder is None:
         files = trajectory_files(robot, outcomes, record.get("duration_s", DEFAULT_DURATION_S))
         table = evaluate(robot, outcomes, files, solver.name)[0]  # the table only
-    else:
-        table = write_run(solver, robot, targets, outcomes, folder, {
+    else:  # an interrupted run goes beside the folder: a complete run there stays
+        written = folder.with_name(folder.name + INTERRUPTED_SUFFIX) if interrupted else folder
+        table = write_run(solver, robot, targets, outcomes, written, {
             **record, "name": folder.name, "interrupted": interrupted,
             "total_wall_time_s": time.perf_counter() - started}, animation)
     if interrupted:
-        raise Interrupted(outcomes)
+        raise Interrupted(outcomes, None if folder is None else written)
     return table
 
 

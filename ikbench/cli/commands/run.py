@@ -228,8 +228,9 @@ def solve_write_report(solver: Method, robot: Robot, targets: Targets, tasks: Se
                                 progress=not quiet, animation=animation)
     except Interrupted as stop:
         if stop.outcomes:
-            print(f"ikbench: interrupted: {folder}/ holds the {len(stop.outcomes)} "
-                  "trajectories solved before Ctrl-C", file=sys.stderr)
+            print(f"ikbench: interrupted: {folder}/ is unchanged; the {len(stop.outcomes)} "
+                  f"trajectories solved before Ctrl-C are in {stop.written}/",
+                  file=sys.stderr)
         else:
             print(f"ikbench: interrupted before any trajectory was solved; {folder}/ is "
                   "unchanged", file=sys.stderr)
