@@ -13,6 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.collision import check_trajectory
+from ikbench.core.robot import wrap_continuous
 from ikbench.core.rotations import geodesic_angle
 from ikbench.core.validity import validity_failures
 
@@ -243,7 +244,8 @@ def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[st
     position, rotation, points_mm = frame_errors(robot, task, poses)
     revolute, prismatic = joint_changes(robot, poses)
     lower, upper = task.limits(robot)
-    within = bool(np.all(poses >= lower - 1e-9) and np.all(poses <= upper + 1e-9))
+    judged = wrap_continuous(robot, poses)  # an unwrapped continuous joint: its turn in range
+    within = bool(np.all(judged >= lower - 1e-9) and np.all(judged <= upper + 1e-9))
     out = {
         **statistics("position_error_{}_mm", position, "mean", "max"),
         **statistics("rotation_error_{}_deg", rotation, "mean", "max"),
