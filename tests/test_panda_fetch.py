@@ -215,6 +215,9 @@ def test_unwrap_and_wrap_leave_bounded_joints_and_in_range_values_alone():
     np.testing.assert_allclose(out[1, fetch.continuous], [190.0, 185.0, -190.0])
     np.testing.assert_array_equal(wrap_continuous(fetch, out), poses)  # back, bit for bit
     np.testing.assert_array_equal(wrap_continuous(fetch, poses), poses)
+    batch = unwrap_continuous(fetch, np.stack([poses, poses[::-1]]))  # (B, n+1, dof): per path
+    np.testing.assert_array_equal(batch[0], out)
+    np.testing.assert_array_equal(batch[1], unwrap_continuous(fetch, poses[::-1]))
     panda = load_robot("panda")  # no continuous joint: unchanged
     q = np.array([[0.0, 0, 0, -90, 0, 90, 170], [0.0, 0, 0, -90, 0, 90, -170]])
     np.testing.assert_array_equal(unwrap_continuous(panda, q), q)

@@ -633,7 +633,7 @@ def as_robot(robot: Robot | str | Path | None) -> Robot:
 
 
 def unwrap_continuous(robot: Robot, poses: npt.ArrayLike) -> np.ndarray:
-    """Poses (n+1, dof) [pose units] with each continuous joint unwrapped along the path.
+    """Poses (..., n+1, dof) [pose units] with each continuous joint unwrapped along each path.
 
     A step of more than half a turn (180 joint deg) between consecutive poses in a continuous
     joint is replaced by the same pose a whole number of turns away (``np.unwrap``), so the
@@ -643,11 +643,11 @@ def unwrap_continuous(robot: Robot, poses: npt.ArrayLike) -> np.ndarray:
     """
     out = np.array(poses, dtype=float)
     mask = robot.continuous
-    if out.ndim != 2 or len(out) < 2 or not mask.any():
+    if out.ndim < 2 or out.shape[-2] < 2 or not mask.any():
         return out
     scale = np.broadcast_to(np.asarray(robot.scale, dtype=float), (robot.dof,))
     for j in np.flatnonzero(mask):
-        out[:, j] = np.unwrap(out[:, j], period=360.0 / abs(float(scale[j])))
+        out[..., j] = np.unwrap(out[..., j], period=360.0 / abs(float(scale[j])), axis=-1)
     return out
 
 
