@@ -273,3 +273,21 @@ def test_run_times_its_animation(tmp_path, capsys):
                  str(tmp_path / "bad")]) == 2
     assert capsys.readouterr().err.strip() == (
         "ikbench: error: --timing: 'fast'; allowed: constant, min-jerk, topp")
+
+
+@needs_toppra
+def test_topp_keeps_the_grid_of_its_last_solve_when_refinements_run_out(monkeypatch):
+    """When every refinement still finds an interval over a limit, the timing is the last
+    solve on its own grid (it once refined the grid once more and failed to broadcast the
+    speeds of the old one: the committed fetch rot_yz2 exports)."""
+    import ikbench.core.timing_topp as timing_topp
+    from ikbench.core.timing_limits import urdf_limits
+
+    monkeypatch.setattr(timing_topp, "REFINEMENTS", 0)
+    panda = ikbench.load_robot("panda")
+    poses = (np.linspace(0.0, 1.0, 6)[:, None] * np.array([60.0, -40, 30, -50, 20, 60, 40])
+             + np.array([0.0, 0, 0, -90, 0, 90, 0]))
+    poses[3, 1] += 8.0  # a kink: the first solve exceeds a limit inside an interval
+    timed = retime(panda, poses, "topp", limits=urdf_limits(panda))
+    assert np.isfinite(timed.duration_s) and timed.duration_s > 0
+    np.testing.assert_allclose(timed.sample(timed.times_s)[0], poses, atol=1e-9)
