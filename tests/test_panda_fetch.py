@@ -240,6 +240,10 @@ def test_validity_accepts_an_unwrapped_solution_as_written():
     for key in ("valid", "within_limits", "max_joint_change_deg", "position_error_max_mm"):
         assert wrapped[key] == pytest.approx(unwrapped_metrics[key]), key
     assert unwrapped_metrics["valid"]
+    from ikbench.viewer.design.criteria import limit_margins  # the designer's limit figure
+
+    assert limit_margins(robot, task, unwrapped) == limit_margins(robot, task, poses)
+    assert limit_margins(robot, task, unwrapped)[0] >= 0.0
 
 
 @pytest.mark.skipif(not __import__("ikbench.core.timing_topp", fromlist=["x"]).toppra_available(),
