@@ -291,3 +291,26 @@ def test_topp_keeps_the_grid_of_its_last_solve_when_refinements_run_out(monkeypa
     timed = retime(panda, poses, "topp", limits=urdf_limits(panda))
     assert np.isfinite(timed.duration_s) and timed.duration_s > 0
     np.testing.assert_allclose(timed.sample(timed.times_s)[0], poses, atol=1e-9)
+
+
+@needs_toppra
+def test_a_path_turning_the_hand_about_a_still_fingertip_is_timed_by_pose_index():
+    """fetch_arm__rot_yz2 turns the gripper about a fingertip that moves only by the solver's
+    jitter (< 0.01 mm a segment); a spline on those chords overshot by metres (topp: T = 2819 s,
+    1.77 m off the path). Parametrised by the pose index it follows the path."""
+    from ikbench.core.timed_path import STILL_TIP_MM, path_parameter
+    from ikbench.core.timing import fingertip_deviation_mm
+    from ikbench.core.timing_limits import urdf_limits
+
+    arm = ikbench.load_robot("fetch_arm")
+    poses = read_trajectory_csv(Path(__file__).parents[1] / "results" / "cartesian" / "ours-lm"
+                                / "trajectory_fetch_arm__rot_yz2_seed1.csv", arm)
+    poses = poses[list(arm.joint_names)].to_numpy(dtype=float)
+    tip = arm.fk(poses).point_mm
+    assert np.linalg.norm(np.diff(tip, axis=0), axis=1).mean() < STILL_TIP_MM
+    np.testing.assert_array_equal(path_parameter(tip), np.arange(len(poses)))
+    for timing in ("topp", "min-jerk"):
+        timed = retime(arm, poses, timing, limits=urdf_limits(arm), duration_s=5.0)
+        dense = timed.sample(np.linspace(0.0, timed.duration_s, 4 * len(poses)))[0]
+        assert fingertip_deviation_mm(arm, dense, tip) < 1.0, timing
+        assert timed.duration_s < 30.0, timing
