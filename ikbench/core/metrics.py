@@ -232,7 +232,10 @@ def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[st
         ``max_joint_change_mm`` (prismatic joints; NaN without one), ``joint_path_length_deg``
         (sum of the absolute wrapped revolute changes) and ``prismatic_path_length_mm``,
         ``cartesian_path_length_mm`` (the end point's path) and ``target_path_length_mm``,
-        ``within_limits`` (the task's limits, e.g. CppFlow's bounds), the collision figures
+        ``within_limits`` (the task's limits, e.g. CppFlow's bounds; a continuous joint by
+        its turn within [-180, 180] deg, :func:`ikbench.core.robot.wrap_continuous`, since
+        trajectory files are written unwrapped: a solver's raw 200 deg now passes as -160 deg
+        where jrl's raw check refused it), the collision figures
         of :func:`ikbench.core.collision.check_trajectory` (``self_collisions``,
         ``env_collisions``, ``min_clearance_mm`` ..., ``collision_model``),
         ``initial_configuration_distance`` (rad, m; NaN when the task gives none), ``valid``
