@@ -153,6 +153,38 @@ def check_chain(chain: Chain) -> None:
                          "placo's joint-limit constraint takes one value per joint")
 
 
+def placo_urdf_text(chain: Chain) -> str:
+    """The chain's URDF text with every joint that shares its name with a link renamed
+    (``<name>__joint``), unless the chain moves it.
+
+    placo finds frames by name only, and Pinocchio holds two frames when a fixed joint and its
+    child link share one (z1's ``gripperStator``): every task on such a frame fails with
+    "Several frames match the filter". The other adapters pick the link's ``BODY`` frame
+    (:func:`ikbench.core.kinematics.pinocchio_fk.link_frame_id`); placo takes no frame type,
+    so the joint's frame is given another name. Placements and the chain are unchanged.
+    """
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(chain.urdf_text)
+    links = {link.get("name") for link in root.iter("link")}
+    names = links | {joint.get("name") for joint in root.iter("joint")}
+    renamed: dict[str, str] = {}
+    for joint in root.iter("joint"):
+        name = joint.get("name")
+        if name in links and name not in chain.joint_names:
+            new = f"{name}__joint"
+            while new in names:
+                new += "_"
+            joint.set("name", new)
+            names.add(new)
+            renamed[name] = new
+    if not renamed:
+        return chain.urdf_text
+    for mimic in root.iter("mimic"):
+        mimic.set("joint", renamed.get(mimic.get("joint", ""), mimic.get("joint", "")))
+    return ET.tostring(root, encoding="unicode")
+
+
 def placo_model(chain: Chain) -> PlacoModel:
     """placo's robot for ``chain`` (loaded once per chain)."""
     if chain in _MODELS:
@@ -160,7 +192,7 @@ def placo_model(chain: Chain) -> PlacoModel:
     import placo
 
     check_chain(chain)
-    robot = placo.RobotWrapper("", placo.Flags.ignore_collisions, chain.urdf_text)
+    robot = placo.RobotWrapper("", placo.Flags.ignore_collisions, placo_urdf_text(chain))
     robot.update_kinematics()
     T = np.asarray(robot.get_T_world_frame(chain.base_link))
     _MODELS[chain] = PlacoModel(robot, T[:3, :3].copy(), T[:3, 3].copy())

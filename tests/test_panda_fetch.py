@@ -13,6 +13,7 @@ of ikbench's FK from them was 9.4e-13 mm / 1.9e-13 deg (Panda) and 4.4e-13 mm / 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -168,3 +169,104 @@ def test_sequential_ik_points_the_fetch_gripper_along_its_x_axis(tmp_path, orien
     table = pd.read_csv(tmp_path / "sequential-ik-walk" / "table.csv")
     assert (table["line_distance_mean_mm"] < 0.1).all()
     assert (table["pointing_deviation_mean_deg"] < 1.0).all()
+
+
+# ----- continuous joints are written unwrapped (issue 50, item 5) ------------------------------
+CIRCLE = (Path(__file__).parents[1] / "results" / "cartesian" / "ours-lm"
+          / "trajectory_fetch_arm__circle_seed1.csv")
+
+
+def _wrapping_path():
+    """fetch_arm poses (n+1, 7) [deg] whose forearm_roll crosses +-180 written wrapped (+179.9
+    -> -179.7, a 359.6 deg step), the other joints moving a little; (path, forearm index)."""
+    arm = load_robot("fetch_arm")
+    j = arm.joint_names.index("forearm_roll_joint")
+    poses = np.tile([20.0, -20.0, 30.0, -60.0, 0.0, 60.0, 10.0], (9, 1))
+    poses += np.linspace(0.0, 4.0, 9)[:, None]
+    poses[:, j] = [175.0, 177.0, 179.9, -179.7, -177.0, -175.0, -173.0, -171.0, -169.0]
+    return arm, poses, j
+
+
+def test_a_wrapped_continuous_joint_is_written_unwrapped_and_read_back(tmp_path):
+    """The trajectory CSV: no step over 180 deg in a continuous joint, the same FK, bounded
+    joints untouched; reading it back accepts values outside [-180, 180]."""
+    from ikbench.core.trajectory import read_trajectory_poses, write_trajectory_csv
+
+    arm, poses, j = _wrapping_path()
+    assert np.abs(np.diff(poses[:, j])).max() > 359.0
+    path = write_trajectory_csv(tmp_path / "t.csv", arm, poses)
+    back = read_trajectory_poses(path, arm)
+    assert np.abs(np.diff(back[:, arm.continuous], axis=0)).max() < 3.0
+    assert back[:, j].max() > 180.0  # values leave [-180, 180]
+    np.testing.assert_array_equal(back[:, ~arm.continuous], poses[:, ~arm.continuous])
+    np.testing.assert_allclose(np.abs(back[:, j] - poses[:, j]) % 360.0, 0.0, atol=1e-9)
+    np.testing.assert_allclose(arm.fk(back).point_mm, arm.fk(poses).point_mm, atol=1e-6)
+    np.testing.assert_allclose(arm.fk_transform(back), arm.fk_transform(poses), atol=1e-9)
+
+
+def test_unwrap_and_wrap_leave_bounded_joints_and_in_range_values_alone():
+    from ikbench.core.robot import unwrap_continuous, wrap_continuous
+
+    fetch = load_robot("fetch")  # the torso is prismatic [mm]
+    poses = np.array([[300.0, 10.0, 0.0, 170.0, 0.0, 170.0, 0.0, -170.0],
+                      [300.0, 11.0, 0.0, -170.0, 0.0, -175.0, 0.0, 170.0]])
+    out = unwrap_continuous(fetch, poses)
+    np.testing.assert_array_equal(out[:, ~fetch.continuous], poses[:, ~fetch.continuous])
+    np.testing.assert_allclose(out[1, fetch.continuous], [190.0, 185.0, -190.0])
+    np.testing.assert_array_equal(wrap_continuous(fetch, out), poses)  # back, bit for bit
+    np.testing.assert_array_equal(wrap_continuous(fetch, poses), poses)
+    batch = unwrap_continuous(fetch, np.stack([poses, poses[::-1]]))  # (B, n+1, dof): per path
+    np.testing.assert_array_equal(batch[0], out)
+    np.testing.assert_array_equal(batch[1], unwrap_continuous(fetch, poses[::-1]))
+    panda = load_robot("panda")  # no continuous joint: unchanged
+    q = np.array([[0.0, 0, 0, -90, 0, 90, 170], [0.0, 0, 0, -90, 0, 90, -170]])
+    np.testing.assert_array_equal(unwrap_continuous(panda, q), q)
+
+
+def test_validity_accepts_an_unwrapped_solution_as_written():
+    """CppFlow's validity (changes wrapped, jrl's [-180, 180] for the rolls) judges the
+    unwrapped poses as it judges the wrapped ones."""
+    from ikbench.core.metrics import frame_metrics
+    from ikbench.core.problems import load_problem
+    from ikbench.core.robot import unwrap_continuous
+    from ikbench.core.trajectory import read_trajectory_poses
+
+    robot, task, _ = load_problem("fetch_arm__circle")
+    poses = read_trajectory_poses(CIRCLE, robot)
+    unwrapped = unwrap_continuous(robot, poses)
+    assert np.abs(unwrapped).max() > 180.0  # the committed file wraps; this one does not
+    wrapped, unwrapped_metrics = frame_metrics(robot, task, poses), frame_metrics(robot, task,
+                                                                                 unwrapped)
+    for key in ("valid", "within_limits", "max_joint_change_deg", "position_error_max_mm"):
+        assert wrapped[key] == pytest.approx(unwrapped_metrics[key]), key
+    assert unwrapped_metrics["valid"]
+    from ikbench.viewer.design.criteria import limit_margins  # the designer's limit figure
+
+    assert limit_margins(robot, task, unwrapped) == limit_margins(robot, task, poses)
+    assert limit_margins(robot, task, unwrapped)[0] >= 0.0
+
+
+@pytest.mark.skipif(not __import__("ikbench.core.timing_topp", fromlist=["x"]).toppra_available(),
+                    reason="needs toppra")
+def test_topp_export_of_a_wrapped_path_follows_it(tmp_path):
+    """``ikbench export --timing topp`` of a path written wrapped turns forearm_roll the
+    short way: the fingertip stays on the solved path and T stays short."""
+    import re
+
+    from ikbench.core.timing import retime
+    from ikbench.core.timing_limits import urdf_limits
+    from ikbench.viewer.export import export_trajectory
+
+    arm, poses, j = _wrapping_path()
+    csv = tmp_path / "wrapped.csv"
+    header = "step,time_s," + ",".join(arm.joint_names)
+    rows = [f"{k},{k / 8:g}," + ",".join(f"{v:.10g}" for v in pose)
+            for k, pose in enumerate(poses)]
+    csv.write_text("\n".join([header, *rows]) + "\n")  # as an older writer left it: wrapped
+    timed = retime(arm, poses, "topp", limits=urdf_limits(arm))
+    assert np.abs(np.diff(timed.poses[:, j])).max() < 3.0
+    _, note = export_trajectory(csv, "csv-rad", tmp_path / "out.csv", arm, 2.0, timing="topp",
+                                limits=urdf_limits(arm), rate_hz=250.0)
+    deviation = float(re.search(r"strays up to ([\d.e+-]+) mm", note).group(1))
+    duration = float(re.search(r"T = ([\d.e+-]+) s", note).group(1))
+    assert deviation < 5.0 and duration < 3.0, note

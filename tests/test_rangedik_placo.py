@@ -248,3 +248,25 @@ def test_placo_single_pose_in_ikbench_ik_is_rechecked_by_fk(tmp_path):
     assert main(["ik", "--robot", "panda", "--count", "4", "--methods", "placo",
                  "--output", str(tmp_path), "--quiet"]) in (0, 1)
     assert (tmp_path / "ik" / "panda" / "results.csv").is_file()
+
+
+def test_placo_solves_z1_at_an_end_frame_named_like_a_joint():
+    """z1's fixed joint and link are both called gripperStator: placo (frames by name only)
+    once failed every target with "Several frames match the filter". Its URDF text names the
+    joint apart, and placo solves z1's targets at the link's frame."""
+    method_class("placo")
+    from ikbench.core.robot_packages import robots_folder
+
+    if robots_folder("example-robot-data") is None:
+        pytest.skip("example-robot-data is not installed")
+    from ikbench.baselines.libraries.placo_ik import placo_urdf_text
+    from ikbench.studies.ik import IKSettings, run_ik
+
+    robot = load_robot("example-robot-data:z1", "gripperStator")
+    text = placo_urdf_text(chain_of(robot))
+    assert 'joint name="gripperStator__joint"' in text and 'link name="gripperStator"' in text
+    table = run_ik(robot, IKSettings(count=8, seed=1), ["placo"], progress=False).table
+    assert len(table) == 8 and (table["failure"].fillna("") == "").all(), table["failure"]
+    assert table["success"].mean() >= 0.5, table
+    claimed = table["library_ok"].astype(bool)
+    assert table.loc[claimed, "success"].all()  # what placo claims holds by FK

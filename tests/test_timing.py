@@ -273,3 +273,44 @@ def test_run_times_its_animation(tmp_path, capsys):
                  str(tmp_path / "bad")]) == 2
     assert capsys.readouterr().err.strip() == (
         "ikbench: error: --timing: 'fast'; allowed: constant, min-jerk, topp")
+
+
+@needs_toppra
+def test_topp_keeps_the_grid_of_its_last_solve_when_refinements_run_out(monkeypatch):
+    """When every refinement still finds an interval over a limit, the timing is the last
+    solve on its own grid (it once refined the grid once more and failed to broadcast the
+    speeds of the old one: the committed fetch rot_yz2 exports)."""
+    import ikbench.core.timing_topp as timing_topp
+    from ikbench.core.timing_limits import urdf_limits
+
+    monkeypatch.setattr(timing_topp, "REFINEMENTS", 0)
+    panda = ikbench.load_robot("panda")
+    poses = (np.linspace(0.0, 1.0, 6)[:, None] * np.array([60.0, -40, 30, -50, 20, 60, 40])
+             + np.array([0.0, 0, 0, -90, 0, 90, 0]))
+    poses[3, 1] += 8.0  # a kink: the first solve exceeds a limit inside an interval
+    timed = retime(panda, poses, "topp", limits=urdf_limits(panda))
+    assert np.isfinite(timed.duration_s) and timed.duration_s > 0
+    np.testing.assert_allclose(timed.sample(timed.times_s)[0], poses, atol=1e-9)
+
+
+@needs_toppra
+def test_a_path_turning_the_hand_about_a_still_fingertip_is_timed_by_pose_index():
+    """fetch_arm__rot_yz2 turns the gripper about a fingertip that moves only by the solver's
+    jitter (< 0.01 mm a segment); a spline on those chords overshot by metres (topp: T = 2819 s,
+    1.77 m off the path). Parametrised by the pose index it follows the path."""
+    from ikbench.core.timed_path import STILL_TIP_MM, path_parameter
+    from ikbench.core.timing import fingertip_deviation_mm
+    from ikbench.core.timing_limits import urdf_limits
+
+    arm = ikbench.load_robot("fetch_arm")
+    poses = read_trajectory_csv(Path(__file__).parents[1] / "results" / "cartesian" / "ours-lm"
+                                / "trajectory_fetch_arm__rot_yz2_seed1.csv", arm)
+    poses = poses[list(arm.joint_names)].to_numpy(dtype=float)
+    tip = arm.fk(poses).point_mm
+    assert np.linalg.norm(np.diff(tip, axis=0), axis=1).mean() < STILL_TIP_MM
+    np.testing.assert_array_equal(path_parameter(tip), np.arange(len(poses)))
+    for timing in ("topp", "min-jerk"):
+        timed = retime(arm, poses, timing, limits=urdf_limits(arm), duration_s=5.0)
+        dense = timed.sample(np.linspace(0.0, timed.duration_s, 4 * len(poses)))[0]
+        assert fingertip_deviation_mm(arm, dense, tip) < 1.0, timing
+        assert timed.duration_s < 30.0, timing

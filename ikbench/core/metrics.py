@@ -13,6 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.collision import check_trajectory
+from ikbench.core.robot import wrap_continuous
 from ikbench.core.rotations import geodesic_angle
 from ikbench.core.validity import validity_failures
 
@@ -231,7 +232,10 @@ def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[st
         ``max_joint_change_mm`` (prismatic joints; NaN without one), ``joint_path_length_deg``
         (sum of the absolute wrapped revolute changes) and ``prismatic_path_length_mm``,
         ``cartesian_path_length_mm`` (the end point's path) and ``target_path_length_mm``,
-        ``within_limits`` (the task's limits, e.g. CppFlow's bounds), the collision figures
+        ``within_limits`` (the task's limits, e.g. CppFlow's bounds; a continuous joint by
+        its turn within [-180, 180] deg, :func:`ikbench.core.robot.wrap_continuous`, since
+        trajectory files are written unwrapped: a solver's raw 200 deg now passes as -160 deg
+        where jrl's raw check refused it), the collision figures
         of :func:`ikbench.core.collision.check_trajectory` (``self_collisions``,
         ``env_collisions``, ``min_clearance_mm`` ..., ``collision_model``),
         ``initial_configuration_distance`` (rad, m; NaN when the task gives none), ``valid``
@@ -243,7 +247,8 @@ def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[st
     position, rotation, points_mm = frame_errors(robot, task, poses)
     revolute, prismatic = joint_changes(robot, poses)
     lower, upper = task.limits(robot)
-    within = bool(np.all(poses >= lower - 1e-9) and np.all(poses <= upper + 1e-9))
+    judged = wrap_continuous(robot, poses)  # an unwrapped continuous joint: its turn in range
+    within = bool(np.all(judged >= lower - 1e-9) and np.all(judged <= upper + 1e-9))
     out = {
         **statistics("position_error_{}_mm", position, "mean", "max"),
         **statistics("rotation_error_{}_deg", rotation, "mean", "max"),

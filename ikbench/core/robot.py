@@ -152,6 +152,12 @@ class Robot:
         return np.array([t == "prismatic" for t in self.joint_types])
 
     @property
+    def continuous(self) -> np.ndarray:
+        """(dof,) True for continuous joints (no limits; a turn of 360 joint deg is the same
+        pose)."""
+        return np.array([t == "continuous" for t in self.joint_types], dtype=bool)
+
+    @property
     def pose_unit(self) -> str:
         """How poses are given: ``motor deg`` or ``joint deg`` (mm for prismatic joints)."""
         if self.has_motor_map:
@@ -622,4 +628,38 @@ def load_robot(name_or_path: str | Path = DEFAULT_ROBOT, end_frame: str | None =
 def as_robot(robot: Robot | str | Path | None) -> Robot:
     """``robot`` itself, or the robot a name/config/URDF path names (None: the default)."""
     return robot if isinstance(robot, Robot) else load_robot(robot or DEFAULT_ROBOT)
+
+
+def unwrap_continuous(robot: Robot, poses: npt.ArrayLike) -> np.ndarray:
+    """Poses (..., n+1, dof) [pose units] with each continuous joint unwrapped along each path.
+
+    A step of more than half a turn (180 joint deg) between consecutive poses in a continuous
+    joint is replaced by the same pose a whole number of turns away (``np.unwrap``), so the
+    path never turns such a joint the long way round; values may leave [-180, 180]. The first
+    pose, every bounded joint (revolute with limits, prismatic) and the FK are unchanged. This
+    is what every writer of a trajectory file and every timing applies.
+    """
+    out = np.array(poses, dtype=float)
+    mask = robot.continuous
+    if out.ndim < 2 or out.shape[-2] < 2 or not mask.any():
+        return out
+    scale = np.broadcast_to(np.asarray(robot.scale, dtype=float), (robot.dof,))
+    for j in np.flatnonzero(mask):
+        out[..., j] = np.unwrap(out[..., j], period=360.0 / abs(float(scale[j])), axis=-1)
+    return out
+
+
+def wrap_continuous(robot: Robot, poses: npt.ArrayLike) -> np.ndarray:
+    """Poses (..., dof) [pose units] with each continuous joint outside [-180, 180] joint deg
+    moved by whole turns into it (values inside are kept bit for bit; bounded joints are
+    unchanged): what a check against limits such as jrl's [-180, 180] deg compares."""
+    out = np.array(poses, dtype=float)
+    mask = robot.continuous
+    if not mask.any():
+        return out
+    joint_deg = np.degrees(robot.to_urdf(out))
+    turns = np.where(np.abs(joint_deg) > 180.0, np.round(joint_deg / 360.0), 0.0)
+    scale = np.broadcast_to(np.asarray(robot.scale, dtype=float), (robot.dof,))
+    shift = np.where(mask, -360.0 * turns / scale, 0.0)
+    return np.where(mask, out + shift, out)
 

@@ -31,6 +31,10 @@ INTERPOLATION = {
 #: A segment's path parameter is at least this fraction of the mean segment's (a segment where
 #: the fingertip does not move but the joints do still takes time).
 MIN_PARAMETER_FRACTION = 1e-3
+#: Below this mean fingertip movement per segment [mm] the fingertip counts as still (a path
+#: that turns the hand about the fingertip: its chords are the solver's jitter, and a spline
+#: on them overshoots by metres), and the spline is parametrised by the pose index.
+STILL_TIP_MM = 0.01
 
 #: t [s] (m,) -> (q, qd, qdd), each (m, dof).
 Sampler = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -118,9 +122,9 @@ def path_parameter(tip_mm: np.ndarray) -> np.ndarray:
     """(n+1,) strictly increasing knots of the spline: the fingertip's cumulative chord length,
     each segment at least :data:`MIN_PARAMETER_FRACTION` of the mean, in units of the mean
     segment (0 ... n: TOPP-RA's solver fails on some paths in mm); the pose index when the
-    fingertip does not move at all."""
+    fingertip stays still (mean segment below :data:`STILL_TIP_MM`)."""
     chord = np.linalg.norm(np.diff(tip_mm, axis=0), axis=1)
-    if not chord.sum() > 0:
+    if not chord.mean() >= STILL_TIP_MM:
         chord = np.ones_like(chord)
     chord = np.maximum(chord, MIN_PARAMETER_FRACTION * chord.mean())
     return np.concatenate([[0.0], np.cumsum(chord / chord.mean())])

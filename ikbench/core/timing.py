@@ -34,6 +34,7 @@ import numpy.typing as npt
 
 from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
+from ikbench.core.robot import unwrap_continuous
 from ikbench.core.timed_path import (  # noqa: F401  (re-exported: the timing API)
     INTERPOLATION,
     MIN_PARAMETER_FRACTION,
@@ -86,6 +87,7 @@ def retime(robot: Robot, poses: npt.ArrayLike, timing: str, *,
     if poses.ndim != 2 or len(poses) < 2 or not np.all(np.isfinite(poses)):
         raise InputError(f"a timing needs (n+1, dof) finite poses with n >= 1, got an array of "
                          f"shape {poses.shape}")
+    poses = unwrap_continuous(robot, poses)  # a continuous joint never turns the long way
     if timing != "topp" and not (np.isfinite(duration_s) and duration_s > 0):
         raise InputError(f"duration_s: {duration_s!r}; give a positive number of seconds")
     if timing == "constant":

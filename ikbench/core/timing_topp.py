@@ -63,10 +63,10 @@ def topp(poses: np.ndarray, tip_mm: np.ndarray, limits: Limits) -> TimedPath:
     geometric = toppra.SplineInterpolator(knots, poses, bc_type="not-a-knot")
     _quiet(toppra)
     grid = _grid(knots)
-    for _ in range(REFINEMENTS + 1):
+    for refinement in range(REFINEMENTS + 1):
         sd = _solve(toppra, geometric, grid, limits)
         over = _over_limit(path, grid, sd, limits)
-        if not over.any():
+        if not over.any() or refinement == REFINEMENTS:  # keep the grid ``sd`` was solved on
             break
         grid = np.sort(np.concatenate([grid, 0.5 * (grid[:-1] + grid[1:])[over]]))
     return _timed(poses, path, grid, np.searchsorted(grid, knots), sd, limits)

@@ -23,7 +23,7 @@ import pandas as pd
 from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_text
-from ikbench.core.robot import FILE_RANGE_TOLERANCE_DEG, Robot, load_robot
+from ikbench.core.robot import FILE_RANGE_TOLERANCE_DEG, Robot, load_robot, unwrap_continuous
 from ikbench.core.rotations import matrix_to_quat_wxyz
 
 #: How a trajectory CSV writes its numbers (10 significant digits).
@@ -44,8 +44,9 @@ def trajectory_frame(robot: Robot, poses_motor_deg: npt.ArrayLike,
                      duration_s: float = DEFAULT_DURATION_S,
                      quaternion: bool = False) -> pd.DataFrame:
     """Build the trajectory table for poses (n+1, dof) [motor deg]; returns a DataFrame
-    (``quaternion``: add the end frame's orientation, for pose paths)."""
-    poses = np.asarray(poses_motor_deg, dtype=float)
+    (``quaternion``: add the end frame's orientation, for pose paths). Continuous joints are
+    written unwrapped (:func:`ikbench.core.robot.unwrap_continuous`: no step over 180 deg)."""
+    poses = unwrap_continuous(robot, np.asarray(poses_motor_deg, dtype=float))
     n = len(poses) - 1
     if n < 1:
         raise InputError(f"a trajectory needs at least 2 poses, got {len(poses)}")

@@ -27,7 +27,7 @@ import numpy.typing as npt
 
 from ikbench.core.losses import MM_PER_CM, TERMS
 from ikbench.core.metrics_batch import line_metrics
-from ikbench.core.robot import MM_PER_M, RANGE_TOLERANCE_DEG
+from ikbench.core.robot import MM_PER_M, RANGE_TOLERANCE_DEG, unwrap_continuous
 from ikbench.core.task import Task
 from ikbench.methods.ours_lm import solve_problem
 from ikbench.methods.ours_lm.devices import compiled_module, cpu_backend
@@ -195,7 +195,7 @@ def finish_shard(spec: ShardSpec, prepared: _Prepared,
     result, point_m, direction = solved
     robot, touch, start_mm, touch_mm = spec.robot, prepared.touch, prepared.start_mm, \
         prepared.touch_mm
-    poses = result.poses                                        # (B, N, dof)
+    poses = unwrap_continuous(robot, result.poses)              # (B, N, dof), as written
     b, n_poses, dof = poses.shape
     points_mm = (point_m * MM_PER_M).reshape(b, n_poses, 3)
     directions = direction.reshape(b, n_poses, 3)

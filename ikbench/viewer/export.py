@@ -50,6 +50,7 @@ import numpy.typing as npt
 from ikbench.core.budget import check_memory
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_text, check_writable
+from ikbench.core.robot import unwrap_continuous
 from ikbench.core.timing import fingertip_deviation_mm, retime
 from ikbench.core.timing_limits import urdf_units_per_pose_unit
 from ikbench.core.trajectory import read_trajectory_csv
@@ -239,7 +240,7 @@ def export_trajectory(trajectory_csv: str | Path, fmt: str, output: str | Path, 
         raise InputError(f"--format: {fmt!r} is not one of {', '.join(FORMATS)}")
     sample_times_ns(2, duration_s)  # checks the duration
     frame = read_trajectory_csv(trajectory_csv, robot)
-    poses = frame[list(robot.joint_names)].to_numpy(dtype=float)
+    poses = unwrap_continuous(robot, frame[list(robot.joint_names)].to_numpy(dtype=float))
     check_writable(output)
     if timing != "constant":
         if not (np.isfinite(rate_hz) and 0 <= rate_hz <= MAX_RATE_HZ):

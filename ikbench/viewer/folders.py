@@ -25,7 +25,7 @@ import numpy as np
 
 from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
-from ikbench.core.robot import Robot
+from ikbench.core.robot import Robot, unwrap_continuous
 from ikbench.core.task import Task, build_tasks
 from ikbench.core.timing import retime
 from ikbench.runtime.record import RunFolder, RunRecord, robot_from_record
@@ -167,7 +167,8 @@ def _load_run(folder: Path, record: RunRecord, robot: Robot) -> ViewRun:
         if not run.trajectory_path(tid).is_file():  # a failed solve writes no trajectory
             continue
         frame = run.read_trajectory(tid, robot)
-        poses = frame[list(robot.joint_names)].to_numpy(dtype=float)
+        # a file an older ikbench wrote wrapped: shown turning the short way, as written now
+        poses = unwrap_continuous(robot, frame[list(robot.joint_names)].to_numpy(dtype=float))
         duration = float(frame["time_s"].iloc[-1]) if "time_s" in frame else float(
             record.duration_s or DEFAULT_DURATION_S)
         trajectories[tid] = ViewTrajectory(tid, poses, duration, robot.fk(poses).point_mm)

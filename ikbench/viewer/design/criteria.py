@@ -30,7 +30,7 @@ from ikbench.core.contract import (
     judge,
 )
 from ikbench.core.metrics import contract_metrics, frame_metrics, shape_metrics
-from ikbench.core.robot import Robot
+from ikbench.core.robot import Robot, wrap_continuous
 from ikbench.core.task import Task
 from ikbench.core.timing import TimedPath
 from ikbench.core.validity import (
@@ -117,6 +117,7 @@ def limit_margins(robot: Robot, task: Task, poses: np.ndarray) -> tuple[float, s
     """(the smallest distance of any pose from a joint limit [pose units] (negative:
     beyond it), which joint and which limit in words)."""
     lower, upper = (np.asarray(v, dtype=float) for v in task.limits(robot))
+    poses = wrap_continuous(robot, poses)  # an unwrapped roll: its turn within the bounds
     to_lower, to_upper = poses.min(axis=0) - lower, upper - poses.max(axis=0)
     margins = np.minimum(to_lower, to_upper)
     joint = int(np.argmin(margins))

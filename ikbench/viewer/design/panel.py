@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ikbench.core.robot import wrap_continuous
 from ikbench.core.timing import TIMINGS
 from ikbench.methods.registry import available_methods
 from ikbench.viewer.design.designer import Update
@@ -55,7 +56,7 @@ def limits_html(robot: Robot, update: Update) -> str:
     """Per joint: its range (grey), the part the trajectory uses (blue; red within
     :data:`NEAR_LIMIT` of a limit), and the numbers."""
     lower, upper = (np.asarray(v, dtype=float) for v in update.task.limits(robot))
-    poses = update.poses
+    poses = wrap_continuous(robot, update.poses)  # an unwrapped roll: its turn in the range
     rows = []
     for j, name in enumerate(robot.joint_names):
         low, high = float(poses[:, j].min()), float(poses[:, j].max())
