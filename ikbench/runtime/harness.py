@@ -13,11 +13,10 @@ row), so the caller can keep it and say so.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
 from ikbench.core.task import Task
