@@ -22,7 +22,15 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from ikbench.render.sections import name_report_section as _name_report_section
+
 __version__ = "0.4.0"
+
+# The paper's sections beside the studies' reports (its Table 1 or 2 beside a run on its task,
+# its claims beside an ablation): named here, where the package is put together, so that render
+# and the studies, below the paper, never name it; imported when such a report is written.
+_name_report_section("run", "ikbench.paper.report_tables:run_section")
+_name_report_section("ablation", "ikbench.paper.ablation_claims:ablation_section")
 
 #: public name -> module that defines it
 _EXPORTS = {

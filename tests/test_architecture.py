@@ -243,3 +243,164 @@ def test_fk_imports_no_method_and_no_torch():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=REPO).stdout.splitlines()
     assert out[-1] == "[]"
+
+
+#: Folders whose modules form ikbench's import graph, and the package each installs as.
+PACKAGE_FOLDERS = {"ikbench": "ikbench", "baselines": "ikbench.baselines", "urdf": "ikbench.robots"}
+#: A string naming a module, as the registries and entry points write one: "ikbench.x.y" or
+#: "ikbench.x.y:attr".
+MODULE_STRING = re.compile(r"(ikbench(?:\.\w+)+)(?::\w+(?:\.\w+)*)?")
+
+
+def _module_files() -> dict[str, Path]:
+    """Every module's dotted name (as installed) -> its file; a package is its ``__init__``."""
+    files = {}
+    for folder, package in PACKAGE_FOLDERS.items():
+        for path in sorted((REPO / folder).rglob("*.py")):
+            parts = path.relative_to(REPO / folder).with_suffix("").parts
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            files[".".join([package, *parts])] = path
+    return files
+
+
+def _target(name: str, modules) -> str | None:
+    """The module that importing ``name`` loads for its importer: the longest prefix of
+    ``name`` that is one of ``modules`` (a submodule rather than the package that holds it)."""
+    parts = name.split(".")
+    for end in range(len(parts), 0, -1):
+        prefix = ".".join(parts[:end])
+        if prefix in modules:
+            return prefix
+    return None
+
+
+def _imports_of(module: str, path: Path, modules) -> set[str]:
+    """The modules of ``modules`` that ``module`` imports, wherever the import stands (top level,
+    ``if TYPE_CHECKING:``, inside a function) and however it is written: ``import a.b``,
+    ``from a import b`` (b a submodule: that submodule; b a name: the module a), relative
+    imports, and strings that name a module ("ikbench.x.y" or "ikbench.x.y:attr"). Importing
+    ``a.b.c`` counts as importing ``a.b.c`` only, not the packages ``a`` and ``a.b`` that
+    Python runs first: those are arrows only where their own names are taken."""
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(_target(a.name, modules) for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[:len(package.split(".")) - node.level + 1]
+                base = ".".join([*anchor, *([base] if base else [])])
+            for alias in node.names:
+                found.add(f"{base}.{alias.name}" if f"{base}.{alias.name}" in modules
+                          else _target(base, modules))
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+            named = MODULE_STRING.fullmatch(node.value)
+            # a package of its own named alone (the registry scanning ikbench.methods' folder)
+            # is no arrow: Python imports a module's packages before the module itself
+            if named and not (named.group(0) == named.group(1)
+                              and module.startswith(named.group(1) + ".")):
+                found.add(_target(named.group(1), modules))
+    return {name for name in found if name is not None and name != module}
+
+
+def import_graph() -> dict[str, set[str]]:
+    """ikbench's modules (ikbench/, baselines/ as ikbench.baselines, urdf/ as ikbench.robots),
+    each with the modules it imports."""
+    files = _module_files()
+    return {module: _imports_of(module, path, files) for module, path in files.items()}
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of ``graph`` with more than one module (Tarjan's
+    algorithm, iterative), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    cycles = []
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work = [(root, iter(sorted(graph[root])))]
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            node, edges = work[-1]
+            for other in edges:
+                if other not in index:
+                    index[other] = low[other] = len(index)
+                    stack.append(other)
+                    on_stack.add(other)
+                    work.append((other, iter(sorted(graph.get(other, ())))))
+                    break
+                if other in on_stack:
+                    low[node] = min(low[node], index[other])
+            else:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[node])
+                if low[node] == index[node]:
+                    component = []
+                    while True:
+                        member = stack.pop()
+                        on_stack.discard(member)
+                        component.append(member)
+                        if member == node:
+                            break
+                    if len(component) > 1:
+                        cycles.append(sorted(component))
+    return cycles
+
+
+#: Circles being taken apart elsewhere: (the prefix of all their modules, a module they hold).
+KNOWN_CYCLES = (
+    # issue 45: ours_lm devices/settings/solver, being fixed
+    ("ikbench.methods.ours_lm.", "ikbench.methods.ours_lm.devices"),
+)
+
+
+def _files(modules: list[str]) -> list[str]:
+    files = _module_files()
+    return [str(files[m].relative_to(REPO)) for m in modules]
+
+
+def test_the_import_graph_sees_every_kind_of_import(tmp_path):
+    """Every import form a cycle can hide in is an arrow: under ``if TYPE_CHECKING:``, inside a
+    function, relative, ``from package import submodule``, a "module:attr" string; a package
+    importing a submodule is not an arrow to the package's own ``__init__``."""
+    modules = {"ikbench", "ikbench.a", "ikbench.a.b", "ikbench.a.c", "ikbench.d", "ikbench.e",
+               "ikbench.f", "ikbench.g", "ikbench.h"}
+    source = tmp_path / "c.py"
+    source.write_text(
+        "from typing import TYPE_CHECKING\n"
+        "from ikbench.a import b\n"                     # a submodule: ikbench.a.b
+        "from ikbench.d import name\n"                  # a name: the module ikbench.d
+        "if TYPE_CHECKING:\n    from ikbench.e import E\n"
+        "def f():\n    from . import b\n    import ikbench.f\n"
+        "TARGET = 'ikbench.g:function'\nOTHER = 'ikbench.h'\n"
+        "PACKAGE = 'ikbench.a'\nTEXT = 'see ikbench.g'\n")
+    assert _imports_of("ikbench.a.c", source, modules) == {
+        "ikbench.a.b", "ikbench.d", "ikbench.e", "ikbench.f", "ikbench.g", "ikbench.h"}
+    graph = import_graph()
+    assert "ikbench.core.robot" in graph["ikbench.core.losses"]        # under TYPE_CHECKING
+    assert "ikbench.paper.report_tables" in graph["ikbench"]           # a "module:attr" string
+    assert "ikbench.baselines.drake.common" in graph["ikbench.baselines.drake.ik"]
+    assert "ikbench.methods" not in graph["ikbench.methods.registry"]  # scans its own package
+    assert import_cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert import_cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_no_import_cycles():
+    """No two modules of ikbench (baselines/ and urdf/ included) import each other, through
+    any chain of imports of any kind: at the top, under ``if TYPE_CHECKING:`` (a type-only
+    cycle still means two files are one concept or a third is missing), inside a function, or
+    by a string naming a module ("ikbench.x.y:attr", imported later by importlib). Where two
+    modules share something, a third module holds it (a Protocol, a dataclass, constants)."""
+    cycles = [cycle for cycle in import_cycles(import_graph())
+              if not any(member in cycle and all(m.startswith(prefix) for m in cycle)
+                         for prefix, member in KNOWN_CYCLES)]
+    assert not cycles, "import cycles:\n" + "\n".join(
+        " <-> ".join(_files(cycle)) for cycle in cycles)

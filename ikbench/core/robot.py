@@ -47,10 +47,6 @@ from ikbench.core.urdf_model import MOVABLE_TYPES, UrdfJoint, UrdfModel, load_ur
 if TYPE_CHECKING:
     import torch
 
-    from ikbench.core.kinematics.chain import ChainKinematics
-    from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
-    from ikbench.core.kinematics.torch_fk import TorchFK
-
 DEG2RAD = math.pi / 180.0
 MM_PER_M = 1000.0
 #: Tolerance [pose units] when checking that a pose lies within the limits.

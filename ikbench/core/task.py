@@ -31,11 +31,11 @@ import numpy.typing as npt
 from ikbench.core import letters
 from ikbench.core.contract import Contract, contract_for
 from ikbench.core.errors import InputError
-from ikbench.core.losses import FRAME_WEIGHTS, PAPER_WEIGHTS
 from ikbench.core.obstacles import Obstacle
 from ikbench.core.robot import Robot
 from ikbench.core.shapes import Curve, catmull_rom, read_points_csv
 from ikbench.core.targets import Targets, load_targets
+from ikbench.core.weights import FRAME_WEIGHTS, PAPER_WEIGHTS
 
 #: Below this distance [mm] start and touch points coincide and a line has no direction.
 MIN_LINE_LENGTH_MM = 1e-6
@@ -170,7 +170,7 @@ def frame_task(robot: Robot, name: str, points_mm: npt.ArrayLike, rotations: npt
         rotations: (n+1, 3, 3) goal rotations.
         **fields: further :class:`Task` fields (``reference_pose``, ``joint_limits``...);
             the default weights are the 6-D objective's
-            (:data:`ikbench.core.losses.FRAME_WEIGHTS`).
+            (:data:`ikbench.core.weights.FRAME_WEIGHTS`).
     """
     points = np.asarray(points_mm, dtype=float)
     rotations = np.asarray(rotations, dtype=float)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import abc
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
@@ -26,11 +26,24 @@ import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.methods.options import MethodOption, method_options
-from ikbench.methods.registry import available_methods
 
 if TYPE_CHECKING:  # the robot module imports pinocchio: for type checkers only
     from ikbench.core.robot import Robot
     from ikbench.core.task import Task
+
+#: name -> class of every method available here, for :meth:`Method.check_tasks` to name the
+#: able ones. The registry installs its ``available_methods`` (:func:`use_catalogue`) when it is
+#: imported, which ``ikbench/methods/__init__.py`` does before any method module runs, so this
+#: module, below the registry, never imports it.
+_catalogue: Callable[[], dict[str, type[Method]]] = dict
+
+
+def use_catalogue(available: Callable[[], dict[str, type[Method]]]) -> None:
+    """Make ``available()`` (name -> method class) the catalogue that
+    :meth:`Method.check_tasks` lists alternatives from (the registry's)."""
+    global _catalogue
+    _catalogue = available
+
 
 @dataclass(frozen=True)
 class Capabilities:
@@ -187,7 +200,7 @@ class Method(abc.ABC):
         """Raise InputError before any solve if a task cannot be solved by this method."""
         for task in tasks:
             if task.has_frames and not self.capabilities.frames:
-                able = [name for name, cls in available_methods().items()
+                able = [name for name, cls in _catalogue().items()
                         if cls.capabilities.frames]
                 raise InputError(
                     f"trajectory {task.name!r}: --method {self.name} cannot follow goal frames "
@@ -195,7 +208,7 @@ class Method(abc.ABC):
         if self.capabilities.needs_touch_pose:
             for task in tasks:
                 if task.end_pose is None and not task.has_frames:
-                    planners = [f"--method {name}" for name, cls in available_methods().items()
+                    planners = [f"--method {name}" for name, cls in _catalogue().items()
                                 if not cls.capabilities.needs_touch_pose]
                     raise InputError(
                         f"trajectory {task.name!r}: {self.name} starts at the touch pose; the "

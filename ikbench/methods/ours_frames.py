@@ -40,7 +40,7 @@ if TYPE_CHECKING:
 
     from ikbench.core.robot import Robot
     from ikbench.core.task import Task
-    from ikbench.methods.ours import AdamSettings
+    from ikbench.methods.ours_settings import AdamSettings
 
 DEG_PER_RAD = 180.0 / math.pi
 

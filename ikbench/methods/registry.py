@@ -33,9 +33,9 @@ from types import ModuleType
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from ikbench.core.errors import InputError
+from ikbench.methods.base import Method, use_catalogue
 
-if TYPE_CHECKING:  # the registry holds method classes; base.Method asks it for alternatives
-    from ikbench.methods.base import Method
+if TYPE_CHECKING:
     from ikbench.schemes.single_pose import PoseSolver
 
 #: A method class (:func:`register` returns the class it is given).
@@ -228,6 +228,10 @@ def available_methods() -> dict[str, type[Method]]:
 def available_solvers() -> dict[str, type[PoseSolver]]:
     """name -> single-pose solver class, for every solver that can run here (rank order)."""
     return {name: s.cls for name, s in solver_status().items() if s.cls is not None}
+
+
+# base.Method.check_tasks names the methods that can do what another cannot from this catalogue
+use_catalogue(lambda: available_methods())
 
 
 def get_method(name: str) -> type[Method]:

@@ -1,10 +1,11 @@
 """Report sections that higher layers add (the paper's tables beside a run's measured ones).
 
-The studies write generic reports; the paper layer (:mod:`ikbench.paper`) provides what it
-adds for its own targets and methods, so no study names a method or the paper. Providers are
-named as ``"module:function"`` (:data:`PROVIDERS`, as the method registry names methods) and
-imported the first time a report of their kind is written, so importing ikbench costs nothing
-for them; :func:`add_report_section` adds one at run time (a notebook, a plugin).
+The studies write generic reports; a higher layer provides what it adds for its own targets
+and methods, so no study, and nothing here, names a method or the paper. Providers are named
+as ``"module:function"`` by whoever puts the package together (:func:`name_report_section`;
+the paper's in ``ikbench/__init__.py``, the top of the house, so render never imports upward)
+and imported the first time a report of their kind is written, so importing ikbench costs
+nothing for them; :func:`add_report_section` adds one at run time (a notebook, a plugin).
 """
 
 from __future__ import annotations
@@ -15,13 +16,17 @@ from typing import Any
 
 #: A provider takes the report's context as keywords and returns Markdown lines (or None).
 Provider = Callable[..., list[str] | None]
-#: kind -> the built-in providers, ``"module:function"``.
-PROVIDERS: dict[str, tuple[str, ...]] = {
-    "run": ("ikbench.paper.report_tables:run_section",),
-    "ablation": ("ikbench.paper.ablation_claims:ablation_section",),
-}
+#: kind -> the built-in providers, ``"module:function"`` (:func:`name_report_section`).
+PROVIDERS: dict[str, tuple[str, ...]] = {"run": (), "ablation": ()}
 #: kind -> providers added at run time.
 _ADDED: dict[str, list[Provider]] = {"run": [], "ablation": []}
+
+
+def name_report_section(kind: str, target: str) -> None:
+    """Name a built-in provider of the reports of ``kind`` as ``"module:function"``; it is
+    imported the first time such a report is written (:func:`providers`)."""
+    if target not in PROVIDERS[kind]:
+        PROVIDERS[kind] = (*PROVIDERS[kind], target)
 
 
 def add_report_section(kind: str, provider: Provider) -> None:

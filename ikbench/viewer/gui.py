@@ -6,18 +6,49 @@ assigning thread, so the playback thread moves the slider and the slider poses t
 
 from __future__ import annotations
 
+import threading
 import time
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import Protocol
 
+import numpy as np
 import viser
 
 from ikbench.viewer import scene as sc
-
-if TYPE_CHECKING:
-    from ikbench.viewer.server import RunScene, Viewer
+from ikbench.viewer.folders import ViewRun
 
 #: Playback speeds (label -> factor of the real speed).
 SPEEDS = {"0.25x": 0.25, "0.5x": 0.5, "1x": 1.0, "2x": 2.0}
+
+
+class PanelScene(Protocol):
+    """What the panel reads of one run's scene (:class:`ikbench.viewer.server.RunScene`)."""
+
+    run: ViewRun
+    color: sc.RGB
+    obstacles: dict[str, list]
+    collisions: dict[str, viser.PointCloudHandle]
+
+
+class PanelViewer(Protocol):
+    """What the panel drives of the viewer (:class:`ikbench.viewer.server.Viewer`); the
+    server builds the viewer and adds this panel to it, so the panel names it by this type."""
+
+    gui: dict
+    _anchor: tuple[float, int]
+
+    @property
+    def scenes(self) -> Sequence[PanelScene]: ...
+    @property
+    def times(self) -> np.ndarray: ...
+    @property
+    def playing(self) -> bool: ...
+    @property
+    def _lock(self) -> threading.RLock: ...
+    def play(self) -> None: ...
+    def pause(self) -> None: ...
+    def show(self, step: int) -> None: ...
+    def refresh_visibility(self) -> None: ...
 
 
 def _legend(scenes) -> str:
@@ -35,7 +66,7 @@ def _legend(scenes) -> str:
     return '<div style="font-size:0.8em;line-height:1.6">' + "".join(rows) + "</div>"
 
 
-def _collision_note(scene: RunScene) -> str:
+def _collision_note(scene: PanelScene) -> str:
     """``; obstacles: N, colliding waypoints: 1: 12 of 200, ...`` for a run with
     obstacles, else nothing."""
     if not scene.obstacles:
@@ -48,7 +79,7 @@ def _collision_note(scene: RunScene) -> str:
     return f"; {count} obstacle{'s' * (count != 1)}, colliding waypoints {counts}"
 
 
-def add_gui(server: viser.ViserServer, viewer: Viewer, ids: list[str]) -> None:
+def add_gui(server: viser.ViserServer, viewer: PanelViewer, ids: list[str]) -> None:
     """Add the panel's controls to ``server`` and wire them to ``viewer``; the handles go
     into ``viewer.gui`` (``trajectory``, ``step``, ``time``, ``play``, ``speed``, ``loop``,
     ``runs``, ``goal``, ``tip``, ``others``; ``obstacles`` and ``collisions`` when a run has

@@ -27,15 +27,23 @@ revolute, prismatic, continuous and unaligned axes) and ``tests/test_ours_lm_com
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Any, TypeAlias
+from typing import Any, Protocol, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.errors import SolverError
+from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
+from ikbench.core.kinematics.robot_like import RobotLike
 
-if TYPE_CHECKING:
-    from ikbench.core.robot import Robot
+
+class ChainRobot(RobotLike, Protocol):
+    """What the chain reads of a robot: :class:`RobotLike` and its Pinocchio backend."""
+
+    def pinocchio_fk(self) -> PinocchioFK:
+        """The Pinocchio FK backend (cached)."""
+        ...
+
 
 #: (point or position (M, 3), direction (M, 3) or rotation (M, 3, 3), and their Jacobians
 #: (M, 3, dof), or None without them)
@@ -108,7 +116,7 @@ class ChainKinematics:
     here; the torch and numba twins take them from this object (module docstring).
     """
 
-    def __init__(self, robot: Robot) -> None:
+    def __init__(self, robot: ChainRobot) -> None:
         pfk = robot.pinocchio_fk()
         model = pfk.model
         self.dof = robot.dof
@@ -225,7 +233,7 @@ class ChainKinematics:
         self._tip[:3, :3], self._tip[:3, 3] = self.tip_rotation, self.tip_translation
 
 
-def pinocchio_frames(robot: Robot, poses: npt.ArrayLike, jacobian: bool = True) -> Frames:
+def pinocchio_frames(robot: ChainRobot, poses: npt.ArrayLike, jacobian: bool = True) -> Frames:
     """The reference of :meth:`ChainKinematics.frames`: Pinocchio per pose."""
     import pinocchio as pin
 
@@ -246,7 +254,7 @@ def pinocchio_frames(robot: Robot, poses: npt.ArrayLike, jacobian: bool = True) 
     return point, rotation, j_point, j_angular
 
 
-def pinocchio_kinematics(robot: Robot, poses: npt.ArrayLike, jacobian: bool = True) -> Frames:
+def pinocchio_kinematics(robot: ChainRobot, poses: npt.ArrayLike, jacobian: bool = True) -> Frames:
     """The reference of :class:`ChainKinematics`: Pinocchio per pose (LOCAL_WORLD_ALIGNED)."""
     import pinocchio as pin
 

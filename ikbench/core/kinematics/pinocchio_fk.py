@@ -9,19 +9,18 @@ model's world frame (positions and world-aligned Jacobians are in the base frame
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-if TYPE_CHECKING:
-    from ikbench.core.robot import Robot
+from ikbench.core.kinematics.robot_like import RobotLike
 
 #: Limit [rad] given to continuous joints in the model (Pinocchio needs finite numbers).
 CONTINUOUS_LIMIT_RAD = 1e6
 
 
-def chain_urdf_xml(robot: Robot) -> str:
+def chain_urdf_xml(robot: RobotLike) -> str:
     """The robot's URDF text, written from its model (``Robot.urdf_model``), with its
     collision elements and its continuous joints made revolute with wide limits."""
     return robot.urdf_model.to_xml(continuous_limit=CONTINUOUS_LIMIT_RAD)
@@ -39,12 +38,12 @@ def link_frame_id(model: Any, name: str) -> int:
     return int(model.getFrameId(name))
 
 
-def build_chain_model(robot: Robot) -> Any:
+def build_chain_model(robot: RobotLike) -> Any:
     """The Pinocchio model of ``robot``'s chain (see the module docstring)."""
     return build_chain_model_with_geometry(robot, with_collision=False)[0]
 
 
-def build_chain_model_with_geometry(robot: Robot, with_collision: bool = True
+def build_chain_model_with_geometry(robot: RobotLike, with_collision: bool = True
                                     ) -> tuple[Any, Any | None]:
     """(model, collision GeometryModel or None) of ``robot``'s chain: :func:`build_chain_model`
     and, with ``with_collision``, the URDF's ``<collision>`` elements reduced with it (meshes
@@ -95,7 +94,7 @@ class PinocchioFK:
         frame_id: the end frame's id.
     """
 
-    def __init__(self, robot: Robot) -> None:
+    def __init__(self, robot: RobotLike) -> None:
         self.robot = robot
         self.model = build_chain_model(robot)
         self.data = self.model.createData()

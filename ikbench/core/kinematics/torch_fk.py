@@ -9,7 +9,7 @@ if TYPE_CHECKING:
     import torch
     from torch import Tensor
 
-    from ikbench.core.robot import Robot
+from ikbench.core.kinematics.robot_like import RobotLike
 
 
 def _float64_transform(origin):
@@ -64,7 +64,7 @@ class TorchFK:
         device: torch device.
     """
 
-    def __init__(self, robot: Robot, dtype: torch.dtype | None = None,
+    def __init__(self, robot: RobotLike, dtype: torch.dtype | None = None,
                  device: str = "cpu") -> None:
         import torch
 

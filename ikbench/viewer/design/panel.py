@@ -9,27 +9,46 @@ from __future__ import annotations
 
 import html
 import math
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from ikbench.core.robot import wrap_continuous
 from ikbench.core.timing import TIMINGS
 from ikbench.methods.registry import available_methods
-from ikbench.viewer.design.designer import Update
+from ikbench.viewer.design.designer import Designer, Update
 from ikbench.viewer.design.kinds import SIZE_RANGE_MM, LetterDesign, LineDesign, PathDesign
 
 if TYPE_CHECKING:
     import viser
 
     from ikbench.core.robot import Robot
-    from ikbench.viewer.design.view import DesignerView
 
 GREEN, RED, AMBER = "#1e7b34", "#c62828", "#b26a00"
 #: A joint this close to a limit [pose units] is marked.
 NEAR_LIMIT = 1.0
 #: The start pose menu's entry for a start point dragged by hand.
 DRAGGED = "(dragged)"
+
+
+class DesignerControls(Protocol):
+    """What the panel reads of the view and asks of it
+    (:class:`ikbench.viewer.design.view.DesignerView`, which adds this panel)."""
+
+    @property
+    def designer(self) -> Designer: ...
+    @property
+    def animate(self) -> bool: ...
+    @property
+    def output(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    def request(self, key: str, change: Callable[[], Any], snap: bool = False) -> None: ...
+    def select_waypoint(self, waypoint: int) -> None: ...
+    def save(self, output: str, name: str) -> object: ...
+    def set_playing(self, playing: bool) -> None: ...
+    def pose_arm(self, t_s: float | None = None) -> None: ...
 
 
 def _row(ok: bool, text: str) -> str:
@@ -86,7 +105,7 @@ def status_text(update: Update, scene_s: float | None) -> str:
             f"T = {update.timed.duration_s:.3g} s ({update.timed.timing})")
 
 
-def add_panel(server: viser.ViserServer, view: DesignerView) -> dict[str, Any]:
+def add_panel(server: viser.ViserServer, view: DesignerControls) -> dict[str, Any]:
     """Add the controls and read-outs; returns their handles by name (``criteria``,
     ``limits``, ``status``, ``method``, ``timing``, ``duration``, ``play``, ``time``,
     ``output``, ``name``, ``save``, ``saved``, and per kind ``start``, ``size`` or
@@ -142,7 +161,7 @@ def _what(kind: str, robot: str) -> str:
             "path": f"**{robot}**: pick a waypoint and drag it; its neighbours follow"}[kind]
 
 
-def _wire(view: DesignerView, gui: dict[str, Any]) -> None:
+def _wire(view: DesignerControls, gui: dict[str, Any]) -> None:
     """Each control asks the view for its change (run in the view's worker)."""
     designer = view.designer
 
