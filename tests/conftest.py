@@ -39,7 +39,9 @@ def interrupt_while(argv: list[str], cwd: Path, when: str, timeout_s: float = 18
                     ) -> tuple[int, str]:
     """Run ``ikbench ARGV --log LOG`` in a new process, send it a real Ctrl-C (SIGINT) once a
     progress line of the log holds ``when`` (it is then solving), and return its exit code and
-    stderr. Fails when that line does not come within ``timeout_s``."""
+    stderr less its progress lines (``[label m:ss] ...``: stderr is a pipe, so the command
+    writes a start line and one every ~10 s). Fails when that line does not come within
+    ``timeout_s``."""
     import json
     import os
     import signal
@@ -64,7 +66,16 @@ def interrupt_while(argv: list[str], cwd: Path, when: str, timeout_s: float = 18
     finally:
         if proc.poll() is None:
             proc.kill()
-    return proc.returncode, err
+    return proc.returncode, without_progress(err)
+
+
+def without_progress(err: str) -> str:
+    """stderr less the progress lines a command writes when it is not a terminal
+    (``[label m:ss] ...``, :mod:`ikbench.runtime.progress`'s periodic mode)."""
+    import re
+
+    return "".join(line for line in err.splitlines(keepends=True)
+                   if not re.match(r"\[\S+ \d+:\d\d(:\d\d)?\] ", line))
 
 
 def blocked_output(tmp_path: Path, blocked_by: str, name: str) -> tuple[Path, str]:

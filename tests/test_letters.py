@@ -228,3 +228,26 @@ def test_ours_lm_draws_a_letter_with_the_letter_weights_under_user_changes(robot
     assert solution.info["weights"] == "c0=1,c1=50,c2=0,c3=0,c4=0,c5=0,c6=2"
     assert solution.loss == pytest.approx(objective(robot, task, solution.poses,
                                                     weights)[0], rel=1e-9)
+
+
+def test_letters_on_a_robot_without_default_targets_takes_a_targets_file(tmp_path, capsys):
+    """A bare URDF ships no targets: `letters` refused it with no way to give them; with
+    --targets the letter starts at the file's start pose."""
+    import json
+    from pathlib import Path
+
+    from ikbench.cli import main
+
+    data = Path(__file__).parent / "data"
+    arm = ["--robot", str(data / "unaligned_arm.urdf"), "--end-frame", "tool"]
+    common = ["--method", "ours-lm", "--steps", "6", "--size", "40", "--no-animation",
+              "--quiet", "--output", str(tmp_path / "out")]
+    assert main(["letters", "P", *arm, *common]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "--targets: robot unaligned_arm ships no default targets" in err
+    targets = data / "unaligned_arm.targets.json"
+    assert main(["letters", "P", *arm, "--targets", str(targets), *common]) == 0
+    record = json.loads((tmp_path / "out" / "ours-lm" / "run.json").read_text())
+    assert record["start_pose_deg"] == json.loads(targets.read_text())["start_pose"]
+    assert record["trajectories"] == ["P"]

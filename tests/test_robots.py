@@ -134,9 +134,11 @@ def test_fk_cli_on_a_bare_urdf(capsys):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--robot", str(URDF)], "a bare URDF needs an end frame, a link"),
+    (["--robot", str(URDF)], "a bare URDF needs an end frame, a link (--end-frame LINK; the "
+     "chain runs from the URDF's root to that link); candidates (leaf links first, then "
+     "tool-like names): tool, sensor"),
     (["--robot", str(URDF), "--end-frame", "nope"], "--end-frame: 'nope' is not a link of "
-     "unaligned_arm.urdf; links: world_link, base"),
+     "unaligned_arm.urdf; candidates (leaf links first, then tool-like names): tool, sensor"),
     (["--robot", "no_such_robot"], "--robot: 'no_such_robot' is not a shipped robot "
      "(fetch, fetch_arm, nico_right_arm, panda)"),
     (["--robot", "missing.urdf", "--end-frame", "tool"], "URDF 'missing.urdf' not found"),
@@ -256,3 +258,25 @@ def test_a_trajectory_file_may_pass_a_limit_by_a_float32_ulp_not_more(tmp_path):
     write_trajectory_csv(tmp_path / "far.csv", robot, poses)
     with pytest.raises(InputError, match="panda_joint7 = .* is outside its range"):
         read_trajectory_poses(tmp_path / "far.csv", robot)
+
+
+def test_a_package_robot_without_end_frame_lists_the_candidates(capsys):
+    """z1 (example-robot-data, not in the table of common arms): the error and
+    `robots --all` name the links an end frame may be, leaf links first."""
+    from ikbench.core.robot_packages import robots_folder
+
+    if robots_folder("example-robot-data") is None:
+        pytest.skip("needs example-robot-data: pip install 'ikbench[robots]'")
+    assert main(["fk", "--robot", "example-robot-data:z1", "--pose=0,0,0,0,0,0"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.rstrip().endswith(
+        "candidates (leaf links first, then tool-like names): gripperMover, gripperStator")
+    assert main(["robots", "--all", "--json"]) == 0
+    packages = {r["name"]: r for r in json.loads(capsys.readouterr().out)["packages"]}
+    assert packages["example-robot-data:z1"]["end_frame_candidates"] == ["gripperMover",
+                                                                         "gripperStator"]
+    assert "end_frame_candidates" not in packages["example-robot-data:ur5"]  # in the table
+    assert main(["robots", "--all"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert any(line.startswith("example-robot-data:z1: needs --end-frame LINK, candidates: "
+                               "gripperMover, gripperStator; ") for line in lines)

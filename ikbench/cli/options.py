@@ -202,7 +202,10 @@ def begin(args: argparse.Namespace, threads: int | None = None) -> None:
         check_writable(target)
     inputs_checked(args)
     quiet = bool(getattr(args, "quiet", False))
-    mode = "bar" if not quiet and sys.stderr.isatty() else "off"
+    # a terminal: a bar; a log file or a pipe: a start line and one every ~10 s, unless the
+    # JSON lines of --log - go there
+    mode = ("off" if quiet else "bar" if sys.stderr.isatty()
+            else "off" if target == "-" else "periodic")
     log = None
     if target == "-":
         log = sys.stderr

@@ -381,21 +381,18 @@ def chain_joints(urdf: UrdfModel, base_link: str, end_frame: str) -> list[UrdfJo
             path.
     """
     name = urdf.path.name
-    for joint in urdf.joints:  # the real fault before the chain it breaks
-        for role in ("parent", "child"):
-            if getattr(joint, role) not in urdf.links:
-                raise InputError(f"robot: {name}: joint {joint.name!r} names the {role} link "
-                                 f"{getattr(joint, role)!r}, which the URDF does not define; "
-                                 f"links: {', '.join(urdf.links)}")
-    for what, link in (("end_frame", end_frame), ("base link", base_link)):
-        if link not in urdf.links:
-            raise InputError(f"{what}: {link!r} is not a link of {name}; links: "
-                             f"{', '.join(urdf.links)}")
+    if base_link not in urdf.links:
+        raise InputError(f"base link: {base_link!r} is not a link of {name}; links: "
+                         f"{', '.join(urdf.links)}")
+    if end_frame not in urdf.links:
+        raise InputError(f"end_frame: {end_frame!r} is not a link of {name}; "
+                         f"{urdf.candidates_text(base_link)}")
     try:
         path = urdf.path_between(base_link, end_frame)
     except LookupError:
         raise InputError(f"end_frame: {end_frame!r} is not below the base link "
-                         f"{base_link!r} in {name}") from None
+                         f"{base_link!r} in {name}; "
+                         f"{urdf.candidates_text(base_link)}") from None
     joints = []
     for joint in path:
         if joint.type == "fixed":
@@ -593,8 +590,10 @@ def _load(name_or_path: str, end_frame: str | None) -> Robot:
         if not path.is_file():
             raise InputError(f"robot: URDF {name_or_path!r} not found")
         if not end_frame:
+            urdf = load_urdf_model(path)  # a broken file is refused before the end frame
             raise InputError(f"robot: {name_or_path}: a bare URDF needs an end frame, a link "
-                             "(the chain runs from the URDF's root to that link)")
+                             "(--end-frame LINK; the chain runs from the URDF's root to that "
+                             f"link); {urdf.candidates_text()}")
         return robot_from_urdf(path, end_frame)
     if path.suffix.lower() in (".toml", ".json") and path.is_file():
         return robot_from_config(path, end_frame)

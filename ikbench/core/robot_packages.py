@@ -21,6 +21,7 @@ from importlib import metadata
 from pathlib import Path
 
 from ikbench.core.errors import InputError
+from ikbench.core.urdf_model import load_urdf_model
 
 #: Distribution -> the folder (inside the distribution's files) that holds its robots.
 PACKAGES = {"example-robot-data": "cmeel.prefix/share/example-robot-data/robots"}
@@ -120,8 +121,10 @@ def resolve(name: str, end_frame: str | None) -> tuple[Path, str | None, str, st
                          f"({', '.join(ARMS.get(package, {}))}) nor one of its URDFs "
                          f"({', '.join(urdfs)})")
     if not end_frame:
+        urdf = load_urdf_model(urdfs[robot])  # a broken file is refused before the end frame
         raise InputError(f"robot: {name}: not in ikbench's table of common arms; give its "
-                         "end frame, a link (the chain runs from the URDF's root to it)")
+                         "end frame, a link (--end-frame LINK; the chain runs from the URDF's "
+                         f"root to it); {urdf.candidates_text()}")
     return urdfs[robot], None, end_frame, f"{urdfs[robot].name} from {package}"
 
 
@@ -140,7 +143,8 @@ def resolve_package_uri(uri: str) -> Path | None:
 
 def listing() -> list[dict]:
     """One entry per robot of every installed description package: name (``PACKAGE:NAME``),
-    URDF, and the table's base link and end frame (None for URDFs that need --end-frame)."""
+    URDF, and the table's base link and end frame (None for URDFs that need --end-frame; those
+    give ``end_frame_candidates``, or ``refused``: why the URDF cannot be used)."""
     out: list[dict] = []
     for package in PACKAGES:
         folder = robots_folder(package)
@@ -154,5 +158,15 @@ def listing() -> list[dict]:
         for stem, path in package_urdfs(package).items():
             if stem not in arms:
                 out.append({"name": f"{package}:{stem}", "urdf": str(path), "base_link": None,
-                            "end_frame": None, "description": "needs --end-frame LINK"})
+                            "end_frame": None, "description": "needs --end-frame LINK",
+                            **_candidates(path)})
     return out
+
+
+def _candidates(urdf: Path) -> dict:
+    """``{"end_frame_candidates": [...]}`` of a URDF (leaf links first, then tool-like
+    names), or ``{"refused": "one line"}`` when the URDF cannot be used."""
+    try:
+        return {"end_frame_candidates": list(load_urdf_model(urdf).end_frame_candidates())}
+    except InputError as exc:
+        return {"refused": " ".join(str(exc).split())}

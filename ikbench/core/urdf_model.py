@@ -17,6 +17,16 @@ every number unchanged, others as the same placements (to ~1e-16; an angle may c
 e.g. ``-3.1416`` for ``3.1416``). yourdfpy writes no ``<mimic>``, ``<calibration>``,
 ``<safety_controller>``, ``<transmission>`` or ``<gazebo>`` elements: none of them changes the
 kinematics the libraries build here.
+
+A file is checked once, when it is parsed, before any library sees it (:func:`load_urdf_model`):
+unique link and joint names, joints that name defined links, known joint types, a ``<limit>``
+(with ``effort`` and ``velocity``, finite numbers, ``lower <= upper``) on every revolute and
+prismatic joint, a finite non-zero ``<axis>`` on every movable joint, finite origins, and a
+tree (one root link, one parent joint per link, no loop). A file that breaks one of these is
+refused with one line naming the joint or link and what is allowed (urdfdom, Pinocchio's
+reader, would print its own error and raise, or build NaNs from a zero axis).
+:meth:`UrdfModel.end_frame_candidates` lists the links an end frame may be (the errors that
+ask for one name them).
 """
 
 from __future__ import annotations
@@ -26,6 +36,7 @@ import hashlib
 import io
 import logging
 import math
+import re
 from collections import OrderedDict
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -42,6 +53,14 @@ if TYPE_CHECKING:
 
 #: URDF joint types that move (fixed joints are constant transforms).
 MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
+#: Every joint type of the URDF specification.
+JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+#: Joint types that must give a ``<limit>`` (urdfdom refuses them without).
+LIMITED_TYPES = ("revolute", "prismatic")
+#: Joint types whose ``<axis>`` is used (a fixed or floating joint's is ignored).
+AXIS_TYPES = ("revolute", "continuous", "prismatic", "planar")
+#: Words of a link name that suggest a tool or end-effector frame (end frame candidates).
+TOOL_WORDS = ("tool", "tcp", "ee", "end", "gripper", "hand", "flange", "finger", "tip")
 #: How many parsed files :func:`load_urdf_model` keeps.
 CACHE_SIZE = 32
 
@@ -151,6 +170,30 @@ class UrdfModel:
             path.append(joint)
             link = joint.parent
         return tuple(reversed(path))
+
+    def end_frame_candidates(self, base_link: str | None = None) -> tuple[str, ...]:
+        """The links below ``base_link`` (default: the root) an end frame is likely to be:
+        leaf links (no joint's parent) first, then links with a tool-like name
+        (:data:`TOOL_WORDS`), each in file order."""
+        below, frontier = [], [base_link or self.root_link]
+        while frontier:
+            parent = frontier.pop(0)
+            children = [j.child for j in self.joints if j.parent == parent]
+            below += children
+            frontier += children
+        order = {name: k for k, name in enumerate(self.links)}
+        below.sort(key=lambda name: order.get(name, len(order)))
+        parents = {j.parent for j in self.joints}
+        leaves = [name for name in below if name not in parents]
+        tools = [name for name in below if name not in leaves and _tool_like(name)]
+        return tuple(leaves + tools)
+
+    def candidates_text(self, base_link: str | None = None) -> str:
+        """``"candidates (leaf links first, then tool-like names): a, b"``: the links of
+        :meth:`end_frame_candidates`, for an error that asks for an end frame."""
+        found = self.end_frame_candidates(base_link)
+        listed = ", ".join(found) if found else f"none below {base_link or self.root_link!r}"
+        return f"candidates (leaf links first, then tool-like names): {listed}"
 
     def to_yourdfpy(self, **options: Any) -> yourdfpy.URDF:
         """A ``yourdfpy.URDF`` of a copy of the model (the caller may change it), built with
@@ -329,6 +372,7 @@ def _parse(path: Path, digest: str, data: bytes) -> UrdfModel:
         joints = tuple(_joint(j) for j in tree.joints)
     except (TypeError, ValueError) as exc:
         raise InputError(f"{where}: {_one_line(str(exc))}") from None
+    _check(tree, joints, f"robot: {path.name}")
     links = tuple(link.name for link in tree.links)
     children = {j.child for j in joints}
     root = next((name for name in links if name not in children), "")
@@ -337,6 +381,90 @@ def _parse(path: Path, digest: str, data: bytes) -> UrdfModel:
                      collisions=tuple(_collision(link.name, c) for link in tree.links
                                       for c in link.collisions),
                      _tree=tree)
+
+
+def _tool_like(link: str) -> bool:
+    """True when a word of ``link`` (split at non-letters and lower-to-upper case changes)
+    starts or ends with a tool word (``ee`` only starts one: ``eef``, not ``knee``)."""
+    words = re.split(r"[^a-z]+", re.sub(r"([a-z])([A-Z])", r"\1_\2", link).lower())
+    return any(word.startswith(tool) or (len(tool) > 2 and word.endswith(tool))
+               for word in words if word for tool in TOOL_WORDS)
+
+
+def _check(tree: yourdfpy.Robot, joints: tuple[UrdfJoint, ...], where: str) -> None:
+    """InputError, one line starting with ``where``, naming the first joint or link of a
+    parsed URDF that breaks a rule of the module docstring."""
+    links = [str(link.name) for link in tree.links]
+    for kind, names in (("link", links), ("joint", [j.name for j in joints])):
+        twice = next((n for n in names if names.count(n) > 1), None)
+        if twice is not None:
+            raise InputError(f"{where}: {kind} {twice!r} is defined {names.count(twice)} "
+                             f"times; {kind} names must be unique")
+    for raw, joint in zip(tree.joints, joints):
+        _check_joint(raw, joint, links, f"{where}: joint {joint.name!r}")
+    _check_tree(links, joints, where)
+
+
+def _check_joint(raw: yourdfpy.Joint, joint: UrdfJoint, links: list[str], where: str) -> None:
+    for role in ("parent", "child"):
+        if getattr(joint, role) not in links:
+            raise InputError(f"{where} names the {role} link {getattr(joint, role)!r}, which "
+                             f"the URDF does not define; links: {', '.join(links)}")
+    if joint.type not in JOINT_TYPES:
+        raise InputError(f"{where} has type {joint.type!r}; allowed: {', '.join(JOINT_TYPES)}")
+    limit = raw.limit
+    if joint.type in LIMITED_TYPES and limit is None:
+        raise InputError(f"{where} is {joint.type} and has no <limit>; a revolute or "
+                         'prismatic joint needs <limit lower="..." upper="..." effort="..." '
+                         'velocity="..."/> (a revolute joint without limits is type="continuous")')
+    if limit is not None:
+        for attribute in ("effort", "velocity", "lower", "upper"):
+            value = getattr(limit, attribute)
+            if value is None and attribute in ("effort", "velocity"):
+                raise InputError(f"{where}: its <limit> has no {attribute}; a <limit> needs "
+                                 "effort and velocity (lower and upper default to 0)")
+            if value is not None and not math.isfinite(value):
+                raise InputError(f'{where}: <limit {attribute}="{value}"> must be a finite '
+                                 "number")
+        if joint.type in LIMITED_TYPES and joint.lower > joint.upper:
+            raise InputError(f'{where}: <limit lower="{joint.lower:g}" upper='
+                             f'"{joint.upper:g}">: lower must not be above upper')
+    if joint.type in AXIS_TYPES and (joint.axis.shape != (3,)
+                                     or not np.all(np.isfinite(joint.axis))
+                                     or not np.any(joint.axis)):
+        xyz = " ".join(f"{v:g}" for v in joint.axis)
+        raise InputError(f'{where}: <axis xyz="{xyz}"> is no direction; give three finite '
+                         'numbers, not all zero (e.g. xyz="0 0 1")')
+    if not np.all(np.isfinite(joint.origin)):
+        raise InputError(f"{where}: its <origin> holds a number that is not finite")
+
+
+def _check_tree(links: list[str], joints: tuple[UrdfJoint, ...], where: str) -> None:
+    """One root link, one parent joint per link, every link reached from the root."""
+    parent_joint: dict[str, str] = {}
+    for joint in joints:
+        if joint.child in parent_joint:
+            raise InputError(f"{where}: link {joint.child!r} is the child of joints "
+                             f"{parent_joint[joint.child]!r} and {joint.name!r}; a link has "
+                             "one parent joint (a URDF is a tree)")
+        parent_joint[joint.child] = joint.name
+    roots = [name for name in links if name not in parent_joint]
+    if len(roots) > 1:
+        raise InputError(f"{where}: links {', '.join(map(repr, roots))} are all roots (no "
+                         f"joint's child); a URDF has one root link: join {roots[1]!r} to "
+                         "the tree with a joint")
+    reached, frontier = set(roots), list(roots)
+    while frontier:
+        parent = frontier.pop()
+        for joint in joints:
+            if joint.parent == parent and joint.child not in reached:
+                reached.add(joint.child)
+                frontier.append(joint.child)
+    loop = [name for name in links if name not in reached]
+    if loop:
+        raise InputError(f"{where}: links {', '.join(map(repr, loop))} form a loop of joints "
+                         f"{', '.join(repr(parent_joint[n]) for n in loop)} that no root "
+                         "reaches; a URDF is a tree with one root link")
 
 
 def _one_line(text: str) -> str:

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, TextIO
 
 from ikbench.core.task import Task
 from ikbench.methods.base import Solution
-from ikbench.runtime.progress import Reporter
+from ikbench.runtime.progress import Reporter, loss_text
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -73,10 +73,10 @@ class Progress(Reporter):
         self.say(f"trajectory {task.name} ({index + 1}/{total}): solving, n = {task.steps}")
 
     def update(self, task: Task, iteration: int, loss: float) -> None:
-        self.say(f"trajectory {task.name}: iteration {iteration}, loss {loss:.4f}")
+        self.say(f"trajectory {task.name}: iteration {iteration}, loss {loss_text(loss)}")
 
     def done(self, task: Task, solution: Solution) -> None:
-        loss = "" if solution.loss is None else f", loss {solution.loss:.4f}"
+        loss = f", loss {loss_text(solution.loss)}"
         flag = "" if solution.converged else " (did not meet its stopping criterion)"
         if solution.info.get("infeasible"):  # a method's best infeasible result, said so
             flag = f" (INFEASIBLE: {solution.info['infeasible']})"

@@ -9,7 +9,11 @@ rounds) towards ``total``, ``say`` tells what is happening now, ``note`` a line 
   the CLI's choice when stderr is a terminal.
 - ``lines``: ``[label] text`` lines on stderr, at most one a second besides the notes; the
   default for library calls (``ikbench.run(..., progress=True)`` in a script).
-- ``off``: nothing (``--quiet``, and the CLI's choice when stderr is not a terminal).
+- ``periodic``: for a log file or a pipe, the CLI's choice when stderr is not a terminal: a
+  start line, then a line at most every :data:`PERIODIC_EVERY_S` seconds while the work goes
+  on, each with the time since the start and the count (``[run 0:20] 2/7 done; trajectory 3:
+  iteration 412, loss 15.2031``), and every note (``[run 0:31] trajectory 4: FAILED: ...``).
+- ``off``: nothing (``--quiet``).
 
 With a log stream (``--log FILE``) every event is also one JSON object per line: ``t_s``
 (seconds since the reporter started), ``label``, ``event`` (``say``, ``advance``, ``note``,
@@ -20,15 +24,20 @@ With a log stream (``--log FILE``) every event is also one JSON object per line:
 from __future__ import annotations
 
 import json
+import math
 import sys
 import threading
 import time
 from typing import Any, TextIO
 
-MODES = ("bar", "lines", "off")
+MODES = ("bar", "lines", "periodic", "off")
 #: Plain lines and logged updates at most this often [s] (notes and the last update always).
 LINES_EVERY_S = 1.0
 LOG_EVERY_S = 0.5
+#: ``periodic`` lines at most this often [s] after the start line (notes always).
+PERIODIC_EVERY_S = 10.0
+#: What a progress line or a table shows for a method that has no loss (NaN or None).
+NO_LOSS = "\u2013"
 
 _config: dict[str, Any] = {"mode": "lines", "log": None, "owned": False}
 #: Set when a Ctrl-C's KeyboardInterrupt was swallowed by a library (llvmlite's ctypes
@@ -101,6 +110,8 @@ class Reporter:
             self._open_bar().set_postfix_str(_one_line(text), refresh=False)
         elif self._mode() == "lines":
             self._line(text, throttle=True)
+        elif self._mode() == "periodic":
+            self._periodic(text)
 
     def note(self, text: str) -> None:
         """A line that stays (a failure, a method that is not installed)."""
@@ -114,6 +125,8 @@ class Reporter:
             tqdm.write(f"[{self.label}] {_one_line(text)}", file=self._stream())
         elif self._mode() == "lines":
             self._line(text)
+        elif self._mode() == "periodic":
+            self._line(text, clock=True)
 
     def advance(self, amount: int = 1, text: str | None = None) -> None:
         """``amount`` more units done; ``text``: what was just done."""
@@ -131,6 +144,8 @@ class Reporter:
         elif self._mode() == "lines" and text:
             counted = f"{self.completed}/{self.total}" if self.total else f"{self.completed}"
             self._line(f"{counted} {text}", throttle=not last)
+        elif self._mode() == "periodic":
+            self._periodic(text)
 
     def set_total(self, total: int) -> None:
         """The units of work in all, once known."""
@@ -169,12 +184,25 @@ class Reporter:
                              mininterval=0.2)
         return self._bar
 
-    def _line(self, text: str, throttle: bool = False) -> None:
+    def _line(self, text: str, throttle: bool = False, clock: bool = False) -> None:
         now = time.perf_counter()
         if throttle and now - self._last_line < LINES_EVERY_S:
             return
         self._last_line = now
-        print(f"[{self.label}] {text}", file=self._stream(), flush=True)
+        label = f"{self.label} {_clock(now - self._started)}" if clock else self.label
+        print(f"[{label}] {_one_line(text) if clock else text}", file=self._stream(),
+              flush=True)
+
+    def _periodic(self, text: str | None) -> None:
+        """A start line, then at most one line every :data:`PERIODIC_EVERY_S` seconds."""
+        now = time.perf_counter()
+        if now - self._last_line < PERIODIC_EVERY_S:
+            return
+        self._last_line = now
+        counted = f"{self.completed}/{self.total}" if self.total else f"{self.completed}"
+        status = f"; {_one_line(text)}" if text else ""
+        print(f"[{self.label} {_clock(now - self._started)}] {counted} done{status}",
+              file=self._stream(), flush=True)
 
     def _log(self, event: str, text: str | None, throttle: bool = False) -> None:
         log = _config["log"]
@@ -194,6 +222,19 @@ class Reporter:
 def message(label: str, text: str, enabled: bool = True) -> None:
     """One line that stays (a stage of a long command), routed as :meth:`Reporter.note`."""
     Reporter(label, enabled=enabled).note(text)
+
+
+def loss_text(loss: float | None, digits: int = 4) -> str:
+    """A loss for a person: ``12.3456``, or :data:`NO_LOSS` for a method without one."""
+    value = math.nan if loss is None else float(loss)
+    return f"{value:.{digits}f}" if math.isfinite(value) else NO_LOSS
+
+
+def _clock(seconds: float) -> str:
+    """``m:ss`` (``h:mm:ss`` from an hour on)."""
+    minutes, secs = divmod(int(seconds), 60)
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
 
 
 def _one_line(text: str) -> str:

@@ -21,7 +21,7 @@ DEFAULT_OUTPUT = "runs/letters"
 
 
 #: Values the command's run() reads that no option of its own sets.
-DEFAULTS = dict(targets=None, only=None)
+DEFAULTS = dict(only=None)
 
 
 def description() -> str:
@@ -33,7 +33,8 @@ def description() -> str:
         "pose (NICO: the frontal plane, read by a viewer facing the robot, the finger "
         "pointing along its normal (-1, 0, 0)); no start/end pose or point terms. "
         "Same as `ikbench run --shape letter:LETTERS` with the paper's letter setting as "
-        f"defaults: start pose from the robot config (NICO: {paper_start_pose()}), "
+        f"defaults: start pose from the robot config (NICO: {paper_start_pose()}), else "
+        "from the targets (--targets FILE for a robot that ships none), "
         "letters 300 mm high, "
         f"n = {DEFAULT_STEPS}, weights c0=1, c1=50, c6=1, others 0, to which --weights "
         f"changes apply, and for ours --stop none --max-iterations {PAPER_ITERATIONS} "
@@ -66,6 +67,12 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         "(lower case is drawn upper case)")
     add_method_and_output(parser, methods, DEFAULT_OUTPUT, folder="<method>")
     add_robot_arguments(parser)
+    parser.add_argument("--targets", default=None, metavar="FILE",
+                        help="targets JSON file (start and touch poses in the robot's units) "
+                        "whose start pose the letters start from when the robot config gives "
+                        "no letter pose and --start-pose is not given (default: the robot's "
+                        "own targets; a bare URDF or a description package's robot ships "
+                        "none)")
     parser.add_argument("--size", type=LETTER_SIZE_MM, default=None,
                         help="letter height [mm] (default 300)")
     parser.add_argument("--direction", default=None,
@@ -91,11 +98,13 @@ def letters_value(text: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from ikbench.core.letters import PAPER_ITERATIONS
+    from ikbench.core.targets import load_targets
     from ikbench.core.task import letter_start_pose
 
     if args.start_pose is None:
         robot = robot_from_args(args)
-        args.start_pose = ",".join(f"{v:.17g}" for v in letter_start_pose(robot))
+        targets = None if args.targets is None else load_targets(args.targets, robot)
+        args.start_pose = ",".join(f"{v:.17g}" for v in letter_start_pose(robot, targets))
     fixed: dict[str, object] = {}
     if args.method == DEFAULT_METHOD:  # the paper's letter script: a fixed number of iterations
         if getattr(args, "opt_stop", None) is None:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+#: End frame candidates shown per robot (``--json`` gives them all).
+SHOWN_CANDIDATES = 8
 HELP = "list the shipped robots with their joints, end frame, units and source"
 
 
@@ -18,7 +20,8 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--all", action="store_true",
                         help="also the robots of installed description packages "
                         "(example-robot-data: pip install 'ikbench[robots]'), by the name "
-                        "--robot takes (PACKAGE:NAME)")
+                        "--robot takes (PACKAGE:NAME); for those that need --end-frame, the "
+                        "candidates: leaf links first, then links with a tool-like name")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -43,7 +46,17 @@ def run(args: argparse.Namespace) -> int:
         print(f"no description package installed ({', '.join(PACKAGES)}: "
               "pip install 'ikbench[robots]')")
     for r in packaged:
-        chain = (f"{r['base_link']} -> {r['end_frame']}" if r["end_frame"]
-                 else "needs --end-frame LINK")
-        print(f"{r['name']}: {chain}; {r['description'] if r['end_frame'] else r['urdf']}")
+        if r["end_frame"]:
+            print(f"{r['name']}: {r['base_link']} -> {r['end_frame']}; {r['description']}")
+        elif "refused" in r:
+            print(f"{r['name']}: cannot be used: {r['refused']}")
+        else:
+            print(f"{r['name']}: needs --end-frame LINK, candidates: "
+                  f"{_first(r['end_frame_candidates'])}; {r['urdf']}")
     return 0
+
+
+def _first(names: list[str], count: int = SHOWN_CANDIDATES) -> str:
+    """The first ``count`` of ``names``, and how many more there are."""
+    more = f" (+{len(names) - count} more: --json lists them)" if len(names) > count else ""
+    return (", ".join(names[:count]) or "none") + more

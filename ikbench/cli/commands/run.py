@@ -270,9 +270,11 @@ def report_table(table: pd.DataFrame, folder: Path, batch: int | None = None) ->
     trajectories a batched method solved in one call (their times are shares of it)."""
     import sys
 
+    from ikbench.runtime.progress import loss_text
+
     columns = (PROBLEM_COLUMNS if "position_error_max_mm" in table else
                LINE_COLUMNS if "line_distance_mean_mm" in table else SHAPE_COLUMNS)
-    shown = table[columns]
+    shown = table[columns].assign(loss=[loss_text(v, 3) for v in table["loss"]])
     if batch and batch > 1:
         shown = shown.rename(columns={"duration_s": BATCH_SHARE_COLUMN})
     print(shown.to_string(index=False, float_format=lambda v: f"{v:.3f}",
