@@ -366,6 +366,7 @@ def test_the_same_deterministic_command_twice_gives_the_same_success_columns(tmp
     assert first["success"].sum() >= 30  # rows succeed: the comparison means something
     assert "Deterministic, at most 4 attempts (`--attempts 4`)" in board
     assert "K = 4" in board and "no wall-clock budget" in board
+    assert "## Ground truth\n\n**Silent failures**" in board  # the heading on its own line
 
 
 def test_repeat_runs_the_auto_table_only_and_the_cells_show_the_spread(tmp_path):

@@ -353,7 +353,7 @@ def ground_truth_section(result: StudyResult, summary: pd.DataFrame) -> list[str
                     "beyond the robot's reach bound (`--unreachable`); the tables above count "
                     "the reachable ones only. Here: judged successes on them (none can hold), "
                     "the library's own claims, and the time it took to give up.")
-    lines = [" ".join(text), ""]
+    lines = [text[0], "", " ".join(text[2:]), ""]  # the heading on its own line
     for rule, table in summary.groupby("attempts_rule", sort=False):
         head = ["method", "claimed, judge rejects", "denied, holds"]
         if t.branches is not None:
