@@ -13,7 +13,8 @@ header states it):
   k-th child generator (``SeedSequence(seed).spawn``; restarts are random, as TRAC-IK's,
   KDL's and roboticstoolbox's own).
   Every method gets the same rows.
-- **Budget**: ``budget_ms`` of wall-clock time per target (:data:`BUDGET_MS`: TRAC-IK's
+- **Budget**: ``budget_ms`` of wall-clock time per target under ``auto`` (a fixed-count rule
+  has none but TRAC-IK's timeout, :func:`rule_budget_s`) (:data:`BUDGET_MS`: TRAC-IK's
   default timeout, which its own benchmark and MoveIt's default ``kinematics_solver_timeout``
   use; PickNik's ik_benchmarking gives more. At 5 ms the fast solvers restart tens of times,
   and a 10,000-target run of the whole panel stays within minutes per robot).
