@@ -530,7 +530,9 @@ def summarise(table: pd.DataFrame, batches: dict | None = None) -> pd.DataFrame:
         row = per_run.iloc[0].copy()
         for name in per_run.select_dtypes("number").columns:  # equal in every run: as is
             if per_run[name].nunique(dropna=False) > 1:
-                row[name] = per_run[name].median()
+                value = per_run[name].median()  # counts stay integers where they can
+                integral = per_run[name].dtype.kind in "iu" and float(value).is_integer()
+                row[name] = int(value) if integral else value
         row["runs"] = len(per_run)
         for name in ("success_pct", "time_median_ms"):
             row[f"{name}_min"], row[f"{name}_max"] = per_run[name].min(), per_run[name].max()
