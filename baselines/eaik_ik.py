@@ -69,6 +69,7 @@ class EaikSolver(PoseSolver):
     analytic = True
     restarts_itself = True  # one call answers from row 0; no restarts to make
     iterations_are = "solutions (all branches, within the limits)"
+    attempt_bound = "closed form"
 
     def prepare(self) -> None:
         from eaik.IK_HP import HPRobot

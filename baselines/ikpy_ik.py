@@ -322,6 +322,7 @@ class IkpySolver(PoseSolver):
     rank = 100
     name, library, modules = "ikpy", "ikpy", ("ikpy",)
     iterations_are = "ikpy calls (ikpy reports no iteration count)"
+    attempt_bound = "scipy least_squares' own limits"
     #: A start on a bound is moved this far inside (scipy's trf wants strictly feasible).
     INSIDE = 1e-3
 

@@ -466,6 +466,7 @@ class MinkSolver(PoseSolver):
     rank = 70
     name, library, modules = "mink", "mink", ("mink", "mujoco", "qpsolvers", "daqp")
     iterations_are = "QP solves (mink.solve_ik calls)"
+    attempt_bound = "LIBRARY_TOLERANCE (1e-6, m and rad), 100 QP steps"
 
     def prepare(self) -> None:
         self.m = mink_model(self.chain)

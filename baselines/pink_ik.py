@@ -386,6 +386,7 @@ class PinkSolver(PoseSolver):
     rank = 60
     name, library, modules = "pink", "pin-pink", ("pink", "qpsolvers", "daqp")
     iterations_are = "QP solves (pink.solve_ik calls)"
+    attempt_bound = "LIBRARY_TOLERANCE (1e-6, m and rad), 100 QP steps"
 
     def prepare(self) -> None:
         self.model, self.R_EP = pink_model(self.robot, self.chain)

@@ -342,6 +342,7 @@ class PlacoSolver(PoseSolver):
     rank = 110
     name, library, modules = "placo", "placo", ("placo",)
     iterations_are = "QP solves (placo solver.solve calls)"
+    attempt_bound = "LIBRARY_TOLERANCE (1e-6, m and rad), 100 QP steps"
 
     def prepare(self) -> None:
         check_chain(self.chain)

@@ -364,6 +364,7 @@ class PyrokiSolver(PoseSolver):
     rank = 90
     name, library, modules = "pyroki", "almond-pyroki", ("pyroki", "jaxls", "jax")
     iterations_are = "jaxls Levenberg-Marquardt steps"
+    attempt_bound = "jaxls, 100 LM steps"
 
     def prepare(self) -> None:
         import jax.numpy as jnp

@@ -178,6 +178,7 @@ class RtbLMSolver(PoseSolver):
     rank = 20
     name, library, modules = "rtb-lm", "roboticstoolbox-python", ("roboticstoolbox",)
     iterations_are = "rtb iterations (ik_LM's count)"
+    attempt_bound = "ilimit 30 iterations, slimit 1 (tol 5e-13)"
     #: The ETS method called.
     call: ClassVar[str] = "ik_LM"
 
@@ -199,6 +200,7 @@ class RtbNRSolver(RtbLMSolver):
     rank = 40
     name = "rtb-nr"
     iterations_are = "rtb iterations (ik_NR's count)"
+    attempt_bound = "ilimit 30 iterations, slimit 1 (tol 5e-13)"
     call = "ik_NR"
 
 

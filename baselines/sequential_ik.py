@@ -719,6 +719,7 @@ class DLSSolver(PoseSolver):
     rank = 50
     name, library, modules = "sequential-ik", "pin", ("pinocchio",)
     iterations_are = "DLS steps"
+    attempt_bound = "1e-6, 100 DLS steps"
 
     def prepare(self) -> None:
         self.fk = self.robot.pinocchio_fk()

@@ -229,6 +229,8 @@ class TracIKSolver(PoseSolver):
     restarts_itself = True
     one_descent = False
     iterations_are = "pytracik.ik calls (TRAC-IK reports no iteration count)"
+    attempt_bound = ("its timeout, the budget, under every rule (its own random restarts "
+                     "within it)")
 
     def prepare(self) -> None:
         timeout = self.budget_s if np.isfinite(self.budget_s) else POSE_UNBOUNDED_TIMEOUT_S

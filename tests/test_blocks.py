@@ -78,6 +78,22 @@ def test_value_aggregates_ranges_fractions_and_json_keys(results):
     assert "-->1,234<!--" in out or "-->1,235<!--" in out
 
 
+def test_an_ik_table_of_a_repeated_rule_gives_the_spread(results):
+    folder = results / "results" / "ik" / "panda"
+    folder.mkdir(parents=True)
+    (folder / "summary.csv").write_text(
+        "attempts_rule,method,targets,success_pct,time_median_ms,batched_per_s,batched_threads,"
+        "runs,success_pct_min,success_pct_max,time_median_ms_min,time_median_ms_max\n"
+        "auto,trac-ik,10,99.85,0.212,,,3,99.8,99.9,0.205,0.22\n"
+        "8,trac-ik,10,99,0.3,,,1,99,99,0.3,0.3\n")
+    (folder / "run.json").write_text((results / "results/study/run.json").read_text())
+    text = "<!-- generated: ik-table results/ik robots=panda --><!-- /generated -->"
+    assert "| trac-ik | 99.85 % (99.80-99.90), 0.212 (0.205-0.22) ms |" in render_text(text,
+                                                                                      results)
+    text = "<!-- generated: ik-table results/ik robots=panda rule=8 --><!-- /generated -->"
+    assert "| trac-ik | 99.00 %, 0.3 ms |" in render_text(text, results)
+
+
 def test_an_ik_table_puts_the_robots_side_by_side(results):
     head = ("attempts_rule,method,targets,success_pct,time_median_ms,batched_per_s,"
             "batched_threads\n")

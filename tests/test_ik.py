@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -122,10 +123,12 @@ def test_every_method_gets_the_same_initial_configurations_and_the_budget(fakes,
     assert len(_Recorder.seen) == 3 * attempts
     np.testing.assert_allclose(np.array(_Recorder.seen), robot.to_urdf(np.concatenate(rows)),
                                rtol=0, atol=1e-12)
-    # ... and the self-restarting method got the same rows (pose units) and the budget
+    # ... and the self-restarting method got the same rows (pose units) and, under a
+    # fixed-count rule, no wall-clock budget whatever --budget-ms says
     assert len(_SelfRestarting.seen) == 3
     for k, (initials, budget_s) in enumerate(_SelfRestarting.seen):
-        assert np.array_equal(initials, rows[k]) and budget_s == budget_ms / 1000.0
+        assert np.array_equal(initials, rows[k]) and budget_s == float("inf")
+    assert (result.table["budget_ms"] == float("inf")).all()
     table = result.table
     assert (table["attempts"] == attempts).all() and (table["attempts_rule"] == str(attempts)).all()
     recorder = table[table["method"] == "recorder"]
@@ -337,6 +340,53 @@ def test_the_cli_writes_the_folder_and_every_row_recomputes_from_its_solution(tm
     assert "Published figures" in board and "PickNik" in board  # panda has published ones
 
 
+def _cli_results(out: Path, *args: str) -> tuple[pd.DataFrame, str]:
+    """``ikbench ik --robot panda ... --output out --quiet``: results.csv and leaderboard.md."""
+    assert main(["ik", "--robot", "panda", "--seed", "1", *args, "--output", str(out),
+                 "--quiet"]) == 0
+    folder = out / "ik" / "panda"
+    return (pd.read_csv(folder / "results.csv", dtype={"attempts_rule": str}),
+            (folder / "leaderboard.md").read_text())
+
+
+def test_the_same_deterministic_command_twice_gives_the_same_success_columns(tmp_path):
+    names = DETERMINISTIC + [n for n in ("rtb-lm", "trac-ik") if _solver(n) is not None]
+    args = ("--count", "30", "--attempts", "4", "--budget-ms", "5", "--methods", ",".join(names))
+    first, board = _cli_results(tmp_path / "a", *args)
+    second, _ = _cli_results(tmp_path / "b", *args)
+    assert set(first["method"]) == set(names) and (first["run"] == 1).all()
+    for method in names:
+        if not _solver(method).deterministic:  # TRAC-IK keeps its timeout: not compared
+            assert (first.loc[first["method"] == method, "budget_ms"] == 5.0).all()
+            continue
+        one, two = (t.loc[t["method"] == method, "success"].to_numpy(dtype=bool)
+                    for t in (first, second))
+        assert np.array_equal(one, two), method
+        assert (first.loc[first["method"] == method, "budget_ms"] == float("inf")).all()
+    assert first["success"].sum() >= 30  # rows succeed: the comparison means something
+    assert "Deterministic, at most 4 attempts (`--attempts 4`)" in board
+    assert "K = 4" in board and "no wall-clock budget" in board
+    assert "## Ground truth\n\n**Silent failures**" in board  # the heading on its own line
+
+
+def test_repeat_runs_the_auto_table_only_and_the_cells_show_the_spread(tmp_path):
+    table, board = _cli_results(tmp_path, "--count", "4", "--attempts", "2,auto", "--repeat",
+                                "2", "--methods", "ours-lm,sequential-ik")
+    runs = table.groupby("attempts_rule")["run"].unique()
+    assert sorted(runs["auto"]) == [1, 2] and list(runs["2"]) == [1]
+    assert len(table) == 2 * 4 * (1 + 2) and table.columns[-1] == "run"
+    auto = board.split("(`--attempts auto`)")[1]
+    assert "median of 2 runs" in auto
+    for method in ("ours-lm", "sequential-ik"):
+        row = next(line for line in auto.splitlines() if line.startswith(f"| {method}"))
+        assert re.search(r"\d+\.\d\d % \(\d+\.\d\d-\d+\.\d\d\)", row), row
+    summary = pd.read_csv(tmp_path / "ik" / "panda" / "summary.csv",
+                          dtype={"attempts_rule": str})
+    assert list(summary.columns[-5:]) == ["runs", "success_pct_min", "success_pct_max",
+                                          "time_median_ms_min", "time_median_ms_max"]
+    assert set(summary.loc[summary["attempts_rule"] == "auto", "runs"]) == {2}
+
+
 @pytest.mark.parametrize("args, message", [
     (["--count", "0"], "--count: 0 must be an integer >= 1"),
     (["--count", "1000000000000"], "--count: 1000000000000 targets need about"),
@@ -351,6 +401,7 @@ def test_the_cli_writes_the_folder_and_every_row_recomputes_from_its_solution(tm
     (["--attempts", "0"], "--attempts: 0 must be auto or an integer in [1, 1000]"),
     (["--attempts", "many"], "--attempts: 'many' is neither auto nor an integer"),
     (["--threads", "0"], "--threads: 0 must be an integer >= 1"),
+    (["--repeat", "0"], "--repeat: 0 must be an integer in [1, 100]"),
 ])
 def test_bad_input_is_one_line_exit_2(capsys, tmp_path, args, message):
     try:  # the parser refuses some values itself (cli/values.py), the study the others

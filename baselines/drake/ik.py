@@ -303,6 +303,7 @@ class DrakeSolver(PoseSolver):
     rank = 80
     name, library, modules = "drake-ik", "drake", ("pydrake",)
     iterations_are = "solves (Drake reports no iteration count)"
+    attempt_bound = "SNOPT's own limits (feasibility 1e-9)"
 
     def prepare(self) -> None:
         self.drake = drake_chain(self.chain)

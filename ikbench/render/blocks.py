@@ -34,7 +34,8 @@ Renderers (:data:`RENDERERS`):
   JSON record beside the source (run.json, benchmark.json, throughput.json, ...).
 - ``ik-table FOLDER [robots=a,b] [rule=auto]``: the single-pose IK leaderboards of
   ``FOLDER/<robot>/summary.csv`` (``ikbench ik``) side by side: a row per method, per robot its
-  success and per-call median time under the attempts rule, then the batched rates and each
+  success and per-call median time under the attempts rule (a rule run several times,
+  ``--repeat``: the median and its min-max over the runs), then the batched rates and each
   robot's provenance.
 - ``compare-table SOURCE [reference=ours-lm]``: README's leaderboard of a compare folder's
   ``leaderboard.csv`` (:func:`ikbench.render.leaderboard.readme_table`), then its provenance.
@@ -370,8 +371,14 @@ def render_ik_table(source: Path, options: dict[str, str], root: Path) -> str:
                 continue
             row = frame.loc[method]
             time_ms = _number(row["time_median_ms"], 3)
-            cells.append(f"{row['success_pct']:.2f} %, " + (f"{time_ms} ms" if time_ms else
-                                                            "no call timed (failed rows)"))
+            success = f"{row['success_pct']:.2f} %"
+            if row.get("runs", 1) > 1:  # repeated (--repeat): median (min-max) over the runs
+                success += f" ({row['success_pct_min']:.2f}-{row['success_pct_max']:.2f})"
+                if time_ms:
+                    time_ms += (f" ({_number(row['time_median_ms_min'], 3)}-"
+                                f"{_number(row['time_median_ms_max'], 3)})")
+            cells.append(f"{success}, " + (f"{time_ms} ms" if time_ms else
+                                           "no call timed (failed rows)"))
         lines.append("| " + " | ".join(cells) + " |")
     batched = []
     for name in names:

@@ -155,16 +155,53 @@ def _fmt(value, digits: int = 3) -> str:
     return f"{value:.{digits}g}"
 
 
-def rule_title(rule: str, auto_rows: int) -> str:
-    """The heading of one attempts rule's table."""
+def rule_title(rule: str, auto_rows: int, runs: int = 1) -> str:
+    """The heading of one attempts rule's table (``runs``: how often it was run)."""
     if rule == AUTO:
+        repeated = (f"; median of {runs} runs on the same targets and rows, (min-max) over "
+                    "them" if runs > 1 else "")
         return (f"Budgeted, with restarts (`--attempts auto`): from the next initial "
                 f"configuration until the answer holds or the budget is spent (at most "
-                f"{auto_rows})")
+                f"{auto_rows}){repeated}")
     if rule == "1":
         return ("Single descents (`--attempts 1`): one descent from the first initial "
-                "configuration, the same for every method")
-    return f"At most {rule} attempts (`--attempts {rule}`), within the budget"
+                "configuration, the same for every method, no wall-clock cut")
+    return (f"Deterministic, at most {rule} attempts (`--attempts {rule}`): from the same "
+            f"{rule} seeded initial configurations, no wall-clock cut")
+
+
+def deterministic_note(result: StudyResult, rule: str) -> list[str]:
+    """Below a fixed-count rule's heading: K, what bounds each method's attempt, and the
+    methods that are not deterministic (none for a file written before the rule had it)."""
+    if rule == AUTO:
+        return []
+    methods = result.methods
+    bounds = "; ".join(f"{m}: {f['attempt_bound']}" for m, f in methods.items()
+                       if f.get("attempt_bound"))
+    chance = [m for m, f in methods.items() if not f["deterministic"]]
+    lines = [f"K = {rule}: each method gets at most {rule} attempts, from rows 0..{int(rule) - 1}"
+             " of each target's seeded sequence, and no wall-clock budget: the success column "
+             "is a function of the seed and the code alone (the times are measured as in every "
+             "table)."]
+    if bounds:
+        lines.append(f"One attempt is bounded by the method's own limits: {bounds}.")
+    if chance:
+        lines.append(f"{', '.join(chance)}: the one row that is not deterministic: it needs a "
+                     "finite timeout and draws its own restarts, so it keeps the budget "
+                     f"({result.settings.budget_ms:g} ms) as its timeout and its success may "
+                     "differ between runs.")
+    return [" ".join(lines), ""]
+
+
+def _spread(row: Any, name: str, digits: int, unit: str) -> str:
+    """``value unit (min-max)`` of a figure run several times; ``value unit`` else."""
+    value = getattr(row, name)
+    low, high = getattr(row, f"{name}_min", np.nan), getattr(row, f"{name}_max", np.nan)
+    text = f"{value:.{digits}f}{unit}" if digits else f"{_fmt(value)}{unit}"
+    if getattr(row, "runs", 1) > 1 and np.isfinite(low) and np.isfinite(high):
+        text += (f" ({low:.{digits}f}-{high:.{digits}f})" if digits
+                 else f" ({_fmt(low)}-{_fmt(high)})")
+    return text
 
 
 def protocol(result: StudyResult) -> str:
@@ -173,6 +210,14 @@ def protocol(result: StudyResult) -> str:
     s = result.settings
     budget = ("no wall-clock budget (`--budget-ms inf`)" if not np.isfinite(s.budget_ms)
               else f"a budget of **{s.budget_ms:g} ms** of wall-clock time per target")
+    if any(str(r) != AUTO for r in s.attempts):
+        budget += (" under `--attempts auto` (a fixed-count table has no wall-clock cut: each "
+                   "attempt is bounded by the method's own limits, TRAC-IK excepted)")
+    repeat = getattr(s, "repeat", 1)
+    if repeat > 1 and AUTO in [str(r) for r in s.attempts]:
+        budget += (f"; the `auto` table is run **{repeat} times** on the same targets and rows "
+                   "(the load decides part of its successes): its cells give the median over "
+                   "the runs and their (min-max)")
     first = ("drawn uniformly within the limits, independent of the target" if s.init ==
              "random" else f"the target's configuration moved by up to {s.perturb_deg:g} deg "
              "per joint")
@@ -223,7 +268,9 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
     ]
     versions = record["library_versions"]
     for rule, table in summary.groupby("attempts_rule", sort=False):
-        lines += [f"## {rule_title(str(rule), result.auto_rows)}", "",
+        runs = int(table["runs"].max()) if "runs" in table else 1
+        lines += [f"## {rule_title(str(rule), result.auto_rows, runs)}", "",
+                  *deterministic_note(result, str(rule)),
                   "| method | library | targets | success | attempts median | attempts max | "
                   "time per call median [ms] | mean [ms] | p95 [ms] | max [ms] | batched "
                   "[targets/s] | position error median [mm] | rotation error median [deg] | "
@@ -243,9 +290,10 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
                 batch = (f"{row.batched_per_s:,.0f} ({row.batched_threads:.0f} threads, "
                          f"{row.batched_success_pct:.2f} %)")
             lines.append(
-                f"| {row.method}{note} | {library} | {row.targets} | {row.success_pct:.2f} % "
+                f"| {row.method}{note} | {library} | {row.targets} "
+                f"| {_spread(row, 'success_pct', 2, ' %')} "
                 f"| {_fmt(row.attempts_median)} | {_fmt(row.attempts_max)} "
-                f"| {_fmt(row.time_median_ms)} | {_fmt(row.time_mean_ms)} "
+                f"| {_spread(row, 'time_median_ms', 0, '')} | {_fmt(row.time_mean_ms)} "
                 f"| {_fmt(row.time_p95_ms)} | {_fmt(row.time_max_ms)} | {batch} "
                 f"| {_fmt(row.position_error_median_mm)} "
                 f"| {_fmt(row.rotation_error_median_deg)} "
@@ -305,7 +353,7 @@ def ground_truth_section(result: StudyResult, summary: pd.DataFrame) -> list[str
                     "beyond the robot's reach bound (`--unreachable`); the tables above count "
                     "the reachable ones only. Here: judged successes on them (none can hold), "
                     "the library's own claims, and the time it took to give up.")
-    lines = [" ".join(text), ""]
+    lines = [text[0], "", " ".join(text[2:]), ""]  # the heading on its own line
     for rule, table in summary.groupby("attempts_rule", sort=False):
         head = ["method", "claimed, judge rejects", "denied, holds"]
         if t.branches is not None:
@@ -458,15 +506,47 @@ def _stress_figure(result: StudyResult, path: Path) -> None:
     atomic_savefig(path, fig)
 
 
+#: results.csv's run column (absent from files written before it: one run).
+RUN = "run"
+#: summary.csv's last columns: the runs of a rule and the spread of its figures over them.
+SPREAD = ("runs", "success_pct_min", "success_pct_max", "time_median_ms_min",
+          "time_median_ms_max")
+
+
 def summarise(table: pd.DataFrame, batches: dict | None = None) -> pd.DataFrame:
     """One row per attempts rule and method: targets, successes, success %, attempts, time
     per call median / mean / p95 / max [ms] and mean of the successes, the batched
     throughput [targets/s] with its threads and success (``batches``: rule -> method ->
     :func:`ikbench.studies.ik._batch`'s figures; NaN for methods that do not batch), errors
-    of the successes, joint distance, iterations, failed calls."""
-    batches = batches or {}
+    of the successes, joint distance, iterations, failed calls. A rule run several times
+    (column ``run``): each figure is the median over the runs, and the last columns
+    (:data:`SPREAD`) give the runs and the min-max of success % and of median time per call;
+    a table without the column is one run."""
+    if RUN not in table:
+        return _summarise_run(table, batches or {})
     rows = []
-    for (rule, method), g in table.groupby(["attempts_rule", "method"], sort=False):
+    for _, g in table.groupby(["attempts_rule", "method"], sort=False):
+        per_run = _summarise_run(g, batches or {}, by_run=True)
+        row = per_run.iloc[0].copy()
+        for name in per_run.select_dtypes("number").columns:  # equal in every run: as is
+            if per_run[name].nunique(dropna=False) > 1:
+                value = per_run[name].median()  # counts stay integers where they can
+                integral = per_run[name].dtype.kind in "iu" and float(value).is_integer()
+                row[name] = int(value) if integral else value
+        row["runs"] = len(per_run)
+        for name in ("success_pct", "time_median_ms"):
+            row[f"{name}_min"], row[f"{name}_max"] = per_run[name].min(), per_run[name].max()
+        rows.append(row)
+    return pd.DataFrame(rows).reset_index(drop=True)
+
+
+def _summarise_run(table: pd.DataFrame, batches: dict, by_run: bool = False) -> pd.DataFrame:
+    """:func:`summarise` of one run (``by_run``: one row per run of the one rule and method
+    in ``table``)."""
+    rows = []
+    keys = ["attempts_rule", "method", RUN] if by_run else ["attempts_rule", "method"]
+    for key, g in table.groupby(keys, sort=False):
+        rule, method = key[:2]
         unreachable = g[~g["reachable"].astype(bool)] if "reachable" in g else g.iloc[:0]
         if "reachable" in g:
             g = g[g["reachable"].astype(bool)]

@@ -114,6 +114,8 @@ class PoseSolver(abc.ABC):
     batched: ClassVar[bool] = False
     pose_units: ClassVar[bool] = False
     iterations_are: ClassVar[str] = "iterations"
+    #: What bounds one attempt (a fixed-count rule has no wall-clock cut: this does).
+    attempt_bound: ClassVar[str] = f"its own stopping rule, at most {MAX_STEPS} steps"
     rank: ClassVar[int] = 1000
     analytic: ClassVar[bool] = False
 

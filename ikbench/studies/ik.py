@@ -13,15 +13,21 @@ header states it):
   k-th child generator (``SeedSequence(seed).spawn``; restarts are random, as TRAC-IK's,
   KDL's and roboticstoolbox's own).
   Every method gets the same rows.
-- **Budget**: ``budget_ms`` of wall-clock time per target (:data:`BUDGET_MS`: TRAC-IK's
+- **Budget**: ``budget_ms`` of wall-clock time per target under ``auto`` (a fixed-count rule
+  has none but TRAC-IK's timeout, :func:`rule_budget_s`) (:data:`BUDGET_MS`: TRAC-IK's
   default timeout, which its own benchmark and MoveIt's default ``kinematics_solver_timeout``
   use; PickNik's ik_benchmarking gives more. At 5 ms the fast solvers restart tens of times,
   and a 10,000-target run of the whole panel stays within minutes per robot).
 - **Attempts**, one table per rule (``attempts``): ``"auto"`` restarts from the next row until
   the answer holds, the budget is spent or the :data:`AUTO_ROWS` rows are used; an integer N
-  allows at most N rows (within the budget); 1 is one descent from row 0, for every method
-  (TRAC-IK excepted: it restarts from its own random draws within its timeout whatever it is
-  given, and says so).
+  allows at most N rows with **no wall-clock cut** (:func:`rule_budget_s`), so its success is a
+  function of seed and code alone: each attempt is bounded by the method's own limits
+  (``attempt_bound``), never by the clock; 1 is one descent from row 0, for every method.
+  TRAC-IK (``deterministic`` False) is the exception under every rule: it restarts from its
+  own random draws within a finite timeout, the budget, whatever it is given, and says so.
+- **Repeats** (``repeat``): the ``auto`` table, whose success the wall clock decides, is run
+  ``repeat`` times on the same targets and rows (column ``run``, 1..R; a fixed-count rule runs
+  once, run 1); its leaderboard cells give the median over the runs and their min-max.
 - **Restarts**: a method that restarts by itself (``restarts_itself``: TRAC-IK within its
   timeout, ours-lm) gets the rows the rule allows and the budget in one call and honours them.
   Any other is restarted here (:func:`restart`): an attempt starts only while the time spent on
@@ -101,6 +107,11 @@ LIMIT_SLACK = 1e-6
 COLUMNS = ["robot", "method", "attempts_rule", "target", "kind", "init", "budget_ms", "success",
            "library_ok", "failure", "time_s", "attempts", "position_error_mm",
            "rotation_error_deg", "within_limits", "joint_distance_deg", "iterations"]
+#: The last column of results.csv: the run (1..``repeat``) of the ``auto`` rule, 1 elsewhere
+#: (files written before it have none: one run).
+RUN = "run"
+#: ``--repeat``: at most this many runs of the ``auto`` table.
+MAX_REPEAT = 100
 
 Rule = int | str
 
@@ -119,6 +130,8 @@ class IKSettings:
         threads: threads of the batched throughput runs (None: every core).
         unreachable: the fraction of the targets replaced by provably unreachable ones
             (:func:`ikbench.studies.ik_truth.unreachable_targets`), 0 to 0.9.
+        repeat: runs of the ``auto`` table (the wall-clock budget decides its success);
+            fixed-count rules run once.
     """
 
     count: int = 1000
@@ -133,6 +146,7 @@ class IKSettings:
     attempts: tuple[Rule, ...] = (AUTO,)
     threads: int | None = None
     unreachable: float = 0.0
+    repeat: int = 1
 
     def __post_init__(self):
         check_settings(self)
@@ -209,6 +223,18 @@ def rule_rows(rule: Rule) -> int:
     return AUTO_ROWS if rule == AUTO else int(rule)
 
 
+def rule_budget_s(rule: Rule, settings: IKSettings, deterministic: bool = True) -> float:
+    """The budget per target [s] a method gets under ``rule``: the settings' for ``auto``;
+    none (``inf``) for a fixed count N, whose attempts are bounded by the methods' own limits,
+    except for a method that is not deterministic (TRAC-IK: it needs a finite timeout)."""
+    return settings.budget_s if rule == AUTO or not deterministic else math.inf
+
+
+def rule_runs(rule: Rule, settings: IKSettings) -> int:
+    """Runs of ``rule``'s table: ``repeat`` for ``auto``, one for a fixed count."""
+    return settings.repeat if rule == AUTO else 1
+
+
 def parse_attempts(text: str | Sequence[Rule]) -> tuple[Rule, ...]:
     """``"auto,1"`` -> ("auto", 1); InputError for anything else."""
     items = text if isinstance(text, (list, tuple)) else str(text).split(",")
@@ -260,6 +286,9 @@ def check_settings(s: IKSettings) -> None:
     for name, n in s.max_count.items():
         if not isinstance(n, (int, np.integer)) or n < 1:
             raise InputError(f"--max-count-per-method: {name}={n!r} must be an integer >= 1")
+    if isinstance(s.repeat, bool) or not isinstance(s.repeat, (int, np.integer)) \
+            or not 1 <= s.repeat <= MAX_REPEAT:
+        raise InputError(f"--repeat: {s.repeat!r} must be an integer in [1, {MAX_REPEAT}]")
     if not (isinstance(s.unreachable, (int, float)) and 0 <= s.unreachable <= MAX_UNREACHABLE):
         raise InputError(f"--unreachable: {s.unreachable!r} must be a fraction in "
                          f"[0, {MAX_UNREACHABLE:g}]")
@@ -458,7 +487,8 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
         raise InputError(f"--max-count-per-method: {unknown[0]} is not among the methods run "
                          f"({', '.join(names)})")
     rows = max(rule_rows(r) for r in settings.attempts)
-    check_memory(settings.count, len(names) * len(settings.attempts), rows, robot.dof)
+    tables = sum(rule_runs(r, settings) for r in settings.attempts)
+    check_memory(settings.count, len(names) * tables, rows, robot.dof)
     robot.check_loads()
     targets = sample_targets(robot, settings)
     annotate(robot, targets, settings)
@@ -469,28 +499,34 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
     solvers: dict[str, Any] = {}
     for rule in settings.attempts:
         batches[str(rule)] = {}
-        for name in names:
-            cls = solver_status()[name].cls
-            count = min(settings.count, settings.max_count.get(name, settings.count))
-            info[name] = {"library": cls.library, "deterministic": cls.deterministic,
-                          "restarts_itself": cls.restarts_itself,
-                          "one_descent": cls.one_descent, "batched": cls.batched,
-                          "iterations_are": cls.iterations_are, "count": count}
-            if name not in solvers:
-                solvers[name] = _prepared(cls, robot, settings, say, count)
-            solver = solvers[name]
-            info[name]["runtime"] = None if isinstance(solver, str) else solver.runtime()
-            if isinstance(solver, str):  # the library cannot take this robot
-                outcome = _Outcome.failed(count, robot.dof, solver)
-            else:
-                say(f"attempts {rule}: {name}: solving {count} targets, one per call")
-                outcome = _solve_calls(solver, targets, count, settings, rule, check, say)
-                if solver.batched:
-                    batches[str(rule)][name] = _batch(solver, targets, count, settings, rule)
-            frames.append(_rows(robot, name, rule, targets, count, settings, outcome))
-            done = frames[-1]
-            say(f"attempts {rule}: {name}: {int(done['success'].sum())}/{count} succeeded, "
-                f"{np.nansum(done['time_s']):.1f} s")
+        runs = rule_runs(rule, settings)
+        for run in range(1, runs + 1):
+            for name in names:
+                cls = solver_status()[name].cls
+                count = min(settings.count, settings.max_count.get(name, settings.count))
+                info[name] = {"library": cls.library, "deterministic": cls.deterministic,
+                              "restarts_itself": cls.restarts_itself,
+                              "one_descent": cls.one_descent, "batched": cls.batched,
+                              "iterations_are": cls.iterations_are,
+                              "attempt_bound": cls.attempt_bound, "count": count}
+                if name not in solvers:
+                    solvers[name] = _prepared(cls, robot, settings, say, count)
+                solver = solvers[name]
+                info[name]["runtime"] = None if isinstance(solver, str) else solver.runtime()
+                label = f"attempts {rule}" + (f", run {run}/{runs}" if runs > 1 else "")
+                if isinstance(solver, str):  # the library cannot take this robot
+                    outcome = _Outcome.failed(count, robot.dof, solver)
+                else:
+                    say(f"{label}: {name}: solving {count} targets, one per call")
+                    outcome = _solve_calls(solver, targets, count, settings, rule, check, say)
+                    if solver.batched and run == 1:  # throughput: the first run's
+                        batches[str(rule)][name] = _batch(solver, targets, count, settings,
+                                                          rule)
+                frames.append(_rows(robot, name, rule, targets, count, settings, outcome,
+                                    run))
+                done = frames[-1]
+                say(f"{label}: {name}: {int(done['success'].sum())}/{count} succeeded, "
+                    f"{np.nansum(done['time_s']):.1f} s")
     table = pd.concat(frames, ignore_index=True)
     table = table[COLUMNS + [c for c in table.columns if c not in COLUMNS]]
     return IKResult(robot, settings, targets, table, info, time.perf_counter() - started, load,
@@ -515,7 +551,8 @@ def _solve_calls(solver: PoseSolver, targets: Targets, count: int, settings: IKS
                  rule: Rule, check: AttemptCheck, say) -> _Outcome:
     """Solve the first ``count`` targets one call each under ``rule`` (see the module doc)."""
     robot = solver.robot
-    dof, rows, budget_s = robot.dof, rule_rows(rule), settings.budget_s
+    dof, rows = robot.dof, rule_rows(rule)
+    budget_s = rule_budget_s(rule, settings, solver.deterministic)
     out_q = np.full((count, dof), np.nan)
     times = np.zeros(count)
     iterations, attempts = np.zeros(count, dtype=int), np.zeros(count, dtype=int)
@@ -560,13 +597,12 @@ def _batch(solver: PoseSolver, targets: Targets, count: int, settings: IKSetting
            ) -> dict[str, float]:
     """The batched throughput run: every target in one call, from the same rows within the
     same budget per target; targets/s, threads, success (judged), mean attempts."""
-    rows = rule_rows(rule)
+    rows, budget_s = rule_rows(rule), rule_budget_s(rule, settings, solver.deterministic)
     initials = np.stack([targets.initials(k, rows) for k in range(count)])
     T = targets.T_target[:count]
     t0 = time.perf_counter()
     out = solver.solve_batch(initials, np.ascontiguousarray(T[:, :3, 3]),
-                             np.ascontiguousarray(T[:, :3, :3]), settings.budget_s,
-                             settings.threads)
+                             np.ascontiguousarray(T[:, :3, :3]), budget_s, settings.threads)
     wall = time.perf_counter() - t0
     verdict = judge(solver.robot, T, out.q, settings)
     return {"targets_per_s": count / wall, "threads": int(out.threads), "wall_s": wall,
@@ -575,7 +611,7 @@ def _batch(solver: PoseSolver, targets: Targets, count: int, settings: IKSetting
 
 
 def _rows(robot: Robot, name: str, rule: Rule, targets: Targets, count: int,
-          settings: IKSettings, outcome: _Outcome) -> pd.DataFrame:
+          settings: IKSettings, outcome: _Outcome, run: int = 1) -> pd.DataFrame:
     poses = robot.from_urdf(outcome.q_urdf)
     verdict = judge(robot, targets.T_target[:count], poses, settings)
     distance = np.linalg.norm(poses - targets.q_init[:count], axis=1)
@@ -589,10 +625,12 @@ def _rows(robot: Robot, name: str, rule: Rule, targets: Targets, count: int,
     return pd.DataFrame({
         "robot": robot.name, "method": name, "attempts_rule": str(rule),
         "target": np.arange(count), "kind": settings.kind, "init": settings.init,
-        "budget_ms": settings.budget_ms, **verdict, "library_ok": outcome.library_ok,
+        "budget_ms": 1000.0 * rule_budget_s(rule, settings,
+                                            solver_status()[name].cls.deterministic),
+        **verdict, "library_ok": outcome.library_ok,
         "failure": outcome.failures, "time_s": outcome.times, "attempts": outcome.attempts,
         "joint_distance_deg": distance, "iterations": outcome.iterations, **solutions,
-        "reachable": reachable, **branch})
+        "reachable": reachable, **branch, RUN: run})
 
 
 def recheck(robot: Robot, table: pd.DataFrame, T_target: np.ndarray, settings: IKSettings

@@ -22,11 +22,12 @@ BUDGET = Number("a budget [ms]", 0.0, 3_600_000.0, low_open=True, infinite="no b
 DESCRIPTION = (
     "Solve COUNT single-pose IK targets (FK of configurations drawn uniformly within "
     "the limits, seeded) with every installed library under one protocol: each target "
-    "has a wall-clock budget (--budget-ms) and a seeded sequence of initial "
-    "configurations, the same for every method; a method is restarted from the next "
-    "one until its answer holds or the budget is spent (--attempts auto), or makes at "
-    "most N attempts (--attempts 1: one descent each). One target per call, each call "
-    "timed; every answer judged by FK through Pinocchio. Writes OUTPUT/ik/<robot>/: "
+    "has a seeded sequence of initial configurations, the same for every method; a "
+    "method makes at most N attempts with no wall-clock cut (--attempts N, deterministic; "
+    "1: one descent each), or is restarted from the next one until its answer holds or "
+    "the wall-clock budget (--budget-ms) is spent (--attempts auto, --repeat R runs). "
+    "One target per call, each call timed; every answer judged by FK through Pinocchio. "
+    "Writes OUTPUT/ik/<robot>/: "
     "results.csv (one row per rule x method x target with the answer's joint values; "
     "Parquet above 50,000 rows), targets.csv, leaderboard.md, times.png, "
     "success_vs_tolerance.png, run.json. Robots by package name: --robot "
@@ -51,7 +52,12 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         help="auto: restart from the next initial configuration until the "
                         "answer holds or the budget is spent; N: at most N attempts (1: one "
                         "descent from the first, for every method); several rules, e.g. "
-                        "auto,1, give one table each (default auto)")
+                        "auto,1, give one table each; N runs with no wall-clock cut, so its "
+                        "success depends on the seed alone (TRAC-IK excepted) (default auto)")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="runs of the auto table on the same targets and rows (its success "
+                        "depends on the wall clock): the leaderboard gives the median and "
+                        "min-max over them; fixed-count rules run once (default 1)")
     parser.add_argument("--threads", type=int, default=None,
                         help="threads of the batched throughput run of the methods that batch "
                         "(default: every core)")
@@ -108,6 +114,8 @@ def command_line(args: argparse.Namespace) -> str:
     if args.methods:
         words += ["--methods", args.methods]
     words += ["--budget-ms", f"{args.budget_ms:g}", "--attempts", args.attempts]
+    if args.repeat != 1:
+        words += ["--repeat", str(args.repeat)]
     if args.threads:
         words += ["--threads", str(args.threads)]
     words += ["--kind", args.kind, "--tolerance-mm", f"{args.tolerance_mm:g}",
@@ -135,6 +143,7 @@ def run(args: argparse.Namespace) -> int:
         parse_methods,
         robot_slug,
         rule_rows,
+        rule_runs,
         run_ik,
         write,
     )
@@ -142,20 +151,23 @@ def run(args: argparse.Namespace) -> int:
     settings = IKSettings(args.count, args.seed, args.kind, args.tolerance_mm,
                           args.tolerance_deg, args.init, args.perturb_deg,
                           parse_caps(args.max_count_per_method), args.budget_ms,
-                          parse_attempts(args.attempts), args.threads, args.unreachable)
+                          parse_attempts(args.attempts), args.threads, args.unreachable,
+                          args.repeat)
     robot = robot_from_args(args)
     names = parse_methods(args.methods, args.kind)
     robot.check_loads()
     folder = Path(args.output) / FOLDER / robot_slug(robot)
     check_folder_writable(folder)
-    check_memory(settings.count, len(names) * len(settings.attempts),
+    check_memory(settings.count,
+                 len(names) * sum(rule_runs(rule, settings) for rule in settings.attempts),
                  max(rule_rows(rule) for rule in settings.attempts), robot.dof)
     begin(args)
     result = run_ik(robot, settings, names, progress=not args.quiet)
     write(result, args.output, command_line(args))
     summary = summarise(result.table, result.batches)
     print(summary[["attempts_rule", "method", "targets", "success_pct", "attempts_median",
-                   "time_median_ms", "time_mean_ms", "time_p95_ms", "batched_per_s"]].to_string(
+                   "time_median_ms", "time_mean_ms", "time_p95_ms", "batched_per_s",
+                   "runs"]].to_string(
                        index=False, float_format=lambda v: f"{v:.3g}"))
     print(f"written to {folder}/")
     return 0

@@ -60,6 +60,10 @@ class OursLMSolver(PoseSolver):
     batched = True
     pose_units = True
     iterations_are = "LM iterations (all attempts)"
+    attempt_bound = ("errors below 1e-3 of the tolerances; the next row after RESTART_AFTER "
+                     "(14) iterations without success or when far off (ABANDON); the last "
+                     "row until it stalls or 100,000 iterations in all; one descent "
+                     f"{MAX_STEPS} iterations")
 
     def prepare(self) -> None:
         """Build (and compile or load) the compiled solver when numba is installed."""
