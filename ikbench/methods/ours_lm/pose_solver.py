@@ -60,10 +60,10 @@ class OursLMSolver(PoseSolver):
     batched = True
     pose_units = True
     iterations_are = "LM iterations (all attempts)"
-    attempt_bound = ("errors below 1e-3 of the tolerances; the next row after RESTART_AFTER "
-                     "(14) iterations without success or when far off (ABANDON); the last "
-                     "row until it stalls or 100,000 iterations in all; one descent "
-                     f"{MAX_STEPS} iterations")
+    attempt_bound = (f"errors below 1e-3 of the tolerances; a fixed count of rows: each "
+                     f"attempt at most {MAX_STEPS} LM iterations (K x {MAX_STEPS} in all); "
+                     "the budgeted table: the next row after RESTART_AFTER (14) iterations "
+                     "without success or when far off (ABANDON)")
 
     def prepare(self) -> None:
         """Build (and compile or load) the compiled solver when numba is installed."""
@@ -75,6 +75,7 @@ class OursLMSolver(PoseSolver):
                                         max_iterations=MAX_STEPS)
             self.compiled.warm_up()
             self.descent.warm_up()
+            self.rows: dict[int, Any] = {}
 
     def runtime(self) -> dict[str, Any]:
         """The solver that runs: compiled (numba) or the numpy reference."""
@@ -92,7 +93,12 @@ class OursLMSolver(PoseSolver):
         point_mm = np.asarray(point_m, dtype=float) * 1000.0
         compiled, descent = getattr(self, "compiled", None), getattr(self, "descent", None)
         if compiled is not None:
-            solver = descent if len(initials) == 1 and descent is not None else compiled
+            if len(initials) == 1:
+                solver = descent
+            elif np.isfinite(budget_s):  # the budgeted protocol: its tuned restarts
+                solver = compiled
+            else:  # K rows, no clock: each a descent of MAX_STEPS, as the other methods'
+                solver = self._rows_solver(len(initials))
             out = solver.solve(point_mm, np.asarray(rotation, dtype=float), initials,
                                budget_s)
             return PoseOut(out.pose, int(out.iterations), bool(out.success), int(out.attempts))
@@ -108,6 +114,18 @@ class OursLMSolver(PoseSolver):
             if out.converged[0] or last or time.perf_counter() >= deadline:
                 break
         return PoseOut(out.poses[0], iterations, bool(out.converged[0]), a + 1)
+
+    def _rows_solver(self, rows: int) -> Any:
+        """The compiled solver of a fixed count of rows without a budget (the deterministic
+        table): an attempt gives way after :data:`MAX_STEPS` iterations without success, no
+        early abandon, :data:`MAX_STEPS` x ``rows`` iterations in all (built once per count,
+        the same compiled kernel)."""
+        if rows not in self.rows:
+            SinglePoseLM = compiled_module("single_pose_compiled").SinglePoseLM  # noqa: N806
+            self.rows[rows] = SinglePoseLM(self.robot, self.kind, self.tolerance,
+                                           max_iterations=MAX_STEPS * rows,
+                                           restart_after=MAX_STEPS, abandon=(0, 0.0))
+        return self.rows[rows]
 
     def solve_batch(self, initials: np.ndarray, points_m: np.ndarray, rotations: np.ndarray,
                     budget_s: float, threads: int | None = None) -> BatchOut:
