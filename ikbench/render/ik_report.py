@@ -64,7 +64,7 @@ def write_folder(result: StudyResult, folder: Path, command: str = "") -> Path:
     with staged_folder(folder) as tmp:
         _results(result, tmp)
         _targets(result, tmp)
-        summary = summarise(result.table, result.batches)
+        summary = summarise(result.table, result.batches, first_calls(result.methods))
         summary.to_csv(tmp / "summary.csv", index=False, float_format="%.6g")
         record = _record(result, command)
         (tmp / "leaderboard.md").write_text(leaderboard(result, summary, record),
@@ -312,6 +312,7 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
     if runtimes:
         lines += ["Backends: " + "; ".join(f"{m} {r['backend']}" for m, r in runtimes.items())
                   + ".", ""]
+    lines += first_call_section(result.methods)
     lines += published_section(robot_slug(robot), summary)
     lines += [
         f"Machine: {prov['cpu']} ({prov['cpu_count']} logical CPUs), {prov['platform']}, "
@@ -326,6 +327,28 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
         "",
     ]
     return "\n".join(lines)
+
+
+def first_call_section(methods: dict[str, dict]) -> list[str]:
+    """The first call of each method in a fresh process (``--first-call``), as a table: the
+    import of the registry and the method's module, the set-up (the robot, the library's model,
+    compiling or loading compiled code) and the first solve [s]; none when not timed."""
+    timed = {m: f["first_call"] for m, f in methods.items() if f.get("first_call")}
+    if not timed:
+        return []
+    lines = ["## First call", "",
+             "What a user waits for before the first answer, in a fresh Python process (after "
+             "the runs above: numba's cache as they left it), for target 0 under the first "
+             "table's rule:", "",
+             "| method | first call [s] | import [s] | set-up [s] | first solve [s] |",
+             "|---|---|---|---|---|"]
+    for method, t in timed.items():
+        if "error" in t:
+            lines.append(f"| {method} | failed: {t['error']} | | | |")
+        else:
+            lines.append(f"| {method} | {_fmt(t['first_call_s'])} | {_fmt(t['import_s'])} "
+                         f"| {_fmt(t['setup_s'])} | {_fmt(t['solve_s'])} |")
+    return [*lines, ""]
 
 
 def ground_truth_section(result: StudyResult, summary: pd.DataFrame) -> list[str]:
@@ -513,7 +536,16 @@ SPREAD = ("runs", "success_pct_min", "success_pct_max", "time_median_ms_min",
           "time_median_ms_max")
 
 
-def summarise(table: pd.DataFrame, batches: dict | None = None) -> pd.DataFrame:
+def first_calls(methods: dict[str, dict]) -> dict[str, float]:
+    """Method -> its first call in a fresh process [ms] (``ikbench ik --first-call``), where
+    it was timed and succeeded."""
+    return {name: 1000.0 * facts["first_call"]["first_call_s"]
+            for name, facts in methods.items()
+            if "first_call_s" in (facts.get("first_call") or {})}
+
+
+def summarise(table: pd.DataFrame, batches: dict | None = None,
+              first_call_ms: dict[str, float] | None = None) -> pd.DataFrame:
     """One row per attempts rule and method: targets, successes, success %, attempts, time
     per call median / mean / p95 / max [ms] and mean of the successes, the batched
     throughput [targets/s] with its threads and success (``batches``: rule -> method ->
@@ -521,7 +553,15 @@ def summarise(table: pd.DataFrame, batches: dict | None = None) -> pd.DataFrame:
     of the successes, joint distance, iterations, failed calls. A rule run several times
     (column ``run``): each figure is the median over the runs, and the last columns
     (:data:`SPREAD`) give the runs and the min-max of success % and of median time per call;
-    a table without the column is one run."""
+    a table without the column is one run. ``first_call_ms``: method -> its first call in a
+    fresh process [ms], the last column (where given)."""
+    summary = _summarise(table, batches)
+    if first_call_ms:
+        summary["first_call_ms"] = summary["method"].map(first_call_ms).astype(float)
+    return summary
+
+
+def _summarise(table: pd.DataFrame, batches: dict | None) -> pd.DataFrame:
     if RUN not in table:
         return _summarise_run(table, batches or {})
     rows = []

@@ -66,6 +66,7 @@ from ikbench.core.errors import InputError
 from ikbench.methods.registry import available_solvers, solver_status
 from ikbench.render.ik_report import robot_slug, write_folder
 from ikbench.runtime.harness import Progress, describe
+from ikbench.studies.first_call import first_call
 from ikbench.studies.ik_truth import (
     analytic_solver,
     branch_columns,
@@ -128,6 +129,8 @@ class IKSettings:
         budget_ms: wall-clock budget per target [ms] (``inf``: none).
         attempts: the attempts rules, one table each: ``"auto"`` or an integer >= 1.
         threads: threads of the batched throughput runs (None: every core).
+        first_call: also time each method's first call in a fresh process (import, set-up,
+            first solve of target 0: :func:`ikbench.studies.first_call.first_call`).
         unreachable: the fraction of the targets replaced by provably unreachable ones
             (:func:`ikbench.studies.ik_truth.unreachable_targets`), 0 to 0.9.
         repeat: runs of the ``auto`` table (the wall-clock budget decides its success);
@@ -146,6 +149,7 @@ class IKSettings:
     attempts: tuple[Rule, ...] = (AUTO,)
     threads: int | None = None
     unreachable: float = 0.0
+    first_call: bool = False
     repeat: int = 1
 
     def __post_init__(self):
@@ -527,6 +531,16 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
                 done = frames[-1]
                 say(f"{label}: {name}: {int(done['success'].sum())}/{count} succeeded, "
                     f"{np.nansum(done['time_s']):.1f} s")
+    if settings.first_call:  # after the timed runs: numba's cache as they left it
+        rule = settings.attempts[0]
+        for name in names:
+            if isinstance(solvers.get(name), str):
+                continue
+            say(f"{name}: timing its first call in a fresh process")
+            info[name]["first_call"] = first_call(
+                robot, name, settings.kind, (settings.tolerance_mm, settings.tolerance_deg),
+                rule_budget_s(rule, settings, solvers[name].deterministic), targets.T_target[0],
+                targets.initials(0, rule_rows(rule)))
     table = pd.concat(frames, ignore_index=True)
     table = table[COLUMNS + [c for c in table.columns if c not in COLUMNS]]
     return IKResult(robot, settings, targets, table, info, time.perf_counter() - started, load,

@@ -72,6 +72,10 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         "limits, default), nominal (the middle of the limits, as TRAC-IK's "
                         "benchmark seeds) or nearby (the target's configuration perturbed by "
                         "--perturb-deg, the tracking case); the further ones are uniform draws")
+    parser.add_argument("--first-call", action="store_true",
+                        help="also time each method's first call in a fresh process (import, "
+                        "set-up, first solve), after the timed runs: its own table and the "
+                        "first_call_ms column")
     parser.add_argument("--unreachable", type=float, default=0.0, metavar="FRACTION",
                         help="replace this fraction of the targets (0 to 0.9) by frames beyond "
                         "the robot's reach: no method may succeed on them; the report gives "
@@ -126,6 +130,8 @@ def command_line(args: argparse.Namespace) -> str:
         words += ["--max-count-per-method", args.max_count_per_method]
     if args.unreachable:
         words += ["--unreachable", f"{args.unreachable:g}"]
+    if args.first_call:
+        words += ["--first-call"]
     words += ["--output", args.output]
     return " ".join(shlex.quote(w) for w in words)
 
@@ -151,8 +157,9 @@ def run(args: argparse.Namespace) -> int:
     settings = IKSettings(args.count, args.seed, args.kind, args.tolerance_mm,
                           args.tolerance_deg, args.init, args.perturb_deg,
                           parse_caps(args.max_count_per_method), args.budget_ms,
-                          parse_attempts(args.attempts), args.threads, args.unreachable,
-                          args.repeat)
+                          parse_attempts(args.attempts), args.threads,
+                          unreachable=args.unreachable, repeat=args.repeat,
+                          first_call=args.first_call)
     robot = robot_from_args(args)
     names = parse_methods(args.methods, args.kind)
     robot.check_loads()
