@@ -170,7 +170,7 @@ def placo_urdf_text(chain: Chain) -> str:
     names = links | {joint.get("name") for joint in root.iter("joint")}
     renamed: dict[str, str] = {}
     for joint in root.iter("joint"):
-        name = joint.get("name")
+        name = joint.get("name") or ""
         if name in links and name not in chain.joint_names:
             new = f"{name}__joint"
             while new in names:
@@ -181,7 +181,8 @@ def placo_urdf_text(chain: Chain) -> str:
     if not renamed:
         return chain.urdf_text
     for mimic in root.iter("mimic"):
-        mimic.set("joint", renamed.get(mimic.get("joint", ""), mimic.get("joint", "")))
+        named = mimic.get("joint") or ""
+        mimic.set("joint", renamed.get(named, named))
     return ET.tostring(root, encoding="unicode")
 
 

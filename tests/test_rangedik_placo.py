@@ -259,7 +259,7 @@ def test_placo_solves_z1_at_an_end_frame_named_like_a_joint():
 
     if robots_folder("example-robot-data") is None:
         pytest.skip("example-robot-data is not installed")
-    from ikbench.baselines.libraries.placo_ik import placo_urdf_text
+    from ikbench.baselines.placo_ik import placo_urdf_text
     from ikbench.studies.ik import IKSettings, run_ik
 
     robot = load_robot("example-robot-data:z1", "gripperStator")

@@ -261,22 +261,24 @@ def test_a_trajectory_file_may_pass_a_limit_by_a_float32_ulp_not_more(tmp_path):
 
 
 def test_a_package_robot_without_end_frame_lists_the_candidates(capsys):
-    """z1 (example-robot-data, not in the table of common arms): the error and
+    """so101 (example-robot-data, not in the table of common arms): the error and
     `robots --all` name the links an end frame may be, leaf links first."""
     from ikbench.core.robot_packages import robots_folder
 
     if robots_folder("example-robot-data") is None:
         pytest.skip("needs example-robot-data: pip install 'ikbench[robots]'")
-    assert main(["fk", "--robot", "example-robot-data:z1", "--pose=0,0,0,0,0,0"]) == 2
+    assert main(["fk", "--robot", "example-robot-data:so101", "--pose=0,0,0,0,0,0"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.rstrip().endswith(
-        "candidates (leaf links first, then tool-like names): gripperMover, gripperStator")
+        "candidates (leaf links first, then tool-like names): gripper_frame_link, "
+        "moving_jaw_so101_v1_link, gripper_link")
     assert main(["robots", "--all", "--json"]) == 0
     packages = {r["name"]: r for r in json.loads(capsys.readouterr().out)["packages"]}
-    assert packages["example-robot-data:z1"]["end_frame_candidates"] == ["gripperMover",
-                                                                         "gripperStator"]
+    assert packages["example-robot-data:so101"]["end_frame_candidates"] == [
+        "gripper_frame_link", "moving_jaw_so101_v1_link", "gripper_link"]
     assert "end_frame_candidates" not in packages["example-robot-data:ur5"]  # in the table
     assert main(["robots", "--all"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert any(line.startswith("example-robot-data:z1: needs --end-frame LINK, candidates: "
-                               "gripperMover, gripperStator; ") for line in lines)
+    assert any(line.startswith("example-robot-data:so101: needs --end-frame LINK, candidates: "
+                               "gripper_frame_link, moving_jaw_so101_v1_link, gripper_link; ")
+               for line in lines)

@@ -13,7 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.collision import check_trajectory
-from ikbench.core.robot import wrap_continuous
+from ikbench.core.robot import pose_difference, wrap_continuous
 from ikbench.core.rotations import geodesic_angle
 from ikbench.core.validity import validity_failures
 
@@ -116,12 +116,13 @@ def smoothness(poses_motor_deg: npt.ArrayLike) -> dict[str, float]:
     }
 
 
-def _end_errors_and_smoothness(task, points_mm, poses) -> dict[str, float]:
+def _end_errors_and_smoothness(robot, task, points_mm, poses) -> dict[str, float]:
     """Start/end point errors [mm], start/end pose errors [deg] (NaN where the task fixes no
-    such pose) and the :func:`smoothness` figures."""
+    such pose; a continuous joint's the short way round) and the :func:`smoothness` figures."""
 
     def pose_error(pose, goal):
-        return float("nan") if goal is None else float(np.max(np.abs(pose - goal)))
+        return (float("nan") if goal is None
+                else float(np.max(np.abs(pose_difference(robot, pose, goal)))))
 
     return {
         "start_point_error_mm": float(np.linalg.norm(points_mm[0] - task.start_point_mm)),
@@ -148,10 +149,10 @@ def trajectory_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
         when the task does not fix that pose), and the :func:`smoothness` figures.
     """
     poses = np.asarray(poses_motor_deg, dtype=float)
-    return _line_metrics(task, poses, robot.fk(poses))
+    return _line_metrics(robot, task, poses, robot.fk(poses))
 
 
-def _line_metrics(task, poses, fk) -> dict[str, float]:
+def _line_metrics(robot, task, poses, fk) -> dict[str, float]:
     """:func:`trajectory_metrics` from the poses' FK (computed once by the caller)."""
     mask = task.pen_down
     distances = line_distances_mm(fk.point_mm[mask], task.start_point_mm, task.end_point_mm)
@@ -160,7 +161,7 @@ def _line_metrics(task, poses, fk) -> dict[str, float]:
     return {
         **statistics("line_distance_{}_mm", distances, "mean", "std"),
         **statistics("pointing_deviation_{}_deg", deviations, "mean", "std"),
-        **_end_errors_and_smoothness(task, fk.point_mm, poses),
+        **_end_errors_and_smoothness(robot, task, fk.point_mm, poses),
     }
 
 
@@ -191,7 +192,7 @@ def shape_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
         **statistics("curve_distance_{}_mm", distances, "mean", "std", "max"),
         **statistics("point_error_{}_mm", errors, "mean", "max"),
         **statistics("pointing_deviation_{}_deg", deviations, "mean", "std", "max"),
-        **_end_errors_and_smoothness(task, fk.point_mm, poses),
+        **_end_errors_and_smoothness(robot, task, fk.point_mm, poses),
     }
 
 
@@ -314,7 +315,7 @@ def contract_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike,
     """
     poses = np.asarray(poses_motor_deg, dtype=float)
     fk = robot.fk(poses)
-    out: dict[str, Any] = _line_metrics(task, poses, fk)
+    out: dict[str, Any] = _line_metrics(robot, task, poses, fk)
     mask = np.asarray(task.pen_down, dtype=bool)
     out["line_distance_max_mm"] = float(line_distances_mm(
         fk.point_mm[mask], task.start_point_mm, task.end_point_mm).max())

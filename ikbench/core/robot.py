@@ -644,6 +644,19 @@ def unwrap_continuous(robot: Robot, poses: npt.ArrayLike) -> np.ndarray:
     return out
 
 
+def pose_difference(robot: Robot, poses: npt.ArrayLike, goal: npt.ArrayLike) -> np.ndarray:
+    """``poses - goal`` (..., dof) [pose units], a continuous joint's difference taken the short
+    way round (within half a turn): a written trajectory is unwrapped, so its continuous joints
+    may end a whole turn from a pose given in [-180, 180] and still be the same arm."""
+    diff = np.asarray(poses, dtype=float) - np.asarray(goal, dtype=float)
+    mask = robot.continuous
+    if not mask.any():
+        return diff
+    turn = np.abs(360.0 / np.broadcast_to(np.asarray(robot.scale, dtype=float), (robot.dof,)))
+    short = diff - turn * np.round(diff / np.where(mask, turn, 1.0))
+    return np.where(mask, short, diff)
+
+
 def wrap_continuous(robot: Robot, poses: npt.ArrayLike) -> np.ndarray:
     """Poses (..., dof) [pose units] with each continuous joint outside [-180, 180] joint deg
     moved by whole turns into it (values inside are kept bit for bit; bounded joints are

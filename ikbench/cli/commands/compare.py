@@ -17,7 +17,7 @@ from ikbench.cli.options import (
     robot_from_args,
     targets_from_args,
 )
-from ikbench.cli.values import OUTPUT, count, duration_s
+from ikbench.cli.values import INPUT_FILE, OUTPUT, count, duration_s
 from ikbench.core.defaults import COMPARE_METHODS, DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
 
@@ -84,7 +84,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         "of the robot (e.g. touchscreen for NICO) or none; the contract then "
                         "judges collisions (no self-collision, no obstacle collision; default: "
                         "the targets file's obstacles, none for the shipped targets)")
-    parser.add_argument("--goals", default=None, metavar="FILE",
+    parser.add_argument("--goals", default=None, metavar="FILE", type=INPUT_FILE,
                         help="goal set of the legibility columns: a targets file whose touch "
                         "poses' fingertip points are the goals (default: the targets' own, "
                         "every id; NICO's seven touch points; docs/legibility.md)")

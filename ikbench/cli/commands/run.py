@@ -15,7 +15,7 @@ from ikbench.cli.options import (
     method_from_args,
     robot_from_args,
 )
-from ikbench.cli.values import OUTPUT, STEPS, Number, Text, duration_s
+from ikbench.cli.values import INPUT_FILE, OUTPUT, STEPS, Number, Text, duration_s
 from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_METHOD, DEFAULT_ROBOT
 
 if TYPE_CHECKING:
@@ -82,7 +82,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         "of pose errors, joint changes, path lengths and CppFlow's validity")
     add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3",
                        start_pose_default="the targets file's")
-    parser.add_argument("--goals", default=None, metavar="FILE",
+    parser.add_argument("--goals", default=None, metavar="FILE", type=INPUT_FILE,
                         help="line shape: goal set of the legibility figures in details.csv "
                         "and report.md, a targets file whose touch poses' fingertip points "
                         "are the goals (default: every touch point of --targets; "
@@ -206,8 +206,8 @@ def run(args: argparse.Namespace, shape: str | None = None, fixed: dict | None =
     if shape == "line":  # the goal set: --goals, else every id of the targets (not --only's)
         from ikbench.core.targets import load_targets
 
-        record["goals"] = load_targets(args.goals or args.targets, robot)
-    elif args.goals is not None:
+        record["goals"] = load_targets(getattr(args, "goals", None) or args.targets, robot)
+    elif getattr(args, "goals", None) is not None:  # letters has no --goals
         from ikbench.core.errors import InputError
 
         raise InputError("--goals applies to the line shape only (the touch poses' goals)")

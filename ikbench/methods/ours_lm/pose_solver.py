@@ -93,7 +93,8 @@ class OursLMSolver(PoseSolver):
         point_mm = np.asarray(point_m, dtype=float) * 1000.0
         compiled, descent = getattr(self, "compiled", None), getattr(self, "descent", None)
         if compiled is not None:
-            if len(initials) == 1:
+            solver: Any
+            if len(initials) == 1 and descent is not None:
                 solver = descent
             elif np.isfinite(budget_s):  # the budgeted protocol: its tuned restarts
                 solver = compiled
