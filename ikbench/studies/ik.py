@@ -438,7 +438,7 @@ class _Outcome:
 
 def run_ik(robot: Robot, settings: IKSettings | None = None,
            methods: str | Sequence[str] | None = None,
-           progress: bool = True) -> IKResult:
+           progress: bool = True, solvers: dict[str, Any] | None = None) -> IKResult:
     """Run the benchmark (see the module docstring); nothing is written.
 
     Args:
@@ -447,6 +447,9 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
             per-method caps.
         methods: method names; None: every installed one (:func:`parse_methods`).
         progress: progress lines on stderr.
+        solvers: name -> a solver set up by an earlier run with the same robot, kind,
+            tolerances and budget (or the failure it gave), reused and filled in (set-up is
+            untimed: a caller running several samples, as ``recommend``, sets up once).
     """
 
     started = time.perf_counter()
@@ -466,7 +469,7 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
     say = Progress(FOLDER, enabled=progress).say
     frames, info = [], {}
     batches: dict[str, dict[str, dict[str, float]]] = {}
-    solvers: dict[str, Any] = {}
+    solvers = {} if solvers is None else solvers
     for rule in settings.attempts:
         batches[str(rule)] = {}
         for name in names:
