@@ -49,12 +49,12 @@ def test_kendall_tau_of_equal_and_reversed_rankings():
 
 
 def _row(method, success, s_lo, s_hi, p50, t_lo, t_hi, p99=1.0, budget=WITHIN):
-    seeds = {f"{k}_seed1": v for k, v in (("success_pct", success), ("p50_ms", p50),
-                                          ("p99_ms", p99))}
-    return {"method": method, "library": "x", "deterministic": True, "status": "ok",
-            "success_pct": success, "success_low_pct": s_lo, "success_high_pct": s_hi,
-            "p50_ms": p50, "p50_low_ms": t_lo, "p50_high_ms": t_hi, "p99_ms": p99,
-            "p99_low_ms": p99 * 0.9, "p99_high_ms": p99 * 1.1, "budget": budget, **seeds}
+    """A method's row of the per-method table, its one seed's statistics the pooled ones."""
+    stats = {"success_pct": success, "success_low_pct": s_lo, "success_high_pct": s_hi,
+             "p50_ms": p50, "p50_low_ms": t_lo, "p50_high_ms": t_hi, "p99_ms": p99,
+             "p99_low_ms": p99 * 0.9, "p99_high_ms": p99 * 1.1, "budget": budget}
+    return {"method": method, "library": "x", "deterministic": True, "status": "ok", **stats,
+            **{f"{k}_seed1": v for k, v in stats.items()}}
 
 
 def test_overlapping_intervals_are_called_a_tie_and_never_best():
@@ -85,6 +85,8 @@ def test_as_reliable_and_faster_wins_and_a_method_over_budget_is_named():
     assert "sure succeeds more often" in v.text and "misses the 5 ms budget" in v.text
     assert "Could not take the robot: broken" in v.text
     assert v.table.loc[v.table["method"] == "fast", "role"].item() == RECOMMENDED
+    # the ranking is the verdict's criterion: the recommended method is its first
+    assert v.table["method"].iloc[0] == "fast" and v.table["rank_seed1"].iloc[0] == 1
 
 
 def test_no_method_within_the_budget_gives_no_recommendation():

@@ -185,6 +185,7 @@ def pareto(result: Result, path: Path) -> None:
 
     table = result.table[result.table["budget"] != "cannot run"]
     fig, ax = plt.subplots(figsize=(8.5, 5.2))
+    colours = plt.get_cmap("tab20" if len(table) > 10 else "tab10")
     for k, (_, row) in enumerate(table.iterrows()):
         x, y = row["p50_ms"], row["success_pct"]
         # max(0, ...): round-off (a Wilson bound at 100 %), a percentile interval off its
@@ -192,19 +193,21 @@ def pareto(result: Result, path: Path) -> None:
         xerr = [[max(0.0, x - row["p50_low_ms"])], [max(0.0, row["p50_high_ms"] - x)]]
         yerr = [[max(0.0, y - row["success_low_pct"])], [max(0.0, row["success_high_pct"] - y)]]
         marker = "o" if row["budget"] == "within" else "x"
-        ax.errorbar(x, y, xerr=xerr, yerr=yerr, fmt=marker, color=f"C{k % 10}", capsize=3,
-                    label=f"{row['method']} (p99 {row['budget']})")
+        ax.errorbar(x, y, xerr=xerr, yerr=yerr, fmt=marker, color=colours(k % colours.N),
+                    capsize=3, label=f"{row['method']} (p99 {row['budget']})")
+        ax.annotate(row["method"], (x, y), xytext=(4, 4), textcoords="offset points",
+                    fontsize=7, color=colours(k % colours.N))
         if row["role"] == "recommended":
             ax.plot(x, y, "o", ms=16, mfc="none", mec="k", label="recommended")
     ax.set_xscale("log")
-    plain = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")
-    ax.xaxis.set_major_formatter(plain)
-    ax.xaxis.set_minor_formatter(plain)
+    ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     ax.set_xlabel("time per call, median [ms] (log; 95 % bootstrap interval)")
     ax.set_ylabel("success [%] (95 % Wilson interval)")
     s = result.settings
     ax.set_title(f"{result.robot.name}: {s.task} IK, budget {s.budget_ms:g} ms at p99, "
-                 f"{result.plan.targets_per_seed} x {len(s.seeds)} targets")
+                 f"{result.plan.targets_per_seed} x {len(s.seeds)} targets (o: p99 within the "
+                 "budget, x: not)", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
     atomic_savefig(path, fig)

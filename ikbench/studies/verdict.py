@@ -17,8 +17,10 @@ The verdict (:func:`decide`) compares intervals, never point estimates alone:
   fastest); **tied**: the candidates whose success and median intervals both overlap its;
   **best** is said only where its success lead over every other candidate is outside the
   intervals;
-- **ranking** on each seed: within the budget at p99 first, then success, then median time;
-  Kendall's tau between the seeds' rankings is stated.
+- **ranking** (:func:`order`), pooled and on each seed alone with that seed's intervals: by
+  budget class, then by front of the dominance, then success, then median time; the
+  recommended method is the pooled ranking's first; Kendall's tau between the seeds'
+  rankings is stated.
 """
 
 from __future__ import annotations
@@ -31,7 +33,14 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ikbench.core.intervals import bootstrap_quantiles, clearly_above, kendall_tau, overlap, wilson
+from ikbench.core.intervals import (
+    RESAMPLES,
+    bootstrap_quantiles,
+    clearly_above,
+    kendall_tau,
+    overlap,
+    wilson,
+)
 
 #: Budget classes, in the order the ranking takes them.
 WITHIN, UNCERTAIN, MISSES, FAILED = "within", "uncertain", "misses", "cannot run"
@@ -66,32 +75,47 @@ def _budget_class(low_ms: float, high_ms: float, budget_ms: float) -> str:
     return MISSES if low_ms > budget_ms else UNCERTAIN
 
 
+def _stats(g: pd.DataFrame, seed: int, resamples: int, budget_ms: float) -> dict[str, float]:
+    """Success with its Wilson interval, per-call p50 and p99 with bootstrap intervals and
+    the budget class of the rows ``g`` (one method; calls that raised have no time)."""
+    ran = g[g["failure"].fillna("").astype(str) == ""]
+    ok = g["success"].astype(bool)
+    low, high = wilson(int(ok.sum()), len(g))
+    q = bootstrap_quantiles(ran["time_s"].to_numpy(dtype=float) * 1000.0, (0.5, 0.99),
+                            seed=seed, resamples=resamples)
+    return {"success_pct": 100.0 * ok.mean() if len(g) else np.nan,
+            "success_low_pct": 100.0 * low, "success_high_pct": 100.0 * high,
+            "p50_ms": q[0, 0], "p50_low_ms": q[0, 1], "p50_high_ms": q[0, 2],
+            "p99_ms": q[1, 0], "p99_low_ms": q[1, 1], "p99_high_ms": q[1, 2],
+            "budget": _budget_class(q[1, 1], q[1, 2], budget_ms) if len(ran) else FAILED}
+
+
+#: Bootstrap resamples of each seed's own intervals (its ranking; the pooled ones use more).
+SEED_RESAMPLES = 1000
+#: Columns of a seed's statistics kept in the table (the intervals only rank).
+SEED_COLUMNS = ("success_pct", "p50_ms", "p99_ms", "budget")
+
+
 def per_method(table: pd.DataFrame, info: dict[str, dict], budget_ms: float,
                seeds: Sequence[int]) -> pd.DataFrame:
-    """One row per method (see the module docstring) from the rows of every seed."""
+    """One row per method (see the module docstring) from the rows of every seed, with
+    each seed's own statistics (suffix ``_seed<s>``)."""
     rows = []
     for method, g in table.groupby("method", sort=False):
         facts = info.get(method, {})
         failures = g["failure"].fillna("").astype(str)
-        ran = g[failures == ""]
-        times_ms = ran["time_s"].to_numpy(dtype=float) * 1000.0
+        ran = failures == ""
         ok = g["success"].astype(bool)
-        low, high = wilson(int(ok.sum()), len(g))
-        q = bootstrap_quantiles(times_ms, (0.5, 0.99), seed=_seed_of(method))
         on = g.loc[ok, "on_nearest_branch"].dropna() if "on_nearest_branch" in g else []
         b_low, b_high = wilson(int(np.sum(on)), len(on))
         first = facts.get("first_call", {})
         row = {
             "method": method, "library": facts.get("library", ""),
             "deterministic": bool(facts.get("deterministic", True)),
-            "status": "ok" if len(ran) else (failures.iloc[0] or "no call ran"),
+            "status": "ok" if ran.any() else (failures.iloc[0] or "no call ran"),
             "targets": len(g), "successes": int(ok.sum()),
-            "success_pct": 100.0 * ok.mean(), "success_low_pct": 100.0 * low,
-            "success_high_pct": 100.0 * high,
-            "p50_ms": q[0, 0], "p50_low_ms": q[0, 1], "p50_high_ms": q[0, 2],
-            "p99_ms": q[1, 0], "p99_low_ms": q[1, 1], "p99_high_ms": q[1, 2],
-            "budget": _budget_class(q[1, 1], q[1, 2], budget_ms) if len(ran) else FAILED,
-            "failed_calls": int((failures != "").sum()) if len(ran) else len(g),
+            **_stats(g, _seed_of(method), RESAMPLES, budget_ms),
+            "failed_calls": int((~ran).sum()),
             "first_call_s": first.get("first_call_s", np.nan),
             "first_call_note": first.get("error", ""),
             "joint_distance_median_deg": g.loc[ok, "joint_distance_deg"].median(),
@@ -99,44 +123,53 @@ def per_method(table: pd.DataFrame, info: dict[str, dict], budget_ms: float,
             "nearest_branch_low_pct": 100.0 * b_low, "nearest_branch_high_pct": 100.0 * b_high,
         }
         for s in seeds:
-            part = g[g["seed"] == s]
-            t = part.loc[part["failure"].fillna("") == "", "time_s"].to_numpy(float) * 1000.0
-            row[f"success_pct_seed{s}"] = 100.0 * part["success"].astype(bool).mean()
-            row[f"p50_ms_seed{s}"] = float(np.median(t)) if len(t) else np.nan
-            row[f"p99_ms_seed{s}"] = float(np.quantile(t, 0.99)) if len(t) else np.nan
+            part = _stats(g[g["seed"] == s], _seed_of(method) + s, SEED_RESAMPLES, budget_ms)
+            row.update({f"{k}_seed{s}": v for k, v in part.items()})
         rows.append(row)
     return pd.DataFrame(rows)
 
 
-def _interval(row, name: str) -> tuple[float, float]:
-    return float(row[f"{name}_low{'_pct' if name == 'success' else '_ms'}"]), \
-        float(row[f"{name}_high{'_pct' if name == 'success' else '_ms'}"])
+def _interval(row, name: str, suffix: str = "") -> tuple[float, float]:
+    unit = "_pct" if name == "success" else "_ms"
+    return float(row[f"{name}_low{unit}{suffix}"]), float(row[f"{name}_high{unit}{suffix}"])
 
 
-def dominates(a, b) -> bool:
+def dominates(a, b, suffix: str = "") -> bool:
     """True when method row ``a`` dominates ``b`` on success and median time per call: not
     worse on either (the intervals overlap or ``a`` leads) and better on one outside the
-    intervals."""
-    sa, sb = _interval(a, "success"), _interval(b, "success")
+    intervals (``suffix``: one seed's columns, ``_seed<s>``)."""
+    sa, sb = _interval(a, "success", suffix), _interval(b, "success", suffix)
     # time: lower is better, so compare the negated intervals
-    ta, tb = _interval(a, "p50"), _interval(b, "p50")
+    ta, tb = _interval(a, "p50", suffix), _interval(b, "p50", suffix)
     ta, tb = (-ta[1], -ta[0]), (-tb[1], -tb[0])
     not_worse = not clearly_above(sb, sa) and not clearly_above(tb, ta)
     return not_worse and (clearly_above(sa, sb) or clearly_above(ta, tb))
 
 
-def rankings(summary: pd.DataFrame, budget_ms: float, seeds: Sequence[int]
-             ) -> dict[int, list[str]]:
-    """Each seed's ranking of the methods that ran (best first): within the budget at p99,
-    then success, then median time."""
+def order(summary: pd.DataFrame, suffix: str = "") -> list[str]:
+    """The methods ranked by the verdict's criterion (best first): by budget class (within,
+    uncertain, misses, cannot run); within a class by front (the methods no other of the
+    class dominates, then those only the first front dominates, ...); within a front by
+    success, then median time. ``suffix``: rank on one seed's columns."""
+    ranked: list[str] = []
+    rows = {r["method"]: r for _, r in summary.iterrows()}
+    for cls in sorted(CLASS_ORDER, key=CLASS_ORDER.get):
+        left = [m for m, r in rows.items() if r[f"budget{suffix}"] == cls]
+        while left:
+            front = [m for m in left if cls == FAILED or not any(
+                dominates(rows[o], rows[m], suffix) for o in left if o != m)] or left
+            front.sort(key=lambda m: (-np.nan_to_num(rows[m][f"success_pct{suffix}"]),
+                                      np.nan_to_num(rows[m][f"p50_ms{suffix}"], nan=np.inf)))
+            ranked += front
+            left = [m for m in left if m not in front]
+    return ranked
+
+
+def rankings(summary: pd.DataFrame, seeds: Sequence[int]) -> dict[int, list[str]]:
+    """Each seed's ranking (:func:`order` on that seed's own statistics) of the methods
+    that ran."""
     ran = summary[summary["budget"] != FAILED]
-    out = {}
-    for s in seeds:
-        key = ran.assign(_over=(ran[f"p99_ms_seed{s}"] > budget_ms).astype(int),
-                         _neg=-ran[f"success_pct_seed{s}"])
-        out[s] = key.sort_values(["_over", "_neg", f"p50_ms_seed{s}"], kind="stable")[
-            "method"].tolist()
-    return out
+    return {s: order(ran, f"_seed{s}") for s in seeds}
 
 
 def _pct(row) -> str:
@@ -165,14 +198,14 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
            per_seed: int, seeds: Sequence[int]) -> Verdict:
     """The recommendation, its ties and trade-offs, as a paragraph and a ranked table (see
     the module docstring)."""
-    table = summary.copy()
-    table["_class"] = table["budget"].map(CLASS_ORDER)
-    table = table.sort_values(["_class", "success_pct", "p50_ms"],
-                              ascending=[True, False, True], kind="stable")
-    table = table.drop(columns="_class").reset_index(drop=True)
-    ranks = rankings(table, budget_ms, seeds)
-    for s, order in ranks.items():
-        table[f"rank_seed{s}"] = table["method"].map({m: i + 1 for i, m in enumerate(order)})
+    ranked = order(summary)
+    table = summary.set_index("method").loc[ranked].reset_index()
+    ranks = rankings(table, seeds)
+    for s, seed_order in ranks.items():
+        table[f"rank_seed{s}"] = table["method"].map(
+            {m: i + 1 for i, m in enumerate(seed_order)})
+    table = table.drop(columns=[c for c in table.columns if "_seed" in c and not c.startswith(
+        "rank") and not c.startswith(SEED_COLUMNS)])
     taus = {f"seed {a} vs seed {b}": kendall_tau(ranks[a], ranks[b])
             for a, b in itertools.combinations(seeds, 2)}
     table["role"] = table["budget"].map({WITHIN: "", UNCERTAIN: "p99 may pass the budget",
@@ -196,9 +229,7 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
             text += (f" The fastest at p99 is {fastest} ({_ms_ci(rows[fastest], 'p99')}); "
                      "give a larger --budget-ms to get a recommendation.")
         return Verdict(" ".join([text, agreement]), table, None, [], taus)
-    front = [m for m in candidates
-             if not any(dominates(rows[o], rows[m]) for o in candidates if o != m)] or candidates
-    rec = max(front, key=lambda m: (rows[m]["success_pct"], -rows[m]["p50_ms"]))
+    rec = ranked[0]  # the first front of the candidates' class, most successful first
     r = rows[rec]
     sentences = [f"{head}: use **{rec}**: success {_pct(r)}, {_ms_ci(r, 'p50')} per call at "
                  f"the median, p99 {_ms_ci(r, 'p99')}."]
@@ -208,8 +239,9 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
     others = [m for m in candidates if m != rec]
     s_rec, t_rec = _interval(r, "success"), _interval(r, "p50")
     if others and all(clearly_above(s_rec, _interval(rows[m], "success")) for m in others):
-        sentences.append(f"{rec} is the best on success among the methods within the budget: "
-                         "its lead is outside the intervals.")
+        among = "whose p99 may meet the budget" if straddles else "within the budget"
+        sentences.append(f"{rec} is the best on success among the methods {among}: its lead "
+                         "is outside the intervals.")
     tied = [m for m in others if overlap(s_rec, _interval(rows[m], "success"))
             and overlap(t_rec, _interval(rows[m], "p50"))]
     if tied:
@@ -258,8 +290,9 @@ def _agreement(taus: dict[str, float], seeds: Sequence[int]) -> str:
     if not values:
         return "With fewer than two methods that ran, there is no ranking to compare."
     listed = ", ".join(f"{t:.2f}" for t in taus.values())
-    text = (f"The ranking (within the budget at p99, then success, then median time) "
-            f"recomputed on each of the seeds {', '.join(map(str, seeds))} agrees with "
+    named = ", ".join(map(str, seeds))
+    text = ("The ranking by the same criterion (budget at p99, then dominance on success and "
+            f"median time, then success) recomputed on each of the seeds {named} agrees with "
             f"Kendall tau {listed} between pairs of seeds (1: the same order)")
     if min(values) < 0.6:
         text += "; below the top it is not stable, so read the ties rather than the order"
