@@ -267,6 +267,7 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
         sentences.append(f"{m} is {_ratio(r['p50_ms'], rows[m]['p50_ms'])} faster per call "
                          f"at the median but succeeds less often ({rows[m]['success_pct']:.1f} "
                          f"% vs {r['success_pct']:.1f} %).")
+    may_pass, over = [], []
     for m, row in rows.items():
         if m in candidates or row["budget"] == FAILED:
             continue
@@ -275,6 +276,14 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
             sentences.append(f"{m} succeeds more often ({row['success_pct']:.1f} % vs "
                              f"{r['success_pct']:.1f} %) but {how} the {budget_ms:g} ms budget "
                              f"at p99 ({_ms_ci(row, 'p99')}).")
+        elif overlap(_interval(row, "success"), s_rec):
+            (may_pass if row["budget"] == UNCERTAIN else over).append(m)
+    if may_pass:
+        sentences.append("As reliable (intervals overlap), but with a p99 that may pass the "
+                         "budget: " + ", ".join(f"{m} ({_ms_ci(rows[m], 'p99')})"
+                                                for m in may_pass) + ".")
+    if over:
+        sentences.append(f"As reliable, but over the budget at p99: {_names(over)}.")
     failed = [m for m, row in rows.items() if row["budget"] == FAILED]
     if failed:
         sentences.append(f"Could not take the robot: {_names(failed)} (the reasons are in the "
