@@ -102,7 +102,7 @@ def test_no_method_within_the_budget_gives_no_recommendation():
     (["--robot", ROBOT, "--minutes", "0"], "--minutes"),
     (["--robot", ROBOT, "--budget-ms", "0"], "--budget-ms"),
     (["--robot", ROBOT, "--budget-ms", "inf"], "--budget-ms"),
-    (["--robot", ROBOT, "--task", "path"], "--task"),
+    (["--robot", ROBOT, "--task", "paths"], "--task"),
     (["--robot", ROBOT, "--methods", "nope"], "nope"),
 ])
 def test_bad_input_is_one_line_exit_2(capsys, tmp_path, args, message):
@@ -130,6 +130,30 @@ def short_run(tmp_path_factory):
     return out / "recommend" / "ur5"
 
 
+def _check_agreement(folder, budget_ms):
+    """The recommended method is within the budget at p99 and no candidate dominates it on
+    success and median time (intervals compared); "best" only where the success lead is
+    outside the intervals; every tie named is a tie."""
+    table = pd.read_csv(folder / "recommend.csv").fillna({"role": ""})
+    verdict = (folder / "recommend.md").read_text().split("\n\n")[1]
+    rec = table[table["role"] == RECOMMENDED]
+    if rec.empty:
+        assert "no method meets the budget" in verdict
+        return
+    r = rec.iloc[0]
+    assert f"use **{r['method']}**" in verdict
+    assert r["p99_high_ms"] <= budget_ms or "straddles" in verdict
+    others = table[(table["method"] != r["method"]) & (table["budget"] == r["budget"])]
+    for _, o in others.iterrows():
+        assert not dominates(o, r), (o["method"], r["method"])
+    if re.search(r"\bbest\b", verdict):
+        assert all(r["success_low_pct"] > o["success_high_pct"] for _, o in others.iterrows())
+    for _, o in table[table["role"] == "tied"].iterrows():
+        s, t = _interval(o, "success"), _interval(o, "p50")
+        assert s[0] <= r["success_high_pct"] and r["success_low_pct"] <= s[1]
+        assert t[0] <= r["p50_high_ms"] and r["p50_low_ms"] <= t[1]
+
+
 def _interval(row, name):
     unit = "pct" if name == "success" else "ms"
     return row[f"{name}_low_{unit}"], row[f"{name}_high_{unit}"]
@@ -150,27 +174,7 @@ def test_the_files_are_written_and_the_command_reproduces_them(short_run):
 
 @needs_erd
 def test_the_verdict_agrees_with_its_own_table(short_run):
-    """The recommended method is within the budget at p99 and no candidate dominates it on
-    success and median time (intervals compared); "best" only where the success lead is
-    outside the intervals; every tie named is a tie."""
-    table = pd.read_csv(short_run / "recommend.csv").fillna({"role": ""})
-    verdict = (short_run / "recommend.md").read_text().split("\n\n")[1]
-    rec = table[table["role"] == RECOMMENDED]
-    if rec.empty:
-        assert "no method meets the budget" in verdict
-        return
-    r = rec.iloc[0]
-    assert f"use **{r['method']}**" in verdict
-    assert r["p99_high_ms"] <= 5.0 or "straddles" in verdict
-    others = table[(table["method"] != r["method"]) & (table["budget"] == r["budget"])]
-    for _, o in others.iterrows():
-        assert not dominates(o, r), (o["method"], r["method"])
-    if re.search(r"\bbest\b", verdict):
-        assert all(r["success_low_pct"] > o["success_high_pct"] for _, o in others.iterrows())
-    for _, o in table[table["role"] == "tied"].iterrows():
-        s, t = _interval(o, "success"), _interval(o, "p50")
-        assert s[0] <= r["success_high_pct"] and r["success_low_pct"] <= s[1]
-        assert t[0] <= r["p50_high_ms"] and r["p50_low_ms"] <= t[1]
+    _check_agreement(short_run, 5.0)
 
 
 @needs_erd
@@ -180,3 +184,39 @@ def test_the_run_fits_its_minutes(short_run):
     record = json.loads((short_run / "run.json").read_text())
     assert record["wall_s"] <= 1.1 * MINUTES * 60.0, record["wall_s"]
     assert record["plan"]["targets_per_seed"] >= 10
+
+
+@needs_erd
+def test_path_task_places_paths_and_judges_them_by_validity(tmp_path):
+    """--task path: circles and lines placed from FK poses, solved by frame methods, the
+    verdict agreeing with its table, within the minutes."""
+    import json
+
+    minutes = 0.3
+    code = main(["recommend", "--robot", ROBOT, "--task", "path", "--methods",
+                 "rtb-lm,sequential-ik", "--minutes", str(minutes), "--output", str(tmp_path),
+                 "--quiet"])
+    assert code == 0
+    folder = tmp_path / "recommend" / "ur5"
+    rows = pd.read_csv(folder / "results.csv")
+    assert set(rows["method"]) == {"rtb-lm", "sequential-ik"}
+    assert rows["path"].str.startswith(("circle", "line")).all()
+    assert rows["seed"].nunique() == 3
+    _check_agreement(folder, 1000.0)  # the default budget per path
+    assert json.loads((folder / "run.json").read_text())["wall_s"] <= 1.1 * minutes * 60.0
+
+
+def test_placed_paths_start_at_a_reachable_pose_and_hold_its_orientation():
+    from ikbench.core.robot import load_robot
+    from ikbench.studies.recommend_path import SEGMENTS, place_paths
+
+    robot = load_robot("panda")
+    circle, line = place_paths(robot, 5, 2)
+    for task in (circle, line):
+        T = robot.fk_transform(task.reference_pose[None])[0]
+        assert np.allclose(task.goal_points_mm[0], T[:3, 3] * 1000.0)
+        assert np.allclose(task.goal_rotations, T[:3, :3])
+        assert len(task.goal_points_mm) == SEGMENTS + 1
+    assert np.allclose(circle.goal_points_mm[0], circle.goal_points_mm[-1])  # closed
+    steps = np.diff(line.goal_points_mm, axis=0)
+    assert np.allclose(steps, steps[0])  # straight, evenly spaced

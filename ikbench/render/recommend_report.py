@@ -48,8 +48,10 @@ def write_folder(result: Result, folder: Path, command: str) -> list[Path]:
     record = _record(result, command, libraries)
     with staged_folder(folder) as tmp:
         result.table.to_csv(tmp / "recommend.csv", index=False, float_format="%.6g")
-        result.results.astype({"library_ok": "boolean"}).to_csv(
-            tmp / "results.csv", index=False, float_format="%.17g")
+        rows = result.results
+        if "library_ok" in rows:
+            rows = rows.astype({"library_ok": "boolean"})
+        rows.to_csv(tmp / "results.csv", index=False, float_format="%.17g")
         pareto(result, tmp / "pareto.png")
         (tmp / "CITATIONS.bib").write_text(bibtex(libraries), encoding="utf-8")
         (tmp / "recommend.md").write_text(markdown(result, record), encoding="utf-8")
@@ -91,7 +93,8 @@ def table_lines(result: Result) -> list[str]:
              "rank per seed | failed calls |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for _, row in result.table.iterrows():
-        name = row["method"] + ("" if row["deterministic"] else " (not deterministic)")
+        name = row["method"] + (" (not deterministic)" if row["deterministic"] is False
+                                or row["deterministic"] is np.False_ else "")
         first = _f(row["first_call_s"]) if np.isfinite(row["first_call_s"]) else (
             row["first_call_note"] or "-")
         ranks = ", ".join(_f(row.get(f"rank_seed{s}", np.nan)) for s in seeds)
@@ -106,14 +109,12 @@ def table_lines(result: Result) -> list[str]:
 
 def markdown(result: Result, record: dict) -> str:
     """recommend.md (see the module docstring)."""
-    s, plan, robot = result.settings, result.plan, result.robot
+    s, robot = result.settings, result.robot
     prov = record["provenance"]
     revision = prov["git_revision"] or prov["packages"].get("ikbench")
-    n = plan.targets_per_seed
     tolerance = f"{s.tolerance_mm:g} mm" + (f" and {s.tolerance_deg:g} deg"
                                             if s.task == "pose" else "")
     versions = record["library_versions"]
-    cost = ", ".join(f"{m} {1000 * c:.3g} ms" for m, c in plan.cost_s.items())
     lines = [
         f"# Which IK solver for {robot.name}?",
         "",
@@ -123,7 +124,8 @@ def markdown(result: Result, record: dict) -> str:
         "",
         "## Table",
         "",
-        f"Success: FK through Pinocchio within {tolerance} and within the joint limits, "
+        (f"Success: FK through Pinocchio within {tolerance} and within the joint limits, "
+         if s.task != "path" else "Success: CppFlow's validity of the whole path, ") +
         "with its Wilson 95 % interval. Per-call p50 and p99: every call's time on the "
         "solver's clock (set-up untimed), with percentile-bootstrap 95 % intervals (2000 "
         f"resamples, seeded). Budget at p99: *within* when the p99 interval is at or below "
@@ -138,21 +140,10 @@ def markdown(result: Result, record: dict) -> str:
         "## Protocol and sample",
         "",
         f"Robot: {robot.name} ({robot.dof} joints, {robot.root_link} -> {robot.end_frame}). "
-        f"Task: {'6-D pose' if s.task == 'pose' else 'position only'}. Targets: FK of "
-        "configurations drawn uniformly within the joint limits (every one reachable), "
-        f"seeds {', '.join(map(str, s.seeds))}, {n} per seed ({n * len(s.seeds)} per method). "
-        f"The deterministic protocol of `ikbench ik`: at most {s.attempts} attempts per target "
-        "from a seeded sequence of initial configurations, the same for every method, with no "
-        "wall-clock cut (success is a function of the seed and the code; TRAC-IK races its "
-        "own timeout and is not deterministic).",
+        + (_path_protocol(result) if s.task == "path" else _pose_protocol(result)),
         "",
-        f"Sample size: a pilot of {plan.pilot_targets} targets per method (another seed) "
-        f"cost per target {cost}; with the set-ups ({sum(plan.setup_s.values()):.0f} s) and "
-        f"the first calls (estimated {sum(plan.first_call_estimate_s.values()):.0f} s"
-        f"{'' if plan.first_calls_fit else ', measured only as the time allows'}), "
-        f"{n} targets per seed fit --minutes {s.minutes:g}: the sample was estimated at "
-        f"{plan.sample_estimate_s:.0f} s. Wall time of the whole run {result.wall_s:.0f} s "
-        f"({result.wall_s / 60:.2f} min of {s.minutes:g}).",
+        f"Wall time of the whole run {result.wall_s:.0f} s ({result.wall_s / 60:.2f} min of "
+        f"--minutes {s.minutes:g}).",
         "",
         "Kendall tau between the seeds' rankings: " + ", ".join(
             f"{k}: {_f(v, 2)}" for k, v in result.kendall_tau.items()) + ".",
@@ -172,6 +163,47 @@ def markdown(result: Result, record: dict) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def _pose_protocol(result: Result) -> str:
+    s, plan = result.settings, result.plan
+    n = plan.targets_per_seed
+    cost = ", ".join(f"{m} {1000 * c:.3g} ms" for m, c in plan.cost_s.items())
+    return (
+        f"Task: {'6-D pose' if s.task == 'pose' else 'position only'}. Targets: FK of "
+        "configurations drawn uniformly within the joint limits (every one reachable), "
+        f"seeds {', '.join(map(str, s.seeds))}, {n} per seed ({n * len(s.seeds)} per method). "
+        f"The deterministic protocol of `ikbench ik`: at most {s.attempts} attempts per target "
+        "from a seeded sequence of initial configurations, the same for every method, with no "
+        "wall-clock cut (success is a function of the seed and the code; TRAC-IK races its "
+        "own timeout and is not deterministic).\n\n"
+        f"Sample size: a pilot of {plan.pilot_targets} targets per method (another seed) "
+        f"cost per target {cost}; with the set-ups ({sum(plan.setup_s.values()):.0f} s) and "
+        f"the first calls (estimated {sum(plan.first_call_estimate_s.values()):.0f} s"
+        f"{'' if plan.first_calls_fit else ', measured only as the time allows'}), "
+        f"{n} targets per seed fit --minutes {s.minutes:g}: the sample was estimated at "
+        f"{plan.sample_estimate_s:.0f} s.")
+
+
+def _path_protocol(result: Result) -> str:
+    s, plan = result.settings, result.plan
+    n, shape = plan.targets_per_seed, plan.path_shape
+    cost = ", ".join(f"{m} {c:.3g} s" if np.isfinite(c) else f"{m} not piloted (the time "
+                     "was spent)" for m, c in plan.cost_s.items())
+    return (
+        f"Task: 6-D pose paths of {shape['segments'] + 1} poses, circles and lines "
+        "alternating, each from the end-frame pose of a configuration drawn uniformly within "
+        "the joint limits (the robot starts there), its orientation held; a circle of radius "
+        f"{shape['circle_radius_share']:g} x the reach at the start in the start frame's x-y "
+        f"plane, a line of {shape['line_length_share']:g} x the reach along a random "
+        "direction. The start is reachable; the rest of a path need not be (no ground truth). "
+        f"Seeds {', '.join(map(str, s.seeds))}, {n} paths per seed ({n * len(s.seeds)} per "
+        "method). Success: CppFlow's validity of the written trajectory "
+        "(ikbench.core.validity). Time: the harness's clock around each solve (set-up "
+        "untimed). First calls are not measured for path methods.\n\n"
+        f"Sample size: a pilot of one path per method (another seed, set-up included) took "
+        f"{cost}; {n} paths per seed fit --minutes {s.minutes:g}: the sample was estimated "
+        f"at {plan.sample_estimate_s:.0f} s.")
 
 
 def pareto(result: Result, path: Path) -> None:

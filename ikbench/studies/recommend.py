@@ -46,7 +46,12 @@ if TYPE_CHECKING:
     from ikbench.core.robot import Robot
 
 FOLDER = "recommend"
-TASKS = ("pose", "position")
+PATH = "path"
+TASKS = ("pose", "position", PATH)
+#: Paths per seed (``--task path``): at least one circle and one line, at most.
+MIN_PATHS, MAX_PATHS = 2, 200
+#: The default budget per path [ms] (``--task path``): a path of 41 poses.
+PATH_BUDGET_MS = 1000.0
 #: Seeds of the sample (the ranking is recomputed on each).
 SEEDS = 3
 #: Targets per method in the pilot that sizes the sample.
@@ -96,8 +101,7 @@ class RecommendSettings:
 
     def __post_init__(self) -> None:
         if self.task not in TASKS:
-            raise InputError(f"--task: {self.task!r} is not one of {', '.join(TASKS)} (path: "
-                             "not built yet, see docs/recommend.md)")
+            raise InputError(f"--task: {self.task!r} is not one of {', '.join(TASKS)}")
         if not (isinstance(self.budget_ms, (int, float)) and math.isfinite(self.budget_ms)
                 and self.budget_ms > 0):
             raise InputError(f"--budget-ms: {self.budget_ms!r} must be a finite number of "
@@ -110,8 +114,9 @@ class RecommendSettings:
         self.ik_settings(1, self.seed)
 
     def ik_settings(self, count: int, seed: int) -> IKSettings:
-        """The ``ikbench ik`` settings of one sample: the deterministic protocol."""
-        return IKSettings(count=count, seed=seed, kind=self.task,
+        """The ``ikbench ik`` settings of one sample: the deterministic protocol (a path task
+        checks its seed and tolerances as a pose task would)."""
+        return IKSettings(count=count, seed=seed, kind="pose" if self.task == PATH else self.task,
                           tolerance_mm=self.tolerance_mm, tolerance_deg=self.tolerance_deg,
                           budget_ms=math.inf, attempts=(self.attempts,))
 
@@ -124,8 +129,8 @@ class RecommendSettings:
 @dataclass
 class Plan:
     """How the sample was sized: the pilot's cost per target [s] per method, each method's
-    set-up [s] and estimated first call [s], the targets per seed and the estimate of the
-    sample's time [s]."""
+    set-up [s] and estimated first call [s], the targets (paths) per seed and the estimate of
+    the sample's time [s]; ``path_shape``: the placed paths' size (``--task path``)."""
 
     minutes: float
     pilot_targets: int
@@ -135,6 +140,7 @@ class Plan:
     targets_per_seed: int
     sample_estimate_s: float
     first_calls_fit: bool
+    path_shape: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -254,8 +260,75 @@ def _first_calls(robot: Robot, names: Sequence[str], settings: RecommendSettings
     return out
 
 
+def _run_poses(robot: Robot, names: Sequence[str], settings: RecommendSettings,
+               deadline: float, report: Reporter) -> tuple[pd.DataFrame, dict, Plan]:
+    """The single-pose panel (steps 1 to 4 of the module docstring): rows, facts, plan."""
+    solvers, setup_s = _setup(robot, names, settings, report)
+    _, pilot_wall, _ = _sample(robot, names, PILOT_TARGETS,
+                               settings.seed + PILOT_SEED_OFFSET, settings, solvers, report)
+    cost_s = {n: pilot_wall[n] / PILOT_TARGETS for n in names}
+    working = [n for n in names if not isinstance(solvers[n], str)]
+    estimate = {n: setup_s[n] + FRESH_PROCESS_S for n in working}
+    remaining = deadline - time.perf_counter() - WRITE_RESERVE_S
+    n, sample_s, fit = plan_sample(remaining, cost_s, estimate)
+    plan = Plan(settings.minutes, PILOT_TARGETS, cost_s, setup_s, estimate, n, sample_s, fit)
+    report.note(f"{n} targets per seed x {SEEDS} seeds x {len(names)} methods: about "
+                f"{sample_s:.0f} s (pilot: {PILOT_TARGETS} targets per method)")
+    frames, info = [], {}
+    for s in settings.seeds:
+        frame, _, facts = _sample(robot, names, n, s, settings, solvers, report)
+        frames.append(frame)
+        info.update(facts)
+    calls = _first_calls(robot, working, settings, estimate, deadline - WRITE_RESERVE_S / 2,
+                         report)
+    for name in names:
+        info[name]["first_call"] = calls.get(name, {"error": str(solvers[name])})
+    return pd.concat(frames, ignore_index=True), info, plan
+
+
+def _run_paths(robot: Robot, names: Sequence[str], settings: RecommendSettings,
+               deadline: float, report: Reporter) -> tuple[pd.DataFrame, dict, Plan]:
+    """The path panel (:mod:`ikbench.studies.recommend_path`): a one-path pilot per method
+    (set-up included), then as many paths per seed as fit."""
+    from ikbench.studies import recommend_path as paths
+
+    report.say("pilot: one path per method")
+    cost_s, _ = paths.pilot(robot, names, settings.seed + PILOT_SEED_OFFSET,
+                            deadline - WRITE_RESERVE_S)
+    report.advance(len(names), "pilot done")
+    remaining = deadline - time.perf_counter() - WRITE_RESERVE_S
+    # the cheapest methods first, as many as fit the smallest sample; the others say why
+    fits, total = [], 0.0
+    for name in sorted(names, key=cost_s.get):
+        total += cost_s[name] * SEEDS * MIN_PATHS
+        if total <= remaining or (not fits and np.isfinite(cost_s[name])):
+            fits.append(name)
+    per_path = max(sum(cost_s[n] for n in fits), 1e-6) * SEEDS
+    n = int(np.clip(math.floor(max(remaining, 0.0) / per_path), MIN_PATHS, MAX_PATHS))
+    shape = {"segments": paths.SEGMENTS, "circle_radius_share": paths.CIRCLE_RADIUS_SHARE,
+             "line_length_share": paths.LINE_LENGTH_SHARE}
+    plan = Plan(settings.minutes, 1, cost_s, {}, {}, n, n * per_path, True, shape)
+    report.note(f"{n} paths per seed x {SEEDS} seeds x {len(fits)} methods: about "
+                f"{n * per_path:.0f} s (pilot: one path per method)")
+    frames = []
+    for s in settings.seeds:
+        tasks = paths.place_paths(robot, s, n)
+        for name in names:
+            if name not in fits or time.perf_counter() > deadline - WRITE_RESERVE_S:
+                why = (f"not run: --minutes {settings.minutes:g} spent" if name in fits
+                       or not np.isfinite(cost_s[name]) else f"not run: its pilot path took "
+                       f"{cost_s[name]:.3g} s, more than --minutes {settings.minutes:g} leaves")
+                frames.append(paths.not_run(name, s, tasks, why))
+            else:
+                report.say(f"seed {s}: {name}: {n} paths")
+                frames.append(paths.solve_paths(robot, name, tasks, s))
+            report.advance(1, f"seed {s}: {name}: {int(frames[-1]['success'].sum())}/{n} "
+                              "valid")
+    return pd.concat(frames, ignore_index=True), paths.facts(names), plan
+
+
 def recommend(robot: Robot | str, end_frame: str | None = None, *,
-              budget_ms: float = BUDGET_MS, task: str = "pose", minutes: float = 5.0,
+              budget_ms: float | None = None, task: str = "pose", minutes: float = 5.0,
               methods: str | Sequence[str] | None = None, seed: int = 1,
               attempts: int = ATTEMPTS, output: str | Path | None = "runs",
               progress: bool = True, command: str = "") -> Recommendation:
@@ -264,8 +337,9 @@ def recommend(robot: Robot | str, end_frame: str | None = None, *,
     Args:
         robot: a :class:`~ikbench.core.robot.Robot`, or a name, config or URDF path.
         end_frame: the end link (with a URDF or a package robot that needs one).
-        budget_ms: the time per call [ms] the p99 must be within.
-        task: ``pose`` or ``position``.
+        budget_ms: the time per call [ms] (per path for ``path``) the p99 must be within
+            (None: :data:`BUDGET_MS`, :data:`PATH_BUDGET_MS` for ``path``).
+        task: ``pose``, ``position`` or ``path``.
         minutes: the time the run may take [min]; the sample is sized to fit.
         methods: method names (None: every installed one that takes the task).
         seed: the first of the three seeds.
@@ -281,6 +355,8 @@ def recommend(robot: Robot | str, end_frame: str | None = None, *,
     load = load_average()
     names_given = None if methods is None else tuple(
         methods.split(",") if isinstance(methods, str) else methods)
+    if budget_ms is None:
+        budget_ms = PATH_BUDGET_MS if task == PATH else BUDGET_MS
     settings = RecommendSettings(budget_ms, task, minutes, seed, attempts,
                                  methods=names_given)
     if isinstance(robot, str):
@@ -288,7 +364,12 @@ def recommend(robot: Robot | str, end_frame: str | None = None, *,
 
         robot = load_robot(robot, end_frame)
     robot.check_loads()
-    names = parse_methods(names_given, task)
+    if task == PATH:
+        from ikbench.studies.recommend_path import path_methods
+
+        names = path_methods(names_given)
+    else:
+        names = parse_methods(names_given, task)
     if not names:
         raise InputError(f"--methods: no installed method takes --task {task}")
     folder = None
@@ -299,30 +380,11 @@ def recommend(robot: Robot | str, end_frame: str | None = None, *,
         folder = folder_of(output, robot)
         check_folder_writable(folder)
     deadline = started + settings.minutes * 60.0
-    total = len(names) * (2 + SEEDS + 1) + 1
-    with Reporter(FOLDER, total=total, unit="step", enabled=progress) as report:
-        solvers, setup_s = _setup(robot, names, settings, report)
-        pilot, pilot_wall, _ = _sample(robot, names, PILOT_TARGETS,
-                                       seed + PILOT_SEED_OFFSET, settings, solvers, report)
-        cost_s = {n: pilot_wall[n] / PILOT_TARGETS for n in names}
-        working = [n for n in names if not isinstance(solvers[n], str)]
-        estimate = {n: setup_s[n] + FRESH_PROCESS_S for n in working}
-        remaining = deadline - time.perf_counter() - WRITE_RESERVE_S
-        n, sample_s, fit = plan_sample(remaining, cost_s, estimate)
-        plan = Plan(settings.minutes, PILOT_TARGETS, cost_s, setup_s, estimate, n, sample_s,
-                    fit)
-        report.note(f"{n} targets per seed x {SEEDS} seeds x {len(names)} methods: about "
-                    f"{sample_s:.0f} s (pilot: {PILOT_TARGETS} targets per method)")
-        frames, info = [], {}
-        for s in settings.seeds:
-            frame, _, facts = _sample(robot, names, n, s, settings, solvers, report)
-            frames.append(frame)
-            info.update(facts)
-        table = pd.concat(frames, ignore_index=True)
-        calls = _first_calls(robot, working, settings, estimate,
-                             deadline - WRITE_RESERVE_S / 2, report)
-        for name in names:
-            info[name]["first_call"] = calls.get(name, {"error": str(solvers[name])})
+    run = _run_paths if task == PATH else _run_poses
+    steps = len(names) * (1 + SEEDS) + (0 if task == PATH else 2 * len(names)) + 1
+    with Reporter(FOLDER, total=steps, unit="step", enabled=progress) as report:
+        table, info, plan = run(robot, names, settings, deadline, report)
+        n = plan.targets_per_seed
         report.say("statistics and verdict")
         summary = per_method(table, info, settings.budget_ms, settings.seeds)
         decision = decide(summary, settings.budget_ms, task, robot.name, n, settings.seeds)

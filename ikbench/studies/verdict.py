@@ -111,7 +111,7 @@ def per_method(table: pd.DataFrame, info: dict[str, dict], budget_ms: float,
         first = facts.get("first_call", {})
         row = {
             "method": method, "library": facts.get("library", ""),
-            "deterministic": bool(facts.get("deterministic", True)),
+            "deterministic": facts.get("deterministic"),  # None: not stated
             "status": "ok" if ran.any() else (failures.iloc[0] or "no call ran"),
             "targets": len(g), "successes": int(ok.sum()),
             **_stats(g, _seed_of(method), RESAMPLES, budget_ms),
@@ -216,9 +216,12 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
     straddles = not candidates
     if straddles:
         candidates = [m for m, r in rows.items() if r["budget"] == UNCERTAIN]
-    kind = "6-D pose" if task == "pose" else "position-only"
-    head = (f"For {kind} IK on {robot} within {budget_ms:g} ms per call at p99 "
-            f"({len(seeds)} seeds x {per_seed} targets, {len(seeds) * per_seed} in all; 95 % "
+    kind = {"pose": "6-D pose IK", "position": "position-only IK",
+            "path": "pose paths (circles and lines, CppFlow's validity)"}.get(task, task)
+    call = "path" if task == "path" else "call"
+    unit = "paths" if task == "path" else "targets"
+    head = (f"For {kind} on {robot} within {budget_ms:g} ms per {call} at p99 "
+            f"({len(seeds)} seeds x {per_seed} {unit}, {len(seeds) * per_seed} in all; 95 % "
             "intervals in brackets)")
     agreement = _agreement(taus, seeds)
     if not candidates:
@@ -231,7 +234,7 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
         return Verdict(" ".join([text, agreement]), table, None, [], taus)
     rec = ranked[0]  # the first front of the candidates' class, most successful first
     r = rows[rec]
-    sentences = [f"{head}: use **{rec}**: success {_pct(r)}, {_ms_ci(r, 'p50')} per call at "
+    sentences = [f"{head}: use **{rec}**: success {_pct(r)}, {_ms_ci(r, 'p50')} per {call} at "
                  f"the median, p99 {_ms_ci(r, 'p99')}."]
     if straddles:
         sentences.append(f"No method's p99 is within {budget_ms:g} ms beyond doubt: {rec}'s "
@@ -254,17 +257,17 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
               and clearly_above(_interval(rows[m], "p50"), t_rec)]
     for m in sorted(slower, key=lambda m: rows[m]["p50_ms"])[:3]:
         sentences.append(f"{rec} is as reliable as {m} (intervals overlap) and "
-                         f"{_ratio(rows[m]['p50_ms'], r['p50_ms'])} faster per call at the "
+                         f"{_ratio(rows[m]['p50_ms'], r['p50_ms'])} faster per {call} at the "
                          "median.")
     for m in [m for m in others if clearly_above(_interval(rows[m], "success"), s_rec)]:
         sentences.append(f"{m} succeeds more often ({rows[m]['success_pct']:.1f} % vs "
                          f"{r['success_pct']:.1f} %) but is "
-                         f"{_ratio(rows[m]['p50_ms'], r['p50_ms'])} slower per call at the "
+                         f"{_ratio(rows[m]['p50_ms'], r['p50_ms'])} slower per {call} at the "
                          "median.")
     faster = [m for m in others if clearly_above(t_rec, _interval(rows[m], "p50"))
               and clearly_above(s_rec, _interval(rows[m], "success"))]
     for m in sorted(faster, key=lambda m: rows[m]["p50_ms"])[:2]:
-        sentences.append(f"{m} is {_ratio(r['p50_ms'], rows[m]['p50_ms'])} faster per call "
+        sentences.append(f"{m} is {_ratio(r['p50_ms'], rows[m]['p50_ms'])} faster per {call} "
                          f"at the median but succeeds less often ({rows[m]['success_pct']:.1f} "
                          f"% vs {r['success_pct']:.1f} %).")
     may_pass, over = [], []

@@ -10,9 +10,9 @@ from ikbench.cli.values import OUTPUT, SEED, Number, count
 HELP = ("which single-pose IK solver for my robot: every installed method on a sample sized "
         "to --minutes, success and per-call times with 95 %% intervals, and a verdict")
 DEFAULT_OUTPUT = "runs"
-#: The default budget [ms] (ikbench.studies.recommend.BUDGET_MS; not imported: the CLI
-#: starts light).
-BUDGET_MS = 5.0
+#: The default budgets [ms] per call and per path (ikbench.studies.recommend.BUDGET_MS,
+#: PATH_BUDGET_MS; not imported: the CLI starts light).
+BUDGET_MS, PATH_BUDGET_MS = 5.0, 1000.0
 #: --budget-ms: a finite time per call [ms] (the p99 is held against it).
 BUDGET = Number("a budget per call [ms]", 0.0, 3_600_000.0, low_open=True,
                 hint="the p99 per call is held against it; inf has no meaning here")
@@ -29,17 +29,21 @@ DESCRIPTION = (
     "methods on each seed (Kendall tau between them) and writes a verdict: the recommended "
     "method for the budget (its p99 within --budget-ms), the methods tied with it, the "
     "trade-off. Writes OUTPUT/recommend/<robot>/: recommend.md, recommend.csv, results.csv, "
-    "pareto.png, CITATIONS.bib, run.json.")
+    "pareto.png, CITATIONS.bib, run.json. --task path: circles and lines of poses placed "
+    "in the robot's reachable workspace (orientation held), every installed method that "
+    "follows goal frames, success by CppFlow's validity.")
 
 
 def arguments(parser: argparse.ArgumentParser) -> None:
     add_robot_arguments(parser)
-    parser.add_argument("--budget-ms", type=BUDGET, default=BUDGET_MS,
+    parser.add_argument("--budget-ms", type=BUDGET, default=None,
                         help="time per call [ms] the p99 must be within (finite, > 0; "
-                        f"default {BUDGET_MS:g}: TRAC-IK's default timeout)")
-    parser.add_argument("--task", choices=("pose", "position"), default="pose",
-                        help="pose (6-D, default) or position (rotation free); path is not "
-                        "built yet")
+                        f"default {BUDGET_MS:g}: TRAC-IK's default timeout; --task path: per "
+                        f"path, default {PATH_BUDGET_MS:g})")
+    parser.add_argument("--task", choices=("pose", "position", "path"), default="pose",
+                        help="pose (6-D, default), position (rotation free), or path: circles "
+                        "and lines of poses placed in the reachable workspace, solved by the "
+                        "methods that follow goal frames, judged by CppFlow's validity")
     parser.add_argument("--minutes", type=MINUTES, default=5.0,
                         help="time the whole run may take [min]; the sample is sized to fit "
                         "(default 5)")
@@ -75,10 +79,16 @@ def run(args: argparse.Namespace) -> int:
     from ikbench.render.recommend_report import folder_of
     from ikbench.studies.ik import parse_methods
     from ikbench.studies.recommend import RecommendSettings, recommend
+    from ikbench.studies.recommend_path import path_methods
 
+    if args.budget_ms is None:
+        args.budget_ms = PATH_BUDGET_MS if args.task == "path" else BUDGET_MS
     RecommendSettings(args.budget_ms, args.task, args.minutes, args.seed, args.attempts)
     robot = robot_from_args(args)
-    parse_methods(args.methods, args.task)
+    if args.task == "path":
+        path_methods(args.methods)
+    else:
+        parse_methods(args.methods, args.task)
     robot.check_loads()
     folder = folder_of(args.output, robot)
     check_folder_writable(folder)
@@ -88,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
                        output=args.output, progress=not args.quiet,
                        command=command_line(args))
     print(result.verdict)
+    unit = "paths" if args.task == "path" else "targets"
     print(f"written to {folder}/ in {result.wall_s:.0f} s ({result.plan.targets_per_seed} "
-          f"targets per seed x 3 seeds)")
+          f"{unit} per seed x 3 seeds)")
     return 0
