@@ -188,8 +188,8 @@ def _pose_protocol(result: Result) -> str:
 def _path_protocol(result: Result) -> str:
     s, plan = result.settings, result.plan
     n, shape = plan.targets_per_seed, plan.path_shape
-    cost = ", ".join(f"{m} {c:.3g} s" if np.isfinite(c) else f"{m} not piloted (the time "
-                     "was spent)" for m, c in plan.cost_s.items())
+    cost = ", ".join(f"{m} {c:.3g} s" if np.isfinite(c) else f"{m} did not finish (stopped)"
+                     for m, c in plan.cost_s.items())
     return (
         f"Task: 6-D pose paths of {shape['segments'] + 1} poses, circles and lines "
         "alternating, each from the end-frame pose of a configuration drawn uniformly within "

@@ -293,8 +293,8 @@ def _run_paths(robot: Robot, names: Sequence[str], settings: RecommendSettings,
     from ikbench.studies import recommend_path as paths
 
     report.say("pilot: one path per method")
-    cost_s, _ = paths.pilot(robot, names, settings.seed + PILOT_SEED_OFFSET,
-                            deadline - WRITE_RESERVE_S)
+    cost_s = paths.pilot(robot, names, settings.seed + PILOT_SEED_OFFSET,
+                         deadline - WRITE_RESERVE_S)
     report.advance(len(names), "pilot done")
     remaining = deadline - time.perf_counter() - WRITE_RESERVE_S
     # the cheapest methods first, as many as fit the smallest sample; the others say why
@@ -315,9 +315,11 @@ def _run_paths(robot: Robot, names: Sequence[str], settings: RecommendSettings,
         tasks = paths.place_paths(robot, s, n)
         for name in names:
             if name not in fits or time.perf_counter() > deadline - WRITE_RESERVE_S:
-                why = (f"not run: --minutes {settings.minutes:g} spent" if name in fits
-                       or not np.isfinite(cost_s[name]) else f"not run: its pilot path took "
-                       f"{cost_s[name]:.3g} s, more than --minutes {settings.minutes:g} leaves")
+                why = (f"not run: --minutes {settings.minutes:g} spent" if name in fits else
+                       f"not run: its pilot path took {cost_s[name]:.3g} s, more than "
+                       f"--minutes {settings.minutes:g} leaves" if np.isfinite(cost_s[name])
+                       else "not run: its pilot path did not finish within its share of "
+                       f"--minutes {settings.minutes:g}")
                 frames.append(paths.not_run(name, s, tasks, why))
             else:
                 report.say(f"seed {s}: {name}: {n} paths")

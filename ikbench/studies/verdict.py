@@ -234,6 +234,11 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
         return Verdict(" ".join([text, agreement]), table, None, [], taus)
     rec = ranked[0]  # the first front of the candidates' class, most successful first
     r = rows[rec]
+    if not any(rows[m]["success_pct"] > 0 for m in rows):
+        text = (f"{head}: no method succeeded on any of the {unit}, so there is no "
+                "recommendation; the criteria each row failed are in results.csv (on a path: "
+                "CppFlow's, self-collision included).")
+        return Verdict(" ".join([text, agreement]), table, None, [], taus)
     sentences = [f"{head}: use **{rec}**: success {_pct(r)}, {_ms_ci(r, 'p50')} per {call} at "
                  f"the median, p99 {_ms_ci(r, 'p99')}."]
     if straddles:
@@ -289,8 +294,8 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
         sentences.append(f"As reliable, but over the budget at p99: {_names(over)}.")
     failed = [m for m, row in rows.items() if row["budget"] == FAILED]
     if failed:
-        sentences.append(f"Could not take the robot: {_names(failed)} (the reasons are in the "
-                         "table).")
+        sentences.append(f"Did not run (cannot take the robot, or not within --minutes; the "
+                         f"reasons are in the table): {_names(failed)}.")
     sentences.append(agreement)
     table.loc[table["method"] == rec, "role"] = RECOMMENDED
     table.loc[table["method"].isin(tied), "role"] = TIED
