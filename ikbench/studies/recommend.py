@@ -298,8 +298,9 @@ def _run_paths(robot: Robot, names: Sequence[str], settings: RecommendSettings,
     report.advance(len(names), "pilot done")
     remaining = deadline - time.perf_counter() - WRITE_RESERVE_S
     # the cheapest methods first, as many as fit the smallest sample; the others say why
-    fits, total = [], 0.0
-    for name in sorted(names, key=cost_s.get):
+    fits: list[str] = []
+    total = 0.0
+    for name in sorted(names, key=lambda n: cost_s[n]):
         total += cost_s[name] * SEEDS * MIN_PATHS
         if total <= remaining or (not fits and np.isfinite(cost_s[name])):
             fits.append(name)
@@ -374,7 +375,7 @@ def recommend(robot: Robot | str, end_frame: str | None = None, *,
         names = parse_methods(names_given, task)
     if not names:
         raise InputError(f"--methods: no installed method takes --task {task}")
-    folder = None
+    folder: Path | None = None
     if output is not None:
         from ikbench.core.io import check_folder_writable
         from ikbench.render.recommend_report import folder_of
@@ -393,7 +394,7 @@ def recommend(robot: Robot | str, end_frame: str | None = None, *,
         result = Recommendation(decision.text, decision.table, [], decision.recommended,
                                 decision.tied, decision.kendall_tau, plan, table, settings,
                                 robot, 0.0, info, load, decision)
-        if folder is not None:
+        if folder is not None and output is not None:
             from ikbench.render.recommend_report import write_folder
 
             result.wall_s = time.perf_counter() - started

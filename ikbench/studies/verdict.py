@@ -153,7 +153,7 @@ def order(summary: pd.DataFrame, suffix: str = "") -> list[str]:
     success, then median time. ``suffix``: rank on one seed's columns."""
     ranked: list[str] = []
     rows = {r["method"]: r for _, r in summary.iterrows()}
-    for cls in sorted(CLASS_ORDER, key=CLASS_ORDER.get):
+    for cls in sorted(CLASS_ORDER, key=lambda c: CLASS_ORDER[c]):
         left = [m for m, r in rows.items() if r[f"budget{suffix}"] == cls]
         while left:
             front = [m for m in left if cls == FAILED or not any(
@@ -275,7 +275,8 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
         sentences.append(f"{m} is {_ratio(r['p50_ms'], rows[m]['p50_ms'])} faster per {call} "
                          f"at the median but succeeds less often ({rows[m]['success_pct']:.1f} "
                          f"% vs {r['success_pct']:.1f} %).")
-    may_pass, over = [], []
+    may_pass: list[str] = []
+    over: list[str] = []
     for m, row in rows.items():
         if m in candidates or row["budget"] == FAILED:
             continue
