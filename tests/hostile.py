@@ -54,6 +54,7 @@ BASE = {
     "letters": ["letters", "P", "--output", "<OUT>"],
     "plan": ["plan", "<TRAJ>", "--out", "<OUT>"],
     "report": ["report", str(REPO / "results")],
+    "recommend": ["recommend", "--output", "<OUT>"],
     "reproduce": ["reproduce", "--output", "<OUT>"],
     "run": ["run", "--output", "<OUT>"],
     "sweep": ["sweep", "--weight", "c0=1,10", "--output", "<OUT>"],

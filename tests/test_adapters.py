@@ -125,3 +125,24 @@ def test_listing_order_is_the_ranks_not_a_list():
     assert ranks == sorted(ranks)
     solver_ranks = [registry.solver_status()[n].cls.rank for n in registry.available_solvers()]
     assert solver_ranks == sorted(solver_ranks)
+
+
+def test_every_library_of_the_libs_extra_has_an_adapter_and_the_docs_count_them():
+    """The libraries the docs name and count are rendered from the registry and pyproject's
+    [libs] (render/blocks.py ``libraries``): each adapter of baselines/ whose library is not
+    ikbench's own dependency is in [libs], and README and docs/index.md carry the count."""
+    import tomllib
+
+    from ikbench.render.blocks import render_libraries
+
+    project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
+    libs = " ".join(project["optional-dependencies"]["libs"]).lower()
+    own = {f.adapter.library for f in registry._found()
+           if f.adapter is not None and f.where.startswith("ikbench.baselines.")}
+    core = " ".join(project["dependencies"]).lower()
+    missing = [name for name in own if name.lower() not in libs and name.lower() not in core]
+    assert not missing, f"adapters whose library is not in [libs]: {missing}"
+    count = render_libraries(REPO / "pyproject.toml", {"form": "count"}, REPO)
+    for page in ("README.md", "docs/index.md"):
+        text = (REPO / page).read_text()
+        assert f"<!-- generated: libraries pyproject.toml form=count -->{count}<" in text

@@ -37,14 +37,28 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
                         f"(default {DEFAULT_ROBOT})")
     parser.add_argument("--end-frame", default=None, metavar="LINK",
                         help="end link of the chain (required with a URDF; the chain runs from "
-                        "its root to this link, whose z-axis points)")
+                        "its root to this link, whose --pointing-axis points)")
+    parser.add_argument("--pointing-axis", default=None,
+                        choices=("x", "y", "z", "-x", "-y", "-z"),
+                        help="the end frame's axis that points, judged for pointing (default: "
+                        "the robot config's, else z; ikbench robot init proposes one)")
 
 
 def robot_from_args(args: argparse.Namespace) -> Robot:
-    """The robot of ``--robot`` / ``--end-frame`` (validated; no heavy imports)."""
-    from ikbench.core.robot import load_robot
+    """The robot of ``--robot`` / ``--end-frame`` / ``--pointing-axis`` (validated; no heavy
+    imports)."""
+    from dataclasses import replace
 
-    return load_robot(args.robot, args.end_frame)
+    import numpy as np
+
+    from ikbench.core.robot import load_robot
+    from ikbench.core.robot_init import pointing_axis
+
+    robot = load_robot(args.robot, args.end_frame)
+    axis = getattr(args, "pointing_axis", None)
+    if axis is None:
+        return robot
+    return replace(robot, pointing_axis=np.asarray(pointing_axis(axis), dtype=float))
 
 
 def add_line_task_arguments(parser: argparse.ArgumentParser) -> None:

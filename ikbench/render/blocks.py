@@ -37,6 +37,10 @@ Renderers (:data:`RENDERERS`):
   success and per-call median time under the attempts rule (a rule run several times,
   ``--repeat``: the median and its min-max over the runs), then the batched rates and each
   robot's provenance.
+- ``libraries pyproject.toml [form=names|count]``: the kinematics libraries ikbench runs, from
+  the registry's adapters whose library is a distribution of the ``[libs]`` extra of
+  ``pyproject.toml`` and not a dependency of ikbench itself (``count``: how many, in words);
+  inline.
 - ``compare-table SOURCE [reference=ours-lm]``: README's leaderboard of a compare folder's
   ``leaderboard.csv`` (:func:`ikbench.render.leaderboard.readme_table`), then its provenance.
 """
@@ -57,6 +61,7 @@ import pandas as pd
 from ikbench.core.defaults import REFERENCE_METHOD
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_text
+from ikbench.methods.registry import adapters
 from ikbench.render.leaderboard import readme_table
 
 #: ``<!-- generated: RENDERER SOURCE OPTIONS -->`` ... ``<!-- /generated -->``
@@ -393,7 +398,35 @@ def render_ik_table(source: Path, options: dict[str, str], root: Path) -> str:
                                       for n in names)
 
 
+#: Numbers in words, for "ten kinematics libraries".
+_WORDS = ("no", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine", "ten",
+          "eleven", "twelve", "thirteen", "fourteen", "fifteen")
+
+
+def render_libraries(source: Path, options: dict[str, str], root: Path) -> str:
+    """The libraries of the ``[libs]`` extra that an adapter runs (see the module docstring):
+    their distributions' names in the registry's order, or their count in words."""
+    import tomllib
+
+    project = tomllib.loads(source.read_text(encoding="utf-8"))["project"]
+
+    def names_of(lines: list[str]) -> set[str]:
+        return {re.split(r"[=<>!~\[ ;]", line.strip(), maxsplit=1)[0].lower() for line in lines}
+
+    # the extra's libraries that ikbench does not itself depend on (Pinocchio is its own)
+    names = names_of(project["optional-dependencies"]["libs"]) - names_of(
+        project["dependencies"])
+    libraries = list(dict.fromkeys(a.library for a in adapters() if a.library.lower() in names))
+    form = options.get("form", "names")
+    if form == "count":
+        return _WORDS[len(libraries)] if len(libraries) < len(_WORDS) else str(len(libraries))
+    if form != "names":
+        raise InputError(f"libraries: form={form!r} is not names or count")
+    return ", ".join(f"`{name}`" for name in libraries)
+
+
 register("table", render_table)
+register("libraries", render_libraries)
 register("compare-table", render_compare_table)
 register("ik-table", render_ik_table)
 register("value", render_value)

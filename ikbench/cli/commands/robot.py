@@ -1,0 +1,84 @@
+"""``ikbench robot init URDF``: a robot config and targets file from a URDF, no hand-written
+file."""
+
+from __future__ import annotations
+
+import argparse
+
+from ikbench.cli.values import OUTPUT, Text
+
+HELP = "robot init URDF|PACKAGE:NAME: write a robot config and a targets file for a new robot"
+DESCRIPTION = (
+    "robot init: from a URDF (or a robot of an installed description package, "
+    "example-robot-data:NAME) write OUTPUT/NAME.toml (the chain, the pointing axis, the letter "
+    "plane) and OUTPUT/NAME.targets.json (a start pose, the middle of the limits unless "
+    "--start-pose, and seven touch poses drawn near it whose lines are 80-400 mm long), so "
+    "that letters, run --shape, run, compare and view take --robot OUTPUT/NAME.toml with no "
+    "other file. Without --end-frame it chooses among the URDF's candidates (leaf links, "
+    "then tool-like names) the one with the fewest moving joints, at least 3, and says which; "
+    "docs/robots.md.")
+DEFAULT_OUTPUT = "."
+
+
+def arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("action", choices=("init",), help="init: write the config and targets")
+    parser.add_argument("urdf", metavar="URDF|PACKAGE:NAME",
+                        type=Text("a URDF path or a package robot"),
+                        help="the robot's URDF, or PACKAGE:NAME (ikbench robots --all)")
+    parser.add_argument("--end-frame", default=None, metavar="LINK",
+                        help="the end link (default: chosen among the candidates)")
+    parser.add_argument("--pointing-axis", default="auto",
+                        choices=("auto", "x", "y", "z", "-x", "-y", "-z"),
+                        help="the end frame's axis that points; auto (default): the axis the "
+                        "last link's offset to the end frame runs along, else z")
+    parser.add_argument("--name", default=None, type=Text("a robot name"),
+                        help="the robot's name and file stem (default: the URDF's stem)")
+    parser.add_argument("--start-pose", default=None, metavar="P1,...,Pn",
+                        help="the start pose [joint deg, mm for prismatic joints] (default: "
+                        "the middle of the limits)")
+    parser.add_argument("--seed", type=int, default=1, help="seed of the touch poses")
+    parser.add_argument("--output", default=DEFAULT_OUTPUT, type=OUTPUT,
+                        help="folder the two files go to (default: this one)")
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+    import re
+    import sys
+    from pathlib import Path
+
+    import numpy as np
+
+    from ikbench.core.errors import InputError
+    from ikbench.core.io import atomic_write_text
+    from ikbench.core.robot_init import init_robot, toml_text
+
+    if args.name is not None and not re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}", args.name):
+        raise InputError(f"--name: {args.name!r} must be a file stem: letters, digits, _ . - "
+                         "(64 at most)")
+    if not 0 <= args.seed < 2**63:
+        raise InputError(f"--seed: {args.seed!r} must be an integer in [0, 2^63)")
+    start = None
+    if args.start_pose is not None:
+        try:
+            start = np.array([float(x) for x in args.start_pose.split(",")])
+        except ValueError:
+            raise InputError(f"--start-pose: {args.start_pose!r} is not comma-separated "
+                             "numbers") from None
+    made = init_robot(args.urdf, args.end_frame, None, args.pointing_axis, args.name, start,
+                      args.seed)
+    folder = Path(args.output)
+    folder.mkdir(parents=True, exist_ok=True)
+    config = folder / f"{made['name']}.toml"
+    targets = folder / made["config"]["targets"]["file"]
+    atomic_write_text(targets, json.dumps(made["targets"], indent=2) + "\n")
+    atomic_write_text(config, toml_text(made["config"]))
+    if made["candidates"]:
+        others = [c for c in made["candidates"] if c != made["end_frame"]]
+        print(f"end frame {made['end_frame']} (chosen; other candidates: "
+              f"{', '.join(others) or 'none'}; --end-frame to change it)", file=sys.stderr)
+    print(f"pointing axis {made['axis']} of {made['end_frame']} (--pointing-axis to change it)",
+          file=sys.stderr)
+    print(f"wrote {config} and {targets}; next: ikbench letters P --robot {config}, "
+          f"ikbench compare --robot {config}")
+    return 0

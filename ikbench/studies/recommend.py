@@ -1,0 +1,425 @@
+"""``ikbench recommend``: which single-pose IK solver for this robot, within this budget.
+
+The panel is ``ikbench ik`` on its deterministic protocol (:func:`ikbench.studies.ik.run_ik`
+with a fixed count of attempts and no wall-clock cut: success is a function of the seed and
+the code; TRAC-IK, which races its own timeout, is the one method that is not deterministic),
+run on three seeds:
+
+1. **Set-up**: every installed method that takes the task's targets is set up once (untimed;
+   a method that cannot load the robot keeps its rows, with the library's reason).
+2. **Pilot**: :data:`PILOT_TARGETS` targets per method (their own seed), timed whole, give
+   the cost of one target per method.
+3. **Plan** (:func:`plan_sample`): the targets per seed that fit ``minutes`` after the
+   fresh-process first calls (estimated from each method's set-up) and the writing.
+4. **Sample**: :data:`SEEDS` seeds x that many targets, every method; then each method's
+   first call in a fresh process (:func:`ikbench.studies.first_call.first_call`) while the
+   time allows.
+5. **Statistics and verdict** (:mod:`ikbench.studies.verdict`): success with its Wilson
+   interval, per-call p50 and p99 with bootstrap intervals, the ranking on each seed and
+   Kendall's tau between them, a verdict that calls ties ties.
+
+:func:`recommend` returns a :class:`Recommendation`; :func:`ikbench.render.recommend_report.
+write_folder` writes ``OUTPUT/recommend/<robot>/``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+
+from ikbench.core.errors import InputError
+from ikbench.methods.registry import solver_status
+from ikbench.runtime.harness import describe
+from ikbench.runtime.progress import Reporter
+from ikbench.studies.first_call import first_call
+from ikbench.studies.ik import IKSettings, load_average, parse_methods, run_ik
+from ikbench.studies.verdict import Verdict, decide, per_method
+
+if TYPE_CHECKING:
+    from ikbench.core.robot import Robot
+
+FOLDER = "recommend"
+PATH = "path"
+TASKS = ("pose", "position", PATH)
+#: Paths per seed (``--task path``): at least one circle and one line, at most.
+MIN_PATHS, MAX_PATHS = 2, 200
+#: The default budget per path [ms] (``--task path``): a path of 41 poses.
+PATH_BUDGET_MS = 1000.0
+#: Seeds of the sample (the ranking is recomputed on each).
+SEEDS = 3
+#: Targets per method in the pilot that sizes the sample.
+PILOT_TARGETS = 20
+#: The pilot's seed, apart from the sample's (its targets are not in the statistics).
+PILOT_SEED_OFFSET = 1000
+#: Targets per seed: at least (intervals need some), at most.
+MIN_TARGETS, MAX_TARGETS = 10, 5000
+#: The attempts of the deterministic protocol (fixed count, no wall-clock cut).
+ATTEMPTS = 10
+#: Seconds kept for statistics and writing the folder.
+WRITE_RESERVE_S = 6.0
+#: Seconds of a fresh process before the method's set-up (interpreter, ikbench, the robot),
+#: added to its set-up to estimate its first call.
+FRESH_PROCESS_S = 2.0
+#: Seconds of statistics per method and target of each seed (the bootstrap: 2000 pooled and
+#: 1000 per-seed resamples; measured about 1.4e-4 s here, doubled).
+STATS_S_PER_TARGET = 3e-4
+#: The longest run ``--minutes`` may ask (a day).
+MAX_MINUTES = 1440.0
+#: The default budget per call [ms] the p99 must meet (TRAC-IK's default timeout).
+BUDGET_MS = 5.0
+
+
+@dataclass(frozen=True)
+class RecommendSettings:
+    """What a recommendation asks.
+
+    Attributes:
+        budget_ms: the time per call [ms] a method's p99 must be within (finite, > 0).
+        task: ``pose`` (6-D) or ``position`` (rotation free).
+        minutes: the time the whole run may take [min] (the sample is sized to fit).
+        seed: the first of the :data:`SEEDS` seeds (``seed``, ``seed + 1``, ...).
+        attempts: initial configurations per target (the deterministic protocol).
+        tolerance_mm, tolerance_deg: the judge's tolerances.
+        methods: the methods (None: every installed one that takes the task).
+    """
+
+    budget_ms: float = BUDGET_MS
+    task: str = "pose"
+    minutes: float = 5.0
+    seed: int = 1
+    attempts: int = ATTEMPTS
+    tolerance_mm: float = 1.0
+    tolerance_deg: float = 0.5
+    methods: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.task not in TASKS:
+            raise InputError(f"--task: {self.task!r} is not one of {', '.join(TASKS)}")
+        if not (isinstance(self.budget_ms, (int, float)) and math.isfinite(self.budget_ms)
+                and self.budget_ms > 0):
+            raise InputError(f"--budget-ms: {self.budget_ms!r} must be a finite number of "
+                             "milliseconds > 0 (the p99 per call is held against it)")
+        if not (isinstance(self.minutes, (int, float)) and math.isfinite(self.minutes)
+                and 0 < self.minutes <= MAX_MINUTES):
+            raise InputError(f"--minutes: {self.minutes!r} must be more than 0 and at most "
+                             f"{MAX_MINUTES:g}")
+        # the remaining fields are checked as ikbench ik checks them
+        self.ik_settings(1, self.seed)
+
+    def ik_settings(self, count: int, seed: int) -> IKSettings:
+        """The ``ikbench ik`` settings of one sample: the deterministic protocol (a path task
+        checks its seed and tolerances as a pose task would)."""
+        return IKSettings(count=count, seed=seed, kind="pose" if self.task == PATH else self.task,
+                          tolerance_mm=self.tolerance_mm, tolerance_deg=self.tolerance_deg,
+                          budget_ms=math.inf, attempts=(self.attempts,))
+
+    @property
+    def seeds(self) -> tuple[int, ...]:
+        """The sample's seeds."""
+        return tuple(self.seed + i for i in range(SEEDS))
+
+
+@dataclass
+class Plan:
+    """How the sample was sized: the pilot's cost per target [s] per method, each method's
+    set-up [s] and estimated first call [s], the targets (paths) per seed and the estimate of
+    the sample's time [s]; ``path_shape``: the placed paths' size (``--task path``)."""
+
+    minutes: float
+    pilot_targets: int
+    cost_s: dict[str, float]
+    setup_s: dict[str, float]
+    first_call_estimate_s: dict[str, float]
+    targets_per_seed: int
+    sample_estimate_s: float
+    first_calls_fit: bool
+    path_shape: dict = field(default_factory=dict)
+
+
+@dataclass
+class Recommendation:
+    """What :func:`recommend` found.
+
+    Attributes:
+        verdict: the paragraph (markdown) naming the recommended method, its ties and the
+            trade-off.
+        table: one row per method: success and its interval, per-call p50 and p99 and
+            theirs, first call, joint distance, nearest-branch share, rank per seed, role.
+        files: the files written (empty when nothing was written).
+        recommended: the recommended method (None when none meets the budget).
+        tied: the methods statistically tied with it.
+        kendall_tau: "seed a vs seed b" -> tau of the two seeds' rankings.
+        plan: how the sample was sized.
+        results: the raw rows (one per seed x method x target, ``ikbench ik``'s columns and
+            ``seed``).
+        settings, robot, wall_s, methods (name -> facts), load_average (start).
+    """
+
+    verdict: str
+    table: pd.DataFrame
+    files: list[Path]
+    recommended: str | None
+    tied: list[str]
+    kendall_tau: dict[str, float]
+    plan: Plan
+    results: pd.DataFrame
+    settings: RecommendSettings
+    robot: Any
+    wall_s: float
+    methods: dict[str, dict] = field(default_factory=dict)
+    load_start: tuple | None = None
+    decision: Verdict | None = None
+
+
+def plan_sample(remaining_s: float, cost_s: dict[str, float],
+                first_call_s: dict[str, float]) -> tuple[int, float, bool]:
+    """Targets per seed that fit ``remaining_s`` [s] (solving, and the statistics of the
+    target's rows, :data:`STATS_S_PER_TARGET`): the first calls' estimate comes first
+    when at least half the time is left for the sample, else the sample gets half and the
+    first calls what the time then allows. Returns (targets per seed, the sample's estimate
+    [s], whether the first calls are planned in)."""
+    per_target = (max(sum(cost_s.values()), 1e-6) + STATS_S_PER_TARGET * len(cost_s)) * SEEDS
+    first = sum(first_call_s.values())
+    fit = remaining_s - first >= remaining_s / 2
+    usable = remaining_s - first if fit else remaining_s / 2
+    n = int(np.clip(math.floor(max(usable, 0.0) / per_target), MIN_TARGETS, MAX_TARGETS))
+    return n, n * per_target, fit
+
+
+def _setup(robot: Robot, names: Sequence[str], settings: RecommendSettings,
+           report: Reporter) -> tuple[dict[str, Any], dict[str, float]]:
+    """Each method's solver, set up once (untimed by the study; its time kept for the plan),
+    or the failure (``"prepare: ..."``) where the library cannot take the robot."""
+    ik = settings.ik_settings(1, settings.seed)
+    solvers: dict[str, Any] = {}
+    setup_s: dict[str, float] = {}
+    for name in names:
+        cls = solver_status()[name].cls
+        report.say(f"{name}: setting up")
+        t0 = time.perf_counter()
+        solver = cls(robot, ik.kind, (ik.tolerance_mm, ik.tolerance_deg), ik.budget_s)
+        try:
+            solver.prepare()
+            solvers[name] = solver
+        except Exception as exc:  # the library cannot take this robot: failed rows
+            solvers[name] = f"prepare: {describe(exc)}"
+            report.note(f"{name}: cannot take {robot.name}: {describe(exc)}")
+        setup_s[name] = time.perf_counter() - t0
+        report.advance(1, f"{name}: set up")
+    return solvers, setup_s
+
+
+def _sample(robot: Robot, names: Sequence[str], count: int, seed: int,
+            settings: RecommendSettings, solvers: dict[str, Any], report: Reporter
+            ) -> tuple[pd.DataFrame, dict[str, float], dict[str, dict]]:
+    """Every method on ``count`` targets of ``seed`` (one ``run_ik`` per method; a set-up the
+    library caches in the process, as PyRoki's compiled solve, is reused): the rows, each
+    method's wall time [s] and its facts. ``solvers`` (from :func:`_setup`) says only which
+    methods can take the robot."""
+    frames, wall, info = [], {}, {}
+    for name in names:
+        report.say(f"seed {seed}: {name}: {count} targets")
+        t0 = time.perf_counter()
+        result = run_ik(robot, settings.ik_settings(count, seed), [name], progress=False)
+        wall[name] = time.perf_counter() - t0
+        info.update(result.methods)
+        frames.append(result.table.assign(seed=seed))
+        report.advance(1, f"seed {seed}: {name}: {int(result.table['success'].sum())}/"
+                          f"{count} succeeded")
+    return pd.concat(frames, ignore_index=True), wall, info
+
+
+def _first_calls(robot: Robot, names: Sequence[str], settings: RecommendSettings,
+                 estimate_s: dict[str, float], deadline: float, report: Reporter
+                 ) -> dict[str, dict]:
+    """Each method's first call in a fresh process, cheapest estimate first, while it fits
+    before ``deadline`` (perf_counter seconds); else the reason it was not measured."""
+    ik = settings.ik_settings(1, settings.seed + PILOT_SEED_OFFSET)
+    from ikbench.studies.ik import sample_targets
+
+    targets = sample_targets(robot, ik)
+    out: dict[str, dict] = {}
+    for name in sorted(names, key=lambda n: estimate_s[n]):
+        left = deadline - time.perf_counter()
+        if estimate_s[name] > left:
+            out[name] = {"error": f"not measured: about {estimate_s[name]:.0f} s, "
+                                  f"{max(left, 0):.0f} s of --minutes left"}
+        else:
+            report.say(f"{name}: first call in a fresh process")
+            out[name] = first_call(robot, name, ik.kind, (ik.tolerance_mm, ik.tolerance_deg),
+                                   ik.budget_s, targets.T_target[0],
+                                   targets.initials(0, settings.attempts),
+                                   timeout_s=max(left, 1.0))
+        report.advance(1, f"{name}: first call")
+    return out
+
+
+def _run_poses(robot: Robot, names: Sequence[str], settings: RecommendSettings,
+               deadline: float, report: Reporter) -> tuple[pd.DataFrame, dict, Plan]:
+    """The single-pose panel (steps 1 to 4 of the module docstring): rows, facts, plan."""
+    solvers, setup_s = _setup(robot, names, settings, report)
+    _, pilot_wall, _ = _sample(robot, names, PILOT_TARGETS,
+                               settings.seed + PILOT_SEED_OFFSET, settings, solvers, report)
+    working = [n for n in names if not isinstance(solvers[n], str)]
+    # each sample's run_ik sets a method up again (a library's own cache aside): per target
+    # the pilot's time without its set-up, and each seed's set-ups taken off the time left
+    cost_s = {n: max(pilot_wall[n] - setup_s[n], 0.0) / PILOT_TARGETS for n in names}
+    estimate = {n: setup_s[n] + FRESH_PROCESS_S for n in working}
+    remaining = (deadline - time.perf_counter() - WRITE_RESERVE_S
+                 - SEEDS * sum(setup_s[n] for n in working))
+    n, sample_s, fit = plan_sample(remaining, cost_s, estimate)
+    plan = Plan(settings.minutes, PILOT_TARGETS, cost_s, setup_s, estimate, n, sample_s, fit)
+    report.note(f"{n} targets per seed x {SEEDS} seeds x {len(names)} methods: about "
+                f"{sample_s:.0f} s (pilot: {PILOT_TARGETS} targets per method)")
+    frames, info = [], {}
+    for s in settings.seeds:
+        frame, _, facts = _sample(robot, names, n, s, settings, solvers, report)
+        frames.append(frame)
+        info.update(facts)
+    calls = _first_calls(robot, working, settings, estimate, deadline - WRITE_RESERVE_S / 2,
+                         report)
+    for name in names:
+        info[name]["first_call"] = calls.get(name, {"error": str(solvers[name])})
+    return pd.concat(frames, ignore_index=True), info, plan
+
+
+def _run_paths(robot: Robot, names: Sequence[str], settings: RecommendSettings,
+               deadline: float, report: Reporter) -> tuple[pd.DataFrame, dict, Plan]:
+    """The path panel (:mod:`ikbench.studies.recommend_path`): a one-path pilot per method
+    (set-up included), then as many paths per seed as fit."""
+    from ikbench.studies import recommend_path as paths
+
+    report.say("pilot: one path per method")
+    cost_s = paths.pilot(robot, names, settings.seed + PILOT_SEED_OFFSET,
+                         deadline - WRITE_RESERVE_S)
+    report.advance(len(names), "pilot done")
+    remaining = deadline - time.perf_counter() - WRITE_RESERVE_S
+    # the cheapest methods first, as many as fit the smallest sample; the others say why
+    fits: list[str] = []
+    total = 0.0
+    for name in sorted(names, key=lambda n: cost_s[n]):
+        total += cost_s[name] * SEEDS * MIN_PATHS
+        if total <= remaining or (not fits and np.isfinite(cost_s[name])):
+            fits.append(name)
+    per_path = max(sum(cost_s[n] for n in fits), 1e-6) * SEEDS
+    n = int(np.clip(math.floor(max(remaining, 0.0) / per_path), MIN_PATHS, MAX_PATHS))
+    shape = {"segments": paths.SEGMENTS, "circle_radius_share": paths.CIRCLE_RADIUS_SHARE,
+             "line_length_share": paths.LINE_LENGTH_SHARE}
+    plan = Plan(settings.minutes, 1, cost_s, {}, {}, n, n * per_path, True, shape)
+    report.note(f"{n} paths per seed x {SEEDS} seeds x {len(fits)} methods: about "
+                f"{n * per_path:.0f} s (pilot: one path per method)")
+    frames = []
+    for s in settings.seeds:
+        tasks = paths.place_paths(robot, s, n)
+        for name in names:
+            if name not in fits or time.perf_counter() > deadline - WRITE_RESERVE_S:
+                why = (f"not run: --minutes {settings.minutes:g} spent" if name in fits else
+                       f"not run: its pilot path took {cost_s[name]:.3g} s, more than "
+                       f"--minutes {settings.minutes:g} leaves" if np.isfinite(cost_s[name])
+                       else "not run: its pilot path did not finish within its share of "
+                       f"--minutes {settings.minutes:g}")
+                frames.append(paths.not_run(name, s, tasks, why))
+            else:
+                report.say(f"seed {s}: {name}: {n} paths")
+                frames.append(paths.solve_paths(robot, name, tasks, s))
+            report.advance(1, f"seed {s}: {name}: {int(frames[-1]['success'].sum())}/{n} "
+                              "valid")
+    return pd.concat(frames, ignore_index=True), paths.facts(names), plan
+
+
+def recommend(robot: Robot | str, end_frame: str | None = None, *,
+              budget_ms: float | None = None, task: str = "pose", minutes: float = 5.0,
+              methods: str | Sequence[str] | None = None, seed: int = 1,
+              attempts: int = ATTEMPTS, output: str | Path | None = "runs",
+              progress: bool = True, command: str = "") -> Recommendation:
+    """Recommend a single-pose IK method for ``robot`` (see the module docstring).
+
+    Args:
+        robot: a :class:`~ikbench.core.robot.Robot`, or a name, config or URDF path.
+        end_frame: the end link (with a URDF or a package robot that needs one).
+        budget_ms: the time per call [ms] (per path for ``path``) the p99 must be within
+            (None: :data:`BUDGET_MS`, :data:`PATH_BUDGET_MS` for ``path``).
+        task: ``pose``, ``position`` or ``path``.
+        minutes: the time the run may take [min]; the sample is sized to fit.
+        methods: method names (None: every installed one that takes the task).
+        seed: the first of the three seeds.
+        attempts: initial configurations per target (no wall-clock cut).
+        output: writes ``output/recommend/<robot>/``; None writes nothing.
+        progress: a progress bar (or lines) on stderr.
+        command: the command line to record (default: a ``ikbench recommend`` line).
+
+    Returns:
+        a :class:`Recommendation`.
+    """
+    started = time.perf_counter()
+    load = load_average()
+    names_given = None if methods is None else tuple(
+        methods.split(",") if isinstance(methods, str) else methods)
+    if budget_ms is None:
+        budget_ms = PATH_BUDGET_MS if task == PATH else BUDGET_MS
+    settings = RecommendSettings(budget_ms, task, minutes, seed, attempts,
+                                 methods=names_given)
+    if isinstance(robot, str):
+        from ikbench.core.robot import load_robot
+
+        robot = load_robot(robot, end_frame)
+    robot.check_loads()
+    if task == PATH:
+        from ikbench.studies.recommend_path import path_methods
+
+        names = path_methods(names_given)
+    else:
+        names = parse_methods(names_given, task)
+    if not names:
+        raise InputError(f"--methods: no installed method takes --task {task}")
+    folder: Path | None = None
+    if output is not None:
+        from ikbench.core.io import check_folder_writable
+        from ikbench.render.recommend_report import folder_of
+
+        folder = folder_of(output, robot)
+        check_folder_writable(folder)
+    deadline = started + settings.minutes * 60.0
+    run = _run_paths if task == PATH else _run_poses
+    steps = len(names) * (1 + SEEDS) + (0 if task == PATH else 2 * len(names)) + 1
+    with Reporter(FOLDER, total=steps, unit="step", enabled=progress) as report:
+        table, info, plan = run(robot, names, settings, deadline, report)
+        n = plan.targets_per_seed
+        report.say("statistics and verdict")
+        summary = per_method(table, info, settings.budget_ms, settings.seeds)
+        decision = decide(summary, settings.budget_ms, task, robot.name, n, settings.seeds)
+        result = Recommendation(decision.text, decision.table, [], decision.recommended,
+                                decision.tied, decision.kendall_tau, plan, table, settings,
+                                robot, 0.0, info, load, decision)
+        if folder is not None and output is not None:
+            from ikbench.render.recommend_report import write_folder
+
+            result.wall_s = time.perf_counter() - started
+            result.files = write_folder(result, folder, command or command_line(result, output))
+        report.advance(1, "written")
+    result.wall_s = time.perf_counter() - started
+    return result
+
+
+def command_line(result: Recommendation, output: str | Path = "runs") -> str:
+    """The ``ikbench recommend`` command that reproduces ``result`` into ``output``."""
+    import shlex
+
+    from ikbench.studies.first_call import robot_spec
+
+    spec, end_frame = robot_spec(result.robot)
+    s = result.settings
+    words = ["ikbench", "recommend", "--robot", spec, "--end-frame", end_frame,
+             "--task", s.task, "--budget-ms", f"{s.budget_ms:g}", "--minutes", f"{s.minutes:g}",
+             "--seed", str(s.seed), "--attempts", str(s.attempts)]
+    if s.methods:
+        words += ["--methods", ",".join(s.methods)]
+    words += ["--output", str(output)]
+    return " ".join(shlex.quote(w) for w in words)

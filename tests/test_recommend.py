@@ -1,0 +1,231 @@
+"""``ikbench recommend``: the intervals (Wilson, bootstrap, Kendall tau) against known values,
+the verdict's rules on made-up tables (ties called ties, "best" only outside the intervals),
+bad input through the CLI, and one short run whose files agree with their own verdict."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import ikbench
+from ikbench.cli import main
+from ikbench.core.intervals import bootstrap_quantiles, kendall_tau, wilson
+from ikbench.core.robot_packages import robots_folder
+from ikbench.methods.registry import solver_status
+from ikbench.studies.verdict import FAILED, MISSES, RECOMMENDED, WITHIN, decide, dominates
+
+needs_erd = pytest.mark.skipif(robots_folder("example-robot-data") is None,
+                               reason="needs example_robot_data")
+ROBOT = "example-robot-data:ur5"
+#: Fast to set up and to start in a fresh process (the short run's panel).
+FAST = [m for m in ("eaik", "trac-ik", "ours-lm") if solver_status()[m].cls is not None]
+MINUTES = 0.3
+
+
+def test_wilson_matches_the_textbook_values():
+    low, high = wilson(0, 10)
+    assert low == 0.0 and high == pytest.approx(0.2775, abs=1e-4)
+    low, high = wilson(10, 10)
+    assert low == pytest.approx(0.7225, abs=1e-4) and high == 1.0
+    low, high = wilson(50, 100)
+    assert (low, high) == pytest.approx((0.4038, 0.5962), abs=1e-4)
+
+
+def test_bootstrap_is_seeded_and_holds_the_estimate():
+    x = np.random.default_rng(3).lognormal(size=400)
+    a = bootstrap_quantiles(x, (0.5, 0.99), seed=7)
+    assert np.array_equal(a, bootstrap_quantiles(x, (0.5, 0.99), seed=7))
+    assert a[0, 0] == pytest.approx(np.median(x))
+    assert np.all(a[:, 1] <= a[:, 0]) and np.all(a[:, 0] <= a[:, 2])
+    assert a[1, 2] - a[1, 1] > a[0, 2] - a[0, 1]  # the tail is known less well
+
+
+def test_kendall_tau_of_equal_and_reversed_rankings():
+    assert kendall_tau(["a", "b", "c"], ["a", "b", "c"]) == pytest.approx(1.0)
+    assert kendall_tau(["a", "b", "c"], ["c", "b", "a"]) == pytest.approx(-1.0)
+
+
+def _row(method, success, s_lo, s_hi, p50, t_lo, t_hi, p99=1.0, budget=WITHIN):
+    """A method's row of the per-method table, its one seed's statistics the pooled ones."""
+    stats = {"success_pct": success, "success_low_pct": s_lo, "success_high_pct": s_hi,
+             "p50_ms": p50, "p50_low_ms": t_lo, "p50_high_ms": t_hi, "p99_ms": p99,
+             "p99_low_ms": p99 * 0.9, "p99_high_ms": p99 * 1.1, "budget": budget}
+    return {"method": method, "library": "x", "deterministic": True, "status": "ok", **stats,
+            **{f"{k}_seed1": v for k, v in stats.items()}}
+
+
+def test_overlapping_intervals_are_called_a_tie_and_never_best():
+    summary = pd.DataFrame([_row("a", 95, 93, 97, 1.0, 0.9, 1.1),
+                            _row("b", 94, 92, 96, 1.05, 0.95, 1.15)])
+    v = decide(summary, 5.0, "pose", "arm", 100, [1])
+    assert v.recommended == "a" and v.tied == ["b"]
+    assert "best" not in v.text and "tied with it" in v.text
+
+
+def test_a_lead_outside_the_intervals_is_called_best():
+    summary = pd.DataFrame([_row("a", 99, 98, 99.6, 1.0, 0.9, 1.1),
+                            _row("b", 80, 77, 83, 0.5, 0.45, 0.55)])
+    v = decide(summary, 5.0, "pose", "arm", 100, [1])
+    assert v.recommended == "a" and not v.tied
+    assert "a is the best on success" in v.text
+    assert "b is 2.0x faster per call at the median but succeeds less often" in v.text
+
+
+def test_as_reliable_and_faster_wins_and_a_method_over_budget_is_named():
+    summary = pd.DataFrame([_row("slow", 99, 98, 99.6, 2.0, 1.9, 2.1),
+                            _row("fast", 98.8, 97.8, 99.5, 0.2, 0.19, 0.21),
+                            _row("sure", 100, 99.8, 100, 3.0, 2.9, 3.1, p99=40, budget=MISSES),
+                            _row("broken", 0, 0, 3, np.nan, np.nan, np.nan, budget=FAILED)])
+    v = decide(summary, 5.0, "pose", "arm", 100, [1])
+    assert v.recommended == "fast"  # "slow" is dominated: as reliable, clearly slower
+    assert "fast is as reliable as slow (intervals overlap) and 10.0x faster" in v.text
+    assert "sure succeeds more often" in v.text and "misses the 5 ms budget" in v.text
+    assert "the reasons are in the table): broken" in v.text
+    assert v.table.loc[v.table["method"] == "fast", "role"].item() == RECOMMENDED
+    # the ranking is the verdict's criterion: the recommended method is its first
+    assert v.table["method"].iloc[0] == "fast" and v.table["rank_seed1"].iloc[0] == 1
+
+
+def test_no_success_anywhere_gives_no_recommendation():
+    summary = pd.DataFrame([_row("a", 0, 0, 3, 1.0, 0.9, 1.1), _row("b", 0, 0, 3, 2.0, 1.9, 2.1)])
+    v = decide(summary, 5.0, "path", "arm", 10, [1])
+    assert v.recommended is None and "no method succeeded on any of the paths" in v.text
+    assert "use **" not in v.text
+
+
+def test_no_method_within_the_budget_gives_no_recommendation():
+    summary = pd.DataFrame([_row("a", 99, 98, 99.6, 2.0, 1.9, 2.1, p99=40, budget=MISSES)])
+    v = decide(summary, 5.0, "pose", "arm", 100, [1])
+    assert v.recommended is None and "no method meets the budget" in v.text
+
+
+@needs_erd
+@pytest.mark.parametrize("args, message", [
+    (["--robot", "no_such_robot"], "no_such_robot"),
+    (["--robot", ROBOT, "--end-frame", "not_a_link"], "not_a_link"),
+    (["--robot", ROBOT, "--minutes", "0"], "--minutes"),
+    (["--robot", ROBOT, "--budget-ms", "0"], "--budget-ms"),
+    (["--robot", ROBOT, "--budget-ms", "inf"], "--budget-ms"),
+    (["--robot", ROBOT, "--task", "paths"], "--task"),
+    (["--robot", ROBOT, "--methods", "nope"], "nope"),
+])
+def test_bad_input_is_one_line_exit_2(capsys, tmp_path, args, message):
+    try:
+        code = main(["recommend", "--output", str(tmp_path), "--quiet", *args])
+    except SystemExit as exit_info:
+        code = exit_info.code
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and message in err, err
+    assert not (tmp_path / "recommend").exists()
+
+
+def test_the_api_exports_recommend():
+    assert ikbench.recommend.__module__ == "ikbench.studies.recommend"
+    assert "recommend" in ikbench.__all__ and "Recommendation" in ikbench.__all__
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory):
+    """One short run through the CLI (a robot by package name, three fast methods)."""
+    out = tmp_path_factory.mktemp("recommend")
+    code = main(["recommend", "--robot", ROBOT, "--methods", ",".join(FAST), "--minutes",
+                 str(MINUTES), "--budget-ms", "5", "--output", str(out), "--quiet"])
+    assert code == 0
+    return out / "recommend" / "ur5"
+
+
+def _check_agreement(folder, budget_ms):
+    """The recommended method is within the budget at p99 and no candidate dominates it on
+    success and median time (intervals compared); "best" only where the success lead is
+    outside the intervals; every tie named is a tie."""
+    table = pd.read_csv(folder / "recommend.csv").fillna({"role": ""})
+    verdict = (folder / "recommend.md").read_text().split("\n\n")[1]
+    rec = table[table["role"] == RECOMMENDED]
+    if rec.empty:
+        assert "no method meets the budget" in verdict or "no method succeeded" in verdict
+        return
+    r = rec.iloc[0]
+    assert f"use **{r['method']}**" in verdict
+    assert r["p99_high_ms"] <= budget_ms or "straddles" in verdict
+    others = table[(table["method"] != r["method"]) & (table["budget"] == r["budget"])]
+    for _, o in others.iterrows():
+        assert not dominates(o, r), (o["method"], r["method"])
+    if re.search(r"\bbest\b", verdict):
+        assert all(r["success_low_pct"] > o["success_high_pct"] for _, o in others.iterrows())
+    for _, o in table[table["role"] == "tied"].iterrows():
+        s, t = _interval(o, "success"), _interval(o, "p50")
+        assert s[0] <= r["success_high_pct"] and r["success_low_pct"] <= s[1]
+        assert t[0] <= r["p50_high_ms"] and r["p50_low_ms"] <= t[1]
+
+
+def _interval(row, name):
+    unit = "pct" if name == "success" else "ms"
+    return row[f"{name}_low_{unit}"], row[f"{name}_high_{unit}"]
+
+
+@needs_erd
+def test_the_files_are_written_and_the_command_reproduces_them(short_run):
+    for name in ("recommend.md", "recommend.csv", "results.csv", "pareto.png", "CITATIONS.bib",
+                 "run.json"):
+        assert (short_run / name).is_file(), name
+    md = (short_run / "recommend.md").read_text()
+    assert "`ikbench recommend --robot example-robot-data:ur5" in md and "Machine:" in md
+    assert "@inproceedings{beeson2015tracik" in (short_run / "CITATIONS.bib").read_text()
+    table = pd.read_csv(short_run / "recommend.csv")
+    assert set(table["method"]) == set(FAST)
+    assert (table["targets"] >= 3 * 10).all()  # 3 seeds x at least the minimum
+
+
+@needs_erd
+def test_the_verdict_agrees_with_its_own_table(short_run):
+    _check_agreement(short_run, 5.0)
+
+
+@needs_erd
+def test_the_run_records_its_plan_and_wall_time(short_run):
+    """The sample is sized from --minutes (the plan and the wall time are recorded; whether a
+    run fits its minutes is measured on a quiet machine, not asserted here: no timed
+    assertion in a unit test)."""
+    import json
+
+    record = json.loads((short_run / "run.json").read_text())
+    assert record["wall_s"] > 0 and record["plan"]["targets_per_seed"] >= 10
+
+
+@needs_erd
+def test_path_task_places_paths_and_judges_them_by_validity(tmp_path):
+    """--task path: circles and lines placed from FK poses, solved by frame methods, the
+    verdict agreeing with its table, within the minutes."""
+    import json
+
+    minutes = 0.3
+    code = main(["recommend", "--robot", ROBOT, "--task", "path", "--methods",
+                 "rtb-lm,sequential-ik", "--minutes", str(minutes), "--output", str(tmp_path),
+                 "--quiet"])
+    assert code == 0
+    folder = tmp_path / "recommend" / "ur5"
+    rows = pd.read_csv(folder / "results.csv")
+    assert set(rows["method"]) == {"rtb-lm", "sequential-ik"}
+    assert rows["path"].str.startswith(("circle", "line")).all()
+    assert rows["seed"].nunique() == 3
+    _check_agreement(folder, 1000.0)  # the default budget per path
+    assert json.loads((folder / "run.json").read_text())["wall_s"] > 0
+
+
+def test_placed_paths_start_at_a_reachable_pose_and_hold_its_orientation():
+    from ikbench.core.robot import load_robot
+    from ikbench.studies.recommend_path import SEGMENTS, place_paths
+
+    robot = load_robot("panda")
+    circle, line = place_paths(robot, 5, 2)
+    for task in (circle, line):
+        T = robot.fk_transform(task.reference_pose[None])[0]
+        assert np.allclose(task.goal_points_mm[0], T[:3, 3] * 1000.0)
+        assert np.allclose(task.goal_rotations, T[:3, :3])
+        assert len(task.goal_points_mm) == SEGMENTS + 1
+    assert np.allclose(circle.goal_points_mm[0], circle.goal_points_mm[-1])  # closed
+    steps = np.diff(line.goal_points_mm, axis=0)
+    assert np.allclose(steps, steps[0])  # straight, evenly spaced
