@@ -131,7 +131,7 @@ def test_the_benchmark_command_writes_its_folder(tmp_path, capsys):
 
         metrics = frame_metrics(robot, task, poses)
         assert metrics["position_error_max_mm"] == pytest.approx(row["position_error_max_mm"],
-                                                                 rel=1e-6, abs=1e-12)
+                                                                 rel=1e-6, abs=1e-6)
     summary = pd.read_csv(folder / "summary.csv")
     assert list(summary["valid_runs"]) == [2, 2]
     published = pd.read_csv(folder / "published.csv")
@@ -246,7 +246,11 @@ def _recomputed(folder: Path) -> pd.DataFrame:
         for column in ("position_error_max_mm", "rotation_error_max_deg",
                        "max_joint_change_deg", "joint_path_length_deg", "self_collisions",
                        "env_collisions"):
-            assert metrics[column] == pytest.approx(row[column], rel=1e-6, abs=1e-9), (
+            # abs 1e-6 [mm, deg]: a continuous joint is written unwrapped (a value a whole
+            # turn away keeps fewer digits after the point in the file's 10 significant
+            # digits), so FK of the file differs from the solver's poses by 1e-7 mm, 1e-8
+            # deg; the criteria's thresholds are 0.1 mm and 0.1 deg
+            assert metrics[column] == pytest.approx(row[column], rel=1e-6, abs=1e-6), (
                 row["problem"], row["method"], row["seed"], column)
         assert metrics["valid"] == bool(row["valid"]), (row["problem"], row["method"])
         written_criteria = "" if pd.isna(row["failed_criteria"]) else row["failed_criteria"]

@@ -323,7 +323,8 @@ def test_the_cli_writes_the_folder_and_every_row_recomputes_from_its_solution(tm
     assert set(table["attempts_rule"].astype(str)) == {"auto", "1"}
     assert (table.loc[table["attempts_rule"].astype(str) == "1", "attempts"] == 1).all()
     record = json.loads((folder / "run.json").read_text())
-    targets = pd.read_csv(folder / "targets.csv")
+    targets = (pd.read_parquet(folder / "targets.parquet")
+               if (folder / "targets.parquet").exists() else pd.read_csv(folder / "targets.csv"))
     robot = load_robot("panda")
     recomputed = _fk_recomputed(robot, table, targets, record)
     assert np.array_equal(recomputed, table["success"].to_numpy(dtype=bool))
@@ -549,7 +550,8 @@ def test_committed_ik_results_recompute_from_their_solutions(record_path):
                        else "results.csv")
     table = (pd.read_parquet(source) if source.suffix == ".parquet"
              else pd.read_csv(source, dtype={"attempts_rule": str}))
-    targets = pd.read_csv(folder / "targets.csv")
+    targets = (pd.read_parquet(folder / "targets.parquet")
+               if (folder / "targets.parquet").exists() else pd.read_csv(folder / "targets.csv"))
     shipped = record["robot"]["name"] in shipped_robots()
     robot = load_robot(record["robot"]["name"] if shipped else record["robot"]["source"],
                        end_frame=record["robot"]["end_frame"])
@@ -559,8 +561,10 @@ def test_committed_ik_results_recompute_from_their_solutions(record_path):
     rule = table["attempts_rule"].astype(str)
     for (name, method), rows in table.groupby([rule, "method"]):
         row = summary[(summary["attempts_rule"] == name) & (summary["method"] == method)]
-        assert row["success_pct"].iloc[0] == pytest.approx(100 * rows["success"].mean(),
-                                                           abs=1e-4)
+        # a rule run several times (the budget table's repeats): the median of the runs'
+        runs = rows.groupby("run")["success"].mean() if "run" in rows else rows["success"]
+        share = float(runs.median()) if "run" in rows else float(runs.mean())
+        assert row["success_pct"].iloc[0] == pytest.approx(100 * share, abs=1e-4)
     auto = summary[summary["attempts_rule"] == "auto"].set_index("method")["success_pct"]
     for other in ("rtb-lm", "trac-ik"):
         if other in auto.index:
