@@ -217,12 +217,11 @@ def _setup(robot: Robot, names: Sequence[str], settings: RecommendSettings,
 
 
 def _sample(robot: Robot, names: Sequence[str], count: int, seed: int,
-            settings: RecommendSettings, solvers: dict[str, Any], report: Reporter
+            settings: RecommendSettings, report: Reporter
             ) -> tuple[pd.DataFrame, dict[str, float], dict[str, dict]]:
     """Every method on ``count`` targets of ``seed`` (one ``run_ik`` per method; a set-up the
     library caches in the process, as PyRoki's compiled solve, is reused): the rows, each
-    method's wall time [s] and its facts. ``solvers`` (from :func:`_setup`) says only which
-    methods can take the robot."""
+    method's wall time [s] and its facts."""
     frames, wall, info = [], {}, {}
     for name in names:
         report.say(f"seed {seed}: {name}: {count} targets")
@@ -266,7 +265,7 @@ def _run_poses(robot: Robot, names: Sequence[str], settings: RecommendSettings,
     """The single-pose panel (steps 1 to 4 of the module docstring): rows, facts, plan."""
     solvers, setup_s = _setup(robot, names, settings, report)
     _, pilot_wall, _ = _sample(robot, names, PILOT_TARGETS,
-                               settings.seed + PILOT_SEED_OFFSET, settings, solvers, report)
+                               settings.seed + PILOT_SEED_OFFSET, settings, report)
     working = [n for n in names if not isinstance(solvers[n], str)]
     # each sample's run_ik sets a method up again (a library's own cache aside): per target
     # the pilot's time without its set-up, and each seed's set-ups taken off the time left
@@ -280,7 +279,7 @@ def _run_poses(robot: Robot, names: Sequence[str], settings: RecommendSettings,
                 f"{sample_s:.0f} s (pilot: {PILOT_TARGETS} targets per method)")
     frames, info = [], {}
     for s in settings.seeds:
-        frame, _, facts = _sample(robot, names, n, s, settings, solvers, report)
+        frame, _, facts = _sample(robot, names, n, s, settings, report)
         frames.append(frame)
         info.update(facts)
     calls = _first_calls(robot, working, settings, estimate, deadline - WRITE_RESERVE_S / 2,
