@@ -227,3 +227,43 @@ def test_bad_input_names_the_problem(panda):
         lm.solve(np.zeros(3), np.eye(3), np.zeros((2, 6)))
     with pytest.raises(InputError, match="initials"):
         lm.solve_batch(np.zeros((3, 3)), np.tile(np.eye(3), (3, 1, 1)), starts)
+
+
+def test_a_step_across_a_limit_turns_the_joint_where_a_turn_brings_it_within(panda):
+    """The LM's projection onto the limits: within them a value stays; a revolute joint
+    beyond one by less than a turn short of the other comes back by whole turns (the same
+    frame); else it is clipped. The numpy reference and the compiled kernel agree."""
+    from ikbench.methods.ours_lm import single_pose_kernels as kernels
+    from ikbench.methods.ours_lm.single_pose import into_limits
+
+    lower, upper = panda.lower, panda.upper  # joint 0: +-166 deg; joint 5: [-1, 215] deg
+    q = np.tile(np.clip(np.zeros(panda.dof), lower, upper), (6, 1))
+    q[:, 0] = [100.0, 250.0, 170.0, -200.0, -300.0, 500.0]
+    q[:, 5] = [10.0, -2.0, 216.0, 400.0, -150.0, 214.0]
+    got = into_limits(panda, q, lower, upper)
+    np.testing.assert_allclose(got[:, 0], [100.0, -110.0, upper[0], 160.0, 60.0, 140.0])
+    np.testing.assert_allclose(got[:, 5], [10.0, lower[5], upper[5], 40.0, 210.0, 214.0])
+    # the same frame wherever a turn was taken
+    turned = ~np.isclose(got, np.clip(q, lower, upper))
+    assert turned.sum() == 6
+    same = np.where(turned, q, got)  # the turned joints as given, the others as moved
+    np.testing.assert_allclose(panda.fk_transform(got), panda.fk_transform(same), atol=1e-12)
+    spec = SinglePoseLM(panda).spec
+    for i in range(len(q)):
+        for j in range(panda.dof):
+            assert kernels.into_limits(spec, j, q[i, j]) == pytest.approx(got[i, j], abs=1e-9)
+
+
+def test_ur5_joints_with_two_turns_of_range_never_stop_on_a_limit():
+    """UR5's joints range over +-360 deg: a descent that crosses one goes on a turn away,
+    so from the same starts the LM solves more targets than clipping would (seeded)."""
+    ur5 = load_robot("example-robot-data:ur5")
+    q, T, _, _ = _targets(ur5, 60, 7)
+    starts = random_initials(ur5, (60, 1), 8)
+    lm = SinglePoseLM(ur5, max_iterations=100)
+    out = [lm.solve(T[i], None, starts[i], float("inf")) for i in range(60)]
+    poses = np.array([o.pose for o in out])
+    assert np.all((poses >= ur5.lower) & (poses <= ur5.upper))
+    on_limit = np.isclose(poses, ur5.lower) | np.isclose(poses, ur5.upper)
+    assert not on_limit[[o.success for o in out]].any()
+    assert np.mean([o.success for o in out]) > 0.8

@@ -6,8 +6,9 @@ Levenberg-Marquardt loop on the residual ``r = [e_point / tol_mm, e_rot / tol_de
 errors of :func:`.frames.errors_from_frames`: mm, and the SO(3) log map in degrees, with the
 exact Jacobian of the vectorised chain kinematics, ``robot.chain_kinematics().frames``),
 scaled by the study's tolerances so that one unit of either counts the same. Per target and
-iteration: ``(J^T J + lambda (diag(J^T J) + eps I)) dq = -J^T r``, the step clipped into the
-joint limits; accepted when |r| drops (lambda / 3), else rejected (lambda * 4). A target
+iteration: ``(J^T J + lambda (diag(J^T J) + eps I)) dq = -J^T r``, the step moved into the
+joint limits (:func:`into_limits`: a revolute joint by whole turns where that brings it within
+them, the same frame, else clipped); accepted when |r| drops (lambda / 3), else rejected (lambda * 4). A target
 leaves the batch once its errors are below ``stop`` times the tolerances, or when lambda
 exceeds :data:`STALLED` (stuck in a local minimum or on a limit), or after
 ``max_iterations``. Only the targets still in the batch are evaluated.
@@ -54,6 +55,23 @@ class BatchIK:
     iterations: np.ndarray
     converged: np.ndarray
     restarts: np.ndarray
+
+
+def into_limits(robot: Robot, q: np.ndarray, lower: np.ndarray, upper: np.ndarray
+                ) -> np.ndarray:
+    """Poses (..., dof) [pose units] moved into the limits: each value within them as it is;
+    a revolute joint's turned by the fewest whole turns (360 joint deg) that bring it within
+    them (the same frame: a step that crosses a limit a joint's range exceeds by a turn goes
+    on instead of stopping there); what no turn brings within is clipped."""
+    turn = np.where(robot.prismatic, np.inf,
+                    np.abs(360.0 / np.broadcast_to(np.asarray(robot.scale, dtype=float),
+                                                   (robot.dof,))))
+    with np.errstate(invalid="ignore"):
+        down = q - turn * np.ceil((q - upper) / turn)
+        up = q + turn * np.ceil((lower - q) / turn)
+    out = np.where((q > upper) & (down >= lower), down, q)
+    out = np.where((q < lower) & (up <= upper), up, out)
+    return np.clip(out, lower, upper)
 
 
 def _residuals(frames, q, goal_mm, goal_R, scale, position_only: bool):
@@ -134,7 +152,7 @@ def solve_poses(robot: Robot, goal_points_mm: npt.ArrayLike, goal_rotations: npt
         H = JtJ + damping[active, None, None] * diag
         step = -np.linalg.solve(H, (Ja.swapaxes(-1, -2) @ ra[..., None]))[..., 0]
         step *= np.minimum(1.0, max_step / np.maximum(np.abs(step).max(1), 1e-300))[:, None]
-        trial = np.clip(q[active] + step, lower, upper)
+        trial = into_limits(robot, q[active] + step, lower, upper)
         r_new, J_new = _residuals(frames, trial, goal_mm[active], goal_R[active], scale,
                                   position_only)
         cost_new = np.sum(r_new**2, axis=1)

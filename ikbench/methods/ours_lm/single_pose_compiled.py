@@ -6,9 +6,10 @@ The method is :func:`.single_pose.solve_poses`' (the numpy reference) for one ta
 projected Levenberg-Marquardt loop on ``r = [e_point / tol_mm, e_rot / tol_deg]`` (position
 error [mm] and the SO(3) log of R_goal^T R [deg], as :func:`.frames.errors_from_frames`; the
 position only for ``kind="position"``) with its exact Jacobian, ``(J^T J + lambda (diag(J^T
-J) + eps I)) dq = -J^T r`` (by Cholesky), the step scaled to at most ``max_step`` and clipped
-into the limits, accepted when |r|^2 drops (lambda / 3, at least 1e-9) or rejected (lambda
-* 4). Success: both errors below ``stop`` x the tolerances.
+J) + eps I)) dq = -J^T r`` (by Cholesky), the step scaled to at most ``max_step`` and moved
+into the limits (a revolute joint by whole turns where that brings it within them, the same
+frame; else clipped: :func:`.single_pose_kernels.into_limits`), accepted when |r|^2 drops
+(lambda / 3, at least 1e-9) or rejected (lambda * 4). Success: both errors below ``stop`` x the tolerances.
 
 Restarts: the caller passes the starts ``initials`` (A, dof) [pose units], the protocol's
 seeded sequence (:func:`random_initials`); attempt 1 runs from row 0, and an attempt that is

@@ -18,7 +18,8 @@ from numba import njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from ikbench.methods.ours_lm.compiled_chain import LOWER, UPPER, frame, frame_jacobian
+from ikbench.methods.ours_lm.compiled_chain import (LOWER, PRISMATIC, SCALE, SI, UPPER, frame,
+                                                   frame_jacobian)
 from ikbench.methods.ours_lm.single_pose import STALLED
 
 MM_PER_M = 1000.0
@@ -171,7 +172,7 @@ def solve_target(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, bu
             break
         ok = damped_step(jtj, g, lam, chol, step, k, spec[k + 1, MAX_STEP_COLUMN])
         for j in range(k):
-            trial[j] = min(max(q[j] + step[j], spec[j, LOWER]), spec[j, UPPER])
+            trial[j] = into_limits(spec, j, q[j] + step[j])
         new_cost = residual(spec, k, trial, goal_mm, goal_r, r_trial, phi_trial, ws)
         if ok and new_cost < cost:
             cost = new_cost
@@ -201,6 +202,28 @@ def restart(spec: Array, k: int, start: Array, goal_mm: Array, goal_r: Array, ws
     cost = residual(spec, k, q, goal_mm, goal_r, r, phi, ws)
     linearise(spec, k, r, phi, ws)
     return spec[k + 1, DAMPING], cost
+
+
+@njit(cache=True, inline="always")
+def into_limits(spec: Array, j: int, value: float) -> float:
+    """Joint ``j``'s ``value`` [pose units] moved into its limits: as it is when within them;
+    a revolute joint's turned by the fewest whole turns that bring it within them (the same
+    frame: the descent goes on where clipping would stop the joint on a limit that its range
+    exceeds by a turn); else clipped (:func:`.single_pose.into_limits`, vectorised)."""
+    lower, upper = spec[j, LOWER], spec[j, UPPER]
+    if lower <= value <= upper:
+        return value
+    if spec[j, PRISMATIC] == 0.0:
+        turn = 2.0 * math.pi / abs(spec[j, SCALE] * spec[j, SI])
+        if value > upper:
+            shifted = value - turn * math.ceil((value - upper) / turn)
+            if shifted >= lower:
+                return shifted
+        else:
+            shifted = value + turn * math.ceil((lower - value) / turn)
+            if shifted <= upper:
+                return shifted
+    return min(max(value, lower), upper)
 
 
 @njit(cache=True)
