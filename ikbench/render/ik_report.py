@@ -40,6 +40,7 @@ from ikbench.core.io import atomic_savefig, staged_folder
 from ikbench.core.provenance import library_versions, provenance
 from ikbench.render.ik_published import published_for
 from ikbench.render.leaderboard import backend_notes
+from ikbench.render.palette import distinct_colors
 
 #: The study's result (:class:`ikbench.studies.ik.IKResult`): render takes it as it
 #: comes, without importing the study (render is below the studies).
@@ -434,14 +435,15 @@ def _figures(result: StudyResult, tmp: Path) -> None:
 
     table, s = result.table, result.settings
     rules = list(dict.fromkeys(table["attempts_rule"]))
+    colors = method_colors(table)
     fig, axes = plt.subplots(len(rules), 1, figsize=(8.5, 3.6 * len(rules)), squeeze=False)
     for ax, rule in zip(axes[:, 0], rules):
         part = table[table["attempts_rule"] == rule]
-        for k, (method, g) in enumerate(part.groupby("method", sort=False)):
+        for method, g in part.groupby("method", sort=False):
             times = np.sort(g["time_s"].dropna().to_numpy() * 1000.0)
             if len(times):
                 ax.step(times, np.arange(1, len(times) + 1) / len(times) * 100.0, where="post",
-                        color=f"C{k % 10}", label=method)
+                        color=colors[method], label=method)
         if np.isfinite(s.budget_ms):
             ax.axvline(s.budget_ms, color="k", ls=":", lw=1, label="budget")
         ax.set_xscale("log")
@@ -457,8 +459,8 @@ def _figures(result: StudyResult, tmp: Path) -> None:
     fig, axes = plt.subplots(len(rules), 1, figsize=(8.5, 3.6 * len(rules)), squeeze=False)
     for ax, rule in zip(axes[:, 0], rules):
         curve = success_curve(table[table["attempts_rule"] == rule], s.kind, ratio, CURVE_MM)
-        for k, method in enumerate(curve.columns):
-            ax.plot(curve.index, curve[method], color=f"C{k % 10}", label=method)
+        for method in curve.columns:
+            ax.plot(curve.index, curve[method], color=colors[method], label=method)
         ax.axvline(s.tolerance_mm, color="k", ls=":", lw=1, label="stated tolerance")
         ax.set_xscale("log")
         xlabel = "position tolerance [mm] (log)"
@@ -474,6 +476,13 @@ def _figures(result: StudyResult, tmp: Path) -> None:
     if result.targets.sigma_min is not None:
         stress_table(result).to_csv(tmp / "stress.csv", index=False, float_format="%.6g")
         _stress_figure(result, tmp / "stress.png")
+
+
+def method_colors(table: pd.DataFrame) -> dict[str, tuple]:
+    """One distinct colour per method of ``table`` (in its order), the same in every panel
+    and figure of the study (:func:`ikbench.render.palette.distinct_colors`)."""
+    methods = list(dict.fromkeys(table["method"]))
+    return dict(zip(methods, distinct_colors(len(methods))))
 
 
 #: Bins of the stress figure: quantiles of the targets' smallest singular value.
@@ -507,10 +516,10 @@ def _stress_figure(result: StudyResult, path: Path) -> None:
 
     table = pd.read_csv(path.with_name("stress.csv"))
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8.5, 6.4), sharex=True)
-    for k, (method, g) in enumerate(table.groupby("method", sort=False)):
+    colors = method_colors(result.table)
+    for method, g in table.groupby("method", sort=False):
         middle = np.sqrt(np.maximum(g["sigma_low"], 1e-12) * g["sigma_high"])
-        style = dict(color=f"C{k % 10}", marker="o", ms=3, label=method,
-                     ls="-" if k < 10 else "--")
+        style = dict(color=colors[method], marker="o", ms=3, label=method)
         top.plot(middle, g["success_pct"], **style)
         bottom.plot(middle, g["time_median_ms"], **style)
     top.set_ylabel("success [%]")

@@ -26,6 +26,7 @@ from ikbench.core.defaults import PUBLISHED_BACKENDS, REFERENCE_METHOD
 from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text
 from ikbench.core.legibility import LEGIBILITY_COLUMNS
 from ikbench.core.obstacles import parse_obstacles
+from ikbench.render.palette import distinct_colors
 from ikbench.render.run_report import _matplotlib
 from ikbench.runtime.record import RunFolder
 
@@ -264,11 +265,11 @@ def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Con
     fig, (ax_t, ax_p) = plt.subplots(1, 2, figsize=(13, 7.0))
     solved = results[results["ok_solved"] == True]  # noqa: E712
     libraries = list(dict.fromkeys(solved["library"]))
-    colors = plt.cm.tab10(np.linspace(0, 1, 10))
+    colors = distinct_colors(len(libraries))
     markers = "osD^v<>pPX*h"
     floor = 1e-7
     for k, (name, group) in enumerate(solved.groupby("method", sort=False)):
-        color = colors[libraries.index(group["library"].iloc[0]) % 10]
+        color = colors[libraries.index(group["library"].iloc[0])]
         marker = markers[k % len(markers)]
         line = group["line_distance_max_mm"].astype(float).clip(lower=floor)
         met = group["success"].astype(bool).sum()
