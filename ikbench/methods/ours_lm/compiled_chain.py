@@ -179,7 +179,7 @@ def joint_step(chain: tuple, j: int, q_urdf: float, sn: float, vs: float, a: flo
     return a, b, c, d, e, f, g, h, o, p0, p1, p2, w0, w1, w2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def frame(spec: Array, k: int, q: Array, point: Array, rotation: Array, axes_world: Array,
           origins: Array, trig: Array) -> None:
     """End frame of one pose: ``point`` (3,) [m] and ``rotation`` (3, 3) in the base frame,
@@ -235,7 +235,7 @@ def frame(spec: Array, k: int, q: Array, point: Array, rotation: Array, axes_wor
         rotation[2, col] = g * r0 + h * r1 + o * r2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def frame_jacobian(spec: Array, k: int, point: Array, axes_world: Array, origins: Array,
                    j_point: Array, j_angular: Array) -> None:
     """The geometric Jacobian of :func:`frame`'s end point, world-aligned, per pose unit:

@@ -31,7 +31,8 @@ chain, limits and settings travel as one packed array, :func:`.compiled_chain.pa
 scratch allocated once inside the kernel (:mod:`.single_pose_kernels`). :meth:`SinglePoseLM.
 solve_batch` runs numba threads (``prange``, GIL released) that each take the next target
 from an atomic counter when done with one, each target with its own deadline. numba is the
-``[fast]`` extra; the first use compiles the kernels (~15 s), numba caches them
+core dependency; the first use compiles the kernels (~25 s on a 2-core machine: the loop's
+helpers are inlined into it, which halved an iteration's time), numba caches them
 (``__pycache__``).
 """
 

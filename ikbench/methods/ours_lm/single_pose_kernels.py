@@ -191,7 +191,7 @@ def solve_target(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, bu
     return success, attempt + 1, iterations, position, rotation
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def restart(spec: Array, k: int, start: Array, goal_mm: Array, goal_r: Array, ws: Workspace
             ) -> tuple[float, float]:
     """Start from ``start`` clipped into the limits (q, r, phi, the Jacobian and normal
@@ -226,7 +226,7 @@ def into_limits(spec: Array, j: int, value: float) -> float:
     return min(max(value, lower), upper)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def done(spec: Array, k: int, r: Array, stop: float) -> bool:
     """Both errors below ``stop`` x the tolerances (the residual is scaled by them)."""
     if r[0] ** 2 + r[1] ** 2 + r[2] ** 2 >= stop * stop:
@@ -234,7 +234,7 @@ def done(spec: Array, k: int, r: Array, stop: float) -> bool:
     return spec[k + 1, POSITION_ONLY] != 0.0 or r[3] ** 2 + r[4] ** 2 + r[5] ** 2 < stop * stop
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def residual(spec: Array, k: int, q: Array, goal_mm: Array, goal_r: Array, r: Array, phi: Array,
              ws: Workspace) -> float:
     """FK of ``q`` (the frame in ``ws``) and the scaled residual ``r`` (6,) with
@@ -262,7 +262,7 @@ def residual(spec: Array, k: int, q: Array, goal_mm: Array, goal_r: Array, r: Ar
     return cost
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def so3_log(e00: float, e01: float, e02: float, e10: float, e11: float, e12: float,
             e20: float, e21: float, e22: float) -> tuple[float, float, float]:
     """log(E) [rad] as (x, y, z), angle in [0, pi] (:func:`ikbench.core.rotations.so3_log`,
@@ -288,7 +288,7 @@ def so3_log(e00: float, e01: float, e02: float, e10: float, e11: float, e12: flo
     return a0 * factor, a1 * factor, a2 * factor
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def linearise(spec: Array, k: int, r: Array, phi: Array, ws: Workspace) -> None:
     """The scaled residual's Jacobian (6, k) at the last :func:`residual`'s frame, then
     J^T J (k, k) and J^T r (k,), into ``ws``."""
@@ -327,7 +327,7 @@ def linearise(spec: Array, k: int, r: Array, phi: Array, ws: Workspace) -> None:
             jtj[b, a] = total
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def right_jacobian_inverse(phi: Array) -> tuple[float, ...]:
     """Jr^-1(phi) = I + K / 2 + c K^2 (K = [phi]_x), row-major as 9 numbers
     (:func:`ikbench.core.rotations.right_jacobian_inverse`: series below 1e-2 rad, the angle
@@ -346,7 +346,7 @@ def right_jacobian_inverse(phi: Array) -> tuple[float, ...]:
             -0.5 * y + c * x * z, 0.5 * x + c * y * z, 1.0 + c * (z * z - t2))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def damped_step(jtj: Array, g: Array, lam: float, chol: Array, step: Array, k: int,
                 max_step: float) -> bool:
     """``step`` (k,) = -(J^T J + lam (diag(J^T J) + eps I))^-1 J^T r by Cholesky, then
