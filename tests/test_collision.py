@@ -172,9 +172,10 @@ def test_nicos_touchscreen_is_a_named_obstacle_set_and_the_touches_clear_it():
     assert math.isfinite(report.min_clearance_mm(env=True))
 
 
-def test_a_urdfs_collision_meshes_work_as_they_are():
-    """A robot without a collision file uses its URDF's <collision> elements (meshes here):
-    UR5 of example-robot-data folded onto itself collides; a box on its forearm too."""
+def test_a_urdfs_collision_meshes_work_as_their_hulls():
+    """A robot without a collision file uses its URDF's <collision> elements (meshes here, as
+    their convex hulls): UR5 of example-robot-data folded onto itself collides; a box on its
+    forearm too."""
     robot = load_robot("example-robot-data:ur5")
     model = collision_model(robot)
     assert model is not None and "<collision>" in model.source and not model.capsules
@@ -185,7 +186,8 @@ def test_a_urdfs_collision_meshes_work_as_they_are():
     on_forearm = box("b", [400.0, 100.0, 0.0], [300.0, 300.0, 100.0])
     above = box("b", [400.0, 100.0, 400.0], [300.0, 300.0, 100.0])
     report = model.check(home, (on_forearm,))
-    assert report.env_colliding.all() and report.first_collision()[1] == "forearm_link"
+    hit = {a for (a, _), c in zip(report.pairs, report.colliding[0]) if c}
+    assert report.env_colliding.all() and "forearm_link" in hit
     assert not model.check(home, (above,)).env_colliding.any()
     assert not model.check(home).self_colliding.any()
 
@@ -210,3 +212,42 @@ def test_an_initial_configuration_is_part_of_validity(tmp_path):
         metrics = frame_metrics(robot, with_initial, poses)
         assert metrics["initial_configuration_distance"] == pytest.approx(offset, abs=1e-6)
         assert ("initial_configuration" not in metrics["failed_criteria"].split(",")) == ok
+
+
+def test_urdf_meshes_become_convex_hulls_that_are_never_farther_than_the_meshes():
+    """z1's gripper meshes are checked as their convex hulls: a hull contains its mesh, so on
+    random poses every hull pair distance is at most the mesh pair distance (coal's GJK
+    tolerance aside), and the error is measured against the meshes."""
+    from ikbench.core.collision import hull_distance_error
+
+    robot = load_robot("example-robot-data:z1", end_frame="gripperStator")
+    model = collision_model(robot)
+    meshes = model.mesh_model()
+    assert model.geometry == "convex hulls of the URDF meshes" and meshes is not None
+    assert meshes.geometry == "URDF meshes" and meshes.self_pairs == model.self_pairs
+    kinds = {type(g.geometry).__name__ for g in model._geometry.geometryObjects}
+    assert "Convex" in kinds and not any("BVH" in k for k in kinds)
+    poses = np.random.default_rng(3).uniform(robot.sample_lower, robot.sample_upper,
+                                             size=(60, robot.dof))
+    report = model.check(poses)
+    hull_mm, mesh_mm = report.distances_mm, meshes.check(poses).distances_mm
+    assert np.all(hull_mm <= mesh_mm + 0.01)
+    assert np.any(hull_mm < mesh_mm - 1.0)  # the hulls are a simplification, not the meshes
+    error = hull_distance_error(model, samples=60, seed=3)
+    assert error["geometry"] == model.geometry and error["samples"] == 60
+    with_mesh = [bool({"gripperStator", "gripperMover"} & set(p)) for p in report.pairs]
+    assert error["pairs"] == sum(with_mesh) > 0
+    assert error["min_mm"] >= -0.01 and error["median_mm"] <= error["max_mm"]
+    assert error["max_mm"] == pytest.approx(float(np.max((mesh_mm - hull_mm)[:, with_mesh])),
+                                            abs=1e-9)
+
+
+@pytest.mark.parametrize("name", ["panda", "nico_right_arm"])
+def test_a_capsule_robot_keeps_its_capsules(name):
+    from ikbench.core.collision import hull_distance_error
+
+    model = collision_model(load_robot(name))
+    assert model.geometry == "capsules" and model.capsules
+    assert model.mesh_model() is None and hull_distance_error(model) is None
+    kinds = {type(g.geometry).__name__ for g in model._geometry.geometryObjects}
+    assert kinds <= {"Capsule", "Sphere"}

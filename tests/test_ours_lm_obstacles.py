@@ -100,3 +100,15 @@ def test_moved_obstacles_that_failed_before_are_solved(tmp_path, name, offset_m,
     metrics = frame_metrics(robot, task, method.solve(robot, task).poses)
     assert metrics["valid"], metrics["failed_criteria"]
     assert metrics["env_collisions"] == 0 and metrics["min_clearance_mm"] > 0
+
+
+def test_ours_lm_names_its_own_collision_avoidance():
+    """The leaderboard's label of ours-lm's own avoidance (inside its time): the geometry and
+    the engine it checks with; nothing for a robot without a collision model."""
+    from ikbench.core.robot import load_robot
+
+    z1 = load_robot("example-robot-data:z1", end_frame="gripperStator")
+    assert OursLM().collision_avoidance(z1) == \
+        "avoids self-collision (convex hulls of the URDF meshes, coal)"
+    assert OursLM().collision_avoidance(load_robot("panda")).startswith(
+        "avoids self-collision (capsules, ")

@@ -308,7 +308,8 @@ def contract_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike,
         pose within the task's limits). When the task carries obstacles (``Task.obstacles``)
         also ``self_collisions`` and ``env_collisions`` (waypoints in collision with the robot
         itself, with an obstacle), ``min_clearance_mm`` (the smallest signed distance to an
-        obstacle), ``first_collision_waypoint`` (NaN: none) and ``first_collision_pair``
+        obstacle), ``first_collision_waypoint`` (NaN: none), ``first_collision_pair``,
+        ``collision_geometry`` and ``collision_check_ms`` (the check's geometry and wall time)
         (:func:`ikbench.core.collision.check_trajectory`; all NaN, "" for the pair, on a robot
         without a collision model: nothing can be checked, so the collision criterion fails).
         Obstacle-free tasks get none of these.
@@ -340,6 +341,8 @@ def contract_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike,
                     "first_collision_waypoint"):
             out[key] = found[key] if checked else float("nan")
         out["first_collision_pair"] = found["first_collision_pair"]
+        out["collision_geometry"] = found["collision_geometry"]
+        out["collision_check_ms"] = found["collision_check_ms"]
     return out
 
 

@@ -22,8 +22,10 @@ Obstacles (a targets file's ``obstacles``, or ``obstacles=`` / ``--obstacles`` o
 go on every task, and the contract then judges collisions too (``ok_collisions``: no
 self-collision, no collision with an obstacle, from the robot's collision model);
 ``results.csv`` then gains :data:`OBSTACLE_COLUMNS` (whether the method avoids obstacles, the
-waypoints in collision, the clearance, the first collision). Without obstacles the columns
-and the tables are exactly those of an obstacle-free comparison.
+waypoints in collision, the clearance, the first collision, and the judge's check itself: its
+geometry and its time per trajectory, ``collision_check_ms``, taken after the solve and outside
+every method's clock; a method's own avoidance stays inside its time). Without obstacles the
+columns and the tables are exactly those of an obstacle-free comparison.
 
 Output ``DIR/compare/``: ``results.csv`` (long form: one row per method, robot, task and
 trajectory, one ``ok_<criterion>`` column per criterion, ``success`` for the paper's track and
@@ -108,10 +110,13 @@ COLUMNS = ["method", "library", "library_version", "robot", "task", "trajectory"
 #: Columns results.csv gains when the tasks carry obstacles (after :data:`COLUMNS`).
 OBSTACLE_COLUMNS = ["obstacles", "avoids_obstacles", "self_collisions", "env_collisions",
                     "min_clearance_mm", "first_collision_waypoint", "first_collision_pair",
-                    f"ok_{COLLISION_CRITERION}"]
-#: The collision figures of contract_metrics copied into results.csv.
+                    f"ok_{COLLISION_CRITERION}", "collision_geometry", "collision_check_ms"]
+#: The collision figures of contract_metrics copied into results.csv (``collision_check_ms``:
+#: the judge's check of the trajectory, timed by itself after the solve, outside every
+#: method's clock; ``collision_geometry``: what it checked, the same for every method).
 COLLISION_METRICS = ["self_collisions", "env_collisions", "min_clearance_mm",
-                     "first_collision_waypoint", "first_collision_pair"]
+                     "first_collision_waypoint", "first_collision_pair", "collision_geometry",
+                     "collision_check_ms"]
 #: The note beside a collision of a method that does not avoid obstacles.
 NO_AVOIDANCE = "does not avoid obstacles"
 #: Statuses that make ``ikbench compare`` exit with 1.
@@ -375,9 +380,19 @@ def _record(spec: CompareSpec, built: dict[str, Method], rows: list[dict],
                "contract": contract.to_dict(), "tolerances": dict(contract.tolerances),
                "schemes": {name: solver.scheme_label() for name, solver in built.items()},
                "runtimes": {name: solver.runtime() for name, solver in built.items()},
+               "collision_avoidance": _collision_avoidance(spec.robot, built),
                "identical": identical_methods(last),
                "libraries": library_versions(sorted({r["library"] for r in rows
                                                      if r["library"]}))})
+
+
+def _collision_avoidance(robot: Robot, built: dict[str, Method]) -> dict[str, str]:
+    """By method, what it does itself about collisions, inside its own time (a method's
+    ``collision_avoidance(robot)``, e.g. ours-lm's "avoids self-collision (convex hulls of the
+    URDF meshes, coal)"); methods that do nothing are left out."""
+    labels = {name: getattr(solver, "collision_avoidance", lambda _: None)(robot)
+              for name, solver in built.items()}
+    return {name: label for name, label in labels.items() if label}
 
 
 def identical_methods(last: dict[str, list[Outcome]], tolerance: float = IDENTICAL_TOLERANCE

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ikbench.core.collision import CollisionModel, collision_model
 from ikbench.core.kinematics.chain_torch import torch_chain_kinematics
 from ikbench.core.losses import TERMS, format_weights, resolve_weights
 from ikbench.methods.base import Capabilities, Method, Solution
@@ -163,6 +164,16 @@ class OursLM(Method):
             if progress:
                 progress.done(task, solutions[-1])
         return solutions
+
+    def collision_avoidance(self, robot: Robot) -> str | None:
+        """What this method does about collisions on ``robot``, inside its own time (the
+        leaderboard's label), e.g. "avoids self-collision (convex hulls of the URDF meshes,
+        coal)"; None when the robot has no collision model."""
+        checker, model = collision_checker(robot), collision_model(robot)
+        if checker is None or model is None:
+            return None
+        engine = "coal" if isinstance(checker, CollisionModel) else "compiled capsules"
+        return f"avoids self-collision ({model.geometry}, {engine})"
 
     def _without_self_collisions(self, robot: Robot, tasks: Sequence[Task],
                                  result: BatchResult, weights: list[dict]) -> list[int]:
