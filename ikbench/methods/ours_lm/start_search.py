@@ -102,8 +102,9 @@ def limit_avoidance(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.n
     """Joint motion (K, dof) [pose units] away from the limits, for the null space: with
     u = (q - middle) / half-range in [-1, 1], -:data:`AVOIDANCE_GAIN` half-range u^3 (small in
     the middle of the range, strong near a limit)."""
-    middle, half = 0.5 * (upper + lower), 0.5 * (upper - lower)
-    bounded = np.isfinite(half)
+    bounded = np.isfinite(lower) & np.isfinite(upper)  # a continuous joint has +-inf
+    middle = 0.5 * (np.where(bounded, upper, 0.0) + np.where(bounded, lower, 0.0))
+    half = 0.5 * (upper - lower)
     half = np.where(bounded, half, 1.0)
     u = np.where(bounded, (q - np.where(bounded, middle, 0.0)) / half, 0.0)
     return -AVOIDANCE_GAIN * half * u**3
