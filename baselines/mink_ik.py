@@ -218,6 +218,9 @@ def _compile(chain: Chain, scene=None, plain: MinkModel | None = None) -> MinkMo
     spec.compiler.fusestatic = False
     spec.compiler.boundmass = 1e-6
     spec.compiler.boundinertia = 1e-12
+    # inertias that break the triangle inequality (PR2's sensor_mount_link) are made valid
+    # instead of refusing the robot: mass and inertia play no part in IK
+    spec.compiler.balanceinertia = True
     R_EP = frame_with_z_on(chain.pointing_axis)
     quat = np.zeros(4)
     mujoco.mju_mat2Quat(quat, np.ascontiguousarray(R_EP).reshape(9))

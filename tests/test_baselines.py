@@ -383,3 +383,24 @@ def test_locked_joints_are_folded_into_the_urdf_the_libraries_load(tmp_path):
         pin.framesForwardKinematics(model, data, q)
         np.testing.assert_allclose(data.oMf[frame].translation * 1000.0,
                                    robot.fk(pose).point_mm[0], atol=1e-9)
+
+
+def test_mink_takes_a_urdf_whose_inertias_mujoco_would_refuse():
+    """PR2's sensor_mount_link breaks the inertia triangle inequality; MuJoCo refused to
+    compile it, so mink could not run on PR2. Mass plays no part in IK: the inertias are
+    balanced (``balanceinertia``) and mink solves."""
+    pytest.importorskip("mink")
+    from ikbench.core.robot import load_robot
+    from ikbench.core.robot_packages import robots_folder
+
+    if robots_folder("example-robot-data") is None:
+        pytest.skip("needs example-robot-data")
+    from ikbench.methods.registry import available_solvers
+
+    robot = load_robot("example-robot-data:pr2", "r_gripper_tool_frame")
+    solver = available_solvers()["mink"](robot)
+    solver.prepare()  # compiles the MuJoCo model
+    q = np.clip(np.zeros(robot.dof), robot.sample_lower, robot.sample_upper)
+    T = robot.fk_transform(q[None])[0]
+    out = solver.solve(q, T[:3, 3], T[:3, :3])
+    assert np.all(np.isfinite(out.q))

@@ -229,3 +229,20 @@ def test_placed_paths_start_at_a_reachable_pose_and_hold_its_orientation():
     assert np.allclose(circle.goal_points_mm[0], circle.goal_points_mm[-1])  # closed
     steps = np.diff(line.goal_points_mm, axis=0)
     assert np.allclose(steps, steps[0])  # straight, evenly spaced
+
+
+def test_a_path_method_that_cannot_set_up_is_a_row_with_its_reason(monkeypatch):
+    """A library that fails in its own set-up (MuJoCo refusing a model, say) gives rows
+    that say so; the run goes on (it stopped the whole run with a traceback)."""
+    from ikbench.core.robot import load_robot
+    from ikbench.studies import recommend_path
+
+    def broken(method, robot, tasks, progress=None):
+        raise ValueError("Error: inertia must satisfy A + B >= C")
+
+    monkeypatch.setattr(recommend_path, "solve_tasks", broken)
+    robot = load_robot("panda")
+    tasks = recommend_path.place_paths(robot, 5, 2)
+    rows = recommend_path.solve_paths(robot, "sequential-ik", tasks, 1)
+    assert len(rows) == len(tasks)
+    assert rows["failure"].str.startswith("cannot run (prepare: ValueError: Error: inertia").all()

@@ -30,7 +30,7 @@ from ikbench.core.errors import IkbenchError
 from ikbench.core.metrics import frame_metrics
 from ikbench.core.task import Task, frame_task
 from ikbench.methods.registry import get_method
-from ikbench.runtime.harness import solve_tasks
+from ikbench.runtime.harness import describe, solve_tasks
 from ikbench.studies.cartesian import as_written, build_method, parse_methods
 
 if TYPE_CHECKING:
@@ -99,8 +99,9 @@ def solve_paths(robot: Robot, name: str, tasks: Sequence[Task], seed: int) -> pd
     try:
         outcomes = solve_tasks(method, robot, list(tasks))
     except IkbenchError as exc:  # refused before solving (e.g. it cannot take the robot)
-        return pd.DataFrame([_row(name, seed, task, f"refused: {exc}", np.nan, None)
-                             for task in tasks])
+        return not_run(name, seed, tasks, f"refused: {exc}")
+    except Exception as exc:  # the library failed to set up (e.g. MuJoCo cannot compile it)
+        return not_run(name, seed, tasks, f"cannot run (prepare: {describe(exc)})")
     rows = []
     for outcome in outcomes:
         if outcome.solution is None:
