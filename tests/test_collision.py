@@ -251,3 +251,25 @@ def test_a_capsule_robot_keeps_its_capsules(name):
     assert model.mesh_model() is None and hull_distance_error(model) is None
     kinds = {type(g.geometry).__name__ for g in model._geometry.geometryObjects}
     assert kinds <= {"Capsule", "Sphere"}
+
+
+def test_a_packages_srdf_and_always_touching_pairs_are_not_checked():
+    """PR2's meshes put its shoulder into the torso's hull at every pose: with every pair
+    checked, every path on PR2 was in self-collision. The pairs the package's SRDF disables
+    are skipped (PR2); where there is no SRDF (Baxter), the pairs in collision at every one of
+    the sampled poses are (MoveIt's setup assistant's 'always in collision'), named in the
+    model's source."""
+    from ikbench.core.collision import ALWAYS_SAMPLES, always_colliding
+
+    pr2 = collision_model(load_robot("example-robot-data:pr2", "r_gripper_tool_frame"))
+    assert "pr2.srdf" in pr2.source
+    assert ("base_link", "r_shoulder_pan_link") not in pr2.self_pairs
+    assert not always_colliding(pr2).any()
+    baxter = collision_model(load_robot("example-robot-data:baxter", "right_gripper"))
+    assert "srdf" not in baxter.source and f"every one of {ALWAYS_SAMPLES}" in baxter.source
+    assert "right_lower_elbow / right_upper_elbow_visual" in baxter.source
+    assert ("right_lower_elbow", "right_upper_elbow_visual") not in baxter.self_pairs
+    assert not always_colliding(baxter).any()
+    poses = np.random.default_rng(5).uniform(pr2.robot.sample_lower, pr2.robot.sample_upper,
+                                             (20, pr2.robot.dof))
+    assert not pr2.check(poses).self_colliding.all()  # some poses are free

@@ -384,7 +384,9 @@ def build_collision_model(robot: Robot) -> CollisionModel | None:
         else:
             kind = "convex hulls of the URDF meshes"
         capsules: tuple[Capsule, ...] = ()
-        never: set = set()
+        srdf, never = srdf_never_collide(robot.urdf_path)
+        if srdf is not None:
+            source += f"; the pairs its SRDF ({srdf.name}) disables not checked"
     else:
         model = robot.pinocchio_fk().model
         geometry = pin.GeometryModel()
@@ -415,9 +417,61 @@ def build_collision_model(robot: Robot) -> CollisionModel | None:
                 continue
             index.append((a, b))
             pairs.append((links[a], links[b]))
-    return CollisionModel(robot, source, capsules, links, tuple(dict.fromkeys(pairs)), kind,
-                          _model=model, _geometry=geometry, _mesh_geometry=meshes,
-                          _self_index=index)
+    built = CollisionModel(robot, source, capsules, links, tuple(dict.fromkeys(pairs)), kind,
+                           _model=model, _geometry=geometry, _mesh_geometry=meshes,
+                           _self_index=index)
+    if config is not None or not index:
+        return built
+    always = always_colliding(built)
+    if not always.any():
+        return built
+    keep = [k for k in range(len(index)) if not always[k]]
+    dropped = sorted({pairs[k] for k in np.flatnonzero(always)})
+    source += (f"; {len(dropped)} link pair(s) in collision in every one of "
+               f"{ALWAYS_SAMPLES} sampled poses not checked (always touching, as MoveIt's "
+               f"setup assistant disables them): "
+               + ", ".join(f"{a} / {b}" for a, b in dropped))
+    return CollisionModel(robot, source, capsules, links,
+                          tuple(dict.fromkeys(pairs[k] for k in keep)), kind, _model=model,
+                          _geometry=geometry, _mesh_geometry=meshes,
+                          _self_index=[index[k] for k in keep])
+
+
+#: Poses (seeded, uniform within the limits) on which a URDF's link pairs are tried: a pair in
+#: collision in every one touches by construction (a shoulder mounted into the torso's mesh)
+#: and is not checked, as MoveIt's setup assistant marks "always in collision" pairs.
+ALWAYS_SAMPLES = 100
+#: Seed of those poses.
+ALWAYS_SEED = 0
+
+
+def always_colliding(model: CollisionModel) -> np.ndarray:
+    """(P,) True for the self pairs of ``model`` in collision at every one of
+    :data:`ALWAYS_SAMPLES` poses drawn uniformly within the limits (seeded)."""
+    robot = model.robot
+    rng = np.random.default_rng(ALWAYS_SEED)
+    poses = rng.uniform(robot.sample_lower, robot.sample_upper, (ALWAYS_SAMPLES, robot.dof))
+    return np.all(model.check(poses).colliding, axis=0)
+
+
+def srdf_never_collide(urdf_path: Any) -> tuple[Any, set[frozenset[str]]]:
+    """(path, pairs) of the ``<disable_collisions link1= link2=>`` of the SRDF a description
+    package ships with the URDF (``<stem>.srdf`` beside it, or ``../srdf/<stem>.srdf``, as
+    example-robot-data's robots); (None, empty) when there is none."""
+    import xml.etree.ElementTree as ET
+    from pathlib import Path
+
+    path = Path(urdf_path)
+    for candidate in (path.with_suffix(".srdf"), path.parent.parent / "srdf" / f"{path.stem}.srdf"):
+        if candidate.is_file():
+            try:
+                root = ET.parse(candidate).getroot()
+            except ET.ParseError:
+                return None, set()
+            return candidate, {frozenset((e.get("link1"), e.get("link2")))
+                               for e in root.iter("disable_collisions")
+                               if e.get("link1") and e.get("link2")}
+    return None, set()
 
 
 def convex_hulls(geometry: Any) -> Any:
