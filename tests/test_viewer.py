@@ -48,6 +48,18 @@ def test_runs_are_read_back_with_their_goal_paths(folders):
     assert runs[0].goal_source.startswith("goal: rebuilt from run.json (shape line")
 
 
+def test_a_folder_of_run_folders_stands_for_them(folders, tmp_path):
+    """`ikbench view OUTPUT/compare` (a folder with a run.json of its own and one run folder
+    per method) shows every method's run; it failed with "robot: 'None'"."""
+    root = tmp_path / "compare"
+    for folder in folders["nico"]:
+        shutil.copytree(folder, root / folder.name)
+    (root / "run.json").write_text(json.dumps({"study": "compare"}))
+    robot, runs = load_runs([root])
+    assert robot.name == "nico_right_arm"
+    assert sorted(r.folder.name for r in runs) == ["lm-c0", "ours-lm"]
+
+
 def test_a_run_whose_targets_cannot_be_found_gets_the_straight_line(folders, tmp_path):
     copy = tmp_path / "moved"
     shutil.copytree(folders["arm"][0], copy)

@@ -107,16 +107,26 @@ class ViewRun:
 
 
 def check_folders(folders: Iterable[str | Path]) -> list[Path]:
-    """The folders as Paths; InputError for one that is not a run folder (cheap, no imports)."""
+    """The run folders as Paths (cheap, no imports): a folder of run folders (``compare``'s
+    OUTPUT/compare/, one per method) stands for them, in name order; InputError for one that
+    is neither."""
     paths = [Path(f) for f in folders]
     if not paths:
         raise InputError("folders: give at least one run folder (e.g. results/ours)")
+    runs: list[Path] = []
     for path in paths:
-        if not RunFolder(path).has_record:
+        inner = sorted(p for p in path.iterdir() if p.is_dir() and RunFolder(p).has_record) \
+            if path.is_dir() else []
+        if inner:
+            runs.extend(inner)
+        elif RunFolder(path).has_record:
+            runs.append(path)
+        else:
             what = "does not exist" if not path.exists() else "has no run.json"
             raise InputError(f"folders: {str(path)!r} {what}; give folders written by ikbench "
-                             "run (OUTPUT/NAME/ with run.json and trajectory_<id>.csv)")
-    return paths
+                             "run or compare (OUTPUT/NAME/ with run.json and "
+                             "trajectory_<id>.csv, or compare's OUTPUT/compare/)")
+    return runs
 
 
 def _record(folder: Path) -> RunRecord:

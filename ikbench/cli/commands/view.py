@@ -35,7 +35,8 @@ DESCRIPTION = (
 def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("folders", nargs="+", metavar="RUN_DIR",
                         type=PathValue("a run folder", must_exist="dir"),
-                        help="run folders (OUTPUT/NAME/ with run.json), e.g. results/ours")
+                        help="run folders (OUTPUT/NAME/ with run.json), e.g. results/ours, "
+                        "or a folder of them (compare's OUTPUT/compare/: every method)")
     parser.add_argument("--port", type=Number("a TCP port", 0, 65535, integer=True,
                                               shown="from 0 to 65535"),
                         default=8080,
@@ -66,14 +67,14 @@ def run(args: argparse.Namespace) -> int:
     from ikbench.viewer.folders import check_folders, load_runs
 
     check_timing_args(args)
-    check_folders(args.folders)
+    folders = check_folders(args.folders)
     try:
         import viser  # noqa: F401
     except ImportError:
         raise InputError(f"ikbench view needs viser, which is not installed: {INSTALL}") from None
     from ikbench.viewer.server import check_trajectory, run_forever
 
-    robot, runs = load_runs(args.folders)
+    robot, runs = load_runs(folders)
     retime_runs(robot, runs, args)
     check_trajectory(runs, args.trajectory)
     begin(args)
