@@ -66,12 +66,18 @@ def test_weight_raises_legibility_within_the_line_bound(robot, paper_targets):
     assert (curve["line_distance_max_mm"] <= LINE_BOUND_MM).all()
 
 
-def test_the_option_needs_a_goal_set(robot, paper_targets):
+def test_the_option_needs_a_goal_set(capsys, tmp_path, robot, paper_targets):
     from ikbench.core.errors import InputError
 
-    task = line_tasks(robot, paper_targets)[0]
     with pytest.raises(InputError, match="needs a goal set"):
-        OursExact(legibility_weight=1.0).solve(robot, task)
+        OursExact(legibility_weight=1.0)
+    task = line_tasks(robot, paper_targets)[0]
+    alone = OursExact(legibility_weight=1.0, legibility_goals_mm=task.end_point_mm[None])
+    with pytest.raises(InputError, match="needs a goal set with a goal other than"):
+        alone.solve(robot, task)
+    err = one_line_error(capsys, ["run", "--method", "ours-exact", "--exact-legibility-weight",
+                                  "1", "--output", str(tmp_path / "out")])
+    assert "needs a goal set" in err
 
 
 @pytest.mark.parametrize("argv", [

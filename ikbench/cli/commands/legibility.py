@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.options import add_robot_arguments, begin, robot_from_args
-from ikbench.cli.values import INPUT_FILE
+from ikbench.cli.values import INPUT_FILE, OUTPUT
 
 HELP = ("ours-exact with ikbench's legibility term (not the paper's method) for a sweep of "
         "weights on one target: CSV, trade-off figure")
@@ -35,13 +35,15 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--weights", default=None, metavar="W1,W2,...",
                         help="the weights W, each >= 0 (default 0,10,30,100,300,1000,3000; "
                         "ours-exact's pointing weight c1 is 2000)")
-    parser.add_argument("--output", default="results/legibility_tradeoff", metavar="DIR",
-                        help="output folder (default results/legibility_tradeoff)")
+    parser.add_argument("--output", default="runs/legibility", metavar="DIR",
+                        type=OUTPUT,
+                        help="output folder (default runs/legibility, which git ignores)")
 
 
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from ikbench.core.errors import InputError
     from ikbench.core.io import check_writable
     from ikbench.core.targets import load_targets
     from ikbench.studies.legibility_tradeoff import (
@@ -56,10 +58,13 @@ def run(args: argparse.Namespace) -> int:
     robot = robot_from_args(args)
     targets = load_targets(args.targets, robot)
     goals = None if args.goals is None else load_targets(args.goals, robot)
+    if args.target is not None and args.target not in targets.touch_poses:
+        raise InputError(f"--target: {args.target!r} is not a target of the targets file "
+                         f"({', '.join(targets.ids)})")
     out = Path(args.output)
-    out.mkdir(parents=True, exist_ok=True)
     check_writable(out / "legibility_tradeoff.csv")
     begin(args)
+    out.mkdir(parents=True, exist_ok=True)
     curve = legibility_tradeoff(robot, targets, args.target, weights, goals)
     curve.to_csv(out / "legibility_tradeoff.csv", index=False)
     target = args.target or targets.ids[0]

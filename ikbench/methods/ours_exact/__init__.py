@@ -132,6 +132,10 @@ class ExactSettings:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise InputError(f"{flag_of(self, name)}: {value!r} must be a number >= 0")
+        if self.legibility_weight and self.legibility_goals_mm is None:
+            raise InputError(f"{flag_of(self, 'legibility_weight')} needs a goal set (the "
+                             "task's other goals): use ikbench legibility, or set "
+                             "legibility_goals_mm from Python")
         check_choice(self, "init", INITS)
         self.max_iterations = int(self.max_iterations)
         check_seed(self)
@@ -150,8 +154,9 @@ class OursExact(Method):
     def scheme_label(self) -> str:
         s = self.settings
         jerk = f", jerk {s.jerk_weight:g}" if s.jerk_weight else ""
+        legible = f", legibility {s.legibility_weight:g}" if s.legibility_weight else ""
         return (f"whole path, exact constraints, c1 {s.pointing_weight:g}, "
-                f"c6 {s.smoothness_weight:g}{jerk}")
+                f"c6 {s.smoothness_weight:g}{jerk}{legible}")
 
     def _sqp(self, kinematics, problem, initial, init_info) -> SQPResult:
         s = self.settings
