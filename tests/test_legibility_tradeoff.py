@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ikbench.core.legibility import (legibility_term, legibility_term_weights,
-                                     pointing_probabilities)
+from ikbench.core.legibility import legibility_term, legibility_term_weights, pointing_probabilities
 from ikbench.core.task import line_tasks
 from ikbench.methods.ours_exact import ExactProblem, OursExact, build_problem
 from ikbench.methods.ours_exact.problem import pointing_p_true

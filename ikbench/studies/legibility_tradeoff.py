@@ -21,8 +21,12 @@ import numpy as np
 import pandas as pd
 
 from ikbench.core.errors import InputError
-from ikbench.core.legibility import (constant_times_s, goal_points_mm, legibility_metrics,
-                                     true_goal_index)
+from ikbench.core.legibility import (
+    constant_times_s,
+    goal_points_mm,
+    legibility_metrics,
+    true_goal_index,
+)
 
 #: The default sweep of W (c1, the pointing weight, is 2000: W of its order moves pointing).
 WEIGHTS = (0.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0)
@@ -35,7 +39,7 @@ COLUMNS = ["weight", "pointing_legibility", "position_legibility", "predictabili
            "early_pointing_deviation_max_deg", "converged", "iterations", "time_s"]
 
 
-def check_weights(weights: Sequence[float]) -> list[float]:
+def check_weights(weights: Sequence[float | str]) -> list[float]:
     """The weights as floats; InputError for an empty list, a negative or non-finite one."""
     out = []
     for w in weights:
@@ -52,7 +56,7 @@ def check_weights(weights: Sequence[float]) -> list[float]:
 
 
 def legibility_tradeoff(robot, targets, target_id: str | None = None,
-                        weights: Sequence[float] = WEIGHTS, goals=None,
+                        weights: Sequence[float | str] = WEIGHTS, goals=None,
                         duration_s: float = 1.0) -> pd.DataFrame:
     """The :data:`COLUMNS` of one target (``target_id``, default the first touch pose of
     ``targets``) solved by ours-exact for each weight; ``goals``: the goal set's targets

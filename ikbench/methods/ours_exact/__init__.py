@@ -432,8 +432,7 @@ def _legibility_fields(tasks: Sequence[Task], settings: ExactSettings) -> dict[s
     weights (B, N), goal sets (B, K, 3) padded with NaN, true goals (B,)."""
     if not settings.legibility_weight:
         return {}
-    from ikbench.core.legibility import (POINTING_SIGMA_DEG, legibility_term_weights,
-                                         true_goal_index)
+    from ikbench.core.legibility import POINTING_SIGMA_DEG, legibility_term_weights, true_goal_index
 
     flag = flag_of(settings, "legibility_weight")
     if settings.legibility_goals_mm is None:

@@ -108,8 +108,9 @@ class ExactProblem:
             self.pointing[index], self.smooth[index], self.jerk[index],
             self.step_limit[index], self.step_penalty[index], self.fixed[index],
             self.constrained[index], self.lower, self.upper,
-            *(None if v is None else v[index] for v in (
-                self.legibility, self.legibility_goals_mm, self.true_goal)), self.sigma_deg)
+            None if self.legibility is None else self.legibility[index],
+            None if self.legibility_goals_mm is None else self.legibility_goals_mm[index],
+            None if self.true_goal is None else self.true_goal[index], self.sigma_deg)
 
 
 @dataclass
