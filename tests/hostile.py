@@ -51,6 +51,7 @@ BASE = {
     "export": ["export", "<TRAJ>", "--format", "csv-rad", "--output", "<OUT>"],
     "fk": ["fk"],
     "ik": ["ik", "--output", "<OUT>"],
+    "legibility": ["legibility", "--output", "<OUT>"],
     "letters": ["letters", "P", "--output", "<OUT>"],
     "plan": ["plan", "<TRAJ>", "--out", "<OUT>"],
     "report": ["report", str(REPO / "results")],

@@ -266,3 +266,22 @@ def true_goal_index(goals_mm: np.ndarray, end_point_mm: npt.ArrayLike
     if gaps.size and gaps.min() <= NEAR_GOAL_MM:
         return goals, int(np.argmin(gaps))
     return np.vstack([goals, end]), len(goals)
+
+
+# ----- ikbench's extension (not the paper's method): a legibility term to optimise ----------
+
+def legibility_term_weights(points: int, weight: float) -> np.ndarray:
+    """(n+1,) w_i = W f_i / sum_j f_j with Dragan's f_i = 1 - tau_i = 1 - i/n (the
+    ``constant`` timing): the weights of :func:`legibility_term` (early poses weigh most)."""
+    f = 1.0 - np.linspace(0.0, 1.0, int(points))
+    return float(weight) * f / f.sum()
+
+
+def legibility_term(p_true: npt.ArrayLike, weight: float) -> float:
+    """ikbench's legibility term (ours-exact's ``--exact-legibility-weight``; not the paper's
+    method): ``W sum_i f_i (1 - P_i(G*))^2 / sum_i f_i`` over the n+1 poses of a motion with
+    the ``constant`` timing, f_i = 1 - i/n, P_i(G*) the pointing observer's probability of the
+    true goal at pose i (:func:`pointing_probabilities`). 0 when the finger points at the true
+    goal alone all along; at most W."""
+    p = np.asarray(p_true, dtype=float)
+    return float(np.sum(legibility_term_weights(len(p), weight) * (1.0 - p) ** 2))

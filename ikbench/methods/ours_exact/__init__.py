@@ -83,6 +83,13 @@ class ExactSettings:
             fixed poses), ``ours-lm`` (ours-lm's solution) or ``auto`` (the first where the
             task fixes both poses, else the second).
         seed: 6-D pose paths: the seed of ours-lm's start search (the initial trajectory).
+        legibility_weight: W of ikbench's legibility term (not the paper's method; 0: off,
+            the paper's objective unchanged): W sum_i f_i (1 - P_i(G*))^2 / sum f, the
+            pointing observer's P(true goal), early poses weighted most
+            (:func:`ikbench.core.legibility.legibility_term`). Needs ``legibility_goals_mm``.
+        legibility_goals_mm: the goal set (K, 3) [mm] of the legibility term (a task's touch
+            point not in it is added as its true goal); set from Python or by
+            ``ikbench legibility``, not a CLI option.
     """
 
     pointing_weight: float = option(2000.0, flag="exact-pointing-weight",
@@ -109,15 +116,26 @@ class ExactSettings:
     seed: int = option(0, flag="lm-seed",
                        help="6-D pose paths: seed of the start search's random IK seeds, "
                        "in [0, 2^63)")
+    legibility_weight: float = option(0.0, flag="exact-legibility-weight",
+                                      help="W of ikbench's legibility term (not the paper's "
+                                      "method; 0: off): W * weighted mean of (1 - the "
+                                      "pointing observer's P(true goal))^2, early poses "
+                                      "weighted most; needs a goal set (ikbench "
+                                      "legibility)")
+    legibility_goals_mm: Any = None
 
     def __post_init__(self):
         check_positive(self, "smoothness_weight", "max_step", "step_penalty", "tolerance",
                        "feasibility_tolerance")
         check_positive(self, "max_iterations", integer=True)
-        for name in ("pointing_weight", "jerk_weight"):
+        for name in ("pointing_weight", "jerk_weight", "legibility_weight"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise InputError(f"{flag_of(self, name)}: {value!r} must be a number >= 0")
+        if self.legibility_weight and self.legibility_goals_mm is None:
+            raise InputError(f"{flag_of(self, 'legibility_weight')} needs a goal set (the "
+                             "task's other goals): use ikbench legibility, or set "
+                             "legibility_goals_mm from Python")
         check_choice(self, "init", INITS)
         self.max_iterations = int(self.max_iterations)
         check_seed(self)
@@ -136,8 +154,9 @@ class OursExact(Method):
     def scheme_label(self) -> str:
         s = self.settings
         jerk = f", jerk {s.jerk_weight:g}" if s.jerk_weight else ""
+        legible = f", legibility {s.legibility_weight:g}" if s.legibility_weight else ""
         return (f"whole path, exact constraints, c1 {s.pointing_weight:g}, "
-                f"c6 {s.smoothness_weight:g}{jerk}")
+                f"c6 {s.smoothness_weight:g}{jerk}{legible}")
 
     def _sqp(self, kinematics, problem, initial, init_info) -> SQPResult:
         s = self.settings
@@ -393,6 +412,7 @@ def build_problem(robot: Robot, tasks: Sequence[Task], settings: ExactSettings) 
     lower, upper = (np.asarray(v, dtype=float) for v in tasks[0].limits(robot))
     lower, upper = lower + BOUND_MARGIN, upper - BOUND_MARGIN
     jerk = settings.jerk_weight / (max(n - 2, 1) * dof)
+    legibility = _legibility_fields(tasks, settings)
     return ExactProblem(
         goal_points_mm=np.stack([t.goal_points_mm for t in tasks]),
         goal_directions=np.stack([t.goal_directions for t in tasks]),
@@ -404,7 +424,39 @@ def build_problem(robot: Robot, tasks: Sequence[Task], settings: ExactSettings) 
         jerk=np.full(len(tasks), jerk if n >= 3 else 0.0),
         step_limit=np.stack([step_limits(robot, t, settings) for t in tasks]),
         step_penalty=np.full(len(tasks), float(settings.step_penalty)),
-        fixed=fixed, constrained=~fixed, lower=lower, upper=upper)
+        fixed=fixed, constrained=~fixed, lower=lower, upper=upper, **legibility)
+
+
+def _legibility_fields(tasks: Sequence[Task], settings: ExactSettings) -> dict[str, Any]:
+    """The :class:`ExactProblem` fields of the legibility term (none when its weight is 0):
+    weights (B, N), goal sets (B, K, 3) padded with NaN, true goals (B,)."""
+    if not settings.legibility_weight:
+        return {}
+    from ikbench.core.legibility import POINTING_SIGMA_DEG, legibility_term_weights, true_goal_index
+
+    flag = flag_of(settings, "legibility_weight")
+    if settings.legibility_goals_mm is None:
+        raise InputError(f"{flag} needs a goal set (the task's other goals): use ikbench "
+                         "legibility, or set legibility_goals_mm from Python")
+    if tasks[0].has_frames:
+        raise InputError(f"{flag} applies to point paths (lines), not to 6-D pose paths")
+    sets, trues = [], []
+    for task in tasks:
+        goals, true = true_goal_index(np.asarray(settings.legibility_goals_mm, dtype=float),
+                                      task.goal_points_mm[-1])
+        if len(goals) < 2:
+            raise InputError(f"{flag} needs a goal set with a goal other than the task's "
+                             f"touch point ({task.name!r} has none)")
+        sets.append(goals)
+        trues.append(true)
+    k = max(len(g) for g in sets)
+    padded = np.full((len(tasks), k, 3), np.nan)
+    for b, goals in enumerate(sets):
+        padded[b, :len(goals)] = goals
+    n_poses = tasks[0].steps + 1
+    weights = legibility_term_weights(n_poses, settings.legibility_weight)
+    return {"legibility": np.tile(weights, (len(tasks), 1)), "legibility_goals_mm": padded,
+            "true_goal": np.asarray(trues, dtype=int), "sigma_deg": POINTING_SIGMA_DEG}
 
 
 def initial_trajectories(robot: Robot, tasks: Sequence[Task], settings: ExactSettings

@@ -17,7 +17,12 @@ Objective (soft), in the paper's units and with its names:
 - jerk (optional): cj * mean of the third differences (x_{i+3} - 3 x_{i+2} + 3 x_{i+1} -
   x_i)^2 [deg^2];
 - a speed bound: cs * sum of max(0, |x_{i+1, j} - x_{i, j}| - s_j)^2, a penalty that keeps
-  every joint step within s_j (pose units per segment) once cs is large.
+  every joint step within s_j (pose units per segment) once cs is large;
+- legibility (ikbench's extension, not the paper's; only with ``--exact-legibility-weight``
+  W > 0 and a goal set): sum_i w_i (1 - P_i(G*))^2, w_i = W f_i / sum f, f_i = 1 - i/n, P_i
+  the pointing observer's probability of the true goal (:mod:`ikbench.core.legibility`). It
+  is added to the objective, not to ``terms``; the points stay constraints, so it moves only
+  the pointing, never the fingertip off its path.
 
 Every term is a sum of squared residuals, so :func:`evaluate` returns the Gauss-Newton model
 (gradient J^T r, blocks of J^T J) whose coupling is banded, as :mod:`.kkt` needs.
@@ -67,6 +72,10 @@ class ExactProblem:
         fixed: (B, N) poses held at their initial values.
         constrained: (B, N) poses whose point (and frame) are equality constraints.
         lower / upper: (k,) joint bounds [pose units].
+        legibility: (B, N) weights w_i of the legibility term, or None (no term).
+        legibility_goals_mm: (B, K, 3) the goal sets (rows of NaN pad shorter sets).
+        true_goal: (B,) the index of each trajectory's true goal.
+        sigma_deg: the pointing observer's sigma [deg].
     """
 
     goal_points_mm: np.ndarray
@@ -81,6 +90,10 @@ class ExactProblem:
     constrained: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
+    legibility: np.ndarray | None = None
+    legibility_goals_mm: np.ndarray | None = None
+    true_goal: np.ndarray | None = None
+    sigma_deg: float = 10.0
 
     @property
     def rows(self) -> int:
@@ -94,7 +107,10 @@ class ExactProblem:
             self.goal_points_mm[index], self.goal_directions[index], rotations,
             self.pointing[index], self.smooth[index], self.jerk[index],
             self.step_limit[index], self.step_penalty[index], self.fixed[index],
-            self.constrained[index], self.lower, self.upper)
+            self.constrained[index], self.lower, self.upper,
+            None if self.legibility is None else self.legibility[index],
+            None if self.legibility_goals_mm is None else self.legibility_goals_mm[index],
+            None if self.true_goal is None else self.true_goal[index], self.sigma_deg)
 
 
 @dataclass
@@ -163,7 +179,11 @@ def evaluate(kinematics: ChainKinematics, problem: ExactProblem, poses: np.ndarr
         problem.jerk * np.sum(third**2, axis=(1, 2)),
         problem.step_penalty * np.sum(excess**2, axis=(1, 2)),
     ], axis=1)
-    model = Model(terms.sum(axis=1), terms, residual)
+    legible = None
+    if problem.legibility is not None:
+        legible = _legibility(problem, poses, at, derivatives)
+    model = Model(terms.sum(axis=1) if legible is None else terms.sum(axis=1) + legible[0],
+                  terms, residual)
     if not derivatives:
         return model
     a1 = problem.pointing[..., None, None]
@@ -185,8 +205,73 @@ def evaluate(kinematics: ChainKinematics, problem: ExactProblem, poses: np.ndarr
         _add_jerk(model, problem.jerk, third, along)
     idx = np.arange(k)
     model.diagonal[..., idx, idx] += along
+    if legible is not None:
+        model.gradient += legible[1]
+        model.diagonal += legible[2]
     model.jacobian = jacobian
     return model
+
+
+def pointing_p_true(problem: ExactProblem, points_mm: np.ndarray, direction: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The pointing observer's P(G*) (B, N) at fingertip points (B, N, 3) [mm] and unit
+    pointing axes (B, N, 3), with its derivatives by the axis and by the point (B, N, 3) each,
+    and the logits' angles theta (B, N, K) [rad] (as :mod:`ikbench.core.legibility`)."""
+    assert problem.legibility_goals_mm is not None and problem.true_goal is not None
+    goals = problem.legibility_goals_mm[:, None]                       # (B, 1, K, 3)
+    real = np.isfinite(goals[..., 0])                                   # (B, 1, K)
+    to = np.where(real[..., None], goals - points_mm[:, :, None], 1.0)  # (B, N, K, 3)
+    dist = np.linalg.norm(to, axis=-1)
+    u = to / dist[..., None]
+    v = direction[:, :, None]
+    cos = np.sum(v * u, axis=-1)
+    sin = np.linalg.norm(np.cross(v, u), axis=-1)
+    theta = np.arctan2(sin, cos)
+    near = dist < 1.0                                                   # NEAR_GOAL_MM
+    theta = np.where(near, 0.0, theta)
+    ratio = np.where(sin > 1e-12, theta / np.maximum(sin, 1e-12), 1.0)
+    sigma = np.radians(problem.sigma_deg)
+    z = np.where(real, -theta**2 / (2.0 * sigma**2), -np.inf)
+    z = z - z.max(axis=-1, keepdims=True)
+    prob = np.exp(z)
+    prob /= prob.sum(axis=-1, keepdims=True)                            # (B, N, K)
+    # d theta^2 / dv = -2 (theta / sin)(u - cos v); d theta^2 / dp = 2 (theta / sin)(v - cos u)
+    # / |G - p|; d z / d . = -(d theta^2 / d .) / (2 sigma^2)
+    keep = (~near & real)[..., None]
+    dz_dv = np.where(keep, ratio[..., None] * (u - cos[..., None] * v) / sigma**2, 0.0)
+    dz_dp = np.where(keep, -ratio[..., None] * (v - cos[..., None] * u)
+                     / dist[..., None] / sigma**2, 0.0)
+    b = np.arange(len(prob))[:, None]
+    true = problem.true_goal[:, None]
+    n_idx = np.arange(prob.shape[1])[None]
+    p_true = prob[b, n_idx, true]                                       # (B, N)
+    # dP*/d. = P* (dz*/d. - sum_G P_G dz_G/d.)
+    dp_dv = p_true[..., None] * (dz_dv[b, n_idx, true]
+                                 - np.sum(prob[..., None] * dz_dv, axis=2))
+    dp_dp = p_true[..., None] * (dz_dp[b, n_idx, true]
+                                 - np.sum(prob[..., None] * dz_dp, axis=2))
+    return p_true, dp_dv, dp_dp, theta
+
+
+def _legibility(problem: ExactProblem, poses: np.ndarray, at: KinematicsAt,
+                derivatives: bool) -> tuple[np.ndarray, Any, Any]:
+    """(value (B,), its half gradient J^T r (B, N, k), its J^T J blocks (B, N, k, k)) of the
+    legibility term sum_i w_i (1 - P_i)^2 (residuals sqrt(w_i) (1 - P_i))."""
+    assert problem.legibility is not None
+    residual, jacobian, direction, j_dir = at
+    points = problem.goal_points_mm + residual[..., :3]   # the fingertip (c = P(x) - P^g)
+    p_true, dp_dv, dp_dp, _ = pointing_p_true(problem, points, direction)
+    w = problem.legibility
+    value = np.sum(w * (1.0 - p_true) ** 2, axis=1)
+    if not derivatives:
+        return value, None, None
+    # dP/dq (B, N, k): through the axis and through the point (its Jacobian, mm per unit;
+    # zero at the fixed poses, which never move)
+    dp_dq = (dp_dv[..., None, :] @ j_dir)[..., 0, :] + (
+        dp_dp[..., None, :] @ jacobian[..., :3, :])[..., 0, :]
+    gradient = -(w * (1.0 - p_true))[..., None] * dp_dq
+    blocks = w[..., None, None] * (dp_dq[..., :, None] * dp_dq[..., None, :])
+    return value, gradient, blocks
 
 
 def kinematics_at(kinematics: ChainKinematics, problem: ExactProblem, poses: np.ndarray,

@@ -1,0 +1,139 @@
+"""The legibility trade-off of ours-exact (ikbench's extension, not the paper's method).
+
+:func:`legibility_tradeoff` solves one line target with ``ours-exact`` for a sweep of
+``--exact-legibility-weight`` W (W = 0 is the paper's objective) and measures, for each W,
+the pointing observer's legibility, the predictability, the largest line distance, the
+pointing deviation over the judged part and the solve time. ours-exact holds every fingertip
+point on the line as a constraint, so the line distance stays within its feasibility
+tolerance (``--exact-feasibility-tolerance``, 1e-6 mm) for every W: what the term trades is
+the pointing (mostly early in the motion, where the paper does not judge it) and, for large W,
+smoothness. :func:`plot_tradeoff` draws legibility against the pointing deviation and the line
+distance, each point labelled by its weight.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ikbench.core.errors import InputError
+from ikbench.core.legibility import (
+    constant_times_s,
+    goal_points_mm,
+    legibility_metrics,
+    true_goal_index,
+)
+
+#: The default sweep of W (c1, the pointing weight, is 2000: W of its order moves pointing).
+WEIGHTS = (0.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0)
+#: The line distance every W keeps within [mm]: ours-exact's feasibility tolerance (1e-6 mm,
+#: the largest coordinate of a point's error) times sqrt 3 (the distance it allows).
+LINE_BOUND_MM = 1e-6 * 3 ** 0.5
+#: The curve's columns, in order.
+COLUMNS = ["weight", "pointing_legibility", "position_legibility", "predictability",
+           "line_distance_max_mm", "pointing_deviation_max_deg", "pointing_deviation_rms_deg",
+           "early_pointing_deviation_max_deg", "converged", "iterations", "time_s"]
+
+
+def check_weights(weights: Sequence[float | str]) -> list[float]:
+    """The weights as floats; InputError for an empty list, a negative or non-finite one."""
+    out = []
+    for w in weights:
+        try:
+            value = float(w)
+        except (TypeError, ValueError):
+            raise InputError(f"--weights: {w!r} is not a number") from None
+        if not np.isfinite(value) or value < 0:
+            raise InputError(f"--weights: {w!r} must be a number >= 0")
+        out.append(value)
+    if not out:
+        raise InputError("--weights: give at least one weight")
+    return out
+
+
+def legibility_tradeoff(robot, targets, target_id: str | None = None,
+                        weights: Sequence[float | str] = WEIGHTS, goals=None,
+                        duration_s: float = 1.0) -> pd.DataFrame:
+    """The :data:`COLUMNS` of one target (``target_id``, default the first touch pose of
+    ``targets``) solved by ours-exact for each weight; ``goals``: the goal set's targets
+    (default ``targets``, every id). Legibility is independent of ``duration_s`` (times
+    only scale)."""
+    from ikbench.core.task import line_tasks
+    from ikbench.methods.ours_exact import OursExact
+
+    weights = check_weights(weights)
+    tasks = {t.name: t for t in line_tasks(robot, targets)}
+    name = target_id if target_id is not None else next(iter(tasks))
+    if name not in tasks:
+        raise InputError(f"--target: {name!r} is not a target of the targets file "
+                         f"({', '.join(tasks)})")
+    task = tasks[name]
+    _, goals_mm = goal_points_mm(robot, goals if goals is not None else targets)
+    all_goals, true = true_goal_index(goals_mm, task.end_point_mm)
+    if len(all_goals) < 2:
+        raise InputError("the legibility term needs a goal set with a goal other than the "
+                         "target's touch point (--goals)")
+    judged = task.contract.judged_from(task.steps) if task.contract is not None else 0
+    rows = []
+    for w in weights:
+        method = OursExact(legibility_weight=w, legibility_goals_mm=goals_mm)
+        started = time.perf_counter()
+        solution = method.solve(robot, task)
+        elapsed = time.perf_counter() - started
+        fk = robot.fk(solution.poses)
+        metrics = legibility_metrics(fk.point_mm, fk.direction, solution.poses, all_goals,
+                                     true, constant_times_s(len(solution.poses), duration_s))
+        cos = np.clip(np.sum(fk.direction * task.goal_directions, axis=1), -1.0, 1.0)
+        deviation = np.degrees(np.arccos(cos))
+        rows.append({
+            "weight": w, "pointing_legibility": metrics["pointing_legibility"],
+            "position_legibility": metrics["position_legibility"],
+            "predictability": metrics["predictability"],
+            "line_distance_max_mm": float(np.linalg.norm(
+                fk.point_mm - task.goal_points_mm, axis=1).max()),
+            "pointing_deviation_max_deg": float(deviation[judged:].max()),
+            "pointing_deviation_rms_deg": float(np.sqrt(np.mean(deviation[judged:] ** 2))),
+            "early_pointing_deviation_max_deg": float(deviation[1:max(judged, 2)].max()),
+            "converged": bool(solution.converged), "iterations": int(solution.iterations),
+            "time_s": elapsed})
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def plot_tradeoff(curve: pd.DataFrame, path: str | Path, title: str = "") -> Path:
+    """Two panels: pointing legibility against the pointing deviation over the judged part
+    (the trade ours-exact makes) and against the largest line distance (held by the
+    constraints), each point labelled by its weight W; written to ``path`` (PNG)."""
+    from ikbench.render.run_report import _matplotlib
+
+    plt = _matplotlib()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), constrained_layout=True)
+    panels = (("pointing_deviation_rms_deg",
+               "pointing deviation over the judged part, RMS [deg]"),
+              ("line_distance_max_mm", "largest line distance [mm]"))
+    for ax, (column, label) in zip(axes, panels):
+        # the line distances are rounding residues: points, not a curve
+        style = "-o" if column != "line_distance_max_mm" else "o"
+        ax.plot(curve[column], curve["pointing_legibility"], style, color="tab:blue")
+        for _, row in curve.iterrows():
+            ax.annotate(f"W={row['weight']:g}", (row[column], row["pointing_legibility"]),
+                        textcoords="offset points", xytext=(6, 4), fontsize=9)
+        ax.set_xlabel(label)
+        ax.set_ylabel("pointing legibility (Dragan, f = T - t)")
+        ax.grid(alpha=0.3)
+    axes[1].axvline(LINE_BOUND_MM, color="tab:red", linestyle="--",
+                    label=f"bound {LINE_BOUND_MM:.2g} mm (feasibility tolerance x sqrt 3)")
+    axes[1].set_xlim(0.0, 1.25 * LINE_BOUND_MM)
+    axes[1].legend(loc="lower right", fontsize=9)
+    axes[1].ticklabel_format(axis="x", style="sci", scilimits=(-3, 3))
+    axes[0].set_title("what the term trades: pointing")
+    axes[1].set_title("line distance: held by ours-exact's constraints")
+    fig.suptitle(title or "ours-exact with ikbench's legibility term (not the paper's method)")
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
