@@ -61,6 +61,19 @@ def leaderboard(results: pd.DataFrame, reference: str, contract: Contract) -> pd
     return pd.DataFrame(rows)
 
 
+def with_first_calls(board: pd.DataFrame, first_calls: dict[str, dict] | None
+                     ) -> pd.DataFrame:
+    """``board`` with ``first_call_s`` (each method's first call in a fresh process [s],
+    ``ikbench compare --first-call``; NaN where it failed or the method did not run), when
+    ``first_calls`` is given; unchanged (no column) otherwise."""
+    if not first_calls:
+        return board
+    board = board.copy()
+    board["first_call_s"] = board["method"].map(
+        {m: t.get("first_call_s", np.nan) for m, t in first_calls.items()}).astype(float)
+    return board
+
+
 def _board_row(name, group, track, judged: Contract, success: str, ref) -> dict:
     solved = group[group["ok_solved"] == True]  # noqa: E712 (object column)
     count = len(group)
@@ -133,6 +146,7 @@ def _table(board: pd.DataFrame, reference: str, judged: Contract) -> list[str]:
                "pointing all [deg]", "pointing judged [deg]", "max step [deg]",
                "speed use", "jerk [deg^2]", "time single [s] median (min-max)",
                "time batched [s]", f"x {reference}"]
+            + (["first call [s]"] if "first_call_s" in board else [])
             + list(LEGIBILITY_TITLES.values())
             + (["min clearance [mm]", "avoids obstacles"] if judged.obstacles else []))
     lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
@@ -153,6 +167,8 @@ def _table(board: pd.DataFrame, reference: str, judged: Contract) -> list[str]:
                   fmt(row["max_joint_step_deg"]), fmt(row["speed_limit_use"]),
                   fmt(row["mean_sq_jerk_deg2"]), time, fmt(row["time_batched_s"]),
                   fmt(row["time_vs_reference"])]
+        if "first_call_s" in board:
+            cells.append(fmt(row["first_call_s"]))
         cells += [fmt(row.get(column, np.nan)) for column in LEGIBILITY_TITLES]
         if judged.obstacles:
             cells += [fmt(row["min_clearance_mm"]),
@@ -182,6 +198,8 @@ def leaderboard_markdown(board: pd.DataFrame, record: dict, contract: Contract) 
              "joint step over the step the speed limit allows (1 = at the limit). Legibility, "
              "inferred times, predictability and jerk (`ikbench.core.legibility`, "
              "docs/legibility.md): medians over the trajectories.", ""]
+    if "first_call_s" in board:
+        lines += [_first_call_paragraph(record.get("first_calls") or {}), ""]
     if record.get("obstacles"):
         lines += _obstacles_paragraph(record["obstacles"])
     for track in dict.fromkeys(board["track"]):
@@ -194,6 +212,18 @@ def leaderboard_markdown(board: pd.DataFrame, record: dict, contract: Contract) 
               + ", ".join(f"{k} {v}" for k, v in record["libraries"].items())
               + f"; ikbench git {record['git_revision']}.", ""]
     return "\n".join(lines)
+
+
+def _first_call_paragraph(first_calls: dict[str, dict]) -> str:
+    """The header's words on the first-call column (``--first-call``) and the split."""
+    from ikbench.studies.first_call import FIRST_CALL_MEANING
+
+    split = "; ".join(
+        f"{m}: failed: {t['error']}" if "error" in t else
+        f"{m}: import {fmt(t['import_s'])}, set-up {fmt(t['setup_s'])}, first solve "
+        f"{fmt(t['solve_s'])}" for m, t in first_calls.items())
+    return (f"{FIRST_CALL_MEANING[0].upper()}{FIRST_CALL_MEANING[1:]}; each method solved the "
+            f"first trajectory once on this robot. Split [s]: {split or 'not recorded'}.")
 
 
 def construction_notes(record: dict) -> list[str]:
@@ -356,7 +386,8 @@ def render(folder: str | Path) -> None:
     results = pd.read_csv(folder / "results.csv", dtype={"trajectory": str})
     sweep_path = folder / "pareto_sweep.csv"
     sweep = pd.read_csv(sweep_path) if sweep_path.exists() else None
-    board = leaderboard(results, record.study["reference"], contract)
+    board = with_first_calls(leaderboard(results, record.study["reference"], contract),
+                             record.study.get("first_calls"))
     atomic_write_csv(folder / "leaderboard.csv", board, float_format="%.6g")
     atomic_write_text(folder / "leaderboard.md",
                       leaderboard_markdown(board, record.to_dict(), contract))
