@@ -224,6 +224,9 @@ def report(result: StudyResult, summary: pd.DataFrame, published: pd.DataFrame,
     if "first_call_s" in view:
         view["first call [s]"] = view["first_call_s"]
         columns.insert(4, "first call [s]")
+        lines[-1:-1] = ["First call [s]: the method's import, set-up and first solve in a fresh "
+                        "process, once per method, one measurement under the machine's load "
+                        "(section First call below gives the split).", ""]
     lines += [_markdown(view[columns]), ""]
     lines += first_call_section(getattr(result, "first_calls", {}), "its first problem "
                                 f"({next(iter(result.problems), '')}) with seed "

@@ -30,9 +30,9 @@ from ikbench.core.problems import BENCHMARK, load_problem, resolve_problems
 from ikbench.methods.base import Method
 from ikbench.methods.registry import available_methods, get_method
 from ikbench.render.cartesian_report import write_folder
-from ikbench.studies.first_call import first_path_call
 from ikbench.runtime.harness import Outcome, solve_tasks
 from ikbench.runtime.progress import Reporter
+from ikbench.studies.first_call import first_path_call
 
 DEFAULT_SEEDS = (1, 2, 3)
 #: Seeds are integers in [0, 2^63) (numpy's and torch's generators).
