@@ -289,3 +289,29 @@ def test_every_method_once_is_reproduced_from_its_trajectories():
     assert (per_method == 13).all(), per_method
     trajopt = table[table["method"] == "drake-trajopt"]
     assert not trajopt["valid"].astype(bool).any()
+
+
+def test_first_call_is_a_column_of_every_method_only_when_asked(tmp_path):
+    """--first-call: summary.csv's first_call_s (a fresh process: import, set-up, first solve)
+    is finite and positive for each method, the report's summary and its section name it;
+    without the option the column is absent."""
+    path = write_problem(tmp_path, "panda")
+    common = ["cartesian", "--problems", str(path), "--methods", "ours-lm,sequential-ik",
+              "--seeds", "1", "--quiet"]
+    assert main([*common, "--output", str(tmp_path / "on"), "--first-call"]) == 0
+    folder = tmp_path / "on" / "cartesian"
+    summary = pd.read_csv(folder / "summary.csv")
+    assert set(summary["method"]) == {"ours-lm", "sequential-ik"}
+    assert np.isfinite(summary["first_call_s"]).all() and (summary["first_call_s"] > 0).all()
+    record = json.loads((folder / "run.json").read_text())
+    assert set(record["first_calls"]) == {"ours-lm", "sequential-ik"}
+    for split in record["first_calls"].values():
+        assert split["first_call_s"] == pytest.approx(
+            split["import_s"] + split["setup_s"] + split["solve_s"])
+    report = (folder / "report.md").read_text()
+    assert "first call [s]" in report and "fresh Python process" in report
+    assert "--first-call" in report
+    assert main([*common, "--output", str(tmp_path / "off")]) == 0
+    off = tmp_path / "off" / "cartesian"
+    assert "first_call_s" not in pd.read_csv(off / "summary.csv")
+    assert "first call [s]" not in (off / "report.md").read_text()

@@ -218,3 +218,27 @@ def test_a_bug_is_a_failed_row_not_refused_nor_unavailable(tmp_path, monkeypatch
     row = result.results.iloc[0]
     assert row["status"] == "failed" and row["failure"] == "RuntimeError: a bug"
     assert result.failed and not row["success"]
+
+
+def test_first_call_is_a_leaderboard_column_of_every_method_only_when_asked(tmp_path):
+    """--first-call: leaderboard.csv's first_call_s (a fresh process: import, set-up, the
+    first trajectory solved once) is finite and positive for each method, leaderboard.md
+    says what it measures and `ikbench render`-style re-rendering keeps it; without the option
+    the column is absent."""
+    from ikbench.render.leaderboard import render
+
+    common = ["compare", "--only", "1", "--steps", "4", "--repeat", "1", "--methods",
+              "ours-lm,sequential-ik", "--quiet"]
+    assert main([*common, "--output", str(tmp_path / "on"), "--first-call"]) == 0
+    folder = tmp_path / "on" / "compare"
+    board = pd.read_csv(folder / "leaderboard.csv")
+    assert set(board["method"]) == {"ours-lm", "sequential-ik"}
+    assert np.isfinite(board["first_call_s"]).all() and (board["first_call_s"] > 0).all()
+    text = (folder / "leaderboard.md").read_text()
+    assert "first call [s]" in text and "fresh Python process" in text and "set-up" in text
+    render(folder)
+    assert pd.read_csv(folder / "leaderboard.csv")["first_call_s"].equals(board["first_call_s"])
+    assert main([*common, "--output", str(tmp_path / "off")]) == 0
+    off = tmp_path / "off" / "compare"
+    assert "first_call_s" not in pd.read_csv(off / "leaderboard.csv")
+    assert "first call [s]" not in (off / "leaderboard.md").read_text()

@@ -73,3 +73,15 @@ def test_a_dirty_tree_is_refused_unless_allowed(tmp_path, monkeypatch, clean):
     regen.regenerate(tmp_path, only=["sweep"], allow_dirty=True, say=lambda text: None,
                      runner=lambda argv: 0)
     assert regen.read_record(tmp_path)["sweep"]["clean"] is False
+
+
+@pytest.mark.parametrize("name", ["compare", "compare-panda", "cartesian", "cartesian-methods"])
+def test_the_path_studies_measure_each_methods_first_call(name, tmp_path):
+    """The regenerated compare and cartesian leaderboards carry the first-call column: their
+    commands pass --first-call, and the command's parser takes it."""
+    from ikbench.cli import build_parser
+
+    study = next(s for s in regen.STUDIES if s.name == name)
+    argv = study.arguments(tmp_path)
+    assert "--first-call" in argv
+    assert build_parser(argv).parse_args(argv).first_call is True

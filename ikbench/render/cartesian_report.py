@@ -31,6 +31,7 @@ from ikbench.render.leaderboard import backend_notes
 from ikbench.render.pose_paths import plot_pose_path, reached
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.record import RECORD_FILE, RunRecord, files_written_by, jsonable
+from ikbench.studies.first_call import first_call_section
 
 #: The study's result (:class:`ikbench.studies.cartesian.CartesianResult`): render takes
 #: it as it comes, without importing the study (render is below the studies).
@@ -96,7 +97,7 @@ def write_folder(result: StudyResult, folder: Path, command: str = "",
     table["trajectory"] = [path if (p, m, s) in keep else "" for p, m, s, path in
                            zip(table["problem"], table["method"], table["seed"],
                                table["trajectory"])]
-    summary = summarise(table)
+    summary = summarise(table, getattr(result, "first_calls", {}))
     published = published_table(list(result.problems))
     reach = _reach_notes(result, table)
     with staged_folder(folder, keep=lambda rel: str(rel) not in previous) as tmp:
@@ -129,7 +130,8 @@ def write_folder(result: StudyResult, folder: Path, command: str = "",
             study={"problems": {p: str(v[2].source.name) for p, v in result.problems.items()},
                    "seeds": list(result.seeds), "options": result.options,
                    "validity": describe(), "validity_source": SOURCE,
-                   "wall_time_s": result.wall_s, "runtimes": result.runtimes})
+                   "wall_time_s": result.wall_s, "runtimes": result.runtimes,
+                   "first_calls": getattr(result, "first_calls", {})})
         atomic_write_text(tmp / RECORD_FILE, record.to_json())
         atomic_write_text(tmp / "report.md", report(result, summary, published, figures,
                                                     reach, record.to_dict()))
@@ -219,7 +221,16 @@ def report(result: StudyResult, summary: pd.DataFrame, published: pd.DataFrame,
                "rotation_error_max_deg", "max_joint_change_deg", "max_joint_change_mm",
                "joint_path_length_median_deg", "joint_path_length_median_rad", TORM_LENGTH,
                "joint_path_length_over_torm", "failed_criteria"]
+    if "first_call_s" in view:
+        view["first call [s]"] = view["first_call_s"]
+        columns.insert(4, "first call [s]")
+        lines[-1:-1] = ["First call [s]: the method's import, set-up and first solve in a fresh "
+                        "process, once per method, one measurement under the machine's load "
+                        "(section First call below gives the split).", ""]
     lines += [_markdown(view[columns]), ""]
+    lines += first_call_section(getattr(result, "first_calls", {}), "its first problem "
+                                f"({next(iter(result.problems), '')}) with seed "
+                                f"{result.seeds[0]}")
     if reach:
         lines += ["## Problems without a valid run", ""]
         lines += [f"- **{problem}**: {text}." for problem, text in reach.items()] + [""]
@@ -257,11 +268,13 @@ def _markdown(frame: pd.DataFrame) -> str:
     return markdown_table(view)
 
 
-def summarise(table: pd.DataFrame) -> pd.DataFrame:
+def summarise(table: pd.DataFrame, first_calls: dict | None = None) -> pd.DataFrame:
     """One row per problem x method: runs, valid runs, the median (and range) time to a valid
     solution over the valid runs, the median solve time over all runs, the worst errors and
     joint change, the median path length, and beside it TORM's published length (labelled,
-    :data:`TORM_LENGTH`) and the ratio of ours to it."""
+    :data:`TORM_LENGTH`) and the ratio of ours to it. With ``first_calls`` (method -> its first
+    call in a fresh process, ``ikbench cartesian --first-call``), ``first_call_s`` too (NaN
+    for a method whose first call failed)."""
     torm = torm_lengths()
     rows = []
     for (problem, method), group in table.groupby(["problem", "method"], sort=False):
@@ -291,4 +304,8 @@ def summarise(table: pd.DataFrame) -> pd.DataFrame:
                                                  .fillna("") for c in str(text).split(",")
                                                  if c})),
         })
-    return pd.DataFrame(rows)
+    summary = pd.DataFrame(rows)
+    if first_calls:
+        summary["first_call_s"] = summary["method"].map(
+            {m: t.get("first_call_s", np.nan) for m, t in first_calls.items()}).astype(float)
+    return summary

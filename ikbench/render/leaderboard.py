@@ -74,6 +74,19 @@ def leaderboard(results: pd.DataFrame, reference: str, contract: Contract) -> pd
     return pd.DataFrame(rows)
 
 
+def with_first_calls(board: pd.DataFrame, first_calls: dict[str, dict] | None
+                     ) -> pd.DataFrame:
+    """``board`` with ``first_call_s`` (each method's first call in a fresh process [s],
+    ``ikbench compare --first-call``; NaN where it failed or the method did not run), when
+    ``first_calls`` is given; unchanged (no column) otherwise."""
+    if not first_calls:
+        return board
+    board = board.copy()
+    board["first_call_s"] = board["method"].map(
+        {m: t.get("first_call_s", np.nan) for m, t in first_calls.items()}).astype(float)
+    return board
+
+
 def _board_row(name, group, track, judged: Contract, success: str, ref) -> dict:
     solved = group[group["ok_solved"] == True]  # noqa: E712 (object column)
     count = len(group)
@@ -146,6 +159,7 @@ def _table(board: pd.DataFrame, reference: str, judged: Contract) -> list[str]:
                "pointing all [deg]", "pointing judged [deg]", "max step [deg]",
                "speed use", "jerk [deg^2]", "time single [s] median (min-max)",
                "time batched [s]", f"x {reference}"]
+            + (["first call [s]"] if "first_call_s" in board else [])
             + list(LEGIBILITY_TITLES.values())
             + (["min clearance [mm]", "avoids obstacles"] if judged.obstacles else [])
             + (["collision check [ms]"] if "collision_check_ms" in board else []))
@@ -167,6 +181,8 @@ def _table(board: pd.DataFrame, reference: str, judged: Contract) -> list[str]:
                   fmt(row["max_joint_step_deg"]), fmt(row["speed_limit_use"]),
                   fmt(row["mean_sq_jerk_deg2"]), time, fmt(row["time_batched_s"]),
                   fmt(row["time_vs_reference"])]
+        if "first_call_s" in board:
+            cells.append(fmt(row["first_call_s"]))
         cells += [fmt(row.get(column, np.nan)) for column in LEGIBILITY_TITLES]
         if judged.obstacles:
             cells += [fmt(row["min_clearance_mm"]),
@@ -198,6 +214,8 @@ def leaderboard_markdown(board: pd.DataFrame, record: dict, contract: Contract) 
              "joint step over the step the speed limit allows (1 = at the limit). Legibility, "
              "inferred times, predictability and jerk (`ikbench.core.legibility`, "
              "docs/legibility.md): medians over the trajectories.", ""]
+    if "first_call_s" in board:
+        lines += [_first_call_paragraph(record.get("first_calls") or {}), ""]
     if record.get("obstacles"):
         lines += _obstacles_paragraph(record["obstacles"])
     lines += collision_check_paragraph(board)
@@ -211,6 +229,18 @@ def leaderboard_markdown(board: pd.DataFrame, record: dict, contract: Contract) 
               + ", ".join(f"{k} {v}" for k, v in record["libraries"].items())
               + f"; ikbench git {record['git_revision']}.", ""]
     return "\n".join(lines)
+
+
+def _first_call_paragraph(first_calls: dict[str, dict]) -> str:
+    """The header's words on the first-call column (``--first-call``) and the split."""
+    from ikbench.studies.first_call import FIRST_CALL_MEANING
+
+    split = "; ".join(
+        f"{m}: failed: {t['error']}" if "error" in t else
+        f"{m}: import {fmt(t['import_s'])}, set-up {fmt(t['setup_s'])}, first solve "
+        f"{fmt(t['solve_s'])}" for m, t in first_calls.items())
+    return (f"{FIRST_CALL_MEANING[0].upper()}{FIRST_CALL_MEANING[1:]}; each method solved the "
+            f"first trajectory once on this robot. Split [s]: {split or 'not recorded'}.")
 
 
 def construction_notes(record: dict) -> list[str]:
@@ -360,11 +390,13 @@ def plot_pareto(results: pd.DataFrame, sweep: pd.DataFrame | None, contract: Con
 def readme_table(board: pd.DataFrame, reference: str = REFERENCE_METHOD) -> str:
     """The compact table README.md shows, from ``leaderboard.csv``'s rows of the paper's
     track: success per criterion, time single and its ratio, line distance, pointing in the
-    judged part, largest step."""
+    judged part, largest step; the first call in a fresh process when measured
+    (``--first-call``)."""
     rows = board[board["track"] == "paper"]
+    first = "first_call_s" in board
     head = ["method", "scheme", "success", "start", "touch", "speed", "line", "pointing",
-            "time single [s]", f"x {reference}", "line max [mm]", "pointing judged [deg]",
-            "max step [deg]"]
+            "time single [s]", f"x {reference}", *(["first call [s]"] if first else []),
+            "line max [mm]", "pointing judged [deg]", "max step [deg]"]
     lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
     for _, row in rows.iterrows():
         n = int(row["trajectories"])
@@ -377,7 +409,8 @@ def readme_table(board: pd.DataFrame, reference: str = REFERENCE_METHOD) -> str:
             str(row["method"]), str(row["scheme"]) if not pd.isna(row["scheme"]) else "",
             f"**{int(row['success_count'])}/{n}**", count("start_pose"), count("end_pose"),
             count("speed"), count("line"), count("pointing"), fmt(row["time_median_s"]),
-            fmt(row["time_vs_reference"]), fmt(row["line_distance_max_mm"]),
+            fmt(row["time_vs_reference"]), *([fmt(row["first_call_s"])] if first else []),
+            fmt(row["line_distance_max_mm"]),
             fmt(row["pointing_deviation_judged_mean_deg"]),
             fmt(row["max_joint_step_deg"])]) + " |")
     return "\n".join(lines)
@@ -396,7 +429,8 @@ def render(folder: str | Path) -> None:
     results = pd.read_csv(folder / "results.csv", dtype={"trajectory": str})
     sweep_path = folder / "pareto_sweep.csv"
     sweep = pd.read_csv(sweep_path) if sweep_path.exists() else None
-    board = leaderboard(results, record.study["reference"], contract)
+    board = with_first_calls(leaderboard(results, record.study["reference"], contract),
+                             record.study.get("first_calls"))
     atomic_write_csv(folder / "leaderboard.csv", board, float_format="%.6g")
     atomic_write_text(folder / "leaderboard.md",
                       leaderboard_markdown(board, record.to_dict(), contract))

@@ -32,6 +32,7 @@ from ikbench.methods.registry import available_methods, get_method
 from ikbench.render.cartesian_report import write_folder
 from ikbench.runtime.harness import Outcome, solve_tasks
 from ikbench.runtime.progress import Reporter
+from ikbench.studies.first_call import first_path_call
 
 DEFAULT_SEEDS = (1, 2, 3)
 #: Seeds are integers in [0, 2^63) (numpy's and torch's generators).
@@ -62,6 +63,8 @@ class CartesianResult:
         seeds: the seeds.
         wall_s: the whole study's wall time [s].
         runtimes: name -> what ran its solves (``Method.runtime()``: backend, threads).
+        first_calls: name -> its first call in a fresh process (``import_s``, ``setup_s``,
+            ``solve_s``, ``first_call_s`` or ``error``); empty when not measured.
     """
 
     table: pd.DataFrame
@@ -73,6 +76,7 @@ class CartesianResult:
     wall_s: float
     options: dict = field(default_factory=dict)
     runtimes: dict = field(default_factory=dict)
+    first_calls: dict = field(default_factory=dict)
 
 
 def frame_methods() -> dict[str, type]:
@@ -140,7 +144,7 @@ def cartesian(problems: str | Path | Sequence[str | Path] = BENCHMARK,
               methods: str | Sequence[str] | None = None,
               seeds: str | int | Sequence[int | str] = DEFAULT_SEEDS,
               options: dict[str, dict[str, Any]] | None = None,
-              progress: bool = True) -> CartesianResult:
+              progress: bool = True, first_call: bool = False) -> CartesianResult:
     """Run the benchmark (see the module docstring); nothing is written.
 
     Args:
@@ -151,6 +155,9 @@ def cartesian(problems: str | Path | Sequence[str | Path] = BENCHMARK,
             seed too, as repetitions of the same solve).
         options: method name -> settings (keywords) for that method.
         progress: print a line per solve to stderr.
+        first_call: after the solves, time each method's first call in a fresh process
+            (import, set-up on the first problem's robot, the first problem solved once with
+            the first seed: :func:`ikbench.studies.first_call.first_path_call`).
 
     Returns:
         A :class:`CartesianResult` (``table`` has :data:`COLUMNS`).
@@ -182,12 +189,18 @@ def cartesian(problems: str | Path | Sequence[str | Path] = BENCHMARK,
                 verdict = "valid" if row["valid"] else f"not valid ({row['failed_criteria']})"
                 log.advance(1, f"{problem} {name} seed {seed}: {verdict}, "
                             f"{row['duration_s']:.2f} s")
-    log.close()
     built = {name: build_method(name, seeds[0], options.get(name)) for name in names}
+    first_calls = {}
+    if first_call:  # after the solves: numba's cache as they left it
+        robot, task, _ = next(iter(loaded.values()))
+        for name in names:
+            log.note(f"{name}: timing its first call in a fresh process")
+            first_calls[name] = first_path_call(robot, name, built[name].settings, task)
+    log.close()
     return CartesianResult(pd.DataFrame(rows, columns=COLUMNS), loaded, poses, names,
                            {n: m.settings for n, m in built.items()}, seeds,
                            time.perf_counter() - started, options,
-                           {n: m.runtime() for n, m in built.items()})
+                           {n: m.runtime() for n, m in built.items()}, first_calls)
 
 
 def as_written(poses: npt.ArrayLike) -> np.ndarray:

@@ -73,7 +73,12 @@ from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import Task, line_tasks
 from ikbench.methods.base import Method
 from ikbench.methods.registry import get_method, method_status
-from ikbench.render.leaderboard import leaderboard, leaderboard_markdown, plot_pareto
+from ikbench.render.leaderboard import (
+    leaderboard,
+    leaderboard_markdown,
+    plot_pareto,
+    with_first_calls,
+)
 from ikbench.render.legibility_plots import plot_legibility_summary, plot_method_legibility
 from ikbench.runtime.executors import Executor, LocalExecutor, portable_robot
 from ikbench.runtime.harness import Outcome, Progress, describe, solve_tasks
@@ -84,6 +89,7 @@ from ikbench.runtime.record import (
     TrajectoryFile,
     keep_nothing,
 )
+from ikbench.studies.first_call import first_path_call
 from ikbench.studies.run import trajectory_files, write_run
 
 #: Two methods' trajectories are the same when every pose agrees within this [pose units].
@@ -213,6 +219,10 @@ class CompareSpec:
         progress: progress lines on stderr.
         goals: the goal set of the legibility columns (:mod:`ikbench.core.legibility`):
             a targets file's touch poses; None: the targets' own (all their ids).
+        first_call: after the timed solves, time each method's first call in a fresh
+            process (import, set-up on the robot, the first task solved once:
+            :func:`ikbench.studies.first_call.first_path_call`); the leaderboard's
+            ``first_call_s``.
     """
 
     methods: list[str]
@@ -229,6 +239,7 @@ class CompareSpec:
     output: Path | None = None
     progress: bool = True
     goals: Targets | None = None
+    first_call: bool = False
 
 
 def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
@@ -241,7 +252,8 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
             pointing: str | bool = "auto", duration_s: float = DEFAULT_DURATION_S,
             sweep: bool = True,
             obstacles: str | Path | Sequence | None = None,
-            goals: str | Path | Targets | None = None) -> CompareResult:
+            goals: str | Path | Targets | None = None,
+            first_call: bool = False) -> CompareResult:
     """Run every method on every task ``repeat`` times; write ``output/compare/``.
 
     Args:
@@ -273,6 +285,9 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
         goals: the goal set of the legibility columns: a targets file (or
             :class:`Targets`) whose touch poses' fingertip points are the goals; None: the
             targets' own touch points, every id (NICO's: the seven touch points).
+        first_call: time each method's first call in a fresh process (import, set-up, the
+            first trajectory solved once) after the timed solves: the leaderboard's
+            ``first_call_s``.
 
     Returns:
         A :class:`CompareResult`.
@@ -292,7 +307,7 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
         names, robot, targets, line_tasks(robot, targets, contract), contract,
         _reference_method(reference, names), repeat, warmup, dict(solvers or {}),
         executor or LocalExecutor(), sweep, None if output is None else Path(output),
-        progress, goal_set))
+        progress, goal_set, first_call))
 
 
 def run_comparison(spec: CompareSpec) -> CompareResult:
@@ -306,8 +321,11 @@ def run_comparison(spec: CompareSpec) -> CompareResult:
     files = {name: trajectory_files(spec.robot, outcomes, spec.contract.duration_s)
              for name, outcomes in last.items()}
     results = measure(spec, pd.DataFrame(rows), built, files)
-    board = leaderboard(results, spec.reference, spec.contract)
+    first_calls = _first_calls(spec, built, log) if spec.first_call else {}
+    board = with_first_calls(leaderboard(results, spec.reference, spec.contract), first_calls)
     record = _record(spec, built, rows, last)
+    if spec.first_call:
+        record.study["first_calls"] = first_calls
     if spec.output is None:
         return CompareResult(results, board, record.to_dict(), spec.contract)
     root = spec.output / "compare"
@@ -322,6 +340,17 @@ def run_comparison(spec: CompareSpec) -> CompareResult:
         _write_legibility_figures(stage, spec, files)
     log.say(f"written to {root}/ in {time.perf_counter() - started:.1f} s")
     return CompareResult(results, board, record.to_dict(), spec.contract)
+
+
+def _first_calls(spec: CompareSpec, built: dict[str, Method], log: Progress
+                 ) -> dict[str, dict]:
+    """Each method built: its first call in a fresh process on the spec's robot and first
+    task (after the timed solves: numba's cache as they left it)."""
+    out = {}
+    for name, solver in built.items():
+        log.say(f"{name}: timing its first call in a fresh process")
+        out[name] = first_path_call(spec.robot, name, solver.settings, spec.tasks[0])
+    return out
 
 
 def _reference_method(reference: str | None, names: list[str]) -> str:

@@ -6,13 +6,19 @@ numba's kernels for ours-lm, which load from numba's cache after the first run o
 and the first solve. :func:`first_call` runs :func:`main` in a new Python process for one
 method and one target and returns those three times [s]; ``ikbench ik`` measures it for every
 method after its timed runs (so numba's cache is as the study left it: warm).
+:func:`first_path_call` does the same for a path method (``ikbench cartesian``, ``ikbench
+compare``): import, set-up on the robot (the method built with its settings, ``check_tasks``,
+``prepare``) and the first task solved once through the study harness.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import pickle
 import subprocess
 import sys
+import tempfile
 import time
 from typing import Any
 
@@ -45,10 +51,30 @@ def first_call(robot: Any, method: str, kind: str, tolerance: tuple[float, float
     job = {"robot": spec, "end_frame": end_frame, "method": method, "kind": kind,
            "tolerance": list(tolerance), "budget_s": budget_s,
            "T_target": np.asarray(T_target).tolist(), "initials": np.asarray(initials).tolist()}
+    return _run_child([json.dumps(job)], timeout_s)
+
+
+def first_path_call(robot: Any, method: str, settings: Any, task: Any,
+                    timeout_s: float = FIRST_CALL_TIMEOUT_S) -> dict[str, Any]:
+    """``import_s``, ``setup_s``, ``solve_s`` and their sum ``first_call_s`` of the path method
+    ``method`` (with ``settings``, its Settings; None: its defaults) solving ``task`` once on
+    ``robot`` in a fresh process; ``error`` instead when it fails or passes ``timeout_s``."""
+    spec, end_frame = robot_spec(robot)
+    job = {"robot": spec, "end_frame": end_frame, "method": method, "settings": settings,
+           "task": task}
+    handle, path = tempfile.mkstemp(suffix=".pickle", prefix="ikbench-first-call-")
     try:
-        done = subprocess.run([sys.executable, "-m", "ikbench.studies.first_call",
-                               json.dumps(job)], capture_output=True, text=True,
-                              timeout=timeout_s)
+        with os.fdopen(handle, "wb") as out:
+            pickle.dump(job, out)
+        return _run_child(["--path", path], timeout_s)
+    finally:
+        os.unlink(path)
+
+
+def _run_child(args: list[str], timeout_s: float) -> dict[str, Any]:
+    try:
+        done = subprocess.run([sys.executable, "-m", "ikbench.studies.first_call", *args],
+                              capture_output=True, text=True, timeout=timeout_s)
     except subprocess.TimeoutExpired:
         return {"error": f"no first answer within {timeout_s:g} s"}
     if done.returncode != 0 or not done.stdout.strip():
@@ -57,9 +83,67 @@ def first_call(robot: Any, method: str, kind: str, tolerance: tuple[float, float
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+def path_main(file: str) -> int:
+    """In the fresh process, for a path method: time the import (the registry, the harness,
+    the method's module), the set-up (the robot, the method, ``check_tasks``, ``prepare``)
+    and the first solve of the task; print them as JSON."""
+    with open(file, "rb") as source:
+        data = source.read()  # read before the clock; unpickled (imports) within it
+    started = time.perf_counter()
+    from ikbench.core.robot import load_robot  # noqa: PLC0415 - what is timed
+    from ikbench.methods.registry import get_method  # noqa: PLC0415 - what is timed
+    from ikbench.runtime.harness import Progress, solve_tasks  # noqa: PLC0415
+
+    job = pickle.loads(data)  # noqa: S301 - written by first_path_call just now
+    cls = get_method(job["method"])
+    imported = time.perf_counter()
+    robot = load_robot(job["robot"], end_frame=job["end_frame"])
+    method = cls(job["settings"])
+    method.check_tasks(robot, [job["task"]])
+    method.prepare(robot)
+    ready = time.perf_counter()
+    outcome = solve_tasks(method, robot, [job["task"]], Progress(job["method"], enabled=False))[0]
+    solved = time.perf_counter()
+    if not outcome.ok:
+        print(f"first solve failed: {outcome.failure}", file=sys.stderr)
+        return 1
+    print(json.dumps({"import_s": imported - started, "setup_s": ready - imported,
+                      "solve_s": solved - ready, "first_call_s": solved - started}))
+    return 0
+
+
+#: What the first-call column measures, for a report's header.
+FIRST_CALL_MEANING = (
+    "first call [s] (`first_call_s`): what a user waits for before the first answer, in a "
+    "fresh Python process started after the timed runs (numba's cache as they left it): the "
+    "import of ikbench and the method's library, the set-up (the robot, the method, its "
+    "model, compiling or loading compiled code) and the first solve; one measurement in "
+    "seconds, so it carries the machine's load at that moment")
+
+
+def first_call_section(first_calls: dict[str, dict], what: str) -> list[str]:
+    """Markdown: a "First call" section, one row per method (first call, import, set-up,
+    first solve [s], or why it failed) for ``what`` (the task solved); none when not timed."""
+    if not first_calls:
+        return []
+    lines = ["## First call", "", f"{FIRST_CALL_MEANING[0].upper()}{FIRST_CALL_MEANING[1:]}; "
+             f"each method solved {what}.", "",
+             "| method | first call [s] | import [s] | set-up [s] | first solve [s] |",
+             "|---|---|---|---|---|"]
+    for method, t in first_calls.items():
+        if "error" in t:
+            lines.append(f"| {method} | failed: {t['error']} | | | |")
+        else:
+            lines.append(" | ".join([f"| {method}", *(f"{t[k]:.3g}" for k in (
+                "first_call_s", "import_s", "setup_s", "solve_s"))]) + " |")
+    return [*lines, ""]
+
+
 def main(argv: list[str]) -> int:
     """In the fresh process: time the import of the registry and the method's module, the
     set-up (robot, solver, ``prepare``) and the first solve; print them as JSON."""
+    if argv[0] == "--path":
+        return path_main(argv[1])
     job = json.loads(argv[0])
     started = time.perf_counter()
     from ikbench.core.robot import load_robot  # noqa: PLC0415 - what is timed

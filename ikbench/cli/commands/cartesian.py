@@ -64,6 +64,10 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--trajectories", choices=["first", "all"], default="first",
                         help="trajectory CSVs to write: the first seed's (default) or every "
                         "seed's (a 553-waypoint path is about 100 kB)")
+    parser.add_argument("--first-call", action="store_true",
+                        help="after the solves, time each method's first call in a fresh "
+                        "process (import, set-up, the first problem solved once with the "
+                        "first seed): summary.csv's first_call_s column")
     parser.add_argument("--threads", type=THREADS, default=1, help="torch threads (default 1)")
     add_progress_arguments(parser)
     add_method_options(parser, methods)
@@ -102,6 +106,8 @@ def command_line(args: argparse.Namespace, problems: str, seeds: Sequence[int]) 
     words += ["--seeds", ",".join(map(str, seeds)), "--output", args.output]
     if args.trajectories != "first":
         words += ["--trajectories", args.trajectories]
+    if args.first_call:
+        words += ["--first-call"]
     for flag, value in _given(args).items():
         words += [f"--{flag}", str(value)]
     return " ".join(shlex.quote(w) for w in words)
@@ -133,13 +139,15 @@ def run(args: argparse.Namespace) -> int:
     folder = Path(args.output) / FOLDER
     check_folder_writable(folder)
     begin(args, threads=args.threads)
-    result = cartesian(problems, names, seeds, options, progress=not args.quiet)
+    result = cartesian(problems, names, seeds, options, progress=not args.quiet,
+                       first_call=args.first_call)
     write(result, args.output, command_line(args, problems, seeds), args.trajectories)
     from ikbench.render.cartesian_report import summarise
 
-    summary = summarise(result.table)
+    summary = summarise(result.table, result.first_calls)
+    first = ["first_call_s"] if "first_call_s" in summary else []
     print(summary[["problem", "method", "valid_runs", "runs", "time_to_valid_median_s",
-                   "duration_median_s", "position_error_max_mm", "rotation_error_max_deg",
+                   "duration_median_s", *first, "position_error_max_mm", "rotation_error_max_deg",
                    "max_joint_change_deg", "joint_path_length_median_rad",
                    "joint_path_length_over_torm"]].rename(
                        columns={"joint_path_length_over_torm": "length_over_torm_published"})

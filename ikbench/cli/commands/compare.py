@@ -92,6 +92,10 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         help="method the ratios are against (default ours-lm if compared, "
                         "else the first)")
     add_executor_arguments(parser)
+    parser.add_argument("--first-call", action="store_true",
+                        help="after the timed solves, time each method's first call in a "
+                        "fresh process (import, set-up on the robot, the first trajectory "
+                        "solved once): the leaderboard's first_call_s column")
     parser.add_argument("--output", default=DEFAULT_OUTPUT, type=OUTPUT,
                         help=f"results directory; writes OUTPUT/compare/ (default "
                         f"{DEFAULT_OUTPUT}, which git ignores)")
@@ -139,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
         result = compare(names, robot=robot, targets=targets, repeat=args.repeat,
                          output=args.output, reference=args.reference,
                          progress=not args.quiet, executor=executor_from_args(args),
-                         contract=contract, goals=goals)
+                         contract=contract, goals=goals, first_call=args.first_call)
     except (Interrupted, KeyboardInterrupt):
         print(f"ikbench: interrupted; {Path(args.output) / 'compare'}/ left unchanged",
               file=sys.stderr)
@@ -149,6 +153,8 @@ def run(args: argparse.Namespace) -> int:
              "max_joint_step_deg"]
     if "collisions_count" in result.leaderboard:
         shown.insert(4, "collisions_count")
+    if "first_call_s" in result.leaderboard:
+        shown.insert(shown.index("time_vs_reference") + 1, "first_call_s")
     board = result.leaderboard[shown]
     print(board.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     print(f"written to {Path(args.output) / 'compare'}/ (leaderboard.md, results.csv, "
@@ -185,5 +191,6 @@ def run_problems(args: argparse.Namespace) -> int:
         problems=args.problems, methods=None if args.methods == "all" else args.methods,
         seeds=args.seeds or ",".join(map(str, DEFAULT_SEEDS)), output=args.output,
         trajectories="first", threads=args.threads, quiet=args.quiet,
+        first_call=args.first_call,
         progress_log=args.progress_log)
     return cartesian.run(given)
