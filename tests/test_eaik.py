@@ -149,3 +149,56 @@ def test_ik_with_unreachable_targets_reports_the_ground_truth(tmp_path):
     summary = pd.read_csv(folder / "summary.csv")
     assert (summary["unreachable_judged_success"] == 0).all()
     assert (summary.loc[summary["method"] == "eaik", "success_pct"] == 100).all()
+
+
+def test_each_joint_takes_its_in_limit_turn_nearest_the_initial_value():
+    from ikbench.baselines.eaik_ik import in_limit_turns
+
+    # EAIK answers in (-pi, pi]; the limits [0, 2 pi] and [-3 pi/2, pi/2] hold these angles
+    # only a turn away from where the old rule (a whole-turn move toward the initial value,
+    # kept only if within the limits) left them
+    lower, upper = np.array([0.0, -1.5 * np.pi]), np.array([2 * np.pi, 0.5 * np.pi])
+    Q = np.array([[-0.5, 2.0], [3.0, -3.0]])
+    near = np.array([0.2, 0.3])
+    old = Q + 2 * np.pi * np.round((near - Q) / (2 * np.pi))
+    old = np.where((old >= lower) & (old <= upper), old, Q)
+    assert not np.all((old >= lower) & (old <= upper), axis=1).all()
+    moved, inside = in_limit_turns(Q, lower, upper, near)
+    assert inside.all()
+    np.testing.assert_allclose(moved, [[-0.5 + 2 * np.pi, 2.0 - 2 * np.pi], [3.0, -3.0]])
+    # a joint with no representative within its limits drops the solution; a continuous
+    # joint (no limits) takes the value nearest the initial one
+    moved, inside = in_limit_turns(np.array([[1.0, 0.5]]), np.array([2.0, -np.inf]),
+                                   np.array([3.0, np.inf]), np.array([0.0, 13.0]))
+    assert not inside[0]
+    assert moved[0, 1] == pytest.approx(0.5 + 4 * np.pi)
+
+
+@needs_erd
+@pytest.mark.parametrize("name", ["kinova", "ur5-shifted"])
+def test_every_branch_within_limits_that_hold_no_half_turn_around_zero(name):
+    # Kinova Jaco2's joints 2, 3 and 5 are limited within (0, 2 pi); the UR5 here gets
+    # limits [0, 2 pi] and [-3 pi/2, pi/2] on two joints
+    robot = load_robot("example-robot-data:" + ("kinova" if name == "kinova" else "ur5"))
+    solver = EaikSolver(robot)
+    solver.prepare()
+    if name == "ur5-shifted":
+        solver.lower, solver.upper = solver.lower.copy(), solver.upper.copy()
+        solver.lower[[0, 2]], solver.upper[[0, 2]] = [0.0, -1.5 * np.pi], [2 * np.pi, 0.5 * np.pi]
+    fk = robot.pinocchio_fk()
+    rng = np.random.default_rng(5)
+    lo = np.where(np.isfinite(solver.lower), solver.lower, -np.pi)
+    hi = np.where(np.isfinite(solver.upper), solver.upper, np.pi)
+    shifted_kept = 0
+    for _ in range(20):
+        q = rng.uniform(lo, hi)
+        M = fk.placement(q)
+        found = solver.branches(M.translation, M.rotation, rng.uniform(lo, hi))
+        assert len(found) >= 1  # q itself is a solution within the limits
+        assert np.all(found >= solver.lower - 1e-9) and np.all(found <= solver.upper + 1e-9)
+        for sol in found:
+            F = fk.placement(sol)
+            assert np.linalg.norm(F.translation - M.translation) < 1e-9
+            assert np.linalg.norm(F.rotation - M.rotation) < 1e-9
+        shifted_kept += int(np.any(np.abs(found) > np.pi + 1e-9))
+    assert shifted_kept > 0  # some solutions live only a turn away from EAIK's own values
