@@ -190,11 +190,13 @@ def test_every_branch_within_limits_that_hold_no_half_turn_around_zero(name):
     lo = np.where(np.isfinite(solver.lower), solver.lower, -np.pi)
     hi = np.where(np.isfinite(solver.upper), solver.upper, np.pi)
     shifted_kept = 0
-    for _ in range(20):
+    for _ in range(40):
         q = rng.uniform(lo, hi)
         M = fk.placement(q)
         found = solver.branches(M.translation, M.rotation, rng.uniform(lo, hi))
-        assert len(found) >= 1  # q itself is a solution within the limits
+        # q itself is a solution within the limits: its branch is among them
+        wrapped = np.angle(np.exp(1j * (found - q)))
+        assert len(found) and np.min(np.abs(wrapped).max(axis=1)) < 1e-6
         assert np.all(found >= solver.lower - 1e-9) and np.all(found <= solver.upper + 1e-9)
         for sol in found:
             F = fk.placement(sol)
