@@ -115,23 +115,30 @@ class EaikSolver(PoseSolver):
                              "locked")
         self.lower, self.upper = self.chain.lower, self.chain.upper
 
-    def branches(self, point_m: np.ndarray, rotation: np.ndarray,
-                 near: np.ndarray | None = None) -> np.ndarray:
-        """Every exact solution within the limits (S, dof) [rad], each joint at its value
-        within its limits nearest ``near`` (default the middle of the limits; see
-        :func:`in_limit_turns`)."""
+    def solutions(self, point_m: np.ndarray, rotation: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """EAIK's answers to one frame, as EAIK gives them (in (-pi, pi]): the exact ones
+        (S, dof) [rad] and the least-squares ones (``is_LS``: the frame is not reached)."""
         T = np.eye(4)
         T[:3, :3] = rotation @ self.R_end0.T
         T[:3, 3] = point_m
         solution = self.eaik.IK(T)
         Q = np.asarray(solution.Q, dtype=float).reshape(-1, len(self.lower))
-        Q = Q[~np.asarray(solution.is_LS, dtype=bool)] if len(Q) else Q
+        ls = np.asarray(solution.is_LS, dtype=bool) if len(Q) else np.zeros(0, dtype=bool)
+        return Q[~ls], Q[ls]
+
+    def branches(self, point_m: np.ndarray, rotation: np.ndarray,
+                 near: np.ndarray | None = None, tol: float = 1e-9) -> np.ndarray:
+        """Every exact solution within the limits (widened by ``tol`` [rad]) (S, dof) [rad],
+        each joint at its value within its limits nearest ``near`` (default the middle of
+        the limits; see :func:`in_limit_turns`)."""
+        Q = self.solutions(point_m, rotation)[0]
+        if not len(Q):
+            return Q
         middle = np.where(np.isfinite(self.lower) & np.isfinite(self.upper),
                           (self.lower + self.upper) / 2, 0.0)
         ref = middle if near is None else np.asarray(near, dtype=float)
-        if not len(Q):
-            return Q
-        moved, inside = in_limit_turns(Q, self.lower, self.upper, ref)
+        moved, inside = in_limit_turns(Q, self.lower, self.upper, ref, tol=tol)
         return moved[inside]
 
     def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
