@@ -144,7 +144,13 @@ def test_ik_with_unreachable_targets_reports_the_ground_truth(tmp_path):
     eaik = results[(results["method"] == "eaik") & results["reachable"]]
     assert eaik["success"].all() and (eaik["on_nearest_branch"] == 1).all()
     board = (folder / "leaderboard.md").read_text()
-    assert "## Ground truth" in board and "8 of 40 targets are beyond" in board
+    assert "## Ground truth" in board and "8 of 40 targets are provably unreachable" in board
+    assert "4 beyond the reach bound, 4 at a reachable position" in board
+    kinds = targets["unreachable_kind"].fillna("")
+    assert (kinds[targets["reachable"]] == "").all()
+    assert kinds[~targets["reachable"]].value_counts().to_dict() == {
+        "beyond_reach": 4, "orientation_impossible": 4}
+    assert "| eaik | orientation_impossible | 4 | 0 | 0 |" in board
     assert (folder / "branches.csv").exists() and (folder / "stress.png").exists()
     summary = pd.read_csv(folder / "summary.csv")
     assert (summary["unreachable_judged_success"] == 0).all()
@@ -204,3 +210,36 @@ def test_every_branch_within_limits_that_hold_no_half_turn_around_zero(name):
             assert np.linalg.norm(F.rotation - M.rotation) < 1e-9
         shifted_kept += int(np.any(np.abs(found) > np.pi + 1e-9))
     assert shifted_kept > 0  # some solutions live only a turn away from EAIK's own values
+
+
+@needs_erd
+def test_orientation_impossible_targets_hold_no_exact_in_limit_solution_and_none_succeeds():
+    """--unreachable 0.2 on UR5: half the unreachable targets (rounded down) sit at a reachable
+    position with an orientation EAIK has no exact solution for within the limits, and a
+    numerical solver succeeds on none of them."""
+    from ikbench.studies.ik_truth import ORIENTATION_KIND, reach_bound_m
+
+    robot = load_robot("example-robot-data:ur5")
+    settings = IKSettings(count=30, seed=4, unreachable=0.2, attempts=(1,))
+    targets = sample_targets(robot, settings)
+    kinds = targets.unreachable_kind
+    orient = np.flatnonzero(kinds == ORIENTATION_KIND)
+    assert len(orient) == 3 and np.all(kinds[targets.reachable] == "")
+    assert set(kinds[~targets.reachable]) == {ORIENTATION_KIND, "beyond_reach"}
+    centre, radius = reach_bound_m(robot)
+    solver = EaikSolver(robot)
+    solver.prepare()
+    for k in orient:
+        T = targets.T_target[k]
+        assert np.linalg.norm(T[:3, 3] - centre) < radius  # within reach: the orientation fails
+        exact = solver.solutions(T[:3, 3], T[:3, :3])[0]
+        assert len(solver.branches(T[:3, 3], T[:3, :3])) == 0
+        for q in exact:  # some joint has no whole-turn representative within its limits
+            shifted = q + 2 * np.pi * np.arange(-3, 4)[:, None]
+            held = ((shifted >= solver.lower - 1e-9) & (shifted <= solver.upper + 1e-9))
+            assert not held.any(axis=0).all()
+    result = run_ik(robot, settings, methods="eaik,rtb-lm", progress=False)
+    table = result.table
+    on_orient = table[table["target"].isin(orient)]
+    assert len(on_orient) == 2 * len(orient)
+    assert not on_orient["success"].astype(bool).any()
