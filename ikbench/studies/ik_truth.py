@@ -198,9 +198,10 @@ def unreachable_mix(robot: Robot, T_reachable: np.ndarray, rng: np.random.Genera
     (half, rounded down) get a reachable position (target k's, then, draw after draw, the
     next target's: some positions admit every orientation) and a random orientation
     (uniform, from ``rng``) that the solver proves impossible there
-    (:func:`orientation_impossible`), drawn up to :data:`ORIENTATION_DRAWS` times each; a target that finds none within its
-    draws falls back to beyond the reach bound (said on stderr). The rest are beyond the reach
-    bound, drawn from ``rng`` after the orientations."""
+    (:func:`orientation_impossible`), drawn up to :data:`ORIENTATION_DRAWS` times each; a
+    target that finds none within its draws falls back to beyond the reach bound (said on
+    stderr). The rest are beyond the reach bound, drawn from ``rng`` after the
+    orientations."""
     out = np.array(T_reachable, dtype=float, copy=True)
     kinds = np.full(len(out), BEYOND_REACH_KIND, dtype=object)
     wanted = len(out) // 2 if solver is not None else 0
@@ -208,7 +209,7 @@ def unreachable_mix(robot: Robot, T_reachable: np.ndarray, rng: np.random.Genera
         for draw in range(ORIENTATION_DRAWS):
             point = T_reachable[(k + draw) % len(out), :3, 3]  # a position no orientation
             rotation = _random_rotation(rng)                   # misses moves to the next
-            if orientation_impossible(solver, point, rotation):
+            if solver is not None and orientation_impossible(solver, point, rotation):
                 out[k, :3, :3], out[k, :3, 3], kinds[k] = rotation, point, ORIENTATION_KIND
                 break
     far = kinds == BEYOND_REACH_KIND
