@@ -135,8 +135,9 @@ class EaikSolver(PoseSolver):
         Q = self.solutions(point_m, rotation)[0]
         if not len(Q):
             return Q
-        middle = np.where(np.isfinite(self.lower) & np.isfinite(self.upper),
-                          (self.lower + self.upper) / 2, 0.0)
+        finite = np.isfinite(self.lower) & np.isfinite(self.upper)
+        middle = np.where(finite, (np.where(finite, self.lower, 0.0)
+                                   + np.where(finite, self.upper, 0.0)) / 2, 0.0)
         ref = middle if near is None else np.asarray(near, dtype=float)
         moved, inside = in_limit_turns(Q, self.lower, self.upper, ref, tol=tol)
         return moved[inside]
