@@ -12,10 +12,12 @@ unless a joint is locked, prismatic joints) is refused when it is prepared, with
 reason, and its rows fail saying so.
 
 Of the solutions (``IKSolution.Q``, the exact ones; ``is_LS`` marks least-squares answers to
-unreachable targets), those within the joint limits are kept, each joint moved by whole turns
-toward the initial configuration where its limits allow (a joint of UR5's +-360 deg has two
-representatives of every angle), and the one nearest the initial configuration (row 0 of the
-protocol) is the answer: one call, no restarts, deterministic. :meth:`EaikSolver.branches`
+unreachable targets), each joint of each is taken at its representative ``Q + 2 pi k`` within
+that joint's limits nearest the initial configuration (:func:`in_limit_turns`: a joint of
+UR5's +-360 deg has two representatives of every angle, one of [0, 360] deg or [-350, 10] deg
+may have its only one a turn away); a solution is dropped only when some joint has no value
+within its limits. The one nearest the initial configuration (row 0 of the protocol) is the
+answer: one call, no restarts, deterministic. :meth:`EaikSolver.branches`
 gives the whole set within the limits. The library is imported inside functions only.
 """
 
@@ -59,6 +61,33 @@ def chain_axes(model, data, frame_id: int) -> tuple[np.ndarray, np.ndarray, np.n
     return np.array(axes), np.array(offsets), end.rotation.copy()
 
 
+def in_limit_turns(Q: np.ndarray, lower: np.ndarray, upper: np.ndarray, near: np.ndarray,
+                   revolute: np.ndarray | None = None, tol: float = 1e-9
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Each revolute joint of the solutions ``Q`` (S, dof) [rad] at its value ``Q + 2 pi k``
+    within ``[lower, upper]`` (widened by ``tol``) nearest ``near`` (dof,) [rad]; joints are
+    independent, so each row is its branch's configuration within the limits nearest
+    ``near``. A joint without limits (infinite, a continuous joint) takes the value nearest
+    ``near``; a prismatic one (``revolute`` False) stays as it is. Returns the moved
+    solutions (S, dof) and a mask (S,): True where every joint has a value within its
+    limits."""
+    Q = np.atleast_2d(np.asarray(Q, dtype=float))
+    lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    near = np.broadcast_to(np.asarray(near, dtype=float), Q.shape)
+    turn = 2 * math.pi
+    with np.errstate(invalid="ignore"):
+        k_low = np.ceil((lower - tol - Q) / turn)  # -inf without a lower limit
+        k_high = np.floor((upper + tol - Q) / turn)
+        k = np.clip(np.round((near - Q) / turn), k_low, k_high)  # |Q + 2 pi k - near| is convex
+    moved = Q + turn * k
+    if revolute is not None:
+        fixed = ~np.asarray(revolute, dtype=bool)
+        moved = np.where(fixed, Q, moved)
+        k_low = np.where(fixed, np.where((Q >= lower - tol) & (Q <= upper + tol), 0, 1), k_low)
+        k_high = np.where(fixed, 0, k_high)
+    return moved, np.all(k_low <= k_high, axis=1)
+
+
 class EaikSolver(PoseSolver):
     """``ikbench ik``: EAIK's analytic IK, the branch nearest the initial configuration (see
     the module docstring)."""
@@ -86,22 +115,32 @@ class EaikSolver(PoseSolver):
                              "locked")
         self.lower, self.upper = self.chain.lower, self.chain.upper
 
-    def branches(self, point_m: np.ndarray, rotation: np.ndarray,
-                 near: np.ndarray | None = None) -> np.ndarray:
-        """Every exact solution within the limits (S, dof) [rad, m], each joint moved by whole
-        turns toward ``near`` (default the middle of the limits) where the limits allow."""
+    def solutions(self, point_m: np.ndarray, rotation: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """EAIK's answers to one frame, as EAIK gives them (in (-pi, pi]): the exact ones
+        (S, dof) [rad] and the least-squares ones (``is_LS``: the frame is not reached)."""
         T = np.eye(4)
         T[:3, :3] = rotation @ self.R_end0.T
         T[:3, 3] = point_m
         solution = self.eaik.IK(T)
         Q = np.asarray(solution.Q, dtype=float).reshape(-1, len(self.lower))
-        Q = Q[~np.asarray(solution.is_LS, dtype=bool)] if len(Q) else Q
-        ref = (self.lower + self.upper) / 2 if near is None else np.asarray(near, dtype=float)
-        turns = np.round((ref - Q) / (2 * math.pi))
-        shifted = Q + 2 * math.pi * turns
-        shifted = np.where((shifted >= self.lower) & (shifted <= self.upper), shifted, Q)
-        inside = np.all((shifted >= self.lower - 1e-9) & (shifted <= self.upper + 1e-9), axis=1)
-        return shifted[inside]
+        ls = np.asarray(solution.is_LS, dtype=bool) if len(Q) else np.zeros(0, dtype=bool)
+        return Q[~ls], Q[ls]
+
+    def branches(self, point_m: np.ndarray, rotation: np.ndarray,
+                 near: np.ndarray | None = None, tol: float = 1e-9) -> np.ndarray:
+        """Every exact solution within the limits (widened by ``tol`` [rad]) (S, dof) [rad],
+        each joint at its value within its limits nearest ``near`` (default the middle of
+        the limits; see :func:`in_limit_turns`)."""
+        Q = self.solutions(point_m, rotation)[0]
+        if not len(Q):
+            return Q
+        finite = np.isfinite(self.lower) & np.isfinite(self.upper)
+        middle = np.where(finite, (np.where(finite, self.lower, 0.0)
+                                   + np.where(finite, self.upper, 0.0)) / 2, 0.0)
+        ref = middle if near is None else np.asarray(near, dtype=float)
+        moved, inside = in_limit_turns(Q, self.lower, self.upper, ref, tol=tol)
+        return moved[inside]
 
     def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         found = self.branches(point_m, rotation, q_init)

@@ -144,8 +144,102 @@ def test_ik_with_unreachable_targets_reports_the_ground_truth(tmp_path):
     eaik = results[(results["method"] == "eaik") & results["reachable"]]
     assert eaik["success"].all() and (eaik["on_nearest_branch"] == 1).all()
     board = (folder / "leaderboard.md").read_text()
-    assert "## Ground truth" in board and "8 of 40 targets are beyond" in board
+    assert "## Ground truth" in board and "8 of 40 targets are provably unreachable" in board
+    assert "4 beyond the reach bound, 4 at a reachable position" in board
+    kinds = targets["unreachable_kind"].fillna("")
+    assert (kinds[targets["reachable"]] == "").all()
+    assert kinds[~targets["reachable"]].value_counts().to_dict() == {
+        "beyond_reach": 4, "orientation_impossible": 4}
+    assert "| eaik | orientation_impossible | 4 | 0 | 0 |" in board
     assert (folder / "branches.csv").exists() and (folder / "stress.png").exists()
     summary = pd.read_csv(folder / "summary.csv")
     assert (summary["unreachable_judged_success"] == 0).all()
     assert (summary.loc[summary["method"] == "eaik", "success_pct"] == 100).all()
+
+
+def test_each_joint_takes_its_in_limit_turn_nearest_the_initial_value():
+    from ikbench.baselines.eaik_ik import in_limit_turns
+
+    # EAIK answers in (-pi, pi]; the limits [0, 2 pi] and [-3 pi/2, pi/2] hold these angles
+    # only a turn away from where the old rule (a whole-turn move toward the initial value,
+    # kept only if within the limits) left them
+    lower, upper = np.array([0.0, -1.5 * np.pi]), np.array([2 * np.pi, 0.5 * np.pi])
+    Q = np.array([[-0.5, 2.0], [3.0, -3.0]])
+    near = np.array([0.2, 0.3])
+    old = Q + 2 * np.pi * np.round((near - Q) / (2 * np.pi))
+    old = np.where((old >= lower) & (old <= upper), old, Q)
+    assert not np.all((old >= lower) & (old <= upper), axis=1).all()
+    moved, inside = in_limit_turns(Q, lower, upper, near)
+    assert inside.all()
+    np.testing.assert_allclose(moved, [[-0.5 + 2 * np.pi, 2.0 - 2 * np.pi], [3.0, -3.0]])
+    # a joint with no representative within its limits drops the solution; a continuous
+    # joint (no limits) takes the value nearest the initial one
+    moved, inside = in_limit_turns(np.array([[1.0, 0.5]]), np.array([2.0, -np.inf]),
+                                   np.array([3.0, np.inf]), np.array([0.0, 13.0]))
+    assert not inside[0]
+    assert moved[0, 1] == pytest.approx(0.5 + 4 * np.pi)
+
+
+@needs_erd
+@pytest.mark.parametrize("name", ["kinova", "ur5-shifted"])
+def test_every_branch_within_limits_that_hold_no_half_turn_around_zero(name):
+    # Kinova Jaco2's joints 2, 3 and 5 are limited within (0, 2 pi); the UR5 here gets
+    # limits [0, 2 pi] and [-3 pi/2, pi/2] on two joints
+    robot = load_robot("example-robot-data:" + ("kinova" if name == "kinova" else "ur5"))
+    solver = EaikSolver(robot)
+    solver.prepare()
+    if name == "ur5-shifted":
+        solver.lower, solver.upper = solver.lower.copy(), solver.upper.copy()
+        solver.lower[[0, 2]], solver.upper[[0, 2]] = [0.0, -1.5 * np.pi], [2 * np.pi, 0.5 * np.pi]
+    fk = robot.pinocchio_fk()
+    rng = np.random.default_rng(5)
+    lo = np.where(np.isfinite(solver.lower), solver.lower, -np.pi)
+    hi = np.where(np.isfinite(solver.upper), solver.upper, np.pi)
+    shifted_kept = 0
+    for _ in range(40):
+        q = rng.uniform(lo, hi)
+        M = fk.placement(q)
+        found = solver.branches(M.translation, M.rotation, rng.uniform(lo, hi))
+        # q itself is a solution within the limits: its branch is among them
+        wrapped = np.angle(np.exp(1j * (found - q)))
+        assert len(found) and np.min(np.abs(wrapped).max(axis=1)) < 1e-6
+        assert np.all(found >= solver.lower - 1e-9) and np.all(found <= solver.upper + 1e-9)
+        for sol in found:
+            F = fk.placement(sol)
+            assert np.linalg.norm(F.translation - M.translation) < 1e-9
+            assert np.linalg.norm(F.rotation - M.rotation) < 1e-9
+        shifted_kept += int(np.any(np.abs(found) > np.pi + 1e-9))
+    assert shifted_kept > 0  # some solutions live only a turn away from EAIK's own values
+
+
+@needs_erd
+def test_orientation_impossible_targets_hold_no_exact_in_limit_solution_and_none_succeeds():
+    """--unreachable 0.2 on UR5: half the unreachable targets (rounded down) sit at a reachable
+    position with an orientation EAIK has no exact solution for within the limits, and a
+    numerical solver succeeds on none of them."""
+    from ikbench.studies.ik_truth import ORIENTATION_KIND, reach_bound_m
+
+    robot = load_robot("example-robot-data:ur5")
+    settings = IKSettings(count=30, seed=4, unreachable=0.2, attempts=(1,))
+    targets = sample_targets(robot, settings)
+    kinds = targets.unreachable_kind
+    orient = np.flatnonzero(kinds == ORIENTATION_KIND)
+    assert len(orient) == 3 and np.all(kinds[targets.reachable] == "")
+    assert set(kinds[~targets.reachable]) == {ORIENTATION_KIND, "beyond_reach"}
+    centre, radius = reach_bound_m(robot)
+    solver = EaikSolver(robot)
+    solver.prepare()
+    for k in orient:
+        T = targets.T_target[k]
+        assert np.linalg.norm(T[:3, 3] - centre) < radius  # within reach: the orientation fails
+        exact = solver.solutions(T[:3, 3], T[:3, :3])[0]
+        assert len(solver.branches(T[:3, 3], T[:3, :3])) == 0
+        for q in exact:  # some joint has no whole-turn representative within its limits
+            shifted = q + 2 * np.pi * np.arange(-3, 4)[:, None]
+            held = ((shifted >= solver.lower - 1e-9) & (shifted <= solver.upper + 1e-9))
+            assert not held.any(axis=0).all()
+    result = run_ik(robot, settings, methods="eaik,rtb-lm", progress=False)
+    table = result.table
+    on_orient = table[table["target"].isin(orient)]
+    assert len(on_orient) == 2 * len(orient)
+    assert not on_orient["success"].astype(bool).any()

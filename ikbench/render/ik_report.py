@@ -106,6 +106,8 @@ def _targets(result: StudyResult, tmp: Path) -> None:
         columns[f"init_{name}"] = t.q_init[:, j]
     if t.reachable is not None:
         columns["reachable"] = t.reachable
+    if getattr(t, "unreachable_kind", None) is not None:
+        columns["unreachable_kind"] = t.unreachable_kind
     if t.sigma_min is not None and t.limit_margin_deg is not None:
         columns["sigma_min"], columns["limit_margin_deg"] = t.sigma_min, t.limit_margin_deg
     if t.branches is not None:
@@ -373,10 +375,17 @@ def ground_truth_section(result: StudyResult, summary: pd.DataFrame) -> list[str
                     "positions): no branch columns.")
     unreachable = int((~t.reachable).sum()) if t.reachable is not None else 0
     if unreachable:
+        kinds = _unreachable_kinds(t)
+        counts = ", ".join(f"{kinds.count(kind)} {label}" for kind, label in UNREACHABLE_KINDS
+                           if kind in kinds)
         text.append(f"**Unreachable targets**: {unreachable} of {len(t.reachable)} targets are "
-                    "beyond the robot's reach bound (`--unreachable`); the tables above count "
+                    f"provably unreachable (`--unreachable`): {counts}; the tables above count "
                     "the reachable ones only. Here: judged successes on them (none can hold), "
-                    "the library's own claims, and the time it took to give up.")
+                    "the library's own claims, and the time it took to give up; then the "
+                    "same per kind.")
+        if t.branches is None:
+            text.append("No analytic solver takes this robot (or the targets are positions): "
+                        "every unreachable target is beyond the reach bound.")
     lines = [text[0], "", " ".join(text[2:]), ""]  # the heading on its own line
     for rule, table in summary.groupby("attempts_rule", sort=False):
         head = ["method", "claimed, judge rejects", "denied, holds"]
@@ -399,7 +408,45 @@ def ground_truth_section(result: StudyResult, summary: pd.DataFrame) -> list[str
                           _fmt(row.give_up_median_ms), _fmt(row.give_up_p95_ms)]
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
+        if unreachable:
+            lines += _unreachable_by_kind(result, str(rule))
     return lines
+
+
+#: The kinds of unreachable targets (``unreachable_kind``) and their words in the report.
+UNREACHABLE_KINDS = (("beyond_reach", "beyond the reach bound"),
+                     ("orientation_impossible",
+                      "at a reachable position with an orientation the analytic solver proves "
+                      "impossible there"))
+
+
+def _unreachable_kinds(t) -> list[str]:
+    """Each unreachable target's kind (targets without ``unreachable_kind``: beyond the
+    reach bound, the only kind before it)."""
+    if getattr(t, "unreachable_kind", None) is None:
+        return ["beyond_reach"] * int((~t.reachable).sum())
+    return [str(k) or "beyond_reach" for k, ok in zip(t.unreachable_kind, t.reachable) if not ok]
+
+
+def _unreachable_by_kind(result: StudyResult, rule: str) -> list[str]:
+    """Per method and kind of unreachable target (one attempts rule): targets, judged
+    successes, the library's claims, and the give-up time (median) [ms]."""
+    t, table = result.targets, result.table
+    if getattr(t, "unreachable_kind", None) is None or "target" not in table:
+        return []
+    kind = pd.Series(t.unreachable_kind, dtype=object)
+    part = table[(table["attempts_rule"].astype(str) == rule)
+                 & ~table["reachable"].astype(bool)].copy()
+    part["unreachable_kind"] = kind.reindex(part["target"].to_numpy()).to_numpy()
+    part["unreachable_kind"] = part["unreachable_kind"].replace("", "beyond_reach")
+    lines = ["| method | unreachable kind | targets | judged success | claimed | "
+             "give up median [ms] |", "|---|---|---|---|---|---|"]
+    for (method, which), g in part.groupby(["method", "unreachable_kind"], sort=False):
+        claimed = int(g["library_ok"].astype("boolean").fillna(False).astype(bool).sum())
+        lines.append(f"| {method} | {which} | {g['target'].nunique()} | "
+                     f"{int(g['success'].astype(bool).sum())} | {claimed} | "
+                     f"{_fmt(g['time_s'].median() * 1000.0)} |")
+    return [*lines, ""]
 
 
 def published_section(robot: str, summary: pd.DataFrame) -> list[str]:

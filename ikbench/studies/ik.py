@@ -72,7 +72,7 @@ from ikbench.studies.ik_truth import (
     branch_columns,
     solution_sets,
     stress,
-    unreachable_targets,
+    unreachable_mix,
 )
 
 if TYPE_CHECKING:
@@ -132,7 +132,7 @@ class IKSettings:
         first_call: also time each method's first call in a fresh process (import, set-up,
             first solve of target 0: :func:`ikbench.studies.first_call.first_call`).
         unreachable: the fraction of the targets replaced by provably unreachable ones
-            (:func:`ikbench.studies.ik_truth.unreachable_targets`), 0 to 0.9.
+            (:func:`ikbench.studies.ik_truth.unreachable_mix`), 0 to 0.9.
         repeat: runs of the ``auto`` table (the wall-clock budget decides its success);
             fixed-count rules run once.
     """
@@ -173,6 +173,9 @@ class Targets:
             ``SeedSequence(seed).spawn(...)[k]``, independent of the targets' own draws).
         sample_lower, sample_upper: (dof,) where rows 1.. are drawn [pose units].
         reachable: (B,) False for the targets made unreachable (``--unreachable``).
+        unreachable_kind: (B,) "" for a reachable target, else how it is unreachable
+            ("beyond_reach", "orientation_impossible":
+            :func:`ikbench.studies.ik_truth.unreachable_mix`).
         sigma_min, limit_margin_deg: (B,) the stress of each target's configuration
             (:func:`ikbench.studies.ik_truth.stress`); NaN until annotated.
         branches: each target's analytic solutions within the limits (S_k, dof) [pose
@@ -187,6 +190,7 @@ class Targets:
     sample_lower: np.ndarray | None = None
     sample_upper: np.ndarray | None = None
     reachable: np.ndarray | None = None
+    unreachable_kind: np.ndarray | None = None
     sigma_min: np.ndarray | None = None
     limit_margin_deg: np.ndarray | None = None
     branches: list[np.ndarray] | None = None
@@ -350,14 +354,16 @@ def sample_targets(robot: Robot, settings: IKSettings) -> Targets:
         step = rng.uniform(-settings.perturb_deg, settings.perturb_deg, q_target.shape)
         q_init = np.clip(q_target + step, lo, hi)
     reachable = np.ones(settings.count, dtype=bool)
+    kinds = np.full(settings.count, "", dtype=object)
     if settings.unreachable > 0:  # their own generator: the other draws stay as without
         mixer = np.random.default_rng([int(settings.seed), UNREACHABLE_STREAM])
         n = int(round(settings.unreachable * settings.count))
         chosen = np.sort(mixer.choice(settings.count, n, replace=False))
-        T[chosen] = unreachable_targets(robot, T[chosen], mixer)
+        truth = analytic_solver(robot) if settings.kind == "pose" and n > 1 else None
+        T[chosen], kinds[chosen] = unreachable_mix(robot, T[chosen], mixer, truth)
         reachable[chosen] = False
     return Targets(q_target, T, q_init, int(settings.seed), np.asarray(lo), np.asarray(hi),
-                   reachable)
+                   reachable, kinds)
 
 
 def annotate(robot: Robot, targets: Targets, settings: IKSettings) -> None:

@@ -13,8 +13,10 @@ whole turn away is not) and
 branch's [deg, the Euclidean norm over the joints in pose units], 0 when it is on it.
 
 **Stress** (:func:`stress`): how near a singularity and a joint limit each target's
-configuration is. **Unreachable targets** (:func:`unreachable_targets`): frames beyond a reach
-bound no configuration leaves (:func:`reach_bound_m`). The report
+configuration is. **Unreachable targets** (:func:`unreachable_mix`): frames beyond a reach
+bound no configuration leaves (:func:`reach_bound_m`, :func:`unreachable_targets`), and, where
+an analytic solver takes the robot, half of them (rounded down) at a reachable position with
+an orientation the solver proves impossible there (:func:`orientation_impossible`). The report
 (:mod:`ikbench.render.ik_report`) sets the library's own verdicts against the judge's (silent
 failures), bins success and time by stress, and times the giving up on unreachable targets.
 """
@@ -144,3 +146,79 @@ def unreachable_targets(robot: Robot, T_reachable: np.ndarray, rng: np.random.Ge
     distance = radius * rng.uniform(BEYOND_REACH, 2.0, (len(out), 1))
     out[:, :3, 3] = centre + ray * distance
     return out
+
+
+#: ``unreachable_kind`` of a target: reachable, beyond the reach bound, or an orientation the
+#: analytic solver proves impossible at a reachable position.
+REACHABLE, BEYOND_REACH_KIND, ORIENTATION_KIND = "", "beyond_reach", "orientation_impossible"
+#: Random orientations drawn per orientation-impossible target at most.
+ORIENTATION_DRAWS = 100
+#: An orientation counts as impossible only with this margin: no exact solution within the
+#: limits widened by it [deg], and every least-squares answer of the analytic solver misses
+#: the frame by more than it [mm or deg, the larger of the two].
+ORIENTATION_MARGIN = 1.0
+
+
+def _random_rotation(rng: np.random.Generator) -> np.ndarray:
+    """A rotation (3, 3) uniform over SO(3): a unit quaternion from four normal draws."""
+    w, x, y, z = (q := rng.normal(size=4)) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def orientation_impossible(solver: PoseSolver, point_m: np.ndarray, rotation: np.ndarray
+                           ) -> bool:
+    """True when the analytic ``solver`` proves the frame impossible with
+    :data:`ORIENTATION_MARGIN`: no exact solution (``is_LS`` False) has every joint within
+    its limits (any whole turn, :func:`ikbench.baselines.eaik_ik.in_limit_turns`), and each
+    least-squares answer misses the frame by more than the margin."""
+    import pinocchio as pin
+
+    tol = math.radians(ORIENTATION_MARGIN)
+    if len(solver.branches(point_m, rotation, tol=tol)):  # type: ignore[attr-defined]
+        return False
+    fk = solver.robot.pinocchio_fk()
+    for q in solver.solutions(point_m, rotation)[1]:  # type: ignore[attr-defined]
+        M = fk.placement(q)
+        miss_mm = 1000.0 * float(np.linalg.norm(M.translation - point_m))
+        miss_deg = math.degrees(float(np.linalg.norm(pin.log3(M.rotation.T @ rotation))))
+        if max(miss_mm, miss_deg) <= ORIENTATION_MARGIN:
+            return False
+    return True
+
+
+def unreachable_mix(robot: Robot, T_reachable: np.ndarray, rng: np.random.Generator,
+                    solver: PoseSolver | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The unreachable targets of ``--unreachable`` (B, 4, 4) [m] made from B reachable ones,
+    and each one's kind (B,) (:data:`BEYOND_REACH_KIND`, :data:`ORIENTATION_KIND`).
+
+    Without an analytic ``solver`` every one is beyond the reach bound
+    (:func:`unreachable_targets`, the same draws as before). With one, the first ``B // 2``
+    (half, rounded down) get a reachable position (target k's, then, draw after draw, the
+    next target's: some positions admit every orientation) and a random orientation
+    (uniform, from ``rng``) that the solver proves impossible there
+    (:func:`orientation_impossible`), drawn up to :data:`ORIENTATION_DRAWS` times each; a
+    target that finds none within its draws falls back to beyond the reach bound (said on
+    stderr). The rest are beyond the reach bound, drawn from ``rng`` after the
+    orientations."""
+    out = np.array(T_reachable, dtype=float, copy=True)
+    kinds = np.full(len(out), BEYOND_REACH_KIND, dtype=object)
+    wanted = len(out) // 2 if solver is not None else 0
+    for k in range(wanted):
+        for draw in range(ORIENTATION_DRAWS):
+            point = T_reachable[(k + draw) % len(out), :3, 3]  # a position no orientation
+            rotation = _random_rotation(rng)                   # misses moves to the next
+            if solver is not None and orientation_impossible(solver, point, rotation):
+                out[k, :3, :3], out[k, :3, 3], kinds[k] = rotation, point, ORIENTATION_KIND
+                break
+    far = kinds == BEYOND_REACH_KIND
+    missing = int(far[:wanted].sum())
+    if missing:
+        import sys
+
+        print(f"ikbench ik: {missing} of {wanted} orientation-impossible targets not found in "
+              f"{ORIENTATION_DRAWS} draws each; beyond the reach bound instead", file=sys.stderr)
+    if far.any():
+        out[far] = unreachable_targets(robot, T_reachable[far], rng)
+    return out, kinds

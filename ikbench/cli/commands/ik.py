@@ -78,7 +78,9 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         "first_call_ms column")
     parser.add_argument("--unreachable", type=float, default=0.0, metavar="FRACTION",
                         help="replace this fraction of the targets (0 to 0.9) by frames beyond "
-                        "the robot's reach: no method may succeed on them; the report gives "
+                        "the robot's reach (half of them, where an analytic solver applies: an "
+                        "orientation it proves impossible at a reachable position): no method "
+                        "may succeed on them; the report gives "
                         "each library's claims on them and its time to give up (default 0)")
     parser.add_argument("--perturb-deg", type=float, default=10.0,
                         help="--init nearby: largest change per joint [deg] (default 10)")
