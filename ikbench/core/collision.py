@@ -468,7 +468,7 @@ def srdf_never_collide(urdf_path: Any) -> tuple[Any, set[frozenset[str]]]:
                 root = ET.parse(candidate).getroot()
             except ET.ParseError:
                 return None, set()
-            return candidate, {frozenset((e.get("link1"), e.get("link2")))
+            return candidate, {frozenset((str(e.get("link1")), str(e.get("link2"))))
                                for e in root.iter("disable_collisions")
                                if e.get("link1") and e.get("link2")}
     return None, set()

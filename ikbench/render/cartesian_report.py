@@ -27,11 +27,11 @@ from ikbench.core.trajectory import write_trajectory_csv
 from ikbench.core.validity import SOURCE, describe
 from ikbench.methods.ours_lm.start_search import REACH_SEEDS, waypoint_reach
 from ikbench.methods.registry import get_method
+from ikbench.render.first_call import first_call_section
 from ikbench.render.leaderboard import backend_notes
 from ikbench.render.pose_paths import plot_pose_path, reached
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.record import RECORD_FILE, RunRecord, files_written_by, jsonable
-from ikbench.studies.first_call import first_call_section
 
 #: The study's result (:class:`ikbench.studies.cartesian.CartesianResult`): render takes
 #: it as it comes, without importing the study (render is below the studies).

@@ -233,7 +233,7 @@ def leaderboard_markdown(board: pd.DataFrame, record: dict, contract: Contract) 
 
 def _first_call_paragraph(first_calls: dict[str, dict]) -> str:
     """The header's words on the first-call column (``--first-call``) and the split."""
-    from ikbench.studies.first_call import FIRST_CALL_MEANING
+    from ikbench.render.first_call import FIRST_CALL_MEANING
 
     split = "; ".join(
         f"{m}: failed: {t['error']}" if "error" in t else

@@ -7,11 +7,11 @@ errors of :func:`.frames.errors_from_frames`: mm, and the SO(3) log map in degre
 exact Jacobian of the vectorised chain kinematics, ``robot.chain_kinematics().frames``),
 scaled by the study's tolerances so that one unit of either counts the same. Per target and
 iteration: ``(J^T J + lambda (diag(J^T J) + eps I)) dq = -J^T r``, the step moved into the
-joint limits (:func:`into_limits`: a revolute joint by whole turns where that brings it within
-them, the same frame, else clipped); accepted when |r| drops (lambda / 3), else rejected (lambda * 4). A target
-leaves the batch once its errors are below ``stop`` times the tolerances, or when lambda
-exceeds :data:`STALLED` (stuck in a local minimum or on a limit), or after
-``max_iterations``. Only the targets still in the batch are evaluated.
+joint limits (:func:`into_limits`: a revolute joint by whole turns where that brings it
+within them, the same frame, else clipped); accepted when |r| drops (lambda / 3), else
+rejected (lambda * 4). A target leaves the batch once its errors are below ``stop`` times the
+tolerances, or when lambda exceeds :data:`STALLED` (stuck in a local minimum or on a limit),
+or after ``max_iterations``. Only the targets still in the batch are evaluated.
 
 ``restarts``: a target that is stuck (or not done ``restart_after`` iterations after its
 (re)start) is restarted from a fresh uniformly random pose (a

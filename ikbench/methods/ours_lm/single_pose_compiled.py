@@ -9,7 +9,8 @@ position only for ``kind="position"``) with its exact Jacobian, ``(J^T J + lambd
 J) + eps I)) dq = -J^T r`` (by Cholesky), the step scaled to at most ``max_step`` and moved
 into the limits (a revolute joint by whole turns where that brings it within them, the same
 frame; else clipped: :func:`.single_pose_kernels.into_limits`), accepted when |r|^2 drops
-(lambda / 3, at least 1e-9) or rejected (lambda * 4). Success: both errors below ``stop`` x the tolerances.
+(lambda / 3, at least 1e-9) or rejected (lambda * 4). Success: both errors below ``stop`` x
+the tolerances.
 
 Restarts: the caller passes the starts ``initials`` (A, dof) [pose units], the protocol's
 seeded sequence (:func:`random_initials`); attempt 1 runs from row 0, and an attempt that is

@@ -18,8 +18,15 @@ from numba import njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from ikbench.methods.ours_lm.compiled_chain import (LOWER, PRISMATIC, SCALE, SI, UPPER, frame,
-                                                   frame_jacobian)
+from ikbench.methods.ours_lm.compiled_chain import (
+    LOWER,
+    PRISMATIC,
+    SCALE,
+    SI,
+    UPPER,
+    frame,
+    frame_jacobian,
+)
 from ikbench.methods.ours_lm.single_pose import STALLED
 
 MM_PER_M = 1000.0
