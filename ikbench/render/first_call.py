@@ -3,6 +3,8 @@ process: import, set-up, first solve)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 #: What the first-call column measures, for a report's header.
 FIRST_CALL_MEANING = (
     "first call [s] (`first_call_s`): what a user waits for before the first answer, in a "
@@ -19,12 +21,19 @@ def first_call_section(first_calls: dict[str, dict], what: str) -> list[str]:
         return []
     lines = ["## First call", "", f"{FIRST_CALL_MEANING[0].upper()}{FIRST_CALL_MEANING[1:]}; "
              f"each method solved {what}.", "",
-             "| method | first call [s] | import [s] | set-up [s] | first solve [s] |",
+             *first_call_table(first_calls, lambda v: f"{v:.3g}")]
+    return [*lines, ""]
+
+
+def first_call_table(first_calls: dict[str, dict], fmt: Callable[[float], str]) -> list[str]:
+    """The table's lines: one row per method (first call, import, set-up, first solve [s],
+    each by ``fmt``), or why its first call failed."""
+    lines = ["| method | first call [s] | import [s] | set-up [s] | first solve [s] |",
              "|---|---|---|---|---|"]
     for method, t in first_calls.items():
         if "error" in t:
             lines.append(f"| {method} | failed: {t['error']} | | | |")
         else:
-            lines.append(" | ".join([f"| {method}", *(f"{t[k]:.3g}" for k in (
+            lines.append(" | ".join([f"| {method}", *(fmt(t[k]) for k in (
                 "first_call_s", "import_s", "setup_s", "solve_s"))]) + " |")
-    return [*lines, ""]
+    return lines

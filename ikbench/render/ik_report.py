@@ -38,6 +38,7 @@ import pandas as pd
 from ikbench.baselines.trac_ik import TracIKSolver
 from ikbench.core.io import atomic_savefig, staged_folder
 from ikbench.core.provenance import library_versions, provenance
+from ikbench.render.first_call import first_call_table
 from ikbench.render.ik_published import published_for
 from ikbench.render.leaderboard import backend_notes
 from ikbench.render.palette import distinct_colors
@@ -342,15 +343,7 @@ def first_call_section(methods: dict[str, dict]) -> list[str]:
     lines = ["## First call", "",
              "What a user waits for before the first answer, in a fresh Python process (after "
              "the runs above: numba's cache as they left it), for target 0 under the first "
-             "table's rule:", "",
-             "| method | first call [s] | import [s] | set-up [s] | first solve [s] |",
-             "|---|---|---|---|---|"]
-    for method, t in timed.items():
-        if "error" in t:
-            lines.append(f"| {method} | failed: {t['error']} | | | |")
-        else:
-            lines.append(f"| {method} | {_fmt(t['first_call_s'])} | {_fmt(t['import_s'])} "
-                         f"| {_fmt(t['setup_s'])} | {_fmt(t['solve_s'])} |")
+             "table's rule:", "", *first_call_table(timed, _fmt)]
     return [*lines, ""]
 
 
