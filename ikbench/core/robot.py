@@ -41,6 +41,7 @@ from ikbench.core.errors import InputError, refuse_unknown_keys
 from ikbench.core.kinematics.chain import ChainKinematics
 from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
 from ikbench.core.kinematics.torch_fk import TorchFK
+from ikbench.core.robot_config import CONFIG_KEYS, RobotConfig
 from ikbench.core.robot_packages import is_package_name, resolve
 from ikbench.core.urdf_model import MOVABLE_TYPES, UrdfJoint, UrdfModel, load_urdf_model
 
@@ -55,10 +56,6 @@ RANGE_TOLERANCE_DEG = 1e-6
 #: iterates (``ours``: Adam in float32) may pass a limit by an ulp of float32 (1.5e-5 deg at
 #: 166 deg); the judge (:meth:`Robot.within_limits`) keeps :data:`RANGE_TOLERANCE_DEG`.
 FILE_RANGE_TOLERANCE_DEG = 1e-4
-#: Keys a robot config may hold (a typo would otherwise be ignored silently).
-CONFIG_KEYS = ("name", "description", "source", "urdf", "base_link", "end_frame",
-               "pointing_axis", "joints", "motor_map", "hardware", "targets", "frame",
-               "letters", "batch", "locked", "validity_limits", "collision")
 
 
 def robots_dir() -> Path:
@@ -93,7 +90,8 @@ class Robot:
         joint_types: (dof,) ``revolute``, ``continuous`` or ``prismatic``.
         pointing_axis: (3,) unit axis of the end frame that "points" (default z).
         has_motor_map: True when poses are motor degrees (a ``*.motors.json`` map).
-        config: the robot config (description, source, targets, frame, letters, batch ...).
+        config: the robot config (:class:`RobotConfig`: description, source, targets, frame,
+            letters, batch ...).
         locked_urdf: joints of the chain held fixed, name -> value [rad or m]; they are not in
             ``joint_names`` (the config gives them in pose units, ``locked``).
         validity_lower: (dof,) lower bounds [pose units] a benchmark's validity check uses
@@ -113,7 +111,7 @@ class Robot:
     joint_types: tuple[str, ...] = ()
     pointing_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
     has_motor_map: bool = True
-    config: dict = field(default_factory=dict)
+    config: RobotConfig = field(default_factory=RobotConfig)
     locked_urdf: dict = field(default_factory=dict)
     validity_lower: np.ndarray | None = None
     validity_upper: np.ndarray | None = None
@@ -196,8 +194,8 @@ class Robot:
                 "pose_unit": self.pose_unit, "urdf": self.urdf_path.name,
                 "urdf_sha256": self.urdf_sha256,
                 **({"locked_urdf": dict(self.locked_urdf)} if self.locked_urdf else {}),
-                "description": self.config.get("description", ""),
-                "source": self.config.get("source", "")}
+                "description": self.config.description,
+                "source": self.config.source}
 
     # ----- pose units <-> URDF units ---------------------------------------------------------
     @overload
@@ -431,6 +429,7 @@ def _read_config(path: Path) -> dict:
     except (OSError, UnicodeDecodeError, ValueError, KeyError) as exc:
         raise InputError(f"robot config {str(path)!r} cannot be read: {exc}") from None
     refuse_unknown_keys(config, CONFIG_KEYS, f"robot config {str(path)!r}")
+    RobotConfig.from_dict(config, f"robot config {str(path)!r}")  # wrong types refused
     missing = [k for k in ("urdf", "end_frame") if k not in config]
     if missing:
         raise InputError(f"robot config {str(path)!r}: missing key(s) {', '.join(missing)}")
@@ -487,7 +486,8 @@ def robot_from_config(path: Path, end_frame: str | None = None) -> Robot:
                  joint_types=types,
                  pointing_axis=_unit_axis(config.get("pointing_axis", (0, 0, 1)),
                                           f"{path.name}: pointing_axis"),
-                 has_motor_map=has_map, config={**config, "config_path": str(path)},
+                 has_motor_map=has_map, config=RobotConfig.from_dict(
+                     config, f"robot config {str(path)!r}", path),
                  locked_urdf=locked, validity_lower=valid_lower, validity_upper=valid_upper,
                  _cache={"urdf_model": urdf})
 
@@ -560,8 +560,9 @@ def robot_from_urdf(urdf_path: Path, end_frame: str, base_link: str | None = Non
                  lower=np.array([j.lower for j in joints]) * per_unit,
                  upper=np.array([j.upper for j in joints]) * per_unit,
                  joint_types=types, has_motor_map=False,
-                 config={"description": f"{urdf_path.name}, chain {base} -> {end_frame}",
-                         "source": str(urdf_path)},
+                 config=RobotConfig(
+                     description=f"{urdf_path.name}, chain {base} -> {end_frame}",
+                     source=str(urdf_path)),
                  _cache={"urdf_model": urdf})
 
 
@@ -574,7 +575,7 @@ def robot_from_package(name: str, end_frame: str | None) -> Robot:
     urdf_path, base, end, description = resolve(name, end_frame)
     robot = robot_from_urdf(urdf_path, end, base)
     return replace(robot, name=name.partition(":")[2], _cache={"urdf_model": robot.urdf_model},
-                   config={"description": description, "source": name})
+                   config=RobotConfig(description=description, source=name))
 
 
 @functools.lru_cache(maxsize=16)
