@@ -90,7 +90,7 @@ def statistics(name: str, values: np.ndarray, *kinds: str) -> dict[str, float]:
     return {name.format(kind): float(getattr(values, kind)()) for kind in kinds}
 
 
-def smoothness(poses_motor_deg: npt.ArrayLike) -> dict[str, float]:
+def smoothness(poses: npt.ArrayLike) -> dict[str, float]:
     """Fluency figures of a trajectory (n+1, dof) [motor deg], per step (time-free).
 
     Returns:
@@ -100,7 +100,7 @@ def smoothness(poses_motor_deg: npt.ArrayLike) -> dict[str, float]:
         per step^3); ``velocity_sign_changes``: number of sign changes of joint velocity
         summed over joints, ignoring steps smaller than 1e-3 deg (a "shaking" count).
     """
-    poses = np.asarray(poses_motor_deg, dtype=float)
+    poses = np.asarray(poses, dtype=float)
     d1 = np.diff(poses, axis=0)
     d3 = np.diff(poses, n=3, axis=0)
     signs = np.sign(np.where(np.abs(d1) < 1e-3, 0.0, d1))
@@ -133,7 +133,7 @@ def _end_errors_and_smoothness(robot, task, points_mm, poses) -> dict[str, float
     }
 
 
-def trajectory_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
+def trajectory_metrics(robot: Robot, task: Task, poses: npt.ArrayLike
                        ) -> dict[str, float]:
     """The Table 1/2 figures of one trajectory against its task.
 
@@ -148,7 +148,7 @@ def trajectory_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
         ``start_pose_error_deg`` / ``end_pose_error_deg`` = max |p - p^s| / |p - p^e| (NaN
         when the task does not fix that pose), and the :func:`smoothness` figures.
     """
-    poses = np.asarray(poses_motor_deg, dtype=float)
+    poses = np.asarray(poses, dtype=float)
     return _line_metrics(robot, task, poses, robot.fk(poses))
 
 
@@ -165,7 +165,7 @@ def _line_metrics(robot, task, poses, fk) -> dict[str, float]:
     }
 
 
-def shape_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
+def shape_metrics(robot: Robot, task: Task, poses: npt.ArrayLike
                   ) -> dict[str, float]:
     """Figures of a trajectory against a general shape (its task has a ``curve``).
 
@@ -181,7 +181,7 @@ def shape_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
         ``end_pose_error_deg`` (NaN when the task fixes no pose); the :func:`smoothness`
         figures.
     """
-    poses = np.asarray(poses_motor_deg, dtype=float)
+    poses = np.asarray(poses, dtype=float)
     fk = robot.fk(poses)
     mask = task.pen_down
     distances = cast("Curve", task.curve).distances_mm(fk.point_mm[mask])  # a shape task
@@ -294,7 +294,7 @@ def speed_limit_use(poses_deg: npt.ArrayLike, max_step: npt.ArrayLike | None) ->
     return float(np.max(steps / np.asarray(max_step, dtype=float), initial=0.0))
 
 
-def contract_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike,
+def contract_metrics(robot: Robot, task: Task, poses: npt.ArrayLike,
                      contract: Contract) -> dict[str, Any]:
     """The figures a :class:`ikbench.core.contract.Contract` judges, with the Table 1/2 ones.
 
@@ -314,7 +314,7 @@ def contract_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike,
         without a collision model: nothing can be checked, so the collision criterion fails).
         Obstacle-free tasks get none of these.
     """
-    poses = np.asarray(poses_motor_deg, dtype=float)
+    poses = np.asarray(poses, dtype=float)
     fk = robot.fk(poses)
     out: dict[str, Any] = _line_metrics(robot, task, poses, fk)
     mask = np.asarray(task.pen_down, dtype=bool)

@@ -218,9 +218,10 @@ class Robot:
         scale, offset, si = self._map_constants(q_urdf)
         return (q_urdf / si - offset) / scale
 
-    def motor_to_joint_rad(self, q_motor_deg: npt.ArrayLike) -> np.ndarray:
-        """Poses [pose units] -> URDF joint values (the older name of :meth:`to_urdf`)."""
-        return self.to_urdf(q_motor_deg)
+    def motor_to_joint_rad(self, poses: npt.ArrayLike) -> np.ndarray:
+        """Poses [pose units: Robot.pose_unit] -> URDF joint values (the older name of
+        :meth:`to_urdf`)."""
+        return self.to_urdf(poses)
 
     def joint_rad_to_motor_deg(self, q_rad: npt.ArrayLike) -> np.ndarray:
         """URDF joint values -> poses (the older name of :meth:`from_urdf`)."""
@@ -239,35 +240,35 @@ class Robot:
         return self._cache[key]
 
     # ----- validation -------------------------------------------------------------------------
-    def check_pose(self, pose_motor_deg: npt.ArrayLike, what: str = "pose",
+    def check_pose(self, pose: npt.ArrayLike, what: str = "pose",
                    tol_deg: float = RANGE_TOLERANCE_DEG) -> np.ndarray:
-        """Validate one pose (length, finite, within the limits to ``tol_deg`` [pose units]);
-        return it as float64.
+        """Validate one pose [pose units: Robot.pose_unit] (length, finite, within the limits
+        to ``tol_deg`` [pose units]); return it as float64.
 
         Raises:
             InputError: naming the bad entry and the allowed values.
         """
         try:
-            pose = np.asarray(pose_motor_deg, dtype=float)
+            array = np.asarray(pose, dtype=float)
         except (TypeError, ValueError):
             raise InputError(
-                f"{what}: {pose_motor_deg!r} is not a list of {self.dof} numbers "
+                f"{what}: {pose!r} is not a list of {self.dof} numbers "
                 f"({self.pose_unit}, order {', '.join(self.joint_names)})"
             ) from None
-        if pose.shape != (self.dof,):
+        if array.shape != (self.dof,):
             kind = "values" if self.prismatic.any() else "angles"
             raise InputError(
                 f"{what}: expected {self.dof} {kind} ({', '.join(self.joint_names)}; "
-                f"{self.pose_unit}), got {pose.size}"
+                f"{self.pose_unit}), got {array.size}"
             )
         for j, (name, value, lo, hi) in enumerate(zip(
-                self.joint_names, pose, self.lower, self.upper)):
+                self.joint_names, array, self.lower, self.upper)):
             if not math.isfinite(value):
                 raise InputError(f"{what}: {name} = {value} is not a finite number")
             if value < lo - tol_deg or value > hi + tol_deg:
                 raise InputError(f"{what}: {name} = {value:g} {self.unit(j)} is outside its "
                                  f"range [{lo:g}, {hi:g}]")
-        return pose
+        return array
 
     def check_poses(self, poses: npt.ArrayLike, what: str = "poses") -> np.ndarray:
         """Validate poses (B, dof) or (dof,); InputError naming the shape expected."""
@@ -278,10 +279,11 @@ class Robot:
                              f"({', '.join(self.joint_names)}; {self.pose_unit})")
         return array
 
-    def within_limits(self, poses_motor_deg: npt.ArrayLike,
+    def within_limits(self, poses: npt.ArrayLike,
                       tol_deg: float = RANGE_TOLERANCE_DEG) -> bool:
-        """True when every pose in (..., dof) lies within the limits (+- ``tol_deg``)."""
-        poses = np.asarray(poses_motor_deg, dtype=float)
+        """True when every pose in (..., dof) [pose units: Robot.pose_unit] lies within the
+        limits (+- ``tol_deg``)."""
+        poses = np.asarray(poses, dtype=float)
         return bool(
             np.all(poses >= self.lower - tol_deg)
             and np.all(poses <= self.upper + tol_deg)
@@ -326,38 +328,39 @@ class Robot:
             self._cache["chain"] = ChainKinematics(self)
         return self._cache["chain"]
 
-    def fk(self, q_motor_deg: npt.ArrayLike, backend: str = "pinocchio") -> FKResult:
+    def fk(self, poses: npt.ArrayLike, backend: str = "pinocchio") -> FKResult:
         """End point [mm] and pointing direction for poses (dof,) or (B, dof) [pose units].
 
         Args:
-            q_motor_deg: pose(s) in pose units.
+            poses: pose(s) (dof,) or (B, dof) [pose units: Robot.pose_unit].
             backend: ``"pinocchio"`` or ``"torch"`` (pytorch-kinematics, float64).
 
         Returns:
             FKResult with arrays of shape (B, 3) (B = 1 for a single pose).
         """
-        q = np.atleast_2d(self.check_poses(q_motor_deg, "fk"))
+        q = np.atleast_2d(self.check_poses(poses, "fk"))
         T_base_tip = self.fk_transform(q, backend)
         return FKResult(T_base_tip[:, :3, 3] * MM_PER_M, T_base_tip[:, :3, :3]
                         @ self.pointing_axis)
 
-    def skeleton_mm(self, q_motor_deg: npt.ArrayLike) -> np.ndarray:
+    def skeleton_mm(self, poses: npt.ArrayLike) -> np.ndarray:
         """The arm as a polyline: points (B, dof + 2, 3) [mm] in the base frame for poses
-        (dof,) or (B, dof) [pose units].
+        (dof,) or (B, dof) [pose units: Robot.pose_unit].
 
         Point 0 is the base link's origin, points 1..dof the origins of the movable joints'
         frames along the chain (Pinocchio's joint placements, which fold in the fixed joints
         between them), the last the end frame. Drawing lines through them gives the arm's
         links, base to end frame; it needs no visual shapes.
         """
-        q = np.atleast_2d(self.check_poses(q_motor_deg, "skeleton"))
+        q = np.atleast_2d(self.check_poses(poses, "skeleton"))
         point_m, _, _, origins_m = self.chain_kinematics().transforms(q)
         base = np.zeros((len(q), 1, 3))
         return np.concatenate([base, origins_m, point_m[:, None]], axis=1) * MM_PER_M
 
-    def fk_transform(self, q_motor_deg: npt.ArrayLike, backend: str = "pinocchio") -> np.ndarray:
-        """End-frame transforms (B, 4, 4) in the base frame [m] for poses (B, dof)."""
-        q = np.atleast_2d(self.check_poses(q_motor_deg, "fk"))
+    def fk_transform(self, poses: npt.ArrayLike, backend: str = "pinocchio") -> np.ndarray:
+        """End-frame transforms (B, 4, 4) in the base frame [m] for poses (dof,) or
+        (B, dof) [pose units: Robot.pose_unit]."""
+        q = np.atleast_2d(self.check_poses(poses, "fk"))
         if backend == "pinocchio":
             return self.pinocchio_fk().transforms(q)
         if backend == "torch":
