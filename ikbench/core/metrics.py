@@ -197,7 +197,7 @@ def shape_metrics(robot: Robot, task: Task, poses: npt.ArrayLike
 
 
 # ----- 6-D pose paths (tasks with goal frames) ------------------------------------------------
-def frame_errors(robot: Robot, task: Task, poses_deg: npt.ArrayLike
+def frame_errors(robot: Robot, task: Task, poses: npt.ArrayLike
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per-waypoint errors of poses (n+1, dof) against a task with goal frames.
 
@@ -206,25 +206,25 @@ def frame_errors(robot: Robot, task: Task, poses_deg: npt.ArrayLike
         |log(R_goal^T R)|, end points (n+1, 3) [mm]); FK by Pinocchio in float64.
     """
 
-    T = robot.fk_transform(np.asarray(poses_deg, dtype=float))
+    T = robot.fk_transform(np.asarray(poses, dtype=float))
     points_mm = T[:, :3, 3] * 1000.0
     position = np.linalg.norm(points_mm - task.goal_points_mm, axis=1)
     rotation = np.degrees(geodesic_angle(cast(np.ndarray, task.goal_rotations), T[:, :3, :3]))
     return position, rotation, points_mm
 
 
-def joint_changes(robot: Robot, poses_deg: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+def joint_changes(robot: Robot, poses: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Joint changes between consecutive poses in joint units: (revolute (n, r) [deg], wrapped
     to [-180, 180) as CppFlow does, so a continuous joint crossing +-180 moves a little;
     prismatic (n, p) [mm])."""
-    q = robot.to_urdf(np.asarray(poses_deg, dtype=float))
+    q = robot.to_urdf(np.asarray(poses, dtype=float))
     steps = np.diff(q, axis=0)
     prismatic = robot.prismatic
     revolute = np.degrees(np.remainder(steps[:, ~prismatic] + np.pi, 2 * np.pi) - np.pi)
     return revolute, steps[:, prismatic] * 1000.0
 
 
-def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[str, Any]:
+def frame_metrics(robot: Robot, task: Task, poses: npt.ArrayLike) -> dict[str, Any]:
     """Figures of a trajectory against a 6-D pose path, with CppFlow's validity.
 
     Returns:
@@ -244,7 +244,7 @@ def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[st
         (their names, ``""`` when valid).
     """
 
-    poses = np.asarray(poses_deg, dtype=float)
+    poses = np.asarray(poses, dtype=float)
     position, rotation, points_mm = frame_errors(robot, task, poses)
     revolute, prismatic = joint_changes(robot, poses)
     lower, upper = task.limits(robot)
@@ -270,27 +270,27 @@ def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[st
     return {**out, "valid": not failures, "failed_criteria": ",".join(failures)}
 
 
-def initial_distance(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> float:
+def initial_distance(robot: Robot, task: Task, poses: npt.ArrayLike) -> float:
     """Euclidean distance (URDF units: rad, m) of the first pose from the task's initial pose
     (CppFlow's ``initial_q_norm_dist``); NaN when the task gives none."""
     initial = task.initial_pose
     if initial is None:
         return float("nan")
-    first = robot.to_urdf(np.asarray(poses_deg, dtype=float)[0])
+    first = robot.to_urdf(np.asarray(poses, dtype=float)[0])
     return float(np.linalg.norm(first - robot.to_urdf(np.asarray(initial, dtype=float))))
 
 
 # ----- the task contract (ikbench.core.contract) -----------------------------------------------
-def speed_limit_use(poses_deg: npt.ArrayLike, max_step: npt.ArrayLike | None) -> float:
+def speed_limit_use(poses: npt.ArrayLike, max_step: npt.ArrayLike | None) -> float:
     """The largest joint change per segment over its allowed change (1.0: at the limit).
 
     Args:
-        poses_deg: (n+1, dof) poses [pose units].
+        poses: (n+1, dof) poses [pose units].
         max_step: (dof,) allowed change per segment [pose units], or None (then NaN).
     """
     if max_step is None:
         return float("nan")
-    steps = np.abs(np.diff(np.asarray(poses_deg, dtype=float), axis=0))
+    steps = np.abs(np.diff(np.asarray(poses, dtype=float), axis=0))
     return float(np.max(steps / np.asarray(max_step, dtype=float), initial=0.0))
 
 
