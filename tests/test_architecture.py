@@ -164,6 +164,67 @@ def test_each_shared_default_is_defined_once():
     assert not bad, "import it from ikbench.core.defaults:\n" + "\n".join(bad)
 
 
+ROBOT_MODULES = ("ikbench/core/robot.py", "ikbench/core/robot_config.py")
+
+
+def _robot_config(node: ast.expr) -> bool:
+    """True for ``<robot>.config``: an attribute ``config`` of something named like a robot
+    (``robot``, ``problem_robot``, ``self.robot``)."""
+    if not (isinstance(node, ast.Attribute) and node.attr == "config"):
+        return False
+    owner = node.value
+    name = owner.id if isinstance(owner, ast.Name) else getattr(owner, "attr", "")
+    return "robot" in name.lower()
+
+
+def robot_config_key_reads(tree: ast.AST, where: str) -> list[str]:
+    """``robot.config["x"]``, ``robot.config.get("x")`` and ``"x" in robot.config`` in
+    ``tree``: key reads of a robot config that :class:`RobotConfig` gives as attributes."""
+    bad = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Subscript) and _robot_config(node.value):
+            bad.append(f"{where}:{node.lineno}: robot.config[...]")
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+              and node.func.attr in ("get", "keys", "items") and _robot_config(node.func.value)):
+            bad.append(f"{where}:{node.lineno}: robot.config.{node.func.attr}(...)")
+        elif (isinstance(node, ast.Compare) and any(isinstance(op, (ast.In, ast.NotIn))
+                                                  for op in node.ops)
+              and any(_robot_config(c) for c in node.comparators)):
+            bad.append(f"{where}:{node.lineno}: ... in robot.config")
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+              and node.func.id == "getattr" and len(node.args) >= 2
+              and isinstance(node.args[1], ast.Constant) and node.args[1].value == "config"
+              and isinstance(node.args[0], ast.Name) and "robot" in node.args[0].id
+              and isinstance(getattr(node, "parent", None), ast.BoolOp)):
+            bad.append(f"{where}:{node.lineno}: getattr(robot, 'config') or {{}}")
+    return bad
+
+
+def test_robot_config_read_by_attribute_outside_the_robot_module():
+    bad = []
+    for path, _ in _modules():
+        where = str(path.relative_to(REPO))
+        if where in ROBOT_MODULES:
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for parent in ast.walk(tree):
+            for child in ast.iter_child_nodes(parent):
+                child.parent = parent  # type: ignore[attr-defined]
+        bad += robot_config_key_reads(tree, where)
+    assert not bad, "read RobotConfig's attributes, not keys:\n" + "\n".join(bad)
+
+
+@pytest.mark.parametrize("source", ['robot.config.get("targets")', 'robot.config["config_path"]',
+                                    '"pointing_axis" in self.robot.config',
+                                    'getattr(robot, "config", None) or {}'])
+def test_the_robot_config_check_sees_key_reads(source):
+    tree = ast.parse(source)
+    for parent in ast.walk(tree):
+        for child in ast.iter_child_nodes(parent):
+            child.parent = parent  # type: ignore[attr-defined]
+    assert robot_config_key_reads(tree, "x")
+
+
 def test_pyproject_lists_every_package():
     listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
                  ["packages"])

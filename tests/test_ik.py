@@ -459,7 +459,7 @@ def test_robots_by_package_name(name, dof, end):
     assert robot.name == name and robot.dof == dof and robot.end_frame == end
     text = chain_of(robot).urdf_text  # what the libraries parse: kinematics only
     assert "<transmission" not in text and "<gazebo" not in text and "<visual" not in text
-    assert robot.config["source"] == f"example-robot-data:{name}"
+    assert robot.config.source == f"example-robot-data:{name}"
     q = np.random.default_rng(0).uniform(robot.sample_lower, robot.sample_upper, (5, dof))
     point, rotation, _, _ = robot.chain_kinematics().frames(q)
     T = robot.fk_transform(q)  # Pinocchio

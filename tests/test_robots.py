@@ -282,3 +282,13 @@ def test_a_package_robot_without_end_frame_lists_the_candidates(capsys):
     assert any(line.startswith("example-robot-data:so101: needs --end-frame LINK, candidates: "
                                "gripper_frame_link, moving_jaw_so101_v1_link, gripper_link; ")
                for line in lines)
+
+
+@pytest.mark.parametrize("line, key", [('description = 3', "description"),
+                                       ('targets = "x.json"', "targets"),
+                                       ('[frame]\nzoom = 2', "zoom")])
+def test_a_robot_config_with_a_wrong_type_or_key_is_refused_naming_it(tmp_path, line, key):
+    config = tmp_path / "my_arm.toml"
+    config.write_text(f'urdf = "{URDF}"\nend_frame = "tool"\n{line}\n')
+    with pytest.raises(InputError, match=key):
+        load_robot(config)

@@ -40,12 +40,12 @@ class Capsule:
 
 def collision_config(robot: Robot) -> dict | None:
     """The robot's collision file as a dict (with ``path``), or None when it names none."""
-    name = robot.config.get("collision")
+    name = robot.config.collision
     if not name:
         return None
     key = "collision_config"
     if key not in robot._cache:
-        base = Path(robot.config.get("config_path", robot.urdf_path)).parent
+        base = robot.config.folder or robot.urdf_path.parent
         path = (base / name).resolve()
         robot._cache[key] = _read_collision_file(path)
     return robot._cache[key]

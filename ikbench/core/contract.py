@@ -238,7 +238,8 @@ def parse_tolerances(text: str | Mapping | None,
 def pointing_declared(robot: Robot) -> bool:
     """True when the robot's config names its pointing axis (shipped robots); a bare URDF's
     end frame has no declared pointing axis."""
-    return "pointing_axis" in (getattr(robot, "config", None) or {})
+    config = getattr(robot, "config", None)
+    return config is not None and config.pointing_axis is not None
 
 
 def speed_limits(robot: Robot) -> tuple[np.ndarray | None, str]:
@@ -259,10 +260,10 @@ def speed_limits(robot: Robot) -> tuple[np.ndarray | None, str]:
 
 def _read_speed_limits(robot) -> tuple[np.ndarray | None, str]:
     """:func:`speed_limits` read from the robot's files."""
-    config = getattr(robot, "config", None) or {}
-    hardware = config.get("hardware")
-    if hardware and config.get("config_path"):
-        path = Path(config["config_path"]).parent / hardware
+    config = getattr(robot, "config", None)
+    hardware = config.hardware if config is not None else None
+    if hardware and config is not None and config.config_path is not None:
+        path = config.config_path.parent / hardware
         motors = json.loads(path.read_text(encoding="utf-8")).get("motors", {})
         speeds = [motors.get(name, {}).get("max_speed_deg_s") for name in robot.joint_names]
         if all(v is not None for v in speeds):

@@ -90,7 +90,7 @@ def statistics(name: str, values: np.ndarray, *kinds: str) -> dict[str, float]:
     return {name.format(kind): float(getattr(values, kind)()) for kind in kinds}
 
 
-def smoothness(poses_motor_deg: npt.ArrayLike) -> dict[str, float]:
+def smoothness(poses: npt.ArrayLike) -> dict[str, float]:
     """Fluency figures of a trajectory (n+1, dof) [motor deg], per step (time-free).
 
     Returns:
@@ -100,7 +100,7 @@ def smoothness(poses_motor_deg: npt.ArrayLike) -> dict[str, float]:
         per step^3); ``velocity_sign_changes``: number of sign changes of joint velocity
         summed over joints, ignoring steps smaller than 1e-3 deg (a "shaking" count).
     """
-    poses = np.asarray(poses_motor_deg, dtype=float)
+    poses = np.asarray(poses, dtype=float)
     d1 = np.diff(poses, axis=0)
     d3 = np.diff(poses, n=3, axis=0)
     signs = np.sign(np.where(np.abs(d1) < 1e-3, 0.0, d1))
@@ -133,7 +133,7 @@ def _end_errors_and_smoothness(robot, task, points_mm, poses) -> dict[str, float
     }
 
 
-def trajectory_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
+def trajectory_metrics(robot: Robot, task: Task, poses: npt.ArrayLike
                        ) -> dict[str, float]:
     """The Table 1/2 figures of one trajectory against its task.
 
@@ -148,7 +148,7 @@ def trajectory_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
         ``start_pose_error_deg`` / ``end_pose_error_deg`` = max |p - p^s| / |p - p^e| (NaN
         when the task does not fix that pose), and the :func:`smoothness` figures.
     """
-    poses = np.asarray(poses_motor_deg, dtype=float)
+    poses = np.asarray(poses, dtype=float)
     return _line_metrics(robot, task, poses, robot.fk(poses))
 
 
@@ -165,7 +165,7 @@ def _line_metrics(robot, task, poses, fk) -> dict[str, float]:
     }
 
 
-def shape_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
+def shape_metrics(robot: Robot, task: Task, poses: npt.ArrayLike
                   ) -> dict[str, float]:
     """Figures of a trajectory against a general shape (its task has a ``curve``).
 
@@ -181,7 +181,7 @@ def shape_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
         ``end_pose_error_deg`` (NaN when the task fixes no pose); the :func:`smoothness`
         figures.
     """
-    poses = np.asarray(poses_motor_deg, dtype=float)
+    poses = np.asarray(poses, dtype=float)
     fk = robot.fk(poses)
     mask = task.pen_down
     distances = cast("Curve", task.curve).distances_mm(fk.point_mm[mask])  # a shape task
@@ -197,7 +197,7 @@ def shape_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike
 
 
 # ----- 6-D pose paths (tasks with goal frames) ------------------------------------------------
-def frame_errors(robot: Robot, task: Task, poses_deg: npt.ArrayLike
+def frame_errors(robot: Robot, task: Task, poses: npt.ArrayLike
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per-waypoint errors of poses (n+1, dof) against a task with goal frames.
 
@@ -206,25 +206,25 @@ def frame_errors(robot: Robot, task: Task, poses_deg: npt.ArrayLike
         |log(R_goal^T R)|, end points (n+1, 3) [mm]); FK by Pinocchio in float64.
     """
 
-    T = robot.fk_transform(np.asarray(poses_deg, dtype=float))
+    T = robot.fk_transform(np.asarray(poses, dtype=float))
     points_mm = T[:, :3, 3] * 1000.0
     position = np.linalg.norm(points_mm - task.goal_points_mm, axis=1)
     rotation = np.degrees(geodesic_angle(cast(np.ndarray, task.goal_rotations), T[:, :3, :3]))
     return position, rotation, points_mm
 
 
-def joint_changes(robot: Robot, poses_deg: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+def joint_changes(robot: Robot, poses: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Joint changes between consecutive poses in joint units: (revolute (n, r) [deg], wrapped
     to [-180, 180) as CppFlow does, so a continuous joint crossing +-180 moves a little;
     prismatic (n, p) [mm])."""
-    q = robot.to_urdf(np.asarray(poses_deg, dtype=float))
+    q = robot.to_urdf(np.asarray(poses, dtype=float))
     steps = np.diff(q, axis=0)
     prismatic = robot.prismatic
     revolute = np.degrees(np.remainder(steps[:, ~prismatic] + np.pi, 2 * np.pi) - np.pi)
     return revolute, steps[:, prismatic] * 1000.0
 
 
-def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[str, Any]:
+def frame_metrics(robot: Robot, task: Task, poses: npt.ArrayLike) -> dict[str, Any]:
     """Figures of a trajectory against a 6-D pose path, with CppFlow's validity.
 
     Returns:
@@ -244,7 +244,7 @@ def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[st
         (their names, ``""`` when valid).
     """
 
-    poses = np.asarray(poses_deg, dtype=float)
+    poses = np.asarray(poses, dtype=float)
     position, rotation, points_mm = frame_errors(robot, task, poses)
     revolute, prismatic = joint_changes(robot, poses)
     lower, upper = task.limits(robot)
@@ -270,31 +270,31 @@ def frame_metrics(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[st
     return {**out, "valid": not failures, "failed_criteria": ",".join(failures)}
 
 
-def initial_distance(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> float:
+def initial_distance(robot: Robot, task: Task, poses: npt.ArrayLike) -> float:
     """Euclidean distance (URDF units: rad, m) of the first pose from the task's initial pose
     (CppFlow's ``initial_q_norm_dist``); NaN when the task gives none."""
     initial = task.initial_pose
     if initial is None:
         return float("nan")
-    first = robot.to_urdf(np.asarray(poses_deg, dtype=float)[0])
+    first = robot.to_urdf(np.asarray(poses, dtype=float)[0])
     return float(np.linalg.norm(first - robot.to_urdf(np.asarray(initial, dtype=float))))
 
 
 # ----- the task contract (ikbench.core.contract) -----------------------------------------------
-def speed_limit_use(poses_deg: npt.ArrayLike, max_step: npt.ArrayLike | None) -> float:
+def speed_limit_use(poses: npt.ArrayLike, max_step: npt.ArrayLike | None) -> float:
     """The largest joint change per segment over its allowed change (1.0: at the limit).
 
     Args:
-        poses_deg: (n+1, dof) poses [pose units].
+        poses: (n+1, dof) poses [pose units].
         max_step: (dof,) allowed change per segment [pose units], or None (then NaN).
     """
     if max_step is None:
         return float("nan")
-    steps = np.abs(np.diff(np.asarray(poses_deg, dtype=float), axis=0))
+    steps = np.abs(np.diff(np.asarray(poses, dtype=float), axis=0))
     return float(np.max(steps / np.asarray(max_step, dtype=float), initial=0.0))
 
 
-def contract_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike,
+def contract_metrics(robot: Robot, task: Task, poses: npt.ArrayLike,
                      contract: Contract) -> dict[str, Any]:
     """The figures a :class:`ikbench.core.contract.Contract` judges, with the Table 1/2 ones.
 
@@ -314,7 +314,7 @@ def contract_metrics(robot: Robot, task: Task, poses_motor_deg: npt.ArrayLike,
         without a collision model: nothing can be checked, so the collision criterion fails).
         Obstacle-free tasks get none of these.
     """
-    poses = np.asarray(poses_motor_deg, dtype=float)
+    poses = np.asarray(poses, dtype=float)
     fk = robot.fk(poses)
     out: dict[str, Any] = _line_metrics(robot, task, poses, fk)
     mask = np.asarray(task.pen_down, dtype=bool)

@@ -16,7 +16,7 @@ import numpy.typing as npt
 STILL_DEG = 1e-3
 
 
-def line_metrics(points_mm: npt.ArrayLike, directions: npt.ArrayLike, poses_deg: npt.ArrayLike,
+def line_metrics(points_mm: npt.ArrayLike, directions: npt.ArrayLike, poses: npt.ArrayLike,
                  start_point_mm: npt.ArrayLike, end_point_mm: npt.ArrayLike,
                  start_pose: npt.ArrayLike, end_pose: npt.ArrayLike
                  ) -> dict[str, np.ndarray]:
@@ -25,7 +25,7 @@ def line_metrics(points_mm: npt.ArrayLike, directions: npt.ArrayLike, poses_deg:
     Args:
         points_mm: (B, N, 3) fingertip points [mm].
         directions: (B, N, 3) pointing directions (normalised here).
-        poses_deg: (B, N, dof) poses [pose units].
+        poses: (B, N, dof) poses [pose units].
         start_point_mm / end_point_mm: (B, 3) P^s and P^e [mm]; the goal direction is the
             unit vector from P^s to P^e.
         start_pose / end_pose: (B, dof) the pinned start and touch poses.
@@ -36,7 +36,7 @@ def line_metrics(points_mm: npt.ArrayLike, directions: npt.ArrayLike, poses_deg:
         errors [mm], start/end pose errors [deg] and the smoothness figures.
     """
     points = np.asarray(points_mm, dtype=float)
-    poses = np.asarray(poses_deg, dtype=float)
+    poses = np.asarray(poses, dtype=float)
     start = np.asarray(start_point_mm, dtype=float)[:, None, :]
     end = np.asarray(end_point_mm, dtype=float)[:, None, :]
     axis = (end - start) / np.linalg.norm(end - start, axis=-1, keepdims=True)
@@ -60,9 +60,9 @@ def line_metrics(points_mm: npt.ArrayLike, directions: npt.ArrayLike, poses_deg:
     }
 
 
-def smoothness(poses_deg: npt.ArrayLike) -> dict[str, np.ndarray]:
+def smoothness(poses: npt.ArrayLike) -> dict[str, np.ndarray]:
     """:func:`ikbench.core.metrics.smoothness` of B trajectories (B, N, dof), (B,) each."""
-    poses = np.asarray(poses_deg, dtype=float)
+    poses = np.asarray(poses, dtype=float)
     d1 = np.diff(poses, axis=1)
     d3 = np.diff(poses, n=3, axis=1)
     return {
@@ -74,10 +74,10 @@ def smoothness(poses_deg: npt.ArrayLike) -> dict[str, np.ndarray]:
     }
 
 
-def velocity_sign_changes(steps_deg: npt.ArrayLike) -> np.ndarray:
+def velocity_sign_changes(steps: npt.ArrayLike) -> np.ndarray:
     """Sign changes of joint velocity summed over joints, ignoring steps below
     :data:`STILL_DEG`, for steps (B, n, dof); (B,) integers."""
-    signs = np.sign(np.where(np.abs(steps_deg) < STILL_DEG, 0.0, steps_deg))
+    signs = np.sign(np.where(np.abs(steps) < STILL_DEG, 0.0, steps))
     last = np.zeros(signs[:, 0].shape)              # last non-zero sign per joint (0: none)
     changes = np.zeros(len(signs), dtype=np.int64)
     for i in range(signs.shape[1]):

@@ -343,7 +343,7 @@ def home_pose(robot: Robot) -> np.ndarray:
     """The robot's home pose [pose units]: its default targets' start pose, else all zeros
     (clipped to the validity limits)."""
     pose = np.zeros(robot.dof)
-    if isinstance(robot.config.get("targets"), dict):
+    if robot.config.targets.file is not None:
 
         pose = load_targets(None, robot).start_pose
     return np.clip(pose, robot.validity_lower, robot.validity_upper)

@@ -41,6 +41,7 @@ from ikbench.core.errors import InputError, refuse_unknown_keys
 from ikbench.core.kinematics.chain import ChainKinematics
 from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
 from ikbench.core.kinematics.torch_fk import TorchFK
+from ikbench.core.robot_config import CONFIG_KEYS, RobotConfig
 from ikbench.core.robot_packages import is_package_name, resolve
 from ikbench.core.urdf_model import MOVABLE_TYPES, UrdfJoint, UrdfModel, load_urdf_model
 
@@ -55,10 +56,6 @@ RANGE_TOLERANCE_DEG = 1e-6
 #: iterates (``ours``: Adam in float32) may pass a limit by an ulp of float32 (1.5e-5 deg at
 #: 166 deg); the judge (:meth:`Robot.within_limits`) keeps :data:`RANGE_TOLERANCE_DEG`.
 FILE_RANGE_TOLERANCE_DEG = 1e-4
-#: Keys a robot config may hold (a typo would otherwise be ignored silently).
-CONFIG_KEYS = ("name", "description", "source", "urdf", "base_link", "end_frame",
-               "pointing_axis", "joints", "motor_map", "hardware", "targets", "frame",
-               "letters", "batch", "locked", "validity_limits", "collision")
 
 
 def robots_dir() -> Path:
@@ -93,7 +90,8 @@ class Robot:
         joint_types: (dof,) ``revolute``, ``continuous`` or ``prismatic``.
         pointing_axis: (3,) unit axis of the end frame that "points" (default z).
         has_motor_map: True when poses are motor degrees (a ``*.motors.json`` map).
-        config: the robot config (description, source, targets, frame, letters, batch ...).
+        config: the robot config (:class:`RobotConfig`: description, source, targets, frame,
+            letters, batch ...).
         locked_urdf: joints of the chain held fixed, name -> value [rad or m]; they are not in
             ``joint_names`` (the config gives them in pose units, ``locked``).
         validity_lower: (dof,) lower bounds [pose units] a benchmark's validity check uses
@@ -113,7 +111,7 @@ class Robot:
     joint_types: tuple[str, ...] = ()
     pointing_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
     has_motor_map: bool = True
-    config: dict = field(default_factory=dict)
+    config: RobotConfig = field(default_factory=RobotConfig)
     locked_urdf: dict = field(default_factory=dict)
     validity_lower: np.ndarray | None = None
     validity_upper: np.ndarray | None = None
@@ -196,8 +194,8 @@ class Robot:
                 "pose_unit": self.pose_unit, "urdf": self.urdf_path.name,
                 "urdf_sha256": self.urdf_sha256,
                 **({"locked_urdf": dict(self.locked_urdf)} if self.locked_urdf else {}),
-                "description": self.config.get("description", ""),
-                "source": self.config.get("source", "")}
+                "description": self.config.description,
+                "source": self.config.source}
 
     # ----- pose units <-> URDF units ---------------------------------------------------------
     @overload
@@ -220,9 +218,10 @@ class Robot:
         scale, offset, si = self._map_constants(q_urdf)
         return (q_urdf / si - offset) / scale
 
-    def motor_to_joint_rad(self, q_motor_deg: npt.ArrayLike) -> np.ndarray:
-        """Poses [pose units] -> URDF joint values (the older name of :meth:`to_urdf`)."""
-        return self.to_urdf(q_motor_deg)
+    def motor_to_joint_rad(self, poses: npt.ArrayLike) -> np.ndarray:
+        """Poses [pose units: Robot.pose_unit] -> URDF joint values (the older name of
+        :meth:`to_urdf`)."""
+        return self.to_urdf(poses)
 
     def joint_rad_to_motor_deg(self, q_rad: npt.ArrayLike) -> np.ndarray:
         """URDF joint values -> poses (the older name of :meth:`from_urdf`)."""
@@ -241,35 +240,35 @@ class Robot:
         return self._cache[key]
 
     # ----- validation -------------------------------------------------------------------------
-    def check_pose(self, pose_motor_deg: npt.ArrayLike, what: str = "pose",
+    def check_pose(self, pose: npt.ArrayLike, what: str = "pose",
                    tol_deg: float = RANGE_TOLERANCE_DEG) -> np.ndarray:
-        """Validate one pose (length, finite, within the limits to ``tol_deg`` [pose units]);
-        return it as float64.
+        """Validate one pose [pose units: Robot.pose_unit] (length, finite, within the limits
+        to ``tol_deg`` [pose units]); return it as float64.
 
         Raises:
             InputError: naming the bad entry and the allowed values.
         """
         try:
-            pose = np.asarray(pose_motor_deg, dtype=float)
+            array = np.asarray(pose, dtype=float)
         except (TypeError, ValueError):
             raise InputError(
-                f"{what}: {pose_motor_deg!r} is not a list of {self.dof} numbers "
+                f"{what}: {pose!r} is not a list of {self.dof} numbers "
                 f"({self.pose_unit}, order {', '.join(self.joint_names)})"
             ) from None
-        if pose.shape != (self.dof,):
+        if array.shape != (self.dof,):
             kind = "values" if self.prismatic.any() else "angles"
             raise InputError(
                 f"{what}: expected {self.dof} {kind} ({', '.join(self.joint_names)}; "
-                f"{self.pose_unit}), got {pose.size}"
+                f"{self.pose_unit}), got {array.size}"
             )
         for j, (name, value, lo, hi) in enumerate(zip(
-                self.joint_names, pose, self.lower, self.upper)):
+                self.joint_names, array, self.lower, self.upper)):
             if not math.isfinite(value):
                 raise InputError(f"{what}: {name} = {value} is not a finite number")
             if value < lo - tol_deg or value > hi + tol_deg:
                 raise InputError(f"{what}: {name} = {value:g} {self.unit(j)} is outside its "
                                  f"range [{lo:g}, {hi:g}]")
-        return pose
+        return array
 
     def check_poses(self, poses: npt.ArrayLike, what: str = "poses") -> np.ndarray:
         """Validate poses (B, dof) or (dof,); InputError naming the shape expected."""
@@ -280,10 +279,11 @@ class Robot:
                              f"({', '.join(self.joint_names)}; {self.pose_unit})")
         return array
 
-    def within_limits(self, poses_motor_deg: npt.ArrayLike,
+    def within_limits(self, poses: npt.ArrayLike,
                       tol_deg: float = RANGE_TOLERANCE_DEG) -> bool:
-        """True when every pose in (..., dof) lies within the limits (+- ``tol_deg``)."""
-        poses = np.asarray(poses_motor_deg, dtype=float)
+        """True when every pose in (..., dof) [pose units: Robot.pose_unit] lies within the
+        limits (+- ``tol_deg``)."""
+        poses = np.asarray(poses, dtype=float)
         return bool(
             np.all(poses >= self.lower - tol_deg)
             and np.all(poses <= self.upper + tol_deg)
@@ -328,38 +328,39 @@ class Robot:
             self._cache["chain"] = ChainKinematics(self)
         return self._cache["chain"]
 
-    def fk(self, q_motor_deg: npt.ArrayLike, backend: str = "pinocchio") -> FKResult:
+    def fk(self, poses: npt.ArrayLike, backend: str = "pinocchio") -> FKResult:
         """End point [mm] and pointing direction for poses (dof,) or (B, dof) [pose units].
 
         Args:
-            q_motor_deg: pose(s) in pose units.
+            poses: pose(s) (dof,) or (B, dof) [pose units: Robot.pose_unit].
             backend: ``"pinocchio"`` or ``"torch"`` (pytorch-kinematics, float64).
 
         Returns:
             FKResult with arrays of shape (B, 3) (B = 1 for a single pose).
         """
-        q = np.atleast_2d(self.check_poses(q_motor_deg, "fk"))
+        q = np.atleast_2d(self.check_poses(poses, "fk"))
         T_base_tip = self.fk_transform(q, backend)
         return FKResult(T_base_tip[:, :3, 3] * MM_PER_M, T_base_tip[:, :3, :3]
                         @ self.pointing_axis)
 
-    def skeleton_mm(self, q_motor_deg: npt.ArrayLike) -> np.ndarray:
+    def skeleton_mm(self, poses: npt.ArrayLike) -> np.ndarray:
         """The arm as a polyline: points (B, dof + 2, 3) [mm] in the base frame for poses
-        (dof,) or (B, dof) [pose units].
+        (dof,) or (B, dof) [pose units: Robot.pose_unit].
 
         Point 0 is the base link's origin, points 1..dof the origins of the movable joints'
         frames along the chain (Pinocchio's joint placements, which fold in the fixed joints
         between them), the last the end frame. Drawing lines through them gives the arm's
         links, base to end frame; it needs no visual shapes.
         """
-        q = np.atleast_2d(self.check_poses(q_motor_deg, "skeleton"))
+        q = np.atleast_2d(self.check_poses(poses, "skeleton"))
         point_m, _, _, origins_m = self.chain_kinematics().transforms(q)
         base = np.zeros((len(q), 1, 3))
         return np.concatenate([base, origins_m, point_m[:, None]], axis=1) * MM_PER_M
 
-    def fk_transform(self, q_motor_deg: npt.ArrayLike, backend: str = "pinocchio") -> np.ndarray:
-        """End-frame transforms (B, 4, 4) in the base frame [m] for poses (B, dof)."""
-        q = np.atleast_2d(self.check_poses(q_motor_deg, "fk"))
+    def fk_transform(self, poses: npt.ArrayLike, backend: str = "pinocchio") -> np.ndarray:
+        """End-frame transforms (B, 4, 4) in the base frame [m] for poses (dof,) or
+        (B, dof) [pose units: Robot.pose_unit]."""
+        q = np.atleast_2d(self.check_poses(poses, "fk"))
         if backend == "pinocchio":
             return self.pinocchio_fk().transforms(q)
         if backend == "torch":
@@ -431,6 +432,7 @@ def _read_config(path: Path) -> dict:
     except (OSError, UnicodeDecodeError, ValueError, KeyError) as exc:
         raise InputError(f"robot config {str(path)!r} cannot be read: {exc}") from None
     refuse_unknown_keys(config, CONFIG_KEYS, f"robot config {str(path)!r}")
+    RobotConfig.from_dict(config, f"robot config {str(path)!r}")  # wrong types refused
     missing = [k for k in ("urdf", "end_frame") if k not in config]
     if missing:
         raise InputError(f"robot config {str(path)!r}: missing key(s) {', '.join(missing)}")
@@ -487,7 +489,8 @@ def robot_from_config(path: Path, end_frame: str | None = None) -> Robot:
                  joint_types=types,
                  pointing_axis=_unit_axis(config.get("pointing_axis", (0, 0, 1)),
                                           f"{path.name}: pointing_axis"),
-                 has_motor_map=has_map, config={**config, "config_path": str(path)},
+                 has_motor_map=has_map, config=RobotConfig.from_dict(
+                     config, f"robot config {str(path)!r}", path),
                  locked_urdf=locked, validity_lower=valid_lower, validity_upper=valid_upper,
                  _cache={"urdf_model": urdf})
 
@@ -560,8 +563,9 @@ def robot_from_urdf(urdf_path: Path, end_frame: str, base_link: str | None = Non
                  lower=np.array([j.lower for j in joints]) * per_unit,
                  upper=np.array([j.upper for j in joints]) * per_unit,
                  joint_types=types, has_motor_map=False,
-                 config={"description": f"{urdf_path.name}, chain {base} -> {end_frame}",
-                         "source": str(urdf_path)},
+                 config=RobotConfig(
+                     description=f"{urdf_path.name}, chain {base} -> {end_frame}",
+                     source=str(urdf_path)),
                  _cache={"urdf_model": urdf})
 
 
@@ -574,7 +578,7 @@ def robot_from_package(name: str, end_frame: str | None) -> Robot:
     urdf_path, base, end, description = resolve(name, end_frame)
     robot = robot_from_urdf(urdf_path, end, base)
     return replace(robot, name=name.partition(":")[2], _cache={"urdf_model": robot.urdf_model},
-                   config={"description": description, "source": name})
+                   config=RobotConfig(description=description, source=name))
 
 
 @functools.lru_cache(maxsize=16)

@@ -233,13 +233,13 @@ def _reject_duplicate_keys(pairs):
 
 def default_targets(robot: Robot) -> tuple[Path, str]:
     """(file, name) of the robot's default targets; TargetsError if it ships none."""
-    entry = robot.config.get("targets")
-    if not isinstance(entry, dict) or "file" not in entry:
+    entry = robot.config.targets
+    if entry.file is None:
         raise TargetsError(f"targets: robot {robot.name} ships no default targets; give a "
                            f"targets file (start and touch poses in {robot.pose_unit}, joints "
                            f"{', '.join(robot.joint_names)})")
-    folder = Path(robot.config.get("config_path", robot.urdf_path)).parent
-    return folder / entry["file"], str(entry.get("name") or "default")
+    folder = robot.config.folder or robot.urdf_path.parent
+    return folder / entry.file, str(entry.name or "default")
 
 
 def load_targets(path: str | Path | None = None, robot: Robot | None = None) -> Targets:
@@ -247,7 +247,7 @@ def load_targets(path: str | Path | None = None, robot: Robot | None = None) -> 
     NICO) gives the robot's default targets."""
     robot = robot or load_robot()
     shipped = None
-    default_name = (robot.config.get("targets") or {}).get("name")
+    default_name = robot.config.targets.name
     if path is None or (default_name and str(path) == default_name):
         file, source = default_targets(robot)
         text = file.read_text(encoding="utf-8")

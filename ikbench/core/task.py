@@ -274,15 +274,17 @@ def parse_direction(value: str | npt.ArrayLike) -> np.ndarray:
 def letter_plane(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
     """The robot's letter plane axes (u: the viewer's right, v: up) from its config's
     ``[letters]`` (default NICO's frontal plane: u = -y, v = +z)."""
-    section = robot.config.get("letters") or {}
-    return (np.asarray(section.get("plane_u", letters.FRONTAL_U), dtype=float),
-            np.asarray(section.get("plane_v", letters.FRONTAL_V), dtype=float))
+    section = robot.config.letters
+    return (np.asarray(letters.FRONTAL_U if section.plane_u is None else section.plane_u,
+                       dtype=float),
+            np.asarray(letters.FRONTAL_V if section.plane_v is None else section.plane_v,
+                       dtype=float))
 
 
 def letter_start_pose(robot: Robot, targets: Targets | None = None) -> np.ndarray:
     """The start pose letters are drawn from: the robot config's ``[letters] start_pose``
     (NICO: the paper's), else the targets' start pose."""
-    pose = (robot.config.get("letters") or {}).get("start_pose")
+    pose = robot.config.letters.start_pose
     if pose is not None:
         return robot.check_pose(pose, f"robot {robot.name}: letters start_pose")
     if targets is None:

@@ -59,7 +59,7 @@ def urdf_velocity_limits(robot: Robot) -> np.ndarray:
 
 def limits_file(robot: Robot) -> Path | None:
     """``<config stem>.limits.json`` next to the robot's config, if there is one."""
-    config = robot.config.get("config_path")
+    config = robot.config.config_path
     if not config:
         return None
     path = Path(config)

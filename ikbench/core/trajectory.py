@@ -40,13 +40,13 @@ def trajectory_columns(robot: Robot, quaternion: bool = False) -> list[str]:
             *(QUATERNION_COLUMNS if quaternion else [])]
 
 
-def trajectory_frame(robot: Robot, poses_motor_deg: npt.ArrayLike,
+def trajectory_frame(robot: Robot, poses: npt.ArrayLike,
                      duration_s: float = DEFAULT_DURATION_S,
                      quaternion: bool = False) -> pd.DataFrame:
     """Build the trajectory table for poses (n+1, dof) [motor deg]; returns a DataFrame
     (``quaternion``: add the end frame's orientation, for pose paths). Continuous joints are
     written unwrapped (:func:`ikbench.core.robot.unwrap_continuous`: no step over 180 deg)."""
-    poses = unwrap_continuous(robot, np.asarray(poses_motor_deg, dtype=float))
+    poses = unwrap_continuous(robot, np.asarray(poses, dtype=float))
     n = len(poses) - 1
     if n < 1:
         raise InputError(f"a trajectory needs at least 2 poses, got {len(poses)}")
@@ -62,19 +62,19 @@ def trajectory_frame(robot: Robot, poses_motor_deg: npt.ArrayLike,
     return frame
 
 
-def trajectory_csv_text(robot: Robot, poses_motor_deg: npt.ArrayLike,
+def trajectory_csv_text(robot: Robot, poses: npt.ArrayLike,
                         duration_s: float = DEFAULT_DURATION_S, quaternion: bool = False) -> str:
     """The text of a trajectory CSV (:func:`trajectory_frame`, :data:`FLOAT_FORMAT`): what
     :func:`write_trajectory_csv` writes, byte for byte."""
-    frame = trajectory_frame(robot, poses_motor_deg, duration_s, quaternion)
+    frame = trajectory_frame(robot, poses, duration_s, quaternion)
     return frame.to_csv(index=False, float_format=FLOAT_FORMAT)
 
 
-def write_trajectory_csv(path: str | Path, robot: Robot, poses_motor_deg: npt.ArrayLike,
+def write_trajectory_csv(path: str | Path, robot: Robot, poses: npt.ArrayLike,
                          duration_s: float = DEFAULT_DURATION_S,
                          quaternion: bool = False) -> Path:
     """Write a trajectory CSV atomically; return its path."""
-    return atomic_write_text(path, trajectory_csv_text(robot, poses_motor_deg, duration_s,
+    return atomic_write_text(path, trajectory_csv_text(robot, poses, duration_s,
                                                        quaternion))
 
 

@@ -33,7 +33,7 @@ def timing_limits(robot: Robot, config: MotorConfig | None = None, max_velocity:
     """
     velocity = parse_limit_option(max_velocity, robot.dof, "max_velocity")
     acceleration = parse_limit_option(max_acceleration, robot.dof, "max_acceleration")
-    if config is None and robot.config.get("hardware"):
+    if config is None and robot.config.hardware:
         config = load_motor_config(None, robot)
     limits = motor_limits(config) if config is not None else urdf_limits(robot, velocity)
     return with_overrides(limits, velocity, acceleration)

@@ -214,11 +214,11 @@ def default_config_path(robot: Robot | None = None) -> Path:
         InputError: the robot names no motor config.
     """
     robot = robot or load_robot()
-    name = robot.config.get("hardware")
+    name = robot.config.hardware
     if not name:
         raise InputError(f"robot {robot.name} has no motor config (no 'hardware' in its robot "
                          "config); give --motors FILE")
-    return Path(robot.config["config_path"]).parent / name
+    return Path(str(robot.config.config_path)).parent / name
 
 
 def load_motor_config(path: str | Path | None = None, robot: Robot | None = None) -> MotorConfig:

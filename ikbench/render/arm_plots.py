@@ -49,9 +49,10 @@ def frame_labels(robot: Robot | None = None) -> tuple[list[str], tuple[float, fl
     """Axis labels and (elevation, azimuth) [deg] of 3-D figures from the robot config's
     ``[frame]`` (NICO: the torso frame seen from the front-right, above), else plain
     x/y/z [mm] and :data:`DEFAULT_VIEW`."""
-    section = (robot.config.get("frame") if robot is not None else None) or {}
-    labels = section.get("axis_labels", list(DEFAULT_LABELS))
-    view = section.get("view", DEFAULT_VIEW)
+    section = robot.config.frame if robot is not None else None
+    labels = (list(section.axis_labels) if section is not None and section.axis_labels
+              is not None else list(DEFAULT_LABELS))
+    view = section.view if section is not None and section.view is not None else DEFAULT_VIEW
     return list(labels), (float(view[0]), float(view[1]))
 
 

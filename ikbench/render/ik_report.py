@@ -262,7 +262,7 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
         f"# Single-pose IK: {robot.name}",
         "",
         f"Robot: {robot.name} ({robot.dof} joints, {robot.root_link} -> {robot.end_frame}; "
-        f"{robot.config.get('description', '')}). Targets: {s.count}, FK of configurations "
+        f"{robot.config.description}). Targets: {s.count}, FK of configurations "
         f"drawn uniformly within the joint limits, seed {s.seed}. Goal: {kind}. **Success**: "
         f"FK through Pinocchio within {tolerance} and within the joint limits (the method's "
         "own claim is not used).",

@@ -85,7 +85,7 @@ class WorkspaceFilter:
     @classmethod
     def of(cls, robot: Robot) -> WorkspaceFilter:
         """The robot config's ``[batch]`` filter (unknown keys refused)."""
-        section = dict(robot.config.get("batch") or {})
+        section = dict(robot.config.batch)
         known = {f for f in cls.__dataclass_fields__}
         unknown = [k for k in section if k not in known]
         if unknown:

@@ -32,8 +32,8 @@ FIRST_CALL_TIMEOUT_S = 600.0
 def robot_spec(robot: Any) -> tuple[str, str]:
     """What loads ``robot`` again in another process: its config file, its package name
     (``example-robot-data:ur5``) or its URDF, and its end frame."""
-    config = robot.config.get("config_path")
-    source = str(robot.config.get("source", ""))
+    config = robot.config.config_path
+    source = str(robot.config.source)
     if config:
         return str(config), robot.end_frame
     if ":" in source and not source.startswith("/"):

@@ -231,7 +231,7 @@ def prepare_problem(method: str | Method, problem: str | Path, *,
         if given.name != problem_robot.name:
             raise InputError(f"--robot {given.name}: the problem {parsed.name} is for robot "
                              f"{problem_robot.name!r} (leave --robot out)")
-    if isinstance(problem_robot.config.get("targets"), dict):
+    if problem_robot.config.targets.file is not None:
         targets = load_targets(None, problem_robot)
     else:
         assert task.reference_pose is not None  # problem_task sets it

@@ -263,7 +263,7 @@ def robot_entry(robot: Robot) -> dict[str, Any]:
     """How run.json names the robot: enough to load it again (:func:`robot_from_record`).
     A shipped robot by its name (not the path of the machine that wrote the run), any other
     by its config or URDF path."""
-    config = robot.config.get("config_path")
+    config = str(robot.config.config_path) if robot.config.config_path else None
     spec = config if config else str(robot.urdf_path)
     shipped = shipped_robots().get(robot.name)
     if config and shipped is not None and Path(config).resolve() == shipped.resolve():

@@ -42,7 +42,7 @@ def _own_targets(robot: Robot, targets: str | Path | Targets | None) -> Targets 
     """The targets given, else the robot's own, else None (a URDF without targets)."""
     if isinstance(targets, Targets):
         return targets
-    if targets is None and not isinstance(robot.config.get("targets"), dict):
+    if targets is None and robot.config.targets.file is None:
         return None
     return load_targets(targets, robot)
 
@@ -158,7 +158,7 @@ class LetterDesign:
         own = _own_targets(robot, targets)
         pose = (robot.check_pose(start_pose, "--start-pose") if start_pose is not None
                 else letter_start_pose(robot, own) if own is not None or
-                (robot.config.get("letters") or {}).get("start_pose") is not None
+                robot.config.letters.start_pose is not None
                 else _middle_pose(robot))
         self.reference_pose = np.asarray(pose, dtype=float)
         self.targets = own if own is not None else Targets(
