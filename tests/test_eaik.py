@@ -243,3 +243,50 @@ def test_orientation_impossible_targets_hold_no_exact_in_limit_solution_and_none
     on_orient = table[table["target"].isin(orient)]
     assert len(on_orient) == 2 * len(orient)
     assert not on_orient["success"].astype(bool).any()
+
+
+#: Target 161 of the committed UR5 ``--unreachable 0.2`` study (seed 1), drawn as
+#: orientation-impossible by the old proof, and the pose ours-lm answered it with [rad]: the
+#: elbow stretched (a workspace boundary), 0.58 mm and 0.31 deg from the frame.
+_NEAR_BOUNDARY_MM = (-78.833344723695134, -140.74676118173889, 944.46932777921927)
+_NEAR_BOUNDARY_R = ((0.73596099751076438, -0.19877829940635167, -0.64718513412166656),
+                    (0.44810157237808373, -0.57356216866502652, 0.68573421929240208),
+                    (-0.50750999101027516, -0.7946783162773412, -0.33304651726652246))
+_NEAR_BOUNDARY_Q = (2.0241828173223002, -1.8160180699771307, 2.9311995189993827e-09,
+                    -0.97667973979673495, 4.9989029827415683, 0.46613068248269274)
+
+
+@needs_erd
+def test_a_frame_a_pose_reaches_within_the_judges_tolerance_is_not_declared_impossible():
+    """The old proof (limits widened by 1 deg, EAIK's least-squares answers missing by more
+    than 1 mm) declared this frame impossible; an in-limit pose is within the judge's
+    tolerance of it, so the proof must not (the perturbed frames and the numerical check)."""
+    import math
+
+    import pinocchio as pin
+
+    from ikbench.studies.ik_truth import orientation_impossible
+
+    robot = load_robot("example-robot-data:ur5")
+    solver = EaikSolver(robot)
+    solver.prepare()
+    point = np.array(_NEAR_BOUNDARY_MM) / 1000.0
+    rotation = np.array(_NEAR_BOUNDARY_R)
+    q = np.array(_NEAR_BOUNDARY_Q)
+    settings = IKSettings()
+    M = robot.pinocchio_fk().placement(q)
+    assert np.all(q >= solver.lower) and np.all(q <= solver.upper)
+    assert 1000.0 * np.linalg.norm(M.translation - point) <= settings.tolerance_mm
+    assert math.degrees(np.linalg.norm(pin.log3(M.rotation.T @ rotation))) \
+        <= settings.tolerance_deg
+    assert len(solver.branches(point, rotation, tol=math.radians(1.0))) == 0  # EAIK: no exact
+    assert not orientation_impossible(solver, point, rotation)
+
+
+def test_the_orientation_margin_is_tied_to_the_judges_default_tolerances():
+    from ikbench.studies import ik_truth
+
+    settings = IKSettings()
+    assert (ik_truth.JUDGE_TOLERANCE_MM, ik_truth.JUDGE_TOLERANCE_DEG) == (
+        settings.tolerance_mm, settings.tolerance_deg)
+    assert ik_truth.MARGIN_TOLERANCES >= 3

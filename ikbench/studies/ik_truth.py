@@ -153,10 +153,17 @@ def unreachable_targets(robot: Robot, T_reachable: np.ndarray, rng: np.random.Ge
 REACHABLE, BEYOND_REACH_KIND, ORIENTATION_KIND = "", "beyond_reach", "orientation_impossible"
 #: Random orientations drawn per orientation-impossible target at most.
 ORIENTATION_DRAWS = 100
-#: An orientation counts as impossible only with this margin: no exact solution within the
-#: limits widened by it [deg], and every least-squares answer of the analytic solver misses
-#: the frame by more than it [mm or deg, the larger of the two].
-ORIENTATION_MARGIN = 1.0
+#: The judge's default tolerances (:class:`ikbench.studies.ik.IKSettings`) [mm, deg].
+JUDGE_TOLERANCE_MM, JUDGE_TOLERANCE_DEG = 1.0, 0.5
+#: An orientation counts as impossible only with this margin, in judge tolerances: nothing
+#: comes within this many times the judge's tolerances of the frame (see
+#: :func:`orientation_impossible`).
+MARGIN_TOLERANCES = 3.0
+#: The margin in the units of each check: widened limits [deg], the perturbation steps and
+#: the numerical search's acceptance [mm, deg].
+ORIENTATION_MARGIN = MARGIN_TOLERANCES * JUDGE_TOLERANCE_DEG
+#: Damped least-squares iterations of the numerical check from each least-squares answer.
+NEARBY_ITERATIONS = 60
 
 
 def _random_rotation(rng: np.random.Generator) -> np.ndarray:
@@ -167,25 +174,81 @@ def _random_rotation(rng: np.random.Generator) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def orientation_impossible(solver: PoseSolver, point_m: np.ndarray, rotation: np.ndarray
-                           ) -> bool:
-    """True when the analytic ``solver`` proves the frame impossible with
-    :data:`ORIENTATION_MARGIN`: no exact solution (``is_LS`` False) has every joint within
-    its limits (any whole turn, :func:`ikbench.baselines.eaik_ik.in_limit_turns`), and each
-    least-squares answer misses the frame by more than the margin."""
+def _perturbations(step_m: float, step_rad: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """A fixed set of (offset [m] (3,), rotation (3, 3)) steps: every position offset of
+    {-1, 0, 1}^3 x ``step_m`` combined with no rotation and with a rotation by ``step_rad``
+    about each axis either way (27 x 7 = 189, the first the identity)."""
     import pinocchio as pin
 
-    tol = math.radians(ORIENTATION_MARGIN)
-    if len(solver.branches(point_m, rotation, tol=tol)):  # type: ignore[attr-defined]
-        return False
+    offsets = [np.array([i, j, k], dtype=float) * step_m
+               for i in (0, -1, 1) for j in (0, -1, 1) for k in (0, -1, 1)]
+    turns = [np.eye(3)] + [pin.exp3(sign * step_rad * np.eye(3)[axis])
+                           for axis in range(3) for sign in (-1.0, 1.0)]
+    return [(offset, turn) for turn in turns for offset in offsets]
+
+
+def _nearest_miss(solver: PoseSolver, point_m: np.ndarray, rotation: np.ndarray,
+                  starts: np.ndarray, tolerance: tuple[float, float]) -> float:
+    """The smallest miss of the frame, ``max(mm / tolerance_mm, deg / tolerance_deg)``, that
+    damped least squares (Pinocchio, the error weighted by the tolerances, each step kept
+    within the limits) reaches from each of ``starts`` (S, dof) [rad]; inf without starts."""
+    import pinocchio as pin
+
     fk = solver.robot.pinocchio_fk()
-    for q in solver.solutions(point_m, rotation)[1]:  # type: ignore[attr-defined]
-        M = fk.placement(q)
-        miss_mm = 1000.0 * float(np.linalg.norm(M.translation - point_m))
-        miss_deg = math.degrees(float(np.linalg.norm(pin.log3(M.rotation.T @ rotation))))
-        if max(miss_mm, miss_deg) <= ORIENTATION_MARGIN:
+    data = fk.model.createData()
+    scale = np.r_[np.full(3, 1000.0 / tolerance[0]), np.full(3, math.degrees(1.0) / tolerance[1])]
+    lower, upper = solver.lower, solver.upper  # type: ignore[attr-defined]
+    target = pin.SE3(rotation, np.asarray(point_m, dtype=float))
+    best = math.inf
+    for q in np.atleast_2d(starts):
+        q = np.clip(np.asarray(q, dtype=float), lower, upper)
+        for _ in range(NEARBY_ITERATIONS + 1):
+            pin.framesForwardKinematics(fk.model, data, q)
+            M = data.oMf[fk.frame_id]
+            miss_mm = 1000.0 * float(np.linalg.norm(M.translation - target.translation))
+            miss_deg = math.degrees(float(np.linalg.norm(pin.log3(M.rotation.T @ rotation))))
+            best = min(best, max(miss_mm / tolerance[0], miss_deg / tolerance[1]))
+            # the error in the world-aligned frame: position gap and the rotation's log
+            err = np.r_[target.translation - M.translation, pin.log3(rotation @ M.rotation.T)]
+            J = pin.computeFrameJacobian(fk.model, data, q, fk.frame_id,
+                                         pin.LOCAL_WORLD_ALIGNED)
+            Js, es = J * scale[:, None], err * scale
+            dq = np.linalg.solve(Js.T @ Js + 1e-6 * np.eye(len(q)), Js.T @ es)
+            q = np.clip(q + dq, lower, upper)
+    return best
+
+
+def orientation_impossible(solver: PoseSolver, point_m: np.ndarray, rotation: np.ndarray,
+                           tolerance: tuple[float, float] = (JUDGE_TOLERANCE_MM,
+                                                             JUDGE_TOLERANCE_DEG)) -> bool:
+    """True when no configuration within the limits comes near the frame, with a margin of
+    :data:`MARGIN_TOLERANCES` times the judge's ``tolerance`` (mm, deg). Two checks, both
+    must hold:
+
+    (a) the analytic ``solver`` has no exact solution (``is_LS`` False) with every joint
+        within its limits widened by the margin [deg] (any whole turn,
+        :func:`ikbench.baselines.eaik_ik.in_limit_turns`), for the frame nor for any of a
+        fixed set of frames around it (:func:`_perturbations`: the position moved by the
+        margin [mm] along each axis and diagonal, the rotation turned by the margin [deg]
+        about each axis): a frame the judge would accept an answer for lies within one
+        tolerance of the frame, so within the grid's spacing of one of these;
+    (b) damped least squares within the limits, from each of the solver's least-squares
+        answers to the frame (they are near the nearest pose, not on it: a frame just beyond
+        a workspace boundary is missed by them by more than by the boundary's pose), misses
+        by more than the margin (:func:`_nearest_miss`).
+
+    The EAIK enumeration is exact; the margin covers the boundary between its frames and
+    numerical solvers that stop within a tolerance of the frame."""
+    step_m = MARGIN_TOLERANCES * tolerance[0] / 1000.0
+    step_rad = math.radians(MARGIN_TOLERANCES * tolerance[1])
+    widen = math.radians(MARGIN_TOLERANCES * tolerance[1])
+    point_m = np.asarray(point_m, dtype=float)
+    for offset, turn in _perturbations(step_m, step_rad):
+        if len(solver.branches(point_m + offset, rotation @ turn,  # type: ignore[attr-defined]
+                               tol=widen)):
             return False
-    return True
+    starts = solver.solutions(point_m, rotation)[1]  # type: ignore[attr-defined]
+    return _nearest_miss(solver, point_m, rotation, starts, tolerance) > MARGIN_TOLERANCES
 
 
 def unreachable_mix(robot: Robot, T_reachable: np.ndarray, rng: np.random.Generator,
