@@ -80,7 +80,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Capabilities, Method, Solution
+from ikbench.methods.base import Capabilities, Method, Solution, report_fraction
 from ikbench.methods.options import check_choice, check_positive, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import goals_of, max_step_urdf
@@ -451,6 +451,7 @@ def walk_joint_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
         missed += not result.converged
         pos_mm, angle_deg = _point_errors(pin_fk, data, result.q_rad, task, i, rotation)
         worst_pos_mm, worst_angle_deg = max(worst_pos_mm, pos_mm), max(worst_angle_deg, angle_deg)
+        report_fraction(n - i, n)
     return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, up)
 
 
@@ -486,6 +487,7 @@ def walk_path_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
         missed += not result.converged
         pos_mm, angle_deg = _point_errors(pin_fk, data, q, task, i, rotation)
         worst_pos_mm, worst_angle_deg = max(worst_pos_mm, pos_mm), max(worst_angle_deg, angle_deg)
+        report_fraction(i + 1, task.steps + 1)
     return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, None)
 
 
@@ -530,6 +532,7 @@ def track_joint_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
         pos_mm, angle_deg = _point_errors(pin_fk, data, result.q_rad, task, i, rotation,
                                           direction)
         worst_pos_mm, worst_angle_deg = max(worst_pos_mm, pos_mm), max(worst_angle_deg, angle_deg)
+        report_fraction(i, n - 1)
     return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, up)
 
 

@@ -18,7 +18,10 @@ from __future__ import annotations
 
 import abc
 import dataclasses
-from collections.abc import Callable, Sequence
+import math
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
@@ -108,6 +111,37 @@ class Progress(Protocol):
 
     def done(self, task: Task, solution: Solution) -> None:
         """The task's solve finished."""
+
+
+#: Who hears how far the running solve is (:func:`report_fraction`): set by the harness around
+#: each solve (:func:`hearing_fraction`), None where nobody listens (a worker, a bare call).
+_fraction_listener: ContextVar[Callable[[float], None] | None] = ContextVar(
+    "ikbench_fraction_listener", default=None)
+
+
+def report_fraction(done: float, total: float) -> None:
+    """How far the running solve is within its task (or batch): ``done`` of ``total``, in the
+    method's own units of its cap (iterations done of the iteration cap, waypoints solved of
+    the waypoints). The study's progress bar moves by that fraction of the item; a method
+    that never calls it moves the bar once per item. A non-finite or non-positive total says
+    nothing; the fraction is clipped to [0, 1]. Cheap where nobody listens."""
+    listener = _fraction_listener.get()
+    if listener is None or not total > 0:
+        return
+    fraction = done / total
+    if math.isfinite(fraction):
+        listener(min(max(fraction, 0.0), 1.0))
+
+
+@contextmanager
+def hearing_fraction(listener: Callable[[float], None] | None) -> Iterator[None]:
+    """Within the block, :func:`report_fraction` goes to ``listener(fraction)`` (None: to
+    nobody)."""
+    token = _fraction_listener.set(listener)
+    try:
+        yield
+    finally:
+        _fraction_listener.reset(token)
 
 
 class Method(abc.ABC):

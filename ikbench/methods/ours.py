@@ -43,7 +43,7 @@ from ikbench.core.losses import (
     resolve_weights,
     weighted_loss,
 )
-from ikbench.methods.base import Capabilities, Method, Progress, Solution
+from ikbench.methods.base import Capabilities, Method, Progress, Solution, report_fraction
 from ikbench.methods.ours_frames import optimise_frames
 from ikbench.methods.ours_init import initial_logits
 from ikbench.methods.ours_settings import DTYPES as DTYPES
@@ -105,6 +105,7 @@ def optimise(robot: Robot, task: Task, settings: AdamSettings, progress: Progres
             best_loss, best_poses, best_below = value, poses.detach().clone(), below
         if progress and iterations % settings.progress_every == 0:
             progress.update(task, iterations, value)
+            report_fraction(iterations, settings.max_iterations)
         history.append(value)
         if below and value > statistics.median(history[-settings.median_window:]):
             converged = True

@@ -32,7 +32,7 @@ from ikbench.core.validity import (
     MAX_POSITION_ERROR_MM,
     MAX_ROTATION_ERROR_DEG,
 )
-from ikbench.methods.base import Progress, Solution
+from ikbench.methods.base import Progress, Solution, report_fraction
 from ikbench.methods.ours_init import initial_logits
 
 if TYPE_CHECKING:
@@ -116,6 +116,7 @@ def optimise_frames(robot: Robot, task: Task, settings: AdamSettings,
         iterations += 1
         if progress and iterations % settings.progress_every == 0:
             progress.update(task, iterations, value)
+            report_fraction(iterations, settings.max_iterations)
     duration = time.perf_counter() - start
     assert best_poses is not None
     return Solution(

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
 from ikbench.core.task import Task
-from ikbench.methods.base import Solution
+from ikbench.methods.base import Solution, hearing_fraction
 from ikbench.runtime.progress import Reporter, loss_text
 
 if TYPE_CHECKING:
@@ -62,14 +62,18 @@ class Interrupted(KeyboardInterrupt):
 
 class Progress(Reporter):
     """A method's progress (:class:`ikbench.methods.base.Progress`) as a :class:`Reporter`:
-    one unit per trajectory solved, the iterations as its status."""
+    one unit per trajectory solved, the iterations as its status; a trajectory started moves
+    the count by the fraction its method reports
+    (:func:`ikbench.methods.base.report_fraction`)."""
 
-    def __init__(self, label: str, stream: TextIO | None = None, enabled: bool = True) -> None:
-        super().__init__(label, unit="trajectory", enabled=enabled, stream=stream)
+    def __init__(self, label: str, stream: TextIO | None = None, enabled: bool = True,
+                 unit: str = "trajectory") -> None:
+        super().__init__(label, unit=unit, enabled=enabled, stream=stream)
 
     def start(self, task: Task, index: int, total: int) -> None:
         if self.total != total:
             self.set_total(total)
+        self.begin(1)
         self.say(f"trajectory {task.name} ({index + 1}/{total}): solving, n = {task.steps}")
 
     def update(self, task: Task, iteration: int, loss: float) -> None:
@@ -121,7 +125,8 @@ def solve_tasks(method: Method, robot: Robot, tasks: Sequence[Task],
 def _solve_one(method, robot, task, progress, done: list[Outcome]) -> Outcome:
     started = time.perf_counter()
     try:
-        solution = method.solve(robot, task, progress)
+        with _hearing(progress):
+            solution = method.solve(robot, task, progress)
     except KeyboardInterrupt:
         raise Interrupted(done) from None
     except Exception as exc:  # one failed solve is a row, not the end of the study
@@ -135,10 +140,18 @@ def _solve_one(method, robot, task, progress, done: list[Outcome]) -> Outcome:
     return outcome
 
 
+def _hearing(progress):
+    """The solve's :func:`~ikbench.methods.base.report_fraction` goes to ``progress`` when it
+    shows anything, else to nobody (a quiet solve inside a study that counts its own)."""
+    shown = isinstance(progress, Reporter) and progress.enabled
+    return hearing_fraction(progress.within if shown else None)
+
+
 def _solve_batched(method, robot, tasks, progress) -> list[Outcome]:
     started = time.perf_counter()
     try:
-        solutions = method.solve_many(robot, tasks, progress)
+        with _hearing(progress):
+            solutions = method.solve_many(robot, tasks, progress)
     except KeyboardInterrupt:
         raise Interrupted([]) from None
     except Exception:  # find the failing task(s): solve one at a time

@@ -2,23 +2,28 @@
 
 A study reports through a :class:`Reporter`: ``advance`` counts units of work (solves, shards,
 rounds) towards ``total``, ``say`` tells what is happening now, ``note`` a line that must stay
-(a failure). Where it goes is set once per process by :func:`configure` (the CLI does it from
-``--quiet`` and ``--log``):
+(a failure). A long unit can say how far it is: ``begin`` marks units as started and
+``within(fraction)`` moves the count by that fraction of them (a trajectory's iterations of
+the method's cap, its waypoints solved), so the bar and its ETA move during a long
+trajectory, not only when it ends. Where it goes is set once per process by
+:func:`configure` (the CLI does it from ``--quiet`` and ``--log``):
 
-- ``bar``: a tqdm progress bar on stderr with the count, rate and ETA, ``say`` as its status;
-  the CLI's choice when stderr is a terminal.
+- ``bar``: a tqdm progress bar on stderr with the count (``6.6/7``: six done, the seventh 60 %
+  of its way), rate and ETA, ``say`` as its status; the CLI's choice when stderr is a terminal.
 - ``lines``: ``[label] text`` lines on stderr, at most one a second besides the notes; the
   default for library calls (``ikbench.run(..., progress=True)`` in a script).
 - ``periodic``: for a log file or a pipe, the CLI's choice when stderr is not a terminal: a
   start line, then a line at most every :data:`PERIODIC_EVERY_S` seconds while the work goes
-  on, each with the time since the start and the count (``[run 0:20] 2/7 done; trajectory 3:
-  iteration 412, loss 15.2031``), and every note (``[run 0:31] trajectory 4: FAILED: ...``).
+  on, each with the time since the start, the count and how far the started units are when
+  their method says (``[run 0:20] 2/7 done, trajectory 3/7 at 41 %; trajectory 3: iteration
+  412, loss 15.2031``), and every note (``[run 0:31] trajectory 4: FAILED: ...``).
 - ``off``: nothing (``--quiet``).
 
 With a log stream (``--log FILE``) every event is also one JSON object per line: ``t_s``
 (seconds since the reporter started), ``label``, ``event`` (``say``, ``advance``, ``note``,
-``close``), ``done``, ``total``, ``text``; ``advance`` events at most every
-:data:`LOG_EVERY_S` seconds (and always the last one), every other event as it comes.
+``close``), ``done`` (units finished), ``total``, ``text``; ``advance`` events at most every
+:data:`LOG_EVERY_S` seconds (and always the last one), every other event as it comes
+(``within`` is not logged).
 """
 
 from __future__ import annotations
@@ -95,6 +100,12 @@ class Reporter:
         self.enabled = enabled
         self.stream = stream
         self.completed = 0
+        #: Units begun and not yet finished, and how far they are (0 to 1; ``_heard``: a
+        #: method said so since they began).
+        self.in_flight = 0
+        self.fraction = 0.0
+        self._heard = False
+        self._status: str | None = None
         self._started = time.perf_counter()
         self._last_line = self._last_log = -float("inf")
         self._bar: Any = None
@@ -106,6 +117,7 @@ class Reporter:
         if not self.enabled:
             return
         self._log("say", text)
+        self._status = text
         if self._mode() == "bar":
             self._open_bar().set_postfix_str(_one_line(text), refresh=False)
         elif self._mode() == "lines":
@@ -129,23 +141,58 @@ class Reporter:
             self._line(text, clock=True)
 
     def advance(self, amount: int = 1, text: str | None = None) -> None:
-        """``amount`` more units done; ``text``: what was just done."""
+        """``amount`` more units done (begun ones first); ``text``: what was just done."""
         _raise_swallowed_ctrl_c()
         self.completed += amount
+        self.in_flight = max(0, self.in_flight - amount)
+        if not self.in_flight:
+            self.fraction, self._heard = 0.0, False
         if not self.enabled:
             return
+        if text:
+            self._status = text
         last = self.total is not None and self.completed >= self.total
         self._log("advance", text, throttle=not last)
         if self._mode() == "bar":
             bar = self._open_bar()
             if text:
                 bar.set_postfix_str(_one_line(text), refresh=False)
-            bar.update(amount)
+            bar.update(self.position - bar.n)
         elif self._mode() == "lines" and text:
             counted = f"{self.completed}/{self.total}" if self.total else f"{self.completed}"
             self._line(f"{counted} {text}", throttle=not last)
         elif self._mode() == "periodic":
             self._periodic(text)
+
+    def begin(self, amount: int = 1) -> None:
+        """``amount`` more units start now (one trajectory, or a batch solved at once); what
+        :meth:`within` then says is a fraction of all units begun and not yet finished."""
+        if not self.in_flight:
+            self.fraction, self._heard = 0.0, False
+        self.in_flight += amount
+
+    def within(self, fraction: float) -> None:
+        """The units begun are ``fraction`` (0 to 1) of their way: the count moves to
+        ``completed + fraction * in_flight`` (never back, never NaN; ignored with no unit
+        begun)."""
+        _raise_swallowed_ctrl_c()
+        if not self.in_flight or not math.isfinite(fraction):
+            return
+        before = self.position
+        self.fraction, self._heard = max(self.fraction, min(fraction, 1.0)), True
+        if not self.enabled:
+            return
+        if self._mode() == "bar" and self.position > before:
+            bar = self._open_bar()
+            bar.update(self.position - bar.n)
+        elif self._mode() == "periodic":
+            self._periodic(self._status)
+
+    @property
+    def position(self) -> float:
+        """Units done, the begun ones counted by their fraction (``6.6``: six done, the
+        seventh 60 % of its way)."""
+        return self.completed + self.fraction * self.in_flight
 
     def set_total(self, total: int) -> None:
         """The units of work in all, once known."""
@@ -179,9 +226,9 @@ class Reporter:
         if self._bar is None:
             from tqdm import tqdm
 
-            self._bar = tqdm(total=self.total, desc=self.label, unit=self.unit,
-                             file=self._stream(), dynamic_ncols=True, leave=False,
-                             mininterval=0.2)
+            self._bar = _bar_class(tqdm)(total=self.total, desc=self.label, unit=self.unit,
+                                         file=self._stream(), dynamic_ncols=True, leave=False,
+                                         mininterval=0.2, miniters=0)  # redraws: by time only
         return self._bar
 
     def _line(self, text: str, throttle: bool = False, clock: bool = False) -> None:
@@ -201,8 +248,18 @@ class Reporter:
         self._last_line = now
         counted = f"{self.completed}/{self.total}" if self.total else f"{self.completed}"
         status = f"; {_one_line(text)}" if text else ""
-        print(f"[{self.label} {_clock(now - self._started)}] {counted} done{status}",
-              file=self._stream(), flush=True)
+        print(f"[{self.label} {_clock(now - self._started)}] {counted} done{self._begun()}"
+              f"{status}", file=self._stream(), flush=True)
+
+    def _begun(self) -> str:
+        """``, trajectory 7/7 at 60 %`` (units 7-9: ``7-9/9``) once a method said how far the
+        begun units are; else nothing."""
+        if not (self.in_flight and self._heard):
+            return ""
+        first, last = self.completed + 1, self.completed + self.in_flight
+        which = f"{first}" if first == last else f"{first}-{last}"
+        of = f"/{self.total}" if self.total else ""
+        return f", {self.unit} {which}{of} at {100.0 * self.fraction:.0f} %"
 
     def _log(self, event: str, text: str | None, throttle: bool = False) -> None:
         log = _config["log"]
@@ -228,6 +285,26 @@ def loss_text(loss: float | None, digits: int = 4) -> str:
     """A loss for a person: ``12.3456``, or :data:`NO_LOSS` for a method without one."""
     value = math.nan if loss is None else float(loss)
     return f"{value:.{digits}f}" if math.isfinite(value) else NO_LOSS
+
+
+_bar_classes: dict[type, type] = {}
+
+
+def _bar_class(tqdm: type) -> type:
+    """tqdm showing a fractional count rounded (``6.6/7``, not ``6.6000000000000005/7``), a
+    whole one as an integer (``6/7``)."""
+    if tqdm not in _bar_classes:
+
+        class Bar(tqdm):  # type: ignore[misc, valid-type]
+            @property
+            def format_dict(self) -> dict[str, Any]:
+                values = dict(super().format_dict)
+                n = round(float(values["n"]), 2)
+                values["n"] = int(n) if n.is_integer() else n
+                return values
+
+        _bar_classes[tqdm] = Bar
+    return _bar_classes[tqdm]
 
 
 def _clock(seconds: float) -> str:

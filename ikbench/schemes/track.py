@@ -34,6 +34,7 @@ import numpy as np
 
 from ikbench.core.contract import DEFAULT_POINTING_FROM
 from ikbench.core.errors import InputError
+from ikbench.methods.base import report_fraction
 from ikbench.schemes.chain import Chain, Goals
 from ikbench.schemes.walk import PointResult, Walk
 
@@ -162,4 +163,5 @@ def track(solve_point: Callable[[int, np.ndarray], PointResult], chain: Chain,
     for i in range(1, n_points - 1):
         warm = np.array(q[i - 1], dtype=float)
         walk.record(i, solve_point(i, warm.copy()), chain, warm)
+        report_fraction(i, n_points - 2)
     return walk

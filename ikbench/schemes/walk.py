@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ikbench.methods.base import report_fraction
 from ikbench.schemes.chain import Chain, Goals
 
 
@@ -96,9 +97,10 @@ def walk_back(solve_point: PointSolver, chain: Chain, goals: Goals) -> Walk:
         raise ValueError("the sequential walk starts at the touch pose or, for a pose path, "
                          "at the home pose; the goals have neither")
     walk = Walk(q, 0)
-    for i, previous in order:
+    for k, (i, previous) in enumerate(order, 1):
         warm = np.array(goals.q_home if previous < 0 else q[previous], dtype=float)
         walk.record(i, solve_point(i, warm.copy()), chain, warm)
+        report_fraction(k, len(order))
     walk.failed.sort()
     walk.clipped.sort()
     return walk

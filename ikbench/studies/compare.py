@@ -38,7 +38,7 @@ machine) and the per-method folders.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -71,7 +71,7 @@ from ikbench.core.provenance import library_versions, provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import Task, line_tasks
-from ikbench.methods.base import Method
+from ikbench.methods.base import Method, hearing_fraction, report_fraction
 from ikbench.methods.registry import get_method, method_status
 from ikbench.render.leaderboard import (
     leaderboard,
@@ -313,9 +313,10 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
 def run_comparison(spec: CompareSpec) -> CompareResult:
     """Solve, measure and judge ``spec`` in memory; write ``spec.output/compare/`` (unless
     ``spec.output`` is None) from the same serialised trajectories it judged."""
-    log = Progress("compare", enabled=spec.progress)
+    log = Progress("compare", enabled=spec.progress, unit="method")
     started = time.perf_counter()
-    rows, built, last = _solve_methods(spec, log)
+    with hearing_fraction(log.within if spec.progress else None):  # a method's solves done
+        rows, built, last = _solve_methods(spec, log)
     sweep_frame = (ours_lm_sweep(spec.robot, spec.tasks, spec.contract, spec.solvers)
                    if spec.sweep and REFERENCE_METHOD in built else None)
     files = {name: trajectory_files(spec.robot, outcomes, spec.contract.duration_s)
@@ -383,13 +384,21 @@ def _solve_methods(spec: CompareSpec, log: Progress
     last = {}
     log.set_total(len(built))
     for (name, solver), (single, batched) in zip(built.items(),
-                                                 executor.map(solve_method, work)):
+                                                 executor.map(solve_method, _begun(work, log))):
         last[name] = single[-1]
         rows += _timed_rows(spec, name, solver, single, batched)
         median_s = np.median([r["time_median_s"] for r in rows[-len(spec.tasks):]])
         log.advance(1, f"{name}: {spec.repeat} x {len(spec.tasks)} trajectories solved alone, "
                     f"median {median_s:.4f} s per trajectory")
     return rows, built, last
+
+
+def _begun(work: list, log: Progress) -> Iterator:
+    """The jobs, each counted as begun when the executor takes it (the local one: just
+    before it runs; a pool: all at once)."""
+    for job in work:
+        log.begin(1)
+        yield job
 
 
 def _record(spec: CompareSpec, built: dict[str, Method], rows: list[dict],
@@ -497,11 +506,20 @@ def solve_method(job: tuple) -> tuple[list, list]:
     list of outcomes; batched, likewise, empty for methods that do not batch)."""
     name, solver, robot, tasks, warmup, repeat = job
     quiet = Progress(name, enabled=False)
-    single, batched = [], []
+    single: list[list[Outcome]] = []
+    batched: list[list[Outcome]] = []
+    both = solver.capabilities.batched and len(tasks) > 1
+    solves, done = (warmup + repeat) * len(tasks) * (2 if both else 1), 0
     for _ in range(warmup + repeat):
-        single.append([solve_tasks(solver, robot, [task], quiet)[0] for task in tasks])
-        if solver.capabilities.batched and len(tasks) > 1:
+        single.append([])
+        for task in tasks:
+            single[-1].append(solve_tasks(solver, robot, [task], quiet)[0])
+            done += 1
+            report_fraction(done, solves)  # the trajectories solved of the method's rounds
+        if both:
             batched.append(solve_tasks(solver, robot, tasks, quiet))
+            done += len(tasks)
+            report_fraction(done, solves)
     return single[warmup:], batched[warmup:]
 
 

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
+from ikbench.methods.base import report_fraction
 from ikbench.methods.ours_exact.kkt import solve_kkt
 from ikbench.methods.ours_exact.problem import (
     ExactProblem,
@@ -144,6 +145,7 @@ def solve(kinematics: ChainKinematics, problem: ExactProblem, initial: np.ndarra
             trace(active=active, accept=accept, gain=gain, predicted=predicted,
                   actual=before - after, damping=mu[active], step=step, model=model, new=new)
         iterations[active] += 1
+        report_fraction(int(iterations.max()), max_iterations)
 
         acc = active[accept]
         x[acc] = trial[accept]

@@ -31,7 +31,7 @@ import numpy as np
 from ikbench.core.collision import CollisionModel, collision_model
 from ikbench.core.kinematics.chain_torch import torch_chain_kinematics
 from ikbench.core.losses import TERMS, format_weights, resolve_weights
-from ikbench.methods.base import Capabilities, Method, Solution
+from ikbench.methods.base import Capabilities, Method, Solution, report_fraction
 from ikbench.methods.ours_lm.avoidance import (
     Avoidance,
     avoidance_for,
@@ -66,6 +66,7 @@ if TYPE_CHECKING:
     from ikbench.core.robot import Robot
     from ikbench.core.task import Task
     from ikbench.methods.base import Progress
+    from ikbench.methods.ours_lm.settings import LMProgress
 
 __all__ = ["BACKENDS", "KINEMATICS", "LINEAR_SOLVERS", "BatchResult", "Evaluation", "LMSettings",
            "OursLM", "OursLMSettings", "Problem", "cpu_backend", "evaluate", "initial_poses",
@@ -153,7 +154,8 @@ class OursLM(Method):
         if progress:
             for k, task in enumerate(tasks):
                 progress.start(task, k, len(tasks))
-        result = solve_batch(robot, tasks, self.settings, weights=weights)
+        result = solve_batch(robot, tasks, self.settings, weights=weights,
+                             progress=self._report_iterations())
         started = time.perf_counter()
         again = self._without_self_collisions(robot, tasks, result, weights)
         result.duration_s += time.perf_counter() - started
@@ -164,6 +166,15 @@ class OursLM(Method):
             if progress:
                 progress.done(task, solutions[-1])
         return solutions
+
+    def _report_iterations(self) -> LMProgress | None:
+        """The batch's iterations of the cap as :func:`report_fraction` (the numpy loop calls
+        it every iteration, the compiled one once, at the end); None on a device, where asking
+        each iteration would wait for the device."""
+        if self.settings.device is not None:
+            return None
+        cap = self.settings.max_iterations
+        return lambda iteration, active, losses: report_fraction(iteration, cap)
 
     def collision_avoidance(self, robot: Robot) -> str | None:
         """What this method does about collisions on ``robot``, inside its own time (the
