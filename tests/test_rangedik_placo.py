@@ -50,8 +50,8 @@ def assert_judged_from_csvs(root: Path, results: pd.DataFrame, robot, tasks: dic
         assert bool(row["success"]) == all(verdict.values()), (row["method"], verdict)
         for criterion, ok in verdict.items():  # a failing row names its criterion
             assert bool(row[f"ok_{criterion}"]) == ok, (row["method"], criterion)
-        np.testing.assert_array_equal(poses[0], tasks[row["trajectory"]].start_pose)
-        np.testing.assert_array_equal(poses[-1], tasks[row["trajectory"]].end_pose)
+        np.testing.assert_array_equal(poses[0], tasks[row["trajectory"]].required.start_pose)
+        np.testing.assert_array_equal(poses[-1], tasks[row["trajectory"]].required.end_pose)
 
 
 @pytest.fixture(scope="module")
