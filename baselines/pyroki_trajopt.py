@@ -316,7 +316,7 @@ class PyrokiTrajopt(LibraryMethod):
 
     def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
         super().check_tasks(robot, tasks)
-        self._sizes = sorted({(len(task.goal_points_mm), _speed_limited(task))
+        self._sizes = sorted({(len(task.goal.points_mm), _speed_limited(task))
                               for task in tasks})
 
     def prepare(self, robot: Robot) -> None:
@@ -351,8 +351,8 @@ class PyrokiTrajopt(LibraryMethod):
 
 def _speed_limited(task: Task) -> bool:
     """True when the task's contract bounds the joint steps (a speed limit is known)."""
-    contract = task.contract
-    return contract is not None and contract.max_step(len(task.goal_points_mm) - 1) is not None
+    contract = task.required.contract
+    return contract is not None and contract.max_step(len(task.goal.points_mm) - 1) is not None
 
 
 class PyrokiSolver(PoseSolver):

@@ -425,25 +425,25 @@ def walk_joint_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
     Raises:
         InputError: the task has no touch pose, or the up vector is parallel to the line.
     """
-    if task.end_pose is None:
+    if task.required.end_pose is None:
         raise InputError(f"trajectory {task.name!r}: sequential-ik starts at the touch pose; "
                          "the task has no end pose (for letters, polylines and splines use "
                          "--method ours or --method ours-lm)")
     pin_fk = robot.pinocchio_fk()
     data = pin_fk.model.createData()
     lower, upper = pin_fk.model.lowerPositionLimit, pin_fk.model.upperPositionLimit
-    q = robot.motor_to_joint_rad(np.asarray(task.end_pose, dtype=float))
+    q = robot.motor_to_joint_rad(np.asarray(task.required.end_pose, dtype=float))
     up = _up_vector(settings, pin_fk, q)
-    n = task.steps
+    n = task.goal.steps
     q_rad = np.empty((n + 1, len(q)))
     q_rad[n] = q
     iterations, missed, worst_pos_mm, worst_angle_deg = 0, 0, 0.0, 0.0
     for i in range(n - 1, -1, -1):
-        d = task.goal_directions[i]
+        d = task.goal.directions[i]
         rotation = (rotation_from_z(d, cast(np.ndarray, up))  # frame mode has an up vector
                     @ axis_frame(robot.pointing_axis).T
                     if settings.orientation == "frame" else None)
-        residual = Residual(pin_fk, data, settings.orientation, task.goal_points_mm[i] / 1000.0,
+        residual = Residual(pin_fk, data, settings.orientation, task.goal.points_mm[i] / 1000.0,
                             rotation, d if settings.orientation == "pointing" else None)
         result = solve_point(residual, q_rad[i + 1], settings, lower, upper)
         q_rad[i] = result.q_rad
@@ -469,17 +469,18 @@ def walk_path_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
     # a negative motor scale (NICO) swaps the mapped limits: min / max of the two
     lower = np.maximum(pin_fk.model.lowerPositionLimit, np.minimum(low, high))
     upper = np.minimum(pin_fk.model.upperPositionLimit, np.maximum(low, high))
-    home = task.start_pose if task.start_pose is not None else task.reference_pose
+    home = (task.required.start_pose if task.required.start_pose is not None
+            else task.hints.reference_pose)
     q = robot.to_urdf(np.zeros(robot.dof) if home is None else np.asarray(home, dtype=float))
-    q_rad = np.empty((task.steps + 1, len(q)))
+    q_rad = np.empty((task.goal.steps + 1, len(q)))
     iterations, missed, worst_pos_mm, worst_angle_deg = 0, 0, 0.0, 0.0
     first = replace(settings, max_ik_iterations=max(settings.max_ik_iterations,
                                                     FIRST_POINT_ITERATIONS))
-    for i in range(task.steps + 1):
-        rotation = (cast(np.ndarray, task.goal_rotations)[i]  # a pose path has goal frames
+    for i in range(task.goal.steps + 1):
+        rotation = (cast(np.ndarray, task.goal.rotations)[i]  # a pose path has goal frames
                     if settings.orientation == "frame" else None)
-        residual = Residual(pin_fk, data, settings.orientation, task.goal_points_mm[i] / 1000.0,
-                            rotation, task.goal_directions[i]
+        residual = Residual(pin_fk, data, settings.orientation, task.goal.points_mm[i] / 1000.0,
+                            rotation, task.goal.directions[i]
                             if settings.orientation == "pointing" else None)
         result = solve_point(residual, q, first if i == 0 else settings, lower, upper)
         q = q_rad[i] = result.q_rad
@@ -487,7 +488,7 @@ def walk_path_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
         missed += not result.converged
         pos_mm, angle_deg = _point_errors(pin_fk, data, q, task, i, rotation)
         worst_pos_mm, worst_angle_deg = max(worst_pos_mm, pos_mm), max(worst_angle_deg, angle_deg)
-        report_fraction(i + 1, task.steps + 1)
+        report_fraction(i + 1, task.goal.steps + 1)
     return Walk(q_rad, iterations, missed, worst_pos_mm, worst_angle_deg, None)
 
 
@@ -504,11 +505,11 @@ def track_joint_rad(robot: Robot, task: Task, settings: DLSSettings) -> Walk:
     data = pin_fk.model.createData()
     lower, upper = pin_fk.model.lowerPositionLimit, pin_fk.model.upperPositionLimit
     plan = plan_track(robot, task, goals_of(robot, task))
-    n = task.steps
+    n = task.goal.steps
     q_rad = np.empty((n + 1, len(plan.q_start)))
     q_rad[0], q_rad[n] = plan.q_start, plan.q_touch
     up = None if plan.directions is None else _up_vector(settings, pin_fk, plan.q_touch)
-    step = (max_step_urdf(robot, task.contract, task.steps)
+    step = (max_step_urdf(robot, task.required.contract, task.goal.steps)
             if settings.max_speed_use > 0 else None)
     iterations, missed, worst_pos_mm, worst_angle_deg = 0, 0, 0.0, 0.0
     for i in range(1, n):
@@ -545,14 +546,14 @@ def walk(robot: Robot, task: Task, settings: DLSSettings) -> Solution:
     round-off); pose n is the touch pose as given (the walk's starting point, not solved).
     """
     started = time.perf_counter()
-    if task.goal_rotations is not None:
+    if task.goal.rotations is not None:
         raw = walk_path_rad(robot, task, settings)
         poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), *task.limits(robot))
     else:
         raw = walk_joint_rad(robot, task, settings)
         poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), robot.lower,
                             robot.upper)
-        poses_deg[-1] = task.end_pose  # exactly the touch pose, no round trip
+        poses_deg[-1] = task.required.end_pose  # exactly the touch pose, no round trip
     return _solution(raw, poses_deg, settings, started, "walk")
 
 
@@ -564,8 +565,8 @@ def track(robot: Robot, task: Task, settings: DLSSettings) -> Solution:
     raw = track_joint_rad(robot, task, settings)
     poses_deg = np.clip(robot.joint_rad_to_motor_deg(raw.q_rad), robot.lower,
                         robot.upper)
-    poses_deg[0] = task.start_pose
-    poses_deg[-1] = task.end_pose
+    poses_deg[0] = task.required.start_pose
+    poses_deg[-1] = task.required.end_pose
     return _solution(raw, poses_deg, settings, started, "track")
 
 
@@ -575,7 +576,7 @@ def solve_task(robot: Robot, task: Task, settings: DLSSettings) -> Solution:
     the track scheme it follows its goal frames (frame mode), as the walk's default does."""
     if settings.scheme != "track":
         return walk(robot, task, settings)
-    if task.goal_rotations is not None:
+    if task.goal.rotations is not None:
         return walk(robot, task, replace(settings, orientation="frame"))
     return track(robot, task, settings)
 
@@ -604,24 +605,24 @@ def check_tasks(robot: Robot, tasks: Sequence[Task], settings: DLSSettings,
 
     pin_fk = robot.pinocchio_fk()
     for task in tasks:
-        if task.goal_rotations is not None:  # a pose path: walked forward, its own rotations
+        if task.goal.rotations is not None:  # a pose path: walked forward, its own rotations
             continue
         tracked = settings.scheme == "track"
         if tracked:
             require_start_and_touch(task, method)
-        elif task.end_pose is None:
+        elif task.required.end_pose is None:
             raise InputError(f"trajectory {task.name!r}: {method} starts at the touch "
                              "pose; the task has no end pose (for letters, polylines and "
                              "splines use --method ours or --method ours-lm)")
         if settings.orientation != "frame":
             continue
-        directions = task.goal_directions
+        directions = task.goal.directions
         if tracked:
             directions = plan_track(robot, task, goals_of(robot, task)).directions
             if directions is None:  # nothing to point: position only
                 continue
         up = _up_vector(settings, pin_fk,
-                        robot.motor_to_joint_rad(np.asarray(task.end_pose, dtype=float)))
+                        robot.motor_to_joint_rad(np.asarray(task.required.end_pose, dtype=float)))
         for d in np.unique(np.asarray(directions, dtype=float), axis=0):
             check_up_vector(cast(np.ndarray, up), d, f"trajectory {task.name}")  # frame mode
 
@@ -644,12 +645,12 @@ def _point_errors(pin_fk, data, q_rad, task, i, rotation, direction=None) -> tup
 
     pin.framesForwardKinematics(pin_fk.model, data, q_rad)
     T_base_tip = data.oMf[pin_fk.frame_id]
-    pos_mm = float(np.linalg.norm(T_base_tip.translation * 1000.0 - task.goal_points_mm[i]))
+    pos_mm = float(np.linalg.norm(T_base_tip.translation * 1000.0 - task.goal.points_mm[i]))
     if rotation is not None:
         angle = np.linalg.norm(pin.log3(T_base_tip.rotation.T @ rotation))
     else:
         z = T_base_tip.rotation @ pin_fk.robot.pointing_axis
-        d = task.goal_directions[i] if direction is None else direction
+        d = task.goal.directions[i] if direction is None else direction
         angle = math.atan2(np.linalg.norm(np.cross(z, d)), float(z @ d))
     return pos_mm, float(np.degrees(angle))
 

@@ -51,7 +51,8 @@ def main() -> None:
                 solution = method.solve(robot, task)
                 wall = time.perf_counter() - started
                 valid = frame_metrics(robot, task, solution.poses)["valid"]
-                rows.append({"problem": problem.name, "waypoints": task.steps + 1, "seed": seed,
+                rows.append({"problem": problem.name, "waypoints": task.goal.steps + 1,
+                             "seed": seed,
                              "repetition": repetition, "wall_s": wall, "valid": valid,
                              **{k: solution.info[k] for k in ("seeds_s", "carry_s", "refine_s",
                                                               "lm_iterations")},
@@ -60,7 +61,7 @@ def main() -> None:
                              "numpy": record["packages"]["numpy"],
                              "scipy": record["packages"]["scipy"]})
         times = [r["wall_s"] for r in rows if r["problem"] == problem.name]
-        print(f"{problem.name:20s} {task.steps + 1:4d} waypoints: median "
+        print(f"{problem.name:20s} {task.goal.steps + 1:4d} waypoints: median "
               f"{statistics.median(times):.3f} s (min {min(times):.3f}, max {max(times):.3f}) "
               f"over {len(times)} solves; valid "
               f"{sum(r['valid'] for r in rows if r['problem'] == problem.name)}/{len(times)}")

@@ -129,7 +129,7 @@ def main() -> None:
     rows = []
     for rep in range(args.repeat):
         for kind in kinds:  # interleaved, so background load hits both sides alike
-            rows.append({"repetition": rep, "fk": kind, "steps": task.steps,
+            rows.append({"repetition": rep, "fk": kind, "steps": task.goal.steps,
                          "iterations": args.iterations,
                          "iterations_per_s": time_iterations(robot, task, kind, args.iterations)})
     info = provenance()
@@ -141,7 +141,8 @@ def main() -> None:
     print(f"CPU: {info['cpu']} ({info['cpu_count']} cores, torch threads "
           f"{info['torch_threads']}), torch {info['packages']['torch']}, "
           f"pytorch-kinematics {info['packages']['pytorch-kinematics']}")
-    print(f"n = {task.steps}, float32, {args.iterations} iterations x {args.repeat} repetitions")
+    print(f"n = {task.goal.steps}, float32, {args.iterations} iterations x {args.repeat} "
+          "repetitions")
     rates = {k: frame.loc[frame["fk"] == k, "iterations_per_s"].tolist() for k in kinds}
     for kind in kinds:
         r = rates[kind]

@@ -29,7 +29,7 @@ middle = (robot.sample_lower + robot.sample_upper) / 2
 start = middle
 end = middle + 0.25 * (robot.sample_upper - middle)
 task = ikbench.line_task(robot, start, end, steps=20, name="my-line")
-first_mm, last_mm = np.round(task.goal_points_mm[[0, -1]], 1)
+first_mm, last_mm = np.round(task.goal.points_mm[[0, -1]], 1)
 print(f"line from {first_mm} to {last_mm} mm (base frame)")
 
 solver = ikbench.get_method("ours-lm")(weights="c0=100,c1=0")

@@ -161,7 +161,8 @@ def test_small_ablation_numbers_come_from_the_written_trajectories(small_ablatio
                        "end_pose_error_deg", "mean_sq_jerk_deg2", "velocity_sign_changes"]:
             assert row[column] == pytest.approx(expected[column], rel=1e-12), column
         assert row["joint_interpolation_distance_deg"] == pytest.approx(
-            joint_interpolation_distance_deg(poses, task.start_pose, task.end_pose))
+            joint_interpolation_distance_deg(poses, task.required.start_pose,
+                                             task.required.end_pose))
         assert row["paper_loss"] == pytest.approx(objective(robot, task, poses)[0], rel=1e-12)
 
 

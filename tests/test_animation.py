@@ -43,7 +43,7 @@ def _frames(path: Path) -> tuple[list[np.ndarray], list[int]]:
 
 def _interpolated(robot, targets):
     tasks = line_tasks(robot, targets)
-    return tasks, {t.name: np.linspace(t.start_pose, t.end_pose, t.steps + 1)
+    return tasks, {t.name: np.linspace(t.required.start_pose, t.required.end_pose, t.goal.steps + 1)
                    for t in tasks}
 
 

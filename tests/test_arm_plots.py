@@ -20,7 +20,7 @@ def interpolated(robot, targets, only):
     """Line tasks and joint-interpolated poses (no solver needed) of some targets."""
     targets = targets.select(only).with_steps(10)
     tasks = line_tasks(robot, targets)
-    poses = {t.name: np.linspace(t.start_pose, t.end_pose, 11) for t in tasks}
+    poses = {t.name: np.linspace(t.required.start_pose, t.required.end_pose, 11) for t in tasks}
     return tasks, poses, {k: robot.fk(p).point_mm for k, p in poses.items()}
 
 

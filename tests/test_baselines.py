@@ -22,7 +22,7 @@ from ikbench.cli import main
 from ikbench.core.errors import InputError, SolverError
 from ikbench.core.metrics import pointing_deviations_deg, trajectory_metrics
 from ikbench.core.robot import pose_difference
-from ikbench.core.task import Task, line_tasks
+from ikbench.core.task import Goal, Requirements, Task, line_tasks
 from ikbench.core.trajectory import read_trajectory_poses
 from ikbench.methods.registry import LIBS_EXTRA
 from ikbench.schemes.chain import chain_of, poses_from_urdf, urdf_limits
@@ -58,13 +58,6 @@ LIBRARIES = {
 FRAMES = [name for name in LIBRARIES if name != "pyroki"]
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
-class FramedTask(Task):
-    """A task with 6-D goal frames (the optional ``goal_rotations`` of tasks)."""
-
-    goal_rotations: np.ndarray | None = None
-
-
 def fk_task(robot, seed: int, frames: bool = False) -> Task:
     """Goals made by FK of a seeded random path between two in-range poses [pose units]."""
     rng = np.random.default_rng(seed)
@@ -73,19 +66,17 @@ def fk_task(robot, seed: int, frames: bool = False) -> Task:
     end = np.clip(start + 0.08 * (hi - lo) * rng.uniform(-1, 1, robot.dof), lo, hi)
     poses = np.linspace(start, end, STEPS + 1)
     T = robot.fk_transform(poses)
-    fields = dict(goal_rotations=T[:, :3, :3]) if frames else {}
-    cls = FramedTask if frames else Task
-    return cls("fk", T[:, :3, 3] * 1000.0, T[:, :3, :3] @ robot.pointing_axis, start, end,
-               **fields)
+    return Task("fk", Goal(T[:, :3, 3] * 1000.0, T[:, :3, :3] @ robot.pointing_axis,
+                           T[:, :3, :3] if frames else None), Requirements(start, end))
 
 
 def goal_errors(robot, task, poses):
     """Per pose: position error [mm], pointing error [deg], rotation error [deg] (6-D)."""
     T = robot.fk_transform(poses)
-    position = np.linalg.norm(T[:, :3, 3] * 1000.0 - task.goal_points_mm, axis=1)
+    position = np.linalg.norm(T[:, :3, 3] * 1000.0 - task.goal.points_mm, axis=1)
     pointing = pointing_deviations_deg(T[:, :3, :3] @ robot.pointing_axis,
-                                       task.goal_directions)
-    rotations = getattr(task, "goal_rotations", None)
+                                       task.goal.directions)
+    rotations = task.goal.rotations
     angle = None
     if rotations is not None:
         rel = np.einsum("nji,njk->nik", T[:, :3, :3], rotations)
@@ -128,10 +119,10 @@ def test_fk_goals_are_solved_back_within_limits_and_deterministically(robot, nam
         if pointing_tol is not None:
             assert pointing[rows].max() < pointing_tol, (name, pointing)
         if whole:
-            assert np.abs(poses[0] - task.start_pose).max() < 0.5
-            assert np.abs(poses[-1] - task.end_pose).max() < 0.5
+            assert np.abs(poses[0] - task.required.start_pose).max() < 0.5
+            assert np.abs(poses[-1] - task.required.end_pose).max() < 0.5
         else:
-            np.testing.assert_array_equal(poses[-1], task.end_pose)
+            np.testing.assert_array_equal(poses[-1], task.required.end_pose)
     if name != "trac-ik":  # (c); TRAC-IK races threads against a timeout: both runs solve
         np.testing.assert_array_equal(first.poses, second.poses)
 
@@ -218,7 +209,7 @@ def test_cli_run_on_an_unseen_robot(tmp_path, arm, name):
     for task in tasks:
         poses = read_trajectory_poses(tmp_path / name / f"trajectory_{task.name}.csv", arm)
         # a continuous joint may end a whole turn away (the file is unwrapped): the same arm
-        assert np.abs(pose_difference(arm, poses[-1], task.end_pose)).max() < 0.5
+        assert np.abs(pose_difference(arm, poses[-1], task.required.end_pose)).max() < 0.5
         assert arm.within_limits(poses)
         position, pointing, _ = goal_errors(arm, task, poses)
         assert position[solved_rows(name)].max() < 0.2  # b's last goal: 1.3 deg out of reach

@@ -18,7 +18,7 @@ import pytest
 from ikbench import load_robot
 from ikbench.core.collision import collision_model
 from ikbench.core.obstacles import box, capsule, halfspace, sphere
-from ikbench.core.task import Task
+from ikbench.core.task import Goal, Requirements, Task
 from ikbench.schemes.collision import obstacle_shape, scene_of
 from tests.conftest import method_class
 
@@ -49,15 +49,15 @@ def elbow_task(robot, frames: bool) -> tuple[Task, tuple]:
     segments = model.capsule_segments(poses)
     ball = (sphere("ball", segments[STEPS // 2, links.index("panda_link4")].mean(axis=0),
                    30.0),)
-    fields = {"goal_rotations": T[:, :3, :3]} if frames else {}
-    task = Task("elbow", T[:, :3, 3] * 1000.0, T[:, :3, :3] @ robot.pointing_axis, start, end,
-                obstacles=ball, **fields)
+    task = Task("elbow", Goal(T[:, :3, 3] * 1000.0, T[:, :3, :3] @ robot.pointing_axis,
+                              T[:, :3, :3] if frames else None),
+                Requirements(start, end, obstacles=ball))
     return task, ball
 
 
 def position_errors_mm(robot, task, poses) -> np.ndarray:
     T = robot.fk_transform(poses)
-    return np.linalg.norm(T[:, :3, 3] * 1000.0 - task.goal_points_mm, axis=1)
+    return np.linalg.norm(T[:, :3, 3] * 1000.0 - task.goal.points_mm, axis=1)
 
 
 @pytest.mark.parametrize("name", AVOIDING)
@@ -72,7 +72,8 @@ def test_a_six_d_path_keeps_clear_of_a_ball_it_hits_without_avoidance(panda, nam
     model = collision_model(panda)
     method = cls()
     method.prepare(panda)
-    plain = method.solve(panda, dataclasses.replace(task, obstacles=()))
+    plain = method.solve(panda, dataclasses.replace(
+        task, required=dataclasses.replace(task.required, obstacles=())))
     assert model.check(plain.poses, ball).summary()["env_collisions"] > 0
     assert "collision_avoidance" not in plain.info  # no obstacle, no change
     solution = method.solve(panda, task)
@@ -95,7 +96,8 @@ def test_a_tracked_pointing_path_keeps_clear_of_the_ball(panda, name):
     method = cls(**options)
     method.prepare(panda)
     model = collision_model(panda)
-    plain = method.solve(panda, dataclasses.replace(task, obstacles=()))
+    plain = method.solve(panda, dataclasses.replace(
+        task, required=dataclasses.replace(task.required, obstacles=())))
     assert model.check(plain.poses, ball).summary()["env_collisions"] > 0
     solution = method.solve(panda, task)
     report = model.check(solution.poses, ball).summary()

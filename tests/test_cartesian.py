@@ -82,7 +82,7 @@ class PointsOnly(Method):
     description = "a method without goal frames"
 
     def solve(self, robot, task, progress=None):  # pragma: no cover - never called
-        return Solution(np.zeros((task.steps + 1, robot.dof)), 0, 0.0, None)
+        return Solution(np.zeros((task.goal.steps + 1, robot.dof)), 0, 0.0, None)
 
 
 def test_methods_without_goal_frames_say_they_cannot(tmp_path, capsys, monkeypatch):

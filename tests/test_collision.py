@@ -105,11 +105,11 @@ def test_distance_gradients_match_finite_differences(panda):
 
 def test_a_trajectory_through_a_box_is_invalid_with_its_first_colliding_waypoint():
     robot, task, _ = load_problem("panda__1cube")
-    free = dataclasses.replace(task, obstacles=())
+    free = dataclasses.replace(task, required=dataclasses.replace(task.required, obstacles=()))
     from ikbench.methods.ours_lm import OursLM
 
     poses = OursLM(seed=1).solve(robot, free).poses       # ignores the cube
-    report = collision_model(robot).check(poses, task.obstacles)
+    report = collision_model(robot).check(poses, task.required.obstacles)
     first = report.first_collision()
     assert first is not None
     metrics = frame_metrics(robot, task, poses)

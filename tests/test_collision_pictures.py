@@ -26,7 +26,8 @@ def _colliding():
     from ikbench.methods.ours_lm import OursLM
 
     robot, task, _ = load_problem("panda__1cube")
-    poses = OursLM(seed=1).solve(robot, dataclasses.replace(task, obstacles=())).poses
+    poses = OursLM(seed=1).solve(robot, dataclasses.replace(
+        task, required=dataclasses.replace(task.required, obstacles=()))).poses
     return robot, task, np.asarray(poses, dtype=float)
 
 
@@ -47,7 +48,7 @@ def test_pose_path_figure_draws_the_cube_and_marks_each_colliding_waypoint():
     import matplotlib.pyplot as plt
 
     robot, task, poses = _colliding()
-    truth = collision_model(robot).check(poses, task.obstacles)
+    truth = collision_model(robot).check(poses, task.required.obstacles)
     colliding = truth.env_colliding | truth.self_colliding
     assert 0 < colliding.sum() < len(poses)  # the case is a real test: some, not all
     curve = reached(robot, task, poses)
@@ -71,7 +72,7 @@ def test_without_obstacles_the_figure_has_no_obstacle_or_collision_artists():
     import matplotlib.pyplot as plt
 
     robot, task, poses = _colliding()
-    free = dataclasses.replace(task, obstacles=())
+    free = dataclasses.replace(task, required=dataclasses.replace(task.required, obstacles=()))
     curve = reached(robot, free, poses)
     assert "colliding" not in curve
     fig = plot_pose_path(free, {"ours-lm": curve}, "t", robot)
@@ -89,7 +90,7 @@ def test_a_collision_free_path_says_so_and_other_shapes_are_drawn():
     robot, task, poses = _colliding()
     far = (sphere("ball", [2000.0, 0.0, 0.0], 50.0),
            halfspace("floor", [0.0, 0.0, -500.0], [0.0, 0.0, 1.0]))
-    away = dataclasses.replace(task, obstacles=far)
+    away = dataclasses.replace(task, required=dataclasses.replace(task.required, obstacles=far))
     curve = reached(robot, away, poses)
     fig = plot_pose_path(away, {"m": curve}, "t", robot)
     ax = fig.axes[0]
@@ -112,13 +113,13 @@ def _brown(frame) -> int:
 
 def test_the_animation_draws_the_cube_and_a_red_arm_while_colliding():
     robot, task, poses = _colliding()
-    colliding = colliding_waypoints(robot, poses, task.obstacles)
+    colliding = colliding_waypoints(robot, poses, task.required.obstacles)
     frames, durations = render_frames(robot, [task], {task.name: poses}, "cube", 2.0,
                                       max_frames=len(poses), dpi=40)
     assert len(frames) == len(poses)
     red = np.array([_red(f) for f in frames])
     assert np.all(red[colliding] > 20) and np.all(red[~colliding] == 0)
-    free = dataclasses.replace(task, obstacles=())
+    free = dataclasses.replace(task, required=dataclasses.replace(task.required, obstacles=()))
     bare, _ = render_frames(robot, [free], {task.name: poses}, "cube", 2.0, max_frames=3,
                             dpi=40)
     assert _brown(frames[0]) > 30 and _brown(bare[0]) == 0  # the cube, in every frame
@@ -134,20 +135,20 @@ def test_the_viewer_adds_the_obstacles_and_markers_at_colliding_tips():
     T = np.eye(4)
     T[:3, 3] = [0.0, 0.0, 0.1]
     tips = robot.fk(poses).point_mm
-    expect = colliding_waypoints(robot, poses, task.obstacles)
-    got = sc.colliding_tips_m(robot, poses, tips, task.obstacles, T)
+    expect = colliding_waypoints(robot, poses, task.required.obstacles)
+    got = sc.colliding_tips_m(robot, poses, tips, task.required.obstacles, T)
     assert np.allclose(got, tips[expect] / 1000.0 + [0, 0, 0.1])
     assert not len(sc.colliding_tips_m(robot, poses, tips, (), T))
     server = viser.ViserServer(port=0, verbose=False)
     try:
-        shapes = (*task.obstacles, sphere("s", [0, 0, 900], 40.0),
+        shapes = (*task.required.obstacles, sphere("s", [0, 0, 900], 40.0),
                   halfspace("h", [0, 0, 0], [0, 0, 1]))
         handles = sc.add_obstacles(server, shapes, T, around_mm=tips)
         assert len(handles) == 3
         assert np.allclose(handles[0].position, [0.0, 0.2, 0.8])  # 0.7 m up + 0.1 m
         assert np.allclose(handles[0].dimensions, [0.25, 0.25, 0.25])
         marker = sc.add_collision_markers(server, "/hits", robot, poses, tips,
-                                          task.obstacles, T)
+                                          task.required.obstacles, T)
         assert marker is not None and len(marker.points) == expect.sum()
         assert sc.add_collision_markers(server, "/none", robot, poses, tips, (), T) is None
     finally:

@@ -35,7 +35,7 @@ class Walker(Straight):
         return frozenset({"touch_pose"})
 
     def solve(self, robot, task, progress=None) -> Solution:
-        poses = np.repeat(task.end_pose[None], task.steps + 1, axis=0)
+        poses = np.repeat(task.required.end_pose[None], task.goal.steps + 1, axis=0)
         return Solution(poses, iterations=1, duration_s=0.0, loss=None)
 
 

@@ -49,7 +49,7 @@ def test_a_bare_urdf_has_pointing_off_and_its_urdf_velocity_limits():
     if contract.max_speed is not None:  # URDF velocity [rad/s, m/s] -> pose units per s
         assert np.all(contract.max_speed > 0)
     targets_tasks = line_tasks(robot, _targets_for(robot), contract)
-    assert targets_tasks[0].default_weights["L1"] == 0.0  # ours/ours-lm drop pointing
+    assert targets_tasks[0].hints.default_weights["L1"] == 0.0  # ours/ours-lm drop pointing
 
 
 def _targets_for(robot):
@@ -93,17 +93,17 @@ def test_judge_fails_nan_and_checks_each_criterion():
 
 def test_contract_metrics_against_a_direct_computation(robot, paper_targets):
     contract = contract_for(robot)
-    task = replace(line_task(robot, paper_targets.start_pose,
-                             paper_targets.touch_poses["3"], 20, "3"), contract=contract)
-    poses = np.linspace(task.start_pose, task.end_pose, 21)  # joint interpolation
+    task = line_task(robot, paper_targets.start_pose, paper_targets.touch_poses["3"], 20, "3")
+    task = replace(task, required=replace(task.required, contract=contract))
+    poses = np.linspace(task.required.start_pose, task.required.end_pose, 21)  # joint interpolation
     poses[5, 0] += 3.0  # one joint jumps: two larger steps
     figures = contract_metrics(robot, task, poses, contract)
     steps = np.abs(np.diff(poses, axis=0))
     assert figures["speed_limit_use"] == pytest.approx(steps.max() / (270 * 2 / 20))
     fk = robot.fk(poses)
     assert figures["line_distance_max_mm"] == pytest.approx(
-        line_distances_mm(fk.point_mm, task.start_point_mm, task.end_point_mm).max())
-    judged = pointing_deviations_deg(fk.direction[4:], task.goal_directions[4:])  # ceil(0.2 20)
+        line_distances_mm(fk.point_mm, task.goal.start_point_mm, task.goal.end_point_mm).max())
+    judged = pointing_deviations_deg(fk.direction[4:], task.goal.directions[4:])  # ceil(0.2 20)
     assert figures["pointing_deviation_judged_mean_deg"] == pytest.approx(judged.mean())
     assert figures["start_pose_error_deg"] == 0 and figures["within_limits"]
     assert figures["max_step_limit_deg"] == pytest.approx(27.0)

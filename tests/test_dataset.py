@@ -68,7 +68,7 @@ def test_metrics_equal_the_metrics_module_recomputed_from_the_steps(robot, datas
         assert row["loss"] == pytest.approx(objective(robot, task, poses, PAPER_WEIGHTS)[0],
                                             rel=1e-9)
         np.testing.assert_allclose(row[["touch_x_mm", "touch_y_mm", "touch_z_mm"]].to_numpy(float),
-                                   task.end_point_mm, atol=1e-9)
+                                   task.goal.end_point_mm, atol=1e-9)
 
 
 def test_shards_are_seeded_by_seed_and_index(robot, paper_targets):
@@ -78,8 +78,8 @@ def test_shards_are_seeded_by_seed_and_index(robot, paper_targets):
     tasks, _, _ = line_tasks(robot, paper_targets.start_pose, touch, 10, first=40)
     for task, pose in zip(tasks, touch):
         reference = line_task(robot, paper_targets.start_pose, pose, 10)
-        np.testing.assert_allclose(task.goal_points_mm, reference.goal_points_mm, atol=1e-9)
-        np.testing.assert_allclose(task.goal_directions, reference.goal_directions, atol=1e-12)
+        np.testing.assert_allclose(task.goal.points_mm, reference.goal.points_mm, atol=1e-9)
+        np.testing.assert_allclose(task.goal.directions, reference.goal.directions, atol=1e-12)
     assert [t.name for t in tasks] == ["40", "41"]
 
 

@@ -45,7 +45,7 @@ def test_twenty_moves_of_the_touch_point_each_re_solve(nico, method):
         assert update.method == method and update.reach is not None and update.reach.reachable
         # the touch pose was found for the point, and the trajectory ends there
         np.testing.assert_allclose(nico.fk(update.poses[-1]).point_mm[0], goal, atol=0.5)
-        np.testing.assert_allclose(update.task.end_point_mm, update.reach.point_mm, atol=1e-9)
+        np.testing.assert_allclose(update.task.goal.end_point_mm, update.reach.point_mm, atol=1e-9)
         assert update.solution.iterations >= 1 and update.elapsed_s > 0
         seen.append(update.poses)
     changes = [np.abs(b - a).max() for a, b in zip(seen[1:-1], seen[2:])]
@@ -65,7 +65,7 @@ def test_settle_solves_from_scratch_what_a_long_drag_solved_warm(nico):
     settled = designer.settle()
     assert not settled.warm and settled.task is not update.task
     np.testing.assert_array_equal(settled.poses, cold)
-    np.testing.assert_array_equal(settled.task.goal_points_mm, update.task.goal_points_mm)
+    np.testing.assert_array_equal(settled.task.goal.points_mm, update.task.goal.points_mm)
     assert settled.reach is update.reach
 
 
@@ -86,25 +86,26 @@ class Cold(Method):
     name, description = "cold", "the joint interpolation"
 
     def solve(self, robot, task, progress=None) -> Solution:
-        t = np.linspace(0.0, 1.0, task.steps + 1)[:, None]
-        return Solution(task.start_pose + t * (task.end_pose - task.start_pose),
+        t = np.linspace(0.0, 1.0, task.goal.steps + 1)[:, None]
+        start, end = task.required.start_pose, task.required.end_pose
+        return Solution(start + t * (end - start),
                         0, 0.0, None)
 
 
 def test_a_method_without_a_warm_start_solves_from_scratch(nico):
     task = ikbench.build_tasks(nico, ikbench.load_targets(None, nico).select("1"))[0]
-    given = np.zeros((task.steps + 1, nico.dof))
+    given = np.zeros((task.goal.steps + 1, nico.dof))
     solution = Cold().solve_from(nico, task, given)
     assert not Cold.capabilities.warm_starts
     np.testing.assert_allclose(solution.poses[[0, -1]],
-                               [task.start_pose, task.end_pose])
+                               [task.required.start_pose, task.required.end_pose])
 
 
 def test_the_criteria_are_the_contracts_judgement(nico):
     designer = Designer(nico, "ours-lm")  # ours-lm leaves the line by > 5 mm on trajectory 1
     update = designer.update
-    figures = contract_metrics(nico, update.task, update.poses, update.task.contract)
-    verdict = judge(update.task.contract, figures)
+    figures = contract_metrics(nico, update.task, update.poses, update.task.required.contract)
+    verdict = judge(update.task.required.contract, figures)
     shown = {c.name: c.ok for c in update.criteria}
     assert {k: shown[k] for k in verdict} == verdict
     assert not verdict["line"] and update.failed == ["line"]
@@ -138,7 +139,7 @@ def test_a_point_out_of_reach_says_so_and_the_design_goes_on(nico):
     assert far.message.startswith("out of reach: the arm gets within ")
     assert far.failed[0] == "reach" and far.reach.distance_mm > 100
     # the arm went as far as it gets: the reached point, not the asked one, is the touch
-    np.testing.assert_allclose(far.task.end_point_mm, far.reach.point_mm, atol=1e-9)
+    np.testing.assert_allclose(far.task.goal.end_point_mm, far.reach.point_mm, atol=1e-9)
     back = designer.move_touch(touch)
     assert back.reach is not None and back.reach.reachable and "reach" not in back.failed
 
@@ -163,10 +164,10 @@ def test_the_start_pose_from_a_recorded_pose_or_a_dragged_start_point(nico):
     designer = Designer(nico, "ours-lm")
     targets = ikbench.load_targets(None, nico)
     update = designer.use_start_pose("7")  # touch pose 7 as the start
-    np.testing.assert_allclose(update.task.start_pose, targets.touch_poses["7"])
+    np.testing.assert_allclose(update.task.required.start_pose, targets.touch_poses["7"])
     start = designer.handles()["start"] + np.array([0.0, 0.0, -20.0])
     moved = designer.move("start", start)
-    np.testing.assert_allclose(moved.task.start_point_mm, start, atol=0.5)
+    np.testing.assert_allclose(moved.task.goal.start_point_mm, start, atol=0.5)
     with pytest.raises(InputError, match="recorded poses are start, 1, 2, 3, 4, 5, 6, 7"):
         designer.use_start_pose("8")
     with pytest.raises(InputError, match="a line has the points touch and start"):
@@ -183,7 +184,7 @@ def test_saving_writes_what_ikbench_run_writes_on_the_saved_targets(nico, tmp_pa
     assert saved.folder == tmp_path / "out" / "mine"
     doc = json.loads(saved.files[0].read_text())
     assert list(doc["targets"]) == ["2"] and doc["steps"] == 50
-    assert doc["start_pose"] == designer.update.task.start_pose.tolist()
+    assert doc["start_pose"] == designer.update.task.required.start_pose.tolist()
     assert saved.command.startswith("ikbench run --method ours-exact --robot nico_right_arm "
                                     f"--targets {saved.files[0]} --steps 50 --duration 2.5")
     assert saved.change_deg < 0.05  # solved from scratch, it is the trajectory shown
@@ -220,14 +221,14 @@ def test_a_bad_save_name_is_refused_before_anything_is_written(nico, tmp_path):
 
 def test_a_letter_moves_with_its_centre_and_scales(nico, tmp_path):
     designer = Designer(nico, "ours-lm", DesignSpec(shape="letter:L", steps=40))
-    before = designer.update.task.goal_points_mm
+    before = designer.update.task.goal.points_mm
     centre = designer.handles()["centre"]
     moved = designer.move("centre", centre + np.array([0.0, 30.0, -20.0]))
     assert moved.reach is not None and moved.reach.reachable
     shift = moved.reach.point_mm - centre
-    np.testing.assert_allclose(moved.task.goal_points_mm, before + shift, atol=1e-6)
+    np.testing.assert_allclose(moved.task.goal.points_mm, before + shift, atol=1e-6)
     small = designer.set_size(150.0)
-    height = np.ptp(small.task.goal_points_mm[:, 2])
+    height = np.ptp(small.task.goal.points_mm[:, 2])
     assert height == pytest.approx(np.ptp(before[:, 2]) / 2, rel=1e-6)
     assert {c.name for c in small.criteria} >= {"curve", "pointing", "limits", "speed"}
     with pytest.raises(InputError, match="--size 5.0: a letter is 20 to 1000 mm high"):
@@ -248,7 +249,7 @@ def test_the_panda_and_a_bare_urdf(tmp_path):
     arm = ikbench.load_robot(DATA / "unaligned_arm.urdf", "tool")
     given = Designer(arm, "ours-lm", DesignSpec(targets=DATA / "unaligned_arm.targets.json",
                                                 trajectory="b"))
-    assert given.design.trajectory == "b" and given.update.task.steps == 20
+    assert given.design.trajectory == "b" and given.update.task.goal.steps == 20
     bare = Designer(arm, "ours-lm")  # no targets: from the middle of the joint ranges
     assert bare.update.task.name == "design"
     touch = bare.handles()["touch"]  # up to 150 mm along the pointing axis, as far as it gets
@@ -265,12 +266,12 @@ def test_the_panda_and_a_bare_urdf(tmp_path):
 def test_a_pose_path_waypoint_drags_its_neighbours(tmp_path):
     designer = Designer(None, "ours-lm", DesignSpec(problem="fetch_arm__hello"))
     assert designer.robot.name == "fetch_arm" and designer.kind == "path"
-    n = designer.update.task.steps
+    n = designer.update.task.goal.steps
     designer.select_waypoint(n // 4)
-    before = designer.update.task.goal_points_mm
+    before = designer.update.task.goal.points_mm
     point = designer.handles()["waypoint"] + np.array([0.0, 0.0, 10.0])
     update = designer.move("waypoint", point)
-    moved = np.linalg.norm(update.task.goal_points_mm - before, axis=1)
+    moved = np.linalg.norm(update.task.goal.points_mm - before, axis=1)
     assert moved[n // 4] == pytest.approx(10.0) and moved[n // 4 + 1] < 10.0
     assert moved[-1] == 0.0 and moved[0] == 0.0 or n // 4 < 0.15 * n + 1
     assert {c.name for c in update.criteria} >= {"position", "rotation", "joint_change"}
@@ -279,7 +280,7 @@ def test_a_pose_path_waypoint_drags_its_neighbours(tmp_path):
     saved = designer.save(tmp_path, "hello2")
     assert [f.name for f in saved.files] == ["hello2.yaml", "hello2.csv"]
     _, task, _ = load_problem(saved.files[0])
-    np.testing.assert_allclose(task.goal_points_mm, update.task.goal_points_mm, atol=1e-9)
+    np.testing.assert_allclose(task.goal.points_mm, update.task.goal.points_mm, atol=1e-9)
     assert (saved.folder / "trajectory_hello2.csv").is_file()
     with pytest.raises(InputError, match="is for robot 'fetch_arm'"):
         Designer("panda", "ours-lm", DesignSpec(problem="fetch_arm__hello"))

@@ -49,7 +49,7 @@ def test_twenty_drags_redraw_the_paths_and_the_arm(view):
         np.testing.assert_allclose(drawn[:, 0], tips_m[:-1], atol=1e-6)
         np.testing.assert_allclose(drawn[-1, 1], tips_m[-1], atol=1e-6)
         goal = view.handles["goal_path"].points
-        np.testing.assert_allclose(goal[-1, 1], update.task.end_point_mm / 1000.0, atol=1e-6)
+        np.testing.assert_allclose(goal[-1, 1], update.task.goal.end_point_mm / 1000.0, atol=1e-6)
     assert len(view.scene_s) == 20 and all(s > 0 for s in view.scene_s)
     # the arm at the time slider's pose (the touch pose at 1.0), as yourdfpy draws it
     end = view.model.get_transform(robot.end_frame)[:3, 3]
@@ -94,9 +94,9 @@ def test_the_panel_changes_timing_and_saves(view, tmp_path):
     assert saved.command in view.gui["saved"].content
     assert "--timing min-jerk" in saved.command and "--duration 3" in saved.command
     view.gui["start"].value = "3"
-    _wait(lambda: np.allclose(view.designer.update.task.start_pose,
+    _wait(lambda: np.allclose(view.designer.update.task.required.start_pose,
                               view.designer.design.recorded_poses["3"]))
-    start_m = view.designer.update.task.start_point_mm / 1000  # NICO: base = URDF root
+    start_m = view.designer.update.task.goal.start_point_mm / 1000  # NICO: base = URDF root
     _wait(lambda: np.allclose(view.gizmos["start"].position, start_m, atol=1e-6))
 
 
@@ -117,7 +117,7 @@ def test_a_letter_and_a_pose_path_get_their_own_controls():
     try:
         assert set(path.gizmos) == {"waypoint"}
         path.gui["waypoint"].value = 3
-        goal = path.designer.update.task.goal_points_mm[3]
+        goal = path.designer.update.task.goal.points_mm[3]
         _wait(lambda: np.allclose(path.designer.handles()["waypoint"], goal))
         T = path.T_root_base
         np.testing.assert_allclose(path.gizmos["waypoint"].position,

@@ -71,7 +71,7 @@ def test_the_option_needs_a_goal_set(capsys, tmp_path, robot, paper_targets):
     with pytest.raises(InputError, match="needs a goal set"):
         OursExact(legibility_weight=1.0)
     task = line_tasks(robot, paper_targets)[0]
-    alone = OursExact(legibility_weight=1.0, legibility_goals_mm=task.end_point_mm[None])
+    alone = OursExact(legibility_weight=1.0, legibility_goals_mm=task.goal.end_point_mm[None])
     with pytest.raises(InputError, match="needs a goal set with a goal other than"):
         alone.solve(robot, task)
     err = one_line_error(capsys, ["run", "--method", "ours-exact", "--exact-legibility-weight",

@@ -64,23 +64,23 @@ def test_letter_curve_placement_and_reading_direction():
 def test_letter_task_in_the_papers_setting(robot):
     task = letter_task(robot, "P", PAPER_START_POSE_DEG, steps=40)
     tip = robot.fk(PAPER_START_POSE_DEG).point_mm[0]
-    assert task.name == "P" and task.shape == "letter" and task.steps == 40
-    assert np.allclose(task.goal_points_mm[:, 0], tip[0])
-    assert np.allclose(task.goal_directions, [-1, 0, 0])
-    assert task.start_pose is None and task.end_pose is None
-    assert task.default_weights == LETTER_WEIGHTS and task.pen_down.all()
-    assert np.allclose(task.reference_pose, PAPER_START_POSE_DEG)
-    projected = task.curve.plane.project(np.concatenate(task.curve.strokes_mm))
+    assert task.name == "P" and task.goal.shape == "letter" and task.goal.steps == 40
+    assert np.allclose(task.goal.points_mm[:, 0], tip[0])
+    assert np.allclose(task.goal.directions, [-1, 0, 0])
+    assert task.required.start_pose is None and task.required.end_pose is None
+    assert task.hints.default_weights == LETTER_WEIGHTS and task.goal.pen_down.all()
+    assert np.allclose(task.hints.reference_pose, PAPER_START_POSE_DEG)
+    projected = task.goal.curve.plane.project(np.concatenate(task.goal.curve.strokes_mm))
     box_centre = (projected.max(axis=0) + projected.min(axis=0)) / 2
     assert np.allclose(box_centre, 0, atol=1e-9)  # the box is centred on the fingertip
     x = letter_task(robot, "X", PAPER_START_POSE_DEG, steps=40)
-    assert 0 < np.count_nonzero(~x.pen_down) < 10
+    assert 0 < np.count_nonzero(~x.goal.pen_down) < 10
 
 
 def test_build_tasks_letters(robot, paper_targets):
     tasks = build_tasks(robot, paper_targets, "letter:P,a,P", size_mm=150)
-    assert [t.name for t in tasks] == ["P", "A"] and tasks[0].steps == 100
-    z = np.concatenate(tasks[0].curve.strokes_mm)[:, 2]
+    assert [t.name for t in tasks] == ["P", "A"] and tasks[0].goal.steps == 100
+    z = np.concatenate(tasks[0].goal.curve.strokes_mm)[:, 2]
     assert np.ptp(z) == pytest.approx(150)
     with pytest.raises(InputError, match="letter '7' is not one of A-Z"):
         build_tasks(robot, paper_targets, "letter:7")
@@ -188,12 +188,13 @@ def test_ours_reproduces_the_authors_letter_p(robot):
     (measured for issue 8: 15 mm mean, 51 mm max from the goal points, 11 deg pointing)."""
     from ikbench.core.metrics import shape_metrics
     from ikbench.core.shapes import Curve
-    from ikbench.core.task import Task
+    from ikbench.core.task import Goal, Hints, Task
 
     goal = _authors_letter_p_goal_points_mm(robot)
     assert len(goal) == 66
-    task = Task("P", goal, np.tile([-1.0, 0, 0], (66, 1)), None, None, shape="letter",
-                curve=Curve((goal,)), default_weights=dict(LETTER_WEIGHTS))
+    task = Task("P", Goal(goal, np.tile([-1.0, 0, 0], (66, 1)), shape="letter",
+                          curve=Curve((goal,))),
+                hints=Hints(default_weights=dict(LETTER_WEIGHTS)))
     solution = Ours(stop="none", max_iterations=2000).solve(robot, task)
     m = shape_metrics(robot, task, solution.poses)
     assert m["point_error_mean_mm"] == pytest.approx(15, abs=1.5)

@@ -72,8 +72,9 @@ def test_start_and_end_errors_known(robot):
     assert m["start_pose_error_deg"] == pytest.approx(2.0)
     assert m["end_pose_error_deg"] == pytest.approx(3.0)
     fk = robot.fk(poses[[0, -1]]).point_mm
-    assert m["start_point_error_mm"] == pytest.approx(np.linalg.norm(fk[0] - task.start_point_mm))
-    assert m["end_point_error_mm"] == pytest.approx(np.linalg.norm(fk[1] - task.end_point_mm))
+    assert m["start_point_error_mm"] == pytest.approx(
+        np.linalg.norm(fk[0] - task.goal.start_point_mm))
+    assert m["end_point_error_mm"] == pytest.approx(np.linalg.norm(fk[1] - task.goal.end_point_mm))
     assert m["start_point_error_mm"] > 1 and m["end_point_error_mm"] > 0.1
 
 
@@ -92,13 +93,13 @@ def test_smoothness_known():
 def test_line_task_geometry(robot):
     touch = [33, 39, 25, 134, 102, 77, -168]
     task = line_task(robot, PAPER_START, touch, 50, "1")
-    assert task.goal_points_mm.shape == (51, 3) and task.steps == 50
+    assert task.goal.points_mm.shape == (51, 3) and task.goal.steps == 50
     fk = robot.fk(np.array([PAPER_START, touch]))
-    assert np.allclose(task.start_point_mm, fk.point_mm[0])
-    assert np.allclose(task.end_point_mm, fk.point_mm[1])
+    assert np.allclose(task.goal.start_point_mm, fk.point_mm[0])
+    assert np.allclose(task.goal.end_point_mm, fk.point_mm[1])
     d = fk.point_mm[1] - fk.point_mm[0]
-    assert np.allclose(task.goal_directions, d / np.linalg.norm(d))
-    assert np.allclose(np.diff(task.goal_points_mm, axis=0), d / 50)
+    assert np.allclose(task.goal.directions, d / np.linalg.norm(d))
+    assert np.allclose(np.diff(task.goal.points_mm, axis=0), d / 50)
 
 
 def test_line_task_degenerate(robot):
@@ -114,7 +115,7 @@ def test_trajectory_metrics_of_joint_interpolation(robot):
     assert m["start_point_error_mm"] < 1e-9 and m["end_point_error_mm"] < 1e-9
     assert m["start_pose_error_deg"] == 0 and m["end_pose_error_deg"] == 0
     fk = robot.fk(poses)
-    dists = line_distances_mm(fk.point_mm, task.start_point_mm, task.end_point_mm)
+    dists = line_distances_mm(fk.point_mm, task.goal.start_point_mm, task.goal.end_point_mm)
     assert m["line_distance_mean_mm"] == pytest.approx(dists.mean())
     assert m["line_distance_mean_mm"] > 10  # joint-space interpolation is far from a line
     assert m["velocity_sign_changes"] == 0

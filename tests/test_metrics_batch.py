@@ -17,15 +17,15 @@ TOUCH = [[33, 39, 25, 134, 102, 77, -168], [57, 33, 40, 134, 80, 36, -159],
 def test_line_metrics_equal_trajectory_metrics(robot):
     rng = np.random.default_rng(0)
     tasks = [line_task(robot, PAPER_START, pose, 12, str(k)) for k, pose in enumerate(TOUCH)]
-    poses = np.stack([np.linspace(t.start_pose, t.end_pose, 13) for t in tasks])
+    poses = np.stack([np.linspace(t.required.start_pose, t.required.end_pose, 13) for t in tasks])
     poses = np.clip(poses + rng.normal(0.0, 2.0, poses.shape), robot.lower,
                     robot.upper)
     fk = [robot.fk(p) for p in poses]
     ours = line_metrics(np.stack([f.point_mm for f in fk]), np.stack([f.direction for f in fk]),
-                        poses, np.stack([t.start_point_mm for t in tasks]),
-                        np.stack([t.end_point_mm for t in tasks]),
-                        np.stack([t.start_pose for t in tasks]),
-                        np.stack([t.end_pose for t in tasks]))
+                        poses, np.stack([t.goal.start_point_mm for t in tasks]),
+                        np.stack([t.goal.end_point_mm for t in tasks]),
+                        np.stack([t.required.start_pose for t in tasks]),
+                        np.stack([t.required.end_pose for t in tasks]))
     for k, task in enumerate(tasks):
         expected = trajectory_metrics(robot, task, poses[k])
         assert set(ours) == set(expected)

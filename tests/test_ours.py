@@ -75,7 +75,7 @@ def test_small_run_decreases_and_meets_constraints(robot):
     assert np.max(np.abs(solution.poses[0] - PAPER_START)) <= 0.2
     assert np.max(np.abs(solution.poses[-1] - TOUCH_1)) <= 0.2
     end_mm = robot.fk(solution.poses[-1]).point_mm[0]
-    assert np.linalg.norm(end_mm - task.end_point_mm) <= 0.5
+    assert np.linalg.norm(end_mm - task.goal.end_point_mm) <= 0.5
 
 
 def test_paper_trajectory_3_iterations_reproduce(robot):

@@ -26,7 +26,9 @@ TOUCH_3 = [57, 33, 40, 134, 80, 36, -159]
 
 def _line(robot, n=8, contract=True):
     task = line_task(robot, PAPER_START, TOUCH_3, n, "3")
-    return replace(task, contract=contract_for(robot)) if contract else task
+    if not contract:
+        return task
+    return replace(task, required=replace(task.required, contract=contract_for(robot)))
 
 
 def _dense_kkt(diagonal, bands, jacobian, gradient, residual, free, constrained):
@@ -94,7 +96,7 @@ def test_model_gradient_and_gauss_newton_match_finite_differences(robot):
     problem = build_problem(robot, [task], settings)
     kin = robot.chain_kinematics()
     rng = np.random.default_rng(0)
-    x = np.linspace(task.start_pose, task.end_pose, task.steps + 1)[None]
+    x = np.linspace(task.required.start_pose, task.required.end_pose, task.goal.steps + 1)[None]
     x = x + rng.normal(0.0, 1.0, x.shape)
     model = evaluate(kin, problem, x)
     direction = rng.normal(size=x.shape)
@@ -119,9 +121,10 @@ def test_frame_constraints_jacobian_matches_finite_differences():
     from ikbench.core.problems import load_problem
 
     robot, task, _ = load_problem("fetch_arm__rot_yz2")
-    task = replace(task, goal_points_mm=task.goal_points_mm[:4],
-                   goal_rotations=task.goal_rotations[:4],
-                   goal_directions=task.goal_directions[:4], pen_down=task.pen_down[:4])
+    task = replace(task, goal=replace(task.goal, points_mm=task.goal.points_mm[:4],
+                                      rotations=task.goal.rotations[:4],
+                                      directions=task.goal.directions[:4],
+                                      pen_down=task.goal.pen_down[:4]))
     problem = build_problem(robot, [task], OursExact().settings)
     kin = robot.chain_kinematics()
     rng = np.random.default_rng(1)
@@ -151,7 +154,7 @@ def test_paper_targets_exact_within_limits_and_steps(robot, paper_targets, paper
     assert len(tasks) == 7
     for task in tasks:
         poses = read_trajectory_poses(paper_run / f"trajectory_{task.name}.csv", robot)
-        figures = contract_metrics(robot, task, poses, task.contract)
+        figures = contract_metrics(robot, task, poses, task.required.contract)
         assert figures["line_distance_max_mm"] <= 0.01, task.name
         assert figures["start_pose_error_deg"] <= 0.01, task.name
         assert figures["end_pose_error_deg"] <= 0.01, task.name
@@ -165,16 +168,16 @@ def test_tighter_than_ours_lm_on_the_line(robot):
     task = _line(robot, n=20)
     exact = OursExact().solve(robot, task)
     lm = get_method("ours-lm")().solve(robot, task)
-    line = [contract_metrics(robot, task, s.poses, task.contract)["line_distance_max_mm"]
+    line = [contract_metrics(robot, task, s.poses, task.required.contract)["line_distance_max_mm"]
             for s in (exact, lm)]
     assert exact.converged and exact.info["feasible"]
     assert line[0] < 1e-6 < 0.1 < line[1]
 
 
 def test_batched_equals_one_at_a_time(robot):
-    tasks = [_line(robot, n=12), replace(line_task(robot, PAPER_START,
-                                                   [34, 17, 39, 107, 106, 78, -180], 12, "7"),
-                                         contract=contract_for(robot))]
+    seventh = line_task(robot, PAPER_START, [34, 17, 39, 107, 106, 78, -180], 12, "7")
+    tasks = [_line(robot, n=12),
+             replace(seventh, required=replace(seventh.required, contract=contract_for(robot)))]
     method = OursExact()
     together = method.solve_many(robot, tasks)
     for task, joint in zip(tasks, together):
@@ -184,9 +187,10 @@ def test_batched_equals_one_at_a_time(robot):
 
 def test_unreachable_point_is_reported_not_silent(robot):
     task = _line(robot, n=10)
-    far = task.goal_points_mm.copy()
+    far = task.goal.points_mm.copy()
     far[5] += [0.0, 0.0, 2000.0]  # 2 m above the line: out of reach
-    solution = OursExact(max_iterations=30).solve(robot, replace(task, goal_points_mm=far))
+    solution = OursExact(max_iterations=30).solve(
+        robot, replace(task, goal=replace(task.goal, points_mm=far)))
     assert not solution.converged
     assert solution.info["feasible"] is False
     assert solution.info["infeasible"].startswith("point 5: ")

@@ -37,7 +37,7 @@ def _task(robot, key="1", n=10):
 
 def _random_poses(robot, task, seed=0, noise=4.0):
     rng = np.random.default_rng(seed)
-    poses = np.linspace(task.start_pose, task.end_pose, task.steps + 1)
+    poses = np.linspace(task.required.start_pose, task.required.end_pose, task.goal.steps + 1)
     poses = poses + rng.normal(0.0, noise, poses.shape)
     return np.clip(poses, robot.lower, robot.upper)
 
@@ -47,13 +47,13 @@ def _dense_residuals(robot, task, poses, weights=PAPER_WEIGHTS):
     n_poses, dof = poses.shape
     fk = [paper_fk_cm(p) for p in poses]
     points, dirs = np.array([f[0] for f in fk]), np.array([f[1] for f in fk])
-    goals, d = task.goal_points_mm / 10.0, task.goal_directions
+    goals, d = task.goal.points_mm / 10.0, task.goal.directions
     c = [weights[t] for t in TERMS]
     return np.concatenate([
         np.sqrt(c[0] / (3 * n_poses)) * (points - goals).ravel(),
         np.sqrt(c[1] / (2 * n_poses)) * (dirs - d).ravel(),
-        np.sqrt(c[2]) * (poses[0] - task.start_pose),
-        np.sqrt(c[3]) * (poses[-1] - task.end_pose),
+        np.sqrt(c[2]) * (poses[0] - task.required.start_pose),
+        np.sqrt(c[3]) * (poses[-1] - task.required.end_pose),
         np.sqrt(c[4]) * (points[0] - goals[0]),
         np.sqrt(c[5]) * (points[-1] - goals[-1]),
         np.sqrt(c[6] / ((n_poses - 1) * dof)) * np.diff(poses, axis=0).ravel(),
@@ -297,7 +297,7 @@ def test_polyline_starts_at_its_reference_pose_and_a_bare_task_is_refused(robot,
                                           rel=1e-9)
     with pytest.raises(InputError, match="'zig': ours-lm needs a start and an end pose or a "
                                          "reference pose"):
-        initial_poses(robot, [replace(task, reference_pose=None)])
+        initial_poses(robot, [replace(task, hints=replace(task.hints, reference_pose=None))])
 
 
 def test_letters_cli_with_ours_lm(tmp_path, capsys):

@@ -118,7 +118,7 @@ def test_threads_and_batching_do_not_change_the_numbers(robot):
 def test_initial_poses_and_iteration_cap(robot):
     tasks = _sampled(robot, 4, 10, seed=2)
     rng = np.random.default_rng(0)
-    initial = np.linspace(tasks[0].start_pose, tasks[0].end_pose, 11)[None] \
+    initial = np.linspace(tasks[0].required.start_pose, tasks[0].required.end_pose, 11)[None] \
         + rng.normal(0.0, 3.0, (4, 11, robot.dof))
     w = dict(PAPER_WEIGHTS)
     numpy = solve_batch(robot, tasks, LMSettings(backend="numpy", max_iterations=3),

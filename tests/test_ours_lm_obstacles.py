@@ -17,13 +17,13 @@ from ikbench.methods.ours_lm.start_search import STITCH_MAX_STEP, stitch
 
 def _free_solution(name: str, seed: int = 1):
     robot, task, _ = load_problem(name)
-    free = dataclasses.replace(task, obstacles=())
+    free = dataclasses.replace(task, required=dataclasses.replace(task.required, obstacles=()))
     return robot, task, OursLM(seed=seed).solve(robot, free).poses
 
 
 def test_stitch_switches_between_partial_tracks_where_they_meet():
     robot, task, poses = _free_solution("panda__1cube")
-    task = dataclasses.replace(task, obstacles=())
+    task = dataclasses.replace(task, required=dataclasses.replace(task.required, obstacles=()))
     n = len(poses)
     first, second = np.full_like(poses, np.nan), np.full_like(poses, np.nan)
     first[:80], second[60:] = poses[:80], poses[60:]
@@ -39,7 +39,7 @@ def test_stitch_switches_between_partial_tracks_where_they_meet():
     first[70:] = np.nan
     assert stitch(robot.chain_kinematics().frames, task, avoid,
                   np.stack([first, second])) is None
-    assert n == task.steps + 1
+    assert n == task.goal.steps + 1
 
 
 def test_ours_lm_passes_between_the_flappy_bird_boxes():
@@ -52,7 +52,7 @@ def test_ours_lm_passes_between_the_flappy_bird_boxes():
     # without the boxes the same search is the obstacle-free one (no stitching), and its
     # path hits them
     _, _, free = _free_solution("panda__flappy_bird", seed=2)
-    assert collision_model(robot).check(free, task.obstacles).env_colliding.any()
+    assert collision_model(robot).check(free, task.required.obstacles).env_colliding.any()
 
 
 def test_a_users_problem_file_with_the_cube_moved(tmp_path):
@@ -65,7 +65,7 @@ def test_a_users_problem_file_with_the_cube_moved(tmp_path):
     moved.write_text(text.replace("obstacle_xyz_offset: [0, 0, 0]",
                                   "obstacle_xyz_offset: [0.05, -0.04, 0.03]"))
     robot, task, _ = load_problem(moved)
-    np.testing.assert_allclose(task.obstacles[0].center_mm, [50.0, 160.0, 730.0])
+    np.testing.assert_allclose(task.required.obstacles[0].center_mm, [50.0, 160.0, 730.0])
     metrics = frame_metrics(robot, task, OursLM(seed=1).solve(robot, task).poses)
     assert metrics["valid"], metrics["failed_criteria"]
     assert metrics["min_clearance_mm"] > 0
@@ -92,8 +92,8 @@ def test_moved_obstacles_that_failed_before_are_solved(tmp_path, name, offset_m,
     moved.write_text(text.replace("obstacle_xyz_offset: [0, 0, 0]",
                                   f"obstacle_xyz_offset: {list(offset_m)}"))
     robot, task, _ = load_problem(moved)
-    original = load_problem(name)[1].obstacles
-    np.testing.assert_allclose(task.obstacles[0].center_mm,
+    original = load_problem(name)[1].required.obstacles
+    np.testing.assert_allclose(task.required.obstacles[0].center_mm,
                                original[0].center_mm + 1000.0 * np.array(offset_m))
     method = OursLM(seed=seed)
     method.prepare(robot)

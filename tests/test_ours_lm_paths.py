@@ -44,20 +44,20 @@ def _setting(name, seed=0, count=12):
     rng = np.random.default_rng(seed)
     seeds = rng.uniform(robot.sample_lower, robot.sample_upper, (count, robot.dof))
     q, position, rotation, _ = reference.first_waypoint_ik(
-        frames, task.goal_points_mm[0], task.goal_rotations[0], seeds, lower, upper)
+        frames, task.goal.points_mm[0], task.goal.rotations[0], seeds, lower, upper)
     found = reference.distinct(q, (position < 1e-3) & (rotation < 1e-3))
     caps = capsule_model(robot)
-    free = caps.check(q[found], task.obstacles).distances_mm.min(axis=1) > 0
+    free = caps.check(q[found], task.required.obstacles).distances_mm.min(axis=1) > 0
     return robot, task, frames, (lower, upper), caps, q[found][free]
 
 
 def _carry_both(name, avoid):
     robot, task, frames, (lower, upper), caps, starts = _setting(name)
-    avoidance = Avoidance(caps, task.obstacles, 0.5, 10.0) if avoid else None
+    avoidance = Avoidance(caps, task.required.obstacles, 0.5, 10.0) if avoid else None
     numpy, _ = reference.carry(frames, task, starts, lower, upper, avoidance)
-    spec = kernels.PathSpec(robot, lower, upper, caps.scene(task.obstacles))
-    n = len(task.goal_points_mm)
-    compiled, _ = kernels.carry_tracks(spec, task.goal_points_mm, task.goal_rotations,
+    spec = kernels.PathSpec(robot, lower, upper, caps.scene(task.required.obstacles))
+    n = len(task.goal.points_mm)
+    compiled, _ = kernels.carry_tracks(spec, task.goal.points_mm, task.goal.rotations,
                                        np.zeros(len(starts), int), np.ones(len(starts), int),
                                        np.full(len(starts), n), starts, avoid, CARRY)
     return numpy, compiled
@@ -80,18 +80,18 @@ def test_carrying_with_the_collision_push_equals_numpy():
 
 def test_nodes_and_the_stitch_equal_numpy():
     robot, task, frames, (lower, upper), caps, starts = _setting("fetch__circle")
-    spec = kernels.PathSpec(robot, lower, upper, caps.scene(task.obstacles))
-    n = len(task.goal_points_mm)
-    forward, _ = kernels.carry_tracks(spec, task.goal_points_mm, task.goal_rotations,
+    spec = kernels.PathSpec(robot, lower, upper, caps.scene(task.required.obstacles))
+    n = len(task.goal.points_mm)
+    forward, _ = kernels.carry_tracks(spec, task.goal.points_mm, task.goal.rotations,
                                       np.zeros(len(starts), int), np.ones(len(starts), int),
                                       np.full(len(starts), n), starts, False, CARRY)
-    backward, _ = kernels.carry_tracks(spec, task.goal_points_mm, task.goal_rotations,
+    backward, _ = kernels.carry_tracks(spec, task.goal.points_mm, task.goal.rotations,
                                        np.full(len(starts), n - 1), -np.ones(len(starts), int),
                                        np.full(len(starts), 120), forward[:, -1], False, CARRY)
     tracks = np.concatenate([forward, backward])
-    avoid = Avoidance(caps, task.obstacles, 0.5, 10.0)
+    avoid = Avoidance(caps, task.required.obstacles, 0.5, 10.0)
     nodes = reference.stitch_nodes(frames, task, avoid, tracks)
-    assert np.array_equal(kernels.track_nodes(spec, task.goal_points_mm, task.goal_rotations,
+    assert np.array_equal(kernels.track_nodes(spec, task.goal.points_mm, task.goal.rotations,
                                               tracks, reference.STITCH_REACHED), nodes)
     assert nodes.any(axis=0).all() and not nodes.all()
     weights, max_step = reference.stitch_costs(robot)
@@ -131,23 +131,24 @@ def test_the_pose_path_lm_equals_numpy(penalty):
     robot, task, frames, (lower, upper), caps, starts = _setting("panda__1cube", seed=3,
                                                                  count=16)
     clearance = 30.0
-    avoid = Avoidance(caps, task.obstacles, clearance, 10.0) if penalty else None
+    avoid = Avoidance(caps, task.required.obstacles, clearance, 10.0) if penalty else None
     carried, _ = reference.carry(frames, task, starts, lower, upper)
     clear = [k for k in range(len(carried))
-             if caps.check(carried[k], task.obstacles).distances_mm.min() > 1.0]
+             if caps.check(carried[k], task.required.obstacles).distances_mm.min() > 1.0]
     initial = carried[clear[0]] + 0.3 * np.sin(np.arange(carried[0].size)).reshape(
         carried[0].shape)
     if penalty:
-        assert caps.check(initial, task.obstacles).distances_mm.min() < clearance
+        assert caps.check(initial, task.required.obstacles).distances_mm.min() < clearance
     problem = FrameProblem.from_tasks(robot, [task], [WEIGHTS], frames)
     numpy = solve_batch(robot, [task], LMSettings(backend="numpy", max_iterations=40),
                         [WEIGHTS], initial=initial[None], problem=problem,
                         evaluator=avoid.evaluator(evaluate_frames) if avoid else evaluate_frames,
                         until=lambda poses, _: reference.check_paths(
                             robot, task, poses, frames, reference.SEARCH_MARGIN, avoid)[0])
-    spec = kernels.PathSpec(robot, lower, upper, caps.scene(task.obstacles) if penalty else None)
+    spec = kernels.PathSpec(robot, lower, upper,
+                            caps.scene(task.required.obstacles) if penalty else None)
     poses, loss, terms, iterations, converged, valid, _ = kernels.solve_path(
-        spec, task.goal_points_mm, task.goal_rotations, initial, [1.0, 1.0, 0.001],
+        spec, task.goal.points_mm, task.goal.rotations, initial, [1.0, 1.0, 0.001],
         [clearance, SELF_CLEARANCE_MM, 10.0 if penalty else 0.0], 40, 1e-9, 1e-3,
         reference.SEARCH_MARGIN, path_search.LIMITS, mode=0)
     assert iterations == numpy.iterations[0] and valid == bool(numpy.converged[0])
@@ -163,9 +164,9 @@ def test_anchor_ik_equals_numpy():
     frames = robot.chain_kinematics().frames
     lower, upper = (np.asarray(v, dtype=float) for v in task.limits(robot))
     rng = np.random.default_rng(3)
-    at = rng.integers(0, len(task.goal_points_mm), 40)
+    at = rng.integers(0, len(task.goal.points_mm), 40)
     seeds = rng.uniform(robot.sample_lower, robot.sample_upper, (40, robot.dof))
-    goals = task.goal_points_mm[at], task.goal_rotations[at]
+    goals = task.goal.points_mm[at], task.goal.rotations[at]
     q, position, rotation, iterations = reference.first_waypoint_ik(frames, *goals, seeds,
                                                                    lower, upper)
     spec = kernels.PathSpec(robot, lower, upper, None)
@@ -199,7 +200,7 @@ def test_the_anchor_ik_has_one_argument_layout():
     spec = kernels.PathSpec(robot, lower, upper, None)
     seeds = np.random.default_rng(0).uniform(robot.sample_lower, robot.sample_upper,
                                              (4, robot.dof))
-    goal_p, goal_R = task.goal_points_mm, task.goal_rotations
+    goal_p, goal_R = task.goal.points_mm, task.goal.rotations
     anchor_ik.first_waypoint_ik(spec, goal_p[0], goal_R[0], seeds)
     anchor_ik.first_waypoint_ik(spec, goal_p[:4], goal_R[:4], seeds)
     anchor_ik.first_waypoint_ik(spec, goal_p[:1], goal_R[:1], seeds[:1])
@@ -224,10 +225,10 @@ def test_a_sweep_equals_numpy_and_stays_on_the_pose():
     :func:`.self_motion.sweep_reference`; every sample reaches the goal, consecutive samples
     are at most a step apart, and the sweep travels far along the manifold."""
     robot, task, frames, (lower, upper), caps, starts = _setting("panda__flappy_bird")
-    spec = kernels.PathSpec(robot, lower, upper, caps.scene(task.obstacles))
-    steps, point, rotation = 60, task.goal_points_mm[0], task.goal_rotations[0]
+    spec = kernels.PathSpec(robot, lower, upper, caps.scene(task.required.obstacles))
+    steps, point, rotation = 60, task.goal.points_mm[0], task.goal.rotations[0]
     assert len(starts) >= 2
-    swept = self_motion.sweep_manifolds(spec, task.goal_points_mm, task.goal_rotations,
+    swept = self_motion.sweep_manifolds(spec, task.goal.points_mm, task.goal.rotations,
                                         np.zeros(len(starts), dtype=int), starts, steps)
     for row, start in zip(swept, starts):
         numpy = self_motion.sweep_reference(frames, point, rotation, start, lower, upper, steps)
@@ -252,11 +253,11 @@ def test_a_repair_window_holds_the_steps_below_the_limit():
                                                                  count=16)
     carried, _ = reference.carry(frames, task, starts, lower, upper)
     clear = [k for k in range(len(carried))
-             if caps.check(carried[k], task.obstacles).distances_mm.min() > 1.0]
+             if caps.check(carried[k], task.required.obstacles).distances_mm.min() > 1.0]
     path = carried[clear[0]]
-    spec = kernels.PathSpec(robot, lower, upper, caps.scene(task.obstacles))
+    spec = kernels.PathSpec(robot, lower, upper, caps.scene(task.required.obstacles))
     moved = np.arange(40, 60)
-    swept = self_motion.sweep_manifolds(spec, task.goal_points_mm, task.goal_rotations, moved,
+    swept = self_motion.sweep_manifolds(spec, task.goal.points_mm, task.goal.rotations, moved,
                                         path[moved], 20)
     offset = next(o for o in (16, -16, 12, -12) if not np.isnan(swept[:, 20 + o]).any())
     broken = path.copy()
@@ -264,7 +265,7 @@ def test_a_repair_window_holds_the_steps_below_the_limit():
     limit = np.full(robot.dof, 0.99 * MAX_JOINT_CHANGE_DEG)
     assert np.abs(np.diff(broken, axis=0)).max() > 20.0
     weights, _ = reference.stitch_costs(robot)
-    repaired = self_motion.repair_window(spec, task.goal_points_mm, task.goal_rotations,
+    repaired = self_motion.repair_window(spec, task.goal.points_mm, task.goal.rotations,
                                          broken, 10, 89, 100, weights, limit,
                                          reference.STITCH_JUMP_COST, np.zeros(robot.dof), 1.0)
     assert repaired is not None
@@ -296,7 +297,7 @@ def test_continuous_joints_wrap_and_unwrap():
 def test_self_collision_is_avoided_without_obstacles(name, seed):
     """Both self-collided at seed 1 before (the avoidance ran only with obstacles)."""
     robot, task, _ = load_problem(name)
-    assert not task.obstacles
+    assert not task.required.obstacles
     method = OursLM(seed=seed)
     method.check_tasks(robot, [task])
     method.prepare(robot)
@@ -310,9 +311,9 @@ def test_self_collision_is_avoided_without_obstacles(name, seed):
 
 def test_the_search_is_deterministic_and_the_numpy_search_still_runs():
     robot, task, _ = load_problem("panda__1cube")
-    short = dataclasses.replace(task, goal_points_mm=task.goal_points_mm[:40],
-                                goal_rotations=task.goal_rotations[:40],
-                                goal_directions=task.goal_directions[:40])
+    short = dataclasses.replace(task, goal=dataclasses.replace(
+        task.goal, points_mm=task.goal.points_mm[:40], rotations=task.goal.rotations[:40],
+        directions=task.goal.directions[:40]))
     a, b = OursLM(seed=4).solve(robot, short), OursLM(seed=4).solve(robot, short)
     np.testing.assert_array_equal(a.poses, b.poses)
     assert frame_metrics(robot, short, a.poses)["valid"]

@@ -96,7 +96,7 @@ def test_evaluation_equals_numpy(robot, paper_tasks):
     weights = [PAPER_WEIGHTS, parse_weights("c0=100,c1=3,c6=0.5")] * 4
     tasks = [*paper_tasks, paper_tasks[0]]
     problem = Problem.from_tasks(robot, tasks, weights[:len(tasks)])
-    poses = np.stack([np.linspace(t.start_pose, t.end_pose, t.steps + 1)
+    poses = np.stack([np.linspace(t.required.start_pose, t.required.end_pose, t.goal.steps + 1)
                       for t in tasks])
     poses += np.random.default_rng(0).normal(0.0, 3.0, poses.shape)
     poses = np.clip(poses, robot.lower, robot.upper)

@@ -61,7 +61,7 @@ def test_every_problem_of_cppflows_benchmark_ships():
         CPPFLOW_BENCHMARK + ["fetch__rot_yz", "fetch_arm__rot_yz", "panda__square"])
     for name in shipped_problems():
         _, task, _ = load_problem(name)
-        assert bool(task.obstacles) == (name in CPPFLOW_OBSTACLE_PROBLEMS), name
+        assert bool(task.required.obstacles) == (name in CPPFLOW_OBSTACLE_PROBLEMS), name
     assert [p.stem for p in resolve_problems("shipped")] == list(shipped_problems())
     assert sorted(p.stem for p in resolve_problems("cppflow")) == sorted(CPPFLOW_BENCHMARK)
     attribution = (data_dir() / "ATTRIBUTION.md").read_text()
@@ -81,12 +81,12 @@ def test_the_wheel_carries_the_problem_data():
 def test_goal_poses_match_an_independent_computation(name):
     robot, task, problem = load_problem(name)
     assert robot.name == name.split("__")[0]
-    quats = matrix_to_quat_wxyz(task.goal_rotations)
+    quats = matrix_to_quat_wxyz(task.goal.rotations)
     for i, goal in GOALS[name].items():
-        np.testing.assert_allclose(task.goal_points_mm[i] / 1000.0, goal[:3], atol=1e-9)
+        np.testing.assert_allclose(task.goal.points_mm[i] / 1000.0, goal[:3], atol=1e-9)
         np.testing.assert_allclose(quats[i], goal[3:], atol=1e-8)
-    assert task.steps + 1 == max(GOALS[name]) + 1
-    np.testing.assert_allclose(task.goal_directions, task.goal_rotations @ robot.pointing_axis)
+    assert task.goal.steps + 1 == max(GOALS[name]) + 1
+    np.testing.assert_allclose(task.goal.directions, task.goal.rotations @ robot.pointing_axis)
     lower, upper = task.limits(robot)
     np.testing.assert_array_equal(lower, robot.validity_lower)
 
@@ -109,8 +109,8 @@ def test_a_path_next_to_the_yaml_is_used_and_composed_as_cppflow_does(tmp_path):
     _write(tmp_path, GOOD_YAML, GOOD_CSV)
     robot, task, problem = load_problem(tmp_path / "mine.yaml")
     assert problem.path_file == tmp_path / "mypath.csv" and task.name == "mine"
-    np.testing.assert_allclose(task.goal_points_mm, [[500, 0, 400], [500, 10, 400]])
-    np.testing.assert_allclose(task.goal_rotations[0], np.diag([1.0, -1.0, -1.0]), atol=1e-15)
+    np.testing.assert_allclose(task.goal.points_mm, [[500, 0, 400], [500, 10, 400]])
+    np.testing.assert_allclose(task.goal.rotations[0], np.diag([1.0, -1.0, -1.0]), atol=1e-15)
 
 
 def test_the_offset_frame_is_a_link_at_the_zero_configuration(tmp_path):
@@ -120,7 +120,7 @@ def test_the_offset_frame_is_a_link_at_the_zero_configuration(tmp_path):
     _write(tmp_path, yaml, GOOD_CSV)
     _, task, _ = load_problem(tmp_path / "mine.yaml")
     # torso_lift_link at q = 0: (-0.086875, 0, 0.37743) m in base_link (the maker's URDF)
-    np.testing.assert_allclose(task.goal_points_mm[0], [500 - 86.875, 0, 400 + 377.43],
+    np.testing.assert_allclose(task.goal.points_mm[0], [500 - 86.875, 0, 400 + 377.43],
                                atol=1e-9)
 
 

@@ -143,7 +143,7 @@ class Fractions(Method):
             if not self.silent:
                 report_fraction(k, self.steps)
             self.seen.append(progress.position)
-        return Solution(np.zeros((task.steps + 1, 1)), iterations=self.steps, duration_s=0.0,
+        return Solution(np.zeros((task.goal.steps + 1, 1)), iterations=self.steps, duration_s=0.0,
                         loss=None)
 
 

@@ -50,8 +50,8 @@ def assert_judged_from_csvs(root: Path, results: pd.DataFrame, robot, tasks: dic
         assert bool(row["success"]) == all(verdict.values()), (row["method"], verdict)
         for criterion, ok in verdict.items():  # a failing row names its criterion
             assert bool(row[f"ok_{criterion}"]) == ok, (row["method"], criterion)
-        np.testing.assert_array_equal(poses[0], tasks[row["trajectory"]].start_pose)
-        np.testing.assert_array_equal(poses[-1], tasks[row["trajectory"]].end_pose)
+        np.testing.assert_array_equal(poses[0], tasks[row["trajectory"]].required.start_pose)
+        np.testing.assert_array_equal(poses[-1], tasks[row["trajectory"]].required.end_pose)
 
 
 @pytest.fixture(scope="module")
@@ -139,18 +139,17 @@ def test_rangedik_meets_the_contract_on_the_panda_lines(tmp_path):
 @pytest.mark.parametrize("name", ["rangedik", "placo"])
 def test_walk_lands_on_the_touch_pose_and_leaves_the_start_pose(robot, paper_targets, name):
     cls = method_class(name)
-    task = replace(line_task(robot, paper_targets.start_pose,
-                             paper_targets.touch_poses["1"], 10, "1"),
-                   contract=contract_for(robot))
+    task = line_task(robot, paper_targets.start_pose, paper_targets.touch_poses["1"], 10, "1")
+    task = replace(task, required=replace(task.required, contract=contract_for(robot)))
     method = cls(scheme="walk")
     assert method.fixed_poses() == frozenset({"touch_pose"})
     method.check_tasks(robot, [task])
     method.prepare(robot)
     solution = method.solve(robot, task)
-    np.testing.assert_array_equal(solution.poses[-1], task.end_pose)
-    assert np.abs(solution.poses[0] - task.start_pose).max() > 1.0
+    np.testing.assert_array_equal(solution.poses[-1], task.required.end_pose)
+    assert np.abs(solution.poses[0] - task.required.start_pose).max() > 1.0
     T = robot.fk_transform(solution.poses)
-    position_mm = np.linalg.norm(T[:, :3, 3] * 1000.0 - task.goal_points_mm, axis=1)
+    position_mm = np.linalg.norm(T[:, :3, 3] * 1000.0 - task.goal.points_mm, axis=1)
     # every point off by more than the adapter's tolerance is one it reports as failed
     tolerance_mm = 1000.0 * method.settings.tolerance
     failed = {int(i) for i in str(solution.info["failed_points"]).split()}

@@ -222,12 +222,12 @@ def test_placed_paths_start_at_a_reachable_pose_and_hold_its_orientation():
     robot = load_robot("panda")
     circle, line = place_paths(robot, 5, 2)
     for task in (circle, line):
-        T = robot.fk_transform(task.reference_pose[None])[0]
-        assert np.allclose(task.goal_points_mm[0], T[:3, 3] * 1000.0)
-        assert np.allclose(task.goal_rotations, T[:3, :3])
-        assert len(task.goal_points_mm) == SEGMENTS + 1
-    assert np.allclose(circle.goal_points_mm[0], circle.goal_points_mm[-1])  # closed
-    steps = np.diff(line.goal_points_mm, axis=0)
+        T = robot.fk_transform(task.hints.reference_pose[None])[0]
+        assert np.allclose(task.goal.points_mm[0], T[:3, 3] * 1000.0)
+        assert np.allclose(task.goal.rotations, T[:3, :3])
+        assert len(task.goal.points_mm) == SEGMENTS + 1
+    assert np.allclose(circle.goal.points_mm[0], circle.goal.points_mm[-1])  # closed
+    steps = np.diff(line.goal.points_mm, axis=0)
     assert np.allclose(steps, steps[0])  # straight, evenly spaced
 
 

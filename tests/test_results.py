@@ -77,7 +77,7 @@ def test_committed_comparison_is_reproduced_from_its_trajectories():
     results = pd.read_csv(folder / "results.csv", dtype={"trajectory": str})
     robot = load_robot("nico_right_arm")
     tasks = {t.name: t for t in line_tasks(robot, load_targets(robot=robot))}
-    contract = next(iter(tasks.values())).contract
+    contract = next(iter(tasks.values())).required.contract
     record = json.loads((folder / "run.json").read_text())
     assert record["contract"]["tolerances"] == dict(contract.tolerances)
     measured_rows = results[results["ok_solved"] == True]  # noqa: E712

@@ -34,7 +34,7 @@ class Straight(Method):
             raise SolverError(f"no solution for {task.name}")
         if task.name == self.settings.interrupt_on:
             raise KeyboardInterrupt
-        poses = np.linspace(task.start_pose, task.end_pose, task.steps + 1)
+        poses = np.linspace(task.required.start_pose, task.required.end_pose, task.goal.steps + 1)
         return Solution(poses, iterations=1, duration_s=0.0, loss=None)
 
 

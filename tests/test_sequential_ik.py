@@ -123,7 +123,7 @@ def test_vectors_in_messages_are_plain_numbers():
 def test_up_vector_parallel_to_a_line_fails_before_any_solve(robot, paper_targets):
     task = line_tasks(robot, paper_targets.select("3"))[0]
     settings = DLSSettings(scheme="walk", orientation="frame",
-                           up_vector=tuple(-task.goal_directions[0]))
+                           up_vector=tuple(-task.goal.directions[0]))
     with pytest.raises(InputError, match=r"--up-vector: \(.*\) is parallel to the goal "
                        r"direction of trajectory 3 \(-?0\.\d+, "):
         check_tasks(robot, [task], settings)
@@ -133,7 +133,7 @@ def test_up_vector_parallel_to_a_line_fails_before_any_solve(robot, paper_target
 
 def test_cli_parallel_up_vector_is_one_readable_line_and_creates_nothing(
         robot, paper_targets, tmp_path, capsys):
-    d = line_tasks(robot, paper_targets.select("1"))[0].goal_directions[0]
+    d = line_tasks(robot, paper_targets.select("1"))[0].goal.directions[0]
     out = tmp_path / "out"
     code = main(["run", "--method", "sequential-ik-walk", "--only", "1", "--output", str(out),
                  f"--up-vector={','.join(repr(float(v)) for v in d)}", "--quiet"])
@@ -162,7 +162,7 @@ def test_walk_joint_values_respect_the_limits_and_the_walk_is_deterministic(
         first, second = walk(robot, task, settings), walk(robot, task, settings)
         assert np.max(np.abs(first.poses - motor_deg)) <= 1e-9
         assert np.array_equal(first.poses, second.poses)
-        assert first.iterations == raw.iterations >= task.steps and first.loss is None
+        assert first.iterations == raw.iterations >= task.goal.steps and first.loss is None
         assert first.info["points_not_converged"] == raw.points_not_converged
         assert first.converged == (raw.points_not_converged == 0)
 
@@ -177,10 +177,10 @@ def test_the_walk_starts_at_the_touch_pose_and_solves_point_n_minus_1_from_it(
         raw = walk_joint_rad(robot, task, settings)
         # row n is the touch pose in radians: its conversion back changes it by round-off only
         assert np.max(np.abs(robot.joint_rad_to_motor_deg(raw.q_rad[-1])
-                             - task.end_pose)) < 1e-9
+                             - task.required.end_pose)) < 1e-9
         solution = walk(robot, task, settings)
         fk = robot.fk(solution.poses, backend="torch")
-        error_mm = np.linalg.norm(fk.point_mm - task.goal_points_mm, axis=1)
+        error_mm = np.linalg.norm(fk.point_mm - task.goal.points_mm, axis=1)
         assert error_mm[-1] < 1e-9  # P_n = P_e
         assert 0.0 < np.max(np.abs(solution.poses[-2] - solution.poses[-1]))
         # the largest point error the solver reports is what the written poses show
@@ -196,11 +196,11 @@ def test_reachable_modes_follow_the_line_exactly(robot, paper_targets, orientati
         solution = walk(robot, task, DLSSettings(orientation=orientation))
         assert solution.info["points_not_converged"] == 0
         fk = robot.fk(solution.poses, backend="torch")
-        assert np.max(line_distances_mm(fk.point_mm, task.start_point_mm,
-                                        task.end_point_mm)) < 1e-2
-        assert np.linalg.norm(fk.point_mm[0] - task.start_point_mm) < 1e-2
+        assert np.max(line_distances_mm(fk.point_mm, task.goal.start_point_mm,
+                                        task.goal.end_point_mm)) < 1e-2
+        assert np.linalg.norm(fk.point_mm[0] - task.goal.start_point_mm) < 1e-2
         if orientation == "pointing":  # every solved pose points along d (the touch pose need not)
-            assert np.max(pointing_deviations_deg(fk.direction[:-1], task.goal_directions[0])) \
+            assert np.max(pointing_deviations_deg(fk.direction[:-1], task.goal.directions[0])) \
                 < 1e-2
 
 

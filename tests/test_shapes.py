@@ -148,24 +148,24 @@ def test_parse_shape():
 def test_file_tasks(robot, tmp_path):
     path = _write(tmp_path, "0,0,0\n100,0,0\n100,100,0\n", "corner.csv")
     poly = file_task("polyline", path, 4, reference_pose=PAPER_START)
-    assert poly.name == "corner" and poly.shape == "polyline" and poly.steps == 4
-    assert poly.start_pose is None and poly.end_pose is None
-    assert np.allclose(poly.goal_points_mm[2], [100, 0, 0])
+    assert poly.name == "corner" and poly.goal.shape == "polyline" and poly.goal.steps == 4
+    assert poly.required.start_pose is None and poly.required.end_pose is None
+    assert np.allclose(poly.goal.points_mm[2], [100, 0, 0])
     spline = file_task("spline", path, 20, direction="0,0,-2")
-    assert np.allclose(spline.goal_directions, [0, 0, -1])
+    assert np.allclose(spline.goal.directions, [0, 0, -1])
     # the spline passes through the corner control point and bulges outside the polyline
-    assert np.min(np.linalg.norm(spline.curve.strokes_mm[0] - [100, 0, 0], axis=1)) < 1e-9
+    assert np.min(np.linalg.norm(spline.goal.curve.strokes_mm[0] - [100, 0, 0], axis=1)) < 1e-9
     normal = file_task("spline", path, 10, direction="normal")
-    assert np.allclose(np.abs(normal.goal_directions), [0, 0, 1])
+    assert np.allclose(np.abs(normal.goal.directions), [0, 0, 1])
 
 
 def test_build_tasks_line_and_direction(robot, paper_targets):
     tasks = build_tasks(robot, paper_targets.select("1"), "line", steps=10)
-    assert len(tasks) == 1 and tasks[0].steps == 10 and tasks[0].curve is None
+    assert len(tasks) == 1 and tasks[0].goal.steps == 10 and tasks[0].goal.curve is None
     down = build_tasks(robot, paper_targets.select("1"), "line", direction="0,0,-1")
-    assert np.allclose(down[0].goal_directions, [0, 0, -1])
-    assert np.allclose(down[0].goal_points_mm, build_tasks(robot, paper_targets.select("1"))[0]
-                       .goal_points_mm)
+    assert np.allclose(down[0].goal.directions, [0, 0, -1])
+    assert np.allclose(down[0].goal.points_mm, build_tasks(robot, paper_targets.select("1"))[0]
+                       .goal.points_mm)
     with pytest.raises(InputError, match="size_mm: only letters"):
         build_tasks(robot, paper_targets, "line", size_mm=100)
     with pytest.raises(InputError, match="direction: 'up' is not one of"):
@@ -181,7 +181,7 @@ def test_shape_metrics_known(robot):
     task = curve_task(curve, 10, "t", "polyline", direction="1,0,0")
     m = shape_metrics(robot, task, poses)
     assert m["curve_distance_max_mm"] < 1e-9
-    errors = np.linalg.norm(fk.point_mm - task.goal_points_mm, axis=1)
+    errors = np.linalg.norm(fk.point_mm - task.goal.points_mm, axis=1)
     assert m["point_error_mean_mm"] == pytest.approx(errors.mean())
     assert m["point_error_max_mm"] == pytest.approx(errors.max()) and errors.max() > 1
     angles = np.degrees(np.arccos(np.clip(fk.direction[:, 0], -1, 1)))
@@ -197,11 +197,11 @@ def test_shape_metrics_skip_pen_up_points(robot):
     far = tip + [0, 0, 400.0]
     curve = Curve((np.array([tip, tip + [0, 1.0, 0]]), np.array([far, far + [0, 1.0, 0]])))
     task = curve_task(curve, 4, "t", "polyline", direction="tangent")
-    assert task.pen_down.tolist() == [True, False, False, False, True]
+    assert task.goal.pen_down.tolist() == [True, False, False, False, True]
     m = shape_metrics(robot, task, poses)
-    kept = task.pen_down
+    kept = task.goal.pen_down
     expected = pointing_deviations_deg(robot.fk(poses).direction[kept],
-                                       task.goal_directions[kept])
+                                       task.goal.directions[kept])
     assert m["pointing_deviation_mean_deg"] == pytest.approx(expected.mean())
     # the tip stays on the first stroke: 0 from the curve, but 0 and ~400 mm from the two
     # pen-down goal points; the three pen-up goal points (100-300 mm away) do not count

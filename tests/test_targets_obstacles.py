@@ -17,7 +17,7 @@ from ikbench.core.errors import TargetsError
 from ikbench.core.metrics import contract_metrics
 from ikbench.core.robot import Robot
 from ikbench.core.targets import Targets, load_targets
-from ikbench.core.task import Task, build_tasks, line_tasks
+from ikbench.core.task import Goal, Requirements, Task, build_tasks, line_tasks
 from ikbench.schemes.chain import goals_of
 from ikbench.studies.compare import COLUMNS, OBSTACLE_COLUMNS
 from tests.conftest import PAPER_START
@@ -48,11 +48,12 @@ def _hand_box(robot: Robot) -> dict:
 def test_default_targets_have_no_obstacles(robot: Robot, paper_targets: Targets) -> None:
     assert paper_targets.obstacles == () and paper_targets.obstacles_source == ""
     tasks = line_tasks(robot, paper_targets)
-    assert all(t.obstacles == () for t in tasks)
-    assert not tasks[0].contract.obstacles and "collisions" not in tasks[0].contract.criteria()
+    assert all(t.required.obstacles == () for t in tasks)
+    contract = tasks[0].required.contract
+    assert not contract.obstacles and "collisions" not in contract.criteria()
     figures = contract_metrics(robot, tasks[0], np.repeat(paper_targets.start_pose[None],
-                                                           tasks[0].steps + 1, axis=0),
-                               tasks[0].contract)
+                                                           tasks[0].goal.steps + 1, axis=0),
+                               tasks[0].required.contract)
     assert not {"self_collisions", "env_collisions", "min_clearance_mm"} & set(figures)
 
 
@@ -64,21 +65,23 @@ def test_a_list_of_obstacles_goes_on_every_task(robot: Robot, tmp_path: Path) ->
     assert np.allclose(crate.center_mm, [300, 0, 100]) and np.allclose(crate.size_mm, [50, 60, 70])
     tasks = line_tasks(robot, targets)
     assert [t.name for t in tasks] == ["1", "2"]
-    assert all(t.obstacles == targets.obstacles for t in tasks)
-    assert tasks[0].contract.obstacles and tasks[0].contract.criteria()[-1] == "collisions"
-    assert all(t.obstacles == targets.obstacles for t in build_tasks(robot, targets))
+    assert all(t.required.obstacles == targets.obstacles for t in tasks)
+    contract = tasks[0].required.contract
+    assert contract.obstacles and contract.criteria()[-1] == "collisions"
+    assert all(t.required.obstacles == targets.obstacles for t in build_tasks(robot, targets))
     letters = build_tasks(robot, targets, "letter:L", steps=8)
-    assert letters[0].obstacles == targets.obstacles
+    assert letters[0].required.obstacles == targets.obstacles
 
 
 def test_a_task_holds_its_obstacles_as_a_tuple_and_hands_them_to_the_adapters(
         robot: Robot, tmp_path: Path) -> None:
     crate = load_targets(_write(tmp_path, obstacles=[BOX]), robot).obstacles[0]
-    task = Task("t", np.zeros((3, 3)), np.tile([1.0, 0.0, 0.0], (3, 1)), None, None,
-                obstacles=[crate])  # a list, as a user may give it
-    assert task.obstacles == (crate,) and task.pen_down.tolist() == [True] * 3
+    task = Task("t", Goal(np.zeros((3, 3)), np.tile([1.0, 0.0, 0.0], (3, 1))),
+                Requirements(obstacles=[crate]))  # a list, as a user may give it
+    assert task.required.obstacles == (crate,) and task.goal.pen_down.tolist() == [True] * 3
     assert goals_of(robot, task).obstacles == (crate,)
-    assert goals_of(robot, replace(task, obstacles=())).obstacles == ()
+    free = replace(task, required=replace(task.required, obstacles=()))
+    assert goals_of(robot, free).obstacles == ()
 
 
 def test_a_named_set_and_a_relative_file(robot: Robot, tmp_path: Path) -> None:
@@ -93,7 +96,7 @@ def test_a_named_set_and_a_relative_file(robot: Robot, tmp_path: Path) -> None:
     assert [o.name for o in relative.obstacles] == ["crate"]
     assert relative.obstacles_source == "box.json"
     none = load_targets(_write(tmp_path, "none.json", obstacles="none"), robot)
-    assert none.obstacles == () and not line_tasks(robot, none)[0].contract.obstacles
+    assert none.obstacles == () and not line_tasks(robot, none)[0].required.contract.obstacles
 
 
 @pytest.mark.parametrize("value, message", [
@@ -157,12 +160,12 @@ def test_contract_round_trip_and_judge() -> None:
 def test_contract_metrics_count_the_collisions(robot: Robot, tmp_path: Path) -> None:
     targets = load_targets(_write(tmp_path, obstacles=[_hand_box(robot)]), robot)
     task = line_tasks(robot, targets, contract_for(robot))[0]
-    held = np.repeat(targets.start_pose[None], task.steps + 1, axis=0)
-    figures = contract_metrics(robot, task, held, task.contract)
-    assert figures["env_collisions"] == task.steps + 1 and figures["self_collisions"] == 0
+    held = np.repeat(targets.start_pose[None], task.goal.steps + 1, axis=0)
+    figures = contract_metrics(robot, task, held, task.required.contract)
+    assert figures["env_collisions"] == task.goal.steps + 1 and figures["self_collisions"] == 0
     assert figures["min_clearance_mm"] < 0 and figures["first_collision_waypoint"] == 0
     assert "on_hand" in figures["first_collision_pair"]
-    assert judge(task.contract, figures)["collisions"] is False
+    assert judge(task.required.contract, figures)["collisions"] is False
 
 
 def _compare(tmp_path: Path, name: str, *args: str) -> tuple[int, Path]:

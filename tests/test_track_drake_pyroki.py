@@ -47,7 +47,7 @@ def solve_all(method, robot, tasks):
 
 
 def figures(robot, task, solution):
-    return contract_metrics(robot, task, solution.poses, task.contract)
+    return contract_metrics(robot, task, solution.poses, task.required.contract)
 
 
 # ----- the conversions (no library needed) ------------------------------------------------------
@@ -55,14 +55,16 @@ def test_the_contracts_step_in_urdf_units(robot):
     contract = contract_for(robot)
     pose_step = contract.max_step(50)  # 10.8 motor deg for every NICO joint
     targets = load_targets(None, robot)
-    task = replace(line_task(robot, targets.start_pose, targets.touch_poses["1"], 50,
-                             "1"), contract=contract)
+    task = line_task(robot, targets.start_pose, targets.touch_poses["1"], 50, "1")
+    task = replace(task, required=replace(task.required, contract=contract))
     step = contract_step(goals_of(robot, task), pyroki_trajopt.STEP_MARGIN)
     expected = 0.99 * np.radians(np.abs(np.asarray(robot.scale)) * pose_step)
     np.testing.assert_allclose(step, expected, rtol=1e-12)
-    assert contract_step(goals_of(robot, replace(task, contract=None))) is None
     assert contract_step(goals_of(robot, replace(
-        task, contract=replace(contract, max_speed=None)))) is None
+        task, required=replace(task.required, contract=None)))) is None
+    assert contract_step(goals_of(robot, replace(
+        task, required=replace(task.required, contract=replace(contract, max_speed=None))))) \
+        is None
     # the track's costs weigh a joint in motor deg: NICO's 0.222-scale motors 20.25x
     np.testing.assert_allclose(pose_metric(robot), 1 / np.asarray(robot.scale) ** 2)
 
@@ -81,10 +83,11 @@ def test_drake_ik_tracks_from_the_start_pose_onto_the_touch_pose(robot):
     assert method.settings.scheme == "track"
     assert method.fixed_poses() == frozenset({"start_pose", "touch_pose"})
     for task, solution in zip(tasks, solve_all(method, robot, tasks)):
-        np.testing.assert_array_equal(solution.poses[0], task.start_pose)
-        np.testing.assert_array_equal(solution.poses[-1], task.end_pose)
+        np.testing.assert_array_equal(solution.poses[0], task.required.start_pose)
+        np.testing.assert_array_equal(solution.poses[-1], task.required.end_pose)
         found = figures(robot, task, solution)
-        assert judge(task.contract, found) == dict.fromkeys(task.contract.criteria(), True), \
+        contract = task.required.contract
+        assert judge(contract, found) == dict.fromkeys(contract.criteria(), True), \
             (task.name, found)
         assert found["speed_limit_use"] <= 1.0
         assert found["line_distance_max_mm"] < 1e-2
@@ -100,7 +103,7 @@ def test_drake_ik_walk_keeps_the_authors_scheme(robot):
     (solution,) = solve_all(method, robot, tasks)
     found = figures(robot, tasks[0], solution)
     assert found["start_pose_error_deg"] > 1.0  # the walk ends wherever it ends
-    np.testing.assert_array_equal(solution.poses[-1], tasks[0].end_pose)
+    np.testing.assert_array_equal(solution.poses[-1], tasks[0].required.end_pose)
     assert solution.info["scheme"] == "walk"
 
 
@@ -112,10 +115,11 @@ def assert_meets_the_contract(robot, name: str) -> None:
     (solution,) = solve_all(get_method(name)(), robot, tasks)
     found = figures(robot, tasks[0], solution)
     assert found["speed_limit_use"] <= 1.0
-    assert judge(tasks[0].contract, found) == dict.fromkeys(tasks[0].contract.criteria(), True), \
+    contract = tasks[0].required.contract
+    assert judge(contract, found) == dict.fromkeys(contract.criteria(), True), \
         found
     assert solution.info["speed_bounded"]
-    assert solution.info["pointing_from"] == tasks[0].contract.judged_from(50)
+    assert solution.info["pointing_from"] == tasks[0].required.contract.judged_from(50)
 
 
 @needs_drake
@@ -137,7 +141,7 @@ def test_drake_trajopt_without_pointing_in_the_contract(robot):
 @needs_drake
 def test_drake_trajopt_without_a_contract_is_unchanged(robot):
     (task,) = paper_tasks(robot, "1")
-    plain = replace(task, contract=None)
+    plain = replace(task, required=replace(task.required, contract=None))
     method = get_method("drake-trajopt")()
     (solution,) = solve_all(method, robot, [plain])
     assert solution.info["pointing_from"] == 1 and not solution.info["speed_bounded"]

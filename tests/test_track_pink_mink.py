@@ -47,9 +47,9 @@ def contract(robot):
 def tasks(robot, paper_targets, contract):
     """Two paper targets as /tmp/check_contract.py builds them: the line from FK(start) to
     FK(touch) in 50 steps, with the paper track's contract."""
-    return [replace(line_task(robot, paper_targets.start_pose,
-                              paper_targets.touch_poses[name], STEPS, name),
-                    contract=contract) for name in TARGETS]
+    tasks = [line_task(robot, paper_targets.start_pose, paper_targets.touch_poses[name], STEPS,
+                       name) for name in TARGETS]
+    return [replace(t, required=replace(t.required, contract=contract)) for t in tasks]
 
 
 def solve_all(robot, method, tasks):
@@ -66,8 +66,8 @@ def test_track_meets_the_contract_from_start_to_touch_pose(robot, tasks, contrac
     for task, solution in zip(tasks, solve_all(robot, method, tasks)):
         poses = solution.poses
         assert poses.shape == (STEPS + 1, robot.dof)
-        np.testing.assert_array_equal(poses[0], task.start_pose)
-        np.testing.assert_array_equal(poses[-1], task.end_pose)
+        np.testing.assert_array_equal(poses[0], task.required.start_pose)
+        np.testing.assert_array_equal(poses[-1], task.required.end_pose)
         figures = contract_metrics(robot, task, poses, contract)
         verdict = judge(contract, figures)
         assert set(verdict) >= {"start_pose", "end_pose", "speed", "line", "pointing"}
@@ -87,14 +87,14 @@ def test_walk_lands_on_the_touch_pose_but_leaves_the_start_pose(robot, tasks, na
     method = method_class(name)(scheme="walk")
     assert method.fixed_poses() == frozenset({"touch_pose"})
     for task, solution in zip(tasks, solve_all(robot, method, tasks)):
-        np.testing.assert_array_equal(solution.poses[-1], task.end_pose)
-        assert np.abs(solution.poses[0] - task.start_pose).max() > 1.0
+        np.testing.assert_array_equal(solution.poses[-1], task.required.end_pose)
+        assert np.abs(solution.poses[0] - task.required.start_pose).max() > 1.0
 
 
 @pytest.mark.parametrize("name", list(LIBRARIES))
 def test_track_without_pointing_tracks_the_position_only(robot, tasks, name):
     off = contract_for(robot, track="paper", pointing="off")
-    task = replace(tasks[0], contract=off)
+    task = replace(tasks[0], required=replace(tasks[0].required, contract=off))
     method = method_class(name)()
     (solution,) = solve_all(robot, method, [task])
     figures = contract_metrics(robot, task, solution.poses, off)

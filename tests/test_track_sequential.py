@@ -42,14 +42,14 @@ def solve_judged(method, robot, task):
     method.check_tasks(robot, [task])
     method.prepare(robot)
     solution = method.solve(robot, task)
-    figures = contract_metrics(robot, task, solution.poses, task.contract)
-    return solution, figures, judge(task.contract, figures)
+    figures = contract_metrics(robot, task, solution.poses, task.required.contract)
+    return solution, figures, judge(task.required.contract, figures)
 
 
 def assert_fixed_rows(solution, task):
     """Row 0 is the start pose and row n the touch pose, exactly as given."""
-    np.testing.assert_array_equal(solution.poses[0], task.start_pose)
-    np.testing.assert_array_equal(solution.poses[-1], task.end_pose)
+    np.testing.assert_array_equal(solution.poses[0], task.required.start_pose)
+    np.testing.assert_array_equal(solution.poses[-1], task.required.end_pose)
 
 
 # ----- sequential-ik ----------------------------------------------------------------------------
@@ -81,12 +81,13 @@ def test_sequential_ik_track_without_speed_bounds_breaks_the_speed_limit(robot, 
 @needs("pinocchio")
 def test_sequential_ik_track_refuses_tasks_without_a_start_pose(robot, paper_targets):
     task = paper_tasks(robot, paper_targets, "1")[0]
-    no_start = replace(task, start_pose=None)
+    no_start = replace(task, required=replace(task.required, start_pose=None))
     with pytest.raises(InputError, match="no start pose"):
         get_method("sequential-ik")().check_tasks(robot, [no_start])
     get_method("sequential-ik-walk")().check_tasks(robot, [no_start])  # the walk needs none
+    no_end = replace(task, required=replace(task.required, end_pose=None))
     with pytest.raises(InputError, match="no end pose"):
-        get_method("sequential-ik-walk")().check_tasks(robot, [replace(task, end_pose=None)])
+        get_method("sequential-ik-walk")().check_tasks(robot, [no_end])
 
 
 @needs("pinocchio")
@@ -96,7 +97,8 @@ def test_sequential_ik_keeps_walking_pose_paths_forward(robot):
     from ikbench.baselines.sequential_ik import walk
     from tests.test_baselines import fk_task
 
-    task = replace(fk_task(robot, seed=5, frames=True), end_pose=None)
+    task = fk_task(robot, seed=5, frames=True)
+    task = replace(task, required=replace(task.required, end_pose=None))
     method = get_method("sequential-ik")()
     method.check_tasks(robot, [task])
     solution = method.solve(robot, task)
@@ -104,8 +106,8 @@ def test_sequential_ik_keeps_walking_pose_paths_forward(robot):
     np.testing.assert_array_equal(solution.poses, walk(robot, task, frame).poses)
     assert "scheme" not in solution.info
     T = robot.fk_transform(solution.poses)
-    assert np.linalg.norm(T[:, :3, 3] * 1000 - task.goal_points_mm, axis=1).max() < 1e-3
-    rel = np.einsum("nji,njk->nik", T[:, :3, :3], task.goal_rotations)
+    assert np.linalg.norm(T[:, :3, 3] * 1000 - task.goal.points_mm, axis=1).max() < 1e-3
+    rel = np.einsum("nji,njk->nik", T[:, :3, :3], task.goal.rotations)
     cos = (np.trace(rel, axis1=1, axis2=2) - 1) / 2
     assert np.degrees(np.arccos(np.clip(cos, -1, 1))).max() < 1e-2
 
@@ -120,7 +122,7 @@ def test_sequential_ik_walk_is_the_papers_table_2_scheme(robot, paper_targets):
     assert get_method("sequential-ik")(scheme="walk").fixed_poses() == frozenset({"touch_pose"})
     for task in paper_tasks(robot, paper_targets, "1,7"):
         solution, figures, met = solve_judged(method, robot, task)
-        np.testing.assert_array_equal(solution.poses[-1], task.end_pose)
+        np.testing.assert_array_equal(solution.poses[-1], task.required.end_pose)
         assert figures["start_pose_error_deg"] > 1.0 and not met["start_pose"]
         # the walk as it always was: frame mode, the touch pose's roll
         same = walk(robot, task, DLSSettings(orientation="frame"))
@@ -153,7 +155,7 @@ def test_trac_ik_walk_keeps_the_touch_pose_only(robot, paper_targets):
     assert method.fixed_poses() == frozenset({"touch_pose"})
     task = paper_tasks(robot, paper_targets, "7", steps=10)[0]
     solution, figures, _ = solve_judged(method, robot, task)
-    np.testing.assert_array_equal(solution.poses[-1], task.end_pose)
+    np.testing.assert_array_equal(solution.poses[-1], task.required.end_pose)
     assert figures["start_pose_error_deg"] > 1.0
 
 
@@ -179,7 +181,7 @@ def test_ikpy_walk_is_the_authors_call(robot, paper_targets):
     assert method.fixed_poses() == frozenset({"touch_pose"})
     task = paper_tasks(robot, paper_targets, "1", steps=10)[0]
     solution, figures, _ = solve_judged(method, robot, task)
-    np.testing.assert_array_equal(solution.poses[-1], task.end_pose)
+    np.testing.assert_array_equal(solution.poses[-1], task.required.end_pose)
     assert figures["start_pose_error_deg"] > 1.0
     assert solution.converged  # every point within 0.1 mm, by FK
     same = IkpyIK(scheme="walk", orientation="position").solve(robot, task)

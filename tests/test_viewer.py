@@ -44,7 +44,7 @@ def test_runs_are_read_back_with_their_goal_paths(folders):
     assert traj.steps == 10 and traj.duration_s == 2.0 and traj.index_at(1.0) == 5
     task = ikbench.line_tasks(robot, ikbench.load_targets(None, robot).select("3")
                               .with_steps(10))[0]
-    np.testing.assert_allclose(traj.goal_mm, task.goal_points_mm, atol=1e-9)
+    np.testing.assert_allclose(traj.goal_mm, task.goal.points_mm, atol=1e-9)
     assert runs[0].goal_source.startswith("goal: rebuilt from run.json (shape line")
 
 

@@ -15,7 +15,7 @@ import ikbench
 from ikbench.core.errors import InputError
 from ikbench.core.obstacles import box, sphere
 from ikbench.core.problems import load_problem
-from ikbench.core.task import Task
+from ikbench.core.task import Goal, Requirements, Task
 from ikbench.render.arm_plots import colliding_waypoints
 from ikbench.runtime.record import obstacles_entry
 from ikbench.viewer.folders import load_runs
@@ -44,12 +44,12 @@ def _edited(folder: Path, where: Path, edit) -> Path:
 def test_a_problem_run_records_its_obstacles_and_reads_them_back(cube_run):
     _, task, _ = load_problem("panda__1cube")
     record = json.loads((cube_run / "run.json").read_text())
-    assert record["obstacles"] == [o.to_dict() for o in task.obstacles]
+    assert record["obstacles"] == [o.to_dict() for o in task.required.obstacles]
     assert record["obstacles"][0]["center_mm"] == [0.0, 200.0, 700.0]  # the cube, 0.25 m
     _, (run,) = load_runs([cube_run])
     assert [o.name for o in run.obstacles] == ["box0"]
     (cube,) = run.obstacles
-    np.testing.assert_allclose(cube.center_mm, task.obstacles[0].center_mm, atol=1e-9)
+    np.testing.assert_allclose(cube.center_mm, task.required.obstacles[0].center_mm, atol=1e-9)
     np.testing.assert_allclose(cube.size_mm, [250.0, 250.0, 250.0])
     np.testing.assert_allclose(cube.rotation, np.eye(3), atol=1e-12)
     assert run.trajectories[TID].obstacles == run.obstacles
@@ -62,8 +62,8 @@ def test_an_older_run_folder_without_the_key_reads_with_none(cube_run, tmp_path)
 
 
 def _task(name: str, obstacles) -> Task:
-    return Task(name, np.zeros((2, 3)), np.tile([0.0, 0.0, 1.0], (2, 1)), None, None,
-                obstacles=tuple(obstacles))
+    return Task(name, Goal(np.zeros((2, 3)), np.tile([0.0, 0.0, 1.0], (2, 1))),
+                Requirements(obstacles=tuple(obstacles)))
 
 
 def test_run_json_records_one_list_per_run_or_per_trajectory_and_nothing_without():

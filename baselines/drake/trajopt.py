@@ -23,7 +23,7 @@ program (pydrake.planning.KinematicTrajectoryOptimization and its ``get_mutable_
   the paper's tasks they trade the pointing next to the fixed start pose for a shorter path
   and cost SNOPT 10-30x the time).
 
-The task's contract (``task.contract``; without one, as described above): pointing costs
+The task's contract (``task.required.contract``; without one, as described above): pointing costs
 only on the steps the contract judges, i >= ``contract.judged_from(n)`` (none when the
 contract does not ask for pointing), so the arm may turn from the start pose's own pointing
 over the first steps instead of in one segment; and the speed limit as linear constraints on
@@ -336,7 +336,7 @@ class DrakeTrajopt(AvoidsObstacles, DrakeMethod):
         """Also: enough control points for the spline order (:func:`control_point_count`)."""
         super().check_tasks(robot, tasks)
         for task in tasks:
-            control_point_count(self.settings, len(task.goal_points_mm))
+            control_point_count(self.settings, len(task.goal.points_mm))
 
     def solve_scene(self, robot: Robot, chain: Chain, goals: Goals,
                     scene: Scene | None) -> ChainResult:

@@ -93,7 +93,7 @@ def resolve_weights(weights: dict[str, float] | str | None, task: Task) -> dict[
     None for none) on top of the task's own default weights, else the paper's."""
     if isinstance(weights, dict):
         return weights
-    return parse_weights(weights, task.default_weights)
+    return parse_weights(weights, task.hints.default_weights)
 
 
 @dataclass
@@ -113,8 +113,8 @@ class LossGoals:
         def tensor(x):
             return None if x is None else torch.as_tensor(x, dtype=dtype, device=device)
 
-        return cls(tensor(task.goal_points_mm / MM_PER_CM), tensor(task.goal_directions),
-                   tensor(task.start_pose), tensor(task.end_pose))
+        return cls(tensor(task.goal.points_mm / MM_PER_CM), tensor(task.goal.directions),
+                   tensor(task.required.start_pose), tensor(task.required.end_pose))
 
 
 def loss_terms(points_cm: Tensor, directions: Tensor, poses_deg: Tensor,

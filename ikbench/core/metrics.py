@@ -125,10 +125,10 @@ def _end_errors_and_smoothness(robot, task, points_mm, poses) -> dict[str, float
                 else float(np.max(np.abs(pose_difference(robot, pose, goal)))))
 
     return {
-        "start_point_error_mm": float(np.linalg.norm(points_mm[0] - task.start_point_mm)),
-        "end_point_error_mm": float(np.linalg.norm(points_mm[-1] - task.end_point_mm)),
-        "start_pose_error_deg": pose_error(poses[0], task.start_pose),
-        "end_pose_error_deg": pose_error(poses[-1], task.end_pose),
+        "start_point_error_mm": float(np.linalg.norm(points_mm[0] - task.goal.start_point_mm)),
+        "end_point_error_mm": float(np.linalg.norm(points_mm[-1] - task.goal.end_point_mm)),
+        "start_pose_error_deg": pose_error(poses[0], task.required.start_pose),
+        "end_pose_error_deg": pose_error(poses[-1], task.required.end_pose),
         **smoothness(poses),
     }
 
@@ -154,9 +154,10 @@ def trajectory_metrics(robot: Robot, task: Task, poses: npt.ArrayLike
 
 def _line_metrics(robot, task, poses, fk) -> dict[str, float]:
     """:func:`trajectory_metrics` from the poses' FK (computed once by the caller)."""
-    mask = task.pen_down
-    distances = line_distances_mm(fk.point_mm[mask], task.start_point_mm, task.end_point_mm)
-    deviations = pointing_deviations_deg(fk.direction[mask], task.goal_directions[mask])
+    mask = task.goal.pen_down
+    distances = line_distances_mm(fk.point_mm[mask], task.goal.start_point_mm,
+                                  task.goal.end_point_mm)
+    deviations = pointing_deviations_deg(fk.direction[mask], task.goal.directions[mask])
 
     return {
         **statistics("line_distance_{}_mm", distances, "mean", "std"),
@@ -183,10 +184,10 @@ def shape_metrics(robot: Robot, task: Task, poses: npt.ArrayLike
     """
     poses = np.asarray(poses, dtype=float)
     fk = robot.fk(poses)
-    mask = task.pen_down
-    distances = cast("Curve", task.curve).distances_mm(fk.point_mm[mask])  # a shape task
-    errors = np.linalg.norm(fk.point_mm - task.goal_points_mm, axis=1)[mask]
-    deviations = pointing_deviations_deg(fk.direction[mask], task.goal_directions[mask])
+    mask = task.goal.pen_down
+    distances = cast("Curve", task.goal.curve).distances_mm(fk.point_mm[mask])  # a shape task
+    errors = np.linalg.norm(fk.point_mm - task.goal.points_mm, axis=1)[mask]
+    deviations = pointing_deviations_deg(fk.direction[mask], task.goal.directions[mask])
 
     return {
         **statistics("curve_distance_{}_mm", distances, "mean", "std", "max"),
@@ -208,8 +209,8 @@ def frame_errors(robot: Robot, task: Task, poses: npt.ArrayLike
 
     T = robot.fk_transform(np.asarray(poses, dtype=float))
     points_mm = T[:, :3, 3] * 1000.0
-    position = np.linalg.norm(points_mm - task.goal_points_mm, axis=1)
-    rotation = np.degrees(geodesic_angle(cast(np.ndarray, task.goal_rotations), T[:, :3, :3]))
+    position = np.linalg.norm(points_mm - task.goal.points_mm, axis=1)
+    rotation = np.degrees(geodesic_angle(cast(np.ndarray, task.goal.rotations), T[:, :3, :3]))
     return position, rotation, points_mm
 
 
@@ -260,10 +261,10 @@ def frame_metrics(robot: Robot, task: Task, poses: npt.ArrayLike) -> dict[str, A
         else np.nan,
         "cartesian_path_length_mm": float(np.linalg.norm(np.diff(points_mm, axis=0),
                                                          axis=1).sum()),
-        "target_path_length_mm": float(np.linalg.norm(np.diff(task.goal_points_mm, axis=0),
+        "target_path_length_mm": float(np.linalg.norm(np.diff(task.goal.points_mm, axis=0),
                                                       axis=1).sum()),
         "within_limits": within,
-        **check_trajectory(robot, poses, task.obstacles),
+        **check_trajectory(robot, poses, task.required.obstacles),
         "initial_configuration_distance": initial_distance(robot, task, poses),
     }
     failures = validity_failures(out)
@@ -273,7 +274,7 @@ def frame_metrics(robot: Robot, task: Task, poses: npt.ArrayLike) -> dict[str, A
 def initial_distance(robot: Robot, task: Task, poses: npt.ArrayLike) -> float:
     """Euclidean distance (URDF units: rad, m) of the first pose from the task's initial pose
     (CppFlow's ``initial_q_norm_dist``); NaN when the task gives none."""
-    initial = task.initial_pose
+    initial = task.required.initial_pose
     if initial is None:
         return float("nan")
     first = robot.to_urdf(np.asarray(poses, dtype=float)[0])
@@ -317,25 +318,25 @@ def contract_metrics(robot: Robot, task: Task, poses: npt.ArrayLike,
     poses = np.asarray(poses, dtype=float)
     fk = robot.fk(poses)
     out: dict[str, Any] = _line_metrics(robot, task, poses, fk)
-    mask = np.asarray(task.pen_down, dtype=bool)
+    mask = np.asarray(task.goal.pen_down, dtype=bool)
     out["line_distance_max_mm"] = float(line_distances_mm(
-        fk.point_mm[mask], task.start_point_mm, task.end_point_mm).max())
+        fk.point_mm[mask], task.goal.start_point_mm, task.goal.end_point_mm).max())
     judged = np.zeros(len(poses), dtype=bool)
-    judged[contract.judged_from(task.steps):] = True
+    judged[contract.judged_from(task.goal.steps):] = True
     judged &= mask
     if contract.pointing and judged.any():
-        deviations = pointing_deviations_deg(fk.direction[judged], task.goal_directions[judged])
+        deviations = pointing_deviations_deg(fk.direction[judged], task.goal.directions[judged])
         out.update(statistics("pointing_deviation_judged_{}_deg", deviations, "mean", "max"))
     else:
         out["pointing_deviation_judged_mean_deg"] = float("nan")
         out["pointing_deviation_judged_max_deg"] = float("nan")
-    max_step = contract.max_step(task.steps)
+    max_step = contract.max_step(task.goal.steps)
     out["speed_limit_use"] = speed_limit_use(poses, max_step)
     out["max_step_limit_deg"] = float("nan") if max_step is None else float(np.min(max_step))
     lower, upper = task.limits(robot)
     out["within_limits"] = bool(np.all(poses >= lower - 1e-6) and np.all(poses <= upper + 1e-6))
-    if task.obstacles:
-        found = check_trajectory(robot, poses, task.obstacles)
+    if task.required.obstacles:
+        found = check_trajectory(robot, poses, task.required.obstacles)
         checked = found["collision_model"] != "none"
         for key in ("self_collisions", "env_collisions", "min_clearance_mm",
                     "first_collision_waypoint"):

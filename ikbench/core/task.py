@@ -1,8 +1,10 @@
 """Tasks: the goal points and goal directions a trajectory must follow.
 
-A :class:`Task` holds n+1 goal points P^g_i [mm] and unit goal directions v^g_i, plus the
-start and end poses [pose units] that the start/end loss terms pin. The paper's task is the
-straight line of Eq. 1 from FK(start pose) to FK(touch pose), pointing along it.
+A :class:`Task` holds its :class:`Goal` (n+1 goal points P^g_i [mm] and unit goal directions
+v^g_i), its :class:`Requirements` (the start and end poses [pose units] that the start/end loss
+terms pin, joint limits, obstacles, contract) and its :class:`Hints` (reference pose, default
+weights). The paper's task is the straight line of Eq. 1 from FK(start pose) to FK(touch
+pose), pointing along it.
 
 :func:`build_tasks` makes the tasks of any shape (``--shape``):
 
@@ -44,90 +46,149 @@ _EVERY_POINT = np.ones(0, dtype=bool)
 
 
 @dataclass(frozen=True, eq=False)
+class Goal:
+    """What a task asks for: the path the end frame must follow.
+
+    Attributes:
+        points_mm: (n+1, 3) goal points P^g_i in the robot root frame [mm].
+        directions: (n+1, 3) unit goal pointing directions v^g_i.
+        rotations: (n+1, 3, 3) goal frames' rotations (end frame in the base frame) of a
+            6-D pose path, or None. A goal with frames asks for the full orientation; its
+            ``directions`` are then the rotations' pointing axes.
+        pen_down: (n+1,) bool, True where the point belongs to the drawn shape (metrics skip
+            the others, e.g. pen-up moves between strokes); not given (or None): every point.
+        curve: the target curve the goal points were sampled from; None for a line (the
+            segment from P^s to P^e).
+        shape: the shape's name (``"line"``, ...).
+    """
+
+    points_mm: np.ndarray
+    directions: np.ndarray
+    rotations: np.ndarray | None = None
+    pen_down: np.ndarray = field(default_factory=lambda: _EVERY_POINT)
+    curve: Curve | None = None
+    shape: str = "line"
+
+    def __post_init__(self) -> None:
+        pen_down: Any = self.pen_down  # a user may still pass None (every point)
+        if pen_down is None or pen_down is _EVERY_POINT:
+            object.__setattr__(self, "pen_down", np.ones(len(self.points_mm), dtype=bool))
+
+    @property
+    def has_frames(self) -> bool:
+        """True for a 6-D pose path (goal rotations given)."""
+        return self.rotations is not None
+
+    @property
+    def steps(self) -> int:
+        """Number of segments n."""
+        return len(self.points_mm) - 1
+
+    @property
+    def start_point_mm(self) -> np.ndarray:
+        """P^s = P^g_0 [mm]."""
+        return self.points_mm[0]
+
+    @property
+    def end_point_mm(self) -> np.ndarray:
+        """P^e = P^g_n [mm]."""
+        return self.points_mm[-1]
+
+
+@dataclass(frozen=True, eq=False)
+class Requirements:
+    """What a task requires of the poses, besides following the goal.
+
+    Attributes:
+        start_pose: (dof,) start pose p^s [pose units: ``Robot.pose_unit``], or None when
+            not constrained.
+        end_pose: (dof,) end (touch) pose p^e [pose units], or None.
+        joint_limits: (lower (dof,), upper (dof,)) [pose units] the poses must respect when
+            they differ from the robot's limits (a benchmark's bounds, e.g. CppFlow's
+            [-180, 180] deg for continuous joints), or None.
+        obstacles: the obstacles the robot must not touch, in the base frame
+            (:class:`ikbench.core.obstacles.Obstacle`); empty: none. Judged with the robot's
+            collision model (:mod:`ikbench.core.collision`) where the robot has one.
+        contract: what the trajectory is judged against
+            (:class:`ikbench.core.contract.Contract`: fixed poses, pointing and its judged
+            part, speed limits, tolerances), or None (a plain run: the method's own scheme).
+            Methods read it to honour the task, e.g. where pointing is asked for.
+        initial_pose: (dof,) [pose units] the pose a 6-D pose path must start near (a
+            CppFlow problem's ``initial_configuration``), or None.
+    """
+
+    start_pose: np.ndarray | None = None
+    end_pose: np.ndarray | None = None
+    joint_limits: tuple[np.ndarray, np.ndarray] | None = None
+    obstacles: tuple[Obstacle, ...] = ()
+    contract: Contract | None = None
+    initial_pose: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.obstacles, tuple):
+            object.__setattr__(self, "obstacles", tuple(self.obstacles))
+
+    def limits(self, robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) (dof,) [pose units]: these joint limits, else the robot's."""
+        if self.joint_limits is not None:
+            return self.joint_limits
+        return robot.lower, robot.upper
+
+
+@dataclass(frozen=True, eq=False)
+class Hints:
+    """What a task suggests to a method; nothing is judged against it.
+
+    Attributes:
+        reference_pose: (dof,) the pose the shape was placed from (a letter's start pose);
+            pinned by no loss term, a starting guess for methods that need one.
+        default_weights: loss weights c0..c6 (keys L0..L6) this task is meant for, under any
+            the user sets; None: the method's own defaults (the paper's).
+    """
+
+    reference_pose: np.ndarray | None = None
+    default_weights: dict[str, float] | None = None
+
+
+#: Field names of each part (for the constructors that take them flat).
+_GOAL_FIELDS = ("points_mm", "directions", "rotations", "pen_down", "curve", "shape")
+_REQUIRED_FIELDS = ("start_pose", "end_pose", "joint_limits", "obstacles", "contract",
+                    "initial_pose")
+_HINT_FIELDS = ("reference_pose", "default_weights")
+
+
+@dataclass(frozen=True, eq=False)
 class Task:
     """What a method must achieve for one trajectory.
 
     Attributes:
         name: trajectory id (e.g. ``"1"``).
-        goal_points_mm: (n+1, 3) goal points P^g_i in the robot root frame [mm].
-        goal_directions: (n+1, 3) unit goal pointing directions v^g_i.
-        start_pose: (dof,) start pose p^s [pose units: ``Robot.pose_unit``], or None when
-            not constrained.
-        end_pose: (dof,) end (touch) pose p^e [pose units], or None.
-        shape: the shape's name (``"line"``, ...).
-        pen_down: (n+1,) bool, True where the point belongs to the drawn shape (metrics skip
-            the others, e.g. pen-up moves between strokes); not given (or None): every point.
-        curve: the target curve the goal points were sampled from; None for a line (the
-            segment from P^s to P^e).
-        default_weights: loss weights c0..c6 (keys L0..L6) this task is meant for, under any
-            the user sets; None: the method's own defaults (the paper's).
-        reference_pose: (dof,) the pose the shape was placed from (a letter's start pose);
-            pinned by no loss term, a starting guess for methods that need one.
-        goal_rotations: (n+1, 3, 3) goal frames' rotations (end frame in the base frame) of a
-            6-D pose path, or None. A task with goal frames asks for the full orientation;
-            its ``goal_directions`` are then the rotations' pointing axes.
-        joint_limits: (lower (dof,), upper (dof,)) [pose units] the poses must respect when
-            they differ from the robot's limits (a benchmark's bounds, e.g. CppFlow's
-            [-180, 180] deg for continuous joints), or None.
-        contract: what the trajectory is judged against
-            (:class:`ikbench.core.contract.Contract`: fixed poses, pointing and its judged
-            part, speed limits, tolerances), or None (a plain run: the method's own scheme).
-            Methods read it to honour the task, e.g. where pointing is asked for.
-        obstacles: the obstacles the robot must not touch, in the base frame
-            (:class:`ikbench.core.obstacles.Obstacle`); empty: none. Judged with the robot's
-            collision model (:mod:`ikbench.core.collision`) where the robot has one.
-        initial_pose: (dof,) [pose units] the pose a 6-D pose path must start near (a
-            CppFlow problem's ``initial_configuration``), or None.
+        goal: what is asked (:class:`Goal`: points, directions, frames, pen, shape).
+        required: what is required (:class:`Requirements`: fixed poses, joint limits,
+            obstacles, contract, initial pose).
+        hints: what is suggested (:class:`Hints`: reference pose, default weights).
     """
 
     name: str
-    goal_points_mm: np.ndarray
-    goal_directions: np.ndarray
-    start_pose: np.ndarray | None
-    end_pose: np.ndarray | None
-    shape: str = "line"
-    pen_down: np.ndarray = field(default_factory=lambda: _EVERY_POINT)
-    curve: Curve | None = None
-    default_weights: dict[str, float] | None = None
-    reference_pose: np.ndarray | None = None
-    goal_rotations: np.ndarray | None = None
-    joint_limits: tuple[np.ndarray, np.ndarray] | None = None
-    contract: Contract | None = None
-    obstacles: tuple[Obstacle, ...] = ()
-    initial_pose: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        pen_down: Any = self.pen_down  # a user may still pass None (every point)
-        if pen_down is None or pen_down is _EVERY_POINT:
-            object.__setattr__(self, "pen_down", np.ones(len(self.goal_points_mm), dtype=bool))
-        if not isinstance(self.obstacles, tuple):
-            object.__setattr__(self, "obstacles", tuple(self.obstacles))
-
-    @property
-    def has_frames(self) -> bool:
-        """True for a 6-D pose path (goal rotations given)."""
-        return self.goal_rotations is not None
+    goal: Goal
+    required: Requirements = field(default_factory=Requirements)
+    hints: Hints = field(default_factory=Hints)
 
     def limits(self, robot: Robot) -> tuple[np.ndarray, np.ndarray]:
         """(lower, upper) (dof,) [pose units]: the task's joint limits, else the robot's."""
-        if self.joint_limits is not None:
-            return self.joint_limits
-        return robot.lower, robot.upper
+        return self.required.limits(robot)
 
-    @property
-    def steps(self) -> int:
-        """Number of segments n."""
-        return len(self.goal_points_mm) - 1
 
-    @property
-    def start_point_mm(self) -> np.ndarray:
-        """P^s = P^g_0 [mm]."""
-        return self.goal_points_mm[0]
-
-    @property
-    def end_point_mm(self) -> np.ndarray:
-        """P^e = P^g_n [mm]."""
-        return self.goal_points_mm[-1]
+def make_task(name: str, **fields: Any) -> Task:
+    """A :class:`Task` from the fields of its parts given flat (``points_mm=``,
+    ``start_pose=``, ``reference_pose=``...); an unknown name is a TypeError."""
+    unknown = set(fields) - set(_GOAL_FIELDS + _REQUIRED_FIELDS + _HINT_FIELDS)
+    if unknown:
+        raise TypeError(f"make_task: unknown fields {sorted(unknown)}")
+    return Task(name,
+                Goal(**{k: v for k, v in fields.items() if k in _GOAL_FIELDS}),
+                Requirements(**{k: v for k, v in fields.items() if k in _REQUIRED_FIELDS}),
+                Hints(**{k: v for k, v in fields.items() if k in _HINT_FIELDS}))
 
 
 def line_task(robot: Robot, start_pose: npt.ArrayLike, end_pose: npt.ArrayLike,
@@ -155,7 +216,7 @@ def line_task(robot: Robot, start_pose: npt.ArrayLike, end_pose: npt.ArrayLike,
     t = np.linspace(0.0, 1.0, steps + 1)[:, None]
     points_mm = p_start_mm + t * (p_end_mm - p_start_mm)
     directions = np.repeat(direction[None], steps + 1, axis=0)
-    return Task(name, points_mm, directions, start, end, shape="line")
+    return Task(name, Goal(points_mm, directions, shape="line"), Requirements(start, end))
 
 
 def frame_task(robot: Robot, name: str, points_mm: npt.ArrayLike, rotations: npt.ArrayLike,
@@ -168,7 +229,8 @@ def frame_task(robot: Robot, name: str, points_mm: npt.ArrayLike, rotations: npt
         name: trajectory id.
         points_mm: (n+1, 3) goal points [mm].
         rotations: (n+1, 3, 3) goal rotations.
-        **fields: further :class:`Task` fields (``reference_pose``, ``joint_limits``...);
+        **fields: further fields of the task's parts, flat (``reference_pose``,
+            ``joint_limits``...);
             the default weights are the 6-D objective's
             (:data:`ikbench.core.weights.FRAME_WEIGHTS`).
     """
@@ -180,10 +242,9 @@ def frame_task(robot: Robot, name: str, points_mm: npt.ArrayLike, rotations: npt
     if len(points) < 2:
         raise InputError(f"trajectory {name!r}: a path needs at least 2 poses, got "
                          f"{len(points)}")
-    fields = {"start_pose": None, "end_pose": None, "shape": "path",
-              "default_weights": dict(FRAME_WEIGHTS), **fields}
-    return Task(name, points, rotations @ robot.pointing_axis, goal_rotations=rotations,
-                **fields)
+    fields = {"shape": "path", "default_weights": dict(FRAME_WEIGHTS), **fields}
+    return make_task(name, points_mm=points, directions=rotations @ robot.pointing_axis,
+                     rotations=rotations, **fields)
 
 
 def line_tasks(robot: Robot, targets: Targets, contract: Contract | None = None) -> list[Task]:
@@ -200,10 +261,17 @@ def line_tasks(robot: Robot, targets: Targets, contract: Contract | None = None)
         contract = replace(contract, obstacles=True)
     weights = None if contract.pointing else {**PAPER_WEIGHTS, "L1": 0.0}
     return [
-        replace(line_task(robot, targets.start_pose, pose, targets.steps, name),
-                contract=contract, default_weights=weights, obstacles=tuple(targets.obstacles))
+        _with_parts(line_task(robot, targets.start_pose, pose, targets.steps, name),
+                    contract, weights, tuple(targets.obstacles))
         for name, pose in targets.touch_poses.items()
     ]
+
+
+def _with_parts(task: Task, contract: Contract, weights: dict[str, float] | None,
+                obstacles: tuple[Obstacle, ...]) -> Task:
+    """``task`` with its contract, default weights and obstacles set."""
+    return replace(task, required=replace(task.required, contract=contract, obstacles=obstacles),
+                   hints=replace(task.hints, default_weights=weights))
 
 
 # ----- general shapes ------------------------------------------------------------------------
@@ -234,12 +302,12 @@ def curve_task(curve: Curve, steps: int, name: str, shape: str,
         shape: the shape's name, e.g. ``"spline"``.
         direction: ``"tangent"`` (along the path), ``"normal"`` (the curve's drawing plane
             normal) or a vector (3,).
-        **fields: further :class:`Task` fields (start/end poses default to None).
+        **fields: further fields of the task's parts, flat (:func:`make_task`).
     """
     samples = curve.resample(steps)
-    fields = {"start_pose": None, "end_pose": None, **fields}
-    return Task(name, samples.points_mm, goal_directions(curve, samples.tangents, direction),
-                shape=shape, pen_down=samples.pen_down, curve=curve, **fields)
+    return make_task(name, points_mm=samples.points_mm,
+                     directions=goal_directions(curve, samples.tangents, direction),
+                     shape=shape, pen_down=samples.pen_down, curve=curve, **fields)
 
 
 def goal_directions(curve: Curve | None, tangents: np.ndarray,
@@ -339,7 +407,8 @@ def build_tasks(robot: Robot, targets: Targets, shape: str = "line", steps: int 
     tasks = _shape_tasks(robot, targets, shape, steps, size_mm, direction)
     if not targets.obstacles:
         return tasks
-    return [replace(t, obstacles=tuple(targets.obstacles)) for t in tasks]
+    return [replace(t, required=replace(t.required, obstacles=tuple(targets.obstacles)))
+            for t in tasks]
 
 
 def _shape_tasks(robot: Robot, targets: Targets, shape: str, steps: int | None,
@@ -352,8 +421,8 @@ def _shape_tasks(robot: Robot, targets: Targets, shape: str, steps: int | None,
         tasks = line_tasks(robot, targets.with_steps(steps))
         if direction is None:
             return tasks
-        return [replace(t, goal_directions=goal_directions(None, t.goal_directions, direction))
-                for t in tasks]
+        return [replace(t, goal=replace(t.goal, directions=goal_directions(
+                    None, t.goal.directions, direction))) for t in tasks]
     steps = letters.DEFAULT_STEPS if steps is None else targets.with_steps(steps).steps
     if kind == "letter":
         size = letters.DEFAULT_SIZE_MM if size_mm is None else size_mm

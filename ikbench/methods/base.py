@@ -233,7 +233,7 @@ class Method(abc.ABC):
     def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
         """Raise InputError before any solve if a task cannot be solved by this method."""
         for task in tasks:
-            if task.has_frames and not self.capabilities.frames:
+            if task.goal.has_frames and not self.capabilities.frames:
                 able = [name for name, cls in _catalogue().items()
                         if cls.capabilities.frames]
                 raise InputError(
@@ -241,7 +241,7 @@ class Method(abc.ABC):
                     f"(a 6-D pose path); methods that can: {', '.join(able) or 'none'}")
         if self.capabilities.needs_touch_pose:
             for task in tasks:
-                if task.end_pose is None and not task.has_frames:
+                if task.required.end_pose is None and not task.goal.has_frames:
                     planners = [f"--method {name}" for name, cls in _catalogue().items()
                                 if not cls.capabilities.needs_touch_pose]
                     raise InputError(

@@ -24,8 +24,9 @@ Stopping rule (``stop``):
 - ``"none"`` (the authors' letter script): run exactly ``max_iterations`` iterations and keep
   the poses with the lowest loss seen.
 
-Weights: a task may name the weights it is meant for (``Task.default_weights``, e.g. a letter's
-c0=1, c1=50, c6=1); ``--weights`` changes then apply on top of those instead of the paper's.
+Weights: a task may name the weights it is meant for (``Task.hints.default_weights``, e.g. a
+letter's c0=1, c1=50, c6=1); ``--weights`` changes then apply on top of those instead of the
+paper's.
 """
 
 from __future__ import annotations
@@ -154,7 +155,7 @@ class Ours(Method):
         torch.optim.Adam([torch.zeros(1, requires_grad=True)])
 
     def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
-        if task.goal_rotations is not None:
+        if task.goal.rotations is not None:
             return optimise_frames(robot, task, self.settings_for(task), progress)
         return optimise(robot, task, self.settings_for(task), progress)
 

@@ -37,18 +37,18 @@ def initial_logits(robot: Robot, task: Task, dtype: torch.dtype, init: str = "ra
 
     if init == "random":
         generator = torch.Generator().manual_seed(seed)
-        bound = 1.0 / math.sqrt(task.steps + 1)
-        unit = torch.rand(task.steps + 1, robot.dof, generator=generator, dtype=torch.float64)
+        bound = 1.0 / math.sqrt(task.goal.steps + 1)
+        unit = torch.rand(task.goal.steps + 1, robot.dof, generator=generator, dtype=torch.float64)
         return ((unit * 2.0 - 1.0) * bound).to(dtype)
 
     if init != "interpolation":
         raise InputError(f"--init: {init!r} is not one of {', '.join(INITS)}")
     lo, hi = robot.sample_lower, robot.sample_upper  # continuous joints: +-180 deg
-    t = np.linspace(0.0, 1.0, task.steps + 1)[:, None]
-    if task.start_pose is not None and task.end_pose is not None:
-        poses = task.start_pose + t * (task.end_pose - task.start_pose)
-    elif task.reference_pose is not None:
-        poses = task.reference_pose + 0.0 * t
+    t = np.linspace(0.0, 1.0, task.goal.steps + 1)[:, None]
+    if task.required.start_pose is not None and task.required.end_pose is not None:
+        poses = task.required.start_pose + t * (task.required.end_pose - task.required.start_pose)
+    elif task.hints.reference_pose is not None:
+        poses = task.hints.reference_pose + 0.0 * t
     else:
         raise InputError(f"trajectory {task.name!r}: ours --init interpolation needs a start "
                          "and an end pose or a reference pose")

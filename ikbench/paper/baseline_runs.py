@@ -242,9 +242,9 @@ def evaluate_runs(runs: dict[str, MethodRun], tasks: Sequence[Task]) -> pd.DataF
     for task in tasks:
         for name, run in runs.items():
             poses = run.poses[task.name]
-            if len(poses) != task.steps + 1:
+            if len(poses) != task.goal.steps + 1:
                 raise InputError(f"report: {name}/trajectory_{task.name}.csv has {len(poses)} "
-                                 f"poses; run.json says n = {task.steps}")
+                                 f"poses; run.json says n = {task.goal.steps}")
             metrics = trajectory_metrics(robot, task, poses)
             rows.append({"trajectory": task.name, "method": name, **run.solver[task.name],
                          **metrics, "start_point_mm": robot.fk(poses[0]).point_mm[0],
@@ -270,7 +270,7 @@ def pointing_per_step(runs: dict[str, MethodRun], tasks: Sequence[Task]
     """(run, trajectory id) -> (n+1,) pointing deviation [deg] of each pose."""
     robot = robot_from_record(next(iter(runs.values())).record)
     return {(name, task.name): pointing_deviations_deg(robot.fk(run.poses[task.name]).direction,
-                                                       task.goal_directions)
+                                                       task.goal.directions)
             for name, run in runs.items() for task in tasks}
 
 

@@ -77,9 +77,9 @@ def _grid(count: int) -> tuple[int, int]:
 def _goal_paths(task) -> list[np.ndarray]:
     """The goal path as polylines [mm]: a curve's strokes (pen-up moves left out), else the
     goal points."""
-    if task.curve is not None:
-        return list(task.curve.strokes_mm)
-    return [task.goal_points_mm]
+    if task.goal.curve is not None:
+        return list(task.goal.curve.strokes_mm)
+    return [task.goal.points_mm]
 
 
 class _Panel:
@@ -89,7 +89,7 @@ class _Panel:
         self.task, self.arms = task, robot.skeleton_mm(poses)  # (n+1, dof+2, 3)
         self.tip = self.arms[:, -1]
         #: (n+1,) True where the pose collides; None: not checked (no obstacles or model)
-        self.colliding = colliding_waypoints(robot, poses, task.obstacles)
+        self.colliding = colliding_waypoints(robot, poses, task.required.obstacles)
         (self.path,) = ax.plot([], [], [], "-", color=color, lw=2.4, zorder=2, animated=True)
         self.goals = [ax.plot(*path.T, **GOAL_STYLE, zorder=2, animated=True)[0]
                       for path in _goal_paths(task)]
@@ -108,7 +108,7 @@ class _Panel:
         self.arm.set_data_3d(*self.arms[k].T)
         hit = self.colliding is not None and bool(self.colliding[k])
         self.arm.set_color(ARM_COLLIDING_COLOR if hit else ARM_COLOR)
-        goal = self.task.goal_points_mm[min(k, len(self.task.goal_points_mm) - 1)]
+        goal = self.task.goal.points_mm[min(k, len(self.task.goal.points_mm) - 1)]
         self.goal.set_data_3d([goal[0]], [goal[1]], [goal[2]])
         for artist in (self.path, *self.goals, self.arm, self.goal):  # goal over the path
             self.ax.draw_artist(artist)
@@ -136,7 +136,7 @@ def render_frames(robot: Robot, tasks: Sequence[Task], poses_by_id: dict, title:
     plt = matplotlib_pyplot()
     rows, cols = _grid(len(tasks))
     panel_in = 2.7 if len(tasks) > 2 else 3.6
-    notes_in = 0.12 if any(t.obstacles for t in tasks) else 0.0  # 3rd line
+    notes_in = 0.12 if any(t.required.obstacles for t in tasks) else 0.0  # 3rd line
     height_in = rows * (panel_in + 0.2) + 0.4 + notes_in
     fig = plt.figure(figsize=(cols * panel_in, height_in), dpi=dpi)
     fig.subplots_adjust(left=0.0, right=0.97, bottom=0.25 / height_in,
@@ -148,7 +148,7 @@ def render_frames(robot: Robot, tasks: Sequence[Task], poses_by_id: dict, title:
         panels.append(_Panel(ax, task, poses_by_id[task.name], robot, color))
     drawn = []
     for panel in panels:  # static: drawn once, into the background
-        obstacles = panel.task.obstacles
+        obstacles = panel.task.required.obstacles
         if obstacles:
             around = np.vstack([panel.arms.reshape(-1, 3), *_goal_paths(panel.task)])
             drawn.append(draw_obstacles(panel.ax, obstacles, around, label=False)[1])

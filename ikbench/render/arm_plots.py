@@ -117,7 +117,7 @@ def plot_trajectories_3d(tasks: Sequence[Task], points_by_id: dict[str, np.ndarr
     drawn: list[np.ndarray] = []
     firsts: list[np.ndarray] = []
     for task, color in zip(tasks, task_colors(len(tasks))):
-        points, goal = points_by_id[task.name], task.goal_points_mm
+        points, goal = points_by_id[task.name], task.goal.points_mm
         if robot is not None and poses_by_id is not None:
             poses = poses_by_id[task.name]
             arms = robot.skeleton_mm(poses[[0, -1]])
@@ -132,7 +132,7 @@ def plot_trajectories_3d(tasks: Sequence[Task], points_by_id: dict[str, np.ndarr
         ax.scatter(*goal[-1], marker="X", s=60, color=color, edgecolors="k", linewidths=0.6,
                    zorder=4, depthshade=False)
         drawn += [points, goal]
-    ax.scatter(*tasks[0].goal_points_mm[0], marker="o", s=22, color="k", zorder=4,
+    ax.scatter(*tasks[0].goal.points_mm[0], marker="o", s=22, color="k", zorder=4,
                depthshade=False, label="start point")
     ax.plot([], [], **GOAL_STYLE, label="goal line")
     ax.scatter([], [], marker="X", s=60, color="w", edgecolors="k", label="touch point")

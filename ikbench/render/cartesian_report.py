@@ -118,7 +118,7 @@ def write_folder(result: StudyResult, folder: Path, command: str = "",
                       for m in result.methods if (problem, m, result.seeds[0]) in result.poses}
             file = f"pose_path_{problem}.png"
             atomic_savefig(tmp / file, plot_pose_path(
-                task, curves, f"{problem} ({robot.name}, {task.steps + 1} waypoints): target "
+                task, curves, f"{problem} ({robot.name}, {task.goal.steps + 1} waypoints): target "
                 f"and reached paths, seed {result.seeds[0]}", robot))
             figures[problem] = file
             files.append(file)
@@ -159,7 +159,7 @@ def _reach_notes(result, table) -> dict[str, str]:
             continue
         worst = int(out[np.argmax(np.maximum(position[out], rotation[out]))])
         notes[problem] = (
-            f"{out.size} of {task.steps + 1} waypoints ({_ranges(out)}) were not reached "
+            f"{out.size} of {task.goal.steps + 1} waypoints ({_ranges(out)}) were not reached "
             f"within CppFlow's tolerances by IK from {REACH_SEEDS} seeded random poses each "
             f"within the joint limits (worst: waypoint {worst}, best IK error "
             f"{position[worst]:.3g} mm / {rotation[worst]:.3g} deg): as far as this search "

@@ -38,13 +38,13 @@ def exact_figure(robot: Robot, task: Task, poses_by_method: dict[str, np.ndarray
 
     plt = matplotlib_pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
-    steps = np.arange(task.steps + 1)
-    contract = task.contract
+    steps = np.arange(task.goal.steps + 1)
+    contract = task.required.contract
     for name, poses in poses_by_method.items():
         fk = robot.fk(poses)
-        distance = line_distances_mm(fk.point_mm, task.start_point_mm, task.end_point_mm)
+        distance = line_distances_mm(fk.point_mm, task.goal.start_point_mm, task.goal.end_point_mm)
         axes[0].semilogy(steps, np.maximum(distance, FLOOR_MM), label=name)
-        axes[1].plot(steps, pointing_deviations_deg(fk.direction, task.goal_directions),
+        axes[1].plot(steps, pointing_deviations_deg(fk.direction, task.goal.directions),
                      label=name)
         axes[2].plot(steps[1:], np.max(np.abs(np.diff(poses, axis=0)), axis=1), label=name)
     axes[0].set_title("fingertip distance from the line")
@@ -52,9 +52,9 @@ def exact_figure(robot: Robot, task: Task, poses_by_method: dict[str, np.ndarray
     axes[1].set_title("pointing deviation from the line")
     axes[1].set_ylabel("[deg]")
     if contract is not None:
-        axes[1].axvspan(contract.judged_from(task.steps), task.steps, color="0.9",
+        axes[1].axvspan(contract.judged_from(task.goal.steps), task.goal.steps, color="0.9",
                         label="judged part", zorder=0)
-        limit = contract.max_step(task.steps)
+        limit = contract.max_step(task.goal.steps)
         if limit is not None:
             axes[2].axhline(float(np.min(limit)), color="red", lw=1, ls="--",
                             label=f"speed limit (T = {contract.duration_s:g} s)")

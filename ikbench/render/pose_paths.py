@@ -47,7 +47,7 @@ def reached(robot: Robot, task: Task, poses_deg: npt.ArrayLike) -> dict[str, np.
     step = np.abs(revolute).max(axis=1) if revolute.size else np.zeros(len(points) - 1)
     out = {"points_mm": points, "position_mm": position, "rotation_deg": rotation,
            "step_deg": step}
-    colliding = colliding_waypoints(robot, poses_deg, task.obstacles)
+    colliding = colliding_waypoints(robot, poses_deg, task.required.obstacles)
     if colliding is not None:
         out["colliding"] = colliding
         if colliding.any():
@@ -72,7 +72,7 @@ def plot_pose_path(task: Task, curves: dict[str, dict[str, np.ndarray]], title: 
     fig = plt.figure(figsize=(12, 6.4))
     grid = fig.add_gridspec(3, 2, width_ratios=[1.05, 1.0])
     ax3 = fig.add_subplot(grid[:, 0], projection="3d")
-    goal = task.goal_points_mm
+    goal = task.goal.points_mm
     ax3.plot(goal[:, 0], goal[:, 1], goal[:, 2], "-", color="0.6", lw=5, alpha=0.5,
              label="target path")
     ax3.scatter(*goal[0], color="k", s=25, label="first waypoint")
@@ -83,7 +83,7 @@ def plot_pose_path(task: Task, curves: dict[str, dict[str, np.ndarray]], title: 
         ax3.plot(points[:, 0], points[:, 1], points[:, 2], "-", color=colors[k % 10], lw=1.2,
                  label=label)
         everything.append(points)
-    obstacles = task.obstacles
+    obstacles = task.required.obstacles
     if obstacles:
         _, drawn = draw_obstacles(ax3, obstacles, np.vstack(everything))
         everything.append(drawn)
@@ -175,9 +175,9 @@ def path_view(points_mm: np.ndarray, tilt_deg: float = 20.0) -> tuple[float, flo
 def _frame_arrows(ax, task, count: int = 12) -> np.ndarray:
     """Goal pointing axes at ``count`` waypoints along the path, 8 % of the path's size long
     (at least 50 mm, so a pure rotation shows); returns the arrow tips (count, 3) [mm]."""
-    goal = task.goal_points_mm
+    goal = task.goal.points_mm
     length = max(0.08 * float(np.ptp(goal, axis=0).max()), 50.0)
     index = np.linspace(0, len(goal) - 1, min(count, len(goal))).round().astype(int)
-    d = task.goal_directions[index] * length
+    d = task.goal.directions[index] * length
     ax.quiver(*goal[index].T, *d.T, color="0.3", lw=0.8, arrow_length_ratio=0.2)
     return goal[index] + d

@@ -74,7 +74,7 @@ def plot_shapes(tasks: Sequence[Task], points_by_id: dict[str, np.ndarray], titl
     plt = _matplotlib()
     fig = plt.figure(figsize=(4.2 * len(tasks), 8.4))
     for k, task in enumerate(tasks):
-        curve, points = task.curve, points_by_id[task.name]
+        curve, points = task.goal.curve, points_by_id[task.name]
         assert curve is not None, f"task {task.name} has no target curve"
         plane = curve.drawing_plane()
         ax = fig.add_subplot(2, len(tasks), k + 1)
@@ -85,14 +85,14 @@ def plot_shapes(tasks: Sequence[Task], points_by_id: dict[str, np.ndarray], titl
             ax.plot(*plane.project(stroke).T, "-", color="0.75", lw=4, solid_capstyle="round")
         drawn = plane.project(points)
         ax.plot(*drawn.T, "-", color="tab:blue", lw=1)
-        ax.plot(*drawn[task.pen_down].T, "o", color="tab:blue", ms=2.5)
-        ax.plot(*drawn[~task.pen_down].T, "o", mfc="none", color="tab:blue", ms=3)
+        ax.plot(*drawn[task.goal.pen_down].T, "o", color="tab:blue", ms=2.5)
+        ax.plot(*drawn[~task.goal.pen_down].T, "o", mfc="none", color="tab:blue", ms=3)
         ax.plot(0, 0, "k+", ms=10)
         ax.set_aspect("equal")
         ax.grid(alpha=0.3)
         ax.set_xlabel("u [mm] (right, seen from the front)")
         ax.set_ylabel("v [mm] (up)")
-        ax.set_title(f"{task.shape} {task.name}: drawing plane")
+        ax.set_title(f"{task.goal.shape} {task.name}: drawing plane")
         ax3 = fig.add_subplot(2, len(tasks), len(tasks) + k + 1, projection="3d")
         for stroke in curve.strokes_mm:
             ax3.plot(*stroke.T, "-", color="0.6", lw=2)
@@ -127,7 +127,7 @@ def plot_pointing_error(tasks: Sequence[Task], points_by_id: dict[str, np.ndarra
     plt = _matplotlib()
     fig, ax = plt.subplots(figsize=(8, 4.5))
     for task in tasks:
-        values = criterion2_mm(points_by_id[task.name], task.end_point_mm)
+        values = criterion2_mm(points_by_id[task.name], task.goal.end_point_mm)
         ax.plot(np.arange(len(values)), values, "-", lw=1.3, label=f"trajectory {task.name}")
     ax.set_xlabel("step")
     ax.set_ylabel("criterion 2: pointing error [mm]")

@@ -74,7 +74,7 @@ class Progress(Reporter):
         if self.total != total:
             self.set_total(total)
         self.begin(1)
-        self.say(f"trajectory {task.name} ({index + 1}/{total}): solving, n = {task.steps}")
+        self.say(f"trajectory {task.name} ({index + 1}/{total}): solving, n = {task.goal.steps}")
 
     def update(self, task: Task, iteration: int, loss: float) -> None:
         self.say(f"trajectory {task.name}: iteration {iteration}, loss {loss_text(loss)}")

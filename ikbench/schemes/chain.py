@@ -153,22 +153,22 @@ def chain_of(robot: Robot) -> Chain:
 
 
 def goals_of(robot: Robot, task: Task) -> Goals:
-    """The task's goals in URDF units (6-D rotations from ``task.goal_rotations`` if any),
+    """The task's goals in URDF units (6-D rotations from ``task.goal.rotations`` if any),
     with its contract and obstacles."""
-    directions = np.asarray(task.goal_directions, dtype=float)
+    directions = np.asarray(task.goal.directions, dtype=float)
     directions = directions / np.linalg.norm(directions, axis=1, keepdims=True)
-    rotations = task.goal_rotations
+    rotations = task.goal.rotations
 
     def pose(value):
         return None if value is None else robot.to_urdf(np.asarray(value, dtype=float))
 
-    contract = task.contract
-    return Goals(np.asarray(task.goal_points_mm, dtype=float) / 1000.0, directions,
+    contract = task.required.contract
+    return Goals(np.asarray(task.goal.points_mm, dtype=float) / 1000.0, directions,
                  None if rotations is None else np.asarray(rotations, dtype=float),
-                 pose(task.start_pose), pose(task.end_pose),
-                 pose(task.reference_pose), contract=contract,
-                 max_step=max_step_urdf(robot, contract, len(task.goal_points_mm) - 1),
-                 obstacles=task.obstacles)
+                 pose(task.required.start_pose), pose(task.required.end_pose),
+                 pose(task.hints.reference_pose), contract=contract,
+                 max_step=max_step_urdf(robot, contract, len(task.goal.points_mm) - 1),
+                 obstacles=task.required.obstacles)
 
 
 def urdf_step(robot: Robot, pose_step: npt.ArrayLike) -> np.ndarray:
@@ -229,9 +229,10 @@ def element_path(chain: Chain) -> list[tuple[str, str, str]]:
 def require_touch_and_start(task: Task, method: str) -> None:
     """InputError unless the task fixes both the start and the touch pose (whole-path
     methods pin both ends)."""
-    if task.start_pose is None or task.end_pose is None:
+    if task.required.start_pose is None or task.required.end_pose is None:
+        missing = "start" if task.required.start_pose is None else "touch"
         raise InputError(f"trajectory {task.name!r}: {method} optimises the path between the "
                          "fixed start and touch poses; the task fixes "
-                         f"{'no start pose' if task.start_pose is None else 'no touch pose'}"
+                         f"no {missing} pose"
                          " (for letters, polylines and splines use --method ours or "
                          "--method ours-lm)")

@@ -68,7 +68,7 @@ class LibraryMethod(Method):
     Class attributes (besides :class:`~ikbench.methods.base.Method`'s):
         capabilities: ``needs_touch_pose`` (the walks start at the touch pose, the trajectory
             optimisers fix it); ``frames`` when the library takes full 6-D goal frames
-            (``task.goal_rotations``), otherwise such tasks are refused before any solve.
+            (``task.goal.rotations``), otherwise such tasks are refused before any solve.
         whole_path: True for trajectory optimisers (the start and touch poses are both
             fixed; the result's rows are returned as solved, row n included); False for the
             sequential walks (row n is the touch pose exactly).
@@ -100,7 +100,7 @@ class LibraryMethod(Method):
     def tracks(self, task: Task) -> bool:
         """True when ``task`` is solved by the tracking scheme (a pose path is always
         walked forward from the home pose: it has no start pose to track from)."""
-        return self.scheme == "track" and not task.has_frames
+        return self.scheme == "track" and not task.goal.has_frames
 
     def fixed_poses(self) -> frozenset[str]:
         """Both poses for trajectory optimisers and the tracking scheme; the walk keeps only
@@ -118,7 +118,7 @@ class LibraryMethod(Method):
                 _require_both(task, self.name)
             elif self.tracks(task):
                 require_start_and_touch(task, self.name)
-            if task.has_frames and not self.capabilities.frames:
+            if task.goal.has_frames and not self.capabilities.frames:
                 raise InputError(f"trajectory {task.name!r}: --method {self.name} takes goal "
                                  "points and pointing directions, not 6-D goal frames")
         super().check_tasks(robot, tasks)
@@ -150,10 +150,10 @@ class LibraryMethod(Method):
             goals = replace(goals, track=plan_track(robot, task, goals))
         result = self.solve_chain(robot, chain_of(robot), goals)
         poses = poses_from_urdf(robot, result.q)
-        if not self.whole_path and task.end_pose is not None:
-            poses[-1] = task.end_pose  # the walk's start / the track's end, as given
+        if not self.whole_path and task.required.end_pose is not None:
+            poses[-1] = task.required.end_pose  # the walk's start / the track's end, as given
         if self.tracks(task):
-            poses[0] = task.start_pose  # the track's start, exactly as given
+            poses[0] = task.required.start_pose  # the track's start, exactly as given
         return Solution(poses=poses, iterations=int(result.iterations),
                         duration_s=time.perf_counter() - started, loss=None,
                         converged=bool(result.converged), info=dict(result.info))

@@ -95,8 +95,8 @@ def slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
 
 def require_start_and_touch(task: Task, method: str) -> None:
     """InputError unless the task fixes both poses (the scheme starts and lands on them)."""
-    if task.start_pose is None or task.end_pose is None:
-        missing = "no start pose" if task.start_pose is None else "no touch pose"
+    if task.required.start_pose is None or task.required.end_pose is None:
+        missing = "no start pose" if task.required.start_pose is None else "no touch pose"
         raise InputError(f"trajectory {task.name!r}: --method {method} (scheme track) starts at "
                          f"the start pose and lands on the touch pose; the task has {missing} "
                          "(for letters, polylines and splines use --method ours or --method "
@@ -105,7 +105,7 @@ def require_start_and_touch(task: Task, method: str) -> None:
 
 def plan_track(robot: Robot, task: Task, goals: Goals) -> TrackPlan:
     """The per-step targets of the tracking scheme for ``task`` (see the module doc)."""
-    contract = task.contract
+    contract = task.required.contract
     pointing = True if contract is None else bool(contract.pointing)
     n = len(goals) - 1
     judged_from = (contract.judged_from(n) if contract is not None
@@ -116,8 +116,8 @@ def plan_track(robot: Robot, task: Task, goals: Goals) -> TrackPlan:
     posture = q_start + s * (q_touch - q_start)
     directions = None
     if pointing:
-        assert task.start_pose is not None and task.end_pose is not None  # as q_*
-        fk = robot.fk(np.stack([task.start_pose, task.end_pose]))
+        assert task.required.start_pose is not None and task.required.end_pose is not None  # as q_*
+        fk = robot.fk(np.stack([task.required.start_pose, task.required.end_pose]))
         d_start, d_touch = fk.direction
         goal = goals.directions
         landing = max(1, int(round(LANDING_FRACTION * n)))

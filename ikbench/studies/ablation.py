@@ -193,9 +193,10 @@ def joint_interpolation_by_joint(robot: Robot, tasks: Sequence[Task],
     for name, poses in poses_by_variant.items():
         per_task = []
         for task in tasks:
-            assert task.start_pose is not None and task.end_pose is not None, \
+            assert task.required.start_pose is not None and task.required.end_pose is not None, \
                 "the ablation's tasks are lines between two poses"
-            line = joint_interpolation(task.start_pose, task.end_pose, task.steps + 1)
+            line = joint_interpolation(task.required.start_pose, task.required.end_pose,
+                                       task.goal.steps + 1)
             per_task.append(np.abs(poses[task.name] - line).mean(axis=0))
         rows[name] = np.mean(per_task, axis=0)
     return pd.DataFrame.from_dict(rows, orient="index", columns=list(robot.joint_names))
@@ -321,7 +322,7 @@ def _write_variant(robot: Robot, solver: Method, variant: Variant, outcomes: lis
             "hit_cap": bool(solution.info.get("hit_cap", not solution.converged)),
             "paper_loss": objective(robot, task, poses[task.name])[0],
             "joint_interpolation_distance_deg": joint_interpolation_distance_deg(
-                poses[task.name], task.start_pose, task.end_pose),
+                poses[task.name], task.required.start_pose, task.required.end_pose),
         })
     extra = pd.DataFrame(extra)
     rows = table.assign(variant=variant.name, dropped=",".join(variant.dropped),
@@ -499,7 +500,7 @@ def plot_variants_3d(robot: Robot, task: Task, poses_by_variant: dict[str, np.nd
     plt = _matplotlib()
     points = {name: robot.fk(poses).point_mm for name, poses in poses_by_variant.items()}
     fig, axes = _grid(plt, len(points), projection="3d")
-    goal = task.goal_points_mm
+    goal = task.goal.points_mm
     everything = np.concatenate([goal, *points.values()])
     lo, hi = everything.min(axis=0), everything.max(axis=0)
     for ax, (name, path) in zip(axes, points.items()):
@@ -523,10 +524,11 @@ def plot_joints(robot: Robot, task: Task, poses_by_variant: dict[str, np.ndarray
     interpolation from start to touch pose (dashed)."""
     plt = _matplotlib()
     fig, axes = _grid(plt, len(poses_by_variant), size=(3.8, 2.8))
-    steps = np.arange(task.steps + 1)
-    assert task.start_pose is not None and task.end_pose is not None, \
+    steps = np.arange(task.goal.steps + 1)
+    assert task.required.start_pose is not None and task.required.end_pose is not None, \
         "the ablation's tasks are lines between two poses"
-    line = joint_interpolation(task.start_pose, task.end_pose, task.steps + 1)
+    line = joint_interpolation(task.required.start_pose, task.required.end_pose,
+                               task.goal.steps + 1)
     colors = plt.cm.tab10(np.linspace(0, 1, 10))
     for ax, (name, poses) in zip(axes, poses_by_variant.items()):
         for j in range(poses.shape[1]):

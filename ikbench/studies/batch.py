@@ -286,8 +286,8 @@ def measure_batch(robot: Robot, tasks: Sequence[Task], weights: Sequence[dict[st
                      "iterations": int(result.iterations[k]),
                      "converged": bool(result.converged[k]),
                      "within_limits": robot.within_limits(result.poses[k]),
-                     "line_length_mm": float(np.linalg.norm(task.end_point_mm
-                                                            - task.start_point_mm)),
+                     "line_length_mm": float(np.linalg.norm(task.goal.end_point_mm
+                                                            - task.goal.start_point_mm)),
                      **{key: m[key] for key in (
                          "line_distance_mean_mm", "line_distance_std_mm",
                          "pointing_deviation_mean_deg", "start_point_error_mm",

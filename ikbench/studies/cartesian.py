@@ -210,10 +210,10 @@ def as_written(poses: npt.ArrayLike) -> np.ndarray:
 
 def _row(problem, robot, task, method, seed, outcome) -> dict:
     avoids = get_method(method).capabilities.obstacles
-    base = {"problem": problem, "robot": robot.name, "waypoints": task.steps + 1,
+    base = {"problem": problem, "robot": robot.name, "waypoints": task.goal.steps + 1,
             "method": method, "seed": seed, "duration_s": outcome.wall_s,
             "trajectory": f"{method}/trajectory_{problem}_seed{seed}.csv",
-            "obstacles": len(task.obstacles), "avoids_obstacles": avoids}
+            "obstacles": len(task.required.obstacles), "avoids_obstacles": avoids}
     if not outcome.ok:
         return {**base, "valid": False, "failed_criteria": "failure",
                 "failure": outcome.failure, "trajectory": ""}

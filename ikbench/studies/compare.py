@@ -178,7 +178,7 @@ def avoids_obstacles(cls: type[Method] | Method | None, tasks: Sequence[Task]) -
     tasks: ``Capabilities.obstacles`` covers pose paths (goal frames) only, so on line tasks
     no method avoids them today."""
     return (cls is not None and cls.capabilities.obstacles
-            and all(t.has_frames for t in tasks))
+            and all(t.goal.has_frames for t in tasks))
 
 
 def with_obstacles(targets: Targets, obstacles: str | Path | Sequence | None,
@@ -573,7 +573,7 @@ def measure(spec: CompareSpec, results: pd.DataFrame, built: dict[str, Method],
             cls = built[row["method"]] if row["method"] in built else \
                 status[row["method"]].cls if row["method"] in status else None
             avoids = avoids_obstacles(cls, spec.tasks)
-            out.update(obstacles=len(by_name[row["trajectory"]].obstacles),
+            out.update(obstacles=len(by_name[row["trajectory"]].required.obstacles),
                        avoids_obstacles=avoids)
             if (measured.get("env_collisions") or 0) > 0 and not avoids \
                     and not str(row.get("failure") or ""):
@@ -647,7 +647,7 @@ def _legibility(spec: CompareSpec, task: Task, poses: np.ndarray) -> dict[str, f
     """:data:`LEGIBILITY_COLUMNS` of one trajectory as its CSV holds it (constant timing over
     the contract's duration, the CSV's time column), its task's touch point the true goal."""
     fk = spec.robot.fk(poses)
-    goals, true = true_goal_index(goal_set_mm(spec), task.end_point_mm)
+    goals, true = true_goal_index(goal_set_mm(spec), task.goal.end_point_mm)
     return legibility_metrics(fk.point_mm, fk.direction, poses, goals, true,
                               constant_times_s(len(poses), spec.contract.duration_s))
 
@@ -661,7 +661,7 @@ def legibility_curves(spec: CompareSpec, files: dict[str, dict[str, TrajectoryFi
     for name, method_files in files.items():
         for tid, file in method_files.items():
             fk = spec.robot.fk(file.poses)
-            goals, true = true_goal_index(goal_set_mm(spec), by_name[tid].end_point_mm)
+            goals, true = true_goal_index(goal_set_mm(spec), by_name[tid].goal.end_point_mm)
             times_s = constant_times_s(len(file.poses), spec.contract.duration_s)
             curves.setdefault(name, {})[tid] = {
                 "times_s": times_s,

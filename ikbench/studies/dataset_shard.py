@@ -28,7 +28,7 @@ import numpy.typing as npt
 from ikbench.core.losses import MM_PER_CM, TERMS
 from ikbench.core.metrics_batch import line_metrics
 from ikbench.core.robot import MM_PER_M, RANGE_TOLERANCE_DEG, unwrap_continuous
-from ikbench.core.task import Task
+from ikbench.core.task import Goal, Requirements, Task
 from ikbench.methods.ours_lm import solve_problem
 from ikbench.methods.ours_lm.devices import compiled_module, cpu_backend
 from ikbench.methods.ours_lm.problem import Problem
@@ -115,8 +115,9 @@ def line_tasks(robot: Robot, start_pose: npt.ArrayLike, touch_poses: np.ndarray,
     for k, (pose, end_mm) in enumerate(zip(touch_poses, touch_mm)):
         line = end_mm - start_mm
         direction = line / np.linalg.norm(line)
-        tasks.append(Task(str(first + k), start_mm + t * line,
-                          np.repeat(direction[None], steps + 1, axis=0), start, pose))
+        tasks.append(Task(str(first + k), Goal(start_mm + t * line,
+                                               np.repeat(direction[None], steps + 1, axis=0)),
+                          Requirements(start, pose)))
     return tasks, start_mm, touch_mm
 
 

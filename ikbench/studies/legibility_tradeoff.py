@@ -73,11 +73,12 @@ def legibility_tradeoff(robot, targets, target_id: str | None = None,
                          f"({', '.join(tasks)})")
     task = tasks[name]
     _, goals_mm = goal_points_mm(robot, goals if goals is not None else targets)
-    all_goals, true = true_goal_index(goals_mm, task.end_point_mm)
+    all_goals, true = true_goal_index(goals_mm, task.goal.end_point_mm)
     if len(all_goals) < 2:
         raise InputError("the legibility term needs a goal set with a goal other than the "
                          "target's touch point (--goals)")
-    judged = task.contract.judged_from(task.steps) if task.contract is not None else 0
+    judged = (task.required.contract.judged_from(task.goal.steps)
+              if task.required.contract is not None else 0)
     rows = []
     for w in weights:
         method = OursExact(legibility_weight=w, legibility_goals_mm=goals_mm)
@@ -87,14 +88,14 @@ def legibility_tradeoff(robot, targets, target_id: str | None = None,
         fk = robot.fk(solution.poses)
         metrics = legibility_metrics(fk.point_mm, fk.direction, solution.poses, all_goals,
                                      true, constant_times_s(len(solution.poses), duration_s))
-        cos = np.clip(np.sum(fk.direction * task.goal_directions, axis=1), -1.0, 1.0)
+        cos = np.clip(np.sum(fk.direction * task.goal.directions, axis=1), -1.0, 1.0)
         deviation = np.degrees(np.arccos(cos))
         rows.append({
             "weight": w, "pointing_legibility": metrics["pointing_legibility"],
             "position_legibility": metrics["position_legibility"],
             "predictability": metrics["predictability"],
             "line_distance_max_mm": float(np.linalg.norm(
-                fk.point_mm - task.goal_points_mm, axis=1).max()),
+                fk.point_mm - task.goal.points_mm, axis=1).max()),
             "pointing_deviation_max_deg": float(deviation[judged:].max()),
             "pointing_deviation_rms_deg": float(np.sqrt(np.mean(deviation[judged:] ** 2))),
             "early_pointing_deviation_max_deg": float(deviation[1:max(judged, 2)].max()),

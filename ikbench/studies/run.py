@@ -118,8 +118,8 @@ def evaluate(robot: Robot, outcomes: Sequence[Outcome], trajectories: dict[str, 
     :data:`ikbench.render.run_report.SHAPE_TABLE_COLUMNS`. A failed solve gets a row of NaN and
     its failure in details.
     """
-    shaped = any(o.task.curve is not None for o in outcomes)
-    framed = any(o.task.goal_rotations is not None for o in outcomes)
+    shaped = any(o.task.goal.curve is not None for o in outcomes)
+    framed = any(o.task.goal.rotations is not None for o in outcomes)
     columns = FRAME_TABLE_COLUMNS if framed else SHAPE_TABLE_COLUMNS if shaped \
         else TABLE_COLUMNS
     measure = frame_metrics if framed else shape_metrics if shaped else trajectory_metrics
@@ -162,7 +162,7 @@ def _legibility(robot: Robot, task: Task, poses: np.ndarray, goals_mm: np.ndarra
                 duration_s: float) -> dict[str, float]:
     """The legibility figures of one line trajectory, its touch point the true goal."""
     fk = robot.fk(poses)
-    goals, true = true_goal_index(goals_mm, task.end_point_mm)
+    goals, true = true_goal_index(goals_mm, task.goal.end_point_mm)
     return legibility_metrics(fk.point_mm, fk.direction, poses, goals, true,
                               constant_times_s(len(poses), duration_s))
 
@@ -234,13 +234,13 @@ def prepare_problem(method: str | Method, problem: str | Path, *,
     if problem_robot.config.targets.file is not None:
         targets = load_targets(None, problem_robot)
     else:
-        assert task.reference_pose is not None  # problem_task sets it
-        targets = Targets(problem_robot.joint_names, task.reference_pose, {}, task.steps,
+        assert task.hints.reference_pose is not None  # problem_task sets it
+        targets = Targets(problem_robot.joint_names, task.hints.reference_pose, {}, task.goal.steps,
                           "problem")
     solver = method if isinstance(method, Method) else get_method(method)(**(options or {}))
     solver.check_tasks(problem_robot, [task])
     record = {"shape": "path", "problem": problem_label(parsed), "problem_name": parsed.name}
-    return solver, problem_robot, replace(targets, steps=task.steps), [task], record
+    return solver, problem_robot, replace(targets, steps=task.goal.steps), [task], record
 
 
 def problem_label(problem: CartesianProblem) -> str:
@@ -381,7 +381,7 @@ def trajectory_files(robot: Robot, outcomes: Sequence[Outcome], duration_s: floa
     (:class:`ikbench.runtime.record.TrajectoryFile`: text and poses read back; pose paths
     with their end-frame orientation)."""
     return {o.task.name: TrajectoryFile.of(robot, o.task.name, o.solution.poses, duration_s,
-                                           quaternion=o.task.goal_rotations is not None)
+                                           quaternion=o.task.goal.rotations is not None)
             for o in outcomes if o.solution is not None}
 
 
@@ -426,12 +426,12 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
             kind="run", method=solver.name, name=record.get("name") or solver.name,
             library=solver.library, robot=robot_entry(robot), targets=targets.source,
             trajectories=[t.name for t in tasks],
-            failed=[o.task.name for o in outcomes if not o.ok], steps=tasks[0].steps,
+            failed=[o.task.name for o in outcomes if not o.ok], steps=tasks[0].goal.steps,
             shape=record.get("shape", "line"), direction=record.get("direction"),
             size_mm=record.get("size_mm"), start_pose_deg=targets.start_pose.tolist(),
             # weights a task asks for (letters); ours applies --weights changes on top
             # and details.csv names the weights each trajectory was solved with
-            task_default_weights=tasks[0].default_weights, duration_s=duration_s,
+            task_default_weights=tasks[0].hints.default_weights, duration_s=duration_s,
             interrupted=bool(record.get("interrupted")),
             settings=jsonable({"settings": solver.settings_for(tasks[0])}),
             runtime=solver.runtime(), total_wall_time_s=record.get("total_wall_time_s"),
@@ -453,7 +453,7 @@ def _figures(solver: Method, robot: Robot, outcomes: Sequence[Outcome],
     solved = [o.task for o in outcomes if o.ok]
     if not solved:
         return []
-    if solved[0].goal_rotations is not None:
+    if solved[0].goal.rotations is not None:
 
         figures: list[tuple[str, str, Any]] = []
         for outcome in outcomes:
@@ -464,7 +464,7 @@ def _figures(solver: Method, robot: Robot, outcomes: Sequence[Outcome],
                                 plot_pose_path(task, {solver.name: curve},
                                                f"{task.name}: {title}", robot)))
         return figures
-    if solved[0].curve is None:
+    if solved[0].goal.curve is None:
         poses = {t.name: files[t.name].poses for t in solved}
         return [("trajectories", "trajectories_3d.png",
                  plot_trajectories_3d(solved, points, title, robot, poses)),

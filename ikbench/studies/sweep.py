@@ -4,7 +4,7 @@
 every setting on every task in one batched ``ours-lm`` call and measures each trajectory with
 :mod:`ikbench.core.metrics`. Terms not in the grid keep the *reference* weights: the paper's for the
 line (its targets) and for polylines and splines, the paper's letter setting (c0=1, c1=50,
-c6=1, others 0: ``Task.default_weights``) for letters. The reference setting is always one of
+c6=1, others 0: ``Task.hints.default_weights``) for letters. The reference setting is always one of
 the settings (column ``paper_weights`` True; ``paper_loss`` is the objective with the reference
 weights). Per setting, the figures are averaged over the tasks (errors: worst task). A setting
 whose weights are all 0 for the tasks is refused.
@@ -185,8 +185,8 @@ def grid_settings(grid: dict[str, list[float]], base: dict | None = None) -> lis
 
 def effective_weights(weights: dict[str, float], task: Task) -> dict[str, float]:
     """``weights`` with c2 / c3 set to 0 where ``task`` pins no start / end pose."""
-    return {**weights, "L2": weights["L2"] if task.start_pose is not None else 0.0,
-            "L3": weights["L3"] if task.end_pose is not None else 0.0}
+    return {**weights, "L2": weights["L2"] if task.required.start_pose is not None else 0.0,
+            "L3": weights["L3"] if task.required.end_pose is not None else 0.0}
 
 
 @dataclass
@@ -264,7 +264,7 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
               "reference_weights": {f"c{t[1]}": base[t] for t in TERMS},
               "reference": reference_name(kind) if method == OURS_LM
               else "ours-exact's default weights", "method": method,
-              "trajectories": [t.name for t in tasks], "steps": tasks[0].steps,
+              "trajectories": [t.name for t in tasks], "steps": tasks[0].goal.steps,
               "solve_wall_time_s": result.duration_s, "trajectories_solved": len(all_tasks),
               **(executor or LocalExecutor()).describe(), **provenance()}
     return SweepResult(summarise(per_traj, method), per_traj, record)
@@ -307,11 +307,11 @@ def _sweep_settings(tasks: list[Task], grid: dict[str, list[float]], shape: str,
         InputError: the tasks have different default weights, or a setting weights nothing
             but poses the tasks do not pin (its loss would be empty).
     """
-    defaults = {json.dumps(t.default_weights, sort_keys=True) for t in tasks}
+    defaults = {json.dumps(t.hints.default_weights, sort_keys=True) for t in tasks}
     if len(defaults) != 1:  # not for any shape ikbench makes today
         raise InputError(f"--shape: {shape!r} makes tasks with different default weights; "
                          "sweep one kind of shape at a time")
-    base = dict(tasks[0].default_weights or PAPER_WEIGHTS)
+    base = dict(tasks[0].hints.default_weights or PAPER_WEIGHTS)
     if method == OURS_EXACT:
         base = exact_reference_weights()
     settings = grid_settings(grid, base)
@@ -366,7 +366,7 @@ def check_grid_size(grid: dict[str, list[float]], tasks: list[Task], dof: int) -
         raise InputError(f"weight: the grid makes {count:,} trajectories ({count // len(tasks):,} "
                          f"settings x {len(tasks)} tasks), more than one batch takes, "
                          f"{MAX_COUNT:,}; give fewer values")
-    size = (tasks[0].steps + 1) * dof * 8 * NUMBERS_PER_POSE_JOINT
+    size = (tasks[0].goal.steps + 1) * dof * 8 * NUMBERS_PER_POSE_JOINT
     check_memory("weight", count, "trajectories", size)
     return count
 

@@ -210,7 +210,7 @@ def _add_goals(robot: Robot, record: RunRecord, trajectories: dict) -> str:
                 f"points (the tasks could not be rebuilt: {exc})")
     for tid, traj in trajectories.items():
         task = tasks[tid]
-        goal, down = task.goal_points_mm, np.asarray(task.pen_down, dtype=bool)
+        goal, down = task.goal.points_mm, np.asarray(task.goal.pen_down, dtype=bool)
         keep = down[:-1] & down[1:]
         traj.goal_mm, traj.goal_segments_mm = goal, np.stack([goal[:-1], goal[1:]], 1)[keep]
     size = "" if shape.split(":")[0] != "letter" or "size_mm" not in record.absent else (

@@ -177,7 +177,7 @@ class OursExact(Method):
 
     def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
         super().check_tasks(robot, tasks)
-        self._pose_paths_ahead = any(t.has_frames for t in tasks)
+        self._pose_paths_ahead = any(t.goal.has_frames for t in tasks)
 
     def prepare(self, robot: Robot) -> None:
         robot.chain_kinematics().frames(np.zeros((1, robot.dof)))
@@ -197,7 +197,7 @@ class OursExact(Method):
         share of its batch's wall time (the initial solve included)."""
         groups: dict[tuple, list[int]] = {}
         for k, task in enumerate(tasks):
-            groups.setdefault((task.steps, task.has_frames, _limits_key(robot, task)),
+            groups.setdefault((task.goal.steps, task.goal.has_frames, _limits_key(robot, task)),
                               []).append(k)
         out: dict[int, Solution] = {}
         for members in groups.values():
@@ -248,7 +248,7 @@ class OursExact(Method):
         problem = build_problem(robot, [task], s)
         initial = np.clip(np.array(initial_poses, dtype=float)[None], problem.lower,
                           problem.upper)
-        for fixed, pose in ((0, task.start_pose), (-1, task.end_pose)):
+        for fixed, pose in ((0, task.required.start_pose), (-1, task.required.end_pose)):
             if pose is not None:
                 initial[0, fixed] = pose
         result = solve(robot.chain_kinematics(), problem, initial,
@@ -297,7 +297,7 @@ class OursExact(Method):
             return {}
         notes: dict[int, str] = {}
         for k, task in enumerate(tasks):
-            obstacles = tuple(task.obstacles) if task.has_frames else ()
+            obstacles = tuple(task.required.obstacles) if task.goal.has_frames else ()
             colliding = int(checker.check(result.poses[k], obstacles).colliding.any(axis=1)
                             .sum())
             if not colliding:
@@ -372,13 +372,13 @@ def step_limits(robot: Robot, task: Task, settings: ExactSettings) -> np.ndarray
     6-D pose path, CppFlow's joint-change limits; none (inf) for other tasks (a letter asks
     for its points, not for a speed)."""
     limit = np.full(robot.dof, np.inf)
-    if task.has_frames:  # CppFlow's joint-change criteria, with a margin
+    if task.goal.has_frames:  # CppFlow's joint-change criteria, with a margin
         prismatic = robot.chain_kinematics().prismatic
         limit = PATH_STEP_SHARE * np.where(prismatic, MAX_JOINT_CHANGE_MM, MAX_JOINT_CHANGE_DEG)
-    contract = task.contract
+    contract = task.required.contract
     if contract is not None:
         limit = np.minimum(limit, float(settings.max_step))
-        contract_step = contract.max_step(task.steps)
+        contract_step = contract.max_step(task.goal.steps)
         if contract_step is not None:
             limit = np.minimum(limit, CONTRACT_STEP_SHARE * contract_step)
     return limit
@@ -388,13 +388,13 @@ def pointing_scales(task: Task, settings: ExactSettings) -> np.ndarray:
     """(N,) squared residual scale of the pointing residual per pose: c1 / (2 N_judged) on
     the judged poses (the contract's judged part, pen-down points; the whole path without a
     contract), 0 elsewhere and for 6-D pose paths (their frames are constraints)."""
-    n_poses = task.steps + 1
-    judged = np.asarray(task.pen_down, dtype=bool).copy()
-    contract = task.contract
-    if task.has_frames or (contract is not None and not contract.pointing):
+    n_poses = task.goal.steps + 1
+    judged = np.asarray(task.goal.pen_down, dtype=bool).copy()
+    contract = task.required.contract
+    if task.goal.has_frames or (contract is not None and not contract.pointing):
         judged[:] = False
     elif contract is not None:
-        judged[:contract.judged_from(task.steps)] = False
+        judged[:contract.judged_from(task.goal.steps)] = False
     out = np.zeros(n_poses)
     if judged.any():
         out[judged] = settings.pointing_weight / (2.0 * judged.sum())
@@ -403,21 +403,21 @@ def pointing_scales(task: Task, settings: ExactSettings) -> np.ndarray:
 
 def build_problem(robot: Robot, tasks: Sequence[Task], settings: ExactSettings) -> ExactProblem:
     """The :class:`ExactProblem` of tasks of one length, kind and joint limits."""
-    n = tasks[0].steps
+    n = tasks[0].goal.steps
     dof = robot.dof
     fixed = np.zeros((len(tasks), n + 1), dtype=bool)
-    fixed[:, 0] = [t.start_pose is not None for t in tasks]
-    fixed[:, -1] = [t.end_pose is not None for t in tasks]
-    frames = tasks[0].has_frames
+    fixed[:, 0] = [t.required.start_pose is not None for t in tasks]
+    fixed[:, -1] = [t.required.end_pose is not None for t in tasks]
+    frames = tasks[0].goal.has_frames
     lower, upper = (np.asarray(v, dtype=float) for v in tasks[0].limits(robot))
     lower, upper = lower + BOUND_MARGIN, upper - BOUND_MARGIN
     jerk = settings.jerk_weight / (max(n - 2, 1) * dof)
     legibility = _legibility_fields(tasks, settings)
     return ExactProblem(
-        goal_points_mm=np.stack([t.goal_points_mm for t in tasks]),
-        goal_directions=np.stack([t.goal_directions for t in tasks]),
+        goal_points_mm=np.stack([t.goal.points_mm for t in tasks]),
+        goal_directions=np.stack([t.goal.directions for t in tasks]),
         # a batch is of one kind: every task has frames when the first has
-        goal_rotations=(np.stack([cast(np.ndarray, t.goal_rotations) for t in tasks])
+        goal_rotations=(np.stack([cast(np.ndarray, t.goal.rotations) for t in tasks])
                         if frames else None),
         pointing=np.stack([pointing_scales(t, settings) for t in tasks]),
         smooth=np.full(len(tasks), settings.smoothness_weight / (n * dof)),
@@ -438,12 +438,12 @@ def _legibility_fields(tasks: Sequence[Task], settings: ExactSettings) -> dict[s
     if settings.legibility_goals_mm is None:
         raise InputError(f"{flag} needs a goal set (the task's other goals): use ikbench "
                          "legibility, or set legibility_goals_mm from Python")
-    if tasks[0].has_frames:
+    if tasks[0].goal.has_frames:
         raise InputError(f"{flag} applies to point paths (lines), not to 6-D pose paths")
     sets, trues = [], []
     for task in tasks:
         goals, true = true_goal_index(np.asarray(settings.legibility_goals_mm, dtype=float),
-                                      task.goal_points_mm[-1])
+                                      task.goal.points_mm[-1])
         if len(goals) < 2:
             raise InputError(f"{flag} needs a goal set with a goal other than the task's "
                              f"touch point ({task.name!r} has none)")
@@ -453,7 +453,7 @@ def _legibility_fields(tasks: Sequence[Task], settings: ExactSettings) -> dict[s
     padded = np.full((len(tasks), k, 3), np.nan)
     for b, goals in enumerate(sets):
         padded[b, :len(goals)] = goals
-    n_poses = tasks[0].steps + 1
+    n_poses = tasks[0].goal.steps + 1
     weights = legibility_term_weights(n_poses, settings.legibility_weight)
     return {"legibility": np.tile(weights, (len(tasks), 1)), "legibility_goals_mm": padded,
             "true_goal": np.asarray(trues, dtype=int), "sigma_deg": POINTING_SIGMA_DEG}
@@ -462,7 +462,7 @@ def _legibility_fields(tasks: Sequence[Task], settings: ExactSettings) -> dict[s
 def initial_trajectories(robot: Robot, tasks: Sequence[Task], settings: ExactSettings
                          ) -> tuple[np.ndarray, list[str]]:
     """(poses (B, N, k) to start from, a word per task saying which)."""
-    both = [t.start_pose is not None and t.end_pose is not None for t in tasks]
+    both = [t.required.start_pose is not None and t.required.end_pose is not None for t in tasks]
     use_lm = [settings.init == "ours-lm" or (settings.init == "auto" and not ok)
               for ok in both]
     for task, ok, lm in zip(tasks, both, use_lm):
@@ -470,7 +470,7 @@ def initial_trajectories(robot: Robot, tasks: Sequence[Task], settings: ExactSet
             raise InputError(f"trajectory {task.name!r}: --exact-init interpolation needs a "
                              "start and a touch pose; use --exact-init ours-lm or auto")
 
-    out: Any = (initial_poses(robot, tasks) if not tasks[0].has_frames or not any(use_lm)
+    out: Any = (initial_poses(robot, tasks) if not tasks[0].goal.has_frames or not any(use_lm)
                 else None)
     if any(use_lm):
         chosen = [t for t, lm in zip(tasks, use_lm) if lm]
@@ -479,10 +479,10 @@ def initial_trajectories(robot: Robot, tasks: Sequence[Task], settings: ExactSet
         stacked = [next(poses) if lm else out[k] for k, lm in enumerate(use_lm)]
         out = np.stack(stacked)
     for k, task in enumerate(tasks):  # the fixed poses exactly, whatever the start
-        if task.start_pose is not None:
-            out[k, 0] = task.start_pose
-        if task.end_pose is not None:
-            out[k, -1] = task.end_pose
+        if task.required.start_pose is not None:
+            out[k, 0] = task.required.start_pose
+        if task.required.end_pose is not None:
+            out[k, -1] = task.required.end_pose
     return out, ["ours-lm" if lm else "interpolation" for lm in use_lm]
 
 

@@ -10,7 +10,7 @@ runs by default when numba is installed (``--lm-backend auto|numpy|numba``, ``--
 the numpy solver is the reference and the fallback.
 
 Weights: as in ``ours``, a task may name the weights it is meant for
-(``Task.default_weights``, e.g. a letter's c0=1, c1=50, c6=1, others 0); ``--weights`` changes
+(``Task.hints.default_weights``, e.g. a letter's c0=1, c1=50, c6=1, others 0); ``--weights`` changes
 then apply on top of those instead of the paper's, per task in one batch.
 
 6-D pose paths (tasks with goal frames, e.g. the CppFlow problems) are solved on their own
@@ -123,7 +123,7 @@ class OursLM(Method):
 
     def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:
         super().check_tasks(robot, tasks)
-        frames = [t.goal_rotations is not None for t in tasks]
+        frames = [t.goal.rotations is not None for t in tasks]
         self._pose_paths_ahead = any(frames)
         self._only_pose_paths_ahead = bool(frames) and all(frames)
 
@@ -135,10 +135,10 @@ class OursLM(Method):
         """One batched solve of every task (each with :meth:`settings_for`'s weights); each
         Solution's duration_s is its share of the batch's wall time. Tasks with goal frames
         are solved one at a time by :func:`.start_search.search`."""
-        if any(t.goal_rotations is not None for t in tasks):
+        if any(t.goal.rotations is not None for t in tasks):
             by_index: dict[int, Solution] = {}
             for k, task in enumerate(tasks):
-                if task.goal_rotations is None:
+                if task.goal.rotations is None:
                     continue
                 if progress:
                     progress.start(task, k, len(tasks))
@@ -221,7 +221,7 @@ class OursLM(Method):
         search; ``converged``: the path is valid)."""
         weights = resolve_weights(self.settings.weights, task)
         initial = np.asarray(initial_poses, dtype=float)[None]
-        if task.goal_rotations is None:
+        if task.goal.rotations is None:
             return _solution(solve_batch(robot, [task], self.settings, weights=[weights],
                                          initial=initial), 0, weights)
         frames = robot.chain_kinematics().frames

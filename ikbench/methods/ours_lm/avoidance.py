@@ -131,7 +131,7 @@ def avoidance_for(robot: Robot, task: Task, clearance_mm: float, weight: float
     model = collision_model(robot)
     if model is None:
         return None
-    return Avoidance(model, task.obstacles, clearance_mm, weight)
+    return Avoidance(model, task.required.obstacles, clearance_mm, weight)
 
 
 def collision_checker(robot: Robot) -> Any:

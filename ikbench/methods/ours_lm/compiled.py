@@ -40,7 +40,7 @@ import numpy as np
 from numba import njit, prange
 
 from ikbench.core.losses import PAPER_WEIGHTS
-from ikbench.core.task import Task
+from ikbench.core.task import Goal, Requirements, Task
 from ikbench.methods.ours_lm.compiled_chain import Chain, joint_step, sin_cos
 from ikbench.methods.ours_lm.devices import say_if_compiling
 from ikbench.methods.ours_lm.problem import CM_PER_M, Problem, Weights
@@ -158,7 +158,7 @@ def warm_up(robot: Robot) -> None:
     pose = np.clip(np.zeros(k), robot.lower, robot.upper)
     goal = np.zeros((3, 3))
     direction = np.tile([1.0, 0.0, 0.0], (3, 1))
-    task = Task("warm-up", goal, direction, pose, pose)
+    task = Task("warm-up", Goal(goal, direction), Requirements(pose, pose))
     chain, b = Chain(robot), 2 * PER_THREAD
     problem = Problem.from_tasks(robot, [task] * b, dict(PAPER_WEIGHTS))
     for threads in (1, 2):  # the serial and the parallel kernel

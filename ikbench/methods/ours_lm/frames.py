@@ -59,16 +59,16 @@ class FrameProblem:
     def from_tasks(cls, robot: Robot, tasks: Sequence[Task], weights: Weights,
                    frames: Callable[[np.ndarray, bool], Frames]) -> FrameProblem:
         """Stack frame tasks of equal length and limits; ``weights``: a dict or one per task."""
-        if any(t.goal_rotations is None for t in tasks):
+        if any(t.goal.rotations is None for t in tasks):
             raise InputError("the 6-D objective needs tasks with goal frames")
-        if len({t.steps for t in tasks}) != 1:
+        if len({t.goal.steps for t in tasks}) != 1:
             raise InputError("ours-lm batches pose paths of one length only")
         per_task = cast("Sequence[dict[str, float]]", weights if isinstance(weights, (list, tuple))
                         else [weights] * len(tasks))  # a list or tuple: one dict per task
         w = np.array([[float(ws.get(k, 0.0)) for k in TERMS] for ws in per_task])
         lower, upper = tasks[0].limits(robot)
-        return cls(np.stack([t.goal_points_mm for t in tasks]),
-                   np.stack([cast(np.ndarray, t.goal_rotations) for t in tasks]), w,
+        return cls(np.stack([t.goal.points_mm for t in tasks]),
+                   np.stack([cast(np.ndarray, t.goal.rotations) for t in tasks]), w,
                    np.asarray(lower, dtype=float), np.asarray(upper, dtype=float), frames)
 
     def take(self, index: Index) -> FrameProblem:

@@ -57,7 +57,7 @@ from ikbench.core.capsules import capsule_model
 from ikbench.core.collision import collision_model
 from ikbench.core.errors import InputError
 from ikbench.core.obstacles import box
-from ikbench.core.task import Task
+from ikbench.core.task import Goal, Hints, Requirements, Task
 from ikbench.core.validity import (
     MAX_INITIAL_DISTANCE,
     MAX_JOINT_CHANGE_DEG,
@@ -168,7 +168,7 @@ def available(robot: Robot) -> bool:
 def scene_for(robot: Robot, task: Task) -> CapsuleScene | None:
     """The capsule scene of the robot with the task's obstacles (None without a model)."""
     model = capsule_model(robot)
-    return None if model is None else model.scene(task.obstacles)
+    return None if model is None else model.scene(task.required.obstacles)
 
 
 def turns(robot: Robot, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
@@ -213,9 +213,9 @@ def warm_up(robot: Robot) -> None:
     point, rotation, _, _ = robot.chain_kinematics().frames(pose[None], False)
     points_mm = np.repeat(point * 1000.0, 3, axis=0)
     far = box("warm-up", points_mm[0] + 5000.0, [10.0, 10.0, 10.0])
-    task = Task("warm-up", points_mm, np.tile([1.0, 0.0, 0.0], (3, 1)), None, None,
-                goal_rotations=np.repeat(rotation, 3, axis=0), reference_pose=pose,
-                obstacles=(far,))
+    task = Task("warm-up", Goal(points_mm, np.tile([1.0, 0.0, 0.0], (3, 1)),
+                                np.repeat(rotation, 3, axis=0)),
+                Requirements(obstacles=(far,)), Hints(reference_pose=pose))
 
     s = _Search(robot, task, OursLMSettings(max_iterations=2))
     for threads in (1, 2):
@@ -253,8 +253,8 @@ class _Search:
         self.task_lower = lower
         self.scene = scene_for(robot, task)
         self.spec = kernels.PathSpec(robot, self.lower, self.upper, self.scene)
-        self.goals_p = np.ascontiguousarray(task.goal_points_mm, dtype=float)
-        self.goals_R = np.ascontiguousarray(cast(np.ndarray, task.goal_rotations), dtype=float)
+        self.goals_p = np.ascontiguousarray(task.goal.points_mm, dtype=float)
+        self.goals_R = np.ascontiguousarray(cast(np.ndarray, task.goal.rotations), dtype=float)
         self.n = len(self.goals_p)
         self.rng = np.random.default_rng(settings.seed)
         self.weights, self.max_step = stitch_costs(robot)
@@ -277,10 +277,10 @@ class _Search:
         dof = self.robot.dof
         seeds = self.rng.uniform(self.low, self.high, (len(anchors), count, dof))
         for a, anchor in enumerate(anchors):
-            if anchor == 0 and self.task.reference_pose is not None:
-                seeds[a, 0] = self.task.reference_pose
-            if anchor == 0 and self.task.initial_pose is not None:
-                seeds[a, 1 % count] = self.task.initial_pose
+            if anchor == 0 and self.task.hints.reference_pose is not None:
+                seeds[a, 0] = self.task.hints.reference_pose
+            if anchor == 0 and self.task.required.initial_pose is not None:
+                seeds[a, 1 % count] = self.task.required.initial_pose
         q, position, rotation, iterations = anchor_ik.first_waypoint_ik(
             self.spec, np.repeat(self.goals_p[anchors], count, axis=0),
             np.repeat(self.goals_R[anchors], count, axis=0), seeds.reshape(-1, dof))
@@ -416,7 +416,7 @@ class _Search:
 
     def _restrict_start(self, tracks: np.ndarray, nodes: np.ndarray) -> None:
         """With an initial configuration, only first poses near it are nodes."""
-        initial = self.task.initial_pose
+        initial = self.task.required.initial_pose
         if initial is None:
             return
         urdf = self.robot.to_urdf(np.nan_to_num(tracks[:, 0]))
@@ -510,7 +510,7 @@ class _Search:
         return poses, loss, terms, iterations + used, converged, valid, figures
 
     def first_pose_ok(self, poses: np.ndarray) -> bool:
-        initial = self.task.initial_pose
+        initial = self.task.required.initial_pose
         if initial is None:
             return True
         distance = np.linalg.norm(self.robot.to_urdf(poses[0])

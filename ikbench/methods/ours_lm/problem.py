@@ -59,19 +59,21 @@ class Problem:
     @classmethod
     def from_tasks(cls, robot: Robot, tasks: Sequence[Task], weights: Weights) -> Problem:
         """Stack tasks of equal length; ``weights`` is one dict or one dict per task."""
-        sizes = {t.steps for t in tasks}
+        sizes = {t.goal.steps for t in tasks}
         if len(sizes) != 1:
             raise InputError(f"ours-lm batches tasks of one length; got n = {sorted(sizes)}")
         per_task = cast("Sequence[dict[str, float]]", weights if isinstance(weights, (list, tuple))
                         else [weights] * len(tasks))  # a list or tuple: one dict per task
         w = np.array([[float(ws.get(k, 0.0)) for k in TERMS] for ws in per_task])
         zero = np.zeros(robot.dof)
-        start = np.stack([zero if t.start_pose is None else t.start_pose for t in tasks])
-        end = np.stack([zero if t.end_pose is None else t.end_pose for t in tasks])
-        w[:, 2] *= [t.start_pose is not None for t in tasks]
-        w[:, 3] *= [t.end_pose is not None for t in tasks]
-        return cls(np.stack([t.goal_points_mm for t in tasks]) / MM_PER_CM,
-                   np.stack([t.goal_directions for t in tasks]), start, end, w,
+        start = np.stack([zero if t.required.start_pose is None else t.required.start_pose
+                          for t in tasks])
+        end = np.stack([zero if t.required.end_pose is None else t.required.end_pose
+                        for t in tasks])
+        w[:, 2] *= [t.required.start_pose is not None for t in tasks]
+        w[:, 3] *= [t.required.end_pose is not None for t in tasks]
+        return cls(np.stack([t.goal.points_mm for t in tasks]) / MM_PER_CM,
+                   np.stack([t.goal.directions for t in tasks]), start, end, w,
                    robot.lower, robot.upper)
 
     def take(self, index: Index) -> Problem:

@@ -136,11 +136,12 @@ def initial_poses(robot: Robot, tasks: Sequence[Task]) -> np.ndarray:
     """
     out = []
     for task in tasks:
-        t = np.linspace(0.0, 1.0, task.steps + 1)[:, None]
-        if task.start_pose is not None and task.end_pose is not None:
-            out.append(task.start_pose + t * (task.end_pose - task.start_pose))
-        elif task.reference_pose is not None:
-            out.append(np.asarray(task.reference_pose, dtype=float) + 0.0 * t)
+        t = np.linspace(0.0, 1.0, task.goal.steps + 1)[:, None]
+        if task.required.start_pose is not None and task.required.end_pose is not None:
+            start, end = task.required.start_pose, task.required.end_pose
+            out.append(start + t * (end - start))
+        elif task.hints.reference_pose is not None:
+            out.append(np.asarray(task.hints.reference_pose, dtype=float) + 0.0 * t)
         else:
             raise InputError(f"trajectory {task.name!r}: ours-lm needs a start and an end pose "
                              "or a reference pose to start from")
@@ -150,11 +151,12 @@ def initial_poses(robot: Robot, tasks: Sequence[Task]) -> np.ndarray:
 def initial_poses_batched(robot: Robot, tasks: Sequence[Task]) -> np.ndarray:
     """:func:`~.solver.initial_poses` without a loop over tasks when every task pins a start
     and a touch pose (the same operations, so the same numbers)."""
-    if not all(t.start_pose is not None and t.end_pose is not None for t in tasks) \
-            or len({t.steps for t in tasks}) != 1:
+    if not all(t.required.start_pose is not None and t.required.end_pose is not None
+               for t in tasks) \
+            or len({t.goal.steps for t in tasks}) != 1:
         return initial_poses(robot, tasks)
     # every task pins both (checked above)
-    start = np.stack([cast(np.ndarray, t.start_pose) for t in tasks])[:, None, :]
-    end = np.stack([cast(np.ndarray, t.end_pose) for t in tasks])[:, None, :]
-    t = np.linspace(0.0, 1.0, tasks[0].steps + 1)[None, :, None]
+    start = np.stack([cast(np.ndarray, t.required.start_pose) for t in tasks])[:, None, :]
+    end = np.stack([cast(np.ndarray, t.required.end_pose) for t in tasks])[:, None, :]
+    t = np.linspace(0.0, 1.0, tasks[0].goal.steps + 1)[None, :, None]
     return np.clip(start + t * (end - start), robot.lower, robot.upper)

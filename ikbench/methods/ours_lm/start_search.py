@@ -145,7 +145,7 @@ def carry(frames: Callable[..., Frames], task: Task, start: np.ndarray, lower: n
     Returns:
         (paths (K, N, dof), iterations).
     """
-    goals_mm, goals_R = task.goal_points_mm, cast(np.ndarray, task.goal_rotations)  # a pose path
+    goals_mm, goals_R = task.goal.points_mm, cast(np.ndarray, task.goal.rotations)  # a pose path
     k, dof = start.shape
     paths = np.repeat(start[:, None], len(goals_mm), axis=1)
     alive = np.arange(k)
@@ -183,8 +183,8 @@ def lost_waypoints(frames: Callable[..., Frames], task: Task, paths: np.ndarray)
     k, n, dof = paths.shape
     point, rotation, _, _ = frames(paths.reshape(-1, dof), False)
     e_point, e_rot, _, _ = errors_from_frames(
-        point, rotation, None, None, np.tile(task.goal_points_mm, (k, 1)),
-        np.tile(cast(np.ndarray, task.goal_rotations), (k, 1, 1)))
+        point, rotation, None, None, np.tile(task.goal.points_mm, (k, 1)),
+        np.tile(cast(np.ndarray, task.goal.rotations), (k, 1, 1)))
     size = np.maximum(np.abs(e_point).max(-1), np.abs(e_rot).max(-1)).reshape(k, n)
     return np.sum(size > LOST_MM_DEG, axis=1)
 
@@ -198,8 +198,8 @@ def check_paths(robot: Robot, task: Task, paths: np.ndarray, frames: Callable[..
     also collision-free."""
     point, rotation, _, _ = frames(paths.reshape(-1, robot.dof), False)
     e_point, e_rot, _, _ = errors_from_frames(
-        point, rotation, None, None, np.tile(task.goal_points_mm, (len(paths), 1)),
-        np.tile(cast(np.ndarray, task.goal_rotations), (len(paths), 1, 1)))
+        point, rotation, None, None, np.tile(task.goal.points_mm, (len(paths), 1)),
+        np.tile(cast(np.ndarray, task.goal.rotations), (len(paths), 1, 1)))
     position = np.linalg.norm(e_point, axis=1).reshape(len(paths), -1).max(1)
     rotation = np.linalg.norm(e_rot, axis=1).reshape(len(paths), -1).max(1)
     q = robot.to_urdf(paths)
@@ -262,10 +262,10 @@ def search_numpy(robot: Robot, task: Task, settings: OursLMSettings, weights: di
     rng = np.random.default_rng(settings.seed)
     avoid = avoidance_for(robot, task, settings.clearance_mm, settings.collision_weight)
     seeds = rng.uniform(low, high, (settings.ik_seeds, robot.dof))
-    if task.reference_pose is not None:
-        seeds[0] = task.reference_pose
+    if task.hints.reference_pose is not None:
+        seeds[0] = task.hints.reference_pose
     q0, pos, rot, ik_iterations = first_waypoint_ik(
-        frames, task.goal_points_mm[0], cast(np.ndarray, task.goal_rotations)[0], seeds, lower,
+        frames, task.goal.points_mm[0], cast(np.ndarray, task.goal.rotations)[0], seeds, lower,
         upper)
     found = distinct(q0, (pos < SEED_TOLERANCE) & (rot < SEED_TOLERANCE))
     if not found.size:
@@ -363,7 +363,7 @@ def stitched_candidates(frames: Callable[..., Frames], task: Task, avoid: Avoida
         (paths (K, N, dof), carrying iterations, info): the stitched path at index 0 when one
         was found (``info["stitched"]``), then the forward-carried paths.
     """
-    n, dof = len(task.goal_points_mm), len(lower)
+    n, dof = len(task.goal.points_mm), len(lower)
     weights, max_step = stitch_costs(avoid.model.robot)
     jobs: list[tuple[np.ndarray, int]] = [(np.array([0, n - 1]), n)]   # (anchors, reach)
     tracks: list[np.ndarray] = []
@@ -412,14 +412,14 @@ def _carry_from(frames, task, avoid: Avoidance, anchors, reach: int, lower, uppe
     ``reach`` waypoints each way, adding (M, N, dof) arrays (NaN where not carried) to
     ``tracks``; returns (carrying iterations, the paths carried forward from waypoint 0 to the
     last, or None)."""
-    n, dof = len(task.goal_points_mm), len(lower)
+    n, dof = len(task.goal.points_mm), len(lower)
     iterations, forward = 0, None
     for anchor in anchors:
         seeds = rng.uniform(low, high, (STITCH_SEEDS, dof))
-        if anchor == 0 and task.reference_pose is not None:
-            seeds[0] = task.reference_pose
+        if anchor == 0 and task.hints.reference_pose is not None:
+            seeds[0] = task.hints.reference_pose
         q, position, rotation, _ = first_waypoint_ik(
-            frames, task.goal_points_mm[anchor], task.goal_rotations[anchor], seeds, lower, upper)
+            frames, task.goal.points_mm[anchor], task.goal.rotations[anchor], seeds, lower, upper)
         found = distinct(q, (position < SEED_TOLERANCE) & (rotation < SEED_TOLERANCE))
         if found.size:
             found = found[avoid.collision_free(q[found][:, None])]
@@ -429,8 +429,8 @@ def _carry_from(frames, task, avoid: Avoidance, anchors, reach: int, lower, uppe
                       np.arange(anchor, max(-1, anchor - reach - 1), -1)):
             if len(index) < 2:
                 continue
-            part = replace(task, goal_points_mm=task.goal_points_mm[index],
-                           goal_rotations=task.goal_rotations[index])
+            part = replace(task, goal=replace(task.goal, points_mm=task.goal.points_mm[index],
+                                              rotations=task.goal.rotations[index]))
             carried, count = carry(frames, part, q[found], lower, upper, avoid)
             iterations += count
             track = np.full((len(found), n, dof), np.nan)
@@ -451,8 +451,8 @@ def stitch_nodes(frames: Callable[..., Frames], task: Task, avoid: Avoidance,
     poses = tracks[reached]
     point, rotation, _, _ = frames(poses, False)
     e_point, e_rot, _, _ = errors_from_frames(
-        point, rotation, None, None, task.goal_points_mm[waypoint],
-        cast(np.ndarray, task.goal_rotations)[waypoint])
+        point, rotation, None, None, task.goal.points_mm[waypoint],
+        cast(np.ndarray, task.goal.rotations)[waypoint])
     close = np.maximum(np.abs(e_point).max(-1), np.abs(e_rot).max(-1)) < STITCH_REACHED
     free = np.zeros(len(poses), dtype=bool)
     free[close] = avoid.model.check(poses[close], avoid.obstacles).distances_mm \
@@ -547,11 +547,11 @@ def waypoint_reach(robot: Robot, task: Task, count: int = REACH_SEEDS, seed: int
     lower, upper = (np.asarray(v, dtype=float) for v in task.limits(robot))
     low = np.where(np.isfinite(lower), lower, robot.sample_lower)
     high = np.where(np.isfinite(upper), upper, robot.sample_upper)
-    n = task.steps + 1
+    n = task.goal.steps + 1
     seeds = np.random.default_rng(seed).uniform(low, high, (n * count, robot.dof))
     _, position, rotation, _ = first_waypoint_ik(
-        frames, np.repeat(task.goal_points_mm, count, axis=0),
-        np.repeat(cast(np.ndarray, task.goal_rotations), count, axis=0), seeds, lower, upper)
+        frames, np.repeat(task.goal.points_mm, count, axis=0),
+        np.repeat(cast(np.ndarray, task.goal.rotations), count, axis=0), seeds, lower, upper)
     position, rotation = position.reshape(n, count), rotation.reshape(n, count)
     best = np.argmin(np.maximum(position, rotation), axis=1)
     rows = np.arange(n)

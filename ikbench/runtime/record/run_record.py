@@ -295,7 +295,7 @@ def obstacles_entry(tasks: Sequence[Task]) -> list[Any] | dict[str, Any] | None:
     mm): one list when every task has the same ones (a problem's), else a mapping from
     trajectory id to its list (tasks without obstacles left out); None when no task has any.
     :meth:`RunRecord.trajectory_obstacles` reads it back."""
-    items = {t.name: [o.to_dict() for o in t.obstacles] for t in tasks}
+    items = {t.name: [o.to_dict() for o in t.required.obstacles] for t in tasks}
     if not any(items.values()):
         return None
     lists = list(items.values())

@@ -133,9 +133,9 @@ def limit_margins(robot: Robot, task: Task, poses: np.ndarray) -> tuple[float, s
 def judge_design(robot: Robot, task: Task, timed: TimedPath) -> list[Criterion]:
     """Every criterion of ``task`` for the timed trajectory (see the module doc)."""
     poses = timed.poses
-    if task.has_frames:
+    if task.goal.has_frames:
         out = _path_criteria(robot, task, poses)
-    elif task.curve is not None:
+    elif task.goal.curve is not None:
         out = _shape_criteria(robot, task, timed)
     else:
         out = _line_criteria(robot, task, timed)
@@ -147,7 +147,7 @@ def judge_design(robot: Robot, task: Task, timed: TimedPath) -> list[Criterion]:
 
 def _contract(robot: Robot, task: Task, timed: TimedPath) -> Contract:
     """The task's contract (a letter's: the robot's) at the timing's duration."""
-    base = task.contract if task.contract is not None else contract_for(robot)
+    base = task.required.contract if task.required.contract is not None else contract_for(robot)
     return replace(base, duration_s=timed.duration_s)
 
 
@@ -204,7 +204,7 @@ def _path_criteria(robot: Robot, task: Task, poses: np.ndarray) -> list[Criterio
            Criterion("joint_change", figures["max_joint_change_deg"], MAX_JOINT_CHANGE_DEG,
                      "deg", "joint_change" not in failed),
            _limits(robot, task, poses)]
-    if task.obstacles:
+    if task.required.obstacles:
         out.append(_collisions(figures))
     return out
 

@@ -255,7 +255,7 @@ class Designer:
         started = time.perf_counter() if started is None else started
         task = self.design.task()
         initial = None
-        if previous is not None and len(previous) == task.steps + 1:
+        if previous is not None and len(previous) == task.goal.steps + 1:
             initial = self.design.warm(previous, task)
         solution, method, message = self._solve_task(task, initial)
         if found is not None and not found.reachable:

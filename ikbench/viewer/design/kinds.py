@@ -130,8 +130,8 @@ class LineDesign:
         """The previous poses (n+1, dof) with their ends moved onto the task's start and touch
         poses, the change spread linearly along the path."""
         t = np.linspace(0.0, 1.0, len(previous))[:, None]
-        start = np.asarray(task.start_pose, dtype=float)
-        end = np.asarray(task.end_pose, dtype=float)
+        start = np.asarray(task.required.start_pose, dtype=float)
+        end = np.asarray(task.required.end_pose, dtype=float)
         return previous + (1.0 - t) * (start - previous[0]) + t * (end - previous[-1])
 
 
@@ -223,22 +223,22 @@ class PathDesign:
     def __init__(self, robot: Robot, task: Task, path_m: np.ndarray) -> None:
         self.robot, self.base_task = robot, task
         self.path_m = np.asarray(path_m, dtype=float)
-        self.offsets_mm = np.zeros_like(task.goal_points_mm)
-        self.waypoint = task.steps // 2
+        self.offsets_mm = np.zeros_like(task.goal.points_mm)
+        self.waypoint = task.goal.steps // 2
 
     def handles(self) -> dict[str, np.ndarray]:
-        return {"waypoint": self.task().goal_points_mm[self.waypoint]}
+        return {"waypoint": self.task().goal.points_mm[self.waypoint]}
 
     def select(self, waypoint: int) -> None:
         """Drag waypoint ``waypoint`` (0..n) from now on."""
-        if not 0 <= int(waypoint) <= self.base_task.steps:
+        if not 0 <= int(waypoint) <= self.base_task.goal.steps:
             raise InputError(f"waypoint {waypoint}: the path has waypoints 0 to "
-                             f"{self.base_task.steps}")
+                             f"{self.base_task.goal.steps}")
         self.waypoint = int(waypoint)
 
     def task(self) -> Task:
-        return replace(self.base_task,
-                       goal_points_mm=self.base_task.goal_points_mm + self.offsets_mm)
+        return replace(self.base_task, goal=replace(
+            self.base_task.goal, points_mm=self.base_task.goal.points_mm + self.offsets_mm))
 
     def moved_path_m(self) -> np.ndarray:
         """(n+1, 3) the path CSV's positions [m] with the moves applied."""
@@ -251,15 +251,15 @@ class PathDesign:
         trajectory now (the reachability IK starts from the waypoint's pose)."""
         if handle != "waypoint":
             raise InputError(f"a pose path has the point waypoint, not {handle!r}")
-        k, n = self.waypoint, self.base_task.steps
+        k, n = self.waypoint, self.base_task.goal.steps
         delta = np.asarray(point_mm, dtype=float) - self.handles()["waypoint"]
         span = max(2, int(round(WAYPOINT_SPAN * n)))
         distance = np.abs(np.arange(n + 1) - k) / span
         weight = np.where(distance < 1.0, 0.5 * (1.0 + np.cos(np.pi * distance)), 0.0)
         self.offsets_mm = self.offsets_mm + weight[:, None] * delta
-        start = np.asarray(self.base_task.reference_pose if poses is None else poses[k],
+        start = np.asarray(self.base_task.hints.reference_pose if poses is None else poses[k],
                            dtype=float)
-        return reach(self.robot, point_mm, start, self.base_task.goal_directions[k])
+        return reach(self.robot, point_mm, start, self.base_task.goal.directions[k])
 
     def warm(self, previous: np.ndarray, task: Task) -> np.ndarray:
         """The previous poses as they are."""

@@ -101,7 +101,7 @@ def status_text(update: Update, scene_s: float | None) -> str:
     scene = "" if scene_s is None else f", scene {1000 * scene_s:.1f} ms"
     start = "warm start" if update.warm else "from scratch"
     return (f"{update.method} ({start}): solved, timed and judged in "
-            f"{1000 * update.elapsed_s:.1f} ms{scene}; n = {update.task.steps}, "
+            f"{1000 * update.elapsed_s:.1f} ms{scene}; n = {update.task.goal.steps}, "
             f"T = {update.timed.duration_s:.3g} s ({update.timed.timing})")
 
 
@@ -128,7 +128,7 @@ def add_panel(server: viser.ViserServer, view: DesignerControls) -> dict[str, An
                                                 initial_value=design.size_mm)
         if isinstance(design, PathDesign):
             gui["waypoint"] = server.gui.add_slider("waypoint", min=0,
-                                                    max=design.base_task.steps, step=1,
+                                                    max=design.base_task.goal.steps, step=1,
                                                     initial_value=design.waypoint)
     with server.gui.add_folder("Judged"):
         gui["criteria"] = server.gui.add_html("")

@@ -152,8 +152,8 @@ class DesignerView:
         """Draw the designer's update: paths, markers, gizmos, panel."""
         update, robot = self.update, self.designer.robot
         tips = sc.to_root_m(self.T_root_base, robot.fk(update.poses).point_mm)
-        goal = np.asarray(update.task.goal_points_mm, dtype=float)
-        down = np.asarray(update.task.pen_down, dtype=bool)
+        goal = np.asarray(update.task.goal.points_mm, dtype=float)
+        down = np.asarray(update.task.goal.pen_down, dtype=bool)
         segments = sc.segments(sc.to_root_m(self.T_root_base, goal))[down[:-1] & down[1:]]
         with self.server.atomic():
             self.handles["tip_path"].points = sc.segments(tips).astype(np.float32)
@@ -283,9 +283,9 @@ def serve_design(designer: Designer, *, port: int = 8080, host: str = "127.0.0.1
         gizmo.on_update(partial(view._on_gizmo, name))
         server.scene.add_label(f"/gizmo/{name}/label", name, position=(0.0, 0.0, 0.03))
         view.gizmos[name] = gizmo
-    if designer.update.task.obstacles:
-        sc.add_obstacles(server, designer.update.task.obstacles, T_root_base,
-                         designer.update.task.goal_points_mm)
+    if designer.update.task.required.obstacles:
+        sc.add_obstacles(server, designer.update.task.required.obstacles, T_root_base,
+                         designer.update.task.goal.points_mm)
     frame_scene(server, robot, _framing(view))
     view.gui = panel.add_panel(server, view)
     view.show()
@@ -302,9 +302,9 @@ def _framing(view: DesignerView) -> list[np.ndarray]:
     """Points [m] the initial camera frames: the arm along the motion, the goal path and a
     margin around each gizmo (room to drag)."""
     robot, update = view.designer.robot, view.update
-    poses = update.poses[:: max(1, update.task.steps // 10)]
+    poses = update.poses[:: max(1, update.task.goal.steps // 10)]
     out = [sc.to_root_m(view.T_root_base, robot.skeleton_mm(poses)).reshape(-1, 3),
-           sc.to_root_m(view.T_root_base, update.task.goal_points_mm)]
+           sc.to_root_m(view.T_root_base, update.task.goal.points_mm)]
     for gizmo in view.gizmos.values():
         out.append(np.asarray(gizmo.position) + GIZMO_SCALE * np.array([[1, 1, 1], [-1, -1, 0]]))
     return out
