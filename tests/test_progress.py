@@ -148,7 +148,8 @@ class Fractions(Method):
 
 
 def _tasks(count: int) -> list:
-    return [SimpleNamespace(name=str(k + 1), steps=4, has_frames=False, end_pose=None)
+    return [SimpleNamespace(name=str(k + 1), goal=SimpleNamespace(steps=4, has_frames=False),
+                            required=SimpleNamespace(end_pose=None))
             for k in range(count)]
 
 
