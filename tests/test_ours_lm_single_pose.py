@@ -267,3 +267,32 @@ def test_ur5_joints_with_two_turns_of_range_never_stop_on_a_limit():
     on_limit = np.isclose(poses, ur5.lower) | np.isclose(poses, ur5.upper)
     assert not on_limit[[o.success for o in out]].any()
     assert np.mean([o.success for o in out]) > 0.8
+
+
+@pytest.mark.parametrize("kind", ["pose", "position"])
+@pytest.mark.parametrize("rows", [1, 4])
+def test_ik_adapter_one_call_equals_the_solver_on_views_and_copies(panda, kind, rows):
+    """``ikbench ik``'s adapter hands the frame's column views [m] to one kernel call
+    (``solve_views``): the same answer as :meth:`SinglePoseLM.solve` on C-ordered copies [mm],
+    whatever the layout, and bad shapes still name the problem."""
+    from ikbench.methods.ours_lm.pose_solver import OursLMSolver
+    from ikbench.schemes.single_pose import MAX_STEPS
+
+    solver = OursLMSolver(panda, kind, (1.0, 0.5))
+    solver.prepare()
+    q, T, points, rotations = _targets(panda, 6, 11)
+    initials = random_initials(panda, (6, rows), 12)
+    for b in range(6):
+        reference = SinglePoseLM(panda, kind, (1.0, 0.5), max_iterations=MAX_STEPS * rows,
+                                 restart_after=MAX_STEPS, abandon=(0, 0.0))
+        want = reference.solve(points[b], rotations[b], initials[b], float("inf"))
+        rotation = None if kind == "position" else T[b][:3, :3]
+        copies = (None, None) if rotation is None else (rotation.copy(), rotation.T.copy().T)
+        for point_m, rot in ((T[b][:3, 3], rotation), (T[b][:3, 3].copy(), copies[0]),
+                             (list(T[b][:3, 3]), copies[1])):  # views, C, a list and F
+            got = solver.solve_within(initials[b], point_m, rot, float("inf"))
+            np.testing.assert_array_equal(got.q, want.pose)
+            assert (got.iterations, got.ok, got.attempts) == (
+                want.iterations, want.success, want.attempts)
+    with pytest.raises(ValueError, match="goal point"):
+        solver.solve_within(initials[0], T[0][:2, 3], T[0][:3, :3], float("inf"))

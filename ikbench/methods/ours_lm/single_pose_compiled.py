@@ -227,6 +227,10 @@ class SinglePoseLM:
         T = self.robot.fk_transform(pose)[0]
         self.solve(T[:3, 3] * 1000.0, np.ascontiguousarray(T[:3, :3]), pose[None], 0.0)
         self.solve(T, None, pose[None], 0.0)
+        # solve_views (ikbench ik's adapter): the frame's column views and C-ordered copies
+        for point in (T[:3, 3], np.ascontiguousarray(T[:3, 3])):
+            for rotation in (T[:3, :3], np.ascontiguousarray(T[:3, :3])):
+                kernels.solve_views(self.spec, point, rotation, pose[None], 0.0)
         for threads in (1, 2):
             self.solve_batch(T[None], None, pose[None, None], 0.0, threads)
 

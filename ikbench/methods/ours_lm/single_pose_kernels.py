@@ -125,6 +125,25 @@ def solve_frame(spec: Array, frame_m: Array, initials: Array, budget_s: float
     return solve_point(spec, goal_mm, goal_r, initials, budget_s)
 
 
+@njit(cache=True, nogil=True)
+def solve_views(spec: Array, point_m: Array, rotation: Array, initials: Array, budget_s: float
+                ) -> tuple[Array, int, bool, int]:
+    """:func:`solve_point` of the goal as ``ikbench ik`` hands it: the point (3,) [m] and the
+    rotation (3, 3), views of any layout (the target frame's columns), converted to [mm] and
+    copied here, inside the call; returns (pose (k,), iterations, success, attempts) in the
+    order of :class:`ikbench.schemes.single_pose.PoseOut`."""
+    check(spec, point_m, rotation, initials)  # the shapes, before reading them
+    goal_mm, goal_r = np.empty(3), np.empty((3, 3))
+    for i in range(3):
+        goal_mm[i] = point_m[i] * MM_PER_M
+        for j in range(3):
+            goal_r[i, j] = rotation[i, j]
+    k = spec.shape[0] - 2
+    pose = np.empty(k)
+    out = solve_target(spec, goal_mm, goal_r, initials, budget_s, pose, workspace(k))
+    return pose, out[2], out[0], out[1]
+
+
 @njit(cache=True, parallel=True, nogil=True)
 def solve_many(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, budget_s: float,
                poses: Array, success: Array, attempts: Array, iterations: Array,
