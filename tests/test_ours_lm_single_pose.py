@@ -296,3 +296,29 @@ def test_ik_adapter_one_call_equals_the_solver_on_views_and_copies(panda, kind, 
                 want.iterations, want.success, want.attempts)
     with pytest.raises(ValueError, match="goal point"):
         solver.solve_within(initials[0], T[0][:2, 3], T[0][:3, :3], float("inf"))
+
+
+def test_a_joint_pinned_on_its_limit_leaves_the_normal_equations(panda):
+    """A joint on its limit that the step pushes out (clipped back) is marked; the step again
+    is 0 for it and, for the others, the damped system without its row and column."""
+    from ikbench.methods.ours_lm import single_pose_kernels as kernels
+
+    spec = SinglePoseLM(panda, "pose").spec
+    k = panda.dof
+    rng = np.random.default_rng(5)
+    J = rng.normal(size=(6, k))
+    jtj, g, lam = J.T @ J, J.T @ rng.normal(size=6), 0.1
+    step, chol, frozen = np.empty(k), np.empty((k, k)), np.zeros(k)
+    assert kernels.damped_step(jtj, g, lam, chol, step, k, 1e9, frozen)
+    q = (panda.lower + panda.upper) / 2.0
+    j = int(np.argmax(np.abs(step)))
+    q[j] = panda.lower[j] if step[j] < 0 else panda.upper[j]  # the step pushes it out
+    q[j - 1] = panda.lower[j - 1] if step[j - 1] > 0 else panda.upper[j - 1]  # pulls it in
+    assert kernels.pinned(spec, k, q, step, frozen)
+    assert frozen[j] == 1.0 and np.count_nonzero(frozen) == 1
+    assert kernels.damped_step(jtj, g, lam, chol, step, k, 1e9, frozen)
+    free = np.arange(k) != j
+    H = jtj + lam * np.diag(np.diag(jtj) + 1e-9)
+    np.testing.assert_allclose(step[free], -np.linalg.solve(H[np.ix_(free, free)], g[free]),
+                               rtol=1e-9, atol=1e-12)
+    assert step[j] == 0.0

@@ -8,7 +8,9 @@ error [mm] and the SO(3) log of R_goal^T R [deg], as :func:`.frames.errors_from_
 position only for ``kind="position"``) with its exact Jacobian, ``(J^T J + lambda (diag(J^T
 J) + eps I)) dq = -J^T r`` (by Cholesky), the step scaled to at most ``max_step`` and moved
 into the limits (a revolute joint by whole turns where that brings it within them, the same
-frame; else clipped: :func:`.single_pose_kernels.into_limits`), accepted when |r|^2 drops
+frame; else clipped: :func:`.single_pose_kernels.into_limits`; a joint pinned on a limit
+that the step pushes out is left out of the system and the step solved again:
+:func:`.single_pose_kernels.pinned`), accepted when |r|^2 drops
 (lambda / 3, at least 1e-9) or rejected (lambda * 4). Success: both errors below ``stop`` x
 the tolerances.
 
