@@ -178,7 +178,7 @@ def solve_target(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, bu
     restart_after = int(spec[k + 1, RESTART_AFTER])
     abandon_at, abandon_above = int(spec[k + 1, ABANDON_AT]), spec[k + 1, ABANDON_ABOVE]
     deadline = monotonic_s(timespec) + budget_s
-    frozen = np.zeros(k)
+    frozen, jtj_free, g_free = np.zeros(k), np.empty((k, k)), np.empty(k)
     attempt = iterations = started = 0
     lam, cost = restart(spec, k, initials[0], goal_mm, goal_r, ws)
     success = False
@@ -197,10 +197,10 @@ def solve_target(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, bu
             lam, cost = restart(spec, k, initials[attempt], goal_mm, goal_r, ws)
         if lam > STALLED or iterations >= max_iterations:
             break
-        frozen[:] = 0.0
-        ok = damped_step(jtj, g, lam, chol, step, k, spec[k + 1, MAX_STEP_COLUMN], frozen)
+        ok = damped_step(jtj, g, lam, chol, step, k, spec[k + 1, MAX_STEP_COLUMN])
         if ok and pinned(spec, k, q, step, frozen):  # again without the pinned joints
-            ok = damped_step(jtj, g, lam, chol, step, k, spec[k + 1, MAX_STEP_COLUMN], frozen)
+            without(jtj, g, frozen, k, jtj_free, g_free)
+            ok = damped_step(jtj_free, g_free, lam, chol, step, k, spec[k + 1, MAX_STEP_COLUMN])
         for j in range(k):
             trial[j] = into_limits(spec, j, q[j] + step[j])
         new_cost = residual(spec, k, trial, goal_mm, goal_r, r_trial, phi_trial, ws)
@@ -258,11 +258,12 @@ def into_limits(spec: Array, j: int, value: float) -> float:
 
 @njit(cache=True, inline="always")
 def pinned(spec: Array, k: int, q: Array, step: Array, frozen: Array) -> bool:
-    """Marks in ``frozen`` (1.0) each joint on a limit that ``step`` pushes further out and
-    :func:`into_limits` would clip back onto it (a step the projection discards: left in the
-    normal equations it only shrinks the other joints' steps); True when there is one."""
+    """Marks in ``frozen`` (1.0, else 0.0) each joint on a limit that ``step`` pushes further
+    out and :func:`into_limits` would clip back onto it (a step the projection discards: left
+    in the normal equations it only shrinks the other joints' steps); True when there is one."""
     any_pinned = False
     for j in range(k):
+        frozen[j] = 0.0
         lower, upper = spec[j, LOWER], spec[j, UPPER]
         if (q[j] == lower and step[j] < 0.0 and into_limits(spec, j, q[j] + step[j]) == lower) \
                 or (q[j] == upper and step[j] > 0.0
@@ -270,6 +271,20 @@ def pinned(spec: Array, k: int, q: Array, step: Array, frozen: Array) -> bool:
             frozen[j] = 1.0
             any_pinned = True
     return any_pinned
+
+
+@njit(cache=True, inline="always")
+def without(jtj: Array, g: Array, frozen: Array, k: int, jtj_free: Array, g_free: Array
+            ) -> None:
+    """J^T J and J^T r without the ``frozen`` joints: their rows and columns 0, a 1 on the
+    diagonal and 0 in g (their step is then 0, the others' that of the system without them)."""
+    for a in range(k):
+        g_free[a] = 0.0 if frozen[a] != 0.0 else g[a]
+        for b in range(k):
+            if frozen[a] != 0.0 or frozen[b] != 0.0:
+                jtj_free[a, b] = 1.0 if a == b else 0.0
+            else:
+                jtj_free[a, b] = jtj[a, b]
 
 
 @njit(cache=True, inline="always")
@@ -394,16 +409,12 @@ def right_jacobian_inverse(phi: Array) -> tuple[float, ...]:
 
 @njit(cache=True, inline="always")
 def damped_step(jtj: Array, g: Array, lam: float, chol: Array, step: Array, k: int,
-                max_step: float, frozen: Array) -> bool:
-    """``step`` (k,) = -(J^T J + lam (diag(J^T J) + eps I))^-1 J^T r by Cholesky over the
-    joints not ``frozen`` (1.0: step 0, its row and column left out), then scaled to at most
-    ``max_step`` [pose units]; False (step 0) when not positive definite."""
+                max_step: float) -> bool:
+    """``step`` (k,) = -(J^T J + lam (diag(J^T J) + eps I))^-1 J^T r by Cholesky, then
+    scaled to at most ``max_step`` [pose units]; False (step 0) when not positive definite."""
     for a in range(k):
         for b in range(a + 1):
-            if frozen[a] != 0.0 or frozen[b] != 0.0:
-                total = 1.0 if a == b else 0.0
-            else:
-                total = jtj[a, b] + (lam * (jtj[a, a] + DIAGONAL_EPS) if a == b else 0.0)
+            total = jtj[a, b] + (lam * (jtj[a, a] + DIAGONAL_EPS) if a == b else 0.0)
             for c in range(b):
                 total -= chol[a, c] * chol[b, c]
             if a == b:
@@ -414,7 +425,7 @@ def damped_step(jtj: Array, g: Array, lam: float, chol: Array, step: Array, k: i
             else:
                 chol[a, b] = total / chol[b, b]
     for a in range(k):  # L y = -g
-        total = -g[a] if frozen[a] == 0.0 else 0.0
+        total = -g[a]
         for c in range(a):
             total -= chol[a, c] * step[c]
         step[a] = total / chol[a, a]
