@@ -267,3 +267,60 @@ def test_ur5_joints_with_two_turns_of_range_never_stop_on_a_limit():
     on_limit = np.isclose(poses, ur5.lower) | np.isclose(poses, ur5.upper)
     assert not on_limit[[o.success for o in out]].any()
     assert np.mean([o.success for o in out]) > 0.8
+
+
+@pytest.mark.parametrize("kind", ["pose", "position"])
+@pytest.mark.parametrize("rows", [1, 4])
+def test_ik_adapter_one_call_equals_the_solver_on_views_and_copies(panda, kind, rows):
+    """``ikbench ik``'s adapter hands the frame's column views [m] to one kernel call
+    (``solve_views``): the same answer as :meth:`SinglePoseLM.solve` on C-ordered copies [mm],
+    whatever the layout, and bad shapes still name the problem."""
+    from ikbench.methods.ours_lm.pose_solver import OursLMSolver
+    from ikbench.schemes.single_pose import MAX_STEPS
+
+    solver = OursLMSolver(panda, kind, (1.0, 0.5))
+    solver.prepare()
+    q, T, points, rotations = _targets(panda, 6, 11)
+    initials = random_initials(panda, (6, rows), 12)
+    for b in range(6):
+        reference = SinglePoseLM(panda, kind, (1.0, 0.5), max_iterations=MAX_STEPS * rows,
+                                 restart_after=MAX_STEPS, abandon=(0, 0.0))
+        want = reference.solve(points[b], rotations[b], initials[b], float("inf"))
+        rotation = None if kind == "position" else T[b][:3, :3]
+        copies = (None, None) if rotation is None else (rotation.copy(), rotation.T.copy().T)
+        for point_m, rot in ((T[b][:3, 3], rotation), (T[b][:3, 3].copy(), copies[0]),
+                             (list(T[b][:3, 3]), copies[1])):  # views, C, a list and F
+            got = solver.solve_within(initials[b], point_m, rot, float("inf"))
+            np.testing.assert_array_equal(got.q, want.pose)
+            assert (got.iterations, got.ok, got.attempts) == (
+                want.iterations, want.success, want.attempts)
+    with pytest.raises(ValueError, match="goal point"):
+        solver.solve_within(initials[0], T[0][:2, 3], T[0][:3, :3], float("inf"))
+
+
+def test_a_joint_pinned_on_its_limit_leaves_the_normal_equations(panda):
+    """A joint on its limit that the step pushes out (clipped back) is marked; the step again
+    is 0 for it and, for the others, the damped system without its row and column."""
+    from ikbench.methods.ours_lm import single_pose_kernels as kernels
+
+    spec = SinglePoseLM(panda, "pose").spec
+    k = panda.dof
+    rng = np.random.default_rng(5)
+    J = rng.normal(size=(6, k))
+    jtj, g, lam = J.T @ J, J.T @ rng.normal(size=6), 0.1
+    step, chol, frozen = np.empty(k), np.empty((k, k)), np.zeros(k)
+    assert kernels.damped_step(jtj, g, lam, chol, step, k, 1e9)
+    q = (panda.lower + panda.upper) / 2.0
+    j = int(np.argmax(np.abs(step)))
+    q[j] = panda.lower[j] if step[j] < 0 else panda.upper[j]  # the step pushes it out
+    q[j - 1] = panda.lower[j - 1] if step[j - 1] > 0 else panda.upper[j - 1]  # pulls it in
+    assert kernels.pinned(spec, k, q, step, frozen)
+    assert frozen[j] == 1.0 and np.count_nonzero(frozen) == 1
+    jtj_free, g_free = np.empty((k, k)), np.empty(k)
+    kernels.without(jtj, g, frozen, k, jtj_free, g_free)
+    assert kernels.damped_step(jtj_free, g_free, lam, chol, step, k, 1e9)
+    free = np.arange(k) != j
+    H = jtj + lam * np.diag(np.diag(jtj) + 1e-9)
+    np.testing.assert_allclose(step[free], -np.linalg.solve(H[np.ix_(free, free)], g[free]),
+                               rtol=1e-9, atol=1e-12)
+    assert step[j] == 0.0

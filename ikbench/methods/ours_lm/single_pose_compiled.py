@@ -8,7 +8,9 @@ error [mm] and the SO(3) log of R_goal^T R [deg], as :func:`.frames.errors_from_
 position only for ``kind="position"``) with its exact Jacobian, ``(J^T J + lambda (diag(J^T
 J) + eps I)) dq = -J^T r`` (by Cholesky), the step scaled to at most ``max_step`` and moved
 into the limits (a revolute joint by whole turns where that brings it within them, the same
-frame; else clipped: :func:`.single_pose_kernels.into_limits`), accepted when |r|^2 drops
+frame; else clipped: :func:`.single_pose_kernels.into_limits`; a joint pinned on a limit
+that the step pushes out is left out of the system and the step solved again:
+:func:`.single_pose_kernels.pinned`), accepted when |r|^2 drops
 (lambda / 3, at least 1e-9) or rejected (lambda * 4). Success: both errors below ``stop`` x
 the tolerances.
 
@@ -227,6 +229,10 @@ class SinglePoseLM:
         T = self.robot.fk_transform(pose)[0]
         self.solve(T[:3, 3] * 1000.0, np.ascontiguousarray(T[:3, :3]), pose[None], 0.0)
         self.solve(T, None, pose[None], 0.0)
+        # solve_views (ikbench ik's adapter): the frame's column views and C-ordered copies
+        for point in (T[:3, 3], np.ascontiguousarray(T[:3, 3])):
+            for rotation in (T[:3, :3], np.ascontiguousarray(T[:3, :3])):
+                kernels.solve_views(self.spec, point, rotation, pose[None], 0.0)
         for threads in (1, 2):
             self.solve_batch(T[None], None, pose[None, None], 0.0, threads)
 

@@ -125,6 +125,25 @@ def solve_frame(spec: Array, frame_m: Array, initials: Array, budget_s: float
     return solve_point(spec, goal_mm, goal_r, initials, budget_s)
 
 
+@njit(cache=True, nogil=True)
+def solve_views(spec: Array, point_m: Array, rotation: Array, initials: Array, budget_s: float
+                ) -> tuple[Array, int, bool, int]:
+    """:func:`solve_point` of the goal as ``ikbench ik`` hands it: the point (3,) [m] and the
+    rotation (3, 3), views of any layout (the target frame's columns), converted to [mm] and
+    copied here, inside the call; returns (pose (k,), iterations, success, attempts) in the
+    order of :class:`ikbench.schemes.single_pose.PoseOut`."""
+    check(spec, point_m, rotation, initials)  # the shapes, before reading them
+    goal_mm, goal_r = np.empty(3), np.empty((3, 3))
+    for i in range(3):
+        goal_mm[i] = point_m[i] * MM_PER_M
+        for j in range(3):
+            goal_r[i, j] = rotation[i, j]
+    k = spec.shape[0] - 2
+    pose = np.empty(k)
+    out = solve_target(spec, goal_mm, goal_r, initials, budget_s, pose, workspace(k))
+    return pose, out[2], out[0], out[1]
+
+
 @njit(cache=True, parallel=True, nogil=True)
 def solve_many(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, budget_s: float,
                poses: Array, success: Array, attempts: Array, iterations: Array,
@@ -159,6 +178,7 @@ def solve_target(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, bu
     restart_after = int(spec[k + 1, RESTART_AFTER])
     abandon_at, abandon_above = int(spec[k + 1, ABANDON_AT]), spec[k + 1, ABANDON_ABOVE]
     deadline = monotonic_s(timespec) + budget_s
+    frozen, jtj_free, g_free = np.zeros(k), np.empty((k, k)), np.empty(k)
     attempt = iterations = started = 0
     lam, cost = restart(spec, k, initials[0], goal_mm, goal_r, ws)
     success = False
@@ -178,6 +198,9 @@ def solve_target(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, bu
         if lam > STALLED or iterations >= max_iterations:
             break
         ok = damped_step(jtj, g, lam, chol, step, k, spec[k + 1, MAX_STEP_COLUMN])
+        if ok and pinned(spec, k, q, step, frozen):  # again without the pinned joints
+            without(jtj, g, frozen, k, jtj_free, g_free)
+            ok = damped_step(jtj_free, g_free, lam, chol, step, k, spec[k + 1, MAX_STEP_COLUMN])
         for j in range(k):
             trial[j] = into_limits(spec, j, q[j] + step[j])
         new_cost = residual(spec, k, trial, goal_mm, goal_r, r_trial, phi_trial, ws)
@@ -231,6 +254,37 @@ def into_limits(spec: Array, j: int, value: float) -> float:
             if shifted <= upper:
                 return shifted
     return min(max(value, lower), upper)
+
+
+@njit(cache=True, inline="always")
+def pinned(spec: Array, k: int, q: Array, step: Array, frozen: Array) -> bool:
+    """Marks in ``frozen`` (1.0, else 0.0) each joint on a limit that ``step`` pushes further
+    out and :func:`into_limits` would clip back onto it (a step the projection discards: left
+    in the normal equations it only shrinks the other joints' steps); True when there is one."""
+    any_pinned = False
+    for j in range(k):
+        frozen[j] = 0.0
+        lower, upper = spec[j, LOWER], spec[j, UPPER]
+        if (q[j] == lower and step[j] < 0.0 and into_limits(spec, j, q[j] + step[j]) == lower) \
+                or (q[j] == upper and step[j] > 0.0
+                    and into_limits(spec, j, q[j] + step[j]) == upper):
+            frozen[j] = 1.0
+            any_pinned = True
+    return any_pinned
+
+
+@njit(cache=True, inline="always")
+def without(jtj: Array, g: Array, frozen: Array, k: int, jtj_free: Array, g_free: Array
+            ) -> None:
+    """J^T J and J^T r without the ``frozen`` joints: their rows and columns 0, a 1 on the
+    diagonal and 0 in g (their step is then 0, the others' that of the system without them)."""
+    for a in range(k):
+        g_free[a] = 0.0 if frozen[a] != 0.0 else g[a]
+        for b in range(k):
+            if frozen[a] != 0.0 or frozen[b] != 0.0:
+                jtj_free[a, b] = 1.0 if a == b else 0.0
+            else:
+                jtj_free[a, b] = jtj[a, b]
 
 
 @njit(cache=True, inline="always")
