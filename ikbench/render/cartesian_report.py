@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from ikbench.core.io import atomic_savefig, atomic_write_csv, atomic_write_text, staged_folder
-from ikbench.core.problems import data_dir
+from ikbench.core.problems import BENCHMARK_PROBLEMS, data_dir
 from ikbench.core.provenance import provenance
 from ikbench.core.trajectory import write_trajectory_csv
 from ikbench.core.validity import SOURCE, describe
@@ -76,9 +76,7 @@ def published_table(problems: Iterable[str]) -> pd.DataFrame:
             hits = [e for e in mine if e["method"] == method and e["metric"] == metric]
             value = hits[0]["value"] if hits else NOT_FOUND
             row[label] = NOT_FOUND if value in ("NOT_FOUND", "NOT_RECORDED") else value
-        excluded = [e for e in mine if e["metric"] == "in CppFlow benchmark set"]
-        row[IN_SET] = "no" if excluded else ("yes" if any(
-            e["problem"] == problem for e in entries) else "not a CppFlow problem")
+        row[IN_SET] = "yes" if problem in BENCHMARK_PROBLEMS else "no"
         rows.append(row)
     return pd.DataFrame(rows)
 
