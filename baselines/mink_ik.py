@@ -380,13 +380,14 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: MinkSetti
     box = SpeedBox.of(plan, step, settings.speed_fraction, chain.lower, chain.upper,
                       settings.limit_gain)
     if box is not None:
+        speed_box = box  # the box, not None, inside the limit's method
 
         class SpeedLimit(mink.Limit):
             """The speed box (:class:`ikbench.schemes.diffik.SpeedBox`) as a mink
             limit."""
 
             def compute_qp_inequalities(self, configuration, dt):
-                G, h = box.inequalities(configuration.q[m.qpos])
+                G, h = speed_box.inequalities(configuration.q[m.qpos])
                 if not len(h):
                     return mink.Constraint()
                 G_full = np.zeros((len(h), model.nv))

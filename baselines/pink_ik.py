@@ -305,13 +305,14 @@ def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: PinkSetti
     limits: list = [ConfigurationLimit(model, config_limit_gain=settings.limit_gain)]
     box = SpeedBox.of(plan, step, settings.speed_fraction, lower, upper, settings.limit_gain)
     if box is not None:
+        speed_box = box  # the box, not None, inside the limit's method
 
         class SpeedLimit(Limit):
             """The speed box (:class:`ikbench.schemes.diffik.SpeedBox`) as a pink
             limit."""
 
             def compute_qp_inequalities(self, configuration, dt):
-                G, h = box.inequalities(configuration.q)
+                G, h = speed_box.inequalities(configuration.q)
                 return (G, h) if len(h) else None
 
         limits.append(SpeedLimit())

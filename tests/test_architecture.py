@@ -417,10 +417,7 @@ def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 
 #: Circles being taken apart elsewhere: (the prefix of all their modules, a module they hold).
-KNOWN_CYCLES = (
-    # issue 45: ours_lm devices/settings/solver, being fixed
-    ("ikbench.methods.ours_lm.", "ikbench.methods.ours_lm.devices"),
-)
+KNOWN_CYCLES: tuple[tuple[str, str], ...] = ()
 
 
 def _files(modules: list[str]) -> list[str]:

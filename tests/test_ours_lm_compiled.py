@@ -16,7 +16,7 @@ from ikbench.core.losses import PAPER_WEIGHTS, parse_weights, resolve_weights
 from ikbench.core.robot import load_robot
 from ikbench.core.targets import load_targets
 from ikbench.core.task import line_tasks
-from ikbench.methods.ours_lm import LMSettings, OursLM, cpu_backend, solve_batch
+from ikbench.methods.ours_lm import LMSettings, OursLM, compiling, cpu_backend, solve_batch
 from ikbench.methods.ours_lm import devices as devices_module
 from ikbench.studies.batch import sample_touch_poses
 from ikbench.studies.dataset_shard import line_tasks as sampled_line_tasks
@@ -241,20 +241,20 @@ def test_the_compiled_sine_and_cosine_are_within_an_ulp_of_numpy():
 def test_compiling_is_said_once_when_the_cache_is_empty(tmp_path):
     """An empty numba cache: one progress line before the kernels compile, once per process
     (nothing is compiled here: the check reads numba's cache index only)."""
-    code = ("from ikbench.methods.ours_lm.devices import compiled_module, say_if_compiling\n"
-            "print(say_if_compiling(compiled_module('path_search')),\n"
-            "      say_if_compiling(compiled_module('compiled')))\n")
+    code = ("from ikbench.methods.ours_lm import compiled, path_search\n"
+            "from ikbench.methods.ours_lm.compiling import say_if_compiling\n"
+            "print(say_if_compiling(path_search), say_if_compiling(compiled))\n")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=300, env=env)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["True", "True"]
     assert [line for line in out.stderr.splitlines() if "compiling" in line] == [
-        devices_module.COMPILING]
+        compiling.COMPILING]
 
 
 def test_compiling_is_not_said_when_the_kernels_are_loaded(robot):
     from ikbench.methods.ours_lm import compiled
 
     compiled.warm_up(robot)
-    assert not devices_module.say_if_compiling(compiled)
+    assert not compiling.say_if_compiling(compiled)

@@ -27,6 +27,7 @@ not resumed by another, their numbers differ by rounding).
 from __future__ import annotations
 
 import hashlib
+import importlib
 import importlib.util
 import json
 import math
@@ -46,7 +47,7 @@ from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, load_targets
 from ikbench.methods.ours_lm import LMSettings
-from ikbench.methods.ours_lm.devices import compiled_module, cpu_backend
+from ikbench.methods.ours_lm.devices import cpu_backend
 from ikbench.runtime.executors import SCALE_EXTRA, Executor, LocalExecutor, portable_robot
 from ikbench.runtime.parallel import gpus_for
 from ikbench.runtime.progress import Reporter
@@ -326,7 +327,7 @@ def _solver_name(settings) -> str:
 
     if settings.device is None:
         if cpu_backend(settings) == "numba":
-            max_threads = compiled_module().max_threads
+            max_threads = importlib.import_module("ikbench.methods.ours_lm.compiled").max_threads
             threads = min(settings.threads or max_threads(), max_threads())
             return f"the numba backend (up to {threads} thread(s))"
         return "the numpy solver"

@@ -16,6 +16,7 @@ Tables (Arrow, written as Parquet by :mod:`.dataset`):
 
 from __future__ import annotations
 
+import importlib
 import json
 import time
 from collections.abc import Iterable, Iterator
@@ -30,7 +31,7 @@ from ikbench.core.metrics_batch import line_metrics
 from ikbench.core.robot import MM_PER_M, RANGE_TOLERANCE_DEG, unwrap_continuous
 from ikbench.core.task import Goal, Requirements, Task
 from ikbench.methods.ours_lm import solve_problem
-from ikbench.methods.ours_lm.devices import compiled_module, cpu_backend
+from ikbench.methods.ours_lm.devices import cpu_backend
 from ikbench.methods.ours_lm.problem import Problem
 from ikbench.studies.batch import sample_touch_poses
 
@@ -237,7 +238,7 @@ def _forward(robot, poses, settings):
 
     if settings.device is None and cpu_backend(settings) == "numba":
         try:
-            forward = compiled_module().forward
+            forward = importlib.import_module("ikbench.methods.ours_lm.compiled").forward
         except ImportError:  # as the solver: auto falls back to numpy
             pass
         else:

@@ -19,6 +19,7 @@ timed round), ``throughput.json`` (device, CPU, versions) and ``throughput.md``.
 
 from __future__ import annotations
 
+import importlib
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -38,7 +39,6 @@ from ikbench.core.task import line_tasks
 from ikbench.methods.ours_lm import LMSettings, solve_batch
 from ikbench.methods.ours_lm.devices import (
     check_device,
-    compiled_module,
     device_name,
     numba_installed,
 )
@@ -146,7 +146,7 @@ def throughput(device: str, *, batches: Sequence[int] = DEFAULT_BATCHES,
 
 def _warm_up_numba(robot, log) -> None:
     start = time.perf_counter()
-    compiled_module().warm_up(robot)
+    importlib.import_module("ikbench.methods.ours_lm.compiled").warm_up(robot)
     log(f"numba backend compiled or loaded from its cache in {time.perf_counter() - start:.1f} s")
 
 
@@ -223,7 +223,7 @@ def _versions(numba: bool, threads: int | None) -> dict:
     if numba:
         import numba as nb
 
-        compiled = compiled_module()
+        compiled = importlib.import_module("ikbench.methods.ours_lm.compiled")
         most = compiled.max_threads()
         out.update(numba=nb.__version__, numba_threads=min(threads or most, most),
                    numba_threads_rule=f"one thread per {compiled.PER_THREAD} trajectories, "

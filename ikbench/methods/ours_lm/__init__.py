@@ -21,6 +21,7 @@ along the path, the best refined by this LM), one task at a time.
 
 from __future__ import annotations
 
+import importlib
 import time
 from collections.abc import Sequence
 from dataclasses import replace
@@ -40,7 +41,6 @@ from ikbench.methods.ours_lm.avoidance import (
 )
 from ikbench.methods.ours_lm.devices import (
     BACKENDS,
-    compiled_module,
     cpu_backend,
     numba_threads,
     numba_unavailable,
@@ -108,7 +108,7 @@ class OursLM(Method):
             robot.chain_kinematics().frames(np.zeros((1, robot.dof)))
             if cpu_backend(self.settings) == "numba":  # compiled (or loaded) outside timing
                 if not self._only_pose_paths_ahead:
-                    compiled_module().warm_up(robot)
+                    importlib.import_module("ikbench.methods.ours_lm.compiled").warm_up(robot)
                 if self._pose_paths_ahead:
 
                     warm_up_search(robot, self.settings)

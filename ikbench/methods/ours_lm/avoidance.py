@@ -23,6 +23,7 @@ clearance (``--lm-clearance-mm``) is the margin the penalty asks for beyond that
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
@@ -30,7 +31,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ikbench.core.collision import collision_model
-from ikbench.methods.ours_lm.devices import compiled_module
 from ikbench.methods.ours_lm.problem import Evaluation
 
 if TYPE_CHECKING:
@@ -144,7 +144,7 @@ def collision_checker(robot: Robot) -> Any:
     if model is None:
         return None
     try:
-        capsules = compiled_module("capsules")
+        capsules = importlib.import_module("ikbench.core.capsules")
     except ImportError:
         return model
     return capsules.capsule_model(robot) or model

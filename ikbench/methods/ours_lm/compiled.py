@@ -42,7 +42,7 @@ from numba import njit, prange
 from ikbench.core.losses import PAPER_WEIGHTS
 from ikbench.core.task import Goal, Requirements, Task
 from ikbench.methods.ours_lm.compiled_chain import Chain, joint_step, sin_cos
-from ikbench.methods.ours_lm.devices import say_if_compiling
+from ikbench.methods.ours_lm.compiling import say_if_compiling
 from ikbench.methods.ours_lm.problem import CM_PER_M, Problem, Weights
 from ikbench.methods.ours_lm.settings import (
     BOUND_EPS_DEG,

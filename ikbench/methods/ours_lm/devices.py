@@ -13,12 +13,10 @@ imported only when they run.
 from __future__ import annotations
 
 import functools
-import importlib
 import importlib.util
 import re
 import sys
-from types import ModuleType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 from ikbench.core.errors import InputError
 from ikbench.core.provenance import cpu_model
@@ -26,18 +24,23 @@ from ikbench.core.provenance import cpu_model
 if TYPE_CHECKING:
     import torch
 
-    from ikbench.methods.ours_lm.solver import LMSettings
-
 DTYPES = ("float64", "float32")
 BACKENDS = ("auto", "numpy", "numba")
-#: The modules that import numba, by short name (:func:`compiled_module`).
-COMPILED_MODULES = {"compiled": "ikbench.methods.ours_lm.compiled",
-                    "single_pose_compiled": "ikbench.methods.ours_lm.single_pose_compiled",
-                    "path_search": "ikbench.methods.ours_lm.path_search",
-                    "capsules": "ikbench.core.capsules"}
 #: How to get numba back (a core dependency since 0.3.0; ``[fast]`` is kept as an alias).
 FAST_EXTRA = "pip install -c constraints.txt -e ."
 _DEVICE = re.compile(r"^(cpu|cuda(:\d+)?)$")
+
+
+class BackendSettings(Protocol):
+    """The fields of ours-lm's settings (:class:`.settings.LMSettings`) that choose and check
+    its solver here (a protocol: this module sits below the settings that import it)."""
+
+    backend: str
+    kinematics: str
+    linear_solver: str
+    dtype: str
+    device: str | None
+    threads: int | None
 
 
 def check_device(device: str | None) -> str | None:
@@ -73,7 +76,7 @@ def _cuda_build(torch) -> str:
     return f"built for CUDA {cuda}, no GPU found" if cuda else "a CPU-only build"
 
 
-def check_backend(settings: LMSettings) -> None:
+def check_backend(settings: BackendSettings) -> None:
     """InputError for settings the chosen solver cannot honour (one line naming the flag)."""
     if settings.dtype not in DTYPES:
         raise InputError(f"--dtype: {settings.dtype!r} is not one of {', '.join(DTYPES)}")
@@ -154,7 +157,7 @@ def torch_threads() -> int:
     return torch.get_num_threads()
 
 
-def cpu_backend(settings: LMSettings) -> str:
+def cpu_backend(settings: BackendSettings) -> str:
     """The CPU solver the settings run: ``"numpy"`` or ``"numba"`` (``--device`` None).
 
     ``auto``: numba when the settings are the compiled loop's (chain kinematics ``numpy``,
@@ -170,7 +173,7 @@ def cpu_backend(settings: LMSettings) -> str:
     return "numpy"
 
 
-def _check_cpu_backend(settings) -> None:
+def _check_cpu_backend(settings: BackendSettings) -> None:
     if settings.backend not in BACKENDS:
         raise InputError(f"--lm-backend: {settings.backend!r} is not one of "
                          f"{', '.join(BACKENDS)}")
@@ -191,61 +194,3 @@ def _check_cpu_backend(settings) -> None:
     if not numba_installed():
         raise InputError(f"--lm-backend numba: numba is not installed; {FAST_EXTRA}, or "
                          "use --lm-backend numpy")
-
-
-#: Said once per process before ours-lm's kernels compile (numba's cache holds none of them).
-COMPILING = "compiling ours-lm kernels (first run on this machine, a minute or more)"
-
-
-def say_if_compiling(module: ModuleType) -> bool:
-    """Print :data:`COMPILING` on stderr (once per process) when the kernels of ``module``
-    (one of :data:`COMPILED_MODULES`, with the ikbench modules it imports) are about to
-    compile: none of them is loaded in this process, and numba's on-disk cache holds a fresh
-    index for none of them (an index is written by one numba version and stamped with its
-    source file's time and size; a missing or stale one means compiling). A first run on
-    this machine, or after a numba upgrade; a source edit that recompiles one file is not
-    announced. True when it printed."""
-    from numba.core.dispatcher import Dispatcher
-
-    modules = [module] + [v for v in vars(module).values() if isinstance(v, ModuleType)
-                          and v.__name__.startswith("ikbench.")]
-    kernels = [v for m in modules for v in vars(m).values() if isinstance(v, Dispatcher)
-               and v.targetoptions.get("inline") != "always"]
-    if not kernels or any(k.signatures or _cached(k) for k in kernels):
-        return False
-    _say_compiling()
-    return True
-
-
-@functools.cache
-def _say_compiling() -> None:
-    print(COMPILING, file=sys.stderr, flush=True)
-
-
-def _cached(dispatcher) -> bool:
-    """True when numba's cache index holds a fresh entry for ``dispatcher``."""
-    cache = getattr(dispatcher, "_cache", None)
-    index = getattr(cache, "_cache_file", None)
-    try:
-        return bool(index._load_index()) if index is not None else False
-    except Exception:  # an unreadable index is recompiled by numba too
-        return False
-
-
-def compiled_module(name: str = "compiled") -> ModuleType:
-    """A module that imports numba, by its short name in :data:`COMPILED_MODULES`
-    (``compiled``: ours-lm's trajectory solver and FK; ``single_pose_compiled``: the
-    single-pose LM; ``path_search``: the compiled pose-path search; ``capsules``: capsule
-    distances), imported here on first use: numba is an optional library and importing these
-    modules compiles or loads their kernels, so nothing else imports them. ImportError when
-    numba is not installed."""
-    if name not in COMPILED_MODULES:
-        raise ValueError(f"{name!r} is not one of ours-lm's compiled modules "
-                         f"{', '.join(COMPILED_MODULES)}")
-    return importlib.import_module(COMPILED_MODULES[name])
-
-
-def torch_module() -> ModuleType:
-    """ours-lm's torch backend (:mod:`.torch_backend`), imported here on first use (torch
-    loads in seconds; the numpy and numba solvers never need it)."""
-    return importlib.import_module("ikbench.methods.ours_lm.torch_backend")

@@ -73,7 +73,7 @@ from ikbench.methods.ours_lm.avoidance import (
     CARRY_MAX_STEP,
     SELF_CLEARANCE_MM,
 )
-from ikbench.methods.ours_lm.devices import say_if_compiling
+from ikbench.methods.ours_lm.compiling import say_if_compiling
 from ikbench.methods.ours_lm.frames import errors_from_frames
 from ikbench.methods.ours_lm.search_common import (
     AVOIDANCE_GAIN,

@@ -24,6 +24,7 @@ descents do.
 
 from __future__ import annotations
 
+import importlib
 import math
 import time
 from typing import Any
@@ -31,7 +32,6 @@ from typing import Any
 import numpy as np
 
 from ikbench.methods.ours_lm.devices import (
-    compiled_module,
     numba_threads,
     numba_unavailable,
     numpy_fallback,
@@ -77,7 +77,7 @@ class OursLMSolver(PoseSolver):
         """Build (and compile or load) the compiled solver when numba is installed."""
         self.compiled = None
         if compiled_available():
-            module = compiled_module("single_pose_compiled")
+            module = importlib.import_module("ikbench.methods.ours_lm.single_pose_compiled")
             SinglePoseLM = module.SinglePoseLM  # noqa: N806
             self._views = module.kernels.solve_views
             self._identity = np.eye(3)
@@ -136,7 +136,8 @@ class OursLMSolver(PoseSolver):
         early abandon, :data:`MAX_STEPS` x ``rows`` iterations in all (built once per count,
         the same compiled kernel)."""
         if rows not in self.rows:
-            SinglePoseLM = compiled_module("single_pose_compiled").SinglePoseLM  # noqa: N806
+            kernels = importlib.import_module("ikbench.methods.ours_lm.single_pose_compiled")
+            SinglePoseLM = kernels.SinglePoseLM  # noqa: N806
             self.rows[rows] = SinglePoseLM(self.robot, self.kind, self.tolerance,
                                            max_iterations=MAX_STEPS * rows,
                                            restart_after=MAX_STEPS, abandon=(0, 0.0))

@@ -50,7 +50,7 @@ import numpy as np
 from ikbench.core.errors import InputError
 from ikbench.methods.ours_lm import single_pose_kernels as kernels
 from ikbench.methods.ours_lm.compiled_chain import WIDTH, Chain, pack
-from ikbench.methods.ours_lm.devices import say_if_compiling
+from ikbench.methods.ours_lm.compiling import say_if_compiling
 
 if TYPE_CHECKING:
     import numpy.typing as npt

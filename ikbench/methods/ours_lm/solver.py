@@ -9,8 +9,10 @@ pose. Many trajectories are solved at once, vectorised over trajectories and pos
 
 from __future__ import annotations
 
+import importlib
 import time
 from collections.abc import Callable, Sequence
+from types import ModuleType
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -19,7 +21,7 @@ import numpy.typing as npt
 from ikbench.core.errors import InputError
 from ikbench.core.kinematics.chain import pinocchio_kinematics
 from ikbench.core.losses import resolve_weights
-from ikbench.methods.ours_lm.devices import compiled_module, cpu_backend, torch_module
+from ikbench.methods.ours_lm.devices import cpu_backend
 from ikbench.methods.ours_lm.linalg import block_matvec, solve_normal_equations
 from ikbench.methods.ours_lm.problem import Evaluation, Problem, Weights, evaluate
 from ikbench.methods.ours_lm.settings import (  # noqa: F401  (moved; re-exported)
@@ -50,6 +52,11 @@ if TYPE_CHECKING:
 
 
 
+
+def torch_module() -> ModuleType:
+    """ours-lm's torch backend (:mod:`.torch_backend`), imported here on first use (torch
+    loads in seconds; the numpy and numba solvers never need it)."""
+    return importlib.import_module("ikbench.methods.ours_lm.torch_backend")
 
 def _free_variables(problem: Problem | FrameProblem, poses: np.ndarray, gradient: np.ndarray
                     ) -> np.ndarray:
@@ -236,7 +243,7 @@ def _compiled(settings: LMSettings):
     if cpu_backend(settings) != "numba":
         return None
     try:
-        compiled = compiled_module()
+        compiled = importlib.import_module("ikbench.methods.ours_lm.compiled")
     except ImportError as error:
         if settings.backend == "numba":
             raise InputError(f"--lm-backend numba: numba does not import ({error}); "

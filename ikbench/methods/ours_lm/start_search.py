@@ -30,6 +30,7 @@ Everything is deterministic for a seed. Errors are in mm and degrees throughout.
 
 from __future__ import annotations
 
+import importlib
 import time
 from collections.abc import Callable
 from dataclasses import replace
@@ -45,7 +46,7 @@ from ikbench.core.validity import (
     MAX_ROTATION_ERROR_DEG,
 )
 from ikbench.methods.ours_lm.avoidance import Avoidance, avoidance_for
-from ikbench.methods.ours_lm.devices import compiled_module, cpu_backend
+from ikbench.methods.ours_lm.devices import cpu_backend
 from ikbench.methods.ours_lm.frames import FrameProblem, errors_from_frames, evaluate_frames
 from ikbench.methods.ours_lm.search_common import (  # noqa: F401  (moved; re-exported)
     AVOIDANCE_GAIN,
@@ -242,7 +243,7 @@ def _compiled_search(robot: Robot, settings: OursLMSettings) -> Any:
     if settings.device is not None or cpu_backend(settings) != "numba":
         return None
     try:
-        path_search = compiled_module("path_search")
+        path_search = importlib.import_module("ikbench.methods.ours_lm.path_search")
     except ImportError:
         if settings.backend == "numba":
             raise InputError("--lm-backend numba: numba does not import; use --lm-backend "
