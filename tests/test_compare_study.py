@@ -141,7 +141,7 @@ def test_a_failing_method_is_a_row_not_a_crash(tmp_path, methods):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--methods", "ours-lm,nope"], "--methods: unknown method(s) 'nope'; registered:"),
+    (["--methods", "ours-lm,nope"], "--methods: unknown method 'nope'; registered:"),
     (["--repeat", "0"], "--repeat: 0 is out of range; give a number of solves from 1 to 1000"),
     (["--only", "9"], "--only: unknown trajectory id(s) '9'"),
     (["--reference", "ikpy", "--only", "1", "--steps", "4", "--repeat", "1"],

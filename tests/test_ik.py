@@ -394,7 +394,7 @@ def test_repeat_runs_the_auto_table_only_and_the_cells_show_the_spread(tmp_path)
     (["--tolerance-mm", "-1"], "--tolerance-mm: -1.0 must be a finite number > 0"),
     (["--seed", "-2"], "--seed: -2 must be an integer in [0, 2^63)"),
     (["--methods", "nope"],
-     "--methods: 'nope' is not a single-pose IK method; known: eaik, ours-lm"),
+     "--methods: unknown single-pose IK method 'nope'; available: eaik, ours-lm"),
     (["--max-count-per-method", "ikpy"], "--max-count-per-method: 'ikpy' is not METHOD=N"),
     (["--robot", "example-robot-data:nope"], "example-robot-data:nope"),
     (["--budget-ms", "0"], "argument --budget-ms: 0 is out of range; give a budget [ms] more "

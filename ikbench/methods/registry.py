@@ -27,6 +27,7 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import pkgutil
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from importlib import metadata
 from types import ModuleType
@@ -263,3 +264,53 @@ def refresh() -> None:
     """Forget what was found (tests that install an entry point scan again)."""
     global _FOUND, _STATUS, _SOLVERS
     _FOUND = _STATUS = _SOLVERS = None
+
+
+def parse_names(text: str | Sequence[str] | None, *, solvers: bool = False,
+                installed: bool = True, accepts: Callable[[Any], str] | None = None,
+                default: Callable[[], list[str]] | None = None,
+                option: str = "--methods") -> list[str]:
+    """The one parser of a ``--methods`` value: ``"ours-lm,ikpy"`` (or a list) -> names.
+
+    Every study that takes method names calls this with its own rule; the splitting,
+    de-duplication and the wording of every refusal are the same everywhere.
+
+    Args:
+        text: comma-separated names, a sequence of names, or None (then ``default()``).
+        solvers: names of single-pose solvers (``ikbench ik``) instead of trajectory methods.
+        installed: each must be available here; False accepts any registered name (``compare``
+            reports the missing ones as rows).
+        accepts: the study's own rule: the reason an available class cannot take part (an
+            empty string when it can), e.g. "cannot follow goal frames ...".
+        default: the names when ``text`` is None.
+        option: the option named in the messages.
+
+    Raises:
+        InputError: no name, an unknown name, one not installed (when ``installed``), or one
+            ``accepts`` refuses; the message lists what is allowed.
+    """
+    table = solver_status() if solvers else method_status()
+    if text is None and default is not None:
+        return default()
+    items = text if isinstance(text, (list, tuple)) else str(text).split(",")
+    names = list(dict.fromkeys(str(s).strip() for s in items if str(s).strip()))
+    allowed = (f"available: {', '.join(n for n, s in table.items() if s.available)}"
+               if installed else f"registered: {', '.join(table)}")
+    if not names:
+        raise InputError(f"{option}: {text!r} names no method; {allowed}")
+    unknown = [n for n in names if n not in table]
+    if unknown:
+        noun = "single-pose IK method" if solvers else "method"
+        raise InputError(f"{option}: unknown {noun}{'s' if len(unknown) > 1 else ''} "
+                         f"{', '.join(map(repr, unknown))}; {allowed} "
+                         "(ikbench methods lists them all)")
+    for name in names:
+        status = table[name]
+        if status.cls is None:
+            if installed:
+                raise InputError(f"{option}: {name} is not available here: {status.reason}")
+            continue
+        why = accepts(status.cls) if accepts is not None else ""
+        if why:
+            raise InputError(f"{option}: {name} {why}")
+    return names

@@ -32,7 +32,7 @@ from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import line_tasks
-from ikbench.methods.registry import get_method
+from ikbench.methods.registry import get_method, parse_names
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.progress import Reporter
 
@@ -77,17 +77,10 @@ def parse_repeat(text: str | int | None, methods: list[str]) -> dict[str, int]:
     return {m: counts.get(m, default or get_method(m).bench_rounds) for m in methods}
 
 
-def parse_methods(text: str) -> list[str]:
-    """``"ours,ours-lm"`` -> method names, each registered (InputError naming the valid)."""
-    names = [n.strip() for n in str(text).split(",") if n.strip()]
-    if not names:
-        raise InputError(f"--methods: {text!r} names no method")
-    for name in names:
-        try:
-            get_method(name)
-        except InputError as exc:
-            raise InputError(str(exc).replace("--method:", "--methods:", 1)) from None
-    return list(dict.fromkeys(names))
+def parse_methods(text: str | Sequence[str]) -> list[str]:
+    """``"ours,ours-lm"`` -> method names, each available here
+    (:func:`~ikbench.methods.registry.parse_names`)."""
+    return parse_names(text)
 
 
 @dataclass

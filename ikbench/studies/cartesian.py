@@ -28,7 +28,7 @@ from ikbench.core.errors import IkbenchError, InputError
 from ikbench.core.metrics import frame_metrics
 from ikbench.core.problems import BENCHMARK, load_problem, resolve_problems
 from ikbench.methods.base import Method
-from ikbench.methods.registry import available_methods, get_method
+from ikbench.methods.registry import available_methods, get_method, parse_names
 from ikbench.render.cartesian_report import write_folder
 from ikbench.runtime.harness import Outcome, solve_tasks
 from ikbench.runtime.progress import Reporter
@@ -112,21 +112,18 @@ def parse_methods(text: str | Sequence[str] | None) -> list[str]:
     """Method names (comma-separated or a list); None: every method that follows goal frames.
 
     Raises:
-        InputError: an unknown or unavailable method, or one that cannot follow goal frames.
+        InputError: an unknown or unavailable method, or one that cannot follow goal frames
+            (:func:`~ikbench.methods.registry.parse_names`).
     """
-    able = frame_methods()
-    if text is None:
-        return list(able)
-    items = text if isinstance(text, (list, tuple)) else str(text).split(",")
-    names = list(dict.fromkeys(s.strip() for s in items if s.strip()))
-    if not names:
-        raise InputError(f"--methods: {text!r} names no method; available: {', '.join(able)}")
-    for name in names:
-        cls = get_method(name)
-        if not cls.capabilities.frames:
-            raise InputError(f"--methods: {name} cannot follow goal frames (6-D pose paths); "
-                             f"methods that can: {', '.join(able) or 'none'}")
-    return names
+    return parse_names(text, accepts=follows_frames, default=lambda: list(frame_methods()))
+
+
+def follows_frames(cls: type[Method]) -> str:
+    """Why ``cls`` cannot take part in a Cartesian study ("" when it follows goal frames)."""
+    if cls.capabilities.frames:
+        return ""
+    return ("cannot follow goal frames (6-D pose paths); methods that can: "
+            f"{', '.join(frame_methods()) or 'none'}")
 
 
 def build_method(name: str, seed: int, options: dict[str, Any] | None = None) -> Method:

@@ -72,7 +72,7 @@ from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import Task, line_tasks
 from ikbench.methods.base import Method, hearing_fraction, report_fraction
-from ikbench.methods.registry import get_method, method_status
+from ikbench.methods.registry import get_method, method_status, parse_names
 from ikbench.render.leaderboard import (
     leaderboard,
     leaderboard_markdown,
@@ -147,17 +147,9 @@ class CompareResult:
 
 
 def parse_methods(text: str | list[str]) -> list[str]:
-    """``"ours-lm,ikpy"`` -> names, each registered (available or not); InputError otherwise."""
-    names = [n.strip() for n in (text.split(",") if isinstance(text, str) else text)
-             if n.strip()]
-    if not names:
-        raise InputError(f"--methods: {text!r} names no method")
-    known = method_status()
-    unknown = [n for n in names if n not in known]
-    if unknown:
-        raise InputError(f"--methods: unknown method(s) {', '.join(map(repr, unknown))}; "
-                         f"registered: {', '.join(known)} (ikbench methods lists them)")
-    return list(dict.fromkeys(names))
+    """``"ours-lm,ikpy"`` -> names, each registered (available or not; the missing ones become
+    rows that say so); InputError otherwise (:func:`~ikbench.methods.registry.parse_names`)."""
+    return parse_names(text, installed=False)
 
 
 def check_repeat(repeat) -> int:

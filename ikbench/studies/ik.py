@@ -63,7 +63,7 @@ import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError
-from ikbench.methods.registry import available_solvers, solver_status
+from ikbench.methods.registry import available_solvers, parse_names, solver_status
 from ikbench.render.ik_report import robot_slug, write_folder
 from ikbench.runtime.harness import Progress, describe
 from ikbench.studies.first_call import first_call
@@ -318,26 +318,16 @@ def check_memory(count: int, methods: int, rows: int = 1, dof: int = 7) -> None:
 
 def parse_methods(text: str | Sequence[str] | None, kind: str = "pose") -> list[str]:
     """Method names (comma-separated or a list); None: every installed one that takes
-    ``kind`` targets. InputError for unknown, missing or unsuitable ones."""
+    ``kind`` targets. InputError for unknown, missing or unsuitable ones
+    (:func:`~ikbench.methods.registry.parse_names`)."""
 
-    status = solver_status()
-    if text is None:
-        return [n for n, c in available_solvers().items() if kind in c.kinds]
-    items = text if isinstance(text, (list, tuple)) else str(text).split(",")
-    names = list(dict.fromkeys(s.strip() for s in items if s.strip()))
-    if not names:
-        raise InputError(f"--methods: {text!r} names no method; known: {', '.join(status)}")
-    for name in names:
-        if name not in status:
-            raise InputError(f"--methods: {name!r} is not a single-pose IK method; known: "
-                             f"{', '.join(status)}")
-        cls = status[name].cls
-        if cls is None:
-            raise InputError(f"--methods: {name} {status[name].reason}")
-        if kind not in cls.kinds:
-            raise InputError(f"--methods: {name} takes {', '.join(cls.kinds)} targets, not "
-                             f"--kind {kind}")
-    return names
+    def takes_kind(cls: type) -> str:
+        return "" if kind in cls.kinds else (f"takes {', '.join(cls.kinds)} targets, not "
+                                              f"--kind {kind}")
+
+    return parse_names(text, solvers=True, accepts=takes_kind,
+                       default=lambda: [n for n, c in available_solvers().items()
+                                        if kind in c.kinds])
 
 
 def sample_targets(robot: Robot, settings: IKSettings) -> Targets:
