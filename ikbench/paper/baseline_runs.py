@@ -3,7 +3,7 @@
 :func:`load_comparison` reads every run folder that ``ikbench run --output DIR [--name NAME]``
 wrote (``DIR/<name>/run.json`` + ``trajectory_<id>.csv``, through
 :class:`ikbench.runtime.record.RunFolder`; the folders of other commands,
-:data:`ikbench.studies.run.RESERVED_NAMES`, and folders without trajectories are not runs),
+:data:`ikbench.studies.folders.RESERVED_NAMES`, and folders without trajectories are not runs),
 recomputes every figure with :mod:`ikbench.core.metrics` from the trajectory CSVs (only the
 solver's own duration and iteration count come from ``table.csv``, the count of points that
 missed the IK tolerance from ``details.csv``) and summarises each run: the tables
@@ -36,7 +36,7 @@ from ikbench.paper.baseline_claims import (
     task_text,
 )
 from ikbench.runtime.record import RECORD_FILE, RunFolder, RunRecord, robot_from_record
-from ikbench.studies.run import RESERVED_NAMES
+from ikbench.studies.folders import RESERVED_NAMES
 
 
 @dataclass

@@ -30,6 +30,7 @@ from ikbench.core.provenance import REPO, git_state, load_average
 from ikbench.methods.ours import Ours
 from ikbench.methods.registry import method_status
 from ikbench.render.blocks import documents, render_files
+from ikbench.studies.folders import RESULTS
 
 #: The record of finished studies, in the results directory.
 RECORD = "regenerated.json"
@@ -199,7 +200,7 @@ def read_record(out: Path) -> dict:
     return record if isinstance(record, dict) else {}
 
 
-def regenerate(output: str | Path = "results", only: Sequence[str] | None = None,
+def regenerate(output: str | Path = RESULTS, only: Sequence[str] | None = None,
                force: bool = False, allow_dirty: bool = False, dry_run: bool = False,
                say: Callable[[str], None] | None = None,
                runner: Callable[[list[str]], int] | None = None) -> dict[str, float]:

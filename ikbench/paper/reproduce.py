@@ -63,9 +63,10 @@ from ikbench.paper.values import paper_values, table1_comparison
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.progress import message
 from ikbench.studies.ablation import FULL, SUMMARY_METRICS, ablate
+from ikbench.studies.folders import RESULTS
 from ikbench.studies.run import run
 
-DEFAULT_OUTPUT = "results"
+DEFAULT_OUTPUT = RESULTS
 QUICK_OUTPUT = "results-quick"
 OURS = "ours"
 #: Table 2's folder and the method run into it: the paper's baseline scheme, the walk back

@@ -33,11 +33,12 @@ from ikbench.render.cartesian_report import write_folder
 from ikbench.runtime.harness import Outcome, solve_tasks
 from ikbench.runtime.progress import Reporter
 from ikbench.studies.first_call import first_path_call
+from ikbench.studies.folders import WITHIN
 
 DEFAULT_SEEDS = (1, 2, 3)
 #: Seeds are integers in [0, 2^63) (numpy's and torch's generators).
 MAX_SEED = 2**63
-FOLDER = "cartesian"
+FOLDER = WITHIN["cartesian"]
 #: table.csv's columns, in order.
 COLUMNS = ["problem", "robot", "waypoints", "method", "seed", "valid", "time_to_valid_s",
            "duration_s", "iterations", "position_error_mean_mm", "position_error_max_mm",

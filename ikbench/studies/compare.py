@@ -90,6 +90,7 @@ from ikbench.runtime.record import (
     keep_nothing,
 )
 from ikbench.studies.first_call import first_path_call
+from ikbench.studies.folders import RUNS, WITHIN
 from ikbench.studies.run import trajectory_files, write_run
 
 #: Two methods' trajectories are the same when every pose agrees within this [pose units].
@@ -237,7 +238,7 @@ class CompareSpec:
 def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
             targets: str | Path | Targets | None = None, only: str | None = None,
             steps: int | None = None, repeat: int = 5, warmup: int = 1,
-            output: str | Path | None = "runs",
+            output: str | Path | None = RUNS,
             reference: str | None = None, progress: bool = True,
             solvers: dict[str, Method] | None = None, executor: Executor | None = None,
             contract: Contract | None = None, tolerances: str | dict | None = None,
@@ -321,7 +322,7 @@ def run_comparison(spec: CompareSpec) -> CompareResult:
         record.study["first_calls"] = first_calls
     if spec.output is None:
         return CompareResult(results, board, record.to_dict(), spec.contract)
-    root = spec.output / "compare"
+    root = spec.output / WITHIN["compare"]
     with RunFolder(root).staged(keep=keep_nothing) as stage:
         for name, outcomes in last.items():
             write_run(built[name], spec.robot, spec.targets, outcomes, stage.path / name,

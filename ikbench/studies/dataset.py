@@ -60,11 +60,15 @@ from ikbench.studies.dataset_shard import (
     build_shard,
     pipelined,
 )
+from ikbench.studies.folders import default_output
 
 DEFAULT_SHARD_SIZE = 10_000
 MAX_STEPS = 5000
 MANIFEST = "dataset.json"
 TABLES = ("steps", "trajectories")     # written in this order: trajectories marks a shard done
+
+#: Where the dataset goes by default.
+DEFAULT_OUTPUT = default_output("dataset")
 
 
 def shard_path(output: str | Path, table: str, shard: int) -> Path:
@@ -176,7 +180,7 @@ def check_manifest(output: str | Path, config: dict[str, Any], count: int) -> No
 def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
                   shard_size: int = DEFAULT_SHARD_SIZE, lm_settings: LMSettings | None = None,
                   targets: str | Path | Targets | None = None,
-                  robot: Robot | str | None = None, output: str | Path = "runs/dataset",
+                  robot: Robot | str | None = None, output: str | Path = DEFAULT_OUTPUT,
                   executor: Executor | None = None, progress: bool = True) -> DatasetReport:
     """Build (or resume) a dataset of ``count`` trajectories (see the module docstring).
 

@@ -67,6 +67,7 @@ from ikbench.methods.registry import available_solvers, parse_names, solver_stat
 from ikbench.render.ik_report import robot_slug, write_folder
 from ikbench.runtime.harness import Progress, describe
 from ikbench.studies.first_call import first_call
+from ikbench.studies.folders import WITHIN
 from ikbench.studies.ik_truth import (
     analytic_solver,
     branch_columns,
@@ -81,7 +82,7 @@ if TYPE_CHECKING:
     from ikbench.core.robot import Robot
     from ikbench.schemes.single_pose import PoseOut, PoseSolver
 
-FOLDER = "ik"
+FOLDER = WITHIN["ik"]
 KINDS = ("pose", "position")
 INITS = ("random", "nominal", "nearby")
 AUTO = "auto"
@@ -321,7 +322,7 @@ def parse_methods(text: str | Sequence[str] | None, kind: str = "pose") -> list[
     ``kind`` targets. InputError for unknown, missing or unsuitable ones
     (:func:`~ikbench.methods.registry.parse_names`)."""
 
-    def takes_kind(cls: type) -> str:
+    def takes_kind(cls: type[PoseSolver]) -> str:
         return "" if kind in cls.kinds else (f"takes {', '.join(cls.kinds)} targets, not "
                                               f"--kind {kind}")
 

@@ -39,13 +39,14 @@ from ikbench.methods.registry import solver_status
 from ikbench.runtime.harness import describe
 from ikbench.runtime.progress import Reporter
 from ikbench.studies.first_call import first_call
+from ikbench.studies.folders import RUNS, WITHIN
 from ikbench.studies.ik import IKSettings, load_average, parse_methods, run_ik
 from ikbench.studies.verdict import Verdict, decide, per_method
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
 
-FOLDER = "recommend"
+FOLDER = WITHIN["recommend"]
 PATH = "path"
 TASKS = ("pose", "position", PATH)
 #: Paths per seed (``--task path``): at least one circle and one line, at most.
@@ -336,7 +337,7 @@ def _run_paths(robot: Robot, names: Sequence[str], settings: RecommendSettings,
 def recommend(robot: Robot | str, end_frame: str | None = None, *,
               budget_ms: float | None = None, task: str = "pose", minutes: float = 5.0,
               methods: str | Sequence[str] | None = None, seed: int = 1,
-              attempts: int = ATTEMPTS, output: str | Path | None = "runs",
+              attempts: int = ATTEMPTS, output: str | Path | None = RUNS,
               progress: bool = True, command: str = "") -> Recommendation:
     """Recommend a single-pose IK method for ``robot`` (see the module docstring).
 
@@ -407,7 +408,7 @@ def recommend(robot: Robot | str, end_frame: str | None = None, *,
     return result
 
 
-def command_line(result: Recommendation, output: str | Path = "runs") -> str:
+def command_line(result: Recommendation, output: str | Path = RUNS) -> str:
     """The ``ikbench recommend`` command that reproduces ``result`` into ``output``."""
     import shlex
 

@@ -78,15 +78,13 @@ from ikbench.runtime.record import (
     obstacles_entry,
     robot_entry,
 )
+from ikbench.studies.folders import RESERVED_NAMES, default_output
 
 if TYPE_CHECKING:
     from ikbench.core.problems import CartesianProblem
 
 #: Where ad-hoc runs go by default (git ignores it); ``ikbench reproduce`` writes results/.
-DEFAULT_OUTPUT = "runs"
-#: Folders other commands write into an output directory; no method run may take them.
-RESERVED_NAMES = ("ablation", "sweep", "batch", "letters", "compare", "cartesian", "dataset",
-                  "scale")
+DEFAULT_OUTPUT = default_output("run")
 def check_name(name: str) -> str:
     """``name`` if it can name a run's folder; InputError naming what is allowed otherwise.
 

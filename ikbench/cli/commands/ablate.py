@@ -17,6 +17,7 @@ from ikbench.cli.options import (
 from ikbench.cli.values import OUTPUT
 from ikbench.core.defaults import DEFAULT_METHOD
 from ikbench.core.errors import InputError
+from ikbench.studies.folders import default_output
 
 HELP = ("loss-term ablation: run a method with terms of L0..L6 dropped, compare with "
         "the full loss")
@@ -48,7 +49,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"a method with loss weights: {', '.join(methods)} (default: "
                         f"{DEFAULT_METHOD})")
     add_line_task_arguments(parser)
-    parser.add_argument("--output", default="runs", type=OUTPUT,
+    parser.add_argument("--output", default=default_output("ablation"), type=OUTPUT,
                         help="results directory; writes OUTPUT/ablation/ (default: runs, which "
                         "git ignores; ikbench reproduce writes results/ablation/)")
     parser.add_argument("--figure-trajectory", default=None, metavar="ID",

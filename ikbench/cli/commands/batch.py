@@ -13,6 +13,7 @@ from ikbench.cli.options import (
     robot_from_args,
 )
 from ikbench.cli.values import SEED, STEPS, count, tolerance
+from ikbench.studies.folders import default_output
 
 HELP = "sample random reachable touch poses, solve them in one batch (ours-lm)"
 #: A tolerance on a distance (up to 10 m).
@@ -57,7 +58,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"tolerance on the mean line distance (default {LINE_TOLERANCE_MM})")
     parser.add_argument("--end-tolerance-mm", type=TOLERANCE_MM, default=END_TOLERANCE_MM,
                         help=f"tolerance on the end point error (default {END_TOLERANCE_MM})")
-    add_study_arguments(parser, "runs/batch")
+    add_study_arguments(parser, default_output("batch"))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -15,6 +15,7 @@ from ikbench.cli.options import (
 from ikbench.cli.values import OUTPUT, THREADS, count
 from ikbench.core.defaults import BENCH_METHODS
 from ikbench.core.errors import InputError
+from ikbench.studies.folders import default_output
 
 HELP = "time methods on the same targets (median/min/max, ratios, losses)"
 DEFAULT_METHODS = ",".join(BENCH_METHODS)
@@ -46,7 +47,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         "ours 3)")
     parser.add_argument("--warmup", type=count("warm-up rounds", 0, MAX_WARMUP), default=1,
                         help=f"untimed rounds before timing, 0 to {MAX_WARMUP} (default 1)")
-    parser.add_argument("--output", default="runs", type=OUTPUT,
+    parser.add_argument("--output", default=default_output("bench"), type=OUTPUT,
                         help="output directory (default: runs, which git ignores)")
     parser.add_argument("--threads", type=THREADS, default=None,
                         help="torch threads (default 1: the tensors are tiny, and on a busy "

@@ -15,9 +15,10 @@ from ikbench.cli.options import (
 )
 from ikbench.cli.values import OUTPUT, THREADS
 from ikbench.core.errors import InputError
+from ikbench.studies.folders import default_output
 
 HELP = "Cartesian path benchmark: methods on the CppFlow/TORM 6-D pose paths, several seeds"
-DEFAULT_OUTPUT = "runs"
+DEFAULT_OUTPUT = default_output("cartesian")
 
 
 def description() -> str:

@@ -20,10 +20,11 @@ from ikbench.cli.options import (
 from ikbench.cli.values import INPUT_FILE, OUTPUT, count, duration_s
 from ikbench.core.defaults import COMPARE_METHODS, DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
+from ikbench.studies.folders import default_output
 
 HELP = "compare methods and libraries on the same robot and tasks: results.csv, leaderboard"
 DEFAULT_METHODS = ",".join(COMPARE_METHODS)
-DEFAULT_OUTPUT = "runs"
+DEFAULT_OUTPUT = default_output("compare")
 #: At most this many solves per method and trajectory.
 MAX_REPEAT = 1000
 

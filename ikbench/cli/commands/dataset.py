@@ -18,6 +18,7 @@ from ikbench.cli.options import (
 )
 from ikbench.cli.values import OUTPUT, SEED, STEPS, THREADS, count
 from ikbench.core.errors import InputError
+from ikbench.studies.folders import default_output
 
 HELP = "a training set: N random reachable trajectories (ours-lm) as Parquet shards"
 #: At most this many trajectories (a million took 76 min on one CPU core, docs/scale.md).
@@ -61,7 +62,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--targets", default=None,
                         help="targets JSON file whose start pose is used (default: the "
                         "robot's, NICO: the paper's)")
-    parser.add_argument("--output", default="runs/dataset", type=OUTPUT,
+    parser.add_argument("--output", default=default_output("dataset"), type=OUTPUT,
                         help="dataset folder (default: runs/dataset, which git ignores)")
     parser.add_argument("--threads", type=THREADS, default=1,
                         help="torch threads for --device cpu (default 1)")

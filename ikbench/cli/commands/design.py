@@ -7,6 +7,7 @@ import argparse
 from ikbench.cli.options import add_robot_arguments, begin, robot_from_args
 from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_ROBOT, DESIGN_METHOD, REFERENCE_METHOD
 from ikbench.core.errors import InputError
+from ikbench.studies.folders import default_output
 
 HELP = "design a trajectory by hand in the browser: drag a point, see it re-solved and judged"
 INSTALL = "pip install 'ikbench[viewer]'"
@@ -55,7 +56,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         help="constant (default), min-jerk or topp (changeable in the panel)")
     parser.add_argument("--duration", type=float, default=DEFAULT_DURATION_S,
                         help=f"movement duration T [s] (default {DEFAULT_DURATION_S:g})")
-    parser.add_argument("--output", default="runs",
+    parser.add_argument("--output", default=default_output("design"),
                         help="where Save writes (default runs)")
     parser.add_argument("--name", default="design",
                         help="the saved run's name (default design)")

@@ -7,10 +7,11 @@ import argparse
 from ikbench.cli.options import add_progress_arguments, add_robot_arguments, begin, robot_from_args
 from ikbench.cli.values import OUTPUT, Number
 from ikbench.core.errors import InputError
+from ikbench.studies.folders import default_output
 
 HELP = ("single-pose IK benchmark: success rate and time per call of every library on a robot, "
         "under one protocol (budget, initial configurations, attempts)")
-DEFAULT_OUTPUT = "runs"
+DEFAULT_OUTPUT = default_output("ik")
 
 
 #: The default budget [ms] (ikbench.studies.ik.BUDGET_MS; not imported: the CLI starts light).

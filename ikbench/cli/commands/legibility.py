@@ -6,6 +6,7 @@ import argparse
 
 from ikbench.cli.options import add_robot_arguments, begin, robot_from_args
 from ikbench.cli.values import INPUT_FILE, OUTPUT
+from ikbench.studies.folders import default_output
 
 HELP = ("ours-exact with ikbench's legibility term (not the paper's method) for a sweep of "
         "weights on one target: CSV, trade-off figure")
@@ -35,7 +36,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--weights", default=None, metavar="W1,W2,...",
                         help="the weights W, each >= 0 (default 0,10,30,100,300,1000,3000; "
                         "ours-exact's pointing weight c1 is 2000)")
-    parser.add_argument("--output", default="runs/legibility", metavar="DIR",
+    parser.add_argument("--output", default=default_output("legibility"), metavar="DIR",
                         type=OUTPUT,
                         help="output folder (default runs/legibility, which git ignores)")
 

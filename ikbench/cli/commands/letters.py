@@ -15,9 +15,10 @@ from ikbench.cli.options import add_robot_arguments, robot_from_args
 from ikbench.cli.values import STEPS, Text
 from ikbench.core.defaults import DEFAULT_METHOD
 from ikbench.core.errors import InputError
+from ikbench.studies.folders import default_output
 
 HELP = "draw letters A-Z in the air with the end point (the paper's letter experiment)"
-DEFAULT_OUTPUT = "runs/letters"
+DEFAULT_OUTPUT = default_output("letters")
 
 
 #: Values the command's run() reads that no option of its own sets.

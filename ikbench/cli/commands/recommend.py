@@ -6,10 +6,11 @@ import argparse
 
 from ikbench.cli.options import add_progress_arguments, add_robot_arguments, begin, robot_from_args
 from ikbench.cli.values import OUTPUT, SEED, Number, count
+from ikbench.studies.folders import default_output
 
 HELP = ("which single-pose IK solver for my robot: every installed method on a sample sized "
         "to --minutes, success and per-call times with 95 %% intervals, and a verdict")
-DEFAULT_OUTPUT = "runs"
+DEFAULT_OUTPUT = default_output("recommend")
 #: The default budgets [ms] per call and per path (ikbench.studies.recommend.BUDGET_MS,
 #: PATH_BUDGET_MS; not imported: the CLI starts light).
 BUDGET_MS, PATH_BUDGET_MS = 5.0, 1000.0

@@ -17,6 +17,7 @@ from ikbench.cli.options import (
 )
 from ikbench.cli.values import INPUT_FILE, OUTPUT, STEPS, Number, Text, duration_s
 from ikbench.core.defaults import DEFAULT_DURATION_S, DEFAULT_METHOD, DEFAULT_ROBOT
+from ikbench.studies.folders import default_output
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -35,7 +36,7 @@ SHAPE_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "curve_distan
                  "curve_distance_max_mm", "point_error_mean_mm", "pointing_deviation_mean_deg"]
 PROBLEM_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "position_error_max_mm",
                    "rotation_error_max_deg", "max_joint_change_deg", "valid"]
-DEFAULT_OUTPUT = "runs"
+DEFAULT_OUTPUT = default_output("run")
 #: The console table's name of duration_s when it is a share of one batched solve.
 BATCH_SHARE_COLUMN = "duration_s (batch share)"
 #: A letter's height.

@@ -14,6 +14,7 @@ from ikbench.cli.options import (
     robot_from_args,
 )
 from ikbench.cli.values import MAX_LIST_CHARS, Text
+from ikbench.studies.folders import default_output
 
 HELP = ("solve the targets or a shape for a grid of loss weights (ours-lm or ours-exact); "
         "CSV, Pareto figure")
@@ -46,7 +47,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     add_task_arguments(parser, only_help="comma-separated trajectory ids, e.g. 1,3 (line only)",
                        start_pose_default=f"the targets file's; for letters the robot's "
                        f"letter pose, NICO: the paper's {paper_start_pose()}")
-    add_study_arguments(parser, "runs/sweep")
+    add_study_arguments(parser, default_output("sweep"))
 
 
 def run(args: argparse.Namespace) -> int:
