@@ -62,6 +62,7 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
+from ikbench.core.defaults import JUDGE_TOLERANCE_DEG, JUDGE_TOLERANCE_MM
 from ikbench.core.errors import InputError
 from ikbench.methods.registry import available_solvers, parse_names, solver_status
 from ikbench.render.ik_report import robot_slug, write_folder
@@ -141,8 +142,8 @@ class IKSettings:
     count: int = 1000
     seed: int = 1
     kind: str = "pose"
-    tolerance_mm: float = 1.0
-    tolerance_deg: float = 0.5
+    tolerance_mm: float = JUDGE_TOLERANCE_MM
+    tolerance_deg: float = JUDGE_TOLERANCE_DEG
     init: str = "random"
     perturb_deg: float = 10.0
     max_count: dict = field(default_factory=dict)

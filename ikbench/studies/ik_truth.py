@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ikbench.core.defaults import JUDGE_TOLERANCE_DEG, JUDGE_TOLERANCE_MM
 from ikbench.methods.registry import available_solvers
 
 if TYPE_CHECKING:
@@ -153,15 +154,10 @@ def unreachable_targets(robot: Robot, T_reachable: np.ndarray, rng: np.random.Ge
 REACHABLE, BEYOND_REACH_KIND, ORIENTATION_KIND = "", "beyond_reach", "orientation_impossible"
 #: Random orientations drawn per orientation-impossible target at most.
 ORIENTATION_DRAWS = 100
-#: The judge's default tolerances (:class:`ikbench.studies.ik.IKSettings`) [mm, deg].
-JUDGE_TOLERANCE_MM, JUDGE_TOLERANCE_DEG = 1.0, 0.5
 #: An orientation counts as impossible only with this margin, in judge tolerances: nothing
 #: comes within this many times the judge's tolerances of the frame (see
 #: :func:`orientation_impossible`).
 MARGIN_TOLERANCES = 3.0
-#: The margin in the units of each check: widened limits [deg], the perturbation steps and
-#: the numerical search's acceptance [mm, deg].
-ORIENTATION_MARGIN = MARGIN_TOLERANCES * JUDGE_TOLERANCE_DEG
 #: Damped least-squares iterations of the numerical check from each least-squares answer.
 NEARBY_ITERATIONS = 60
 
