@@ -280,3 +280,23 @@ def test_ours_and_sequential_ik_say_how_far_they_are(robot, paper_targets, name,
     # ours: every 10 of its 40 iterations; sequential-ik tracks steps 1..5 of the 6 segments
     expected = [0.25, 0.5, 0.75, 1.0] if name == "ours" else [k / 5 for k in range(1, 6)]
     assert heard == pytest.approx(expected)
+
+
+def test_compares_status_names_the_method_now_running(monkeypatch, capsys):
+    """Between methods the periodic line names the one running, not the last one's result."""
+    from ikbench.studies.compare import _begun
+
+    clock = [100.0]
+    monkeypatch.setattr(progress.time, "perf_counter", lambda: clock[0])
+    progress.configure("periodic")
+    work = [("first", None, None, [], 0, 1), ("second", None, None, [], 0, 1)]
+    with Reporter("compare", total=2, unit="method") as reporter:
+        jobs = _begun(work, reporter)
+        next(jobs)
+        clock[0] += 40.0
+        reporter.advance(1, "first: solved, median 0.1 s")
+        next(jobs)
+        clock[0] += 40.0
+        reporter.within(0.5)
+    last = capsys.readouterr().err.splitlines()[-1]
+    assert last == "[compare 1:20] 1/2 done, method 2/2 at 50 %; second: solving"

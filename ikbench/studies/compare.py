@@ -390,6 +390,7 @@ def _begun(work: list, log: Progress) -> Iterator:
     """The jobs, each counted as begun when the executor takes it (the local one: just
     before it runs; a pool: all at once)."""
     for job in work:
+        log.say(f"{job[0]}: solving")  # the status names the method now running
         log.begin(1)
         yield job
 
