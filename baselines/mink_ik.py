@@ -68,7 +68,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Capabilities
 from ikbench.methods.options import check_choice, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import Chain, Goals
@@ -452,7 +451,6 @@ class MinkIK(AvoidsObstacles, LibraryMethod):
                    "CollisionAvoidanceLimit on capsule geoms and the obstacles")
     library = "mink"
     Settings = MinkSettings
-    capabilities = Capabilities(needs_touch_pose=True, frames=True, obstacles=True)
     chain_model = staticmethod(mink_model)  # untimed: MuJoCo parses and compiles the URDF
 
     def solve_scene(self, robot: Robot, chain: Chain, goals: Goals,

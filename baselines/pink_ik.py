@@ -83,7 +83,6 @@ import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.core.kinematics.pinocchio_fk import link_frame_id
-from ikbench.methods.base import Capabilities
 from ikbench.methods.options import check_choice, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import Chain, Goals, chain_of
@@ -364,7 +363,6 @@ class PinkIK(AvoidsObstacles, LibraryMethod):
                    "on the robot's capsules and the obstacles")
     library = "pin-pink"
     Settings = PinkSettings
-    capabilities = Capabilities(needs_touch_pose=True, frames=True, obstacles=True)
     loads_urdf = False  # the robot's own Pinocchio model
 
     def prepare(self, robot: Robot) -> None:
