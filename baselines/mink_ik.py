@@ -68,7 +68,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Capabilities
 from ikbench.methods.options import check_choice, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import Chain, Goals
@@ -83,17 +82,17 @@ from ikbench.schemes.diffik import (
     posture_weights,
     qp_option,
     settle,
-    solve_clear,
     target_rotation,
     track_errors,
     track_orientation_costs,
     track_target_rotation,
+    walk_clear,
 )
 from ikbench.schemes.geometry import frame_with_z_on, rotation_angle_rad
 from ikbench.schemes.method import ChainResult, LibraryMethod
 from ikbench.schemes.single_pose import PoseOut, PoseSolver, steps_to_tolerance
 from ikbench.schemes.track import SCHEME_HELP, SCHEMES, track
-from ikbench.schemes.walk import PointResult, walk_back
+from ikbench.schemes.walk import PointResult
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -303,13 +302,6 @@ def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings,
     avoid = None if scene is None else collision_limit(m, scene, settings)
     if avoid is not None:
         limits = [*plain_limits, avoid]
-    entered: list[int] = []
-
-    def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
-        if avoid is None:
-            return run(i, q_warm, False)
-        return solve_clear(i, q_warm, run, lambda q: penetrating(m, avoid, q), NoSolutionFound,
-                           entered)
 
     def run(i: int, q_warm: np.ndarray, avoiding: bool) -> PointResult:
         q0 = np.zeros(model.nq)
@@ -341,12 +333,10 @@ def solve_chain(chain: Chain, goals: Goals, settings: MinkSettings,
         steps, ok = converge(measure, step, settings.tolerance, settings.max_steps)
         return PointResult(configuration.q[m.qpos].copy(), steps, ok)
 
-    walk = walk_back(solve_point, chain, goals)
-    return ChainResult.from_walk(walk, qp_solver=settings.qp_solver,
-                                 pointing_task=settings.pointing_task,
-                                 iterations_are="QP solves (mink.solve_ik calls)",
-                                 **({} if avoid is None else
-                                    {"started_inside_points": len(entered)}))
+    return walk_clear(run, None if avoid is None else lambda q: penetrating(m, avoid, q),
+                      NoSolutionFound, chain, goals, qp_solver=settings.qp_solver,
+                      pointing_task=settings.pointing_task,
+                      iterations_are="QP solves (mink.solve_ik calls)")
 
 
 def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: MinkSettings,
@@ -452,7 +442,6 @@ class MinkIK(AvoidsObstacles, LibraryMethod):
                    "CollisionAvoidanceLimit on capsule geoms and the obstacles")
     library = "mink"
     Settings = MinkSettings
-    capabilities = Capabilities(needs_touch_pose=True, frames=True, obstacles=True)
     chain_model = staticmethod(mink_model)  # untimed: MuJoCo parses and compiles the URDF
 
     def solve_scene(self, robot: Robot, chain: Chain, goals: Goals,

@@ -83,7 +83,6 @@ import numpy as np
 
 from ikbench.core.errors import InputError
 from ikbench.core.kinematics.pinocchio_fk import link_frame_id
-from ikbench.methods.base import Capabilities
 from ikbench.methods.options import check_choice, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import Chain, Goals, chain_of
@@ -98,17 +97,17 @@ from ikbench.schemes.diffik import (
     posture_weights,
     qp_option,
     settle,
-    solve_clear,
     target_rotation,
     track_errors,
     track_orientation_costs,
     track_target_rotation,
+    walk_clear,
 )
 from ikbench.schemes.geometry import frame_with_z_on, rotation_angle_rad
 from ikbench.schemes.method import ChainResult, LibraryMethod
 from ikbench.schemes.single_pose import PoseOut, PoseSolver, steps_to_tolerance
 from ikbench.schemes.track import SCHEME_HELP, SCHEMES, track
-from ikbench.schemes.walk import PointResult, walk_back
+from ikbench.schemes.walk import PointResult
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -267,18 +266,10 @@ def solve_chain(robot: Robot, chain: Chain, goals: Goals, settings: PinkSettings
         steps, ok = converge(measure, step, settings.tolerance, settings.max_steps)
         return PointResult(configuration.q.copy(), steps, ok)
 
-    def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
-        if avoid is None:
-            return run(i, q_warm, False)
-        return solve_clear(i, q_warm, run, lambda q: avoid.penetrating(model, data, q),
-                           NoSolutionFound, entered)
-
-    entered: list[int] = []
-    walk = walk_back(solve_point, chain, goals)
-    return ChainResult.from_walk(walk, qp_solver=settings.qp_solver,
-                                 iterations_are="QP solves (pink.solve_ik calls)",
-                                 **({} if avoid is None else
-                                    {"started_inside_points": len(entered)}))
+    penetrating = None if avoid is None else lambda q: avoid.penetrating(model, data, q)
+    return walk_clear(run, penetrating, NoSolutionFound, chain, goals,
+                      qp_solver=settings.qp_solver,
+                      iterations_are="QP solves (pink.solve_ik calls)")
 
 
 def solve_track(robot: Robot, chain: Chain, plan: TrackPlan, settings: PinkSettings,
@@ -364,7 +355,6 @@ class PinkIK(AvoidsObstacles, LibraryMethod):
                    "on the robot's capsules and the obstacles")
     library = "pin-pink"
     Settings = PinkSettings
-    capabilities = Capabilities(needs_touch_pose=True, frames=True, obstacles=True)
     loads_urdf = False  # the robot's own Pinocchio model
 
     def prepare(self, robot: Robot) -> None:

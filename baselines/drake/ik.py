@@ -70,7 +70,6 @@ from ikbench.baselines.drake.common import (
     solve,
 )
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Capabilities
 from ikbench.methods.options import check_choice, check_positive, option
 from ikbench.schemes.chain import Chain, Goals, contract_step, urdf_step
 from ikbench.schemes.collision import AvoidsObstacles, Scene
@@ -280,7 +279,6 @@ class DrakeIK(AvoidsObstacles, DrakeMethod):
                    "MinimumDistanceLowerBoundConstraint on the robot's capsules")
     library = "drake"
     Settings = DrakeIKSettings
-    capabilities = Capabilities(needs_touch_pose=True, frames=True, obstacles=True)
 
     def solve_scene(self, robot: Robot, chain: Chain, goals: Goals,
                     scene: Scene | None) -> ChainResult:

@@ -76,7 +76,6 @@ from ikbench.baselines.drake.common import (
 from ikbench.baselines.drake.ik import STEP_MARGIN
 from ikbench.core.defaults import DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
-from ikbench.methods.base import Capabilities
 from ikbench.methods.options import check_choice, check_positive, option
 from ikbench.schemes.chain import Chain, Goals, contract_step
 from ikbench.schemes.collision import AvoidsObstacles, Scene
@@ -329,7 +328,6 @@ class DrakeTrajopt(AvoidsObstacles, DrakeMethod):
                    "MinimumDistanceLowerBoundConstraint at the samples)")
     library = "drake"
     Settings = DrakeTrajoptSettings
-    capabilities = Capabilities(needs_touch_pose=True, frames=True, obstacles=True)
     whole_path = True
 
     def check_tasks(self, robot: Robot, tasks: Sequence[Task]) -> None:

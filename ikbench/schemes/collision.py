@@ -3,8 +3,9 @@
 A task's obstacles (``Task.obstacles``, :mod:`ikbench.core.obstacles`: boxes, spheres, capsules,
 half-spaces in the robot's base frame [mm]) reach an adapter's ``solve_chain`` with its goals
 (``Goals.obstacles``, :func:`ikbench.schemes.chain.goals_of`); an adapter that keeps
-clear of them says so (``Capabilities(obstacles=True)``) and mixes in :class:`AvoidsObstacles`
-(before :class:`ikbench.schemes.method.LibraryMethod`), whose ``solve_chain`` hands the
+clear of them mixes in :class:`AvoidsObstacles` (before
+:class:`ikbench.schemes.method.LibraryMethod`; it declares ``Capabilities(obstacles=True)``
+for the adapter), whose ``solve_chain`` hands the
 adapter's ``solve_scene`` their :class:`Scene`. The robot's collision geometry is
 ikbench's own (:func:`ikbench.core.collision.collision_model`: capsules in link frames [mm] and
 the link pairs checked for self-collision); :func:`scene_of` gathers both in the libraries' units
@@ -31,13 +32,14 @@ import abc
 import itertools
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.collision import collision_model
 from ikbench.core.obstacles import frame_with_z
+from ikbench.methods.base import Capabilities
 
 if TYPE_CHECKING:
     from ikbench.core.collision import Capsule
@@ -57,7 +59,14 @@ class AvoidsObstacles(abc.ABC):
     """Mixin for a library method that keeps the robot clear of the task's obstacles
     (``Capabilities(obstacles=True)``): solves each chain in the :class:`Scene` of its goals'
     obstacles (``Goals.obstacles``): the adapter implements :meth:`solve_scene`, and the
-    result's info gets :func:`scene_info` (with the settings' ``clearance`` [mm])."""
+    result's info gets :func:`scene_info` (with the settings' ``clearance`` [mm]).
+
+    Its ``capabilities`` are those of every library method that avoids obstacles: it tracks
+    from the start pose onto the touch pose (or walks back from it) and takes 6-D goal frames;
+    an adapter that differs declares its own."""
+
+    capabilities: ClassVar[Capabilities] = Capabilities(needs_touch_pose=True, frames=True,
+                                                        obstacles=True)
 
     def solve_chain(self, robot: Robot, chain: Chain, goals: Goals) -> ChainResult:
         """:meth:`solve_scene` in the scene of the goals' obstacles (None without any)."""

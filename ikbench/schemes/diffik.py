@@ -29,14 +29,14 @@ import numpy.typing as npt
 
 from ikbench.core.errors import InputError
 from ikbench.methods.options import check_positive, flag_of
-from ikbench.schemes.chain import Goals
+from ikbench.schemes.chain import Chain, Goals
 from ikbench.schemes.geometry import (
     angle_between_rad,
     closest_rotation_with_axis,
     rotation_angle_rad,
 )
-from ikbench.schemes.method import shared_option
-from ikbench.schemes.walk import PointResult
+from ikbench.schemes.method import ChainResult, shared_option
+from ikbench.schemes.walk import PointResult, walk_back
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
@@ -228,6 +228,26 @@ def solve_clear(i: int, q_warm: np.ndarray, run: Callable[[int, np.ndarray, bool
     except infeasible:  # the avoidance's QP is infeasible here
         q, steps, ok = q_warm, 0, False
     return PointResult(q, spent + steps, ok)
+
+
+def walk_clear(run: Callable[[int, np.ndarray, bool], PointResult],
+               penetrating: Callable[[np.ndarray], bool] | None, infeasible: type[Exception],
+               chain: Chain, goals: Goals, **info: object) -> ChainResult:
+    """A QP library's walk back from the touch pose, point ``i`` solved by ``run(i, q_warm,
+    avoiding)``: without obstacles (``penetrating`` None) plainly, else by
+    :func:`solve_clear`; the result's info gets ``info`` and, with obstacles, the count of
+    the points whose warm start was inside one (``started_inside_points``)."""
+    entered: list[int] = []
+
+    def solve_point(i: int, q_warm: np.ndarray) -> PointResult:
+        if penetrating is None:
+            return run(i, q_warm, False)
+        return solve_clear(i, q_warm, run, penetrating, infeasible, entered)
+
+    walk = walk_back(solve_point, chain, goals)
+    return ChainResult.from_walk(walk, **info,
+                                 **({} if penetrating is None else
+                                    {"started_inside_points": len(entered)}))
 
 
 class WarmStart:

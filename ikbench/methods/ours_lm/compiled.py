@@ -230,34 +230,13 @@ def _solve_one(goal, gdir, start, end, c, lower, upper, chain, x, terms, max_ite
     iterations = 0
     converged = False
     while True:
-        _free_variables(x, grad, lower, upper, free, kt)
-        ok = _solve_damped(diag, a[6], grad, free, lam, band, rhs, step, kt)
-        largest = 0.0
-        for i in range(n):
-            for j in range(k):
-                v = min(max(x[i, j] + step[i, j], lower[j]), upper[j])
-                trial[i, j] = v
-                step[i, j] = v - x[i, j]
-                largest = max(largest, abs(step[i, j]))
-        predicted = -(2.0 * _dot(grad, step, kt) + _quadratic(diag, a[6], step, kt))
+        ok, largest, predicted = _damped_trial(x, grad, diag, a[6], lower, upper, free, lam,
+                                               band, rhs, step, trial, kt)
         _kinematics(trial, chain, tpoint, tdirec, tjp, tjd, w_axes, origins, kt)
         new_loss = _loss(trial, tpoint, tdirec, goal, gdir, start, end, c, tterms, kt)
-        gain = (loss - new_loss) / predicted if predicted > 0 else 0.0
-        accept = ok and predicted > 0 and gain > MIN_GAIN_RATIO
         iterations += 1
-        if accept:
-            lam *= max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3)
-            nu = 2.0
-        else:
-            lam *= nu
-            nu *= 2.0
-        decrease = loss - new_loss
-        small = accept and (decrease <= tolerance * new_loss or largest <= tolerance)
-        stuck = lam > MAX_DAMPING
-        if small:
-            converged = True
-        elif stuck:
-            converged = _stationary(grad, free, loss, kt)
+        lam, nu, accept, small, stuck, converged = _damping_update(
+            ok, predicted, loss, new_loss, largest, tolerance, lam, nu, grad, free, kt)
         if accept:
             x[:, :] = trial
             point, tpoint = tpoint, point
@@ -522,3 +501,48 @@ def _stationary(grad, free, loss, kt):
             if free[i, j] > 0.0:
                 largest = max(largest, abs(grad[i, j]))
     return largest <= 1e-6 * max(loss, 1.0)
+
+
+@njit(cache=True)
+def _damped_trial(x, grad, diag, coupling, lower, upper, free, lam, band, rhs, step, trial, kt):
+    """One damped LM step from poses x (N, k), clipped into the joint limits: ``trial`` gets
+    the poses, ``step`` the clipped step; returns (the damped system solved, largest |step|,
+    the decrease of the loss the step predicts). Shared by :func:`_solve_one` and the path
+    solver in :mod:`.compiled_paths`."""
+    n = x.shape[0]
+    k = len(kt)
+    _free_variables(x, grad, lower, upper, free, kt)
+    ok = _solve_damped(diag, coupling, grad, free, lam, band, rhs, step, kt)
+    largest = 0.0
+    for i in range(n):
+        for j in range(k):
+            v = min(max(x[i, j] + step[i, j], lower[j]), upper[j])
+            trial[i, j] = v
+            step[i, j] = v - x[i, j]
+            largest = max(largest, abs(step[i, j]))
+    predicted = -(2.0 * _dot(grad, step, kt) + _quadratic(diag, coupling, step, kt))
+    return ok, largest, predicted
+
+
+@njit(cache=True)
+def _damping_update(ok, predicted, loss, new_loss, largest, tolerance, lam, nu, grad, free,
+                    kt):
+    """The gain test of one trial step, Nielsen's damping update and the stop test: (lam, nu,
+    accept, small, stuck, converged); ``small``: an accepted step that barely changed the loss
+    or the poses, ``stuck``: the damping above MAX_DAMPING (converged where no descent is
+    left). Shared by :func:`_solve_one` and the path solver in :mod:`.compiled_paths`."""
+    gain = (loss - new_loss) / predicted if predicted > 0 else 0.0
+    accept = ok and predicted > 0 and gain > MIN_GAIN_RATIO
+    if accept:
+        lam *= max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3)
+        nu = 2.0
+    else:
+        lam *= nu
+        nu *= 2.0
+    decrease = loss - new_loss
+    small = accept and (decrease <= tolerance * new_loss or largest <= tolerance)
+    stuck = lam > MAX_DAMPING
+    converged = small
+    if not small and stuck:
+        converged = _stationary(grad, free, loss, kt)
+    return lam, nu, accept, small, stuck, converged

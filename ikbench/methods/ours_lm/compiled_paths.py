@@ -39,15 +39,11 @@ from numba import njit, prange
 from ikbench.core.capsules import distance_gradient, pair_distances
 from ikbench.methods.ours_lm.compiled import (
     Chain,
-    _dot,
-    _free_variables,
-    _quadratic,
+    _damped_trial,
+    _damping_update,
     _sin_cos,
-    _solve_damped,
-    _stationary,
 )
 from ikbench.methods.ours_lm.compiled_chain import joint_step
-from ikbench.methods.ours_lm.settings import MAX_DAMPING, MIN_GAIN_RATIO
 
 if TYPE_CHECKING:
     from ikbench.core.capsules import CapsuleScene
@@ -796,34 +792,13 @@ def _solve_path(chain, tip_rot, lower, upper, caps, goals_p, goals_R, x, c, coll
     iterations = 0
     converged = False
     while True:
-        _free_variables(x, grad, lower, upper, free, kt)
-        ok = _solve_damped(diag, a6, grad, free, lam, band, rhs, step, kt)
-        largest = 0.0
-        for i in range(n):
-            for j in range(k):
-                v = min(max(x[i, j] + step[i, j], lower[j]), upper[j])
-                trial[i, j] = v
-                step[i, j] = v - x[i, j]
-                largest = max(largest, abs(step[i, j]))
-        predicted = -(2.0 * _dot(grad, step, kt) + _quadratic(diag, a6, step, kt))
+        ok, largest, predicted = _damped_trial(x, grad, diag, a6, lower, upper, free, lam,
+                                               band, rhs, step, trial, kt)
         new_loss = _evaluate(chain, tip_rot, caps, goals_p, goals_R, trial, c, collision, True,
                              tterms, tgrad, tdiag, ws)
-        gain = (loss - new_loss) / predicted if predicted > 0 else 0.0
-        accept = ok and predicted > 0 and gain > MIN_GAIN_RATIO
         iterations += 1
-        if accept:
-            lam *= max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3)
-            nu = 2.0
-        else:
-            lam *= nu
-            nu *= 2.0
-        decrease = loss - new_loss
-        small = accept and (decrease <= tolerance * new_loss or largest <= tolerance)
-        stuck = lam > MAX_DAMPING
-        if small:
-            converged = True
-        elif stuck:
-            converged = _stationary(grad, free, loss, kt)
+        lam, nu, accept, small, stuck, converged = _damping_update(
+            ok, predicted, loss, new_loss, largest, tolerance, lam, nu, grad, free, kt)
         reached = False
         if accept:
             x[:, :] = trial
