@@ -177,7 +177,8 @@ def solve_target(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, bu
     max_iterations = int(spec[k + 1, MAX_ITERATIONS])
     restart_after = int(spec[k + 1, RESTART_AFTER])
     abandon_at, abandon_above = int(spec[k + 1, ABANDON_AT]), spec[k + 1, ABANDON_ABOVE]
-    deadline = monotonic_s(timespec) + budget_s
+    timed = budget_s < math.inf  # without a budget the clock is not read
+    deadline = monotonic_s(timespec) + budget_s if timed else math.inf
     frozen, jtj_free, g_free = np.zeros(k), np.empty((k, k)), np.empty(k)
     attempt = iterations = started = 0
     lam, cost = restart(spec, k, initials[0], goal_mm, goal_r, ws)
@@ -186,7 +187,7 @@ def solve_target(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, bu
         if done(spec, k, r, stop):
             success = True
             break
-        if monotonic_s(timespec) >= deadline:
+        if timed and monotonic_s(timespec) >= deadline:
             break
         since = iterations - started
         slow = since >= restart_after or (since == abandon_at > 0
