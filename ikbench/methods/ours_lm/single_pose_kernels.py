@@ -210,6 +210,10 @@ def solve_target(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, bu
             q[:] = trial
             r[:] = r_trial
             phi[:] = phi_trial
+            if done(spec, k, r, stop):  # solved: no Jacobian needed at the answer
+                iterations += 1
+                success = True
+                break
             linearise(spec, k, r, phi, ws)
             lam = max(lam / 3.0, MIN_DAMPING)
         else:
