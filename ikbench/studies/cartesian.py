@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -78,6 +78,37 @@ class CartesianResult:
     options: dict = field(default_factory=dict)
     runtimes: dict = field(default_factory=dict)
     first_calls: dict = field(default_factory=dict)
+    #: The command line the report quotes ("" for none).
+    command: str = ""
+    #: Trajectory CSVs written: ``first`` (the first seed's) or ``all``.
+    trajectories: str = "first"
+
+    def write(self, folder: str | Path) -> Path:
+        """Write ``folder/cartesian/`` whole (see :mod:`.cartesian_report`); return it."""
+        return write_folder(self, Path(folder) / FOLDER, self.command, self.trajectories)
+
+
+@dataclass(frozen=True)
+class CartesianSpec:
+    """A Cartesian benchmark: the problem files (:func:`resolve_problems`), the method names
+    (:func:`parse_methods`), the seeds (:func:`parse_seeds`), each method's settings, the
+    progress lines, the first-call timing, and what the written folder quotes and holds.
+    :meth:`validate` checks the rest; :func:`run` runs it (:mod:`ikbench.studies.shape`)."""
+
+    problems: tuple[Path, ...]
+    methods: tuple[str, ...]
+    seeds: tuple[int, ...] = DEFAULT_SEEDS
+    options: dict[str, dict[str, Any]] = field(default_factory=dict)
+    progress: bool = True
+    first_call: bool = False
+    command: str = ""
+    trajectories: str = "first"
+
+    def validate(self) -> None:
+        """InputError (the CLI's one-line message) for a method's settings it refuses,
+        before any solve."""
+        for name in self.methods:
+            build_method(name, self.seeds[0], self.options.get(name))
 
 
 def frame_methods() -> dict[str, type]:
@@ -160,13 +191,18 @@ def cartesian(problems: str | Path | Sequence[str | Path] = BENCHMARK,
     Returns:
         A :class:`CartesianResult` (``table`` has :data:`COLUMNS`).
     """
+    spec = CartesianSpec(tuple(resolve_problems(problems)), tuple(parse_methods(methods)),
+                         parse_seeds(seeds), dict(options or {}), progress, first_call)
+    spec.validate()
+    return run(spec)
+
+
+def run(spec: CartesianSpec) -> CartesianResult:
+    """Run the benchmark ``spec`` (validated: :meth:`CartesianSpec.validate`); nothing is
+    written (:meth:`CartesianResult.write` writes it)."""
     started = time.perf_counter()
-    files = resolve_problems(problems)
-    names = parse_methods(methods)
-    seeds = parse_seeds(seeds)
-    options = dict(options or {})
-    for name in names:  # settings errors before any solve
-        build_method(name, seeds[0], options.get(name))
+    files, names, seeds, options = spec.problems, list(spec.methods), spec.seeds, spec.options
+    progress, first_call = spec.progress, spec.first_call
     loaded = {f.stem: load_problem(f) for f in files}
     rows, poses = [], {}
     total = len(loaded) * len(names) * len(seeds)
@@ -198,7 +234,8 @@ def cartesian(problems: str | Path | Sequence[str | Path] = BENCHMARK,
     return CartesianResult(pd.DataFrame(rows, columns=COLUMNS), loaded, poses, names,
                            {n: m.settings for n, m in built.items()}, seeds,
                            time.perf_counter() - started, options,
-                           {n: m.runtime() for n, m in built.items()}, first_calls)
+                           {n: m.runtime() for n, m in built.items()}, first_calls,
+                           spec.command, spec.trajectories)
 
 
 def as_written(poses: npt.ArrayLike) -> np.ndarray:
@@ -228,5 +265,4 @@ def write(result: CartesianResult, output: str | Path, command: str = "",
           trajectories: str = "first") -> Path:
     """Write ``OUTPUT/cartesian/`` whole (see :mod:`.cartesian_report`); return the folder.
     ``trajectories``: ``first`` (the first seed's trajectory CSVs) or ``all``."""
-
-    return write_folder(result, Path(output) / FOLDER, command, trajectories)
+    return replace(result, command=command, trajectories=trajectories).write(output)

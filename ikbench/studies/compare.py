@@ -11,7 +11,8 @@ back from it), every criterion is measured from those poses by
 :func:`ikbench.core.metrics.contract_metrics` and judged by :func:`ikbench.core.contract.judge`
 - success is never what the method reports, and it is what the written CSVs recompute to. The
 same text is written as a run folder (``DIR/compare/<method>/``, as ``ikbench run`` writes it).
-Inside, :func:`compare` builds one :class:`CompareSpec` and runs it (:func:`run_comparison`).
+Inside, :func:`compare` builds one :class:`CompareSpec` and runs it (:func:`run`, then
+:meth:`CompareResult.write`; :mod:`ikbench.studies.shape`).
 
 Two tracks are judged from the same trajectories: ``paper`` (the contract as given: start and
 touch poses fixed) and ``touch`` (touch pose only). A method whose scheme does not keep a
@@ -92,6 +93,7 @@ from ikbench.runtime.record import (
 from ikbench.studies.first_call import first_path_call
 from ikbench.studies.folders import RUNS, WITHIN
 from ikbench.studies.run import trajectory_files, write_run
+from ikbench.studies.shape import run_and_write
 
 #: Two methods' trajectories are the same when every pose agrees within this [pose units].
 IDENTICAL_TOLERANCE = 1e-6
@@ -139,6 +141,30 @@ class CompareResult:
     leaderboard: pd.DataFrame
     record: dict
     contract: Contract | None = None
+    #: What :meth:`write` writes besides the tables (set by :func:`run`; None: nothing).
+    pending: _Pending | None = field(default=None, repr=False, compare=False)
+
+    def write(self, folder: str | Path) -> Path:
+        """Write ``folder/compare/`` (replaced whole: the run folders of the methods, the
+        tables, pareto.png, run.json) from the trajectories :func:`run` judged; return it."""
+        if self.pending is None:
+            raise ValueError("this comparison was not made by ikbench.studies.compare.run")
+        spec, pending = self.pending.spec, self.pending
+        root = Path(folder) / WITHIN["compare"]
+        with RunFolder(root).staged(keep=keep_nothing) as stage:
+            for name, outcomes in pending.last.items():
+                write_run(pending.built[name], spec.robot, spec.targets, outcomes,
+                          stage.path / name,
+                          {"shape": "line", "name": name, "duration_s": spec.contract.duration_s,
+                           "goals": spec.goals},
+                          trajectories=pending.files[name])
+            pending.record.total_wall_time_s = time.perf_counter() - pending.started
+            _write_tables(stage, self.results, self.leaderboard, pending.record, spec.contract,
+                          pending.sweep_frame)
+            _write_legibility_figures(stage, spec, pending.files)
+        pending.log.say(f"written to {root}/ in {time.perf_counter() - pending.started:.1f} s")
+        self.record = pending.record.to_dict()
+        return root
 
     @property
     def failed(self) -> bool:
@@ -234,6 +260,31 @@ class CompareSpec:
     goals: Targets | None = None
     first_call: bool = False
 
+    def validate(self) -> None:
+        """InputError (the CLI's one-line message) for no method, an unregistered method, a
+        repeat below 1 or a reference not among the methods."""
+        parse_methods(list(self.methods))
+        check_repeat(self.repeat)
+        if self.reference not in self.methods:
+            raise InputError(f"--reference: {self.reference!r} is not among --methods "
+                             f"{', '.join(self.methods)}")
+
+
+@dataclass
+class _Pending:
+    """What :meth:`CompareResult.write` needs besides the tables: the spec, the methods built,
+    their last repetition and its trajectory files, the sweep, the record, the clock's start
+    and the progress log."""
+
+    spec: CompareSpec
+    built: dict[str, Method]
+    last: dict[str, list[Outcome]]
+    files: dict[str, dict[str, TrajectoryFile]]
+    sweep_frame: pd.DataFrame | None
+    record: RunRecord
+    started: float
+    log: Progress
+
 
 def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
             targets: str | Path | Targets | None = None, only: str | None = None,
@@ -289,23 +340,32 @@ def compare(methods: list[str] | str, *, robot: Robot | str | None = None,
         ikbench.runtime.harness.Interrupted: Ctrl-C while solving (nothing written).
     """
     names = parse_methods(methods)
-    repeat = check_repeat(repeat)
     robot = as_robot(robot)
     goal_set = select_targets(goals if goals is not None else targets, robot, None, None)
     targets = with_obstacles(select_targets(targets, robot, only, steps), obstacles, robot)
     contract = contract or contract_for(robot, tolerances=tolerances, pointing=pointing,
                                         duration_s=duration_s)
+    spec = line_spec(names, robot, targets, contract, reference, repeat, warmup=warmup,
+                     solvers=dict(solvers or {}), executor=executor or LocalExecutor(),
+                     sweep=sweep, output=None if output is None else Path(output),
+                     progress=progress, goals=goal_set, first_call=first_call)
+    return run_and_write(spec, run, spec.output)
+
+
+def line_spec(names: list[str], robot: Robot, targets: Targets, contract: Contract,
+              reference: str | None, repeat: int, **settings) -> CompareSpec:
+    """The :class:`CompareSpec` of ``names`` on the line tasks of ``targets`` under
+    ``contract`` (judging collisions when the targets carry obstacles), against ``reference``
+    (default :func:`default_reference`); ``settings``: the spec's other fields. Not
+    validated: call its ``validate()``."""
     contract = replace(contract, obstacles=bool(targets.obstacles))
-    return run_comparison(CompareSpec(
-        names, robot, targets, line_tasks(robot, targets, contract), contract,
-        _reference_method(reference, names), repeat, warmup, dict(solvers or {}),
-        executor or LocalExecutor(), sweep, None if output is None else Path(output),
-        progress, goal_set, first_call))
+    return CompareSpec(names, robot, targets, line_tasks(robot, targets, contract), contract,
+                       default_reference(reference, names), repeat, **settings)
 
 
-def run_comparison(spec: CompareSpec) -> CompareResult:
-    """Solve, measure and judge ``spec`` in memory; write ``spec.output/compare/`` (unless
-    ``spec.output`` is None) from the same serialised trajectories it judged."""
+def run(spec: CompareSpec) -> CompareResult:
+    """Solve, measure and judge ``spec`` in memory (nothing written; :meth:`CompareResult.
+    write` writes the folder from the same serialised trajectories it judged)."""
     log = Progress("compare", enabled=spec.progress, unit="method")
     started = time.perf_counter()
     with hearing_fraction(log.within if spec.progress else None):  # a method's solves done
@@ -320,20 +380,16 @@ def run_comparison(spec: CompareSpec) -> CompareResult:
     record = _record(spec, built, rows, last)
     if spec.first_call:
         record.study["first_calls"] = first_calls
-    if spec.output is None:
-        return CompareResult(results, board, record.to_dict(), spec.contract)
-    root = spec.output / WITHIN["compare"]
-    with RunFolder(root).staged(keep=keep_nothing) as stage:
-        for name, outcomes in last.items():
-            write_run(built[name], spec.robot, spec.targets, outcomes, stage.path / name,
-                      {"shape": "line", "name": name, "duration_s": spec.contract.duration_s,
-                       "goals": spec.goals},
-                      trajectories=files[name])
-        record.total_wall_time_s = time.perf_counter() - started
-        _write_tables(stage, results, board, record, spec.contract, sweep_frame)
-        _write_legibility_figures(stage, spec, files)
-    log.say(f"written to {root}/ in {time.perf_counter() - started:.1f} s")
-    return CompareResult(results, board, record.to_dict(), spec.contract)
+    return CompareResult(results, board, record.to_dict(), spec.contract,
+                         _Pending(spec, built, last, files, sweep_frame, record, started, log))
+
+
+def run_comparison(spec: CompareSpec) -> CompareResult:
+    """:func:`run`, then :meth:`CompareResult.write` into ``spec.output`` (unless None)."""
+    result = run(spec)
+    if spec.output is not None:
+        result.write(spec.output)
+    return result
 
 
 def _first_calls(spec: CompareSpec, built: dict[str, Method], log: Progress
@@ -347,15 +403,11 @@ def _first_calls(spec: CompareSpec, built: dict[str, Method], log: Progress
     return out
 
 
-def _reference_method(reference: str | None, names: list[str]) -> str:
+def default_reference(reference: str | None, names: list[str]) -> str:
     """The method the time ratios are against: ``reference``, else
     :data:`~ikbench.methods.registry.REFERENCE_METHOD` (ours-lm) when compared, else the first
-    method. InputError when it is not among ``names``."""
-    reference = reference or (REFERENCE_METHOD if REFERENCE_METHOD in names else names[0])
-    if reference not in names:
-        raise InputError(f"--reference: {reference!r} is not among --methods "
-                         f"{', '.join(names)}")
-    return reference
+    method (:meth:`CompareSpec.validate` checks it is among ``names``)."""
+    return reference or (REFERENCE_METHOD if REFERENCE_METHOD in names else names[0])
 
 
 def _solve_methods(spec: CompareSpec, log: Progress

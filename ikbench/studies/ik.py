@@ -55,7 +55,8 @@ import math
 import os
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -78,8 +79,6 @@ from ikbench.studies.ik_truth import (
 )
 
 if TYPE_CHECKING:
-    from pathlib import Path
-
     from ikbench.core.robot import Robot
     from ikbench.schemes.single_pose import PoseOut, PoseSolver
 
@@ -226,6 +225,40 @@ class IKResult:
     load_start: tuple | None = None
     batches: dict = field(default_factory=dict)
     auto_rows: int = AUTO_ROWS
+    #: The command line the leaderboard quotes ("" for none).
+    command: str = ""
+
+    def write(self, folder: str | Path) -> Path:
+        """Write ``folder/ik/<robot>/`` whole (:mod:`ikbench.render.ik_report`); return it."""
+        return write_folder(self, Path(folder) / FOLDER / robot_slug(self.robot), self.command)
+
+
+@dataclass(frozen=True)
+class IKSpec:
+    """An IK benchmark: the robot, its settings (checked when made), the method names, the
+    progress lines and the command line the leaderboard quotes. :meth:`validate` checks the
+    rest; :func:`run` runs it (:mod:`ikbench.studies.shape`)."""
+
+    robot: Robot
+    settings: IKSettings = field(default_factory=IKSettings)
+    methods: tuple[str, ...] = ()
+    progress: bool = True
+    command: str = ""
+
+    def validate(self) -> None:
+        """InputError (the CLI's one-line message) for an unknown or unfit method, a robot
+        whose kinematics cannot be built, a ``max_count`` of a method not run, or a run too
+        large for this machine's memory."""
+        settings = self.settings
+        names = parse_methods(list(self.methods), settings.kind)
+        self.robot.check_loads()
+        unknown = [n for n in settings.max_count if n not in names]
+        if unknown:
+            raise InputError(f"--max-count-per-method: {unknown[0]} is not among the methods "
+                             f"run ({', '.join(names)})")
+        rows = max(rule_rows(r) for r in settings.attempts)
+        tables = sum(rule_runs(r, settings) for r in settings.attempts)
+        check_memory(settings.count, len(names) * tables, rows, self.robot.dof)
 
 
 def rule_rows(rule: Rule) -> int:
@@ -480,18 +513,19 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
         progress: progress lines on stderr.
     """
 
+    settings = settings or IKSettings()
+    spec = IKSpec(robot, settings, tuple(parse_methods(methods, settings.kind)), progress)
+    spec.validate()
+    return run(spec)
+
+
+def run(spec: IKSpec) -> IKResult:
+    """Run the benchmark ``spec`` (validated: :meth:`IKSpec.validate`); nothing is written
+    (:meth:`IKResult.write` writes it)."""
     started = time.perf_counter()
     load = load_average()
-    settings = settings or IKSettings()
-    names = parse_methods(methods, settings.kind)
-    unknown = [n for n in settings.max_count if n not in names]
-    if unknown:
-        raise InputError(f"--max-count-per-method: {unknown[0]} is not among the methods run "
-                         f"({', '.join(names)})")
-    rows = max(rule_rows(r) for r in settings.attempts)
-    tables = sum(rule_runs(r, settings) for r in settings.attempts)
-    check_memory(settings.count, len(names) * tables, rows, robot.dof)
-    robot.check_loads()
+    robot, settings, names, progress = spec.robot, spec.settings, list(spec.methods), \
+        spec.progress
     targets = sample_targets(robot, settings)
     annotate(robot, targets, settings)
     check = AttemptCheck(robot, settings)
@@ -502,7 +536,7 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
     for rule in settings.attempts:
         batches[str(rule)] = {}
         runs = rule_runs(rule, settings)
-        for run in range(1, runs + 1):
+        for round_ in range(1, runs + 1):
             for name in names:
                 cls = solver_status()[name].cls
                 count = min(settings.count, settings.max_count.get(name, settings.count))
@@ -515,17 +549,17 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
                     solvers[name] = _prepared(cls, robot, settings, say, count)
                 solver = solvers[name]
                 info[name]["runtime"] = None if isinstance(solver, str) else solver.runtime()
-                label = f"attempts {rule}" + (f", run {run}/{runs}" if runs > 1 else "")
+                label = f"attempts {rule}" + (f", run {round_}/{runs}" if runs > 1 else "")
                 if isinstance(solver, str):  # the library cannot take this robot
                     outcome = _Outcome.failed(count, robot.dof, solver)
                 else:
                     say(f"{label}: {name}: solving {count} targets, one per call")
                     outcome = _solve_calls(solver, targets, count, settings, rule, check, say)
-                    if solver.batched and run == 1:  # throughput: the first run's
+                    if solver.batched and round_ == 1:  # throughput: the first run's
                         batches[str(rule)][name] = _batch(solver, targets, count, settings,
                                                           rule)
                 frames.append(_rows(robot, name, rule, targets, count, settings, outcome,
-                                    run))
+                                    round_))
                 done = frames[-1]
                 say(f"{label}: {name}: {int(done['success'].sum())}/{count} succeeded, "
                     f"{np.nansum(done['time_s']):.1f} s")
@@ -542,7 +576,7 @@ def run_ik(robot: Robot, settings: IKSettings | None = None,
     table = pd.concat(frames, ignore_index=True)
     table = table[COLUMNS + [c for c in table.columns if c not in COLUMNS]]
     return IKResult(robot, settings, targets, table, info, time.perf_counter() - started, load,
-                    batches)
+                    batches, command=spec.command)
 
 
 def _prepared(cls: type[PoseSolver], robot: Robot, settings: IKSettings, say, count: int
@@ -666,7 +700,4 @@ def load_average() -> tuple | None:
 def write(result: IKResult, output: str | Path, command: str = "") -> Path:
     """Write ``OUTPUT/ik/<robot>/`` whole (:mod:`ikbench.render.ik_report`); return the
     folder."""
-    from pathlib import Path
-
-
-    return write_folder(result, Path(output) / FOLDER / robot_slug(result.robot), command)
+    return replace(result, command=command).write(output)

@@ -120,29 +120,23 @@ def run(args: argparse.Namespace) -> int:
 
     from ikbench.core.io import check_folder_writable
     from ikbench.core.problems import BENCHMARK, resolve_problems
-    from ikbench.studies.cartesian import (
-        FOLDER,
-        build_method,
-        cartesian,
-        parse_methods,
-        parse_seeds,
-        write,
-    )
+    from ikbench.studies import cartesian as study
 
     check_threads(args.threads)
     problems = ",".join(args.problems) if args.problems else BENCHMARK
-    resolve_problems(problems)
-    names = parse_methods(args.methods)
-    seeds = parse_seeds(args.seeds)
-    options = method_settings(args, names)
-    for name in names:  # each method's settings checked before anything runs
-        build_method(name, seeds[0], options.get(name))
-    folder = Path(args.output) / FOLDER
+    files = resolve_problems(problems)
+    names = study.parse_methods(args.methods)
+    seeds = study.parse_seeds(args.seeds)
+    spec = study.CartesianSpec(tuple(files), tuple(names), seeds, method_settings(args, names),
+                               progress=not args.quiet, first_call=args.first_call,
+                               command=command_line(args, problems, seeds),
+                               trajectories=args.trajectories)
+    spec.validate()  # each method's settings checked before anything runs
+    folder = Path(args.output) / study.FOLDER
     check_folder_writable(folder)
     begin(args, threads=args.threads)
-    result = cartesian(problems, names, seeds, options, progress=not args.quiet,
-                       first_call=args.first_call)
-    write(result, args.output, command_line(args, problems, seeds), args.trajectories)
+    result = study.run(spec)
+    result.write(args.output)
     from ikbench.render.cartesian_report import summarise
 
     summary = summarise(result.table, result.first_calls)

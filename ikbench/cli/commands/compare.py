@@ -112,39 +112,34 @@ def run(args: argparse.Namespace) -> int:
 
     from ikbench.core.io import check_folder_writable
     from ikbench.methods.registry import method_status
-    from ikbench.studies.compare import check_repeat, compare, parse_methods
+    from ikbench.studies import compare as study
 
     check_threads(args.threads)
     check_executor_args(args)
     methods = args.methods or DEFAULT_METHODS
-    names = list(method_status()) if methods.strip() == "all" else parse_methods(methods)
-    check_repeat(args.repeat)
+    names = list(method_status()) if methods.strip() == "all" else study.parse_methods(methods)
     from ikbench.core.contract import contract_for, parse_tolerances
 
     parse_tolerances(args.tolerance)
     robot = robot_from_args(args)
     contract = contract_for(robot, tolerances=args.tolerance, pointing=args.pointing,
                             duration_s=args.duration)
-    targets = targets_from_args(args, robot)
-    from ikbench.studies.compare import with_obstacles
-
-    targets = with_obstacles(targets, args.obstacles, robot)
+    targets = study.with_obstacles(targets_from_args(args, robot), args.obstacles, robot)
     from ikbench.core.targets import load_targets
 
     # the goal set: --goals, else every id of the targets file (--only keeps fewer tasks)
     goals = load_targets(args.goals or args.targets, robot)
-    if args.reference is not None and args.reference not in names:
-        raise InputError(f"--reference: {args.reference!r} is not among --methods "
-                         f"{', '.join(names)}")
+    spec = study.line_spec(names, robot, targets, contract, args.reference, args.repeat,
+                           executor=executor_from_args(args), output=Path(args.output),
+                           progress=not args.quiet, goals=goals, first_call=args.first_call)
+    spec.validate()
     check_folder_writable(Path(args.output) / "compare")
     begin(args, threads=args.threads)
     from ikbench.runtime.harness import Interrupted
 
     try:
-        result = compare(names, robot=robot, targets=targets, repeat=args.repeat,
-                         output=args.output, reference=args.reference,
-                         progress=not args.quiet, executor=executor_from_args(args),
-                         contract=contract, goals=goals, first_call=args.first_call)
+        result = study.run(spec)
+        result.write(Path(args.output))
     except (Interrupted, KeyboardInterrupt):
         print(f"ikbench: interrupted; {Path(args.output) / 'compare'}/ left unchanged",
               file=sys.stderr)
@@ -161,10 +156,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"written to {Path(args.output) / 'compare'}/ (leaderboard.md, results.csv, "
           "pareto.png)")
     if result.failed:
-        from ikbench.studies.compare import FAILING
-
         status = result.results["status"].astype(str)
-        bad = result.results[status.str.startswith(FAILING)]
+        bad = result.results[status.str.startswith(study.FAILING)]
         missing = sorted(set(bad.loc[status == "not installed", "method"]))
         other = sorted(set(bad["method"]) - set(missing))
         print("ikbench: " + "; ".join(

@@ -143,19 +143,9 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ikbench.core.io import check_folder_writable
-    from ikbench.render.ik_report import summarise
-    from ikbench.studies.ik import (
-        FOLDER,
-        IKSettings,
-        check_memory,
-        parse_attempts,
-        parse_methods,
-        robot_slug,
-        rule_rows,
-        rule_runs,
-        run_ik,
-        write,
-    )
+    from ikbench.render.ik_report import robot_slug, summarise
+    from ikbench.studies import ik as study
+    from ikbench.studies.ik import FOLDER, IKSettings, IKSpec, parse_attempts, parse_methods
 
     settings = IKSettings(args.count, args.seed, args.kind, args.tolerance_mm,
                           args.tolerance_deg, args.init, args.perturb_deg,
@@ -164,16 +154,14 @@ def run(args: argparse.Namespace) -> int:
                           unreachable=args.unreachable, repeat=args.repeat,
                           first_call=args.first_call)
     robot = robot_from_args(args)
-    names = parse_methods(args.methods, args.kind)
-    robot.check_loads()
+    spec = IKSpec(robot, settings, tuple(parse_methods(args.methods, args.kind)),
+                  progress=not args.quiet, command=command_line(args))
+    spec.validate()
     folder = Path(args.output) / FOLDER / robot_slug(robot)
     check_folder_writable(folder)
-    check_memory(settings.count,
-                 len(names) * sum(rule_runs(rule, settings) for rule in settings.attempts),
-                 max(rule_rows(rule) for rule in settings.attempts), robot.dof)
     begin(args)
-    result = run_ik(robot, settings, names, progress=not args.quiet)
-    write(result, args.output, command_line(args))
+    result = study.run(spec)
+    result.write(args.output)
     summary = summarise(result.table, result.batches)
     print(summary[["attempts_rule", "method", "targets", "success_pct", "attempts_median",
                    "time_median_ms", "time_mean_ms", "time_p95_ms", "batched_per_s",
