@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -79,6 +80,7 @@ from ikbench.runtime.record import (
     robot_entry,
 )
 from ikbench.studies.folders import RESERVED_NAMES, default_output
+from ikbench.studies.shape import run_and_write
 
 if TYPE_CHECKING:
     from ikbench.core.problems import CartesianProblem
@@ -249,6 +251,149 @@ def problem_label(problem: CartesianProblem) -> str:
     return str(problem.source)
 
 
+@dataclass(frozen=True)
+class RunSpec:
+    """A run, as :func:`run` takes it (:mod:`ikbench.studies.shape`): ``method`` a name or a
+    configured :class:`Method`, the task options as :func:`run`'s keywords (a ``problem``
+    instead of targets and shapes), ``output`` the directory of the run folder (None writes
+    nothing). :meth:`validate` checks the values and builds the tasks (:attr:`prepared`) before
+    any solve; :func:`run_spec` solves them; :meth:`RunResult.write` writes the folder."""
+
+    method: str | Method
+    robot: Robot | str | None = None
+    targets: str | Path | Targets | None = None
+    only: str | None = None
+    steps: int | None = None
+    output: str | Path | None = DEFAULT_OUTPUT
+    duration_s: float = DEFAULT_DURATION_S
+    options: dict | None = None
+    progress: bool = True
+    shape: str = "line"
+    size_mm: float | None = None
+    start_pose: npt.ArrayLike | None = None
+    direction: str | npt.ArrayLike | None = None
+    name: str | None = None
+    animation: bool = True
+    problem: str | Path | None = None
+    timing: str = "constant"
+    goals: str | Path | Targets | None = None
+
+    def validate(self) -> None:
+        """InputError (the CLI's one-line message) for a duration, timing or name not allowed,
+        a task option given with a problem, anything :func:`prepare` or
+        :func:`prepare_problem` refuses, or an output folder that cannot be written."""
+        if not (self.duration_s > 0 and np.isfinite(self.duration_s)):
+            raise InputError(f"--duration: {self.duration_s!r} must be a positive number of "
+                             "seconds")
+        check_timing(self.timing)
+        if self.name is not None:
+            check_name(self.name)
+        if self.problem is not None:
+            check_problem_options(targets=self.targets, only=self.only, steps=self.steps,
+                                  shape=self.shape, size=self.size_mm,
+                                  start_pose=self.start_pose, direction=self.direction)
+        solver = self.prepared[0]
+        if self.output is not None:  # before the solve, not after minutes of it
+            check_folder_writable(Path(self.output) / (self.name or solver.name))
+
+    @cached_property
+    def prepared(self) -> tuple[Method, Robot, Targets, list[Task], dict[str, Any]]:
+        """(solver, robot, targets, tasks, record): the run built and its options as run.json
+        records them (``shape``, ``direction``, ``duration_s``, ``size_mm``, ``timing``,
+        ``goals``, ``name``, a problem's ``problem`` and ``problem_name``); InputError for
+        what cannot be built."""
+        if self.problem is not None:
+            solver, robot, targets, tasks, record = prepare_problem(
+                self.method, self.problem, robot=self.robot, options=self.options)
+            return solver, robot, targets, tasks, {
+                **record, "direction": None, "duration_s": self.duration_s,
+                "timing": self.timing, "name": self.name}
+        solver, robot, targets, tasks = prepare(
+            self.method, robot=self.robot, targets=self.targets, only=self.only,
+            steps=self.steps, options=self.options, shape=self.shape, size_mm=self.size_mm,
+            start_pose=self.start_pose, direction=self.direction)
+        return solver, robot, targets, tasks, {
+            "shape": self.shape, "direction": self.direction, "duration_s": self.duration_s,
+            "size_mm": self.size_mm, "timing": self.timing, "goals": self.goals,
+            "name": self.name}
+
+    @property
+    def folder(self) -> Path | None:
+        """``output/<name>`` (the method's name by default); None when nothing is written."""
+        if self.output is None:
+            return None
+        return Path(self.output) / (self.name or self.prepared[0].name)
+
+
+@dataclass
+class RunResult:
+    """A run solved in memory: the spec, its outcomes (all tasks, or those solved before
+    Ctrl-C: ``interrupted``) and the wall time of the solves [s]."""
+
+    spec: RunSpec
+    outcomes: list[Outcome]
+    interrupted: bool
+    total_wall_time_s: float
+    _table: pd.DataFrame | None = field(default=None, repr=False)
+
+    @property
+    def table(self) -> pd.DataFrame:
+        """The run's table (:func:`evaluate`), as written to table.csv."""
+        if self._table is None:
+            solver, robot, _, _, record = self.spec.prepared
+            files = trajectory_files(robot, self.outcomes,
+                                     record.get("duration_s", DEFAULT_DURATION_S))
+            self._table = evaluate(robot, self.outcomes, files, solver.name)[0]
+        return self._table
+
+    def write(self, folder: Path) -> Path:
+        """Write the run folder ``folder/<name>`` whole (see the module doc), or
+        ``folder/<name>.interrupted`` after Ctrl-C (a complete run there stays); return it."""
+        solver, robot, targets, _, record = self.spec.prepared
+        run_folder = Path(folder) / (self.spec.name or solver.name)
+        written = run_folder.with_name(run_folder.name + INTERRUPTED_SUFFIX) \
+            if self.interrupted else run_folder
+        self._table = write_run(solver, robot, targets, self.outcomes, written, {
+            **record, "name": run_folder.name, "interrupted": self.interrupted,
+            "total_wall_time_s": self.total_wall_time_s},
+            self.spec.animation)
+        return written
+
+
+def run_spec(spec: RunSpec) -> RunResult:
+    """Solve ``spec``'s tasks through the harness, in memory (nothing written).
+
+    Raises:
+        Interrupted: Ctrl-C before any trajectory was solved (after one: the result says
+            ``interrupted``).
+    """
+    solver, robot, _, tasks, _ = spec.prepared
+    started = time.perf_counter()
+    interrupted = False
+    folder = spec.folder
+    try:
+        outcomes = solve_tasks(solver, robot, tasks,
+                               Progress(folder.name if folder else "run",
+                                        enabled=spec.progress))
+    except Interrupted as stop:
+        if not stop.outcomes:
+            raise
+        outcomes, interrupted = stop.outcomes, True
+    return RunResult(spec, list(outcomes), interrupted, time.perf_counter() - started)
+
+
+def run_and_write_spec(spec: RunSpec) -> RunResult:
+    """``spec.validate()``, :func:`run_spec` and, unless ``spec.output`` is None,
+    :meth:`RunResult.write`; then Interrupted when Ctrl-C cut the solves short (with the
+    folder written, if any)."""
+    result = run_and_write(spec, run_spec, None if spec.output is None else Path(spec.output))
+    if result.interrupted:
+        written = None if spec.folder is None else \
+            spec.folder.with_name(spec.folder.name + INTERRUPTED_SUFFIX)
+        raise Interrupted(result.outcomes, written)
+    return result
+
+
 def run(method: str | Method, *, robot: Robot | str | None = None,
         targets: str | Path | Targets | None = None, only: str | None = None,
         steps: int | None = None, output: str | Path | None = DEFAULT_OUTPUT,
@@ -259,7 +404,7 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
         animation: bool = True, problem: str | Path | None = None,
         timing: str = "constant", goals: str | Path | Targets | None = None) -> pd.DataFrame:
     """Solve every selected target (or a Cartesian path problem) with ``method`` and write
-    the results.
+    the results: builds a :class:`RunSpec` (:func:`run_and_write_spec`).
 
     Args:
         method: a method name (``"ours-lm"``, ...) or a configured :class:`Method`.
@@ -298,31 +443,12 @@ def run(method: str | Method, *, robot: Robot | str | None = None,
     Raises:
         Interrupted: Ctrl-C while solving (after writing what was solved, if anything).
     """
-    if not (duration_s > 0 and np.isfinite(duration_s)):
-        raise InputError(f"--duration: {duration_s!r} must be a positive number of seconds")
-
-    check_timing(timing)
-    if name is not None:
-        check_name(name)
-    if problem is not None:
-        check_problem_options(targets=targets, only=only, steps=steps, shape=shape,
-                              size=size_mm, start_pose=start_pose, direction=direction)
-        solver, robot, targets, tasks, record = prepare_problem(method, problem, robot=robot,
-                                                                options=options)
-        record = {**record, "direction": None, "duration_s": duration_s, "timing": timing}
-    else:
-        solver, robot, targets, tasks = prepare(
-            method, robot=robot, targets=targets, only=only, steps=steps, options=options,
-            shape=shape, size_mm=size_mm, start_pose=start_pose, direction=direction)
-        record = {"shape": shape, "direction": direction, "duration_s": duration_s,
-                  "size_mm": size_mm, "timing": timing, "goals": goals}
-    if output is None:
-        return solve_and_write(solver, robot, targets, tasks, None, record, progress,
-                               animation=False)
-    folder = Path(output) / (name or solver.name)
-    check_folder_writable(folder)  # before the solve, not after minutes of it
-    return solve_and_write(solver, robot, targets, tasks, folder, {**record, "name": name},
-                           progress, animation)
+    spec = RunSpec(method, robot=robot, targets=targets, only=only, steps=steps,
+                   output=output, duration_s=duration_s, options=options, progress=progress,
+                   shape=shape, size_mm=size_mm, start_pose=start_pose, direction=direction,
+                   name=name, animation=animation, problem=problem, timing=timing,
+                   goals=goals)
+    return run_and_write_spec(spec).table
 
 
 def check_problem_options(**given: Any) -> None:
@@ -338,39 +464,6 @@ def check_problem_options(**given: Any) -> None:
 
 #: The folder beside the output folder that an interrupted run writes to.
 INTERRUPTED_SUFFIX = ".interrupted"
-
-
-def solve_and_write(solver: Method, robot: Robot, targets: Targets, tasks: Sequence[Task],
-                    folder: Path | None, record: dict, progress: bool = True,
-                    animation: bool = True) -> pd.DataFrame:
-    """Solve ``tasks`` through the harness and write the run folder (see the module doc;
-    ``folder`` None: write nothing, return the table measured in memory).
-
-    Args:
-        record: the run's options as run.json records them: ``shape``, ``direction``,
-            ``duration_s``, ``size_mm``, ``timing``, ``name``, a problem's ``problem`` and
-            ``problem_name``.
-    """
-    started = time.perf_counter()
-    interrupted = False
-    try:
-        outcomes = solve_tasks(solver, robot, tasks,
-                               Progress(folder.name if folder else "run", enabled=progress))
-    except Interrupted as stop:
-        if not stop.outcomes:
-            raise
-        outcomes, interrupted = stop.outcomes, True
-    if folder is None:
-        files = trajectory_files(robot, outcomes, record.get("duration_s", DEFAULT_DURATION_S))
-        table = evaluate(robot, outcomes, files, solver.name)[0]  # the table only
-    else:  # an interrupted run goes beside the folder: a complete run there stays
-        written = folder.with_name(folder.name + INTERRUPTED_SUFFIX) if interrupted else folder
-        table = write_run(solver, robot, targets, outcomes, written, {
-            **record, "name": folder.name, "interrupted": interrupted,
-            "total_wall_time_s": time.perf_counter() - started}, animation)
-    if interrupted:
-        raise Interrupted(outcomes, None if folder is None else written)
-    return table
 
 
 def trajectory_files(robot: Robot, outcomes: Sequence[Outcome], duration_s: float
@@ -390,7 +483,7 @@ def write_run(solver: Method, robot: Robot, targets: Targets, outcomes: list[Out
     ``animation`` is False, report); return its table.
 
     Args:
-        record: the run's options (:func:`solve_and_write`), ``interrupted`` and
+        record: the run's options (:attr:`RunSpec.prepared`), ``interrupted`` and
             ``total_wall_time_s``.
         trajectories: the outcomes' :func:`trajectory_files` when the caller has them.
     """

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 from ikbench.cli.options import (
@@ -24,10 +23,8 @@ if TYPE_CHECKING:
 
     import pandas as pd
 
-    from ikbench.core.robot import Robot
-    from ikbench.core.targets import Targets
-    from ikbench.core.task import Task
     from ikbench.methods.base import Method
+    from ikbench.studies.run import RunSpec
 
 HELP = "generate trajectories with a method; write CSVs, table, figures and report"
 LINE_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "line_distance_mean_mm",
@@ -166,67 +163,61 @@ def lowercase_letters_note(shape: str) -> str | None:
 
 
 def run(args: argparse.Namespace, shape: str | None = None, fixed: dict | None = None) -> int:
-    """Validate everything, then solve and write; ``fixed``: method settings on top."""
+    """Parse the arguments into a :class:`ikbench.studies.run.RunSpec`, validate it, then
+    solve, write and print; ``fixed``: method settings on top."""
     import sys
 
-    from ikbench.core.targets import parse_pose
-    from ikbench.methods.registry import available_methods, get_method
-    from ikbench.studies.run import check_name, prepare
+    from ikbench.core.targets import load_targets, parse_pose
+    from ikbench.studies.run import RunSpec
 
     check_threads(args.threads)
-    from ikbench.core.timing import check_timing
-
-    check_timing(args.timing)
     if getattr(args, "problem", None) is not None:
         return run_problem(args, fixed)
     robot = robot_from_args(args)
     start_pose = None if args.start_pose is None else parse_pose(args.start_pose, robot,
                                                                  "--start-pose")
-    name = getattr(args, "name", None)
-    if name is not None:
-        check_name(name)
     shape = shape or args.shape
-    cls = get_method(args.method)
-    solver = method_from_args(args, cls, available_methods(), **(fixed or {}))
-    solver, robot, targets, tasks = prepare(
-        solver, robot=robot, targets=args.targets, only=getattr(args, "only", None),
-        steps=args.steps, shape=shape, size_mm=args.size, start_pose=start_pose,
-        direction=args.direction)
-    from pathlib import Path
-
-    from ikbench.core.io import check_folder_writable
-
-    folder = Path(args.output) / (name or solver.name)
-    check_folder_writable(folder)
+    solver = _solver(args, fixed)
+    # the goal set: --goals, else every id of the targets (not --only's)
+    goals = load_targets(getattr(args, "goals", None) or args.targets, robot) \
+        if shape == "line" else None
+    spec = RunSpec(solver, robot=robot, targets=args.targets, only=getattr(args, "only", None),
+                   steps=args.steps, output=args.output, duration_s=args.duration,
+                   progress=not args.quiet, shape=shape, size_mm=args.size,
+                   start_pose=start_pose, direction=args.direction,
+                   name=getattr(args, "name", None), animation=not args.no_animation,
+                   timing=args.timing, goals=goals)
+    spec.validate()
     note = lowercase_letters_note(shape)
     if note:
         print(note, file=sys.stderr)
     begin(args, threads=args.threads)
-    record = {"shape": shape, "direction": args.direction, "duration_s": args.duration,
-              "name": name, "size_mm": args.size, "timing": args.timing}
-    if shape == "line":  # the goal set: --goals, else every id of the targets (not --only's)
-        from ikbench.core.targets import load_targets
-
-        record["goals"] = load_targets(getattr(args, "goals", None) or args.targets, robot)
-    elif getattr(args, "goals", None) is not None:  # letters has no --goals
+    if shape != "line" and getattr(args, "goals", None) is not None:  # letters has no --goals
         from ikbench.core.errors import InputError
 
         raise InputError("--goals applies to the line shape only (the touch poses' goals)")
-    return solve_write_report(solver, robot, targets, tasks, folder, record, args.quiet,
-                              animation=not args.no_animation)
+    return solve_write_report(spec)
 
 
-def solve_write_report(solver: Method, robot: Robot, targets: Targets, tasks: Sequence[Task],
-                       folder: Path, record: dict, quiet: bool, animation: bool = True) -> int:
+def _solver(args: argparse.Namespace, fixed: dict | None) -> Method:
+    """The method of --method configured by its options and ``fixed``."""
+    from ikbench.methods.registry import available_methods, get_method
+
+    return method_from_args(args, get_method(args.method), available_methods(),
+                            **(fixed or {}))
+
+
+def solve_write_report(spec: RunSpec) -> int:
     """Solve, write the run folder and print its table; 130 after Ctrl-C."""
     import sys
 
     from ikbench.runtime.harness import Interrupted
-    from ikbench.studies.run import solve_and_write
+    from ikbench.studies.run import run_and_write_spec
 
+    folder = spec.folder
+    assert folder is not None  # the CLI always writes
     try:
-        table = solve_and_write(solver, robot, targets, tasks, folder, record,
-                                progress=not quiet, animation=animation)
+        table = run_and_write_spec(spec).table
     except Interrupted as stop:
         if stop.outcomes:
             print(f"ikbench: interrupted: {folder}/ is unchanged; the {len(stop.outcomes)} "
@@ -236,34 +227,24 @@ def solve_write_report(solver: Method, robot: Robot, targets: Targets, tasks: Se
             print(f"ikbench: interrupted before any trajectory was solved; {folder}/ is "
                   "unchanged", file=sys.stderr)
         return 130
+    solver, _, _, tasks, _ = spec.prepared
     return report_table(table, folder, batch=len(tasks) if solver.capabilities.batched else None)
 
 
 def run_problem(args: argparse.Namespace, fixed: dict | None = None) -> int:
     """``run --problem``: validate, solve the problem's pose path, write, print the table."""
-    from pathlib import Path
+    from ikbench.studies.run import RunSpec, check_problem_options
 
-    from ikbench.core.io import check_folder_writable
-    from ikbench.methods.registry import available_methods, get_method
-    from ikbench.studies.run import check_name, check_problem_options, prepare_problem
-
-    check_problem_options(targets=args.targets, only=args.only, steps=args.steps,
-                          shape=args.shape, size=args.size, start_pose=args.start_pose,
-                          direction=args.direction, end_frame=args.end_frame)
-    name = getattr(args, "name", None)
-    if name is not None:
-        check_name(name)
-    cls = get_method(args.method)
-    solver = method_from_args(args, cls, available_methods(), **(fixed or {}))
-    robot = None if args.robot == DEFAULT_ROBOT else args.robot
-    solver, robot, targets, tasks, record = prepare_problem(solver, args.problem, robot=robot)
-    folder = Path(args.output) / (name or solver.name)
-    check_folder_writable(folder)
+    spec = RunSpec(_solver(args, fixed), robot=None if args.robot == DEFAULT_ROBOT
+                   else args.robot, targets=args.targets, only=args.only, steps=args.steps,
+                   output=args.output, duration_s=args.duration, progress=not args.quiet,
+                   shape=args.shape, size_mm=args.size, start_pose=args.start_pose,
+                   direction=args.direction, name=getattr(args, "name", None),
+                   animation=not args.no_animation, problem=args.problem, timing=args.timing)
+    spec.validate()
+    check_problem_options(end_frame=args.end_frame)  # not a RunSpec field
     begin(args, threads=args.threads)
-    record = {**record, "direction": None, "duration_s": args.duration, "name": name,
-              "timing": args.timing}
-    return solve_write_report(solver, robot, targets, tasks, folder, record, args.quiet,
-                              animation=not args.no_animation)
+    return solve_write_report(spec)
 
 
 def report_table(table: pd.DataFrame, folder: Path, batch: int | None = None) -> int:
