@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 
 from ikbench.cli.commands.run import (
-    LETTER_SIZE_MM,
     add_method_and_output,
+    add_size_and_direction,
     add_solve_arguments,
     add_start_pose_argument,
 )
@@ -74,10 +74,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         "no letter pose and --start-pose is not given (default: the robot's "
                         "own targets; a bare URDF or a description package's robot ships "
                         "none)")
-    parser.add_argument("--size", type=LETTER_SIZE_MM, default=None,
-                        help="letter height [mm] (default 300)")
-    parser.add_argument("--direction", default=None,
-                        help="goal pointing directions: normal (default), tangent or x,y,z")
+    add_size_and_direction(parser, "normal (default), tangent or x,y,z")
     add_start_pose_argument(parser, f"the robot's letter pose; NICO: the paper's "
                             f"{paper_start_pose()}")
     parser.add_argument("--steps", type=STEPS, default=None,

@@ -102,16 +102,21 @@ def add_task_arguments(parser: argparse.ArgumentParser, only_help: str,
                         "(CSV of x,y,z control points [mm], base frame), or letter:X[,Y...] "
                         "(letters A-Z, lower case drawn as upper case, on the robot's letter "
                         "plane through the end point at the start pose, one trajectory each)")
-    parser.add_argument("--size", type=LETTER_SIZE_MM, default=None,
-                        help="letter height [mm] (default 300)")
-    parser.add_argument("--direction", default=None,
-                        help="goal pointing directions: tangent (default for line, polyline, "
-                        "spline), normal (of the drawing plane; default for letters) or a "
-                        "vector x,y,z")
+    add_size_and_direction(parser, "tangent (default for line, polyline, spline), normal (of "
+                           "the drawing plane; default for letters) or a vector x,y,z")
     add_start_pose_argument(parser, start_pose_default)
     parser.add_argument("--steps", type=STEPS, default=None,
                         help="number of segments n, 2..5000 (default: the targets file's, 50, "
                         "for lines; 100 for other shapes)")
+
+
+def add_size_and_direction(parser: argparse.ArgumentParser, directions: str) -> None:
+    """--size and --direction (run, letters); ``directions``: the directions allowed and
+    their default, in words for the help."""
+    parser.add_argument("--size", type=LETTER_SIZE_MM, default=None,
+                        help="letter height [mm] (default 300)")
+    parser.add_argument("--direction", default=None,
+                        help=f"goal pointing directions: {directions}")
 
 
 def add_start_pose_argument(parser: argparse.ArgumentParser, default: str) -> None:
