@@ -80,14 +80,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ikbench.core.io import check_writable
-    from ikbench.studies.bench import (
-        benchmark,
-        headline,
-        parse_methods,
-        parse_repeat,
-        speedup_ranges,
-        write,
-    )
+    from ikbench.studies import bench as study
 
     if args.threads is not None:
         check_threads(args.threads)
@@ -98,21 +91,22 @@ def run(args: argparse.Namespace) -> int:
                         ("--no-numba", args.no_numba or None)):
         if given is not None:
             raise InputError(f"{flag} applies to the throughput mode only (give --device)")
-    names = parse_methods(args.methods or DEFAULT_METHODS)
-    parse_repeat(args.repeat, names)
+    names = study.parse_methods(args.methods or DEFAULT_METHODS)
+    counts = study.parse_repeat(args.repeat, names)
     robot = robot_from_args(args)
-    targets = targets_from_args(args, robot)
+    spec = study.BenchSpec(tuple(names), counts, robot, targets_from_args(args, robot),
+                           args.warmup, progress=not args.quiet)
+    spec.validate()
     check_writable(Path(args.output) / "benchmark.csv")  # before the timed rounds
     begin(args, threads=args.threads or 1)
-    result = benchmark(names, repeat=args.repeat, warmup=args.warmup, targets=targets,
-                       progress=not args.quiet, robot=robot)
-    path = write(result, args.output)
-    table = headline(result).drop(columns=["iterations", "line_distance_mean_mm",
+    result = study.run(spec)
+    path = result.write(args.output)
+    table = study.headline(result).drop(columns=["iterations", "line_distance_mean_mm",
                                            "pointing_deviation_mean_deg", "end_point_error_mm",
                                            "within_limits"], errors="ignore")
     print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     base = result.record["methods"][0]
-    for method, (low, t_low, high, t_high) in speedup_ranges(result.summary, base).items():
+    for method, (low, t_low, high, t_high) in study.speedup_ranges(result.summary, base).items():
         print(f"per trajectory, {method} vs {base}: {low:.1f}x (trajectory {t_low}) to "
               f"{high:.1f}x (trajectory {t_high})")
     print(f"written to {path} (and benchmark.md, benchmark_runs.csv, benchmark.json)")
