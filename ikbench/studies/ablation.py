@@ -22,7 +22,7 @@ from __future__ import annotations
 import re
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -47,10 +47,10 @@ from ikbench.runtime.record import (
     TRAJECTORY_FILE,
     RunFolder,
     RunRecord,
-    RunStage,
     jsonable,
     robot_entry,
 )
+from ikbench.studies.folders import WITHIN
 from ikbench.studies.run import DEFAULT_OUTPUT, evaluate, trajectory_files
 
 if TYPE_CHECKING:
@@ -59,6 +59,7 @@ if TYPE_CHECKING:
     from ikbench.core.task import Task
 
 EACH = "each"
+FOLDER = WITHIN["ablation"]
 FULL = "full"
 #: The folder names of variants (:attr:`Variant.name`): ``full``, ``no-L1``, ``no-L2-L5``...
 VARIANT_FOLDER = re.compile(r"full|no-L[0-9](-L[0-9])*")
@@ -206,6 +207,96 @@ def _say(text: str, enabled: bool) -> None:
     message("ablation", text, enabled)
 
 
+@dataclass(frozen=True)
+class AblationSpec:
+    """An ablation: the variants (:func:`parse_drops`), the method's name, the robot and the
+    selected targets, the method's other settings, the full loss's weights keyed L0..L6, the
+    trajectory drawn per variant (None: the first selected), the movement duration T [s] and
+    the progress lines. :meth:`validate` checks the rest; :func:`run` runs it
+    (:mod:`ikbench.studies.shape`)."""
+
+    variants: tuple[Variant, ...]
+    method: str
+    robot: Robot
+    targets: Targets
+    options: dict[str, Any] = field(default_factory=dict)
+    base_weights: dict[str, float] = field(default_factory=lambda: dict(PAPER_WEIGHTS))
+    figure_trajectory: str | None = None
+    duration_s: float = DEFAULT_DURATION_S
+    progress: bool = True
+
+    @property
+    def figure_id(self) -> str:
+        """The trajectory drawn per variant: the one named, else the first selected."""
+        return str(self.figure_trajectory or self.targets.ids[0])
+
+    def validate(self) -> None:
+        """InputError (the CLI's one-line message) for a method without loss weights, a
+        figure trajectory not selected or settings the method refuses, before any solve."""
+        check_method(self.method)
+        if self.figure_id not in self.targets.ids:
+            raise InputError(f"--figure-trajectory: {self.figure_id!r} is not among the "
+                             f"selected trajectories ({', '.join(self.targets.ids)})")
+        self.solvers()
+
+    def solvers(self) -> list[Method]:
+        """The method once per variant, with the variant's weights."""
+        cls = get_method(self.method)
+        return [cls(**{**self.options, "weights": v.weights(self.base_weights)})
+                for v in self.variants]
+
+
+@dataclass
+class AblationResult:
+    """What :func:`run` measured: table.csv and summary.csv as DataFrames, the trajectory files
+    per variant (as written), the poses read back from them, the solvers and the run record.
+    :meth:`write` writes ``folder/ablation/``."""
+
+    spec: AblationSpec
+    tasks: list
+    solvers: list[Method]
+    files: dict[str, dict]
+    poses: dict[str, dict[str, np.ndarray]]
+    table: pd.DataFrame
+    summary: pd.DataFrame
+    started: float
+
+    def write(self, folder: str | Path) -> Path:
+        """Write ``folder/ablation/`` whole (files of an earlier ablation there that this one
+        does not write are removed; other files are kept); return it."""
+        spec, table, poses = self.spec, self.table, self.poses
+        robot, targets, variants = spec.robot, spec.targets, spec.variants
+        cls = get_method(spec.method)
+        root = Path(folder) / FOLDER
+        with RunFolder(root).staged(keep=_not_ablation_output) as stage:
+            for variant in variants:
+                for file in self.files[variant.name].values():
+                    stage.trajectory(file, variant.name)
+            stage.csv("table.csv", table)
+            stage.csv("summary.csv", self.summary)
+            record = RunRecord(
+                kind="ablation", method=cls.name, robot=robot_entry(robot),
+                targets=targets.source, trajectories=targets.ids, steps=targets.steps,
+                total_wall_time_s=time.perf_counter() - self.started,
+                provenance=provenance(extra=(cls.library,)),
+                study={"figure_trajectory": spec.figure_id,
+                       "variants": {v.name: {"dropped": list(v.dropped),
+                                             "settings": jsonable({"settings": s.settings})}
+                                    for v, s in zip(variants, self.solvers)}})
+            stage.record(record)
+            task = self.tasks[targets.ids.index(spec.figure_id)]
+            shown = {v.name: poses[v.name][task.name] for v in variants}
+            title = f"{cls.name}, trajectory {spec.figure_id}"
+            stage.figure("metrics.png", plot_metrics(table))
+            stage.figure("trajectories_3d.png", plot_variants_3d(robot, task, shown, title))
+            stage.figure("joints.png", plot_joints(robot, task, shown, title))
+            by_joint = joint_interpolation_by_joint(robot, self.tasks, poses)
+            stage.text("report.md", ablation_report(table, self.summary, variants,
+                                                    record.to_dict(), by_joint))
+        _say(f"written to {root}/ in {time.perf_counter() - self.started:.1f} s", spec.progress)
+        return root
+
+
 def ablate(drops: str | list[str], method: str, *,
            targets: str | Path | Targets | None = None, only: str | None = None,
            steps: int | None = None, output: str | Path = DEFAULT_OUTPUT,
@@ -213,6 +304,9 @@ def ablate(drops: str | list[str], method: str, *,
            figure_trajectory: str | None = None, robot: Robot | str | None = None,
            duration_s: float = DEFAULT_DURATION_S, progress: bool = True) -> pd.DataFrame:
     """Run the full loss and each ablation on the same targets; write ``output/ablation/``.
+
+    Builds an :class:`AblationSpec`, validates it, checks the output folder, then
+    :func:`run` and :meth:`AblationResult.write`.
 
     Args:
         drops: ``--drop`` specs, see :func:`parse_drops`.
@@ -231,19 +325,26 @@ def ablate(drops: str | list[str], method: str, *,
         table.csv as a DataFrame: one row per (variant, trajectory).
     """
     variants = parse_drops(drops)
-    cls = check_method(method)
+    check_method(method)
     robot = as_robot(robot)
-    targets = select_targets(targets, robot, only, steps)
-    figure_trajectory = str(figure_trajectory or targets.ids[0])
-    if figure_trajectory not in targets.ids:
-        raise InputError(f"--figure-trajectory: {figure_trajectory!r} is not among the selected "
-                         f"trajectories {', '.join(targets.ids)}")
-    base = dict(PAPER_WEIGHTS if base_weights is None else base_weights)
-    solvers = [cls(**{**(options or {}), "weights": v.weights(base)}) for v in variants]
-    tasks = line_tasks(robot, targets)
-    root = Path(output) / "ablation"
-    check_folder_writable(root)  # before any solve, not after minutes of it
+    spec = AblationSpec(tuple(variants), method, robot,
+                        select_targets(targets, robot, only, steps), dict(options or {}),
+                        dict(PAPER_WEIGHTS if base_weights is None else base_weights),
+                        figure_trajectory, duration_s, progress)
+    spec.validate()
+    check_folder_writable(Path(output) / FOLDER)  # before any solve, not after minutes of it
+    result = run(spec)
+    result.write(output)
+    return result.table
 
+
+def run(spec: AblationSpec) -> AblationResult:
+    """Solve every variant of ``spec`` (validated: :meth:`AblationSpec.validate`) and measure
+    the trajectories as they will be written; nothing is written
+    (:meth:`AblationResult.write` writes it)."""
+    robot, variants, progress = spec.robot, spec.variants, spec.progress
+    solvers = spec.solvers()
+    tasks = line_tasks(robot, spec.targets)
     started = time.perf_counter()
     outcomes = {}
     for k, (variant, solver) in enumerate(zip(variants, solvers)):
@@ -255,41 +356,18 @@ def ablate(drops: str | list[str], method: str, *,
         if failed:
             raise SolverError(f"ablation {variant.name}: trajectory {failed[0].task.name} "
                               f"failed: {failed[0].failure}")
-    with RunFolder(root).staged(keep=_not_ablation_output) as stage:
-        tables, poses = [], {}
-        for variant, solver in zip(variants, solvers):
-            table, poses[variant.name] = _write_variant(robot, solver, variant,
-                                                        outcomes[variant.name], stage,
-                                                        duration_s)
-            tables.append(table)
-            _say(f"variant {variant.name}: {int(table['iterations'].sum())} iterations, "
-                 f"{int(table['hit_cap'].sum())} of {len(table)} hit the cap, "
-                 f"{table['duration_s'].sum():.1f} s", progress)
-        table = pd.concat(tables, ignore_index=True)
-        summary = summarize(table)
-        stage.csv("table.csv", table)
-        stage.csv("summary.csv", summary)
-        record = RunRecord(
-            kind="ablation", method=cls.name, robot=robot_entry(robot),
-            targets=targets.source, trajectories=targets.ids, steps=targets.steps,
-            total_wall_time_s=time.perf_counter() - started,
-            provenance=provenance(extra=(cls.library,)),
-            study={"figure_trajectory": figure_trajectory,
-                   "variants": {v.name: {"dropped": list(v.dropped),
-                                         "settings": jsonable({"settings": s.settings})}
-                                for v, s in zip(variants, solvers)}})
-        stage.record(record)
-        task = tasks[targets.ids.index(figure_trajectory)]
-        shown = {v.name: poses[v.name][task.name] for v in variants}
-        title = f"{cls.name}, trajectory {figure_trajectory}"
-        stage.figure("metrics.png", plot_metrics(table))
-        stage.figure("trajectories_3d.png", plot_variants_3d(robot, task, shown, title))
-        stage.figure("joints.png", plot_joints(robot, task, shown, title))
-        by_joint = joint_interpolation_by_joint(robot, tasks, poses)
-        stage.text("report.md", ablation_report(table, summary, variants, record.to_dict(),
-                                                by_joint))
-    _say(f"written to {root}/ in {time.perf_counter() - started:.1f} s", progress)
-    return table
+    tables, poses, files = [], {}, {}
+    for variant, solver in zip(variants, solvers):
+        files[variant.name] = trajectory_files(robot, outcomes[variant.name], spec.duration_s)
+        table, poses[variant.name] = _measure_variant(robot, solver, variant,
+                                                      outcomes[variant.name],
+                                                      files[variant.name])
+        tables.append(table)
+        _say(f"variant {variant.name}: {int(table['iterations'].sum())} iterations, "
+             f"{int(table['hit_cap'].sum())} of {len(table)} hit the cap, "
+             f"{table['duration_s'].sum():.1f} s", progress)
+    table = pd.concat(tables, ignore_index=True)
+    return AblationResult(spec, tasks, solvers, files, poses, table, summarize(table), started)
 
 
 #: The files an ablation writes at its top level.
@@ -306,13 +384,10 @@ def _not_ablation_output(rel: Path) -> bool:
                 and TRAJECTORY_FILE.fullmatch(rel.name))
 
 
-def _write_variant(robot: Robot, solver: Method, variant: Variant, outcomes: list,
-                   stage: RunStage, duration_s: float) -> tuple[pd.DataFrame, dict]:
-    """Write the variant's CSVs into its subfolder of ``stage``, measure them as written;
-    returns (table rows, {id: poses read back})."""
-    files = trajectory_files(robot, outcomes, duration_s)
-    for file in files.values():
-        stage.trajectory(file, variant.name)
+def _measure_variant(robot: Robot, solver: Method, variant: Variant, outcomes: list,
+                     files: dict) -> tuple[pd.DataFrame, dict]:
+    """Measure the variant's trajectory files as they will be written; returns (table rows,
+    {id: poses as written})."""
     table, details, _ = evaluate(robot, outcomes, files, solver.name)
     poses, extra = {}, []
     for outcome in outcomes:

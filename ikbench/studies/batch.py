@@ -184,12 +184,57 @@ def weight_setting(text: str) -> tuple[str, dict]:
 
 @dataclass
 class BatchReport:
-    """Per-setting summary, per-trajectory rows, the touch poses, and the record."""
+    """Per-setting summary, per-trajectory rows, the touch poses, and the record.
+    :meth:`write` writes the files."""
 
     summary: pd.DataFrame
     trajectories: pd.DataFrame
     touch_poses: pd.DataFrame
     record: dict
+
+    def write(self, folder: str | Path) -> Path:
+        """Write batch.csv, batch_trajectories.csv, touch_poses.csv, batch.json and batch.md
+        into ``folder``; return batch.csv's path."""
+        return write_study_files(folder, "batch",
+                                 {"batch.csv": (self.summary, "%.6g"),
+                                  "batch_trajectories.csv": (self.trajectories, "%.6g"),
+                                  "touch_poses.csv": (self.touch_poses, "%.10g")},
+                                 self.record, lambda: markdown(self))
+
+
+@dataclass(frozen=True)
+class BatchSpec:
+    """A batch study: the number of touch poses and their sampling seed, the segments per
+    trajectory, the weight settings (``"paper"`` or ``"c0=100,..."``), the tolerances [mm], the
+    robot (or its name/config/URDF) and where the start pose comes from, the executor and the
+    progress lines. :meth:`validate` checks them; :func:`run` runs it
+    (:mod:`ikbench.studies.shape`)."""
+
+    count: int = 1000
+    seed: int = 0
+    steps: int = 50
+    weights: tuple[str, ...] = tuple(DEFAULT_WEIGHTS)
+    targets: str | Path | Targets | None = None
+    line_tolerance_mm: float = LINE_TOLERANCE_MM
+    end_tolerance_mm: float = END_TOLERANCE_MM
+    progress: bool = True
+    robot: Robot | str | None = None
+    executor: Executor | None = None
+
+    def validate(self) -> None:
+        """InputError (the CLI's one-line message) for a tolerance that is not a positive
+        number of mm, fewer than 2 steps, a bad count or seed, or a bad weight setting."""
+        for flag, value in (("--line-tolerance-mm", self.line_tolerance_mm),
+                            ("--end-tolerance-mm", self.end_tolerance_mm)):
+            if not (np.isfinite(value) and value > 0):
+                raise InputError(f"{flag}: {value!r} must be a positive number of mm")
+        steps = self.steps
+        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 2:
+            raise InputError(f"--steps: {steps!r} must be an integer >= 2")
+        check_count(self.count)
+        check_seed(self.seed)
+        for w in self.weights:
+            weight_setting(w)
 
 
 def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
@@ -214,16 +259,21 @@ def run_batch(count: int = 1000, *, seed: int = 0, steps: int = 50,
             numbers do not depend on it.
     """
 
-    for flag, value in (("--line-tolerance-mm", line_tolerance_mm),
-                        ("--end-tolerance-mm", end_tolerance_mm)):
-        if not (np.isfinite(value) and value > 0):
-            raise InputError(f"{flag}: {value!r} must be a positive number of mm")
-    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 2:
-        raise InputError(f"--steps: {steps!r} must be an integer >= 2")
-    check_count(count)
-    check_seed(seed)
-    settings = [weight_setting(w) for w in weights]
-    robot = as_robot(robot)
+    spec = BatchSpec(count, seed, steps, tuple(weights), targets, line_tolerance_mm,
+                     end_tolerance_mm, progress, robot, executor)
+    spec.validate()
+    return run(spec)
+
+
+def run(spec: BatchSpec) -> BatchReport:
+    """Sample, solve and measure the batch ``spec`` (validated: :meth:`BatchSpec.validate`);
+    nothing is written (:meth:`BatchReport.write` writes it)."""
+    count, seed, steps, targets, executor, progress = (spec.count, spec.seed, spec.steps,
+                                                       spec.targets, spec.executor,
+                                                       spec.progress)
+    line_tolerance_mm, end_tolerance_mm = spec.line_tolerance_mm, spec.end_tolerance_mm
+    settings = [weight_setting(w) for w in spec.weights]
+    robot = as_robot(spec.robot)
     workspace = WorkspaceFilter.of(robot)
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
@@ -318,12 +368,9 @@ def _summarise(label, weights, frame, solve_s, count, line_tol, end_tol, measure
 
 
 def write(report: BatchReport, output: str | Path) -> Path:
-    """Write batch.csv, batch_trajectories.csv, touch_poses.csv, batch.json and batch.md."""
-    return write_study_files(output, "batch",
-                             {"batch.csv": (report.summary, "%.6g"),
-                              "batch_trajectories.csv": (report.trajectories, "%.6g"),
-                              "touch_poses.csv": (report.touch_poses, "%.10g")},
-                             report.record, lambda: markdown(report))
+    """Write batch.csv, batch_trajectories.csv, touch_poses.csv, batch.json and batch.md
+    (:meth:`BatchReport.write`)."""
+    return report.write(output)
 
 
 def markdown(report: BatchReport) -> str:

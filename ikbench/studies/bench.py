@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -32,6 +32,7 @@ from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
 from ikbench.core.targets import Targets, select_targets
 from ikbench.core.task import line_tasks
+from ikbench.methods.base import Method
 from ikbench.methods.registry import get_method, parse_names
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.progress import Reporter
@@ -85,18 +86,52 @@ def parse_methods(text: str | Sequence[str]) -> list[str]:
 
 @dataclass
 class BenchResult:
-    """What :func:`benchmark` measured: the summary, every timed solve, and provenance."""
+    """What :func:`run` measured: the summary, every timed solve, and provenance.
+    :meth:`write` writes the files."""
 
     summary: pd.DataFrame
     runs: pd.DataFrame
     record: dict
+
+    def write(self, folder: str | Path) -> Path:
+        """Write benchmark.csv, benchmark_runs.csv, benchmark.json and benchmark.md into
+        ``folder``; return benchmark.csv's path."""
+        return write_study_files(folder, "benchmark",
+                                 {"benchmark.csv": (self.summary, "%.6g"),
+                                  "benchmark_runs.csv": (self.runs, "%.6g")},
+                                 self.record, lambda: markdown(self))
+
+
+@dataclass(frozen=True)
+class BenchSpec:
+    """A benchmark: the method names (:func:`parse_methods`; the first is the ratios'
+    baseline), the timed rounds per method (:func:`parse_repeat`), the untimed warm-up rounds,
+    the robot and the selected targets, optional configured methods per name and the progress
+    lines. :meth:`validate` checks the rest; :func:`run` runs it (:mod:`ikbench.studies.shape`).
+    """
+
+    methods: tuple[str, ...]
+    repeat: dict[str, int]
+    robot: Robot
+    targets: Targets
+    warmup: int = 1
+    solvers: dict[str, Method] = field(default_factory=dict)
+    progress: bool = True
+
+    def validate(self) -> None:
+        """InputError (the CLI's one-line message) for a warm-up count that is not an integer
+        >= 0."""
+        warmup = self.warmup
+        if isinstance(warmup, bool) or not isinstance(warmup, int) or warmup < 0:
+            raise InputError(f"--warmup: {warmup!r} must be an integer >= 0")
 
 
 def benchmark(methods: list[str] | str, *, repeat: str | int | None = None,
               warmup: int = 1, targets: str | Path | Targets | None = None,
               only: str | None = None, steps: int | None = None, solvers: dict | None = None,
               progress: bool = True, robot: Robot | str | None = None) -> BenchResult:
-    """Time methods on the same targets (see the module docstring).
+    """Time methods on the same targets (see the module docstring); builds a
+    :class:`BenchSpec`, validates it and runs it (:func:`run`); nothing is written.
 
     Args:
         methods: method names (list or comma-separated); the first is the ratios' baseline.
@@ -112,17 +147,26 @@ def benchmark(methods: list[str] | str, *, repeat: str | int | None = None,
     """
     names = parse_methods(",".join(methods) if isinstance(methods, list) else methods)
     counts = parse_repeat(repeat, names)
-    if isinstance(warmup, bool) or not isinstance(warmup, int) or warmup < 0:
-        raise InputError(f"--warmup: {warmup!r} must be an integer >= 0")
     robot = as_robot(robot)
-    targets = select_targets(targets, robot, only, steps)
+    spec = BenchSpec(tuple(names), counts, robot, select_targets(targets, robot, only, steps),
+                     warmup, dict(solvers or {}), progress)
+    spec.validate()
+    return run(spec)
+
+
+def run(spec: BenchSpec) -> BenchResult:
+    """Time the methods of ``spec`` (validated: :meth:`BenchSpec.validate`); nothing is
+    written (:meth:`BenchResult.write` writes it)."""
+    names, counts, warmup, robot, targets = (list(spec.methods), spec.repeat, spec.warmup,
+                                             spec.robot, spec.targets)
+    solvers, progress = spec.solvers, spec.progress
     tasks = line_tasks(robot, targets)
     solves = sum((warmup + counts[n]) * (len(tasks) + get_method(n).capabilities.batched)
                  for n in names)
     log = Reporter("bench", total=solves, unit="solve", enabled=progress)
     runs, last = [], {}
     for name in names:
-        solver = (solvers or {}).get(name) or get_method(name)()
+        solver = solvers.get(name) or get_method(name)()
         for r in range(warmup + counts[name]):
             timed = r >= warmup
             label = (f"round {r - warmup + 1}/{counts[name]}" if timed
@@ -202,10 +246,9 @@ def summarise(robot: Robot, tasks: Sequence[Task], names: Sequence[str], runs: p
 
 
 def write(result: BenchResult, output: str | Path) -> Path:
-    """Write benchmark.csv, benchmark_runs.csv, benchmark.json and benchmark.md."""
-    return write_study_files(output, "benchmark", {"benchmark.csv": (result.summary, "%.6g"),
-                                                   "benchmark_runs.csv": (result.runs, "%.6g")},
-                             result.record, lambda: markdown(result))
+    """Write benchmark.csv, benchmark_runs.csv, benchmark.json and benchmark.md
+    (:meth:`BenchResult.write`); return benchmark.csv's path."""
+    return result.write(output)
 
 
 def speedup_ranges(summary: pd.DataFrame, base: str) -> dict[str, tuple]:

@@ -191,11 +191,50 @@ def effective_weights(weights: dict[str, float], task: Task) -> dict[str, float]
 
 @dataclass
 class SweepResult:
-    """Per-setting summary, per-trajectory rows, and the record (grid, provenance)."""
+    """Per-setting summary, per-trajectory rows, and the record (grid, provenance).
+    :meth:`write` writes the files."""
 
     settings: pd.DataFrame
     trajectories: pd.DataFrame
     record: dict
+
+    def write(self, folder: str | Path) -> Path:
+        """Write sweep.csv, sweep_trajectories.csv, pareto.png, sweep.json and sweep.md into
+        ``folder``; return sweep.csv's path."""
+        pareto = partial(plot_pareto, self.settings,
+                         reference=self.record.get("reference", "the paper's weights"),
+                         method=self.record.get("method", OURS_LM))
+        return write_study_files(folder, "sweep",
+                                 {"sweep.csv": (self.settings, "%.6g"),
+                                  "sweep_trajectories.csv": (self.trajectories, "%.6g")},
+                                 self.record, lambda: markdown(self), {"pareto.png": pareto})
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A weight sweep: the grid (:func:`parse_grid`), the robot, the targets as swept and the
+    tasks of one setting with the shape's kind (:func:`sweep_tasks`), the shape and its
+    options, ours-lm's settings, the executor, the method and the progress lines.
+    :meth:`validate` checks the rest; :func:`run` runs it (:mod:`ikbench.studies.shape`)."""
+
+    grid: dict[str, list[float]]
+    robot: Robot
+    targets: Targets
+    tasks: tuple[Task, ...]
+    kind: str
+    shape: str = "line"
+    size_mm: float | None = None
+    direction: str | npt.ArrayLike | None = None
+    lm_settings: LMSettings | None = None
+    executor: Executor | None = None
+    method: str = OURS_LM
+    progress: bool = True
+
+    def validate(self) -> None:
+        """InputError (the CLI's one-line message) for a method the sweep cannot run or a grid
+        term it has no weight for, or a grid too large, before anything runs."""
+        check_sweep_method(self.method, self.grid, self.executor)
+        check_grid_size(self.grid, list(self.tasks), self.robot.dof)
 
 
 def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None = None,
@@ -235,9 +274,22 @@ def sweep(grid: dict[str, list[float]], *, targets: str | Path | Targets | None 
 
     check_sweep_method(method, grid, executor)
     robot = as_robot(robot)
-    targets, tasks, kind = sweep_tasks(robot, targets, shape, only, steps, size_mm,
-                                       start_pose, direction)
-    check_grid_size(grid, tasks, robot.dof)
+    swept, tasks, kind = sweep_tasks(robot, targets, shape, only, steps, size_mm, start_pose,
+                                     direction)
+    spec = SweepSpec(grid, robot, swept, tuple(tasks), kind, shape, size_mm, direction,
+                     lm_settings, executor, method, progress)
+    spec.validate()
+    return run(spec)
+
+
+def run(spec: SweepSpec) -> SweepResult:
+    """Solve the tasks of ``spec`` for every weight setting of its grid (validated:
+    :meth:`SweepSpec.validate`); nothing is written (:meth:`SweepResult.write` writes it)."""
+    grid, robot, targets, tasks, kind = (spec.grid, spec.robot, spec.targets, list(spec.tasks),
+                                         spec.kind)
+    shape, size_mm, direction, lm_settings = (spec.shape, spec.size_mm, spec.direction,
+                                              spec.lm_settings)
+    executor, method, progress = spec.executor, spec.method, spec.progress
     base, settings = _sweep_settings(tasks, grid, shape, method)
     all_tasks = [task for _ in settings for task in tasks]
     all_weights = [w for w in settings for _ in tasks]
@@ -540,14 +592,9 @@ def findings(table: pd.DataFrame, reference: str = "the paper's weights",
 
 
 def write(result: SweepResult, output: str | Path) -> Path:
-    """Write sweep.csv, sweep_trajectories.csv, pareto.png, sweep.json and sweep.md."""
-    pareto = partial(plot_pareto, result.settings,
-                     reference=result.record.get("reference", "the paper's weights"),
-                     method=result.record.get("method", OURS_LM))
-    return write_study_files(output, "sweep",
-                             {"sweep.csv": (result.settings, "%.6g"),
-                              "sweep_trajectories.csv": (result.trajectories, "%.6g")},
-                             result.record, lambda: markdown(result), {"pareto.png": pareto})
+    """Write sweep.csv, sweep_trajectories.csv, pareto.png, sweep.json and sweep.md
+    (:meth:`SweepResult.write`)."""
+    return result.write(output)
 
 
 def _exact_findings(table, reference_row, m: Measures, reference: str) -> list[str]:

@@ -77,11 +77,50 @@ def parse_dtypes(text: object) -> list[str]:
 
 @dataclass
 class ThroughputResult:
-    """One row per case (backend, dtype, batch), every timed round, and the record."""
+    """One row per case (backend, dtype, batch), every timed round, and the record.
+    :meth:`write` writes the files."""
 
     summary: pd.DataFrame
     runs: pd.DataFrame
     record: dict
+
+    def write(self, folder: str | Path) -> Path:
+        """Write throughput.csv, throughput_runs.csv, throughput.json and throughput.md into
+        ``folder``; return throughput.csv's path."""
+        return write_study_files(folder, "throughput",
+                                 {"throughput.csv": (self.summary, "%.6g"),
+                                  "throughput_runs.csv": (self.runs, "%.6g")},
+                                 self.record, lambda: markdown(self))
+
+
+@dataclass(frozen=True)
+class ThroughputSpec:
+    """A throughput study: the torch device, the batch sizes and dtypes, the timed and
+    untimed rounds, the numpy solver's largest batch, the segments, the targets and robot (or
+    their names), the progress lines and the numba backend's threads and use (the keywords of
+    :func:`throughput`). :meth:`validate` checks them; :func:`run` runs it
+    (:mod:`ikbench.studies.shape`)."""
+
+    device: str
+    batches: tuple[int, ...] = tuple(DEFAULT_BATCHES)
+    dtypes: tuple[str, ...] = tuple(DEFAULT_DTYPES)
+    repeat: int = 3
+    warmup: int = 1
+    numpy_max_batch: int = 10_000
+    steps: int | None = None
+    targets: str | Path | Targets | None = None
+    robot: Robot | str | None = None
+    progress: bool = True
+    threads: int | None = None
+    numba: bool | None = None
+
+    def validate(self) -> None:
+        """InputError (the CLI's one-line message) for an unknown device or rounds that are
+        not integers (repeat >= 1, warm-up >= 0)."""
+        check_device(self.device)
+        for flag, value, low in (("--repeat", self.repeat, 1), ("--warmup", self.warmup, 0)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise InputError(f"{flag}: {value!r} must be an integer >= {low}")
 
 
 def throughput(device: str, *, batches: Sequence[int] = DEFAULT_BATCHES,
@@ -107,11 +146,21 @@ def throughput(device: str, *, batches: Sequence[int] = DEFAULT_BATCHES,
         numba: time the numba backend (None: when numba is installed).
     """
 
-    device = check_device(device) or "cpu"
-    for flag, value, low in (("--repeat", repeat, 1), ("--warmup", warmup, 0)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise InputError(f"{flag}: {value!r} must be an integer >= {low}")
-    robot = as_robot(robot)
+    spec = ThroughputSpec(device, tuple(batches), tuple(dtypes), repeat, warmup,
+                          numpy_max_batch, steps, targets, robot, progress, threads, numba)
+    spec.validate()
+    return run(spec)
+
+
+def run(spec: ThroughputSpec) -> ThroughputResult:
+    """Time the cases of ``spec`` (validated: :meth:`ThroughputSpec.validate`); nothing is
+    written (:meth:`ThroughputResult.write` writes it)."""
+    device = check_device(spec.device) or "cpu"  # the device's canonical name
+    batches, dtypes, repeat, warmup = (list(spec.batches), list(spec.dtypes), spec.repeat,
+                                       spec.warmup)
+    numpy_max_batch, steps, targets = spec.numpy_max_batch, spec.steps, spec.targets
+    progress, threads, numba = spec.progress, spec.threads, spec.numba
+    robot = as_robot(spec.robot)
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
     targets = targets.with_steps(steps)
@@ -232,11 +281,9 @@ def _versions(numba: bool, threads: int | None) -> dict:
 
 
 def write(result: ThroughputResult, output: str | Path) -> Path:
-    """Write throughput.csv, throughput_runs.csv, throughput.json and throughput.md."""
-    return write_study_files(output, "throughput",
-                             {"throughput.csv": (result.summary, "%.6g"),
-                              "throughput_runs.csv": (result.runs, "%.6g")},
-                             result.record, lambda: markdown(result))
+    """Write throughput.csv, throughput_runs.csv, throughput.json and throughput.md
+    (:meth:`ThroughputResult.write`)."""
+    return result.write(output)
 
 
 def markdown(result: ThroughputResult) -> str:

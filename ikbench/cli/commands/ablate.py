@@ -16,7 +16,6 @@ from ikbench.cli.options import (
 )
 from ikbench.cli.values import OUTPUT
 from ikbench.core.defaults import DEFAULT_METHOD
-from ikbench.core.errors import InputError
 from ikbench.studies.folders import default_output
 
 HELP = ("loss-term ablation: run a method with terms of L0..L6 dropped, compare with "
@@ -60,34 +59,32 @@ def arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dataclasses import asdict
+    from pathlib import Path
 
     from ikbench.core.io import check_folder_writable
     from ikbench.core.losses import parse_weights
-    from ikbench.studies.ablation import ablate, check_method, parse_drops, weighted_methods
+    from ikbench.studies import ablation as study
 
     check_threads(args.threads)
-    drops = args.drop or ["each"]
-    parse_drops(drops)  # bad term names fail before any set-up
-    cls = check_method(args.method)
-    solver = method_from_args(args, cls, weighted_methods())  # validates every option
+    variants = study.parse_drops(args.drop or ["each"])  # bad term names fail before set-up
+    cls = study.check_method(args.method)
+    solver = method_from_args(args, cls, study.weighted_methods())  # validates every option
     options = {k: v for k, v in asdict(solver.settings).items() if k != "weights"}
     robot = robot_from_args(args)
-    targets = targets_from_args(args, robot)
-    if args.figure_trajectory is not None and args.figure_trajectory not in targets.ids:
-        raise InputError(f"--figure-trajectory: {args.figure_trajectory!r} is not among the "
-                         f"selected trajectories ({', '.join(targets.ids)})")
-    from pathlib import Path
-
-    check_folder_writable(Path(args.output) / "ablation")
-    begin(args, threads=args.threads)
     weights = solver.settings.weights
-    table = ablate(drops, args.method, targets=targets, output=args.output, options=options,
-                   base_weights=weights if isinstance(weights, dict) else parse_weights(weights),
-                   figure_trajectory=args.figure_trajectory, progress=not args.quiet,
-                   robot=robot)
+    spec = study.AblationSpec(
+        tuple(variants), args.method, robot, targets_from_args(args, robot), options,
+        dict(weights) if isinstance(weights, dict) else parse_weights(weights),
+        args.figure_trajectory, progress=not args.quiet)
+    spec.validate()
+    folder = Path(args.output) / study.FOLDER
+    check_folder_writable(folder)
+    begin(args, threads=args.threads)
+    result = study.run(spec)
+    result.write(args.output)
     columns = ["variant", "trajectory", "iterations", "hit_cap", "line_distance_mean_mm",
                "pointing_deviation_mean_deg", "velocity_sign_changes",
                "joint_interpolation_distance_deg"]
-    print(table[columns].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    print(result.table[columns].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     print(f"written to {args.output}/ablation/ (report.md checks the paper's claims)")
     return 0

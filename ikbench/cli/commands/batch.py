@@ -62,34 +62,26 @@ def arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from dataclasses import replace
     from pathlib import Path
 
     from ikbench.core.io import check_writable
     from ikbench.core.targets import load_targets
-    from ikbench.studies.batch import (
-        DEFAULT_WEIGHTS,
-        check_count,
-        check_seed,
-        run_batch,
-        weight_setting,
-        write,
-    )
+    from ikbench.studies import batch as study
 
-    check_count(args.count)
-    check_seed(args.seed)
     check_executor_args(args)
     robot = robot_from_args(args)
-    for setting in args.weights or DEFAULT_WEIGHTS:
-        weight_setting(setting)
+    spec = study.BatchSpec(args.count, args.seed, args.steps,
+                           tuple(args.weights or study.DEFAULT_WEIGHTS), args.targets,
+                           args.line_tolerance_mm, args.end_tolerance_mm,
+                           progress=not args.quiet, robot=robot)
+    spec.validate()
     load_targets(args.targets, robot)  # its start pose is used: checked up front
     check_writable(Path(args.output) / "batch.csv")  # before sampling and solving
     begin(args)
-    report = run_batch(args.count, seed=args.seed, steps=args.steps, robot=robot,
-                       weights=args.weights or DEFAULT_WEIGHTS, targets=args.targets,
-                       line_tolerance_mm=args.line_tolerance_mm,
-                       end_tolerance_mm=args.end_tolerance_mm, progress=not args.quiet,
-                       executor=executor_from_args(args))
-    path = write(report, args.output)
+    spec = replace(spec, executor=executor_from_args(args))  # starts or joins Ray: only now
+    report = study.run(spec)
+    path = report.write(args.output)
     cols = ["setting", "trajectories", "solve_wall_s", "trajectories_per_s",
             "share_line_within_tol", "share_end_within_tol", "share_within_tol",
             "line_distance_mean_mm_median", "pointing_deviation_mean_deg_median"]

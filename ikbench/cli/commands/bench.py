@@ -80,14 +80,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ikbench.core.io import check_writable
-    from ikbench.studies.bench import (
-        benchmark,
-        headline,
-        parse_methods,
-        parse_repeat,
-        speedup_ranges,
-        write,
-    )
+    from ikbench.studies import bench as study
 
     if args.threads is not None:
         check_threads(args.threads)
@@ -98,21 +91,22 @@ def run(args: argparse.Namespace) -> int:
                         ("--no-numba", args.no_numba or None)):
         if given is not None:
             raise InputError(f"{flag} applies to the throughput mode only (give --device)")
-    names = parse_methods(args.methods or DEFAULT_METHODS)
-    parse_repeat(args.repeat, names)
+    names = study.parse_methods(args.methods or DEFAULT_METHODS)
+    counts = study.parse_repeat(args.repeat, names)
     robot = robot_from_args(args)
-    targets = targets_from_args(args, robot)
+    spec = study.BenchSpec(tuple(names), counts, robot, targets_from_args(args, robot),
+                           args.warmup, progress=not args.quiet)
+    spec.validate()
     check_writable(Path(args.output) / "benchmark.csv")  # before the timed rounds
     begin(args, threads=args.threads or 1)
-    result = benchmark(names, repeat=args.repeat, warmup=args.warmup, targets=targets,
-                       progress=not args.quiet, robot=robot)
-    path = write(result, args.output)
-    table = headline(result).drop(columns=["iterations", "line_distance_mean_mm",
+    result = study.run(spec)
+    path = result.write(args.output)
+    table = study.headline(result).drop(columns=["iterations", "line_distance_mean_mm",
                                            "pointing_deviation_mean_deg", "end_point_error_mm",
                                            "within_limits"], errors="ignore")
     print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     base = result.record["methods"][0]
-    for method, (low, t_low, high, t_high) in speedup_ranges(result.summary, base).items():
+    for method, (low, t_low, high, t_high) in study.speedup_ranges(result.summary, base).items():
         print(f"per trajectory, {method} vs {base}: {low:.1f}x (trajectory {t_low}) to "
               f"{high:.1f}x (trajectory {t_high})")
     print(f"written to {path} (and benchmark.md, benchmark_runs.csv, benchmark.json)")
@@ -125,22 +119,15 @@ def run_throughput(args: argparse.Namespace) -> int:
 
     from ikbench.core.io import check_writable
     from ikbench.methods.ours_lm.devices import check_device
+    from ikbench.studies import throughput as study
     from ikbench.studies.bench import MAX_ROUNDS
-    from ikbench.studies.throughput import (
-        DEFAULT_BATCHES,
-        DEFAULT_DTYPES,
-        parse_batches,
-        parse_dtypes,
-        throughput,
-        write,
-    )
 
     if args.methods is not None or args.only is not None:
         flag = "--methods" if args.methods is not None else "--only"
         raise InputError(f"{flag}: not with --device (the throughput mode times ours-lm on "
                          "batches; batch 7 is the paper's seven)")
-    batches = parse_batches(args.batches or ",".join(map(str, DEFAULT_BATCHES)))
-    dtypes = parse_dtypes(args.dtypes or ",".join(DEFAULT_DTYPES))
+    batches = study.parse_batches(args.batches or ",".join(map(str, study.DEFAULT_BATCHES)))
+    dtypes = study.parse_dtypes(args.dtypes or ",".join(study.DEFAULT_DTYPES))
     try:
         repeat = 3 if args.repeat is None else int(args.repeat)
     except ValueError:
@@ -151,14 +138,15 @@ def run_throughput(args: argparse.Namespace) -> int:
     device = check_device(args.device)
     assert device is not None, "the throughput mode runs with --device"
     robot = robot_from_args(args)
+    spec = study.ThroughputSpec(device, tuple(batches), tuple(dtypes), repeat, args.warmup,
+                                args.numpy_max_batch or 10_000, args.steps, args.targets,
+                                robot, not args.quiet, args.threads,
+                                False if args.no_numba else None)
+    spec.validate()
     check_writable(Path(args.output) / "throughput.csv")  # before the timed rounds
     begin(args, threads=args.threads or 1)
-    result = throughput(device, batches=batches, dtypes=dtypes, repeat=repeat,
-                        warmup=args.warmup, numpy_max_batch=args.numpy_max_batch or 10_000,
-                        steps=args.steps, targets=args.targets, robot=robot,
-                        progress=not args.quiet, threads=args.threads,
-                        numba=False if args.no_numba else None)
-    path = write(result, args.output)
+    result = study.run(spec)
+    path = result.write(args.output)
     cols = ["backend", "dtype", "batch", "wall_median_s", "trajectories_per_s",
             "speedup_vs_numpy", "loss_max_rel_diff"]
     print(result.summary[cols].to_string(index=False, float_format=lambda v: f"{v:.4g}"))

@@ -51,35 +51,30 @@ def arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from dataclasses import replace
     from pathlib import Path
 
     from ikbench.core.io import check_writable
     from ikbench.core.targets import parse_pose
-    from ikbench.studies.sweep import (
-        check_grid_size,
-        measures_of,
-        parse_grid,
-        sweep,
-        sweep_tasks,
-        write,
-    )
+    from ikbench.studies import sweep as study
 
     check_executor_args(args)
-    grid = parse_grid(args.weight)
+    grid = study.parse_grid(args.weight)
     robot = robot_from_args(args)
     start_pose = None if args.start_pose is None else parse_pose(args.start_pose, robot,
                                                                  "--start-pose")
-    _, tasks, _ = sweep_tasks(robot, args.targets, args.shape, args.only, args.steps,
-                              args.size, start_pose, args.direction)
-    check_grid_size(grid, tasks, robot.dof)  # tasks and grid size checked before anything runs
+    targets, tasks, kind = study.sweep_tasks(robot, args.targets, args.shape, args.only,
+                                             args.steps, args.size, start_pose, args.direction)
+    spec = study.SweepSpec(grid, robot, targets, tuple(tasks), kind, args.shape, args.size,
+                           args.direction, method=args.method, progress=not args.quiet)
+    spec.validate()  # the method, the tasks and the grid's size checked before anything runs
     check_writable(Path(args.output) / "sweep.csv")  # before the solve, not after it
     begin(args)
-    result = sweep(grid, targets=args.targets, only=args.only, steps=args.steps,
-                   shape=args.shape, size_mm=args.size, start_pose=start_pose,
-                   direction=args.direction, progress=not args.quiet, robot=robot,
-                   executor=executor_from_args(args), method=args.method)
-    path = write(result, args.output)
-    m = measures_of(result.settings, args.method)
+    spec = replace(spec, executor=executor_from_args(args))  # starts or joins Ray: only now
+    spec.validate()  # the method on that executor
+    result = study.run(spec)
+    path = result.write(args.output)
+    m = study.measures_of(result.settings, args.method)
     cols = [c for c in m.table_columns if c not in ("loss", "paper_loss", "converged")]
     table = result.settings.sort_values(m.accuracy)[cols]
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
