@@ -16,7 +16,7 @@ from ikbench.core.problems import load_problem
 from ikbench.core.rotations import matrix_to_quat_wxyz, quat_wxyz_to_matrix
 from ikbench.core.trajectory import QUATERNION_COLUMNS, read_trajectory_poses
 from ikbench.methods.base import Method, Solution
-from tests.conftest import register_temporarily
+from tests.conftest import one_line_error, register_temporarily
 
 
 def _quat(axis: int, angle):
@@ -208,9 +208,8 @@ def test_seeds_are_lists_ranges_or_both():
      "chosen (sequential-ik)"),
 ])
 def test_bad_benchmark_input_one_line_exit_2(tmp_path, capsys, args, message):
-    assert main(["cartesian", *args, "--output", str(tmp_path / "out")]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and message in err, err
+    assert message in one_line_error(capsys, ["cartesian", *args, "--output",
+                                              str(tmp_path / "out")])
     assert not (tmp_path / "out").exists()
 
 
