@@ -20,7 +20,7 @@ from ikbench.cli.options import (
 from ikbench.cli.values import INPUT_FILE, OUTPUT, count, duration_s
 from ikbench.core.defaults import COMPARE_METHODS, DEFAULT_DURATION_S
 from ikbench.core.errors import InputError
-from ikbench.studies.folders import default_output
+from ikbench.studies.folders import WITHIN, default_output
 
 HELP = "compare methods and libraries on the same robot and tasks: results.csv, leaderboard"
 DEFAULT_METHODS = ",".join(COMPARE_METHODS)
@@ -133,7 +133,8 @@ def run(args: argparse.Namespace) -> int:
                            executor=executor_from_args(args), output=Path(args.output),
                            progress=not args.quiet, goals=goals, first_call=args.first_call)
     spec.validate()
-    check_folder_writable(Path(args.output) / "compare")
+    folder = Path(args.output) / WITHIN["compare"]
+    check_folder_writable(folder)
     begin(args, threads=args.threads)
     from ikbench.runtime.harness import Interrupted
 
@@ -141,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
         result = study.run(spec)
         result.write(Path(args.output))
     except (Interrupted, KeyboardInterrupt):
-        print(f"ikbench: interrupted; {Path(args.output) / 'compare'}/ left unchanged",
+        print(f"ikbench: interrupted; {folder}/ left unchanged",
               file=sys.stderr)
         return 130
     shown = ["track", "method", "status", "success_count", "trajectories", "time_median_s",
@@ -153,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
         shown.insert(shown.index("time_vs_reference") + 1, "first_call_s")
     board = result.leaderboard[shown]
     print(board.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
-    print(f"written to {Path(args.output) / 'compare'}/ (leaderboard.md, results.csv, "
+    print(f"written to {folder}/ (leaderboard.md, results.csv, "
           "pareto.png)")
     if result.failed:
         status = result.results["status"].astype(str)
