@@ -10,6 +10,7 @@ import pytest
 from ikbench.core.errors import InputError
 from ikbench.core.kinematics.chain import pinocchio_frames
 from ikbench.core.robot import load_robot
+from ikbench.core.robot_packages import robots_folder
 from ikbench.core.rotations import geodesic_angle
 from ikbench.methods.ours_lm.single_pose import solve_poses
 
@@ -275,16 +276,19 @@ def test_ik_adapter_one_call_equals_the_solver_on_views_and_copies(panda, kind, 
     """``ikbench ik``'s adapter hands the frame's column views [m] to one kernel call
     (``solve_views``): the same answer as :meth:`SinglePoseLM.solve` on C-ordered copies [mm],
     whatever the layout, and bad shapes still name the problem."""
-    from ikbench.methods.ours_lm.pose_solver import OursLMSolver
+    from ikbench.methods.ours_lm import single_pose_kernels as kernels
+    from ikbench.methods.ours_lm.pose_solver import ROWS_CRAWL, ROWS_DAMPING, OursLMSolver
     from ikbench.schemes.single_pose import MAX_STEPS
 
     solver = OursLMSolver(panda, kind, (1.0, 0.5))
     solver.prepare()
+    compiled = len(kernels.solve_views.signatures)
     q, T, points, rotations = _targets(panda, 6, 11)
     initials = random_initials(panda, (6, rows), 12)
     for b in range(6):
+        settings = {} if rows == 1 else {"damping": ROWS_DAMPING, "crawl": ROWS_CRAWL}
         reference = SinglePoseLM(panda, kind, (1.0, 0.5), max_iterations=MAX_STEPS * rows,
-                                 restart_after=MAX_STEPS, abandon=(0, 0.0))
+                                 restart_after=MAX_STEPS, abandon=(0, 0.0), **settings)
         want = reference.solve(points[b], rotations[b], initials[b], float("inf"))
         rotation = None if kind == "position" else T[b][:3, :3]
         copies = (None, None) if rotation is None else (rotation.copy(), rotation.T.copy().T)
@@ -294,6 +298,8 @@ def test_ik_adapter_one_call_equals_the_solver_on_views_and_copies(panda, kind, 
             np.testing.assert_array_equal(got.q, want.pose)
             assert (got.iterations, got.ok, got.attempts) == (
                 want.iterations, want.success, want.attempts)
+    # a list or a Fortran-ordered rotation is copied, never compiled for inside the call
+    assert len(kernels.solve_views.signatures) == compiled
     with pytest.raises(ValueError, match="goal point"):
         solver.solve_within(initials[0], T[0][:2, 3], T[0][:3, :3], float("inf"))
 
@@ -324,3 +330,37 @@ def test_a_joint_pinned_on_its_limit_leaves_the_normal_equations(panda):
     np.testing.assert_allclose(step[free], -np.linalg.solve(H[np.ix_(free, free)], g[free]),
                                rtol=1e-9, atol=1e-12)
     assert step[j] == 0.0
+
+
+@pytest.mark.skipif(robots_folder("example-robot-data") is None,
+                    reason="example-robot-data is not installed")
+def test_a_crawling_attempt_is_kicked_out_of_the_stretched_elbow_saddle():
+    """UR10 target 62 of ``ikbench ik``'s seed 1: from each of its 8 rows, 100 iterations
+    end with the elbow straight (0 deg, J^T J blind to bending) 5 or 43 mm off; with the
+    crawl check the same rows solve it, and the kicks are seeded (the same answer twice)."""
+    from ikbench.schemes.single_pose import MAX_STEPS
+    from ikbench.studies.ik import IKSettings, sample_targets
+
+    ur10 = load_robot("example-robot-data:ur10")
+    targets = sample_targets(ur10, IKSettings(count=63, seed=1))
+    T, rows = targets.T_target[62], targets.initials(62, 8)
+    fixed = {"max_iterations": MAX_STEPS, "restart_after": MAX_STEPS, "abandon": (0, 0.0)}
+    plain = SinglePoseLM(ur10, "pose", (1.0, 0.5), **fixed)
+    for row in rows:
+        out = plain.solve(T, None, row[None], float("inf"))
+        elbow = ur10.joint_names.index("elbow_joint")
+        assert not out.success and abs(out.pose[elbow]) < 0.01  # [deg]
+        assert out.position_error_mm > 4.0
+    kicked = SinglePoseLM(ur10, "pose", (1.0, 0.5), **{**fixed, "max_iterations": 8 * MAX_STEPS},
+                          crawl=(10, 0.5, 2.0))
+    first, again = (kicked.solve(T, None, rows, float("inf")) for _ in range(2))
+    assert first.success and first.position_error_mm < 1e-3
+    np.testing.assert_array_equal(first.pose, again.pose)
+    assert first.iterations == again.iterations
+
+
+def test_the_crawl_setting_is_checked(panda):
+    with pytest.raises(InputError, match="crawl"):
+        SinglePoseLM(panda, crawl=(10, 0.5))
+    with pytest.raises(InputError, match="crawl"):
+        SinglePoseLM(panda, crawl=(2.5, 0.5, 1.0))

@@ -27,7 +27,9 @@ monotonic clock is read before every iteration (:func:`.single_pose_kernels.mono
 
 The defaults differ from :func:`.single_pose.solve_poses`' where measurements said so
 (:data:`RESTART_AFTER`, :data:`MAX_STEP`, :data:`DAMPING`, :data:`ABANDON`); ``abandon=(0,
-0.0)`` turns the early restart off, as the reference has none.
+0.0)`` turns the early restart off, as the reference has none. ``crawl`` (off by default, as
+the reference has none; on in ``ikbench ik``'s deterministic table) kicks an attempt that
+crawls (:data:`.single_pose_kernels.KICK_SEED`).
 
 Per call (:meth:`SinglePoseLM.solve`): four arrays for numba to type (~0.1 us each: the
 chain, limits and settings travel as one packed array, :func:`.compiled_chain.pack`), the
@@ -41,8 +43,9 @@ helpers are inlined into it, which halved an iteration's time), numba caches the
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numba
 import numpy as np
@@ -117,13 +120,18 @@ class SinglePoseLM:
         damping: lambda at every (re)start.
         abandon: (t, h): an attempt whose |r| (errors in tolerances) is above h after t
             iterations restarts; t = 0: never.
+        crawl: (window, ratio, kick): an attempt whose |r|^2 is above ``ratio`` x its value
+            ``window`` iterations before is kicked, every joint by up to ``kick`` x
+            ``max_step`` (:data:`.single_pose_kernels.KICK_SEED`); window 0: never (the
+            default).
     """
 
     def __init__(self, robot: Robot, kind: str = "pose",
                  tolerance: tuple[float, float] = (1.0, 0.5), stop: float = 1e-3,
                  max_iterations: int = 100_000, restart_after: int = RESTART_AFTER,
                  max_step: float = MAX_STEP, damping: float = DAMPING,
-                 abandon: tuple[int, float] = ABANDON) -> None:
+                 abandon: tuple[int, float] = ABANDON,
+                 crawl: tuple[int, float, float] = (0, 0.0, 0.0)) -> None:
         if kind not in KINDS:
             raise InputError(f"kind: {kind!r} is not one of {', '.join(KINDS)}")
         numbers = {"tolerance": min(tolerance), "stop": stop, "max_step": max_step,
@@ -134,10 +142,14 @@ class SinglePoseLM:
                 raise InputError(f"{name}: {value!r} must be > 0")
         if len(abandon) != 2 or int(abandon[0]) != abandon[0] or min(abandon) < 0:
             raise InputError(f"abandon: {abandon!r} must be (iterations >= 0, |r| >= 0)")
+        if len(crawl) != 3 or int(crawl[0]) != crawl[0] or min(crawl) < 0:
+            raise InputError(f"crawl: {crawl!r} must be (iterations >= 0, ratio >= 0, "
+                             "kick >= 0)")
         self.robot, self.kind, self.dof = robot, kind, robot.dof
         settings = np.zeros((1, WIDTH))
-        settings[0, :10] = (tolerance[0], tolerance[1], stop, max_iterations, restart_after,
-                            kind == "position", max_step, damping, abandon[0], abandon[1])
+        settings[0, :13] = (tolerance[0], tolerance[1], stop, max_iterations, restart_after,
+                            kind == "position", max_step, damping, abandon[0], abandon[1],
+                            *crawl)
         #: (dof + 2, WIDTH) the chain and limits (:func:`.compiled_chain.pack`), settings.
         self.spec = np.vstack([pack(Chain(robot), robot.lower, robot.upper), settings])
         self._identity = np.eye(3)
@@ -244,6 +256,19 @@ def random_initials(robot: Robot, shape: tuple[int, ...], seed: int | np.random.
     for :meth:`SinglePoseLM.solve_batch`."""
     rng = np.random.default_rng(seed)
     return rng.uniform(robot.sample_lower, robot.sample_upper, (*shape, robot.dof))
+
+
+@functools.cache
+def compiled_only(kernel: Any) -> Any:
+    """A dispatcher of ``kernel``'s function that runs the specialisations ``kernel`` has
+    compiled (or loaded) when first asked, and raises TypeError for any other argument types
+    instead of compiling one inside a timed call: the caller's layout checks (~0.3 us a call,
+    :func:`ikbench.methods.ours_lm.pose_solver._f64`) run only on that rare path."""
+    dispatcher = numba.njit(cache=True, nogil=True)(kernel.py_func)
+    for signature in kernel.signatures:
+        dispatcher.compile(signature)  # loaded from numba's cache, which kernel has filled
+    dispatcher.disable_compile()
+    return dispatcher
 
 
 def max_threads() -> int:

@@ -38,9 +38,17 @@ SMALL_ANGLE = 1e-6
 #: Columns of the settings row: tolerances [mm, deg], stop, the iteration cap, restart_after,
 #: position only (1.0 / 0.0), the largest step [pose units], lambda at every (re)start, and
 #: the early restart: after ABANDON_AT iterations (0: never) an attempt whose |r| is still
-#: above ABANDON_ABOVE restarts.
+#: above ABANDON_ABOVE restarts; the crawl check (:data:`KICK_SEED`).
 TOL_MM, TOL_DEG, STOP, MAX_ITERATIONS, RESTART_AFTER, POSITION_ONLY, MAX_STEP_COLUMN, \
-    DAMPING, ABANDON_AT, ABANDON_ABOVE = range(10)
+    DAMPING, ABANDON_AT, ABANDON_ABOVE, CRAWL_WINDOW, CRAWL_RATIO, KICK = range(13)
+
+#: The crawl check (columns CRAWL_WINDOW, CRAWL_RATIO, KICK; window 0: off): an attempt whose
+#: |r|^2 has not dropped below CRAWL_RATIO x its value CRAWL_WINDOW iterations before is
+#: crawling (e.g. into the stretched-elbow saddle, where J^T J cannot see that bending helps)
+#: and is kicked: every joint moved by a uniform draw in +-KICK x max_step [pose units] (into
+#: the limits), lambda reset. The draws are xorshift64 from KICK_SEED at each call: the same
+#: target and starts give the same kicks.
+KICK_SEED = np.uint64(0x9E3779B97F4A7C15)
 
 #: The kernels' arrays (numba reads the types from the arguments, not from annotations), and
 #: one thread's scratch (:func:`workspace`).
@@ -183,6 +191,9 @@ def solve_target(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, bu
     attempt = iterations = started = 0
     lam, cost = restart(spec, k, initials[0], goal_mm, goal_r, ws)
     success = False
+    # the crawl check: |r|^2 when the window began, its iteration, the kicks' random state
+    mark_cost, mark_at, state = cost, 0, KICK_SEED
+    crawl_window = int(spec[k + 1, CRAWL_WINDOW])
     while True:
         if done(spec, k, r, stop):
             success = True
@@ -190,6 +201,15 @@ def solve_target(spec: Array, goal_mm: Array, goal_r: Array, initials: Array, bu
         if timed and monotonic_s(timespec) >= deadline:
             break
         since = iterations - started
+        if since == 0:
+            mark_cost, mark_at = cost, iterations
+        elif iterations - mark_at >= crawl_window > 0:
+            if cost > spec[k + 1, CRAWL_RATIO] * mark_cost:  # crawling: kick the pose
+                state = kick(spec, k, q, state)
+                cost = residual(spec, k, q, goal_mm, goal_r, r, phi, ws)
+                linearise(spec, k, r, phi, ws)
+                lam = spec[k + 1, DAMPING]
+            mark_cost, mark_at = cost, iterations
         slow = since >= restart_after or (since == abandon_at > 0
                                           and cost > abandon_above * abandon_above)
         if (lam > STALLED or slow) and attempt + 1 < initials.shape[0]:
@@ -237,6 +257,20 @@ def restart(spec: Array, k: int, start: Array, goal_mm: Array, goal_r: Array, ws
     cost = residual(spec, k, q, goal_mm, goal_r, r, phi, ws)
     linearise(spec, k, r, phi, ws)
     return spec[k + 1, DAMPING], cost
+
+
+@njit(cache=True, inline="always")
+def kick(spec: Array, k: int, q: Array, state: np.uint64) -> np.uint64:
+    """Move every joint of ``q`` by a uniform draw in +-KICK x max_step [pose units], into
+    its limits (:func:`into_limits`); returns the xorshift64 state after the k draws."""
+    reach = spec[k + 1, KICK] * spec[k + 1, MAX_STEP_COLUMN]
+    for j in range(k):
+        state ^= state << np.uint64(13)
+        state ^= state >> np.uint64(7)
+        state ^= state << np.uint64(17)
+        u = (state >> np.uint64(11)) * (1.0 / 9007199254740992.0)  # [0, 1), 53 bits
+        q[j] = into_limits(spec, j, q[j] + (2.0 * u - 1.0) * reach)
+    return state
 
 
 @njit(cache=True, inline="always")
