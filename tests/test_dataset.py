@@ -216,3 +216,28 @@ def test_the_pipeline_gives_the_shards_build_shard_gives(robot, paper_targets):
         alone = build_shard(spec)
         assert result.steps.equals(alone.steps)
         assert result.trajectories.equals(alone.trajectories)
+
+
+def test_the_spec_refuses_before_running_and_run_leaves_the_final_manifest_to_write(
+        robot, paper_targets, tmp_path):
+    """DatasetSpec.validate is where the values are checked (the shard maximum, which only
+    the CLI checked before, included); run(spec) writes the shards and a first manifest
+    (incomplete), DatasetReport.write the final one."""
+    from ikbench.core.errors import InputError
+    from ikbench.methods.ours_lm import LMSettings
+    from ikbench.studies.dataset import MAX_SHARDS, DatasetSpec, run
+
+    with pytest.raises(InputError, match="more than the maximum"):
+        DatasetSpec(MAX_SHARDS + 1, robot, paper_targets, shard_size=1,
+                    output=tmp_path / "big").validate()
+    assert not (tmp_path / "big").exists()
+    spec = DatasetSpec(3, robot, paper_targets, steps=6, shard_size=2,
+                       lm_settings=LMSettings(backend="numpy"), output=tmp_path / "d",
+                       progress=False)
+    spec.validate()
+    report = run(spec)
+    assert len(pd.read_parquet(tmp_path / "d" / "trajectories")) == 3
+    assert json.loads((tmp_path / "d" / "dataset.json").read_text())["complete"] is False
+    assert report.write(spec.output) == tmp_path / "d"
+    written = json.loads((tmp_path / "d" / "dataset.json").read_text())
+    assert written["complete"] is True and written["summary"]["trajectories"] == 3

@@ -1,6 +1,14 @@
 """Datasets: N random reachable line trajectories solved by ours-lm, as Parquet shards.
 
-:func:`build_dataset` splits N trajectories into shards of ``shard_size`` (the last one
+The study shape (:mod:`ikbench.studies.shape`): a :class:`DatasetSpec`, its
+:meth:`~DatasetSpec.validate`, :func:`run` and :meth:`DatasetReport.write`;
+:func:`build_dataset` is the keyword function that does all three. Unlike the other studies,
+:func:`run` writes as it goes (a dataset can be larger than the memory, and a stopped run is
+resumed): the shards and a first manifest go into the spec's ``output`` folder while it runs;
+:meth:`DatasetReport.write` writes only the final manifest (``dataset.json``, complete, with
+this run's figures and the summary).
+
+:func:`run` splits N trajectories into shards of ``shard_size`` (the last one
 smaller), builds each missing shard (:func:`ikbench.studies.dataset_shard.build_shard`: touch
 poses from the batch sampler seeded by (seed, shard), one batched solve, vectorised metrics) on
 an executor, and writes it as two Parquet files, each atomically:
@@ -33,7 +41,7 @@ import json
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, cast
 
@@ -51,6 +59,7 @@ from ikbench.methods.ours_lm.devices import cpu_backend
 from ikbench.runtime.executors import SCALE_EXTRA, Executor, LocalExecutor, portable_robot
 from ikbench.runtime.parallel import gpus_for
 from ikbench.runtime.progress import Reporter
+from ikbench.studies.batch import MAX_COUNT as MAX_SHARD_SIZE
 from ikbench.studies.batch import WorkspaceFilter, check_seed
 from ikbench.studies.dataset_shard import (
     FORMAT,
@@ -61,8 +70,13 @@ from ikbench.studies.dataset_shard import (
     pipelined,
 )
 from ikbench.studies.folders import default_output
+from ikbench.studies.shape import run_and_write
 
 DEFAULT_SHARD_SIZE = 10_000
+#: At most this many trajectories (a million took 76 min on one CPU core, docs/scale.md).
+MAX_COUNT = 1_000_000_000
+#: At most this many shards: the plan of the dataset holds one entry per shard.
+MAX_SHARDS = 100_000
 MAX_STEPS = 5000
 MANIFEST = "dataset.json"
 TABLES = ("steps", "trajectories")     # written in this order: trajectories marks a shard done
@@ -78,20 +92,85 @@ def shard_path(output: str | Path, table: str, shard: int) -> Path:
 
 @dataclass
 class DatasetReport:
-    """What :func:`build_dataset` did: the manifest it wrote and this run's figures."""
+    """What :func:`run` did: the final manifest (in memory until :meth:`write`) and this
+    run's figures. The shards are already in the spec's ``output`` folder."""
 
     manifest: dict
     written: list[int]          # shards built by this run
     kept: list[int]             # complete shards found and kept
 
+    def write(self, folder: str | Path) -> Path:
+        """Write the final manifest, ``folder/dataset.json`` (atomically; ``folder`` is the
+        dataset's folder, the spec's ``output``); return ``folder``. The shards are not
+        written here: :func:`run` wrote them as it built them."""
+        atomic_write_json(Path(folder) / MANIFEST, self.manifest)
+        return Path(folder)
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """A dataset: ``count`` trajectories of ``steps`` segments on ``robot`` from the start
+    pose of ``targets``, seeded by ``seed``, in shards of ``shard_size``, solved by ours-lm
+    with ``lm_settings`` on ``executor`` (None: one shard after another in this process),
+    written to ``output``. :meth:`validate` checks it; :func:`run` builds it."""
+
+    count: int
+    robot: Robot
+    targets: Targets
+    seed: int = 0
+    steps: int = 50
+    shard_size: int = DEFAULT_SHARD_SIZE
+    lm_settings: LMSettings = field(default_factory=LMSettings)
+    output: Path = Path(DEFAULT_OUTPUT)
+    executor: Executor | None = None
+    progress: bool = True
+
+    def validate(self) -> None:
+        """InputError (the CLI's one-line message) for a bad count, seed, steps or shard
+        size (:func:`check_options`), weights ours-lm refuses, a missing pyarrow, or an
+        ``output`` that holds a dataset made with other options or more trajectories
+        (:func:`check_manifest`)."""
+        check_options(self.count, self.seed, self.steps, self.shard_size)
+        check_manifest(self.output, _config(self), self.count)
+
+
+def _settings(spec: DatasetSpec) -> LMSettings:
+    """The spec's ours-lm settings with their weights parsed (InputError for bad ones)."""
+    settings = spec.lm_settings
+    return replace(settings, weights=settings.weights if isinstance(settings.weights, dict)
+                   else parse_weights(settings.weights))
+
+
+def _config(spec: DatasetSpec) -> dict[str, Any]:
+    """The spec's :func:`dataset_config`."""
+    return dataset_config(spec.robot, spec.targets.start_pose, spec.steps, spec.seed,
+                          spec.shard_size, WorkspaceFilter.of(spec.robot), _settings(spec))
+
+
+def check_sizes(count: int, shard_size: int) -> None:
+    """InputError, before anything is planned, for a count or shard size beyond the stated
+    maxima (a count of 10^12 used to fill the memory with the plan of its shards)."""
+    if count > MAX_COUNT:
+        raise InputError(f"--count: {count} is more than the maximum, {MAX_COUNT:,} "
+                         "trajectories")
+    if shard_size > MAX_SHARD_SIZE:
+        raise InputError(f"--shard-size: {shard_size} is more than the maximum, "
+                         f"{MAX_SHARD_SIZE:,} (one shard is one batch in memory)")
+    if count >= 1 and shard_size >= 1 and -(-count // shard_size) > MAX_SHARDS:
+        raise InputError(f"--count {count} in shards of {shard_size} makes "
+                         f"{-(-count // shard_size):,} shards, more than the maximum, "
+                         f"{MAX_SHARDS:,}; raise --shard-size to at least "
+                         f"{-(-count // MAX_SHARDS)}")
+
 
 def check_options(count: Any, seed: Any, steps: Any, shard_size: Any) -> None:
-    """InputError naming the flag for a bad count, seed, steps or shard size, or when pyarrow
-    (the Parquet writer) is not installed."""
+    """InputError naming the flag for a bad count, seed, steps or shard size (beyond the
+    maxima: :func:`check_sizes`), or when pyarrow (the Parquet writer) is not installed."""
     for flag, value, low in (("--count", count, 1), ("--steps", steps, 2),
                              ("--shard-size", shard_size, 1)):
         if isinstance(value, bool) or not isinstance(value, int) or value < low:
             raise InputError(f"{flag}: {value!r} must be an integer >= {low}")
+    check_sizes(count, shard_size)
     if steps > MAX_STEPS:
         raise InputError(f"--steps: {steps} must be at most {MAX_STEPS}")
     check_seed(seed)
@@ -182,7 +261,9 @@ def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
                   targets: str | Path | Targets | None = None,
                   robot: Robot | str | None = None, output: str | Path = DEFAULT_OUTPUT,
                   executor: Executor | None = None, progress: bool = True) -> DatasetReport:
-    """Build (or resume) a dataset of ``count`` trajectories (see the module docstring).
+    """Build (or resume) a dataset of ``count`` trajectories (see the module docstring):
+    :class:`DatasetSpec`, its :meth:`~DatasetSpec.validate`, :func:`run` and
+    :meth:`DatasetReport.write` into ``output``.
 
     Args:
         count: number of trajectories N.
@@ -202,23 +283,33 @@ def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
     ``"interrupted"`` (``complete`` false) before the KeyboardInterrupt goes on.
     """
 
-    check_options(count, seed, steps, shard_size)
     robot = as_robot(robot)
     if not isinstance(targets, Targets):
         targets = load_targets(targets, robot)
-    settings = lm_settings or LMSettings()
-    settings = replace(settings, weights=settings.weights if isinstance(settings.weights, dict)
-                       else parse_weights(settings.weights))
-    workspace = WorkspaceFilter.of(robot)
-    config = dataset_config(robot, targets.start_pose, steps, seed, shard_size, workspace,
-                            settings)
-    check_manifest(output, config, count)
-    executor = executor or LocalExecutor()
-    specs = plan(count, config, robot, targets.start_pose, settings, workspace)
+    spec = DatasetSpec(count, robot, targets, seed=seed, steps=steps, shard_size=shard_size,
+                       lm_settings=lm_settings or LMSettings(), output=Path(output),
+                       executor=executor, progress=progress)
+    return run_and_write(spec, run, spec.output)
+
+
+def run(spec: DatasetSpec) -> DatasetReport:
+    """Build (or resume) the dataset ``spec`` (validated: :meth:`DatasetSpec.validate`).
+
+    Writes as it goes, into ``spec.output``: a first manifest (``complete`` false), then
+    each shard as it is built. The final manifest is returned, not written:
+    :meth:`DatasetReport.write` writes it. Ctrl-C keeps the complete shards (the same spec
+    resumes) and marks dataset.json ``"interrupted"`` before the KeyboardInterrupt goes on.
+    """
+    count, shard_size, output = spec.count, spec.shard_size, spec.output
+    settings = _settings(spec)
+    workspace = WorkspaceFilter.of(spec.robot)
+    config = _config(spec)
+    executor = spec.executor or LocalExecutor()
+    specs = plan(count, config, spec.robot, spec.targets.start_pose, settings, workspace)
     _remove_temporary_files(output)
     kept = [s.shard for s in specs if is_complete(output, s)]
     missing = [s for s in specs if s.shard not in set(kept)]
-    log = Reporter("dataset", total=count, unit="trajectory", enabled=progress)
+    log = Reporter("dataset", total=count, unit="trajectory", enabled=spec.progress)
     log.note(f"{count} trajectories in {len(specs)} shard(s) of up to {shard_size}: "
              f"{len(kept)} complete (kept), {len(missing)} to build on {executor.name} "
              f"({executor.workers} worker(s)) with {_solver_name(settings)}")
@@ -232,14 +323,14 @@ def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
     else:
         results = executor.map(build_shard, missing, gpus=gpus_for(settings))
     try:
-        for spec, result in zip(missing, results):
-            _write_shard(output, spec, result)
-            written.append(spec.shard)
-            done += spec.count
+        for shard, result in zip(missing, results):
+            _write_shard(output, shard, result)
+            written.append(shard.shard)
+            done += shard.count
             draws += result.draws
             elapsed = time.perf_counter() - began
             rate = sum(s.count for s in missing if s.shard in written) / elapsed
-            log.advance(spec.count, f"shard {spec.shard + 1}/{len(specs)}: {spec.count} "
+            log.advance(shard.count, f"shard {shard.shard + 1}/{len(specs)}: {shard.count} "
                         f"trajectories in {result.total_s:.1f} s (solve {result.solve_s:.1f} s); "
                         f"{done}/{count} done ({100 * done / count:.0f} %), {rate:.0f} "
                         f"trajectories/s, ETA {_eta((count - done) / rate if rate else 0)}")
@@ -251,12 +342,11 @@ def build_dataset(count: int, *, seed: int = 0, steps: int = 50,
     finally:
         log.close()
     wall = time.perf_counter() - began
-    run = {"shards_built": len(written), "shards_kept": len(kept),
-           "trajectories_built": int(sum(s.count for s in missing)), "draws": draws,
-           "wall_s": wall, "trajectories_per_s": (sum(s.count for s in missing) / wall
-                                                  if wall > 0 and missing else None)}
-    manifest = _manifest(config, count, specs, output, executor, run)
-    atomic_write_json(Path(output) / MANIFEST, manifest)
+    this_run = {"shards_built": len(written), "shards_kept": len(kept),
+                "trajectories_built": int(sum(s.count for s in missing)), "draws": draws,
+                "wall_s": wall, "trajectories_per_s": (sum(s.count for s in missing) / wall
+                                                       if wall > 0 and missing else None)}
+    manifest = _manifest(config, count, specs, output, executor, this_run)
     log.note(f"done: {count} trajectories in {output}/ "
              f"({manifest['summary']['converged_share']:.1%} converged); this run built "
              f"{len(written)} shard(s) in {wall:.1f} s")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from ikbench.cli.options import (
     _convert,
@@ -16,6 +17,9 @@ from ikbench.cli.options import (
 from ikbench.cli.values import OUTPUT, THREADS
 from ikbench.core.errors import InputError
 from ikbench.studies.folders import default_output
+
+if TYPE_CHECKING:
+    from ikbench.studies.cartesian import CartesianSpec
 
 HELP = "Cartesian path benchmark: methods on the CppFlow/TORM 6-D pose paths, several seeds"
 DEFAULT_OUTPUT = default_output("cartesian")
@@ -97,28 +101,27 @@ def method_settings(args: argparse.Namespace, names: list[str]) -> dict[str, dic
     return out
 
 
-def command_line(args: argparse.Namespace, problems: str, seeds: Sequence[int]) -> str:
-    """The command as given (options in a fixed order), for the report."""
+def command_line(problems: str, methods: str | None, seeds: Sequence[int], output: str,
+                 trajectories: str = "first", first_call: bool = False,
+                 given: dict[str, object] | None = None) -> str:
+    """The command as given (options in a fixed order), for the report; ``given``: the method
+    options given (flag -> value)."""
     import shlex
 
     words = ["ikbench", "cartesian", "--problems", problems]
-    if args.methods:
-        words += ["--methods", args.methods]
-    words += ["--seeds", ",".join(map(str, seeds)), "--output", args.output]
-    if args.trajectories != "first":
-        words += ["--trajectories", args.trajectories]
-    if args.first_call:
+    if methods:
+        words += ["--methods", methods]
+    words += ["--seeds", ",".join(map(str, seeds)), "--output", output]
+    if trajectories != "first":
+        words += ["--trajectories", trajectories]
+    if first_call:
         words += ["--first-call"]
-    for flag, value in _given(args).items():
+    for flag, value in (given or {}).items():
         words += [f"--{flag}", str(value)]
     return " ".join(shlex.quote(w) for w in words)
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
-    from pathlib import Path
-
-    from ikbench.core.io import check_folder_writable
     from ikbench.core.problems import BENCHMARK, resolve_problems
     from ikbench.studies import cartesian as study
 
@@ -129,8 +132,23 @@ def run(args: argparse.Namespace) -> int:
     seeds = study.parse_seeds(args.seeds)
     spec = study.CartesianSpec(tuple(files), tuple(names), seeds, method_settings(args, names),
                                progress=not args.quiet, first_call=args.first_call,
-                               command=command_line(args, problems, seeds),
+                               command=command_line(problems, args.methods, seeds, args.output,
+                                                    args.trajectories, args.first_call,
+                                                    _given(args)),
                                trajectories=args.trajectories)
+    return run_spec(spec, args)
+
+
+def run_spec(spec: CartesianSpec, args: argparse.Namespace) -> int:
+    """Validate, run and write ``spec`` into ``args.output``, then print its summary: the
+    one path of ``ikbench cartesian`` and ``ikbench compare --problems``. Exit code 1 when a
+    solve failed."""
+    import sys
+    from pathlib import Path
+
+    from ikbench.core.io import check_folder_writable
+    from ikbench.studies import cartesian as study
+
     spec.validate()  # each method's settings checked before anything runs
     folder = Path(args.output) / study.FOLDER
     check_folder_writable(folder)

@@ -17,14 +17,9 @@ from ikbench.cli.options import (
     robot_from_args,
 )
 from ikbench.cli.values import OUTPUT, SEED, STEPS, THREADS, count
-from ikbench.core.errors import InputError
 from ikbench.studies.folders import default_output
 
 HELP = "a training set: N random reachable trajectories (ours-lm) as Parquet shards"
-#: At most this many trajectories (a million took 76 min on one CPU core, docs/scale.md).
-MAX_COUNT = 1_000_000_000
-#: At most this many shards: the plan of the dataset holds one entry per shard.
-MAX_SHARDS = 100_000
 
 
 DESCRIPTION = (
@@ -43,7 +38,7 @@ DESCRIPTION = (
 def arguments(parser: argparse.ArgumentParser) -> None:
     from ikbench.methods.ours_lm import OursLM
     from ikbench.studies.batch import MAX_COUNT as MAX_SHARD_SIZE
-    from ikbench.studies.dataset import DEFAULT_SHARD_SIZE
+    from ikbench.studies.dataset import DEFAULT_SHARD_SIZE, MAX_COUNT, MAX_SHARDS
 
     parser.add_argument("--count", type=count("trajectories", 1, MAX_COUNT), default=1000,
                         help=f"number of trajectories N, at most {MAX_COUNT:,} and "
@@ -72,27 +67,29 @@ def arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from dataclasses import replace
     from pathlib import Path
 
     from ikbench.core.io import check_writable
+    from ikbench.core.targets import load_targets
     from ikbench.methods.ours_lm import OursLM
-    from ikbench.studies.dataset import MANIFEST, build_dataset, check_options
+    from ikbench.studies import dataset as study
 
-    check_sizes(args.count, args.shard_size)
-    check_options(args.count, args.seed, args.steps, args.shard_size)
     check_threads(args.threads)
     check_executor_args(args)
     solver = method_from_args(args, OursLM, {OursLM.name: OursLM})
     robot = robot_from_args(args)
-    from ikbench.core.targets import load_targets
-
-    load_targets(args.targets, robot)  # its start pose is used: checked up front
-    check_writable(Path(args.output) / MANIFEST)  # before sampling and solving
+    targets = load_targets(args.targets, robot)  # its start pose is used: checked up front
+    spec = study.DatasetSpec(args.count, robot, targets, seed=args.seed, steps=args.steps,
+                             shard_size=args.shard_size, lm_settings=solver.settings,
+                             output=Path(args.output), progress=not args.quiet)
+    spec.validate()
+    check_writable(spec.output / study.MANIFEST)  # before sampling and solving
     begin(args, threads=args.threads)
-    report = build_dataset(args.count, seed=args.seed, steps=args.steps,
-                           shard_size=args.shard_size, lm_settings=solver.settings,
-                           targets=args.targets, robot=robot, output=args.output,
-                           executor=executor_from_args(args), progress=not args.quiet)
+    # the executor after begin: --executor ray starts or joins Ray
+    spec = replace(spec, executor=executor_from_args(args))
+    report = study.run(spec)
+    report.write(spec.output)
     summary, run_figures = report.manifest["summary"], report.manifest["this_run"]
     rate = run_figures["trajectories_per_s"]
     print(f"{summary['trajectories']} trajectories in {args.output}/ "
@@ -102,21 +99,3 @@ def run(args: argparse.Namespace) -> int:
           f"{summary['line_distance_mean_mm_median']:.3f} mm, median pointing deviation "
           f"{summary['pointing_deviation_mean_deg_median']:.2f} deg")
     return 0
-
-
-def check_sizes(count: int, shard_size: int) -> None:
-    """InputError, before anything is planned, for a --count or --shard-size beyond the
-    stated maxima (a count of 10^12 used to fill the memory with the plan of its shards)."""
-    from ikbench.studies.batch import MAX_COUNT as MAX_SHARD_SIZE
-
-    if count > MAX_COUNT:
-        raise InputError(f"--count: {count} is more than the maximum, {MAX_COUNT:,} "
-                         "trajectories")
-    if shard_size > MAX_SHARD_SIZE:
-        raise InputError(f"--shard-size: {shard_size} is more than the maximum, "
-                         f"{MAX_SHARD_SIZE:,} (one shard is one batch in memory)")
-    if count >= 1 and shard_size >= 1 and -(-count // shard_size) > MAX_SHARDS:
-        raise InputError(f"--count {count} in shards of {shard_size} makes "
-                         f"{-(-count // shard_size):,} shards, more than the maximum, "
-                         f"{MAX_SHARDS:,}; raise --shard-size to at least "
-                         f"{-(-count // MAX_SHARDS)}")

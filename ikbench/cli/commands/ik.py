@@ -145,19 +145,18 @@ def run(args: argparse.Namespace) -> int:
     from ikbench.core.io import check_folder_writable
     from ikbench.render.ik_report import robot_slug, summarise
     from ikbench.studies import ik as study
-    from ikbench.studies.ik import FOLDER, IKSettings, IKSpec, parse_attempts, parse_methods
 
-    settings = IKSettings(args.count, args.seed, args.kind, args.tolerance_mm,
-                          args.tolerance_deg, args.init, args.perturb_deg,
-                          parse_caps(args.max_count_per_method), args.budget_ms,
-                          parse_attempts(args.attempts), args.threads,
-                          unreachable=args.unreachable, repeat=args.repeat,
-                          first_call=args.first_call)
+    settings = study.IKSettings(args.count, args.seed, args.kind, args.tolerance_mm,
+                                args.tolerance_deg, args.init, args.perturb_deg,
+                                parse_caps(args.max_count_per_method), args.budget_ms,
+                                study.parse_attempts(args.attempts), args.threads,
+                                unreachable=args.unreachable, repeat=args.repeat,
+                                first_call=args.first_call)
     robot = robot_from_args(args)
-    spec = IKSpec(robot, settings, tuple(parse_methods(args.methods, args.kind)),
-                  progress=not args.quiet, command=command_line(args))
+    spec = study.IKSpec(robot, settings, tuple(study.parse_methods(args.methods, args.kind)),
+                        progress=not args.quiet, command=command_line(args))
     spec.validate()
-    folder = Path(args.output) / FOLDER / robot_slug(robot)
+    folder = Path(args.output) / study.FOLDER / robot_slug(robot)
     check_folder_writable(folder)
     begin(args)
     result = study.run(spec)
