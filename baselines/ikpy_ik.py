@@ -65,7 +65,7 @@ import numpy.typing as npt
 
 from ikbench.core.errors import InputError
 from ikbench.methods.base import Capabilities
-from ikbench.methods.options import check_choice, check_positive, option
+from ikbench.methods.options import check_choice, check_fraction, check_positive, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import Chain, Goals, chain_of, element_path
 from ikbench.schemes.geometry import angle_between_rad, rotation_angle_rad
@@ -126,8 +126,7 @@ class IkpySettings:
         check_choice(self, "scheme", SCHEMES)
         check_choice(self, "orientation", ORIENTATIONS)
         check_positive(self, "position_tolerance", "pointing_tolerance", "orientation_coeff")
-        if not (np.isfinite(self.max_speed_use) and 0 <= self.max_speed_use <= 1):
-            raise InputError(f"--ikpy-max-speed-use: {self.max_speed_use!r} must be in [0, 1]")
+        check_fraction(self, "max_speed_use")
 
 
 @dataclass

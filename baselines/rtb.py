@@ -63,11 +63,10 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from ikbench.methods.base import Capabilities
-from ikbench.methods.options import check_choice, check_positive, option
+from ikbench.methods.options import check_choice, check_fraction, check_positive, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import Chain, Goals, chain_of
 from ikbench.schemes.exact_pose import (
-    check_fraction,
     check_roll_settings,
     roll_max_option,
     roll_step_option,

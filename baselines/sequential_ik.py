@@ -81,7 +81,7 @@ import numpy.typing as npt
 
 from ikbench.core.errors import InputError
 from ikbench.methods.base import Capabilities, Method, Solution, report_fraction
-from ikbench.methods.options import check_choice, check_positive, option
+from ikbench.methods.options import check_choice, check_fraction, check_positive, option
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.chain import goals_of, max_step_urdf
 from ikbench.schemes.single_pose import (
@@ -170,10 +170,8 @@ class DLSSettings:
         check_positive(self, "max_ik_iterations", integer=True)
         self.max_ik_iterations = int(self.max_ik_iterations)
         self.up_vector = parse_up_vector(self.up_vector)
-        if not (math.isfinite(self.max_speed_use) and 0 <= self.max_speed_use <= 1):
-            raise InputError(f"--max-speed-use: {self.max_speed_use!r} must be in [0, 1]")
-        if not (math.isfinite(self.posture_gain) and 0 <= self.posture_gain <= 1):
-            raise InputError(f"--posture-gain: {self.posture_gain!r} must be in [0, 1]")
+        check_fraction(self, "max_speed_use")
+        check_fraction(self, "posture_gain")
 
 
 @dataclass

@@ -122,6 +122,13 @@ def check_choice(settings: Any, field_name: str, allowed: Collection[Any]) -> No
                          f"{', '.join(map(str, allowed))}")
 
 
+def check_fraction(settings: Any, field_name: str) -> None:
+    """InputError naming the flag when the settings field ``field_name`` is not in [0, 1]."""
+    value = getattr(settings, field_name)
+    if not (math.isfinite(value) and 0 <= value <= 1):
+        raise InputError(f"{flag_of(settings, field_name)}: {value!r} must be in [0, 1]")
+
+
 def check_positive(settings: Any, *field_names: str, integer: bool = False) -> None:
     """InputError naming the flag when a field is not a positive (integer) number."""
     for name in field_names:

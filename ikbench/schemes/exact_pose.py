@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from ikbench.core.errors import InputError
-from ikbench.methods.options import check_positive, flag_of, option
+from ikbench.methods.options import check_fraction, check_positive, flag_of, option
 from ikbench.schemes.chain import Chain, Goals
 from ikbench.schemes.geometry import (
     closest_rotation_with_axis,
@@ -69,13 +69,6 @@ def roll_max_option(prefix: str) -> Any:
     """The settings field ``roll_max`` [deg], flag ``--{prefix}-roll-max``."""
     return option(60.0, flag=f"{prefix}-roll-max", unit="deg",
                   help="largest roll change tried (0: no sweep)")
-
-
-def check_fraction(settings: Any, field_name: str) -> None:
-    """InputError naming the flag when the settings field ``field_name`` is not in [0, 1]."""
-    value = getattr(settings, field_name)
-    if not (np.isfinite(value) and 0 <= value <= 1):
-        raise InputError(f"{flag_of(settings, field_name)}: {value!r} must be in [0, 1]")
 
 
 def check_roll_settings(settings: Any) -> None:

@@ -25,7 +25,6 @@ import numpy as np
 import pandas as pd
 
 from ikbench.core.errors import InputError
-from ikbench.core.io import write_study_files
 from ikbench.core.losses import objective
 from ikbench.core.metrics import trajectory_metrics
 from ikbench.core.provenance import provenance
@@ -36,6 +35,7 @@ from ikbench.methods.base import Method
 from ikbench.methods.registry import get_method, parse_names
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.progress import Reporter
+from ikbench.studies.shape import TimedResult
 
 if TYPE_CHECKING:
     from ikbench.core.task import Task
@@ -85,21 +85,16 @@ def parse_methods(text: str | Sequence[str]) -> list[str]:
 
 
 @dataclass
-class BenchResult:
+class BenchResult(TimedResult):
     """What :func:`run` measured: the summary, every timed solve, and provenance.
-    :meth:`write` writes the files."""
+    :meth:`write` writes benchmark.csv, benchmark_runs.csv, benchmark.json and benchmark.md
+    (:class:`~ikbench.studies.shape.TimedResult`)."""
 
-    summary: pd.DataFrame
-    runs: pd.DataFrame
-    record: dict
+    STEM = "benchmark"
 
-    def write(self, folder: str | Path) -> Path:
-        """Write benchmark.csv, benchmark_runs.csv, benchmark.json and benchmark.md into
-        ``folder``; return benchmark.csv's path."""
-        return write_study_files(folder, "benchmark",
-                                 {"benchmark.csv": (self.summary, "%.6g"),
-                                  "benchmark_runs.csv": (self.runs, "%.6g")},
-                                 self.record, lambda: markdown(self))
+    def markdown(self) -> str:
+        """The module's :func:`markdown` of this result."""
+        return markdown(self)
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,14 @@ spec for you.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol, TypeVar
+from typing import TYPE_CHECKING, ClassVar, Protocol, TypeVar
+
+from ikbench.core.io import write_study_files
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 class Spec(Protocol):
@@ -29,6 +35,30 @@ class Result(Protocol):
 
     def write(self, folder: Path) -> Path:
         """Write the study's files under ``folder``; return the folder written."""
+
+
+@dataclass
+class TimedResult:
+    """A timing study's result: one summary row per case, every timed round, and the record.
+    :meth:`write` writes ``<STEM>.csv``, ``<STEM>_runs.csv``, ``<STEM>.json`` and
+    ``<STEM>.md`` (:meth:`markdown`)."""
+
+    STEM: ClassVar[str]
+
+    summary: pd.DataFrame
+    runs: pd.DataFrame
+    record: dict
+
+    def markdown(self) -> str:
+        """``<STEM>.md``'s text."""
+        raise NotImplementedError
+
+    def write(self, folder: str | Path) -> Path:
+        """Write the four files into ``folder``; return ``<STEM>.csv``'s path."""
+        return write_study_files(folder, self.STEM,
+                                 {f"{self.STEM}.csv": (self.summary, "%.6g"),
+                                  f"{self.STEM}_runs.csv": (self.runs, "%.6g")},
+                                 self.record, self.markdown)
 
 
 S = TypeVar("S", bound=Spec)

@@ -30,7 +30,6 @@ import numpy as np
 import pandas as pd
 
 from ikbench.core.errors import InputError
-from ikbench.core.io import write_study_files
 from ikbench.core.losses import PAPER_WEIGHTS
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
@@ -46,6 +45,7 @@ from ikbench.render.run_report import markdown_table
 from ikbench.runtime.progress import Reporter
 from ikbench.studies.batch import sample_touch_poses
 from ikbench.studies.dataset_shard import line_tasks as sampled_line_tasks
+from ikbench.studies.shape import TimedResult
 
 DEFAULT_BATCHES = (7, 1000, 10_000, 100_000)
 DEFAULT_DTYPES = ("float64", "float32")
@@ -76,21 +76,16 @@ def parse_dtypes(text: object) -> list[str]:
 
 
 @dataclass
-class ThroughputResult:
+class ThroughputResult(TimedResult):
     """One row per case (backend, dtype, batch), every timed round, and the record.
-    :meth:`write` writes the files."""
+    :meth:`write` writes throughput.csv, throughput_runs.csv, throughput.json and
+    throughput.md (:class:`~ikbench.studies.shape.TimedResult`)."""
 
-    summary: pd.DataFrame
-    runs: pd.DataFrame
-    record: dict
+    STEM = "throughput"
 
-    def write(self, folder: str | Path) -> Path:
-        """Write throughput.csv, throughput_runs.csv, throughput.json and throughput.md into
-        ``folder``; return throughput.csv's path."""
-        return write_study_files(folder, "throughput",
-                                 {"throughput.csv": (self.summary, "%.6g"),
-                                  "throughput_runs.csv": (self.runs, "%.6g")},
-                                 self.record, lambda: markdown(self))
+    def markdown(self) -> str:
+        """The module's :func:`markdown` of this result."""
+        return markdown(self)
 
 
 @dataclass(frozen=True)

@@ -38,6 +38,7 @@ from ikbench.methods.ours_exact.problem import TERMS, ExactProblem, evaluate
 from ikbench.methods.ours_exact.sqp import RESTORATIONS, SQPResult, solve
 from ikbench.methods.ours_lm import OursLM, initial_poses
 from ikbench.methods.ours_lm.avoidance import collision_checker
+from ikbench.methods.ours_lm.search_common import lm_seed_option
 from ikbench.methods.registry import Adapter
 
 if TYPE_CHECKING:
@@ -113,9 +114,7 @@ class ExactSettings:
     init: str = option("auto", flag="exact-init", choices=INITS,
                        help="initial trajectory: interpolation between the fixed poses, "
                        "ours-lm's solution, or auto (the first when both poses are fixed)")
-    seed: int = option(0, flag="lm-seed",
-                       help="6-D pose paths: seed of the start search's random IK seeds, "
-                       "in [0, 2^63)")
+    seed: int = lm_seed_option()
     legibility_weight: float = option(0.0, flag="exact-legibility-weight",
                                       help="W of ikbench's legibility term (not the paper's "
                                       "method; 0: off): W * weighted mean of (1 - the "

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -57,6 +57,13 @@ STITCH_MAX_STEP = 6.5
 STITCH_STEP_SHARE = STITCH_MAX_STEP / MAX_JOINT_CHANGE_DEG
 
 
+def lm_seed_option() -> Any:
+    """The settings field ``seed`` as ``--lm-seed``: ours-lm's and, for the start search of
+    its initial trajectory, ours-exact's."""
+    return option(0, flag="lm-seed",
+                  help="6-D pose paths: seed of the start search's random IK seeds, in [0, 2^63)")
+
+
 @dataclass
 class OursLMSettings(LMSettings):
     """:class:`LMSettings` plus the start search of 6-D pose paths.
@@ -67,9 +74,7 @@ class OursLMSettings(LMSettings):
         refine: carried candidates refined by LM at once.
     """
 
-    seed: int = option(0, flag="lm-seed",
-                       help="6-D pose paths: seed of the start search's random IK seeds, "
-                       "in [0, 2^63)")
+    seed: int = lm_seed_option()
     ik_seeds: int = option(16, flag="lm-ik-seeds",
                            help="6-D pose paths: IK seeds for the first waypoint (the home "
                            "pose and random ones)")
