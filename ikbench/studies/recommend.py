@@ -18,8 +18,9 @@ run on three seeds:
    interval, per-call p50 and p99 with bootstrap intervals, the ranking on each seed and
    Kendall's tau between them, a verdict that calls ties ties.
 
-:func:`recommend` returns a :class:`Recommendation`; :func:`ikbench.render.recommend_report.
-write_folder` writes ``OUTPUT/recommend/<robot>/``.
+:func:`run` runs a :class:`RecommendSpec` and returns a :class:`Recommendation`;
+:meth:`Recommendation.write` writes ``OUTPUT/recommend/<robot>/``
+(:func:`ikbench.render.recommend_report.write_folder`); :func:`recommend` does all three.
 """
 
 from __future__ import annotations
@@ -161,6 +162,7 @@ class Recommendation:
         results: the raw rows (one per seed x method x target, ``ikbench ik``'s columns and
             ``seed``).
         settings, robot, wall_s, methods (name -> facts), load_average (start).
+        command: the command line recommend.md quotes ("": :func:`command_line`).
     """
 
     verdict: str
@@ -177,6 +179,17 @@ class Recommendation:
     methods: dict[str, dict] = field(default_factory=dict)
     load_start: tuple | None = None
     decision: Verdict | None = None
+    command: str = ""
+
+    def write(self, folder: str | Path) -> Path:
+        """Write ``folder/recommend/<robot>/`` whole (:mod:`ikbench.render.recommend_report`;
+        the command recorded: :attr:`command`, else :func:`command_line` into ``folder``);
+        set :attr:`files`; return the folder written."""
+        from ikbench.render.recommend_report import folder_of, write_folder
+
+        out = folder_of(folder, self.robot)
+        self.files = write_folder(self, out, self.command or command_line(self, folder))
+        return out
 
 
 def plan_sample(remaining_s: float, cost_s: dict[str, float],
@@ -334,12 +347,51 @@ def _run_paths(robot: Robot, names: Sequence[str], settings: RecommendSettings,
     return pd.concat(frames, ignore_index=True), paths.facts(names), plan
 
 
+def method_names(settings: RecommendSettings) -> list[str]:
+    """The methods ``settings`` asks (its ``methods``; None: every installed one that takes
+    the task), checked: :func:`~ikbench.studies.recommend_path.path_methods` for ``path``,
+    :func:`~ikbench.studies.ik.parse_methods` else."""
+    if settings.task == PATH:
+        from ikbench.studies.recommend_path import path_methods
+
+        return path_methods(settings.methods)
+    return parse_methods(settings.methods, settings.task)
+
+
+@dataclass(frozen=True)
+class RecommendSpec:
+    """A recommendation: the robot, its settings (checked when made), the method names, the
+    progress bar and the command line recommend.md quotes. :meth:`validate` checks the
+    rest; :func:`run` runs it (:mod:`ikbench.studies.shape`)."""
+
+    robot: Robot
+    settings: RecommendSettings = field(default_factory=RecommendSettings)
+    methods: tuple[str, ...] = ()
+    progress: bool = True
+    command: str = ""
+
+    def validate(self) -> None:
+        """InputError (the CLI's one-line message) for an unknown or unfit method, no method
+        that takes the task, or a robot whose kinematics cannot be built."""
+        task = self.settings.task
+        if task == PATH:
+            from ikbench.studies.recommend_path import path_methods
+
+            names = path_methods(list(self.methods))
+        else:
+            names = parse_methods(list(self.methods), task)
+        if not names:
+            raise InputError(f"--methods: no installed method takes --task {task}")
+        self.robot.check_loads()
+
+
 def recommend(robot: Robot | str, end_frame: str | None = None, *,
               budget_ms: float | None = None, task: str = "pose", minutes: float = 5.0,
               methods: str | Sequence[str] | None = None, seed: int = 1,
               attempts: int = ATTEMPTS, output: str | Path | None = RUNS,
               progress: bool = True, command: str = "") -> Recommendation:
-    """Recommend a single-pose IK method for ``robot`` (see the module docstring).
+    """Recommend a single-pose IK method for ``robot`` (see the module docstring): builds a
+    :class:`RecommendSpec`, validates it, :func:`run` and :meth:`Recommendation.write`.
 
     Args:
         robot: a :class:`~ikbench.core.robot.Robot`, or a name, config or URDF path.
@@ -358,8 +410,6 @@ def recommend(robot: Robot | str, end_frame: str | None = None, *,
     Returns:
         a :class:`Recommendation`.
     """
-    started = time.perf_counter()
-    load = load_average()
     names_given = None if methods is None else tuple(
         methods.split(",") if isinstance(methods, str) else methods)
     if budget_ms is None:
@@ -370,40 +420,40 @@ def recommend(robot: Robot | str, end_frame: str | None = None, *,
         from ikbench.core.robot import load_robot
 
         robot = load_robot(robot, end_frame)
-    robot.check_loads()
-    if task == PATH:
-        from ikbench.studies.recommend_path import path_methods
-
-        names = path_methods(names_given)
-    else:
-        names = parse_methods(names_given, task)
-    if not names:
-        raise InputError(f"--methods: no installed method takes --task {task}")
-    folder: Path | None = None
+    spec = RecommendSpec(robot, settings, tuple(method_names(settings)), progress, command)
+    spec.validate()
     if output is not None:
         from ikbench.core.io import check_folder_writable
         from ikbench.render.recommend_report import folder_of
 
-        folder = folder_of(output, robot)
-        check_folder_writable(folder)
+        check_folder_writable(folder_of(output, robot))
+    result = run(spec)
+    if output is not None:
+        result.write(output)
+    return result
+
+
+def run(spec: RecommendSpec) -> Recommendation:
+    """Run the recommendation ``spec`` (validated: :meth:`RecommendSpec.validate`); nothing is
+    written (:meth:`Recommendation.write` writes it). ``wall_s``: the run's time, the
+    writing not included."""
+    started = time.perf_counter()
+    load = load_average()
+    robot, settings, names, task = spec.robot, spec.settings, list(spec.methods), \
+        spec.settings.task
     deadline = started + settings.minutes * 60.0
-    run = _run_paths if task == PATH else _run_poses
+    panel = _run_paths if task == PATH else _run_poses
     steps = len(names) * (1 + SEEDS) + (0 if task == PATH else 2 * len(names)) + 1
-    with Reporter(FOLDER, total=steps, unit="step", enabled=progress) as report:
-        table, info, plan = run(robot, names, settings, deadline, report)
+    with Reporter(FOLDER, total=steps, unit="step", enabled=spec.progress) as report:
+        table, info, plan = panel(robot, names, settings, deadline, report)
         n = plan.targets_per_seed
         report.say("statistics and verdict")
         summary = per_method(table, info, settings.budget_ms, settings.seeds)
         decision = decide(summary, settings.budget_ms, task, robot.name, n, settings.seeds)
         result = Recommendation(decision.text, decision.table, [], decision.recommended,
                                 decision.tied, decision.kendall_tau, plan, table, settings,
-                                robot, 0.0, info, load, decision)
-        if folder is not None and output is not None:
-            from ikbench.render.recommend_report import write_folder
-
-            result.wall_s = time.perf_counter() - started
-            result.files = write_folder(result, folder, command or command_line(result, output))
-        report.advance(1, "written")
+                                robot, 0.0, info, load, decision, spec.command)
+        report.advance(1, "verdict")
     result.wall_s = time.perf_counter() - started
     return result
 

@@ -44,34 +44,22 @@ def arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ikbench.core.errors import InputError
     from ikbench.core.io import check_writable
     from ikbench.core.targets import load_targets
-    from ikbench.studies.legibility_tradeoff import (
-        WEIGHTS,
-        check_weights,
-        legibility_tradeoff,
-        plot_tradeoff,
-    )
+    from ikbench.studies import legibility_tradeoff as study
 
-    weights = check_weights(WEIGHTS if args.weights is None
-                            else [w.strip() for w in str(args.weights).split(",")])
+    weights = study.check_weights(study.WEIGHTS if args.weights is None
+                                  else [w.strip() for w in str(args.weights).split(",")])
     robot = robot_from_args(args)
     targets = load_targets(args.targets, robot)
     goals = None if args.goals is None else load_targets(args.goals, robot)
-    if args.target is not None and args.target not in targets.touch_poses:
-        raise InputError(f"--target: {args.target!r} is not a target of the targets file "
-                         f"({', '.join(targets.ids)})")
+    spec = study.LegibilitySpec(robot, targets, args.target, tuple(weights), goals)
+    spec.validate()
     out = Path(args.output)
-    check_writable(out / "legibility_tradeoff.csv")
+    check_writable(out / study.CSV)
     begin(args)
-    out.mkdir(parents=True, exist_ok=True)
-    curve = legibility_tradeoff(robot, targets, args.target, weights, goals)
-    curve.to_csv(out / "legibility_tradeoff.csv", index=False)
-    target = args.target or targets.ids[0]
-    plot_tradeoff(curve, out / "legibility_tradeoff.png",
-                  f"{robot.name}, target {target}: ours-exact + ikbench's legibility term "
-                  "(not the paper's method)")
-    print(curve.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
-    print(f"written to {out / 'legibility_tradeoff.csv'} (and legibility_tradeoff.png)")
+    result = study.run(spec)
+    result.write(out)
+    print(result.curve.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print(f"written to {out / study.CSV} (and {study.PNG})")
     return 0

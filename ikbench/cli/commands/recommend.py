@@ -78,26 +78,23 @@ def command_line(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     from ikbench.core.io import check_folder_writable
     from ikbench.render.recommend_report import folder_of
-    from ikbench.studies.ik import parse_methods
-    from ikbench.studies.recommend import RecommendSettings, recommend
-    from ikbench.studies.recommend_path import path_methods
+    from ikbench.studies import recommend as study
+    from ikbench.studies.recommend import RecommendSettings, RecommendSpec, method_names
 
     if args.budget_ms is None:
         args.budget_ms = PATH_BUDGET_MS if args.task == "path" else BUDGET_MS
-    RecommendSettings(args.budget_ms, args.task, args.minutes, args.seed, args.attempts)
+    names_given = None if args.methods is None else tuple(args.methods.split(","))
+    settings = RecommendSettings(args.budget_ms, args.task, args.minutes, args.seed,
+                                 args.attempts, methods=names_given)
     robot = robot_from_args(args)
-    if args.task == "path":
-        path_methods(args.methods)
-    else:
-        parse_methods(args.methods, args.task)
-    robot.check_loads()
+    spec = RecommendSpec(robot, settings, tuple(method_names(settings)),
+                         progress=not args.quiet, command=command_line(args))
+    spec.validate()
     folder = folder_of(args.output, robot)
     check_folder_writable(folder)
     begin(args)
-    result = recommend(robot, budget_ms=args.budget_ms, task=args.task, minutes=args.minutes,
-                       methods=args.methods, seed=args.seed, attempts=args.attempts,
-                       output=args.output, progress=not args.quiet,
-                       command=command_line(args))
+    result = study.run(spec)
+    result.write(args.output)
     print(result.verdict)
     unit = "paths" if args.task == "path" else "targets"
     print(f"written to {folder}/ in {result.wall_s:.0f} s ({result.plan.targets_per_seed} "
