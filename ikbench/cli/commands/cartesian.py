@@ -122,21 +122,33 @@ def command_line(problems: str, methods: str | None, seeds: Sequence[int], outpu
 
 
 def run(args: argparse.Namespace) -> int:
-    from ikbench.core.problems import BENCHMARK, resolve_problems
+    from ikbench.core.problems import BENCHMARK
+
+    problems = ",".join(args.problems) if args.problems else BENCHMARK
+    return run_spec(spec_of(args, problems, args.methods, args.seeds, args.trajectories,
+                            method_options=True), args)
+
+
+def spec_of(args: argparse.Namespace, problems: str, methods: str | None, seeds: str,
+            trajectories: str = "first", method_options: bool = False) -> CartesianSpec:
+    """The benchmark's spec from the problems, methods and seeds given (``args``: threads,
+    output, quiet, first call; with ``method_options``, ``ikbench cartesian``'s method
+    options, else every method with its defaults): ``ikbench cartesian``'s and ``ikbench
+    compare --problems``'."""
+    from ikbench.core.problems import resolve_problems
     from ikbench.studies import cartesian as study
 
     check_threads(args.threads)
-    problems = ",".join(args.problems) if args.problems else BENCHMARK
     files = resolve_problems(problems)
-    names = study.parse_methods(args.methods)
-    seeds = study.parse_seeds(args.seeds)
-    spec = study.CartesianSpec(tuple(files), tuple(names), seeds, method_settings(args, names),
+    names = study.parse_methods(methods)
+    seed_list = study.parse_seeds(seeds)
+    settings = method_settings(args, names) if method_options else {n: {} for n in names}
+    given = _given(args) if method_options else {}
+    return study.CartesianSpec(tuple(files), tuple(names), seed_list, settings,
                                progress=not args.quiet, first_call=args.first_call,
-                               command=command_line(problems, args.methods, seeds, args.output,
-                                                    args.trajectories, args.first_call,
-                                                    _given(args)),
-                               trajectories=args.trajectories)
-    return run_spec(spec, args)
+                               command=command_line(problems, methods, seed_list, args.output,
+                                                    trajectories, args.first_call, given),
+                               trajectories=trajectories)
 
 
 def run_spec(spec: CartesianSpec, args: argparse.Namespace) -> int:

@@ -172,26 +172,17 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_problems(args: argparse.Namespace) -> int:
-    """``compare --problems``: the Cartesian benchmark (ikbench cartesian), its spec built
-    here and run on the same path (:func:`ikbench.cli.commands.cartesian.run_spec`)."""
-    from ikbench.core.problems import resolve_problems
-    from ikbench.studies import cartesian as study
+    """``compare --problems``: the Cartesian benchmark (ikbench cartesian), its spec built and
+    run as that command's (:func:`ikbench.cli.commands.cartesian.spec_of`, ``run_spec``), with
+    every method's defaults."""
+    from ikbench.studies.cartesian import DEFAULT_SEEDS
 
     if args.targets or args.only or args.steps is not None or args.reference \
             or args.obstacles is not None or args.goals is not None:
         raise InputError("--targets, --only, --steps, --obstacles, --goals and --reference do not "
                          "apply to --problems (the problem files define the paths and their "
                          "obstacles)")
-    check_threads(args.threads)
-    problems = ",".join(args.problems)
-    files = resolve_problems(problems)
-    methods = None if args.methods == "all" else args.methods
-    names = study.parse_methods(methods)
-    seeds = study.parse_seeds(args.seeds or ",".join(map(str, study.DEFAULT_SEEDS)))
-    spec = study.CartesianSpec(tuple(files), tuple(names), seeds, {name: {} for name in names},
-                               progress=not args.quiet, first_call=args.first_call,
-                               command=cartesian.command_line(problems, methods, seeds,
-                                                              args.output,
-                                                              first_call=args.first_call),
-                               trajectories="first")
+    spec = cartesian.spec_of(args, ",".join(args.problems),
+                             None if args.methods == "all" else args.methods,
+                             args.seeds or ",".join(map(str, DEFAULT_SEEDS)))
     return cartesian.run_spec(spec, args)
