@@ -131,7 +131,7 @@ class DatasetSpec:
         ``output`` that holds a dataset made with other options or more trajectories
         (:func:`check_manifest`)."""
         check_options(self.count, self.seed, self.steps, self.shard_size)
-        check_manifest(self.output, _config(self), self.count)
+        check_manifest(self.output, _prepared(self)[0], self.count)
 
 
 def _settings(spec: DatasetSpec) -> LMSettings:
@@ -141,10 +141,12 @@ def _settings(spec: DatasetSpec) -> LMSettings:
                    else parse_weights(settings.weights))
 
 
-def _config(spec: DatasetSpec) -> dict[str, Any]:
-    """The spec's :func:`dataset_config`."""
-    return dataset_config(spec.robot, spec.targets.start_pose, spec.steps, spec.seed,
-                          spec.shard_size, WorkspaceFilter.of(spec.robot), _settings(spec))
+def _prepared(spec: DatasetSpec) -> tuple[dict[str, Any], LMSettings, WorkspaceFilter]:
+    """The spec's :func:`dataset_config`, with the settings (:func:`_settings`) and the
+    workspace filter it was made from."""
+    settings, workspace = _settings(spec), WorkspaceFilter.of(spec.robot)
+    return (dataset_config(spec.robot, spec.targets.start_pose, spec.steps, spec.seed,
+                           spec.shard_size, workspace, settings), settings, workspace)
 
 
 def check_sizes(count: int, shard_size: int) -> None:
@@ -301,9 +303,7 @@ def run(spec: DatasetSpec) -> DatasetReport:
     resumes) and marks dataset.json ``"interrupted"`` before the KeyboardInterrupt goes on.
     """
     count, shard_size, output = spec.count, spec.shard_size, spec.output
-    settings = _settings(spec)
-    workspace = WorkspaceFilter.of(spec.robot)
-    config = _config(spec)
+    config, settings, workspace = _prepared(spec)
     executor = spec.executor or LocalExecutor()
     specs = plan(count, config, spec.robot, spec.targets.start_pose, settings, workspace)
     _remove_temporary_files(output)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -85,6 +86,18 @@ class LegibilitySpec:
         """The target's id: ``target_id``, else the first of the targets file."""
         return self.target_id if self.target_id is not None else self.targets.ids[0]
 
+    @cached_property
+    def problem(self) -> tuple[Task, np.ndarray, int, np.ndarray]:
+        """The target's line task, the goals with the true one, its index and the goal set's
+        points [mm] (built once: :meth:`validate` checks them, :func:`run` solves them)."""
+        from ikbench.core.task import line_tasks
+
+        task = {t.name: t for t in line_tasks(self.robot, self.targets)}[self.target]
+        _, goals_mm = goal_points_mm(self.robot, self.goals if self.goals is not None
+                                     else self.targets)
+        all_goals, true = true_goal_index(goals_mm, task.goal.end_point_mm)
+        return task, all_goals, true, goals_mm
+
     def validate(self) -> None:
         """InputError (the CLI's one-line message) for a bad weight, a target not in the
         targets file, or a goal set without a goal other than the target's touch point."""
@@ -92,7 +105,7 @@ class LegibilitySpec:
         if self.target_id is not None and self.target_id not in self.targets.touch_poses:
             raise InputError(f"--target: {self.target_id!r} is not a target of the targets "
                              f"file ({', '.join(self.targets.ids)})")
-        if len(_goals(self, _task(self))[0]) < 2:
+        if len(self.problem[1]) < 2:
             raise InputError("the legibility term needs a goal set with a goal other than the "
                              "target's touch point (--goals)")
 
@@ -118,21 +131,6 @@ class LegibilityResult:
         return out
 
 
-def _task(spec: LegibilitySpec) -> Task:
-    """The target's line task."""
-    from ikbench.core.task import line_tasks
-
-    return {t.name: t for t in line_tasks(spec.robot, spec.targets)}[spec.target]
-
-
-def _goals(spec: LegibilitySpec, task: Task) -> tuple[np.ndarray, int, np.ndarray]:
-    """(the goals with the true one, its index, the goal set's points [mm])."""
-    _, goals_mm = goal_points_mm(spec.robot, spec.goals if spec.goals is not None
-                                 else spec.targets)
-    all_goals, true = true_goal_index(goals_mm, task.goal.end_point_mm)
-    return all_goals, true, goals_mm
-
-
 def legibility_tradeoff(robot: Robot, targets: Targets, target_id: str | None = None,
                         weights: Sequence[float | str] = WEIGHTS,
                         goals: Targets | None = None, duration_s: float = 1.0) -> pd.DataFrame:
@@ -153,8 +151,7 @@ def run(spec: LegibilitySpec) -> LegibilityResult:
     from ikbench.methods.ours_exact import OursExact
 
     robot = spec.robot
-    task = _task(spec)
-    all_goals, true, goals_mm = _goals(spec, task)
+    task, all_goals, true, goals_mm = spec.problem
     judged = (task.required.contract.judged_from(task.goal.steps)
               if task.required.contract is not None else 0)
     rows = []

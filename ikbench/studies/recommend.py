@@ -349,13 +349,19 @@ def _run_paths(robot: Robot, names: Sequence[str], settings: RecommendSettings,
 
 def method_names(settings: RecommendSettings) -> list[str]:
     """The methods ``settings`` asks (its ``methods``; None: every installed one that takes
-    the task), checked: :func:`~ikbench.studies.recommend_path.path_methods` for ``path``,
+    the task), checked (:func:`checked_names`)."""
+    return checked_names(settings.methods, settings.task)
+
+
+def checked_names(methods: Sequence[str] | None, task: str) -> list[str]:
+    """``methods`` (None: every installed one that takes ``task``) checked for ``task``:
+    :func:`~ikbench.studies.recommend_path.path_methods` for ``path``,
     :func:`~ikbench.studies.ik.parse_methods` else."""
-    if settings.task == PATH:
+    if task == PATH:
         from ikbench.studies.recommend_path import path_methods
 
-        return path_methods(settings.methods)
-    return parse_methods(settings.methods, settings.task)
+        return path_methods(methods)
+    return parse_methods(methods, task)
 
 
 @dataclass(frozen=True)
@@ -374,13 +380,7 @@ class RecommendSpec:
         """InputError (the CLI's one-line message) for an unknown or unfit method, no method
         that takes the task, or a robot whose kinematics cannot be built."""
         task = self.settings.task
-        if task == PATH:
-            from ikbench.studies.recommend_path import path_methods
-
-            names = path_methods(list(self.methods))
-        else:
-            names = parse_methods(list(self.methods), task)
-        if not names:
+        if not checked_names(list(self.methods), task):
             raise InputError(f"--methods: no installed method takes --task {task}")
         self.robot.check_loads()
 

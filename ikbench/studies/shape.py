@@ -12,6 +12,7 @@ spec for you.
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,7 +39,7 @@ class Result(Protocol):
 
 
 @dataclass
-class TimedResult:
+class TimedResult(ABC):
     """A timing study's result: one summary row per case, every timed round, and the record.
     :meth:`write` writes ``<STEM>.csv``, ``<STEM>_runs.csv``, ``<STEM>.json`` and
     ``<STEM>.md`` (:meth:`markdown`)."""
@@ -49,9 +50,9 @@ class TimedResult:
     runs: pd.DataFrame
     record: dict
 
+    @abstractmethod
     def markdown(self) -> str:
         """``<STEM>.md``'s text."""
-        raise NotImplementedError
 
     def write(self, folder: str | Path) -> Path:
         """Write the four files into ``folder``; return ``<STEM>.csv``'s path."""
