@@ -1,4 +1,4 @@
-"""``ikbench reproduce --all`` (ikbench.paper.regenerate): the plan, resuming, a dirty tree."""
+"""``ikbench reproduce --all`` (ikbench.studies.regeneration): the plan, resuming, a dirty tree."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import json
 import pytest
 
 from ikbench.core.errors import InputError
-from ikbench.paper import regenerate as regen
+from ikbench.studies import regeneration as regen
 
 
 @pytest.fixture
@@ -85,3 +85,42 @@ def test_the_path_studies_measure_each_methods_first_call(name, tmp_path):
     argv = study.arguments(tmp_path)
     assert "--first-call" in argv
     assert build_parser(argv).parse_args(argv).first_call is True
+
+
+def test_every_plan_entry_validates_and_its_command_parses(tmp_path):
+    """Each entry is a valid spec, and each ikbench command of the plan is one the CLI takes
+    (a typo in the plan is caught here, not an hour into a regeneration)."""
+    from ikbench.cli import build_parser
+
+    assert regen.plan() == list(regen.STUDIES)
+    for study in regen.STUDIES:
+        study.validate()
+        if not study.script:
+            argv = study.arguments(tmp_path)
+            build_parser(argv).parse_args(argv)
+
+
+@pytest.mark.parametrize("field, value, match", [
+    ("name", "a,b", "one word"), ("argv", ("bench",), "writes nowhere under"),
+    ("writes", ("../x",), "inside the results directory"), ("writes", (), "inside the results"),
+    ("script", "benchmarks/nope.py", "not a file"), ("minutes", 0, "positive")])
+def test_a_bad_plan_entry_is_refused_naming_the_value(field, value, match):
+    from dataclasses import replace
+
+    good = next(s for s in regen.STUDIES if s.name == "sweep")
+    good.validate()
+    with pytest.raises(InputError, match=match):
+        replace(good, **{field: value}).validate()
+
+
+def test_the_paper_entry_lists_what_reproduce_writes():
+    from ikbench.paper.reproduce import WRITES
+
+    paper = next(s for s in regen.STUDIES if s.name == "paper")
+    assert sorted(paper.writes) == sorted(WRITES)
+
+
+def test_the_spec_refuses_an_unknown_study_before_running(tmp_path):
+    spec = regen.RegenerationSpec(tmp_path, only=("nope",))
+    with pytest.raises(InputError, match="nope is not a study"):
+        spec.validate()

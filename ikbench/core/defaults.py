@@ -30,6 +30,9 @@ JUDGE_TOLERANCE_MM, JUDGE_TOLERANCE_DEG = 1.0, 0.5
 COMPARE_METHODS = ("ours-lm", "ours-exact", "sequential-ik")
 #: ``ikbench bench``'s methods when none are named.
 BENCH_METHODS = ("ours", "ours-lm")
+#: The trajectory optimisers that meet the contract exactly: the ``exact-benchmark`` study of
+#: ``ikbench reproduce --all`` times these (``results/exact_benchmark/``).
+EXACT_BENCHMARK_METHODS = ("ours-lm", "ours-exact", "drake-trajopt", "pyroki")
 #: The backend a method's published figures ran on: a leaderboard whose run used another
 #: says so above its table (``Method.runtime()["backend"]``; issue 50).
 PUBLISHED_BACKENDS = {"ours-lm": "numba"}

@@ -58,12 +58,12 @@ from ikbench.paper.comparison import (
     table2_comparison,
     write_comparison_report,
 )
-from ikbench.paper.regenerate import STUDIES
 from ikbench.paper.values import paper_values, table1_comparison
 from ikbench.render.run_report import markdown_table
 from ikbench.runtime.progress import message
 from ikbench.studies.ablation import FULL, SUMMARY_METRICS, ablate
 from ikbench.studies.folders import RESULTS
+from ikbench.studies.regeneration import STUDIES
 from ikbench.studies.run import run
 
 DEFAULT_OUTPUT = RESULTS

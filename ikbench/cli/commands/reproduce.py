@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from ikbench.cli.options import add_threads_and_quiet, begin, check_threads
 from ikbench.cli.values import OUTPUT
@@ -79,14 +80,16 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_all(args: argparse.Namespace) -> int:
-    """``reproduce --all`` / ``--plan``: the regeneration plan (:mod:`ikbench.paper.regenerate`)."""
-    from ikbench.paper.regenerate import plan, regenerate
+    """``reproduce --all`` / ``--plan``: the regeneration plan
+    (:mod:`ikbench.studies.regeneration`)."""
+    from ikbench.studies.regeneration import RegenerationSpec, run
 
-    only = [s.strip() for s in args.only.split(",") if s.strip()] if args.only else None
-    plan(only)  # an unknown study is refused before anything runs
+    only = tuple(s.strip() for s in args.only.split(",") if s.strip()) if args.only else ()
+    spec = RegenerationSpec(Path(args.output or "results"), only, args.force, args.allow_dirty,
+                            args.plan)
+    spec.validate()  # an unknown study or a bad entry is refused before anything runs
     begin(args)
-    times = regenerate(args.output or "results", only=only, force=args.force,
-                       allow_dirty=args.allow_dirty, dry_run=args.plan)
+    times = run(spec).wall_s
     for study, seconds in times.items():
         print(f"{study:<16} {seconds / 60:6.1f} min")
     return 0

@@ -1,15 +1,19 @@
-"""Every committed results folder from one clean commit by one command (``reproduce --all``).
+"""The plan that makes every committed results folder from one clean commit
+(``ikbench reproduce --all``), as spec entries.
 
-:data:`STUDIES` is the plan: each study's name, the command that makes it (an ``ikbench``
-command line or a benchmark script), what it writes under the results directory, and the
-time it took when last measured here. :func:`regenerate` prints the plan first, then runs each
+:data:`STUDIES` is the plan: each entry (:class:`Study`, a spec that validates itself) names a
+study, the command that makes it (an ``ikbench`` command line or a benchmark script), what it
+writes under the results directory, and the time it took when last measured here.
+:class:`RegenerationSpec` is what a regeneration is asked to do (the results directory, the
+studies, force, a dirty tree, a dry run); :func:`run` prints the plan first, then runs each
 study in its own process (so one study's imports, caches and threads cannot change another's
-timing), streams its progress, and records each finished study in
-``RESULTS/regenerated.json`` (commit, clean tree, wall time, load). It is resumable: a study
-already made at this commit is skipped unless ``force``; a dirty tree is refused unless
-``allow_dirty`` (then recorded as such, and the provenance test refuses the results). After
-the studies, every generated block of README.md and docs/ is rendered again
-(:mod:`ikbench.render.blocks`).
+timing), streams its progress, and records each finished study in ``RESULTS/regenerated.json``
+(commit, clean tree, wall time, load) as soon as it finishes, so an interrupted regeneration
+keeps every complete study. It is resumable: a study already made at this commit is skipped
+unless ``force``; a dirty tree is refused unless ``allow_dirty`` (then recorded as such, and the
+provenance test refuses the results). After the studies, every generated block of README.md
+and docs/ is rendered again (:mod:`ikbench.render.blocks`). :func:`regenerate` is the keyword
+form.
 """
 
 from __future__ import annotations
@@ -22,8 +26,11 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
+from ikbench.baselines.ikpy_ik import IkpyIK
+from ikbench.baselines.sequential_ik import SequentialIK
+from ikbench.core.defaults import EXACT_BENCHMARK_METHODS, REFERENCE_METHOD
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_json
 from ikbench.core.provenance import REPO, git_state, load_average
@@ -38,7 +45,8 @@ RECORD = "regenerated.json"
 
 @dataclass(frozen=True)
 class Study:
-    """One results folder (or file set) and the command that makes it.
+    """One entry of the plan (a spec): one results folder (or file set) and the command that
+    makes it.
 
     Attributes:
         name: the study's name (``--only`` takes these).
@@ -58,6 +66,26 @@ class Study:
     minutes: float
     script: str = ""
     rows_may_fail: bool = False
+
+    def validate(self) -> None:
+        """InputError naming the entry and its bad value: a name that ``--only`` cannot take,
+        a command that does not write under ``{out}``, a written path outside the results
+        directory, a script that is not in the repository, a time that is not positive."""
+        where = f"plan entry {self.name!r}"
+        if not self.name or any(c in self.name for c in " ,/"):
+            raise InputError(f"{where}: the name must be one word without commas or slashes")
+        if not any("{out}" in a for a in self.argv):
+            raise InputError(f"{where}: its command {shlex.join(self.argv)!r} writes nowhere "
+                             "under {out} (the results directory)")
+        for w in self.writes or ("",):
+            path = PurePosixPath(w)
+            if not w or path.is_absolute() or ".." in path.parts:
+                raise InputError(f"{where}: writes {w!r}; a path inside the results directory "
+                                 "is allowed")
+        if self.script and not (REPO / self.script).is_file():
+            raise InputError(f"{where}: script {self.script!r} is not a file of the repository")
+        if not self.minutes > 0:
+            raise InputError(f"{where}: minutes {self.minutes!r}; a positive number is allowed")
 
     def arguments(self, out: Path) -> list[str]:
         """The arguments with ``{out}`` and ``{compare_methods}`` filled in."""
@@ -112,12 +140,15 @@ ZOO_PROTOCOL = ("--count", "100", "--seed", "1", "--attempts", "8")
 #: two other first initial configurations.
 TRUTH_PROTOCOL = ("--robot", "example-robot-data:ur5", "--count", "500", "--seed", "1",
                   "--attempts", "8")
-#: The plan, in the order it runs (cheap and foundational first).
+#: The plan, in the order it runs (cheap and foundational first). The ``paper`` entry's folders
+#: are those ``ikbench reproduce`` writes (``ikbench.paper.reproduce.WRITES``; a test keeps the
+#: two equal): the runs of ours and of the baseline's three orientation modes, the authors'
+#: ikpy run, ours with the text's initialisation, the ablation.
 STUDIES: tuple[Study, ...] = (
     Study("paper", ("reproduce", "--output", "{out}"),
-          ("README.md", "report.md", "pointing_deviation_per_step.png", "ours",
-           "sequential-ik", "sequential-ik-pointing", "sequential-ik-position", "ikpy",
-           "ours-init-interpolation", "ablation"), 4.5),
+          ("README.md", "report.md", "pointing_deviation_per_step.png", Ours.name,
+           SequentialIK.name, f"{SequentialIK.name}-pointing", f"{SequentialIK.name}-position",
+           IkpyIK.name, f"{Ours.name}-init-interpolation", "ablation"), 4.5),
     Study("compare", ("compare", "--methods", "{compare_methods}", "--first-call", "--output",
                       "{out}"),
           ("compare",), 19.0, rows_may_fail=True),
@@ -127,7 +158,7 @@ STUDIES: tuple[Study, ...] = (
           rows_may_fail=True),
     Study("bench", ("bench", "--output", "{out}"),
           ("benchmark.csv", "benchmark.json", "benchmark.md", "benchmark_runs.csv"), 2.5),
-    Study("exact-benchmark", ("bench", "--methods", "ours-lm,ours-exact,drake-trajopt,pyroki",
+    Study("exact-benchmark", ("bench", "--methods", ",".join(EXACT_BENCHMARK_METHODS),
                               "--repeat", "5", "--output", "{out}/exact_benchmark"),
           ("exact_benchmark",), 2.0),
     Study("throughput", ("bench", "--device", "cpu", "--batches", "7,1000,10000", "--repeat", "3",
@@ -144,7 +175,7 @@ STUDIES: tuple[Study, ...] = (
     Study("letters-sweep", ("sweep", "--shape", "letter:P", "--weight", "c0=1,10,100,1000",
                             "--weight", "c1=10,50,200", "--output", "{out}/letters/sweep"),
           ("letters/sweep",), 0.5),
-    Study("cartesian", ("cartesian", "--problems", "cppflow", "--methods", "ours-lm",
+    Study("cartesian", ("cartesian", "--problems", "cppflow", "--methods", REFERENCE_METHOD,
                         "--seeds", "1-5", "--trajectories", "all", "--first-call",
                         "--output", "{out}"),
           ("cartesian",), 1.0, rows_may_fail=True),
@@ -179,8 +210,10 @@ STUDIES: tuple[Study, ...] = (
 
 
 def plan(only: Sequence[str] | None = None) -> list[Study]:
-    """The studies to run (all, or those named in ``only``, in plan order); InputError naming
-    an unknown name and the known ones."""
+    """The studies to run (all, or those named in ``only``, in plan order), each entry
+    validated; InputError naming an unknown name and the known ones."""
+    for study in STUDIES:
+        study.validate()
     if not only:
         return list(STUDIES)
     names = [s.name for s in STUDIES]
@@ -200,53 +233,91 @@ def read_record(out: Path) -> dict:
     return record if isinstance(record, dict) else {}
 
 
-def regenerate(output: str | Path = RESULTS, only: Sequence[str] | None = None,
-               force: bool = False, allow_dirty: bool = False, dry_run: bool = False,
-               say: Callable[[str], None] | None = None,
-               runner: Callable[[list[str]], int] | None = None) -> dict[str, float]:
-    """Run the plan (see the module docstring); return the wall time [s] of each study run.
+@dataclass(frozen=True)
+class RegenerationSpec:
+    """What a regeneration is asked to do.
 
-    Args:
+    Attributes:
         output: the results directory.
-        only: study names to run (default all).
+        only: study names to run (empty: all).
         force: run studies already made at this commit again.
         allow_dirty: run from a tree with modified code (recorded as dirty).
         dry_run: print the plan and what would be skipped; run nothing.
+    """
+
+    output: Path = Path(RESULTS)
+    only: tuple[str, ...] = ()
+    force: bool = False
+    allow_dirty: bool = False
+    dry_run: bool = False
+
+    def validate(self) -> None:
+        """InputError for an unknown study or a bad plan entry (before anything runs)."""
+        plan(self.only)
+
+    def studies(self) -> list[Study]:
+        """The entries this regeneration runs, in plan order."""
+        return plan(self.only)
+
+
+@dataclass(frozen=True)
+class RegenerationResult:
+    """What a regeneration did: each study run and its wall time [s], and the record
+    (``regenerated.json``'s content: every study made so far into the results directory)."""
+
+    wall_s: dict[str, float]
+    record: dict
+
+    def write(self, folder: Path) -> Path:
+        """Write the record into ``folder`` (:func:`run` has already written it after each
+        study); return its path."""
+        folder.mkdir(parents=True, exist_ok=True)
+        atomic_write_json(folder / RECORD, self.record)
+        return folder / RECORD
+
+
+def run(spec: RegenerationSpec, say: Callable[[str], None] | None = None,
+        runner: Callable[[list[str]], int] | None = None) -> RegenerationResult:
+    """Run the plan (see the module docstring).
+
+    Args:
+        spec: what to regenerate.
         say: where progress lines go (default stderr).
         runner: runs one command and returns its exit code (default: a subprocess whose
             output streams through).
 
     Raises:
-        InputError: an unknown study, or a dirty tree without ``allow_dirty``, or a study
-            that failed (its name and exit code).
+        InputError: an unknown study or bad entry, or a dirty tree without ``allow_dirty``,
+            or a study that failed (its name and exit code).
     """
     say = say or (lambda text: print(text, file=sys.stderr, flush=True))
     runner = runner or _run
-    out = Path(output)
-    studies = plan(only)
+    out = Path(spec.output)
+    studies = spec.studies()
     state = git_state()
     commit, clean = state if state else (None, False)
-    if not clean and not allow_dirty and not dry_run:
+    if not clean and not spec.allow_dirty and not spec.dry_run:
         raise InputError("the checkout has modified code (git status): commit it first, or "
                          "pass --allow-dirty (the results will say so and the provenance "
                          "test will refuse them)")
     record = read_record(out)
+
+    def made(study: Study) -> bool:
+        done = record.get(study.name, {})
+        return not spec.force and commit is not None and done.get("commit") == commit \
+            and done.get("clean") == clean
+
     total = sum(s.minutes for s in studies)
     say(f"plan: {len(studies)} studies into {out}/ at commit {str(commit)[:12]}"
         f"{'' if clean else ' (modified tree)'}, about {total:.0f} min when last measured:")
     for s in studies:
-        done = record.get(s.name, {})
-        skip = not force and done.get("commit") == commit and done.get("clean") == clean \
-            and commit is not None
         say(f"  {s.name:<16} {s.minutes:5.1f} min  {s.shown(out)}"
-            f"{'   (made at this commit: skipped)' if skip else ''}")
+            f"{'   (made at this commit: skipped)' if made(s) else ''}")
     times: dict[str, float] = {}
-    if dry_run:
-        return times
+    if spec.dry_run:
+        return RegenerationResult(times, record)
     for k, s in enumerate(studies):
-        done = record.get(s.name, {})
-        if not force and commit is not None and done.get("commit") == commit \
-                and done.get("clean") == clean:
+        if made(s):
             continue
         say(f"[{k + 1}/{len(studies)}] {s.name}: {s.shown(out)}")
         load_start = load_average()
@@ -260,14 +331,24 @@ def regenerate(output: str | Path = RESULTS, only: Sequence[str] | None = None,
                           "exit_code": code,
                           "wall_s": round(wall, 1), "load_start": load_start,
                           "load_end": load_average(), "writes": list(s.writes)}
-        out.mkdir(parents=True, exist_ok=True)
-        atomic_write_json(out / RECORD, record)
+        RegenerationResult(times, record).write(out)
         say(f"[{k + 1}/{len(studies)}] {s.name} done in {wall / 60:.1f} min")
     changed = render_files(documents(REPO), REPO) if out.resolve() == (REPO / "results") \
         .resolve() else []
     say(f"generated blocks re-rendered: {', '.join(str(p.relative_to(REPO)) for p in changed)}"
         if changed else "generated blocks: all current")
-    return times
+    return RegenerationResult(times, record)
+
+
+def regenerate(output: str | Path = RESULTS, only: Sequence[str] | None = None,
+               force: bool = False, allow_dirty: bool = False, dry_run: bool = False,
+               say: Callable[[str], None] | None = None,
+               runner: Callable[[list[str]], int] | None = None) -> dict[str, float]:
+    """:func:`run` with the spec's fields as keywords; return the wall time [s] of each study
+    run."""
+    spec = RegenerationSpec(Path(output), tuple(only or ()), force, allow_dirty, dry_run)
+    spec.validate()
+    return run(spec, say=say, runner=runner).wall_s
 
 
 def _run(argv: list[str]) -> int:
