@@ -129,3 +129,16 @@ def test_bench_cli_checks_the_output_before_timing(tmp_path, capsys, monkeypatch
     fails_if_called(monkeypatch, ikbench.studies.bench, "benchmark")
     err = unwritable_output_error(capsys, tmp_path, ["bench", "--methods", "ours-lm", "--quiet"])
     assert "cannot write" in err
+
+
+def test_a_timed_result_without_its_markdown_cannot_be_made():
+    """TimedResult.markdown is abstract: a timing study's result must say how it reads."""
+    import pandas as pd
+
+    from ikbench.studies.shape import TimedResult
+
+    class NoText(TimedResult):
+        STEM = "x"
+
+    with pytest.raises(TypeError, match="markdown"):
+        NoText(pd.DataFrame(), pd.DataFrame(), {})
