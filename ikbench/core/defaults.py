@@ -23,6 +23,9 @@ REFERENCE_METHOD = "ours-lm"
 #: The method ``ikbench design`` re-solves with when none is named (the path and the fixed
 #: poses exact, warm-started).
 DESIGN_METHOD = "ours-exact"
+#: The method whose trajectories the pointing experiment plays by default (ikbench experiment
+#: design --method): the line held exactly, as the paper's stimuli.
+EXPERIMENT_METHOD = "ours-exact"
 #: ``ikbench ik``'s judge: an answer succeeds within these of its target by default [mm], [deg]
 #: (``--tolerance-mm``, ``--tolerance-deg``); the ground truth's margins are multiples of them.
 JUDGE_TOLERANCE_MM, JUDGE_TOLERANCE_DEG = 1.0, 0.5
