@@ -21,6 +21,8 @@ EXPECTED = {
     "compare_libraries.py": ["ours-lm", "sequential-ik"],
     "pose_path.py": ["fetch_arm__hello", "valid by CppFlow's criteria: True"],
     "play_on_emulated_bus.py": ["50 of 50 segments sent", "0 limit violations"],
+    "pointing_study.py": ["SIMULATED participants", "hit rate by cell and method",
+                          "false-positive rate"],
 }
 #: script -> what it prints on stderr: its expected time, then progress (the long ones;
 #: compare_libraries ran 260 s without a word)

@@ -39,7 +39,7 @@ from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, load_robot
 from ikbench.core.task import line_tasks
 from ikbench.core.trajectory import read_trajectory_poses, write_trajectory_csv
-from ikbench.experiment.head import Head, load_head
+from ikbench.experiment.head import Head, authors_comparison, load_head
 from ikbench.experiment.layout import GoalSet, load_goals
 from ikbench.methods.registry import get_method
 
@@ -55,6 +55,8 @@ AUTHORS_PAIRS = {1: (3, 6), 2: (7,), 3: (1,), 4: (5,), 5: (4,), 6: (1,), 7: (2,)
 DEFAULT_METHOD = EXPERIMENT_METHOD
 DESIGN_FILE = "design.json"
 TRIALS_FILE = "trials.csv"
+#: gaze_at against the authors' recorded and used head poses, per touch point.
+HEAD_CHECK_FILE = "head_check.csv"
 TRAJECTORIES = "trajectories"
 #: The columns of trials.csv, in order (the contract between design and play).
 TRIAL_COLUMNS = ("participant", "trial", "block", "practice", "condition", "fraction", "cell",
@@ -261,8 +263,9 @@ class Design:
     record: dict
 
     def write(self, folder: str | Path) -> Path:
-        """Write ``design.json``, ``trajectories/METHOD/trajectory_<id>.csv`` and
-        ``participant_XX/trials.csv`` (the folder whole or not at all)."""
+        """Write ``design.json``, ``trajectories/METHOD/trajectory_<id>.csv``,
+        ``participant_XX/trials.csv`` and ``head_check.csv`` (the head's gaze against the
+        authors' head poses), the folder whole or not at all."""
         answered = sorted(Path(folder).glob("participant_*/responses.csv"))
         if answered:
             raise InputError(f"{folder}: holds responses ({answered[0].relative_to(folder)}); "
@@ -275,6 +278,7 @@ class Design:
                                      poses, self.spec.duration_s or self.spec.goal_set.duration_s)
             for name, table in self.trials.items():
                 atomic_write_csv(stage / name / TRIALS_FILE, table)
+            atomic_write_csv(stage / HEAD_CHECK_FILE, authors_comparison(self.spec.head, robot))
             atomic_write_json(stage / DESIGN_FILE, self.record)
         return Path(folder)
 

@@ -113,6 +113,7 @@ class SimulatedPresenter(Presenter):
         self.folder, self.model, self.seed = folder, model, seed
         self.robot, self.head, self.goals = robot, head, goals
         self._poses: dict[str, np.ndarray] = {}
+        self._cues: dict[tuple, dict[str, np.ndarray]] = {}
 
     def poses(self, relative: str) -> np.ndarray | None:
         if not isinstance(relative, str) or not relative:
@@ -122,9 +123,13 @@ class SimulatedPresenter(Presenter):
         return self._poses[relative]
 
     def present(self, trial: Mapping, attempt: int) -> dict:
-        cues = observers.cue_points(trial, self.robot, self.head, self.goals,
-                                    self.poses(trial["trajectory"]))
-        return observers.answer(trial, cues, self.goals, self.model, self.seed, attempt)
+        key = tuple(str(trial[c]) for c in ("condition", "fraction", "trajectory",
+                                             "head_z_motor_deg", "head_y_motor_deg"))
+        if key not in self._cues:      # a design has few distinct stimuli
+            self._cues[key] = observers.cue_points(trial, self.robot, self.head, self.goals,
+                                                   self.poses(trial["trajectory"]))
+        return observers.answer(trial, self._cues[key], self.goals, self.model, self.seed,
+                                attempt)
 
 
 def bus_config():  # type: ignore[no-untyped-def]
