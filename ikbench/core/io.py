@@ -10,7 +10,7 @@ from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ikbench.core.errors import OutputError
+from ikbench.core.errors import InputError, OutputError
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -113,6 +113,17 @@ def atomic_savefig(path: str | os.PathLike, fig: Figure, dpi: int = 120) -> Path
         fig.savefig(tmp, dpi=dpi, format="png", bbox_inches="tight")
     plt.close(fig)
     return Path(path)
+
+
+def read_json(path: str | os.PathLike, what: str) -> Any:
+    """The JSON value of a file; one-line :class:`InputError` naming ``what`` (``"head
+    file"``) and the path when it is missing or not readable JSON."""
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{what} {str(path)!r} not found") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"{what} {str(path)!r} is not readable JSON: {exc}") from None
 
 
 def atomic_write_json(path: str | os.PathLike, value: Any) -> Path:

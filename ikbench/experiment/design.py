@@ -33,7 +33,7 @@ import pandas as pd
 from ikbench.core.contract import judge
 from ikbench.core.defaults import EXPERIMENT_METHOD
 from ikbench.core.errors import InputError
-from ikbench.core.io import atomic_write_csv, atomic_write_json, staged_folder
+from ikbench.core.io import atomic_write_csv, atomic_write_json, read_json, staged_folder
 from ikbench.core.metrics import contract_metrics
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, load_robot
@@ -457,16 +457,11 @@ def build(spec: DesignSpec) -> Design:
 
 def read_design(folder: str | Path) -> dict:
     """design.json of a design folder."""
-    import json
-
     path = Path(folder) / DESIGN_FILE
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
+    if not path.is_file():
         raise InputError(f"{str(folder)!r} is not an experiment folder: no {DESIGN_FILE} "
-                         "(make one with ikbench experiment design)") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path}: not readable JSON: {exc}") from None
+                         "(make one with ikbench experiment design)")
+    record = read_json(path, "design file")
     if record.get("kind") != "experiment-design":
         raise InputError(f"{path}: not an experiment design (kind {record.get('kind')!r})")
     return record

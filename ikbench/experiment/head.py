@@ -14,7 +14,6 @@ the second from its height above the line through the tilt axis.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +24,7 @@ import numpy.typing as npt
 import pandas as pd
 
 from ikbench.core.errors import InputError, refuse_unknown_keys
+from ikbench.core.io import read_json
 from ikbench.core.robot import Robot, load_robot, robots_dir
 from ikbench.core.targets import load_targets
 from ikbench.hw.motors import MotorConfig, parse_motor_config
@@ -250,13 +250,7 @@ def load_head(path: str | Path | None = None) -> Head:
             allowed.
     """
     path = Path(path) if path is not None else robots_dir() / HEAD_FILE
-    try:
-        spec = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"head file {str(path)!r} not found") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"head file {str(path)!r} is not readable JSON: {exc}") from None
-    return parse_head(spec, str(path))
+    return parse_head(read_json(path, "head file"), str(path))
 
 
 def parse_head(spec: Any, source: str) -> Head:
@@ -316,12 +310,7 @@ def load_head_motors(head: Head | None = None, path: str | Path | None = None) -
     """
     head = head or load_head()
     path = Path(path) if path is not None else Path(head.motors_file)
-    try:
-        spec = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"head motor config {str(path)!r} not found") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"head motor config {str(path)!r} is not readable JSON: {exc}") from None
+    spec = read_json(path, "head motor config")
     # parse_motor_config reads only the robot's joint names
     config = parse_motor_config(spec, cast(Robot, _Joints(head.joint_names)), str(path))
     if not (np.array_equal(config.lower_deg, head.lower_motor_deg)

@@ -11,7 +11,6 @@ the pixel rows run toward the participant) and translated in the touchscreen pla
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ikbench.core.errors import InputError
+from ikbench.core.io import read_json
 from ikbench.core.robot import Robot, load_robot, robots_dir
 from ikbench.core.targets import Targets, load_targets
 
@@ -141,12 +141,7 @@ class GoalSet:
 
 
 def _read(path: Path) -> dict:
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"layout file {str(path)!r} not found") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"layout file {str(path)!r} is not readable JSON: {exc}") from None
+    return read_json(path, "layout file")
 
 
 def _plane(robot_folder: Path) -> tuple[np.ndarray, np.ndarray]:
