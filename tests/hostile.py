@@ -49,6 +49,11 @@ BASE = {
     "emulate": ["emulate"],
     "execute": ["execute", "<TRAJ>", "--port", "emulator"],
     "export": ["export", "<TRAJ>", "--format", "csv-rad", "--output", "<OUT>"],
+    "experiment analyze": ["experiment", "analyze", "<DESIGN>", "--output", "<OUT>"],
+    "experiment design": ["experiment", "design", "--output", "<OUT>"],
+    "experiment power": ["experiment", "power", "<DESIGN>", "--output", "<OUT>"],
+    "experiment run": ["experiment", "run", "<DESIGN>", "--simulate"],
+    "experiment stimuli": ["experiment", "stimuli", "<DESIGN>", "--output", "<OUT>"],
     "fk": ["fk"],
     "ik": ["ik", "--output", "<OUT>"],
     "legibility": ["legibility", "--output", "<OUT>"],
@@ -101,20 +106,28 @@ def cases(parser: argparse.ArgumentParser) -> list[dict]:
         for action in sub._actions:
             if action.nargs == 0 or isinstance(action, argparse._HelpAction):
                 continue
-            base = list(BASE.get(command, [command]))
+            base = list(BASE.get(command, command.split()))
             method = owners.get(action.dest.removeprefix("opt_"))
             if action.dest.startswith("opt_") and command in METHOD_FLAG and method:
                 base += [METHOD_FLAG[command], method]
             for value in HOSTILE:
                 out.append({"command": command, "argument": _name(action), "value": value,
-                            "argv": _put(base, action, sub, "<VALUE>")})
+                            "argv": _put(base, action, sub, "<VALUE>",
+                                         len(command.split()))})
     return out
 
 
 def _subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    """command -> its parser; a command with actions of its own (``experiment design``) is
+    replaced by them, named by their words."""
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
-            return dict(action.choices)
+            out = {}
+            for name, sub in action.choices.items():
+                nested = _subparsers(sub)
+                out.update({f"{name} {k}": v for k, v in nested.items()} if nested
+                           else {name: sub})
+            return out
     return {}
 
 
@@ -125,16 +138,19 @@ def _name(action: argparse.Action) -> str:
 
 
 def _put(base: list[str], action: argparse.Action, sub: argparse.ArgumentParser,
-         value: str) -> list[str]:
-    """``base`` with ``action`` given ``value`` (replacing what the base gave it)."""
+         value: str, words_of_command: int = 1) -> list[str]:
+    """``base`` with ``action`` given ``value`` (replacing what the base gave it); the first
+    ``words_of_command`` words name the command."""
     if not action.option_strings:  # a positional: the k-th word after the command
         positionals = [a for a in sub._actions if not a.option_strings
                        and a.nargs != 0 and not isinstance(a, argparse._SubParsersAction)]
         k = positionals.index(action)
         if len(positionals) == 1:  # after "--", as a user gives a value such as -inf
-            return [w for w in base if w not in _positionals(base)] + ["--", value]
+            given = _positionals(base, words_of_command)
+            return [w for i, w in enumerate(base) if i < words_of_command or w not in given] \
+                + ["--", value]
         words, index = list(base), 0
-        for i, word in enumerate(words[1:], start=1):
+        for i, word in enumerate(words[words_of_command:], start=words_of_command):
             if not word.startswith("-") and not words[i - 1].startswith("-"):
                 if index == k:
                     words[i] = value
@@ -154,9 +170,9 @@ def _put(base: list[str], action: argparse.Action, sub: argparse.ArgumentParser,
     return words + [f"{max(action.option_strings, key=len)}={value}"]
 
 
-def _positionals(base: list[str]) -> list[str]:
+def _positionals(base: list[str], words_of_command: int = 1) -> list[str]:
     """The words of ``base`` that are positional arguments (not options nor their values)."""
-    return [w for i, w in enumerate(base[1:], start=1)
+    return [w for i, w in enumerate(base[words_of_command:], start=words_of_command)
             if not w.startswith("-") and not base[i - 1].startswith("-")]
 
 
@@ -174,6 +190,7 @@ def run_cases(selected: list[dict], parser: argparse.ArgumentParser, fixtures: d
             empty_dir = Path(tmp) / "empty"
             empty_dir.mkdir()
             places = {"<OUT>": str(Path(tmp) / "out"), "<TRAJ>": fixtures["traj"],
+                      "<DESIGN>": fixtures["design"],
                       "<EMPTY_DIR>": str(empty_dir), "<MISSING>": str(Path(tmp) / "missing")}
             value = HOSTILE[case["value"]]
             argv = [places.get(w, w) for w in case["argv"]]
@@ -210,7 +227,8 @@ def _run_one(parser, argv, run_parsed) -> dict:
 
 
 def fixtures(scratch: Path) -> dict:
-    """A trajectory CSV to read (NICO's start pose, 5 times), in ``scratch``."""
+    """A trajectory CSV to read (NICO's start pose, 5 times) and a small experiment design
+    folder, in ``scratch``."""
     from ikbench.core.robot import load_robot
     from ikbench.core.trajectory import write_trajectory_csv
 
@@ -219,7 +237,12 @@ def fixtures(scratch: Path) -> dict:
     folder = scratch / "fixtures"
     folder.mkdir()
     traj = write_trajectory_csv(folder / "t.csv", robot, [pose] * 5)
-    return {"traj": str(traj), "scratch": str(scratch)}
+    from ikbench.experiment.design import DesignSpec, build
+
+    design = folder / "design"
+    build(DesignSpec(participants=1, repeats=1, practice=0, conditions=("G", "GP"),
+                     fractions=(0.6,))).write(design)
+    return {"traj": str(traj), "scratch": str(scratch), "design": str(design)}
 
 
 def main(argv: list[str]) -> int:

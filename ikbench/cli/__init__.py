@@ -206,6 +206,8 @@ def run_parsed(parser: argparse.ArgumentParser, argv: list[str]) -> int:
             print(line, file=sys.stderr)
     except IkbenchError as exc:
         command = _subparser(parser, args.command)
+        if command is not None and getattr(args, "action", None):  # experiment design, ...
+            command = _subparser(command, args.action) or command
         message = with_flags(str(exc), command)
         if isinstance(exc, OutputError):
             message = _name_output(message, command, args)

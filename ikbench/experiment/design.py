@@ -141,6 +141,7 @@ class DesignSpec:
                                       INCONGRUENT_RULES)):
             if value not in allowed:
                 raise InputError(f"{name} {value!r}: one of {', '.join(allowed)}")
+        check_method(self.method)
         goals = self.goal_set
         if self.incongruent_rule == "authors" and "I" in self.conditions:
             missing = [t for t in goals.ids if t not in AUTHORS_PAIRS
@@ -171,6 +172,18 @@ class DesignSpec:
             else:
                 out.extend((condition, f) for f in self.fractions)
         return out
+
+
+def check_method(name: str) -> str:
+    """A registered, available method's name, or one line naming ``--method``."""
+    from ikbench.methods.registry import method_status
+
+    known = method_status()
+    if name not in known or not known[name].available:
+        usable = [n for n, status in known.items() if status.available]
+        raise InputError(f"--method {name!r}: not an available method; available: "
+                         f"{', '.join(usable)} (ikbench methods lists them all)")
+    return name
 
 
 def check_conditions(conditions: Sequence[str]) -> tuple[str, ...]:
@@ -459,7 +472,7 @@ def read_design(folder: str | Path) -> dict:
     """design.json of a design folder."""
     path = Path(folder) / DESIGN_FILE
     if not path.is_file():
-        raise InputError(f"{str(folder)!r} is not an experiment folder: no {DESIGN_FILE} "
+        raise InputError(f"DIR {str(folder)!r} is not an experiment folder: no {DESIGN_FILE} "
                          "(make one with ikbench experiment design)")
     record = read_json(path, "design file")
     if record.get("kind") != "experiment-design":

@@ -296,9 +296,11 @@ def _presenter(spec: PlaySpec, robot: Robot, head: Head, goals: GoalSet,
     return BusPresenter(spec.folder, port, spec.backend, robot, head, answer, spec.log)
 
 
-def run(spec: PlaySpec, emulator_port: str | None = None) -> PlayResult:
+def run(spec: PlaySpec, emulator_port: str | None = None,
+        presenter: Presenter | None = None) -> PlayResult:
     """Play every participant (or ``spec.only``); simulated runs record their model in
-    design.json."""
+    design.json. ``presenter``: one made by the caller (the touchscreen page's), instead of
+    the back-end's own."""
     spec.validate()
     record = read_design(spec.folder)
     robot, head = load_robot(), load_head()
@@ -322,7 +324,7 @@ def run(spec: PlaySpec, emulator_port: str | None = None) -> PlayResult:
                              f"({record['simulation']['label']}, seed "
                              f"{record['simulation']['seed']}); give a fresh design folder")
         atomic_write_json(spec.folder / DESIGN_FILE, simulated)
-    presenter = _presenter(spec, robot, head, goals, emulator_port)
+    presenter = presenter or _presenter(spec, robot, head, goals, emulator_port)
     observer = spec.model.label() if spec.backend == "simulated" else ""
     rows = [play_participant(p, presenter, goals, observer, spec.log) for p in folders]
     presenter.close()

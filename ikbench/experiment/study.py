@@ -190,10 +190,9 @@ def analyze_folder(folder: Path, output: Path) -> str:
     return f"analysis of {n} {kind} written to {output} (analysis.md)"
 
 
-def power_study(folder: Path, output: Path, model: observers.ObserverModel,
-                participants_text: str, repetitions: int, hypothesis: str, seed: int) -> str:
-    """``experiment power``: power per number of participants, and the false-positive rate
-    of the same test on :func:`null_simulator`'s studies, written to ``output``."""
+def parse_sizes(participants_text: str, repetitions: int) -> list[int]:
+    """``experiment power``'s ``--participants`` (``"4,8,12"``) and ``--repetitions``,
+    checked."""
     try:
         sizes = [int(w) for w in str(participants_text).split(",")]
     except ValueError:
@@ -203,6 +202,17 @@ def power_study(folder: Path, output: Path, model: observers.ObserverModel,
         raise InputError(f"--participants {participants_text!r}: each from 2 to 500")
     if not 1 <= repetitions <= 10000:
         raise InputError(f"--repetitions {repetitions}: give 1 to 10000")
+    return sizes
+
+
+def power_study(folder: Path, output: Path, model: observers.ObserverModel,
+                participants: str | Sequence[int], repetitions: int, hypothesis: str,
+                seed: int) -> str:
+    """``experiment power``: power per number of participants (``"4,8"`` or a list), and the
+    false-positive rate of the same test on :func:`null_simulator`'s studies, written to
+    ``output``."""
+    sizes = (parse_sizes(participants, repetitions) if isinstance(participants, str)
+             else list(participants))
     stimuli = stimulus_cues(folder)
     test = power.h1_test if hypothesis == "H1" else power.h2_test
     curve = power.power_curve(simulator(stimuli, model), test, sizes, repetitions, seed=seed)
