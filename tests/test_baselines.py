@@ -56,6 +56,12 @@ LIBRARIES = {
     "pyroki": (1e-2, 0.1, True),
 }
 FRAMES = [name for name in LIBRARIES if name != "pyroki"]
+#: method -> settings that make its result independent of the machine's speed. TRAC-IK races
+#: threads against a wall-clock timeout (5 ms by default) and returns what it found by then: on
+#: a loaded machine a solve found nothing and the test failed (14.4 mm at load 4). Speed mode
+#: returns the first solution within the tolerance, so a 2 s budget costs no time when quiet
+#: and is no limit under any load a test run meets.
+LOAD_PROOF: dict[str, dict] = {"trac-ik": {"timeout": 2.0, "solve_type": "Speed"}}
 
 
 def fk_task(robot, seed: int, frames: bool = False) -> Task:
@@ -105,7 +111,7 @@ def test_fk_goals_are_solved_back_within_limits_and_deterministically(robot, nam
     cls = method_class(name)
     position_tol, pointing_tol, whole = LIBRARIES[name]
     task = fk_task(robot, seed=5)
-    method = cls()
+    method = cls(**LOAD_PROOF.get(name, {}))
     method.check_tasks(robot, [task])
     method.prepare(robot)
     first, second = method.solve(robot, task), method.solve(robot, task)
@@ -140,7 +146,7 @@ def test_ikpy_pointing_mode_points(robot):
 def test_six_d_goal_frames_are_reached(robot, name):
     cls = method_class(name)
     task = fk_task(robot, seed=3, frames=True)
-    poses = cls().solve(robot, task).poses
+    poses = cls(**LOAD_PROOF.get(name, {})).solve(robot, task).poses
     position, _, angle = goal_errors(robot, task, poses)
     rows = solved_rows(name)
     assert position[rows].max() < 1e-2 and angle[rows].max() < 0.1, (position, angle)

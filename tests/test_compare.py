@@ -341,6 +341,7 @@ def test_claims_table_names_the_baseline_run():
 
 @pytest.mark.parametrize("name, message", [
     ("../out", "--name: '../out' is not allowed"),
+    (".résumé", "--name: '.résumé' is not allowed"),
     ("", "argument --name: '' is empty"),
     ("ablation", "--name: 'ablation' is the folder of another command"),
 ])
@@ -353,6 +354,16 @@ def test_bad_name_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, name, 
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and message in err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_run_name_of_unicode_letters_is_taken(tmp_path, capsys):
+    """Issue 64: ``--name résumé`` was refused as not letters; a separator or a leading dot
+    still is (above)."""
+    assert main(["run", "--method", "sequential-ik", "--only", "1", "--steps", "4",
+                 "--output", str(tmp_path), "--name", "résumé", "--quiet",
+                 "--no-animation"]) == 0
+    record = json.loads((tmp_path / "résumé" / "run.json").read_text())
+    assert record["name"] == "résumé"
 
 
 def test_run_name_sets_the_folder_and_run_json(tmp_path):

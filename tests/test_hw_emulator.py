@@ -85,21 +85,28 @@ def test_status_packet_bytes_are_protocol_1(config):
 
 
 def test_moves_towards_goal_at_moving_speed(config):
-    with Emulator(config, START) as emulator:
+    # the emulator's servos move on a clock the test sets (a wall clock let a loaded machine
+    # read "moving" after the servo had arrived)
+    clock = [100.0]
+    with Emulator(config, START, clock=lambda: clock[0]) as emulator:
         port, ph = _open(emulator)
         start_raw = ph.read2ByteTxRx(port, 21, 36)[0]
         speed_raw = 73  # 73 * 0.684 = 49.9 deg/s
         group = sdk.GroupSyncWrite(port, ph, 30, 4)
         group.addParam(21, [0x00, 0x08, speed_raw, 0])  # goal 2048 = 0 deg
         assert group.txPacket() == sdk.COMM_SUCCESS
-        time.sleep(0.2)
+        deadline = time.monotonic() + 10
+        while not emulator.sync_writes() and time.monotonic() < deadline:
+            time.sleep(0.001)  # the write stamped at 100 s before time moves on
+        clock[0] += 0.2
         raw, _, _ = ph.read2ByteTxRx(port, 21, 36)
         # timed by the emulator's own clock: when the packets arrived, not when we saw them
         t_sync, t_read = [e.t for e in emulator.log if e.direction == "rx"][-2:]
+        assert t_read - t_sync == pytest.approx(0.2)
         moved_deg = (raw - start_raw) * 360 / 4096
         assert moved_deg == pytest.approx(speed_raw * 0.684 * (t_read - t_sync), abs=0.1)
         assert ph.read1ByteTxRx(port, 21, 46)[0] == 1  # moving
-        time.sleep(0.35)  # 24.92 deg at 49.9 deg/s: there after 0.5 s
+        clock[0] += 0.35  # 24.92 deg at 49.9 deg/s: there after 0.5 s
         assert ph.read2ByteTxRx(port, 21, 36)[0] == 2048
         assert ph.read1ByteTxRx(port, 21, 46)[0] == 0
         port.closePort()

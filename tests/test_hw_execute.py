@@ -533,16 +533,21 @@ def test_unexpected_sdk_exception_during_the_move_stops_and_holds(short_traj, ca
     assert_is_a_hold(emulator)
 
 
-def test_hold_sends_its_last_goal_to_a_motor_that_does_not_answer(short_traj, capsys):
-    # reads of id 5: model number at ping, start pose, 4 recorded samples; then none answered
+def test_hold_sends_its_last_goal_to_a_motor_that_does_not_answer(short_traj, capsys,
+                                                                  fake_clock):
+    # reads of id 5: model number at ping, start pose, 4 recorded samples; then none answered.
+    # On the fake clock a read takes no time, so one sample follows each of the 60 ms
+    # segments: the 5th read after the start fails (on the wall clock of a loaded machine
+    # the reads fell behind and all 10 segments went out first: "assert 10 < 10")
     fault = Fault("drop", 5, 0x02, after=2 + 4)
-    with Emulator(load_motor_config(), START, faults=[fault]) as emulator:
+    fake_clock.send_tick_s = 0.001  # the hold's writes come after the last segment's
+    with fake_clock.emulator(load_motor_config(), START, faults=[fault]) as emulator:
         code = main(["execute", str(short_traj), "--port", emulator.port, "--duration", "0.6",
                      "--record-rate", "100"])
     err = capsys.readouterr().err
     assert code == 3
     sent = len(segments_sent(emulator))
-    assert 1 <= sent < 10
+    assert sent == 5, err
     assert err == (f"ikbench: error: read present position on motor id 5 (r_elbow_y): no status "
                    f"packet (timeout); sent {sent} of 10 segments (last: segment {sent - 1}); "
                    f"holding present position of 6 of 7 motors; no answer from id 5 "

@@ -59,3 +59,33 @@ def test_bad_input_is_one_line(tmp_path, capsys):
     assert main(["robot", "init", str(REPO / "urdf" / "panda.urdf"), "--end-frame", "nope",
                  "--output", str(tmp_path)]) == 2
     assert "nope" in capsys.readouterr().err
+
+
+def test_an_output_that_is_a_file_is_refused_naming_the_option(tmp_path, capsys):
+    """Issue 64: ``--output afile`` said ``afile: File exists``, naming no option."""
+    afile = tmp_path / "afile"
+    afile.write_text("mine\n")
+    assert main(["robot", "init", str(REPO / "urdf" / "panda.urdf"), "--end-frame",
+                 "panda_hand", "--output", str(afile)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"ikbench: error: --output: cannot write {afile}: it is a file, not a " \
+                  "directory\n"
+    assert afile.read_text() == "mine\n"
+
+
+@pytest.mark.parametrize("name", ["résumé", "ロボット"])
+def test_a_name_of_unicode_letters_is_taken(tmp_path, capsys, name):
+    """Issue 64: ``--name résumé`` was refused as not letters."""
+    assert main(["robot", "init", str(REPO / "urdf" / "panda.urdf"), "--end-frame",
+                 "panda_hand", "--output", str(tmp_path), "--name", name]) == 0
+    assert load_robot(tmp_path / f"{name}.toml").name == name
+
+
+@pytest.mark.parametrize("name", [".hidden", "a/b", "-x", "a b"])
+def test_a_name_that_is_no_file_stem_is_refused(tmp_path, capsys, name):
+    assert main(["robot", "init", str(REPO / "urdf" / "panda.urdf"), "--end-frame",
+                 "panda_hand", "--output", str(tmp_path), f"--name={name}"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"ikbench: error: --name: {name!r} must be a file stem") \
+        and err.count("\n") == 1, err
+    assert not list(tmp_path.iterdir())

@@ -96,6 +96,19 @@ def test_ctrl_c_while_solving_keeps_the_complete_run_and_the_solved_trajectories
     assert "Interrupted (Ctrl-C)" in (beside / "report.md").read_text()
 
 
+def test_a_second_interrupted_run_replaces_the_first_and_says_so(tmp_path, straight, capsys):
+    """Issue 64: the second interrupt's folder replaces the first's whole, as docs/commands.md
+    says, and its line says it replaced one."""
+    assert _run(tmp_path, "--only", "1,2,3", "--interrupt-on", "3") == 130
+    beside = tmp_path / "straight.interrupted"
+    assert "(replacing" not in capsys.readouterr().err
+    assert _run(tmp_path, "--only", "1,2,3", "--interrupt-on", "2") == 130
+    assert (f"the 1 trajectories solved before Ctrl-C are in {beside}/ (replacing an earlier "
+            "interrupted run's)") in capsys.readouterr().err
+    assert json.loads((beside / "run.json").read_text())["trajectories"] == ["1"]
+    assert [p.name for p in beside.glob("trajectory_*.csv")] == ["trajectory_1.csv"]
+
+
 def test_ctrl_c_before_any_solve_leaves_the_folder_unchanged(tmp_path, straight, capsys):
     assert _run(tmp_path, "--only", "1,2") == 0
     folder = tmp_path / "straight"

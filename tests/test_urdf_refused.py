@@ -62,7 +62,8 @@ CASES = {
     "origin not finite": (
         re.sub(r'(<joint name="r_elbow_y" type="revolute">\s*<origin xyz=")[^"]*"',
                r'\1nan 0 0"', NICO, count=1),
-        "joint 'r_elbow_y': its <origin> holds a number that is not finite"),
+        "joint 'r_elbow_y': its <origin xyz=\"nan 0 0\" rpy=\"0 0 3.1415926535897931\"> "
+        "holds a number that is not finite; xyz and rpy are three finite numbers each"),
     "unknown joint type": (
         _flawed('name="r_wrist_z" type="revolute"', 'name="r_wrist_z" type="hinge"'),
         "joint 'r_wrist_z' has type 'hinge'; allowed: revolute, continuous, prismatic, fixed, "

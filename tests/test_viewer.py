@@ -111,18 +111,38 @@ def test_the_drawn_arm_and_markers_follow_ikbenchs_fk(viewer):
             assert [k for k, p in v.scenes[0].faint_paths.items() if p.visible] != [tid]
 
 
-def test_playback_at_real_speed_and_stop_at_the_end(viewer):
+def _until(condition, what: str) -> None:
+    """Wait (really, at most 30 s) until the player thread made ``condition`` true."""
+    deadline = time.monotonic() + 30
+    while not condition():
+        assert time.monotonic() < deadline, what
+        time.sleep(0.005)
+
+
+def test_playback_at_real_speed_and_stop_at_the_end(viewer, monkeypatch):
+    # the player's clock is one the test moves (the wall clock of a loaded machine let 0.5 s
+    # of sleep become 1.2 s: step 6 where 1..4 was asserted)
+    from types import SimpleNamespace
+
+    from ikbench.viewer import gui, server
+
+    clock = [1000.0]
+    fake_time = SimpleNamespace(perf_counter=lambda: clock[0])
+    monkeypatch.setattr(server, "time", fake_time)
+    monkeypatch.setattr(gui, "time", fake_time)
     _, v = viewer
     v.set_step(0)
     v.play()
-    time.sleep(0.5)  # 0.2 s per step: about 2.5 steps
-    step = v.gui["step"].value
-    assert 1 <= step <= 4, step
+    clock[0] += 0.5  # 0.2 s per step: 2.5 steps
+    _until(lambda: v.gui["step"].value == 2, "the player did not reach step 2")
+    assert v.playing
     v.gui["speed"].value = "2x"
     v.set_step(7)
     v.play()
-    time.sleep(1.0)  # 2x: 10 steps' worth, so it reaches the end and stops there
-    assert v.gui["step"].value == 10 and not v.playing
+    clock[0] += 1.0  # 2x: 10 steps' worth, so it reaches the end and stops there
+    # (the player pauses, then moves the slider: wait for both)
+    _until(lambda: not v.playing and v.gui["step"].value == 10,
+           "the player did not stop at the end")
     assert v.gui["play"].label == "Play"
 
 

@@ -43,7 +43,14 @@ from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
 from ikbench.core.kinematics.torch_fk import TorchFK
 from ikbench.core.robot_config import CONFIG_KEYS, RobotConfig
 from ikbench.core.robot_packages import is_package_name, resolve
-from ikbench.core.urdf_model import MOVABLE_TYPES, UrdfJoint, UrdfModel, load_urdf_model
+from ikbench.core.urdf_model import (
+    MAX_LIMIT_M,
+    MAX_LIMIT_RAD,
+    MOVABLE_TYPES,
+    UrdfJoint,
+    UrdfModel,
+    load_urdf_model,
+)
 
 if TYPE_CHECKING:
     import torch
@@ -378,8 +385,8 @@ def chain_joints(urdf: UrdfModel, base_link: str, end_frame: str) -> list[UrdfJo
 
     Raises:
         InputError: a joint naming a link the URDF does not define, unknown link, end_frame
-            not below base_link, a joint type a chain cannot hold, or no movable joint on the
-            path.
+            not below base_link, a joint type a chain cannot hold, no movable joint on the
+            path, or a chain joint :func:`check_chain_joint` refuses.
     """
     name = urdf.path.name
     if base_link not in urdf.links:
@@ -401,11 +408,43 @@ def chain_joints(urdf: UrdfModel, base_link: str, end_frame: str) -> list[UrdfJo
         if joint.type not in MOVABLE_TYPES:
             raise InputError(f"{name}: joint {joint.name!r} is {joint.type!r}; a "
                              f"chain may hold {', '.join(MOVABLE_TYPES)} and fixed joints")
+        check_chain_joint(joint, name)
         joints.append(joint)
     if not joints:
         raise InputError(f"{name}: no movable joint between {base_link!r} and "
                          f"{end_frame!r}")
     return joints
+
+
+def check_chain_joint(joint: UrdfJoint, urdf_name: str) -> None:
+    """Refuse (one line, InputError) a movable joint of a chain that would change how the
+    chain is judged or solved without a word:
+
+    - a velocity limit that is zero or negative (a joint without ``<limit>``, a continuous
+      one, has none: the speed criterion is then said to be unknown, not judged);
+    - limits beyond |:data:`~ikbench.core.urdf_model.MAX_LIMIT_RAD`| rad (revolute) or
+      |:data:`~ikbench.core.urdf_model.MAX_LIMIT_M`| m (prismatic): sampling and the methods'
+      arithmetic overflow there;
+    - a ``<mimic>`` joint: every method solves a chain joint on its own, none as a follower.
+    """
+    where = f"robot: {urdf_name}: joint {joint.name!r} of the chain"
+    if joint.mimic is not None:
+        raise InputError(f"{where} mimics joint {joint.mimic!r} (<mimic>): ikbench solves "
+                         "every chain joint independently and models no coupled joint; end "
+                         "the chain before it (--end-frame) or make it fixed")
+    if joint.velocity <= 0:  # NaN (no <limit>) is no limit known, said by the contract
+        raise InputError(f'{where} has <limit velocity="{joint.velocity:g}">; a chain '
+                         "joint's velocity limit must be a positive number [rad/s, m/s for "
+                         "prismatic] (the speed criterion is judged against it)")
+    if joint.type in ("revolute", "prismatic"):
+        bound, unit = ((MAX_LIMIT_M, "m") if joint.type == "prismatic"
+                       else (MAX_LIMIT_RAD, "rad"))
+        if max(abs(joint.lower), abs(joint.upper)) > bound:
+            hint = ("" if joint.type == "prismatic"
+                    else ' (a joint that turns without limits is type="continuous")')
+            raise InputError(f'{where} has <limit lower="{joint.lower:g}" upper='
+                             f'"{joint.upper:g}">; a {joint.type} joint\'s limits must lie '
+                             f"within +-{bound:g} {unit}{hint}")
 
 
 def shipped_robots() -> dict[str, Path]:

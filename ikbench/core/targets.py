@@ -11,9 +11,11 @@ Format (JSON)::
 
 Poses are in the robot's pose units (motor degrees for NICO; joint degrees, mm for prismatic
 joints, for robots without a motor map). Target ids name files (``trajectory_<id>.csv``):
-letters, digits, ``_``, ``-`` and ``.``. Unknown keys are rejected (a misspelt "steps" would
-otherwise be ignored silently). A robot config may name default targets (``[targets]``); NICO's
-are the paper's seven touch poses, named ``paper`` (:data:`PAPER_TARGETS`).
+letters (any script's: ``résumé``), digits, ``_``, ``-`` and ``.`` (not first), as
+:data:`ID_PATTERN` says; run names follow the same rule. Unknown keys are rejected (a
+misspelt "steps" would otherwise be ignored silently). A robot config may name default
+targets (``[targets]``); NICO's are the paper's seven touch poses, named ``paper``
+(:data:`PAPER_TARGETS`).
 
 ``obstacles`` (optional) are put on every task made from the targets (``Task.obstacles``;
 :func:`ikbench.core.task.line_tasks`), and ``ikbench compare`` then judges collisions: a list
@@ -44,7 +46,10 @@ MIN_STEPS = 2
 MAX_STEPS = 5000
 KEYS = ("joint_names", "start_pose", "targets", "steps", "obstacles", "description")
 #: A target id names files (trajectory_<id>.csv) and is chosen with --only "1,3".
-ID_PATTERN = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
+#: A target id or a run name: it names a file or a folder, so letters and digits of any script
+#: (what ``str.isalnum`` calls so), ``_``, then also ``-`` and ``.``; never a path separator,
+#: a space or a leading dot.
+ID_PATTERN = re.compile(r"\w[\w.-]*")
 
 
 @dataclass(frozen=True)

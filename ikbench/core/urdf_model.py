@@ -24,7 +24,16 @@ unique link and joint names, joints that name defined links, known joint types, 
 prismatic joint, a finite non-zero ``<axis>`` on every movable joint, finite origins, and a
 tree (one root link, one parent joint per link, no loop). A file that breaks one of these is
 refused with one line naming the joint or link and what is allowed (urdfdom, Pinocchio's
-reader, would print its own error and raise, or build NaNs from a zero axis).
+reader, would print its own error and raise, or build NaNs from a zero axis); what yourdfpy
+and trimesh warn while parsing such a file is folded into that line, not printed before it.
+Before it is parsed, a file larger than :data:`MAX_URDF_BYTES` or with more than
+:data:`MAX_LINKS` ``<link>`` elements is refused (one line, in well under a second: parsing
+a file of 200,000 links takes yourdfpy minutes and gigabytes).
+
+The joints of a robot's chain are checked further when the robot is built
+(:func:`ikbench.core.robot.chain_joints`, with :data:`MAX_LIMIT_RAD` and
+:data:`MAX_LIMIT_M`): a file may hold a gripper's mimic joint or a wheel without a speed
+limit as long as no chain runs through it.
 :meth:`UrdfModel.end_frame_candidates` lists the links an end frame may be (the errors that
 ask for one name them).
 """
@@ -37,7 +46,8 @@ import io
 import logging
 import math
 import re
-from collections import OrderedDict
+import warnings
+from collections import Counter, OrderedDict
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -63,6 +73,16 @@ AXIS_TYPES = ("revolute", "continuous", "prismatic", "planar")
 TOOL_WORDS = ("tool", "tcp", "ee", "end", "gripper", "hand", "flange", "finger", "tip")
 #: How many parsed files :func:`load_urdf_model` keeps.
 CACHE_SIZE = 32
+#: The largest URDF file read [bytes] (the largest of example-robot-data 6 is 0.3 MB).
+MAX_URDF_BYTES = 20_000_000
+#: The most ``<link>`` elements a URDF read may hold (example-robot-data 6: at most 130).
+MAX_LINKS = 5000
+#: The largest |lower|, |upper| of a revolute chain joint [rad] (a joint without limits is
+#: ``type="continuous"``).
+MAX_LIMIT_RAD = 1e4
+#: The largest |lower|, |upper| of a prismatic chain joint [m].
+MAX_LIMIT_M = 1e3
+_LINK_TAG = re.compile(rb"<link[\s/>]")
 
 _MODELS: OrderedDict[tuple[str, str], UrdfModel] = OrderedDict()
 
@@ -84,6 +104,7 @@ class UrdfJoint:
             (0 where ``<limit>`` gives no ``lower``, as the URDF specification says).
         upper: upper limit [rad or m]; +inf as ``lower``.
         velocity: velocity limit [rad/s or m/s] as written; NaN when the joint gives none.
+        mimic: the joint this one mimics (its ``<mimic joint=...>``), else None.
     """
 
     name: str
@@ -95,6 +116,7 @@ class UrdfJoint:
     lower: float
     upper: float
     velocity: float
+    mimic: str | None = None
 
     @property
     def movable(self) -> bool:
@@ -320,9 +342,17 @@ def load_urdf_model(path: str | Path) -> UrdfModel:
     """
     path = Path(path).resolve()
     try:
+        size = path.stat().st_size
+        if size > MAX_URDF_BYTES:
+            raise InputError(f"cannot read URDF {str(path)!r}: it is {size / 1e6:.1f} MB; "
+                             f"the largest URDF read is {MAX_URDF_BYTES / 1e6:.0f} MB")
         data = path.read_bytes()
     except OSError as exc:
         raise InputError(f"cannot read URDF {str(path)!r}: {exc}") from None
+    links = len(_LINK_TAG.findall(data))
+    if links > MAX_LINKS:
+        raise InputError(f"cannot read URDF {str(path)!r}: it has {links:,} <link> elements; "
+                         f"the most a URDF read may have is {MAX_LINKS:,}")
     key = (str(path), hashlib.sha256(data).hexdigest())
     if key in _MODELS:
         _MODELS.move_to_end(key)
@@ -354,25 +384,32 @@ def _parse(path: Path, digest: str, data: bytes) -> UrdfModel:
     logger.addHandler(errors)
     logger.propagate = False
     where = f"cannot read URDF {str(path)!r}"
-    try:
-        urdf = yourdfpy.URDF.load(io.BytesIO(data), build_scene_graph=False, load_meshes=False,
-                                  filename_handler=yourdfpy.filename_handler_null)
-    except Exception as exc:  # yourdfpy raises what its parsing meets (KeyError, ...)
-        reason = (errors.messages[0] if errors.messages
-                  else f"an element lacks its {exc} attribute" if isinstance(exc, KeyError)
-                  else f"not a URDF yourdfpy can read ({type(exc).__name__}: {exc})")
-        raise InputError(f"{where}: {_one_line(reason)}") from None
-    finally:
-        logger.removeHandler(errors)
-        logger.propagate = propagate
+    with warnings.catch_warnings(record=True) as warned:
+        warnings.simplefilter("always")
+        try:
+            urdf = yourdfpy.URDF.load(io.BytesIO(data), build_scene_graph=False,
+                                      load_meshes=False,
+                                      filename_handler=yourdfpy.filename_handler_null)
+        except Exception as exc:  # yourdfpy raises what its parsing meets (KeyError, ...)
+            reason = (errors.messages[0] if errors.messages
+                      else f"an element lacks its {exc} attribute" if isinstance(exc, KeyError)
+                      else f"not a URDF yourdfpy can read ({type(exc).__name__}: {exc})")
+            raise InputError(f"{where}: {_one_line(reason)}{_warned(warned)}") from None
+        finally:
+            logger.removeHandler(errors)
+            logger.propagate = propagate
     if errors.messages:
-        raise InputError(f"{where}: {_one_line(errors.messages[0])}")
+        raise InputError(f"{where}: {_one_line(errors.messages[0])}{_warned(warned)}")
     tree = urdf.robot
     try:
         joints = tuple(_joint(j) for j in tree.joints)
+        _check(tree, joints, f"robot: {path.name}", data)
     except (TypeError, ValueError) as exc:
-        raise InputError(f"{where}: {_one_line(str(exc))}") from None
-    _check(tree, joints, f"robot: {path.name}")
+        raise InputError(f"{where}: {_one_line(str(exc))}{_warned(warned)}") from None
+    except InputError as exc:
+        raise InputError(f"{exc}{_warned(warned)}") from None
+    for record in warned:  # an accepted file: what the parser said, said as it would have
+        warnings.warn_explicit(record.message, record.category, record.filename, record.lineno)
     links = tuple(link.name for link in tree.links)
     children = {j.child for j in joints}
     root = next((name for name in links if name not in children), "")
@@ -391,23 +428,28 @@ def _tool_like(link: str) -> bool:
                for word in words if word for tool in TOOL_WORDS)
 
 
-def _check(tree: yourdfpy.Robot, joints: tuple[UrdfJoint, ...], where: str) -> None:
+def _check(tree: yourdfpy.Robot, joints: tuple[UrdfJoint, ...], where: str,
+           data: bytes = b"") -> None:
     """InputError, one line starting with ``where``, naming the first joint or link of a
     parsed URDF that breaks a rule of the module docstring."""
     links = [str(link.name) for link in tree.links]
     for kind, names in (("link", links), ("joint", [j.name for j in joints])):
-        twice = next((n for n in names if names.count(n) > 1), None)
+        counts = Counter(names)
+        twice = next((n for n in names if counts[n] > 1), None)
         if twice is not None:
-            raise InputError(f"{where}: {kind} {twice!r} is defined {names.count(twice)} "
+            raise InputError(f"{where}: {kind} {twice!r} is defined {counts[twice]} "
                              f"times; {kind} names must be unique")
+    known = frozenset(links)
     for raw, joint in zip(tree.joints, joints):
-        _check_joint(raw, joint, links, f"{where}: joint {joint.name!r}")
+        _check_joint(raw, joint, links, f"{where}: joint {joint.name!r}", data, known)
     _check_tree(links, joints, where)
 
 
-def _check_joint(raw: yourdfpy.Joint, joint: UrdfJoint, links: list[str], where: str) -> None:
+def _check_joint(raw: yourdfpy.Joint, joint: UrdfJoint, links: list[str], where: str,
+                 data: bytes = b"", known: frozenset[str] | None = None) -> None:
+    known = frozenset(links) if known is None else known
     for role in ("parent", "child"):
-        if getattr(joint, role) not in links:
+        if getattr(joint, role) not in known:
             raise InputError(f"{where} names the {role} link {getattr(joint, role)!r}, which "
                              f"the URDF does not define; links: {', '.join(links)}")
     if joint.type not in JOINT_TYPES:
@@ -436,7 +478,8 @@ def _check_joint(raw: yourdfpy.Joint, joint: UrdfJoint, links: list[str], where:
         raise InputError(f'{where}: <axis xyz="{xyz}"> is no direction; give three finite '
                          'numbers, not all zero (e.g. xyz="0 0 1")')
     if not np.all(np.isfinite(joint.origin)):
-        raise InputError(f"{where}: its <origin> holds a number that is not finite")
+        raise InputError(f"{where}: its <origin{_origin_text(data, joint.name)}> holds a "
+                         "number that is not finite; xyz and rpy are three finite numbers each")
 
 
 def _check_tree(links: list[str], joints: tuple[UrdfJoint, ...], where: str) -> None:
@@ -453,13 +496,15 @@ def _check_tree(links: list[str], joints: tuple[UrdfJoint, ...], where: str) -> 
         raise InputError(f"{where}: links {', '.join(map(repr, roots))} are all roots (no "
                          f"joint's child); a URDF has one root link: join {roots[1]!r} to "
                          "the tree with a joint")
+    children: dict[str, list[str]] = {}
+    for joint in joints:
+        children.setdefault(joint.parent, []).append(joint.child)
     reached, frontier = set(roots), list(roots)
     while frontier:
-        parent = frontier.pop()
-        for joint in joints:
-            if joint.parent == parent and joint.child not in reached:
-                reached.add(joint.child)
-                frontier.append(joint.child)
+        for child in children.get(frontier.pop(), ()):
+            if child not in reached:
+                reached.add(child)
+                frontier.append(child)
     loop = [name for name in links if name not in reached]
     if loop:
         raise InputError(f"{where}: links {', '.join(map(repr, loop))} form a loop of joints "
@@ -469,6 +514,36 @@ def _check_tree(links: list[str], joints: tuple[UrdfJoint, ...], where: str) -> 
 
 def _one_line(text: str) -> str:
     return " ".join(str(text).split())
+
+
+def _warned(records: list[warnings.WarningMessage]) -> str:
+    """``" (while parsing, trimesh warned: invalid value encountered in sin; ...)"``: the
+    warnings the parser raised, for the end of the line that refuses the file ("" if none)."""
+    said: dict[str, list[str]] = {}
+    for record in records:
+        module = Path(record.filename).parent.name if record.filename else "the parser"
+        texts = said.setdefault(module, [])
+        if _one_line(str(record.message)) not in texts:
+            texts.append(_one_line(str(record.message)))
+    parts = [f"{module} warned: {', '.join(texts)}" for module, texts in said.items()]
+    return f" (while parsing, {'; '.join(parts)})" if parts else ""
+
+
+def _origin_text(data: bytes, joint: str) -> str:
+    """``' xyz="0 0 0.2" rpy="0 inf 0"'``: the attributes of a joint's ``<origin>`` as
+    written (for an error naming the value; "" when they cannot be found)."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.fromstring(data)
+    except ET.ParseError:
+        return ""
+    for element in root.iter("joint"):
+        origin = element.find("origin")
+        if element.get("name") == joint and origin is not None:
+            return "".join(f' {k}="{origin.get(k)}"' for k in ("xyz", "rpy")
+                           if origin.get(k) is not None)
+    return ""
 
 
 def _joint(joint: yourdfpy.Joint) -> UrdfJoint:
@@ -483,9 +558,10 @@ def _joint(joint: yourdfpy.Joint) -> UrdfJoint:
     origin = _origin(joint)
     origin.setflags(write=False)
     axis.setflags(write=False)
+    mimic = None if joint.mimic is None else str(joint.mimic.joint)
     return UrdfJoint(name=str(joint.name), type=str(joint.type), parent=str(joint.parent),
                      child=str(joint.child), origin=origin, axis=axis, lower=lower,
-                     upper=upper, velocity=velocity)
+                     upper=upper, velocity=velocity, mimic=mimic)
 
 
 def _collision(link: str, collision: yourdfpy.Collision) -> UrdfCollision:

@@ -43,19 +43,21 @@ def arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import json
-    import re
     import sys
     from pathlib import Path
 
     import numpy as np
 
     from ikbench.core.errors import InputError
-    from ikbench.core.io import atomic_write_text
+    from ikbench.core.io import atomic_write_text, check_folder_writable
     from ikbench.core.robot_init import init_robot, toml_text
+    from ikbench.core.targets import ID_PATTERN
 
-    if args.name is not None and not re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}", args.name):
-        raise InputError(f"--name: {args.name!r} must be a file stem: letters, digits, _ . - "
-                         "(64 at most)")
+    if args.name is not None and not (ID_PATTERN.fullmatch(args.name)
+                                      and len(args.name) <= 64):
+        raise InputError(f"--name: {args.name!r} must be a file stem: letters (any script's), "
+                         "digits, _ . - (not . or - first; 64 at most)")
+    check_folder_writable(args.output)  # a file there: refused now, naming --output
     if not 0 <= args.seed < 2**63:
         raise InputError(f"--seed: {args.seed!r} must be an integer in [0, 2^63)")
     start = None

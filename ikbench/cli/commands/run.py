@@ -217,16 +217,18 @@ def solve_write_report(spec: RunSpec) -> int:
     import sys
 
     from ikbench.runtime.harness import Interrupted
-    from ikbench.studies.run import run_and_write_spec
+    from ikbench.studies.run import INTERRUPTED_SUFFIX, run_and_write_spec
 
     folder = spec.folder
     assert folder is not None  # the CLI always writes
+    earlier = folder.with_name(folder.name + INTERRUPTED_SUFFIX).is_dir()
     try:
         table = run_and_write_spec(spec).table
     except Interrupted as stop:
         if stop.outcomes:
+            replaced = " (replacing an earlier interrupted run's)" if earlier else ""
             print(f"ikbench: interrupted: {folder}/ is unchanged; the {len(stop.outcomes)} "
-                  f"trajectories solved before Ctrl-C are in {stop.written}/",
+                  f"trajectories solved before Ctrl-C are in {stop.written}/{replaced}",
                   file=sys.stderr)
         else:
             print(f"ikbench: interrupted before any trajectory was solved; {folder}/ is "
