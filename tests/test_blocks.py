@@ -283,6 +283,34 @@ SPECIFICATION = {
     "the first frame is held 0.5 s longer and the last (the touch) 1 s longer": "the "
     "animation's HOLD_FIRST_S and HOLD_LAST_S (ikbench/render/animation.py)",
     "so 4.35 s is": "a worked example of the export's whole-nanosecond times (arithmetic)",
+    # docs/robots.md: the URDF limits
+    "larger than 20 MB, or with more than 5,000": "the URDF size limits (MAX_URDF_BYTES, "
+    "MAX_LINKS, ikbench/core/urdf_model.py)",
+    "within +-1e4 rad (revolute) or +-1e3 m (prismatic)": "the joint-limit bounds "
+    "(MAX_LIMIT_RAD, MAX_LIMIT_M, ikbench/core/urdf_model.py)",
+    # docs/experiment.md, docs/experiment-browser.md: the authors' design and the defaults
+    "stops at 60 % or 80 % of its path": "the authors' design (Lucny et al., ICSR 2025)",
+    "2400 x 1350 px, 46.7 x 26.7 cm": "the authors' screen (andylucny/nico2 "
+    "experiment/display.txt; urdf/nico_right_arm.experiment.json)",
+    "the whole path (default 2 s, the authors')": "design --duration's default",
+    "how long the head moves before the arm (default 0.5 s)": "design --gaze-lead's default",
+    "within 2 mm of the stop point and the head within 0.2 deg of its": "tests/test_experiment.py's "
+    "tolerances on the emulator",
+    "The touch scatters 3 mm around the answered target": "the observers' touch_sd_mm default",
+    "(median 0.9 s). An answer slower than the 2 s window": "the observers' reaction-time "
+    "default and the authors' response window",
+    "Wilson 95 % intervals": "the intervals' coverage",
+    "simulation gaze 3 deg, pointing and position 6 deg": "the worked example's simulation "
+    "(the observers' defaults)",
+    "pointing read to 6 degrees": "the observers' default pointing noise",
+    "(at least 0.3 s, as the bus back-end plays it)": "the head turn's shortest time "
+    "(ikbench/experiment/play.py)",
+    "(design.json, 2 s)": "the authors' response window",
+    "stop frames at 60 % for target 3": "the screenshots' preview parameters",
+    "the arm has gone 60 % of its path": "the screenshots' preview parameters",
+    "fill 90 % of the view": "the online page's framing (ikbench/experiment/scene.py)",
+    "GP at 60 % toward": "the frame sheet's stimulus",
+    "conditions G, P, GP, I at 60 %.": "the screenshots' design",
 }
 #: Text that is not prose: generated blocks, fenced code, inline code, comments, link targets.
 NOT_PROSE = [re.compile(r"```.*?```", re.S), re.compile(r"<!--.*?-->", re.S),
