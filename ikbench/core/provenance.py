@@ -87,6 +87,12 @@ def command_line() -> str:
     program = Path(sys.argv[0]).name if sys.argv and sys.argv[0] else ""
     if program in ("ikbench", "__main__.py"):  # the console script or python -m ikbench.cli
         return shlex.join(["ikbench", *sys.argv[1:]])
+    script = Path(sys.argv[0]) if sys.argv and sys.argv[0] else None
+    repo = Path(__file__).resolve().parents[2]
+    if script is not None and script.is_absolute() and script.resolve().is_relative_to(repo):
+        # a script of the checkout (reproduce --all runs them by absolute path): as typed
+        # from its root, so that no record names the folder the clone happens to be in
+        return shlex.join(["python", str(script.resolve().relative_to(repo)), *sys.argv[1:]])
     return shlex.join(["python", *sys.argv])
 
 

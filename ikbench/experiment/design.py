@@ -458,7 +458,7 @@ def build(spec: DesignSpec) -> Design:
                    "origin_mm": goals.screen.origin_mm.round(3).tolist(),
                    "u": goals.screen.u.round(6).tolist(), "v": goals.screen.v.round(6).tolist()},
         "viewpoint_mm": goals.viewpoint_mm.tolist(),
-        "head": {"source": spec.head.source,
+        "head": {"source": Path(spec.head.source).name,
                  "neutral_motor_deg": list(map(float, spec.head.neutral_motor_deg))},
         "trajectories": judged,
         "trials_per_participant": int((~trials[participant_folder(1)]["practice"]).sum()),
