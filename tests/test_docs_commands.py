@@ -7,8 +7,8 @@ index.md's block is one user's session, run in order in an empty folder that hol
 ``compare`` as written plus ``--only 1 --steps 10`` (:data:`SHRUNK`: the same five methods on
 one target, seconds instead of minutes); ``view`` as written (plus ``--no-browser``) with the
 server's loop replaced by a stub (it serves until Ctrl-C), so the folders, robot and timing
-are all loaded; ``export`` exactly as written. getting-started's main job (``ikbench run --method ours``: the
-paper's seven trajectories, about 50 s) runs under ``-m slow``.
+are all loaded; ``export`` exactly as written. getting-started's main job (``ikbench run
+--method ours``: the paper's seven trajectories, about 50 s) runs under ``-m slow``.
 """
 
 from __future__ import annotations
