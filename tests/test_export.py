@@ -131,12 +131,14 @@ def test_the_file_duration_differs_from_duration_and_a_note_says_so(tmp_path, ni
 
 @pytest.mark.parametrize("args, message", [
     (["missing.csv", "--format", "ros-json", "--output", "{tmp}/x.json"],
-     "argument TRAJ.csv: 'missing.csv' not found; give a trajectory CSV"),
+     "argument TRAJ.csv|RUN_DIR: 'missing.csv' not found; give a trajectory CSV or a run "
+     "folder"),
     (["{csv}", "--format", "ros", "--output", "{tmp}/x.json"], "argument --format: invalid choice"),
     (["{csv}", "--format", "ros-json", "--output", "{tmp}/x.json", "--duration", "-1"],
      "argument --duration: -1 is out of range; give a duration [s] from 0.001 to 3600"),
     (["{csv}", "--format", "ros-json", "--output", "{tmp}"], "it is a directory"),
-    (["{csv}", "--format", "ros-json"], "the following arguments are required: --output"),
+    (["{csv}", "--format", "ros-json"], "--output: give the file to write (required for a "
+                                         "trajectory CSV"),
     (["{csv}", "--format", "ros-json", "--output", "{tmp}/x.json", "--robot", str(
         DATA / "unaligned_arm.urdf"), "--end-frame", "tool"], "missing joint column(s) j1"),
 ])
@@ -144,3 +146,38 @@ def test_bad_input_one_line_exit_2(tmp_path, nico_csv, capsys, args, message):
     args = [a.format(csv=nico_csv, tmp=tmp_path) for a in args]
     assert message in one_line_error(capsys, ["export", *args])
     assert not (tmp_path / "x.json").exists()
+
+
+@pytest.fixture(scope="module")
+def run_folder(tmp_path_factory):
+    """A run folder of a robot other than the default (the Panda): export must take its robot
+    from run.json."""
+    out = tmp_path_factory.mktemp("runs")
+    assert main(["run", "--robot", "panda", "--method", "ours-lm", "--only", "front,left",
+                 "--steps", "10", "--output", str(out), "--quiet"]) in (0, 1)
+    return out / "ours-lm"
+
+
+def test_a_run_folder_exports_every_trajectory_with_its_runs_robot(run_folder, capsys):
+    """Issue 64: docs/index.md's ``ikbench export runs/compare/ours-exact --timing topp``
+    failed: export ignored the run's run.json and wanted --robot, --format, --output."""
+    assert main(["export", str(run_folder), "--timing", "topp"]) == 0
+    out = capsys.readouterr().out
+    assert f"ros-json: 2 trajectories of {run_folder} (panda, 7 joints" in out
+    written = sorted(p.name for p in (run_folder / "export").iterdir())
+    assert written == ["trajectory_front.json", "trajectory_left.json"]
+    robot = load_robot("panda")
+    message = json.loads((run_folder / "export" / "trajectory_front.json").read_text())
+    assert message["joint_names"] == list(robot.joint_names)
+    poses = read_trajectory_poses(run_folder / "trajectory_front.csv", robot)
+    first = np.array(message["points"][0]["positions"])
+    assert np.abs(first - robot.to_urdf(poses[0])).max() < 1e-9
+    assert main(["export", str(run_folder), "--format", "csv-rad", "--output",
+                 str(run_folder.parent / "rad")]) == 0
+    assert sorted(p.name for p in (run_folder.parent / "rad").iterdir()) == \
+        ["trajectory_front.csv", "trajectory_left.csv"]
+
+
+def test_a_folder_of_run_folders_is_one_line_naming_them(run_folder, capsys):
+    err = one_line_error(capsys, ["export", str(run_folder.parent)])
+    assert "holds no run.json" in err and f"give one of its run folders: {run_folder}" in err

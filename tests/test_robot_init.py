@@ -10,8 +10,17 @@ import numpy as np
 import pytest
 
 from ikbench.cli import main
-from ikbench.core.robot import load_robot
-from ikbench.core.robot_init import MAX_LINE_MM, MIN_LINE_MM, auto_axis, choose_end_frame
+from ikbench.core.errors import InputError
+from ikbench.core.robot import load_robot, robot_from_config
+from ikbench.core.robot_init import (
+    MAX_LINE_MM,
+    MIN_LINE_MM,
+    POINTING_DEG,
+    auto_axis,
+    choose_end_frame,
+    init_robot,
+    sensor_like,
+)
 from ikbench.core.robot_packages import robots_folder
 from tests.conftest import REPO
 
@@ -89,3 +98,102 @@ def test_a_name_that_is_no_file_stem_is_refused(tmp_path, capsys, name):
     assert err.startswith(f"ikbench: error: --name: {name!r} must be a file stem") \
         and err.count("\n") == 1, err
     assert not list(tmp_path.iterdir())
+
+
+@needs_erd
+def test_a_humanoid_gets_an_arm_not_its_gaze_and_the_config_names_the_package(tmp_path, capsys):
+    """Issue 64: Romeo's ``gaze`` frame was chosen, the trunk was in the chain and the config
+    held an absolute path into the venv. Now: an arm (a gripper frame, not a finger, camera or
+    foot); ``--base-link torso`` leaves TrunkYaw out; ``urdf`` is the package name."""
+    assert main(["robot", "init", "example-robot-data:romeo", "--output", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    assert "end frame l_gripper (chosen; other candidates: r_gripper," in err
+    config = tomllib.loads((tmp_path / "romeo.toml").read_text())
+    assert config["urdf"] == config["source"] == "example-robot-data:romeo"
+    assert "/" not in (tmp_path / "romeo.toml").read_text().split("[targets]")[0]
+    robot = load_robot(tmp_path / "romeo.toml")
+    assert robot.end_frame == "l_gripper" and robot.joint_names[0] == "TrunkYaw"
+    assert robot.urdf_path.name == "romeo.urdf" and robot.urdf_path.is_file()
+    assert main(["robot", "init", "example-robot-data:romeo", "--base-link", "torso",
+                 "--end-frame", "r_gripper", "--output", str(tmp_path)]) == 0
+    robot = robot_from_config(tmp_path / "romeo.toml")
+    assert robot.root_link == "torso" and robot.end_frame == "r_gripper"
+    assert robot.joint_names[0] == "RShoulderPitch" and "TrunkYaw" not in robot.joint_names
+
+
+@needs_erd
+def test_a_base_link_above_no_end_frame_is_refused_naming_both(tmp_path, capsys):
+    assert main(["robot", "init", "example-robot-data:romeo", "--base-link", "RShoulderPitchLink",
+                 "--end-frame", "l_gripper", "--output", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("ikbench: error: --base-link: 'RShoulderPitchLink' is not an "
+                          "ancestor of the end frame 'l_gripper' in romeo.urdf; its ancestors: ")
+    assert err.count("\n") == 1 and not list(tmp_path.iterdir())
+    assert main(["robot", "init", "example-robot-data:romeo", "--base-link", "nope",
+                 "--output", str(tmp_path)]) == 2
+    assert "--base-link: 'nope' is not a link of romeo.urdf" in capsys.readouterr().err
+
+
+def test_a_config_may_name_a_package_robot_or_a_path(tmp_path):
+    """A plain path (relative to the config) keeps working beside the package form."""
+    (tmp_path / "mine.toml").write_text(
+        f'urdf = "{(REPO / "urdf" / "panda.urdf").as_posix()}"\nend_frame = "panda_hand"\n')
+    assert robot_from_config(tmp_path / "mine.toml").dof == 7
+    (tmp_path / "bad.toml").write_text('urdf = "example-robot-data:nope"\nend_frame = "x"\n')
+    with pytest.raises(InputError, match="urdf: robot: example-robot-data:nope"):
+        robot_from_config(tmp_path / "bad.toml")
+
+
+@pytest.mark.parametrize("link, last", [("gaze", True), ("CameraLeftEye_frame", True),
+                                        ("r_sole", True), ("ImuTorsoGyrometer_frame", True),
+                                        ("r_gripper", False), ("tool0", False),
+                                        ("panda_hand_tcp", False)])
+def test_sensor_head_and_foot_frames_rank_last(link, last):
+    assert sensor_like(link) is last
+
+
+def test_the_drawn_touch_poses_point_along_their_lines(tmp_path):
+    """The contract judges the pointing at the line's end, where the touch pose fixes it."""
+    made = init_robot(str(REPO / "urdf" / "panda.urdf"), "panda_hand", seed=3)
+    robot = made["robot"]
+    start = robot.fk(np.array(made["targets"]["start_pose"]))
+    for pose in made["targets"]["targets"].values():
+        end = robot.fk(np.array(pose))
+        line = end.point_mm[0] - start.point_mm[0]
+        cos = float(end.direction[0] @ line / np.linalg.norm(line))
+        assert np.degrees(np.arccos(min(cos, 1.0))) <= POINTING_DEG + 1e-6
+    assert "not checked by a solve" in made["targets"]["description"]
+
+
+@needs_erd
+def test_check_targets_solves_each_line_and_says_so(tmp_path, capsys):
+    """``--check-targets``: ours-exact solves every default line of Romeo's left arm under
+    the contract; the description says how many draws were replaced."""
+    assert main(["robot", "init", "example-robot-data:romeo", "--check-targets",
+                 "--output", str(tmp_path)]) == 0
+    assert "every target solved" in capsys.readouterr().err
+    targets = json.loads((tmp_path / "romeo.targets.json").read_text())
+    assert "checked under the task contract by ours-exact" in targets["description"]
+    assert "of the first 7 draws replaced, every target solved" in targets["description"]
+    assert len(targets["targets"]) == 7
+
+
+def test_an_unsolved_target_is_replaced_by_the_next_draw(monkeypatch):
+    """The replacement rule, with a fake judge: the first draw fails, the next one holds."""
+    from ikbench.studies import target_check
+
+    made = init_robot(str(REPO / "urdf" / "panda.urdf"), "panda_hand", seed=3)
+    first = [list(p) for p in made["targets"]["targets"].values()]
+    calls = []
+
+    def fake(robot, solver, start, pose, steps):
+        calls.append(list(pose))
+        return len(calls) != 1, ([] if len(calls) != 1 else ["line"])
+
+    monkeypatch.setattr(target_check, "_solved", fake)
+    check = target_check.check_targets(made)
+    kept = list(made["targets"]["targets"].values())
+    assert check.replaced == 1 and all(check.solved) and check.solves == 8
+    assert kept[0] != first[0] and kept[1:] == first[1:]
+    assert "1 of the first 7 draws replaced, every target solved" in \
+        made["targets"]["description"]

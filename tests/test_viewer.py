@@ -149,10 +149,46 @@ def test_playback_at_real_speed_and_stop_at_the_end(viewer, monkeypatch):
 def test_ghosts_and_show_hide(viewer):
     _, v = viewer
     assert [s.opacity for s in v.scenes] == [1.0, 0.35]  # the second run is a ghost
+    v.gui["ghosts"].value = True  # its whole arm shown
+    assert v.scenes[1].arm.visible
     v.gui["runs"][1].value = False
     assert not v.scenes[1].frame.visible and v.scenes[0].frame.visible
     v.gui["goal"].value = False
     assert not any(p.visible for s in v.scenes for p in s.goal_paths.values())
+
+
+def test_other_runs_are_their_fingertip_paths_unless_whole_ghosts_are_asked(folders):
+    """Issue 64: five whole-body ghosts of a six-method compare washed out a humanoid. By
+    default the other runs show their fingertip paths and markers, not their arms; the
+    panel's box, or serve(ghosts=True) (``ikbench view --ghosts``), shows the arms."""
+    pytest.importorskip("viser")
+    from ikbench.viewer.server import serve
+
+    robot, runs = load_runs(folders["nico"])
+    v = serve(robot, runs, port=0, open_browser=False)
+    try:
+        first, other = v.scenes
+        assert first.arm.visible and not other.arm.visible
+        assert other.tip_marker.visible and other.tip_paths[v.trajectory].visible
+        assert not v.gui["ghosts"].value
+        v.gui["ghosts"].value = True
+        assert other.arm.visible
+        v.gui["ghosts"].value = False
+        assert not other.arm.visible and first.arm.visible
+    finally:
+        v.stop()
+    v = serve(robot, runs, port=0, open_browser=False, ghosts=True)
+    try:
+        assert v.gui["ghosts"].value and v.scenes[1].arm.visible
+    finally:
+        v.stop()
+
+
+def test_view_takes_ghosts():
+    from ikbench.cli import build_parser
+
+    args = build_parser().parse_args(["view", "results/ours", "--ghosts"])
+    assert args.ghosts is True
 
 
 def test_a_chain_below_the_urdf_root_with_a_prismatic_joint_is_drawn_where_fk_says(tmp_path):

@@ -187,8 +187,8 @@ class PathValue(Text):
 
     Attributes:
         must_exist: ``"file"`` (an existing regular file, e.g. an input CSV), ``"dir"`` (an
-            existing folder) or None (a path to write, checked for writing by the command
-            before its work starts).
+            existing folder), ``"any"`` (an existing file or folder) or None (a path to
+            write, checked for writing by the command before its work starts).
     """
 
     what: str = "a path"
@@ -206,6 +206,8 @@ class PathValue(Text):
                 raise _refuse(f"{quoted(text)} is a directory; give {self.what}")
             if not os.path.isfile(text):
                 raise _refuse(f"{quoted(text)} not found; give {self.what}")
+        elif self.must_exist == "any" and not (os.path.isfile(text) or os.path.isdir(text)):
+            raise _refuse(f"{quoted(text)} not found; give {self.what}")
         elif self.must_exist == "dir" and not os.path.isdir(text):
             state = "is not a directory" if os.path.exists(text) else "not found"
             raise _refuse(f"{quoted(text)} {state}; give {self.what}")

@@ -26,6 +26,9 @@ DESIGN_METHOD = "ours-exact"
 #: The method whose trajectories the pointing experiment plays by default (ikbench experiment
 #: design --method): the line held exactly, as the paper's stimuli.
 EXPERIMENT_METHOD = "ours-exact"
+#: The method ``ikbench robot init`` checks its default targets with (the line and the fixed
+#: poses held exactly: a target it solves is feasible under the task contract).
+TARGET_CHECK_METHOD = "ours-exact"
 #: ``ikbench ik``'s judge: an answer succeeds within these of its target by default [mm], [deg]
 #: (``--tolerance-mm``, ``--tolerance-deg``); the ground truth's margins are multiples of them.
 JUDGE_TOLERANCE_MM, JUDGE_TOLERANCE_DEG = 1.0, 0.5

@@ -42,7 +42,7 @@ from ikbench.core.kinematics.chain import ChainKinematics
 from ikbench.core.kinematics.pinocchio_fk import PinocchioFK
 from ikbench.core.kinematics.torch_fk import TorchFK
 from ikbench.core.robot_config import CONFIG_KEYS, RobotConfig
-from ikbench.core.robot_packages import is_package_name, resolve
+from ikbench.core.robot_packages import is_package_name, package_urdf, resolve
 from ikbench.core.urdf_model import (
     MAX_LIMIT_M,
     MAX_LIMIT_RAD,
@@ -498,7 +498,13 @@ def _motor_map(path: Path, joints: list[UrdfJoint]):
 def robot_from_config(path: Path, end_frame: str | None = None) -> Robot:
     """Build a :class:`Robot` from a config file (``*.toml`` or an older ``*.motors.json``)."""
     config = _read_config(path)
-    urdf_path = (path.parent / config["urdf"]).resolve()
+    if is_package_name(config["urdf"]):  # urdf = "example-robot-data:romeo"
+        try:
+            urdf_path = package_urdf(config["urdf"])
+        except InputError as exc:
+            raise InputError(f"robot config {str(path)!r}: urdf: {exc}") from None
+    else:
+        urdf_path = (path.parent / config["urdf"]).resolve()
     if not urdf_path.is_file():
         raise InputError(f"robot config {str(path)!r}: URDF {str(urdf_path)!r} not found")
     end = end_frame or config["end_frame"]

@@ -7,11 +7,21 @@ touch targets, and returns a config (``<name>.toml``, the keys of :data:`ikbench
 CONFIG_KEYS`) and a targets file (``<name>.targets.json``) that ``letters``, ``run --shape``,
 ``run``, ``compare`` and ``view`` take as they are:
 
-- **End frame**: ``end_frame`` or, when none is given, of the URDF's candidates (leaf links,
-  then tool-like names: :meth:`ikbench.core.urdf_model.UrdfModel.end_frame_candidates`) those
-  whose chain from the base has at least :data:`MIN_JOINTS` moving joints, the one with the
-  fewest (an arm without its gripper's jaws), and of equals the deepest (a fixed tool frame
-  after the flange). The choice and the other candidates are said.
+- **Config**: ``urdf`` (and ``source``) name a package robot by its name
+  (``"example-robot-data:romeo"``, found in the package installed where the config is loaded:
+  :func:`ikbench.core.robot_packages.package_urdf`), a URDF file by its absolute path.
+- **Chain**: from ``base_link`` (``--base-link``: a humanoid's chest or shoulder, so the
+  trunk's joints stay out; default: the common arm's base in ikbench's table, else the URDF's
+  root), which must be an ancestor of the end frame, to the end frame.
+- **End frame**: ``end_frame``; else a common arm's in ikbench's table
+  (:data:`ikbench.core.robot_packages.ARMS`); else, of the URDF's candidates (leaf links, then
+  tool-like names: :meth:`ikbench.core.urdf_model.UrdfModel.end_frame_candidates`), ranked:
+  a chain of at least :data:`MIN_JOINTS` moving joints first; sensor, head and foot frames
+  (:data:`LAST_WORDS`: gaze, camera, head, imu, sole, ...) last; a gripper's jaws (a chain
+  that moves on from the link a tool frame hangs from: a finger beside the hand's frame)
+  after; tool-like names (``gripper``, ``tool``, ``hand``, ...) before the others; then the
+  most moving joints (the longest arm), of equals the deepest (a fixed tool frame after the
+  flange), then file order. The choice and the other candidates are said.
 - **Pointing axis**: ``pointing_axis`` (``x``, ``y``, ``z``, ``-x``, ...), the end frame's
   axis that points; ``auto`` (default): the end frame's axis nearest the direction from the
   last moving joint's origin to the end frame's origin at the zero configuration, when that
@@ -19,37 +29,55 @@ CONFIG_KEYS`) and a targets file (``<name>.targets.json``) that ``letters``, ``r
   out along it), else ``z``.
 - **Start pose**: ``start_pose``, or the middle of every joint's limits (continuous joints at 0).
 - **Touch targets**: :data:`COUNT` poses drawn by ``numpy.random.default_rng(seed)`` within
-  :data:`REACH_DEG` (joint degrees, mm for prismatic joints) of the start pose and within the
-  limits, kept when the line from the start point to their end point is
-  :data:`MIN_LINE_MM`..:data:`MAX_LINE_MM` long: lines of a size an arm draws, on the start
-  pose's IK branch (a line can join them without a flip). Reachability of every point of the
-  line is not checked here: the comparison judges it.
+  the reaches of :data:`REACHES_DEG` in turn (joint degrees, mm for prismatic joints) of the
+  start pose and within the limits, kept when the line from the start point to their end
+  point is :data:`MIN_LINE_MM`..:data:`MAX_LINE_MM` long and the end frame points within
+  :data:`POINTING_DEG` of the line at the touch pose (the task contract judges the pointing
+  there): lines of a size an arm draws, on the start pose's IK branch where the nearest reach
+  holds enough. ``robot init --check-targets`` (:mod:`ikbench.studies.target_check`) solves
+  each line under the contract and replaces the unsolved ones; without it, reachability of
+  every point of the line is not checked here: the comparison judges it.
 - **Letters**: on the plane through the start point across the pointing direction (u: the
   viewer's right, v: up as far as the pointing allows).
 """
 
 from __future__ import annotations
 
+import itertools
 import json
+import math
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ikbench.core.contract import DEFAULT_TOLERANCES
 from ikbench.core.errors import InputError
-from ikbench.core.robot import Robot, load_robot
-from ikbench.core.robot_packages import is_package_name, resolve
-from ikbench.core.urdf_model import load_urdf_model
+from ikbench.core.robot import Robot, robot_from_config
+from ikbench.core.robot_packages import ARMS, is_package_name, package_urdf
+from ikbench.core.urdf_model import UrdfModel, link_words, load_urdf_model, tool_like
 
 #: The fewest moving joints an end frame's chain may have to be chosen without --end-frame.
 MIN_JOINTS = 3
-#: Touch targets drawn, at most this far from the start pose on every joint [deg, mm].
-COUNT, REACH_DEG = 7, 30.0
+#: Words of a link name that put it last among the end frame candidates: sensors, the head,
+#: the feet (an arm's end frame is none of them).
+LAST_WORDS = ("gaze", "camera", "cam", "head", "eye", "neck", "sensor", "imu", "gyro", "accel",
+              "touch", "fsr", "sole", "foot", "toe", "ankle", "laser", "lidar", "depth", "rgb",
+              "optical", "sonar", "kinect", "xtion", "ft")
+#: Touch targets drawn.
+COUNT = 7
+#: Touch poses are drawn this far from the start pose on every joint [deg, mm], the nearest
+#: reach first (a line can join poses on one IK branch without a flip).
+REACHES_DEG = (30.0, 45.0, 60.0, 90.0)
+#: At the touch pose, the end frame points within this of the line's direction [deg]: the
+#: contract's pointing tolerance (the judged part ends there).
+POINTING_DEG = DEFAULT_TOLERANCES["pointing_judged_mean_deg"]
 #: A touch target's line from the start point is this long [mm].
 MIN_LINE_MM, MAX_LINE_MM = 80.0, 400.0
-#: Candidates drawn at most before giving up.
-DRAWS = 20_000
+#: Candidates drawn at most per reach before the next, in batches of BATCH.
+DRAWS, BATCH = 20_000, 500
 #: ``--pointing-axis`` words -> axes of the end frame.
 AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0),
         "-x": (-1.0, 0.0, 0.0), "-y": (0.0, -1.0, 0.0), "-z": (0.0, 0.0, -1.0)}
@@ -84,43 +112,121 @@ def pointing_axis(word: str) -> tuple[float, float, float]:
     return AXES[word]
 
 
+def _moving(path: tuple) -> int:
+    return sum(j.type in ("revolute", "continuous", "prismatic") for j in path)
+
+
+def sensor_like(link: str) -> bool:
+    """True when a word of ``link`` names a sensor, the head or a foot (:data:`LAST_WORDS`):
+    frames an arm's end frame is not."""
+    return any(word.startswith(last) for word in link_words(link) for last in LAST_WORDS)
+
+
+def _jaws(paths: dict[str, tuple]) -> set[str]:
+    """The candidates that are a gripper's jaws: a chain that leaves the link a tool frame
+    (another candidate with a tool-like name, :data:`MIN_JOINTS` moving joints or more, no
+    sensor) hangs from by fixed joints only, and moves after it (a finger beside the hand's
+    frame)."""
+    rests: dict[str, str] = {}  # the link an arm's frame hangs from -> that frame
+    for link, path in paths.items():
+        if _moving(path) < MIN_JOINTS or sensor_like(link) or not tool_like(link):
+            continue
+        k = len(path)
+        while path[k - 1].type == "fixed":
+            k -= 1
+        rests[path[k - 1].child] = link
+    jaws = set()
+    for link, path in paths.items():
+        if any(j.parent in rests and rests[j.parent] != link and _moving(path[k:])
+               for k, j in enumerate(path)):
+            jaws.add(link)
+    return jaws
+
+
+def ancestors(model: UrdfModel, link: str) -> list[str]:
+    """The links above ``link``, its parent first, the root last."""
+    parent = {j.child: j.parent for j in model.joints}
+    out = []
+    while link in parent:
+        link = parent[link]
+        out.append(link)
+    return out
+
+
+def check_base_link(model: UrdfModel, base_link: str, end_frame: str | None) -> None:
+    """InputError naming ``--base-link`` when it is no link of the URDF or not an ancestor of
+    ``end_frame`` (when one is given)."""
+    name = model.path.name
+    if base_link not in model.links:
+        raise InputError(f"--base-link: {base_link!r} is not a link of {name}; links: "
+                         f"{', '.join(model.links)}")
+    if end_frame is not None and end_frame in model.links \
+            and base_link not in ancestors(model, end_frame):
+        raise InputError(f"--base-link: {base_link!r} is not an ancestor of the end frame "
+                         f"{end_frame!r} in {name}; its ancestors: "
+                         f"{', '.join(ancestors(model, end_frame)) or 'none (it is the root)'}")
+
+
 def choose_end_frame(urdf_path: Path, base_link: str | None) -> tuple[str, list[str]]:
-    """(the end frame chosen, every candidate) of a URDF (see the module docstring)."""
+    """(the end frame chosen, every candidate, best first) of a URDF (see the module
+    docstring)."""
     model = load_urdf_model(urdf_path)
     base = base_link or model.root_link
-    candidates = list(model.end_frame_candidates(base))
-    moving = {}
-    for link in candidates:
-        path = model.path_between(base, link)
-        count = sum(j.type in ("revolute", "continuous", "prismatic") for j in path)
-        if count >= MIN_JOINTS:
-            moving[link] = (count, -len(path))
-    if not moving:
+    if base_link is not None:
+        check_base_link(model, base_link, None)
+    found = list(model.end_frame_candidates(base))
+    paths = {link: model.path_between(base, link) for link in found}
+    jaws = _jaws(paths)
+    order = {link: k for k, link in enumerate(found)}
+
+    def rank(link: str) -> tuple:
+        path = paths[link]
+        return (_moving(path) < MIN_JOINTS, sensor_like(link), link in jaws,
+                not tool_like(link), -_moving(path), -len(path), order[link])
+
+    candidates = sorted(found, key=rank)
+    if not candidates or _moving(paths[candidates[0]]) < MIN_JOINTS:
         raise InputError(f"--end-frame: no link of {urdf_path.name} has a chain of at least "
                          f"{MIN_JOINTS} moving joints from {base!r}; give one "
                          f"({model.candidates_text(base)})")
-    return min(moving, key=lambda link: moving[link]), candidates
+    return candidates[0], candidates
+
+
+def touch_pose_draws(robot: Robot, start: np.ndarray, seed: int) -> Iterator[np.ndarray]:
+    """Touch poses [pose units], best first (see the module docstring): drawn by
+    ``numpy.random.default_rng(seed)`` within each reach of :data:`REACHES_DEG` of the start
+    pose in turn (:data:`DRAWS` each), kept when their line is :data:`MIN_LINE_MM`..
+    :data:`MAX_LINE_MM` long and the end frame points within :data:`POINTING_DEG` of it at
+    the touch pose (the contract judges the pointing at the line's end)."""
+    rng = np.random.default_rng(seed)
+    start_fk = robot.fk(start)
+    start_point = start_fk.point_mm[0]
+    cos_max = math.cos(math.radians(POINTING_DEG))
+    for reach in REACHES_DEG:
+        lo = np.maximum(robot.sample_lower, start - reach)
+        hi = np.minimum(robot.sample_upper, start + reach)
+        for _ in range(DRAWS // BATCH):
+            poses = rng.uniform(lo, hi, (BATCH, robot.dof))
+            fk = robot.fk(poses)
+            lines = fk.point_mm - start_point
+            lengths = np.linalg.norm(lines, axis=1)
+            along = np.sum(fk.direction * lines, axis=1) / np.maximum(lengths, 1e-9)
+            keep = (lengths >= MIN_LINE_MM) & (lengths <= MAX_LINE_MM) & (along >= cos_max)
+            yield from (np.round(p, 2) for p in poses[keep])
 
 
 def draw_targets(robot: Robot, start: np.ndarray, seed: int, count: int = COUNT
                  ) -> list[np.ndarray]:
-    """``count`` touch poses [pose units] (see the module docstring); InputError when the
-    draws find fewer."""
-    rng = np.random.default_rng(seed)
-    lo = np.maximum(robot.sample_lower, start - REACH_DEG)
-    hi = np.minimum(robot.sample_upper, start + REACH_DEG)
-    start_point = robot.fk(start).point_mm[0]
-    found: list[np.ndarray] = []
-    for _ in range(DRAWS // 200):
-        poses = rng.uniform(lo, hi, (200, robot.dof))
-        lengths = np.linalg.norm(robot.fk(poses).point_mm - start_point, axis=1)
-        keep = (lengths >= MIN_LINE_MM) & (lengths <= MAX_LINE_MM)
-        found += [np.round(p, 2) for p in poses[keep]]
-        if len(found) >= count:
-            return found[:count]
-    raise InputError(f"robot init: only {len(found)} of {count} touch poses within "
-                     f"{REACH_DEG:g} deg of the start pose put the end frame {MIN_LINE_MM:g}-"
-                     f"{MAX_LINE_MM:g} mm from its start point; give --start-pose")
+    """The first ``count`` of :func:`touch_pose_draws`; InputError when the draws find
+    fewer."""
+    found = list(itertools.islice(touch_pose_draws(robot, start, seed), count))
+    if len(found) < count:
+        raise InputError(f"robot init: only {len(found)} of {count} touch poses within "
+                         f"{REACHES_DEG[-1]:g} deg of the start pose put the end frame "
+                         f"{MIN_LINE_MM:g}-{MAX_LINE_MM:g} mm from its start point, pointing "
+                         f"within {POINTING_DEG:g} deg of the line; give --start-pose or "
+                         "--pointing-axis")
+    return found
 
 
 def letter_plane(robot: Robot, start: np.ndarray) -> tuple[list[float], list[float]]:
@@ -143,18 +249,31 @@ def init_robot(urdf: str, end_frame: str | None = None, base_link: str | None = 
     (dict, the TOML's keys), "targets" (dict, the JSON), "end_frame", "candidates",
     "axis"}``."""
     if is_package_name(urdf):
-        path, package_base, _, _ = resolve(urdf, end_frame or "?")
-        base_link = base_link or package_base
+        path = package_urdf(urdf)
+        arm = ARMS.get(urdf.partition(":")[0], {}).get(urdf.partition(":")[2])
+        base_link = base_link or (arm.base_link if arm else None)
         name = name or urdf.partition(":")[2]
+        reference = urdf  # the config names the package robot, not a path into the venv
     else:
         path = Path(urdf)
         if not path.is_file():
             raise InputError(f"robot init: {urdf!r} is neither a URDF file nor a robot of an "
                              "installed package (example-robot-data:NAME)")
         name = name or path.stem
+        arm = None
+        reference = str(path.resolve())
     path = path.resolve()
-    chosen, candidates = (end_frame, []) if end_frame else choose_end_frame(path, base_link)
-    config: dict[str, Any] = {"name": name, "source": str(path), "urdf": str(path),
+    model = load_urdf_model(path)
+    if base_link is not None:
+        check_base_link(model, base_link, end_frame)
+    candidates = [] if end_frame else choose_end_frame(path, base_link)[1]
+    if end_frame:
+        chosen = end_frame
+    elif arm is not None and (base_link == arm.base_link):  # ikbench's table of common arms
+        chosen = arm.end_frame
+    else:
+        chosen = candidates[0]
+    config: dict[str, Any] = {"name": name, "source": reference, "urdf": reference,
                               **({"base_link": base_link} if base_link else {}),
                               "end_frame": chosen}
     if axis != "auto":
@@ -162,12 +281,12 @@ def init_robot(urdf: str, end_frame: str | None = None, base_link: str | None = 
     with tempfile.TemporaryDirectory() as folder:  # the robot exactly as its config loads
         draft = Path(folder) / f"{name}.toml"
         draft.write_text(toml_text(config), encoding="utf-8")
-        robot = load_robot(draft)  # validates the URDF and the chain
+        robot = robot_from_config(draft)  # validates the URDF and the chain
         if axis == "auto":
             axis = auto_axis(robot)
             config["pointing_axis"] = list(pointing_axis(axis))
             draft.write_text(toml_text(config), encoding="utf-8")
-            robot = load_robot(draft)
+            robot = robot_from_config(draft)  # not load_robot: it caches by path
     bounded = np.isfinite(robot.lower) & np.isfinite(robot.upper)
     middle = np.where(bounded, (np.where(bounded, robot.lower, 0.0)
                                 + np.where(bounded, robot.upper, 0.0)) / 2.0, 0.0)
@@ -177,22 +296,40 @@ def init_robot(urdf: str, end_frame: str | None = None, base_link: str | None = 
     u, v = letter_plane(robot, start)
     config = {"name": name, "description": f"{name}: {robot.dof} joints, {robot.root_link} -> "
               f"{robot.end_frame} (written by ikbench robot init)",
-              "source": str(path), "urdf": str(path), "base_link": robot.root_link,
+              "source": reference, "urdf": reference, "base_link": robot.root_link,
               "end_frame": robot.end_frame, "pointing_axis": list(pointing_axis(axis)),
               "joints": list(robot.joint_names),
               "targets": {"file": f"{name}.targets.json", "name": "default"},
               "letters": {"start_pose": [float(x) for x in start], "plane_u": u,
                           "plane_v": v}}
-    targets = {"description": f"{name}: the start pose (the middle of the limits unless "
-               f"given) and {len(touches)} touch poses drawn by seed {seed} within "
-               f"{REACH_DEG:g} of it, ikbench robot init",
+    targets = {"description": targets_description(name, len(touches), seed,
+                                                  reach_of(start, touches)),
                "joint_names": list(robot.joint_names),
                "start_pose": [float(x) for x in start],
                "targets": {str(k + 1): [float(x) for x in pose]
                            for k, pose in enumerate(touches)},
                "steps": STEPS}
     return {"name": name, "config": config, "targets": targets, "end_frame": robot.end_frame,
-            "candidates": candidates, "axis": axis}
+            "candidates": candidates, "axis": axis, "robot": robot, "start": start,
+            "seed": seed}
+
+
+def reach_of(start: np.ndarray, touches: list[np.ndarray]) -> float:
+    """The smallest reach of :data:`REACHES_DEG` that holds every touch pose."""
+    far = max(float(np.abs(t - start).max()) for t in touches)
+    return next((r for r in REACHES_DEG if far <= r + 1e-6), REACHES_DEG[-1])
+
+
+def targets_description(name: str, count: int, seed: int, reach: float, checked: str = ""
+                        ) -> str:
+    """The targets file's ``description``: how its poses were drawn (and ``checked``: what the
+    check under the task contract found, when it ran)."""
+    return (f"{name}: the start pose (the middle of the limits unless given) and {count} touch "
+            f"poses drawn by seed {seed} within {reach:g} deg of it, each line "
+            f"{MIN_LINE_MM:g}-{MAX_LINE_MM:g} mm long with the end frame pointing within "
+            f"{POINTING_DEG:g} deg of it at the touch pose; "
+            + (checked or "not checked by a solve under the task contract (ikbench robot init "
+               "--check-targets)") + "; ikbench robot init")
 
 
 def toml_text(config: dict[str, Any]) -> str:

@@ -9,6 +9,10 @@ A robot description package on PyPI ships URDFs whose meshes are ``package://`` 
 - any other URDF of the package by its file stem (``example-robot-data:so101``): the chain runs
   from the URDF's root to ``--end-frame LINK``, which is then required.
 
+A robot config's ``urdf`` may be such a name too (``urdf = "example-robot-data:romeo"``, as
+``ikbench robot init`` writes for a package robot): :func:`package_urdf` finds its file in the
+package installed where the config is loaded, so the config holds no path into a venv.
+
 :func:`resolve_package_uri` turns a ``package://pkg/path`` URI into a file of an installed
 package (the viewer's meshes). The package is optional: ``pip install 'ikbench[robots]'``;
 without it, such names are refused with one line naming the extra.
@@ -126,6 +130,29 @@ def resolve(name: str, end_frame: str | None) -> tuple[Path, str | None, str, st
                          "end frame, a link (--end-frame LINK; the chain runs from the URDF's "
                          f"root to it); {urdf.candidates_text()}")
     return urdfs[robot], None, end_frame, f"{urdfs[robot].name} from {package}"
+
+
+def package_urdf(name: str) -> Path:
+    """The URDF of ``PACKAGE:NAME`` (a common arm's, or the package's URDF of that stem): what
+    a robot config's ``urdf = "PACKAGE:NAME"`` refers to.
+
+    Raises:
+        InputError: the package is not installed, or NAME is neither a common arm nor a URDF
+            of the package.
+    """
+    package, _, robot = name.partition(":")
+    folder = robots_folder(package)
+    if folder is None:
+        raise InputError(f"robot: {name}: the package {package} is not installed ({EXTRA})")
+    arm = ARMS.get(package, {}).get(robot)
+    if arm is not None:
+        return folder / arm.urdf
+    urdfs = package_urdfs(package)
+    if robot not in urdfs:
+        raise InputError(f"robot: {name}: {robot!r} is neither a common arm of {package} "
+                         f"({', '.join(ARMS.get(package, {}))}) nor one of its URDFs "
+                         f"({', '.join(urdfs)})")
+    return urdfs[robot]
 
 
 def resolve_package_uri(uri: str) -> Path | None:

@@ -207,7 +207,7 @@ class UrdfModel:
         below.sort(key=lambda name: order.get(name, len(order)))
         parents = {j.parent for j in self.joints}
         leaves = [name for name in below if name not in parents]
-        tools = [name for name in below if name not in leaves and _tool_like(name)]
+        tools = [name for name in below if name not in leaves and tool_like(name)]
         return tuple(leaves + tools)
 
     def candidates_text(self, base_link: str | None = None) -> str:
@@ -420,12 +420,18 @@ def _parse(path: Path, digest: str, data: bytes) -> UrdfModel:
                      _tree=tree)
 
 
-def _tool_like(link: str) -> bool:
-    """True when a word of ``link`` (split at non-letters and lower-to-upper case changes)
-    starts or ends with a tool word (``ee`` only starts one: ``eef``, not ``knee``)."""
+def link_words(link: str) -> list[str]:
+    """The words of a link name, lower case: split at non-letters and at lower-to-upper case
+    changes (``CameraLeftEye_frame`` -> camera, left, eye, frame)."""
     words = re.split(r"[^a-z]+", re.sub(r"([a-z])([A-Z])", r"\1_\2", link).lower())
+    return [word for word in words if word]
+
+
+def tool_like(link: str) -> bool:
+    """True when a word of ``link`` (:func:`link_words`) starts or ends with a tool word
+    (``ee`` only starts one: ``eef``, not ``knee``)."""
     return any(word.startswith(tool) or (len(tool) > 2 and word.endswith(tool))
-               for word in words if word for tool in TOOL_WORDS)
+               for word in link_words(link) for tool in TOOL_WORDS)
 
 
 def _check(tree: yourdfpy.Robot, joints: tuple[UrdfJoint, ...], where: str,

@@ -36,6 +36,7 @@ class PanelViewer(Protocol):
 
     gui: dict
     _anchor: tuple[float, int]
+    ghosts: bool
 
     @property
     def scenes(self) -> Sequence[PanelScene]: ...
@@ -51,14 +52,16 @@ class PanelViewer(Protocol):
     def refresh_visibility(self) -> None: ...
 
 
-def _legend(scenes) -> str:
+def _legend(scenes, ghosts: bool = False) -> str:
     def swatch(rgb, alpha=1.0):
         return ('<span style="display:inline-block;width:12px;height:12px;margin-right:6px;'
                 f'background:rgba({rgb[0]},{rgb[1]},{rgb[2]},{alpha});border:1px solid #555">'
                 '</span>')
 
-    rows = [f"<div>{swatch(s.color)}<b>{s.run.label}</b>: fingertip, arm "
-            f"{'in URDF colours' if i == 0 else 'ghost'}</div>" for i, s in enumerate(scenes)]
+    other = "fingertip, arm ghost" if ghosts else "fingertip (arm: whole ghosts)"
+    rows = [f"<div>{swatch(s.color)}<b>{s.run.label}</b>: "
+            f"{'fingertip, arm in URDF colours' if i == 0 else other}</div>"
+            for i, s in enumerate(scenes)]
     rows.append(f"<div>{swatch(sc.GOAL_COLOR)}goal path</div>")
     if any(s.obstacles for s in scenes):
         rows.append(f"<div>{swatch(sc.OBSTACLE_COLOR, sc.OBSTACLE_OPACITY)}obstacles</div>")
@@ -82,8 +85,8 @@ def _collision_note(scene: PanelScene) -> str:
 def add_gui(server: viser.ViserServer, viewer: PanelViewer, ids: list[str]) -> None:
     """Add the panel's controls to ``server`` and wire them to ``viewer``; the handles go
     into ``viewer.gui`` (``trajectory``, ``step``, ``time``, ``play``, ``speed``, ``loop``,
-    ``runs``, ``goal``, ``tip``, ``others``; ``obstacles`` and ``collisions`` when a run has
-    obstacles)."""
+    ``runs``, ``goal``, ``tip``, ``others``; ``ghosts`` with several runs; ``obstacles`` and
+    ``collisions`` when a run has obstacles)."""
     gui, scenes = viewer.gui, viewer.scenes
     with server.gui.add_folder("Trajectory"):
         gui["trajectory"] = server.gui.add_dropdown("trajectory", ids, initial_value=ids[0])
@@ -97,12 +100,16 @@ def add_gui(server: viser.ViserServer, viewer: PanelViewer, ids: list[str]) -> N
         gui["speed"] = server.gui.add_dropdown("speed", tuple(SPEEDS), initial_value="1x")
         gui["loop"] = server.gui.add_checkbox("loop", False)
     with server.gui.add_folder("Runs"):
-        server.gui.add_html(_legend(scenes))
+        server.gui.add_html(_legend(scenes, viewer.ghosts))
         gui["runs"] = [server.gui.add_checkbox(s.run.label, True) for s in scenes]
         gui["goal"] = server.gui.add_checkbox("goal path", True)
         gui["tip"] = server.gui.add_checkbox("fingertip path", True)
         gui["others"] = server.gui.add_checkbox("other trajectories", True,
                                                 hint="the first run's, faint")
+        if len(scenes) > 1:
+            gui["ghosts"] = server.gui.add_checkbox(
+                "whole ghosts", viewer.ghosts,
+                hint="the other runs' arms, translucent (off: their fingertip paths only)")
         if any(s.obstacles for s in scenes):
             gui["obstacles"] = server.gui.add_checkbox("obstacles", True)
             gui["collisions"] = server.gui.add_checkbox(
@@ -129,5 +136,5 @@ def add_gui(server: viser.ViserServer, viewer: PanelViewer, ids: list[str]) -> N
         viewer.show(int(gui["step"].value))
 
     boxes = [*gui["runs"], gui["goal"], gui["tip"], gui["others"]]
-    for box in boxes + [gui[k] for k in ("obstacles", "collisions") if k in gui]:
+    for box in boxes + [gui[k] for k in ("obstacles", "collisions", "ghosts") if k in gui]:
         box.on_update(lambda _: viewer.refresh_visibility())

@@ -2,7 +2,10 @@
 
 Each run gets an arm drawn from the URDF's visual shapes (``viser.extras.ViserUrdf``): the
 first run's in the URDF's own colours, every further run's as a *ghost* (its run colour,
-35 % opaque), so methods are compared side by side on the same target. A dropdown picks the
+35 % opaque), so methods are compared side by side on the same target. The ghosts' arms are
+hidden by default (five whole-body ghosts wash out a humanoid): the other runs show their
+fingertip paths and markers, and the panel's "whole ghosts" box (``ikbench view --ghosts``:
+ticked from the start) shows their arms too. A dropdown picks the
 trajectory (the target); for it, each run shows its fingertip path (run colour), its goal
 path (green) and spheres at the current fingertip and goal points; the first run's other
 trajectories stay faint for context. A slider steps through time; Play plays at the
@@ -87,6 +90,7 @@ class Viewer:
     times: np.ndarray  # (S,) timeline [s], one entry per slider step
     scenes: list[RunScene]
     gui: dict = field(default_factory=dict)
+    ghosts: bool = False  # the other runs' whole arms shown at the start
     playing: bool = False
     _lock: threading.RLock = field(default_factory=threading.RLock)
     _stop: threading.Event = field(default_factory=threading.Event)
@@ -163,10 +167,12 @@ class Viewer:
     def refresh_visibility(self) -> None:
         """Show the selected trajectory's paths and arms as the checkboxes say."""
         tid, gui = self.trajectory, self.gui
-        for s, box in zip(self.scenes, gui["runs"]):
+        whole = bool(gui["ghosts"].value) if "ghosts" in gui else self.ghosts
+        for i, (s, box) in enumerate(zip(self.scenes, gui["runs"])):
             s.frame.visible = bool(box.value)
             has = tid in s.run.trajectories
-            s.arm.visible = s.tip_marker.visible = has
+            s.tip_marker.visible = has
+            s.arm.visible = has and (i == 0 or whole)
             s.goal_marker.visible = has and s.goal_m.get(tid) is not None and gui["goal"].value
             for key, path in s.tip_paths.items():
                 path.visible = key == tid and bool(gui["tip"].value)
@@ -324,7 +330,8 @@ def check_trajectory(runs: list[ViewRun], trajectory: str | None) -> list[str]:
 
 
 def serve(robot: Robot, runs: list[ViewRun], *, port: int = 8080, host: str = "127.0.0.1",
-          open_browser: bool = True, trajectory: str | None = None) -> Viewer:
+          open_browser: bool = True, trajectory: str | None = None,
+          ghosts: bool = False) -> Viewer:
     """Start the viewer (non-blocking) and return its handle.
 
     Args:
@@ -334,6 +341,8 @@ def serve(robot: Robot, runs: list[ViewRun], *, port: int = 8080, host: str = "1
         host: interface to listen on (default: this machine only).
         open_browser: open the URL in the default browser.
         trajectory: the trajectory id shown first (default: the first run's first).
+        ghosts: show the other runs' whole arms from the start (default: their fingertip
+            paths only; the panel's "whole ghosts" box switches).
     """
     ids = check_trajectory(runs, trajectory)
     server = new_server(host, port, TITLE)
@@ -341,7 +350,7 @@ def serve(robot: Robot, runs: list[ViewRun], *, port: int = 8080, host: str = "1
     drawn: dict[str, list] = {}  # obstacle sets in the scene, shared by the runs that have them
     scenes = [_add_run(server, robot, run, i, framing, drawn) for i, run in enumerate(runs)]
     frame_scene(server, robot, framing)
-    viewer = Viewer(server, host, timeline(runs), scenes)
+    viewer = Viewer(server, host, timeline(runs), scenes, ghosts=ghosts)
     add_gui(server, viewer, ids)
     if trajectory is not None:
         viewer.select(trajectory)

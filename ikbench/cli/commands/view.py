@@ -27,8 +27,9 @@ DESCRIPTION = (
     "goal path (rebuilt from run.json; the panel says how), the fingertip path, a "
     "timeline slider and Play at the trajectory's real speed. Several folders (runs "
     "of the same robot, e.g. results/ours results/sequential-ik) are shown side by "
-    "side: the first run's arm in the URDF's colours, the others as ghosts in their "
-    f"colour; a dropdown picks the trajectory. Ctrl-C stops it. Needs viser: {INSTALL}."
+    "side: the first run's arm in the URDF's colours, the others as their fingertip paths "
+    "in their colour (--ghosts, or the panel's box: their whole arms too, as ghosts); a "
+    f"dropdown picks the trajectory. Ctrl-C stops it. Needs viser: {INSTALL}."
     " See docs/viewer.md.")
 
 
@@ -46,6 +47,10 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         "0.0.0.0: every interface)")
     parser.add_argument("--no-browser", action="store_true",
                         help="do not open a browser (e.g. on a server; open the URL printed)")
+    parser.add_argument("--ghosts", action="store_true",
+                        help="draw the other runs' whole arms as translucent ghosts from the "
+                        "start (default: their fingertip paths only, which keeps a humanoid "
+                        "readable; the panel's 'whole ghosts' box switches)")
     parser.add_argument("--trajectory", default=None, metavar="ID",
                         help="trajectory shown first (default: the first)")
     parser.add_argument("--duration", type=duration_s(), default=None, metavar="T",
@@ -79,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     check_trajectory(runs, args.trajectory)
     begin(args)
     run_forever(robot, runs, port=args.port, host=args.host, open_browser=not args.no_browser,
-                trajectory=args.trajectory)
+                trajectory=args.trajectory, ghosts=args.ghosts)
     return 0
 
 
