@@ -19,7 +19,7 @@ import os
 import sys
 from pathlib import Path
 
-from ikbench.core.io import atomic_write_csv, atomic_write_json
+from ikbench.core.io import atomic_write_csv, atomic_write_json, staged_folder
 from ikbench.core.provenance import provenance
 from ikbench.experiment import study
 from ikbench.experiment.design import DesignSpec, build
@@ -43,7 +43,11 @@ def main() -> int:
 
         with tempfile.TemporaryDirectory() as tmp:
             return study_in(Path(tmp) / "pointing_study", args)
-    return study_in(Path(args.output), args)
+    # the whole folder or nothing: a new simulated study replaces an old one only when it is
+    # complete (a design never replaces a folder with answers, so each study starts empty)
+    with staged_folder(args.output) as stage:
+        code = study_in(stage, args)
+    return code
 
 
 def study_in(out: Path, args: argparse.Namespace) -> int:

@@ -296,8 +296,8 @@ SPECIFICATION = {
     "experiment/display.txt; urdf/nico_right_arm.experiment.json)",
     "the whole path (default 2 s, the authors')": "design --duration's default",
     "how long the head moves before the arm (default 0.5 s)": "design --gaze-lead's default",
-    "within 2 mm of the stop point and the head within 0.2 deg of its": "tests/test_experiment.py's "
-    "tolerances on the emulator",
+    "within 2 mm of the stop point and the head within 0.2 deg of its":
+        "tests/test_experiment.py's tolerances on the emulator",
     "The touch scatters 3 mm around the answered target": "the observers' touch_sd_mm default",
     "(median 0.9 s). An answer slower than the 2 s window": "the observers' reaction-time "
     "default and the authors' response window",
