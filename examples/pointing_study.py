@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
 from pathlib import Path
 
-from ikbench.core.io import atomic_write_csv, atomic_write_json, staged_folder
+from ikbench.core.io import atomic_write_csv, atomic_write_json
 from ikbench.core.provenance import provenance
 from ikbench.experiment import study
 from ikbench.experiment.design import DesignSpec, build
@@ -43,10 +44,21 @@ def main() -> int:
 
         with tempfile.TemporaryDirectory() as tmp:
             return study_in(Path(tmp) / "pointing_study", args)
-    # the whole folder or nothing: a new simulated study replaces an old one only when it is
-    # complete (a design never replaces a folder with answers, so each study starts empty)
-    with staged_folder(args.output) as stage:
-        code = study_in(stage, args)
+    # a design never replaces a folder with answers, so a new simulated study starts from an
+    # empty folder: the old one is set aside, and put back if the new one fails
+    out = Path(args.output)
+    previous = out.with_name(f".{out.name}.previous")
+    shutil.rmtree(previous, ignore_errors=True)
+    if out.exists():
+        out.rename(previous)
+    try:
+        code = study_in(out, args)
+    except BaseException:
+        shutil.rmtree(out, ignore_errors=True)
+        if previous.exists():
+            previous.rename(out)
+        raise
+    shutil.rmtree(previous, ignore_errors=True)
     return code
 
 
