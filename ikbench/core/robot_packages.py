@@ -112,24 +112,16 @@ def resolve(name: str, end_frame: str | None) -> tuple[Path, str | None, str, st
             the package, or a URDF outside the table comes without ``--end-frame``.
     """
     package, _, robot = name.partition(":")
-    folder = robots_folder(package)
-    if folder is None:
-        raise InputError(f"robot: {name}: the package {package} is not installed ({EXTRA})")
+    path = package_urdf(name)  # refuses a package not installed and an unknown NAME
     arm = ARMS.get(package, {}).get(robot)
     if arm is not None:
-        return (folder / arm.urdf, arm.base_link, end_frame or arm.end_frame,
-                f"{arm.description} ({package})")
-    urdfs = package_urdfs(package)
-    if robot not in urdfs:
-        raise InputError(f"robot: {name}: {robot!r} is neither a common arm of {package} "
-                         f"({', '.join(ARMS.get(package, {}))}) nor one of its URDFs "
-                         f"({', '.join(urdfs)})")
+        return path, arm.base_link, end_frame or arm.end_frame, f"{arm.description} ({package})"
     if not end_frame:
-        urdf = load_urdf_model(urdfs[robot])  # a broken file is refused before the end frame
+        urdf = load_urdf_model(path)  # a broken file is refused before the end frame
         raise InputError(f"robot: {name}: not in ikbench's table of common arms; give its "
                          "end frame, a link (--end-frame LINK; the chain runs from the URDF's "
                          f"root to it); {urdf.candidates_text()}")
-    return urdfs[robot], None, end_frame, f"{urdfs[robot].name} from {package}"
+    return path, None, end_frame, f"{path.name} from {package}"
 
 
 def package_urdf(name: str) -> Path:

@@ -206,8 +206,6 @@ STUDIES: tuple[Study, ...] = (
           script="benchmarks/ours_speed.py"),
     Study("designer-latency", ("--output", "{out}/designer_latency.csv"),
           ("designer_latency.csv",), 0.5, script="benchmarks/designer_latency.py"),
-    Study("experiment", ("--output", "{out}/experiment"), ("experiment",), 9.0,
-          script="examples/pointing_study.py"),
 )
 
 
