@@ -26,11 +26,6 @@ SOLVER_CODE = ("ikbench/methods", "baselines", "ikbench/schemes", "ikbench/core/
 #: The studies (the judge, the restart loop, the clock): a change to a module that ran makes a
 #: result stale; a module added since (a new study) did not run.
 STUDY_CODE = ("ikbench/studies",)
-#: The plan of ``reproduce --all`` computes no figure: a change to it makes a study stale only
-#: when it changes that study's command, which
-#: :func:`test_every_recorded_command_is_the_plans_command_now` checks study by study (so a new
-#: entry leaves the others current).
-PLAN = "ikbench/studies/regeneration.py"
 
 
 def _changed(commit: str) -> list[str]:
@@ -38,7 +33,7 @@ def _changed(commit: str) -> list[str]:
     solvers = _git("diff", "--name-only", commit, "HEAD", "--", *SOLVER_CODE).stdout.split()
     studies = _git("diff", "--name-only", "--diff-filter=MDR", commit, "HEAD", "--",
                    *STUDY_CODE).stdout.split()
-    return solvers + [s for s in studies if s != PLAN]
+    return solvers + studies
 
 
 def _git(*args: str) -> subprocess.CompletedProcess:
@@ -101,16 +96,3 @@ def test_every_study_of_the_regeneration_record_is_clean_and_current():
         assert _git("merge-base", "--is-ancestor", study["commit"], "HEAD").returncode == 0, name
         changed = _changed(study["commit"])
         assert not changed, (name, changed[:10])
-
-
-def test_every_recorded_command_is_the_plans_command_now():
-    """A study of results/regenerated.json was made by the command the plan gives it today
-    (a changed entry makes its study stale; the plan's other edits do not)."""
-    from ikbench.studies.regeneration import STUDIES
-
-    record = json.loads((RESULTS / "regenerated.json").read_text())
-    plan = {s.name: s.shown(Path("results")) for s in STUDIES}
-    stale = [(name, study["command"], plan.get(name)) for name, study in record.items()
-             if plan.get(name) != study["command"]]
-    assert not stale, stale
-    assert set(plan) <= set(record), sorted(set(plan) - set(record))
