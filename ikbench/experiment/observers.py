@@ -28,7 +28,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-import pandas as pd
 
 from ikbench.core.errors import InputError
 from ikbench.core.robot import Robot
@@ -209,15 +208,3 @@ def predict(cues: Sequence[Mapping[str, np.ndarray]], conditions: Sequence[str],
         counts = np.bincount(chosen, minlength=k) / draws
         out[i] = (1 - lapse) * counts + lapse / k
     return out
-
-
-def cue_table(trials: pd.DataFrame, cues: list[Mapping[str, np.ndarray]]) -> pd.DataFrame:
-    """The cue points of every trial as columns (``gaze_x_mm`` ...), beside the trial ids."""
-    rows = []
-    for (_, trial), found in zip(trials.iterrows(), cues):
-        row = {"participant": trial["participant"], "trial": trial["trial"]}
-        for cue in CUES:
-            point = found.get(cue, np.full(3, np.nan))
-            row.update({f"{cue}_{a}_mm": float(v) for a, v in zip("xyz", point)})
-        rows.append(row)
-    return pd.DataFrame(rows)

@@ -20,7 +20,7 @@ from pathlib import Path
 import pandas as pd
 
 from ikbench.core.errors import InputError
-from ikbench.experiment.design import TRIAL_COLUMNS, TRIALS_FILE, participant_folder
+from ikbench.experiment.design import TRIAL_COLUMNS, TRIALS_FILE
 
 RESPONSES_FILE = "responses.csv"
 #: The columns of responses.csv, in order.
@@ -177,8 +177,3 @@ def participants(folder: str | Path) -> list[Path]:
         raise InputError(f"{folder}: no participant_XX folders (ikbench experiment design "
                          "writes them)")
     return found
-
-
-def participant_path(folder: str | Path, index: int) -> Path:
-    """``folder/participant_XX``."""
-    return Path(folder) / participant_folder(index)

@@ -284,10 +284,6 @@ def _power_markdown(curve: pd.DataFrame, record: Mapping) -> str:
     return "\n".join(lines)
 
 
-def fractions_of(record: Mapping) -> Sequence[float]:
-    return record.get("fractions", [])
-
-
 def compare_methods(folders: Mapping[str, Path]) -> pd.DataFrame:
     """Methods compared by the same (simulated) participants: ``{method: analysed folder}``,
     each a design of the same seed and simulation seed but another ``--method``, so each
@@ -304,17 +300,19 @@ def compare_methods(folders: Mapping[str, Path]) -> pd.DataFrame:
 
     studies = {m: analysis.read_study(f) for m, f in folders.items()}
     geometry = {m: cue_geometry(stimulus_cues(f)) for m, f in folders.items()}
+
+    def hits(study: analysis.Study) -> pd.DataFrame:
+        return study.answered().assign(
+            hit=lambda d: d["answer_target"].astype(int) == d["target"].astype(int))
+
     first = next(iter(studies))
+    base = hits(studies[first])
     rows = []
     for method, study in studies.items():
         table = analysis.cell_table(study)
-        cells = table[table["level"] == "cell"] if "level" in table.columns else table
-        answered = study.answered().assign(
-            hit=lambda d: d["answer_target"].astype(int) == d["target"].astype(int))
-        base = studies[first].answered().assign(
-            hit=lambda d: d["answer_target"].astype(int) == d["target"].astype(int))
-        for _, cell in cells.iterrows():
-            name = cell["cell"] if "cell" in cell else cell["name"]
+        answered = hits(study)
+        for _, cell in table[table["level"] == "cell"].iterrows():
+            name = cell["cell"]
             mine = answered[answered["cell"] == name].groupby("participant")["hit"].mean()
             theirs = base[base["cell"] == name].groupby("participant")["hit"].mean()
             paired = pd.concat([mine, theirs], axis=1, join="inner").dropna()
