@@ -20,7 +20,8 @@ WITHIN: dict[str, str] = {"compare": "compare", "cartesian": "cartesian", "ik": 
                           "recommend": "recommend", "ablation": "ablation"}
 #: study -> its default output directory under :data:`RUNS` (it writes there directly).
 OWN: dict[str, str] = {"letters": "letters", "sweep": "sweep", "batch": "batch",
-                       "dataset": "dataset", "legibility": "legibility"}
+                       "dataset": "dataset", "legibility": "legibility",
+                       "experiment": "experiment"}
 #: Folders of the results directory that ``ikbench reproduce``'s plan names itself (the
 #: throughput study, ``bench --batches``, writes ``results/scale/``).
 PLANNED: tuple[str, ...] = ("scale",)

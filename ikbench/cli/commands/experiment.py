@@ -8,7 +8,9 @@ import argparse
 from ikbench.cli.commands.view import host_value
 from ikbench.cli.values import INPUT_FILE, OUTPUT, Number
 from ikbench.core.defaults import EXPERIMENT_METHOD
-from ikbench.experiment.folders import DEFAULT_OUTPUT
+from ikbench.studies.folders import default_output
+
+DEFAULT_OUTPUT = default_output("experiment")
 
 HELP = ("experiment design|run|stimuli|analyze|power: the pointing study with NICO's gaze and "
         "pointing cues (trial lists, playback, simulated participants, analysis)")
