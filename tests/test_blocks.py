@@ -22,7 +22,8 @@ def test_every_generated_block_equals_a_fresh_render():
 
 def test_no_inline_block_starts_a_line():
     """mkdocs reads a line that starts with ``<!--`` as raw HTML, which ends the paragraph: an
-    inline block (value, range, fraction, list, provenance, paired) stands after text on its line."""
+    inline block (value, range, fraction, list, provenance, paired) stands after text on its
+    line."""
     inline = re.compile(r"^<!-- generated: (value|range|fraction|list|provenance|paired) ",
                         re.M)
     starts = [f"{page.relative_to(REPO)}:{text[:m.start()].count(chr(10)) + 1}"

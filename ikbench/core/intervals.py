@@ -114,7 +114,8 @@ def paired_verdict(a: npt.ArrayLike, b: npt.ArrayLike, names: tuple[str, str],
     Returns a dict: ``n`` pairs, ``higher`` / ``lower`` / ``equal`` (a above b, below, within
     :data:`PAIR_TIE`), ``sign_p`` (two-sided sign test on the unequal pairs, ``binomtest``),
     ``wilcoxon_p`` (signed-rank; NaN when every pair is equal), ``median_diff`` (median of
-    a - b) and its seeded percentile-bootstrap 1 - :data:`ALPHA` interval ``diff_low`` / ``diff_high``,
+    a - b) and its seeded percentile-bootstrap 1 - :data:`ALPHA` interval ``diff_low`` /
+    ``diff_high``,
     ``verdict`` ("tie", "a better", "b better"; "better" by ``higher_is_better``: a tie unless
     the interval excludes 0 and the sign test is below :data:`ALPHA`), ``winner`` (the better
     name or None) and ``text``, a sentence such as "ours-lm is higher than sequential-ik on 5 of

@@ -54,6 +54,7 @@ import json
 import math
 import re
 import shlex
+import tomllib
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -410,8 +411,6 @@ _WORDS = ("no", "one", "two", "three", "four", "five", "six", "seven", "eight", 
 def render_libraries(source: Path, options: dict[str, str], root: Path) -> str:
     """The libraries of the ``[libs]`` extra that an adapter runs (see the module docstring):
     their distributions' names in the registry's order, or their count in words."""
-    import tomllib
-
     project = tomllib.loads(source.read_text(encoding="utf-8"))["project"]
 
     def names_of(lines: list[str]) -> set[str]:
