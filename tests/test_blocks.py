@@ -22,8 +22,10 @@ def test_every_generated_block_equals_a_fresh_render():
 
 def test_no_inline_block_starts_a_line():
     """mkdocs reads a line that starts with ``<!--`` as raw HTML, which ends the paragraph: an
-    inline block (value, range, fraction, list, provenance) stands after text on its line."""
-    inline = re.compile(r"^<!-- generated: (value|range|fraction|list|provenance) ", re.M)
+    inline block (value, range, fraction, list, provenance, paired) stands after text on its
+    line."""
+    inline = re.compile(r"^<!-- generated: (value|range|fraction|list|provenance|paired) ",
+                        re.M)
     starts = [f"{page.relative_to(REPO)}:{text[:m.start()].count(chr(10)) + 1}"
               for page in documents(REPO)
               for text in [page.read_text(encoding="utf-8")] for m in inline.finditer(text)]
@@ -382,3 +384,31 @@ def test_the_figure_scan_finds_what_it_should():
     figures = [figure for _, figure, _ in unlabelled_figures(text)]
     assert figures == ["0.35 ms", "2.0-2.5 s", "98.65 %", "15x", "1e-6 mm", "218 traj/s",
                        "5.2 GB", "12 mm"]
+
+
+def test_a_paired_block_pairs_by_trajectory_and_calls_a_tie(tmp_path):
+    folder = tmp_path / "results" / "cmp"
+    folder.mkdir(parents=True)
+    rows = ["method,trajectory,legibility,track"]
+    a = [0.41, 0.42, 0.43, 0.44, 0.45, 0.40, 0.39]
+    b = [0.40, 0.41, 0.42, 0.43, 0.44, 0.41, 0.40]
+    rows += [f"x,{i},{v},paper" for i, v in enumerate(a)]
+    rows += [f"y,{i},{v},paper" for i, v in reversed(list(enumerate(b)))]  # order is no pairing
+    rows += ["y,0,9.9,other"]  # filtered out by where=
+    (folder / "results.csv").write_text("\n".join(rows) + "\n")
+    spec = "paired results/cmp/results.csv column=legibility a=x b=y where=track:paper"
+    out = render_text(f"On seven: <!-- generated: {spec} --><!-- /generated -->", tmp_path)
+    assert "x is higher than y on 5 of 7 (sign test p = 0.45;" in out and out.endswith(
+        ": a tie<!-- /generated -->")
+    worse = render_text(f"<!-- generated: {spec} higher=worse column=track -->"
+                        "<!-- /generated -->".replace("column=track", ""), tmp_path)
+    assert "a tie" in worse
+    pending = render_text(f"<!-- generated: {spec.replace('=legibility', '=later')} pending=1 "
+                          "--><!-- /generated -->", tmp_path)
+    assert "not measured in `results/cmp/results.csv` yet" in pending
+    with pytest.raises(InputError, match="no column 'later'"):
+        render_text(f"<!-- generated: {spec.replace('=legibility', '=later')} -->"
+                    "<!-- /generated -->", tmp_path)
+    with pytest.raises(InputError, match="no row of method 'z'"):
+        render_text(f"<!-- generated: {spec.replace('b=y', 'b=z')} --><!-- /generated -->",
+                    tmp_path)

@@ -194,3 +194,19 @@ def test_a_straight_constant_speed_line_never_falls_below_its_prior_share():
         p = L.position_probabilities(points, goals, times)[:, true]
         assert np.all(p >= 1 / 5 - 1e-12)
         assert p[-1] == pytest.approx(1.0)
+
+
+def test_without_the_time_scaling_the_observer_reads_distance_alone():
+    """``time_scaled=False`` (the ``position_legibility_unscaled`` column): log-odds
+    (|G2 - Q|^2 - |G1 - Q|^2) / s^2, 0.5 at the straight motion's middle point (4525 - 2725
+    over 3600) and 1 at its end (3600 over 3600) instead of certainty."""
+    p = L.position_probabilities(STRAIGHT, GOALS, TIMES, time_scaled=False)[:, 0]
+    np.testing.assert_allclose(p, [0.5, 1 / (1 + np.exp(-0.5)), 1 / (1 + np.exp(-1))],
+                               atol=1e-12)
+    scaled = L.position_legibility(STRAIGHT, GOALS, 0, TIMES)
+    unscaled = L.position_legibility(STRAIGHT, GOALS, 0, TIMES, time_scaled=False)
+    assert unscaled < scaled
+    directions = np.tile([1.0, 0.0, 0.0], (3, 1))
+    row = L.legibility_metrics(STRAIGHT, directions, np.zeros((3, 2)), GOALS, 0, TIMES)
+    assert row["position_legibility_unscaled"] == pytest.approx(unscaled)
+    assert list(row) == LEGIBILITY_COLUMNS

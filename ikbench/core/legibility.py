@@ -66,7 +66,8 @@ THRESHOLD = 0.5
 #: The columns :func:`legibility_metrics` returns, in order.
 LEGIBILITY_COLUMNS = ["position_legibility", "position_inferred_s", "position_final_p",
                       "pointing_legibility", "pointing_inferred_s", "pointing_final_p",
-                      "predictability", "dimensionless_jerk", "peak_joint_jerk_deg_s3"]
+                      "predictability", "dimensionless_jerk", "peak_joint_jerk_deg_s3",
+                      "position_legibility_unscaled"]
 
 
 def constant_times_s(points: int, duration_s: float) -> np.ndarray:
@@ -97,15 +98,20 @@ def _normalise(logits: np.ndarray, prior: npt.ArrayLike | None) -> np.ndarray:
 
 def position_probabilities(points_mm: npt.ArrayLike, goals_mm: npt.ArrayLike,
                            times_s: npt.ArrayLike, scale_mm: float | None = None,
-                           prior: npt.ArrayLike | None = None) -> np.ndarray:
+                           prior: npt.ArrayLike | None = None,
+                           time_scaled: bool = True) -> np.ndarray:
     """P(G | xi_S->P_i) (n+1, K) of the position observer for fingertip points (n+1, 3) [mm]
     reached at times (n+1,) [s] and goals (K, 3) [mm]; ``scale_mm`` s (default
-    :func:`length_scale_mm`), ``prior`` (K,) (default uniform)."""
+    :func:`length_scale_mm`), ``prior`` (K,) (default uniform). ``time_scaled=False`` drops
+    the modelling choice of dividing V_G(Q) by the time left (1 - tau): V_G(Q) = |G - Q|^2 /
+    s^2, the observer reading distance alone (the ``position_legibility_unscaled`` column)."""
     points = np.asarray(points_mm, dtype=float)
     goals = np.asarray(goals_mm, dtype=float).reshape(-1, 3)
     t = np.asarray(times_s, dtype=float)
     s = length_scale_mm(goals) if scale_mm is None else float(scale_mm)
     left = (t[-1] - t) / (t[-1] - t[0])  # (n+1,) 1 - tau, the time left
+    if not time_scaled:
+        left = np.ones_like(left)  # V_G(Q) unscaled: no point is "out of time"
     v_start = np.sum((goals - points[0]) ** 2, axis=1)  # (K,) s^2 V_G(S)
     gap = np.sum((goals[None] - points[:, None]) ** 2, axis=2)  # (n+1, K) |G - Q|^2
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -215,9 +221,12 @@ def peak_joint_jerk(poses: npt.ArrayLike, times_s: npt.ArrayLike) -> float:
 
 
 def position_legibility(points_mm: npt.ArrayLike, goals_mm: npt.ArrayLike, true_goal: int,
-                        times_s: npt.ArrayLike, scale_mm: float | None = None) -> float:
-    """Dragan's legibility of the fingertip path for goal ``true_goal`` (an index of goals)."""
-    p = position_probabilities(points_mm, goals_mm, times_s, scale_mm)[:, true_goal]
+                        times_s: npt.ArrayLike, scale_mm: float | None = None,
+                        time_scaled: bool = True) -> float:
+    """Dragan's legibility of the fingertip path for goal ``true_goal`` (an index of goals);
+    ``time_scaled``: :func:`position_probabilities`'."""
+    p = position_probabilities(points_mm, goals_mm, times_s, scale_mm,
+                               time_scaled=time_scaled)[:, true_goal]
     return weighted_legibility(p, times_s)
 
 
@@ -234,7 +243,9 @@ def legibility_metrics(points_mm: npt.ArrayLike, directions: npt.ArrayLike,
                        times_s: npt.ArrayLike) -> dict[str, float]:
     """The :data:`LEGIBILITY_COLUMNS` of one motion: fingertip points (n+1, 3) [mm], pointing
     axes (n+1, 3), poses (n+1, dof), goals (K, 3) [mm], the true goal's index, times (n+1,)
-    [s]. ``*_inferred_s``: :func:`inferred_time_s`; ``*_final_p``: P(G*) at the end."""
+    [s]. ``*_inferred_s``: :func:`inferred_time_s`; ``*_final_p``: P(G*) at the end;
+    ``position_legibility_unscaled``: the position observer without the time-left scaling of
+    V_G (``time_scaled=False``), to show how much a verdict rests on that choice."""
     position = position_probabilities(points_mm, goals_mm, times_s)[:, true_goal]
     pointing = pointing_probabilities(points_mm, directions, goals_mm)[:, true_goal]
     return {"position_legibility": weighted_legibility(position, times_s),
@@ -245,7 +256,10 @@ def legibility_metrics(points_mm: npt.ArrayLike, directions: npt.ArrayLike,
             "pointing_final_p": float(pointing[-1]),
             "predictability": predictability(points_mm, times_s),
             "dimensionless_jerk": dimensionless_jerk(points_mm, times_s),
-            "peak_joint_jerk_deg_s3": peak_joint_jerk(poses, times_s)}
+            "peak_joint_jerk_deg_s3": peak_joint_jerk(poses, times_s),
+            "position_legibility_unscaled": weighted_legibility(
+                position_probabilities(points_mm, goals_mm, times_s,
+                                       time_scaled=False)[:, true_goal], times_s)}
 
 
 def goal_points_mm(robot: Robot, targets: Targets) -> tuple[list[str], np.ndarray]:

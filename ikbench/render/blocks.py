@@ -41,6 +41,9 @@ Renderers (:data:`RENDERERS`):
   the registry's adapters whose library is a distribution of the ``[libs]`` extra of
   ``pyproject.toml`` and not a dependency of ikbench itself (``count``: how many, in words);
   inline.
+- ``paired SOURCE column=COL a=METHOD b=METHOD [b_source=PATH] [key=trajectory] [where=...]
+  [higher=better|worse] [format=.3g] [pending=1]``: a paired verdict of two methods over the
+  same trajectories or targets (:func:`render_paired`); inline.
 - ``compare-table SOURCE [reference=ours-lm]``: README's leaderboard of a compare folder's
   ``leaderboard.csv`` (:func:`ikbench.render.leaderboard.readme_table`), then its provenance.
 """
@@ -51,6 +54,7 @@ import json
 import math
 import re
 import shlex
+import tomllib
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -60,6 +64,7 @@ import pandas as pd
 
 from ikbench.core.defaults import REFERENCE_METHOD
 from ikbench.core.errors import InputError
+from ikbench.core.intervals import paired_verdict
 from ikbench.core.io import atomic_write_text
 from ikbench.methods.registry import adapters
 from ikbench.render.leaderboard import readme_table
@@ -406,8 +411,6 @@ _WORDS = ("no", "one", "two", "three", "four", "five", "six", "seven", "eight", 
 def render_libraries(source: Path, options: dict[str, str], root: Path) -> str:
     """The libraries of the ``[libs]`` extra that an adapter runs (see the module docstring):
     their distributions' names in the registry's order, or their count in words."""
-    import tomllib
-
     project = tomllib.loads(source.read_text(encoding="utf-8"))["project"]
 
     def names_of(lines: list[str]) -> set[str]:
@@ -434,3 +437,56 @@ register("range", render_range)
 register("fraction", render_fraction)
 register("list", render_list)
 register("provenance", render_provenance)
+
+
+def _paired_side(source: Path, options: dict[str, str], method: str, key: str,
+                 column: str) -> pd.Series:
+    """``column`` (float) of ``method``'s rows of ``source`` (after ``where=``), by ``key``."""
+    frame = _rows(source, options)
+    for name in ("method", key, column):
+        if name not in frame.columns:
+            raise InputError(f"{source}: paired: no column {name!r}")
+    rows = frame[frame["method"] == method]
+    if rows.empty:
+        raise InputError(f"{source}: paired: no row of method {method!r}")
+    if rows[key].duplicated().any():
+        raise InputError(f"{source}: paired: method {method!r} has {key} values twice; "
+                         "narrow it with where=")
+    return rows.set_index(key)[column].replace({"": "nan"}).astype(float)
+
+
+def render_paired(source: Path, options: dict[str, str], root: Path) -> str:
+    """A paired verdict between two methods (:func:`ikbench.core.intervals.paired_verdict`):
+    ``paired SOURCE column=COL a=METHOD b=METHOD [b_source=PATH] [key=trajectory]
+    [where=...] [higher=better|worse] [format=.3g] [pending=1]``; inline. The pairs are the
+    ``key`` values both methods have (``b`` from ``b_source`` when given, e.g. another run's
+    details.csv); the text states the count, the sign test's p, the bootstrap interval of the
+    paired median difference and "a tie" unless a difference is shown. ``pending=1``: a
+    column the file lacks renders as "not measured in SOURCE yet" (a column that comes with
+    the next regeneration) instead of failing."""
+    column, key = options.get("column", ""), options.get("key", "trajectory")
+    a, b = options.get("a", ""), options.get("b", "")
+    if not (column and a and b):
+        raise InputError(f"{source}: paired needs column=, a= and b=")
+    other = root / options["b_source"] if "b_source" in options else source
+    if options.get("pending") == "1":
+        for path in (source, other):
+            if column not in pd.read_csv(path, nrows=0).columns:
+                return (f"not measured in `{path.relative_to(root)}` yet (its column "
+                        f"`{column}` comes with the next regeneration)")
+    higher = options.get("higher", "better")
+    if higher not in ("better", "worse"):
+        raise InputError(f"{source}: paired: higher={higher!r} is not better or worse")
+    left = _paired_side(source, options, a, key, column)
+    right = _paired_side(other, {k: v for k, v in options.items() if k != "where"} if
+                         "b_source" in options else options, b, key, column)
+    both = left.index.intersection(right.index)
+    if not len(both):
+        raise InputError(f"{source}: paired: {a} and {b} share no {key}")
+    verdict = paired_verdict(left.loc[both].to_numpy(), right.loc[both].to_numpy(), (a, b),
+                             higher_is_better=higher == "better",
+                             fmt=options.get("format", ".3g"))
+    return verdict["text"]
+
+
+register("paired", render_paired)

@@ -32,11 +32,13 @@ from ikbench.core.legibility import (
     legibility_metrics,
     true_goal_index,
 )
+from ikbench.core.task import Task, line_tasks
+from ikbench.methods.ours_exact import OursExact
+from ikbench.render.arm_plots import matplotlib_pyplot
 
 if TYPE_CHECKING:
     from ikbench.core.robot import Robot
     from ikbench.core.targets import Targets
-    from ikbench.core.task import Task
 
 #: The default sweep of W (c1, the pointing weight, is 2000: W of its order moves pointing).
 WEIGHTS = (0.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0)
@@ -90,8 +92,6 @@ class LegibilitySpec:
     def problem(self) -> tuple[Task, np.ndarray, int, np.ndarray]:
         """The target's line task, the goals with the true one, its index and the goal set's
         points [mm] (built once: :meth:`validate` checks them, :func:`run` solves them)."""
-        from ikbench.core.task import line_tasks
-
         task = {t.name: t for t in line_tasks(self.robot, self.targets)}[self.target]
         _, goals_mm = goal_points_mm(self.robot, self.goals if self.goals is not None
                                      else self.targets)
@@ -148,8 +148,6 @@ def legibility_tradeoff(robot: Robot, targets: Targets, target_id: str | None = 
 def run(spec: LegibilitySpec) -> LegibilityResult:
     """Run the trade-off ``spec`` (validated: :meth:`LegibilitySpec.validate`); nothing is
     written (:meth:`LegibilityResult.write` writes it)."""
-    from ikbench.methods.ours_exact import OursExact
-
     robot = spec.robot
     task, all_goals, true, goals_mm = spec.problem
     judged = (task.required.contract.judged_from(task.goal.steps)
@@ -184,9 +182,7 @@ def plot_tradeoff(curve: pd.DataFrame, path: str | Path, title: str = "") -> Pat
     """Two panels: pointing legibility against the pointing deviation over the judged part
     (the trade ours-exact makes) and against the largest line distance (held by the
     constraints), each point labelled by its weight W; written to ``path`` (PNG)."""
-    from ikbench.render.run_report import _matplotlib
-
-    plt = _matplotlib()
+    plt = matplotlib_pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), constrained_layout=True)
     panels = (("pointing_deviation_rms_deg",
                "pointing deviation over the judged part, RMS [deg]"),
