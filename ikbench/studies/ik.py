@@ -345,7 +345,12 @@ def check_memory(count: int, methods: int, rows: int = 1, dof: int = 7) -> None:
     estimate against the memory available now (MemAvailable, not the free pages: the page
     cache counts as available), both stated, and the most that fit."""
     per_target = BYTES_PER_TARGET + methods * BYTES_PER_ROW + rows * dof * BYTES_PER_START
-    budget.check_memory("--count", count, "targets", per_target)
+    need, available = count * per_target, budget.available_memory_bytes()
+    if need > budget.MEMORY_SHARE * available:
+        most = int(budget.MEMORY_SHARE * available // per_target)
+        raise InputError(f"--count: {count} targets need about {need / 2**30:.1f} GiB; "
+                         f"{available / 2**30:.1f} GiB are available here (MemAvailable; a "
+                         f"run plans at most {budget.MEMORY_SHARE:.0%} of it): at most {most}")
 
 
 def parse_methods(text: str | Sequence[str] | None, kind: str = "pose") -> list[str]:
