@@ -20,6 +20,7 @@ import pandas as pd
 import pytest
 
 from ikbench.cli import main
+from ikbench.core import budget
 from ikbench.core.errors import InputError
 from ikbench.core.robot_packages import robots_folder
 from ikbench.methods.registry import available_solvers
@@ -74,8 +75,6 @@ def test_the_default_command_gives_the_same_successes_quiet_and_under_load(tmp_p
 def test_the_memory_check_reads_the_available_memory_and_states_both(monkeypatch):
     """18.4 GiB available but 1.4 GiB free (issue 64): 20,000 targets are taken; the
     refusal names the need and what is available, and the largest count that fits."""
-    from ikbench.core import budget
-
     monkeypatch.setattr(budget, "available_memory_bytes", lambda: int(18.4 * 2**30))
     monkeypatch.setattr(os, "sysconf", lambda name: 1)  # free pages: not read
     study.check_memory(20_000, 12, 8, 6)
@@ -90,8 +89,6 @@ def test_the_memory_check_reads_the_available_memory_and_states_both(monkeypatch
 
 
 def test_budget_reads_memavailable_not_memfree(monkeypatch, tmp_path):
-    from ikbench.core import budget
-
     meminfo = tmp_path / "meminfo"
     meminfo.write_text("MemTotal:       32000000 kB\nMemFree:         1468006 kB\n"
                        "MemAvailable:   19293798 kB\n")
