@@ -162,11 +162,13 @@ def _fmt(value, digits: int = 3) -> str:
 def rule_title(rule: str, auto_rows: int, runs: int = 1) -> str:
     """The heading of one attempts rule's table (``runs``: how often it was run)."""
     if rule == AUTO:
-        repeated = (f"; median of {runs} runs on the same targets and rows, (min-max) over "
-                    "them" if runs > 1 else "")
+        repeated = (f"median of {runs} runs on the same targets and rows, their spread "
+                    "(min-max) in brackets" if runs > 1
+                    else "one run: its spread unmeasured (`--repeat R` runs it R times)")
         return (f"Budgeted, with restarts (`--attempts auto`): from the next initial "
                 f"configuration until the answer holds or the budget is spent (at most "
-                f"{auto_rows}){repeated}")
+                f"{auto_rows}); load-dependent: its successes depend on the machine's load "
+                f"and speed, not on the seed alone; {repeated}")
     if rule == "1":
         return ("Single descents (`--attempts 1`): one descent from the first initial "
                 "configuration, the same for every method, no wall-clock cut")
@@ -387,7 +389,8 @@ def ground_truth_section(result: StudyResult, summary: pd.DataFrame) -> list[str
         if unreachable:
             head += ["unreachable: judged success", "claimed", "give up median [ms]",
                      "give up p95 [ms]"]
-        lines += [f"### {rule_title(str(rule), result.auto_rows)}", "",
+        runs = int(table["runs"].max()) if "runs" in table else 1
+        lines += [f"### {rule_title(str(rule), result.auto_rows, runs)}", "",
                   "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for row in table.itertuples(index=False):
             cells = [row.method, f"{row.claimed_rejected} of {row.claims}",

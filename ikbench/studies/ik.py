@@ -23,6 +23,7 @@ header states it):
   allows at most N rows with **no wall-clock cut** (:func:`rule_budget_s`), so its success is a
   function of seed and code alone: each attempt is bounded by the method's own limits
   (``attempt_bound``), never by the clock; 1 is one descent from row 0, for every method.
+  The default is :data:`DEFAULT_ATTEMPTS` (deterministic); ``auto`` is load-dependent.
   TRAC-IK (``deterministic`` False) is the exception under every rule: it restarts from its
   own random draws within a finite timeout, the budget, whatever it is given, and says so.
 - **Repeats** (``repeat``): the ``auto`` table, whose success the wall clock decides, is run
@@ -63,6 +64,7 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
+from ikbench.core import budget
 from ikbench.core.defaults import JUDGE_TOLERANCE_DEG, JUDGE_TOLERANCE_MM
 from ikbench.core.errors import InputError
 from ikbench.methods.registry import available_solvers, parse_names, solver_status
@@ -86,6 +88,9 @@ FOLDER = WITHIN["ik"]
 KINDS = ("pose", "position")
 INITS = ("random", "nominal", "nearby")
 AUTO = "auto"
+#: The default attempts rule: the deterministic protocol (at most 8 attempts, no wall-clock
+#: cut), as the committed studies run it; ``auto`` is asked for.
+DEFAULT_ATTEMPTS = 8
 MAX_SEED = 2**63
 #: The default wall-clock budget per target [ms] (see the module docstring).
 BUDGET_MS = 5.0
@@ -100,8 +105,6 @@ UNREACHABLE_STREAM = 46
 #: Bytes held per target (the batched solve's arrays, the targets) and per result row; a
 #: batched method also holds each target's rows (8 bytes per value, twice).
 BYTES_PER_TARGET, BYTES_PER_ROW, BYTES_PER_START = 32_000, 1_000, 16
-#: Share of the available memory a run may plan to use.
-MEMORY_SHARE = 0.5
 #: Progress line at most every this many seconds.
 PROGRESS_EVERY_S = 10.0
 #: Slack [pose units] of the limits when judging (round-off of the unit conversions).
@@ -147,7 +150,7 @@ class IKSettings:
     perturb_deg: float = 10.0
     max_count: dict = field(default_factory=dict)
     budget_ms: float = BUDGET_MS
-    attempts: tuple[Rule, ...] = (AUTO,)
+    attempts: tuple[Rule, ...] = (DEFAULT_ATTEMPTS,)
     threads: int | None = None
     unreachable: float = 0.0
     first_call: bool = False
@@ -338,17 +341,16 @@ def check_settings(s: IKSettings) -> None:
 
 
 def check_memory(count: int, methods: int, rows: int = 1, dof: int = 7) -> None:
-    """InputError when ``count`` targets would not fit in memory (checked up front)."""
+    """InputError when ``count`` targets would not fit in memory (checked up front): the
+    estimate against the memory available now (MemAvailable, not the free pages: the page
+    cache counts as available), both stated, and the most that fit."""
     per_target = BYTES_PER_TARGET + methods * BYTES_PER_ROW + rows * dof * BYTES_PER_START
-    need = count * per_target
-    try:
-        available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):  # not Linux: assume 4 GiB
-        available = 4 * 2**30
-    if need > MEMORY_SHARE * available:
-        most = int(MEMORY_SHARE * available / per_target)
+    need, available = count * per_target, budget.available_memory_bytes()
+    if need > budget.MEMORY_SHARE * available:
+        most = int(budget.MEMORY_SHARE * available // per_target)
         raise InputError(f"--count: {count} targets need about {need / 2**30:.1f} GiB; "
-                         f"{available / 2**30:.1f} GiB are free here: at most {most}")
+                         f"{available / 2**30:.1f} GiB are available here (MemAvailable; a "
+                         f"run plans at most {budget.MEMORY_SHARE:.0%} of it): at most {most}")
 
 
 def parse_methods(text: str | Sequence[str] | None, kind: str = "pose") -> list[str]:

@@ -18,15 +18,21 @@ DEFAULT_OUTPUT = default_output("ik")
 BUDGET_MS = 5.0
 #: --budget-ms: more than 0 ms, at most an hour, or inf (no budget).
 BUDGET = Number("a budget [ms]", 0.0, 3_600_000.0, low_open=True, infinite="no budget")
+#: The default attempts rule: the deterministic protocol of the committed studies
+#: (ikbench.studies.ik.DEFAULT_ATTEMPTS; not imported: the CLI starts light).
+ATTEMPTS = "8"
 
 
 DESCRIPTION = (
     "Solve COUNT single-pose IK targets (FK of configurations drawn uniformly within "
     "the limits, seeded) with every installed library under one protocol: each target "
-    "has a seeded sequence of initial configurations, the same for every method; a "
-    "method makes at most N attempts with no wall-clock cut (--attempts N, deterministic; "
-    "1: one descent each), or is restarted from the next one until its answer holds or "
-    "the wall-clock budget (--budget-ms) is spent (--attempts auto, --repeat R runs). "
+    "has a seeded sequence of initial configurations, the same for every method. By "
+    f"default (--attempts {ATTEMPTS}) a method makes at most {ATTEMPTS} attempts with no "
+    "wall-clock cut: deterministic, the same success columns run to run (TRAC-IK excepted: "
+    "it restarts from its own random draws within its timeout); 1: one descent each. "
+    "--attempts auto restarts it from the next configuration until its answer holds or "
+    "the wall-clock budget (--budget-ms) is spent: load-dependent, its successes change "
+    "with the machine's load (--repeat R runs it R times and gives the spread). "
     "One target per call, each call timed; every answer judged by FK through Pinocchio. "
     "Writes OUTPUT/ik/<robot>/: "
     "results.csv (one row per rule x method x target with the answer's joint values; "
@@ -47,18 +53,23 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         help="comma-separated methods (default: every installed one: "
                         f"{', '.join(solver_status())})")
     parser.add_argument("--budget-ms", type=BUDGET, default=BUDGET_MS,
-                        help="wall-clock budget per target [ms], the same for every method; "
+                        help="wall-clock budget per target [ms] of --attempts auto (and "
+                        "TRAC-IK's timeout under every rule), the same for every method; "
                         f"inf: none (default {BUDGET_MS:g}: TRAC-IK's default timeout)")
-    parser.add_argument("--attempts", default="auto", metavar="auto|N[,...]",
-                        help="auto: restart from the next initial configuration until the "
-                        "answer holds or the budget is spent; N: at most N attempts (1: one "
-                        "descent from the first, for every method); several rules, e.g. "
-                        "auto,1, give one table each; N runs with no wall-clock cut, so its "
-                        "success depends on the seed alone (TRAC-IK excepted) (default auto)")
+    parser.add_argument("--attempts", default=ATTEMPTS, metavar="N|auto[,...]",
+                        help="N: at most N attempts from the target's seeded initial "
+                        "configurations, no wall-clock cut, so success depends on the seed "
+                        "alone: the same table run to run (TRAC-IK excepted: its own random "
+                        "restarts within its timeout); 1: one descent from the first, for "
+                        "every method; auto: restart from the next configuration until the "
+                        "answer holds or --budget-ms is spent, load-dependent (its successes "
+                        "change with the machine's load: give --repeat); several rules, "
+                        f"e.g. {ATTEMPTS},auto,1, give one table each (default {ATTEMPTS})")
     parser.add_argument("--repeat", type=int, default=1,
-                        help="runs of the auto table on the same targets and rows (its success "
-                        "depends on the wall clock): the leaderboard gives the median and "
-                        "min-max over them; fixed-count rules run once (default 1)")
+                        help="runs of the load-dependent auto table on the same targets and "
+                        "rows: the summary and leaderboard give the median and the spread "
+                        "(min-max) of its successes over them; fixed-count rules run once, "
+                        "their success is the same every run (default 1)")
     parser.add_argument("--threads", type=int, default=None,
                         help="threads of the batched throughput run of the methods that batch "
                         "(default: every core)")
@@ -139,6 +150,14 @@ def command_line(args: argparse.Namespace) -> str:
     return " ".join(shlex.quote(w) for w in words)
 
 
+def auto_note(repeat: int) -> str:
+    """The printed summary's line under a table with the ``auto`` rule."""
+    spread = (f"its success_pct is the median of {repeat} runs, success_pct_min-max their "
+              "spread" if repeat > 1 else "one run: give --repeat R for its spread")
+    return ("attempts auto is load-dependent: its successes depend on the machine's load and "
+            f"speed, not on the seed alone; {spread}")
+
+
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -162,9 +181,12 @@ def run(args: argparse.Namespace) -> int:
     result = study.run(spec)
     result.write(args.output)
     summary = summarise(result.table, result.batches)
-    print(summary[["attempts_rule", "method", "targets", "success_pct", "attempts_median",
-                   "time_median_ms", "time_mean_ms", "time_p95_ms", "batched_per_s",
-                   "runs"]].to_string(
-                       index=False, float_format=lambda v: f"{v:.3g}"))
+    columns = ["attempts_rule", "method", "targets", "success_pct", "attempts_median",
+               "time_median_ms", "time_mean_ms", "time_p95_ms", "batched_per_s", "runs"]
+    if "success_pct_min" in summary and (summary["runs"] > 1).any():  # the auto table's spread
+        columns += ["success_pct_min", "success_pct_max"]
+    print(summary[columns].to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    if study.AUTO in settings.attempts:
+        print(auto_note(settings.repeat))
     print(f"written to {folder}/")
     return 0
