@@ -189,6 +189,27 @@ def test_shape_metrics_known(robot):
     assert m["pointing_deviation_max_deg"] == pytest.approx(angles.max(), abs=1e-6)
     assert np.isnan(m["start_pose_error_deg"]) and m["start_point_error_mm"] < 1e-9
     assert m["velocity_sign_changes"] == 0
+    assert m["drawn"] and m["stroke_coverage_pct"] == pytest.approx(100.0)
+
+
+def test_a_shape_stopped_short_is_not_drawn(robot):
+    """Every point on the curve, yet half the curve never drawn: not drawn (issue 64)."""
+    poses = np.linspace(PAPER_START, [33, 39, 25, 134, 102, 77, -168], 21)
+    curve = Curve((robot.fk(poses).point_mm,))
+    half = poses[:11]  # the arm stops halfway along the curve
+    task = curve_task(curve, 10, "t", "polyline", direction="1,0,0")
+    m = shape_metrics(robot, task, half)
+    assert m["curve_distance_max_mm"] < 1e-6  # the judge of the old table: perfect
+    assert 40 < m["stroke_coverage_pct"] < 70 and not m["drawn"]
+
+
+def test_coverage_counts_the_strokes_near_the_drawn_path():
+    stroke = np.array([[0, 0, 0], [100.0, 0, 0]])
+    curve = Curve((stroke,))
+    assert curve.coverage([stroke + [0, 3.0, 0]], within_mm=5) == 1.0
+    assert curve.coverage([stroke + [0, 6.0, 0]], within_mm=5) == 0.0
+    assert curve.coverage([np.array([[0, 0, 0], [50.0, 0, 0]])], 5) == pytest.approx(56 / 101)
+    assert curve.coverage([], 5) == 0.0
 
 
 def test_shape_metrics_skip_pen_up_points(robot):
@@ -208,6 +229,8 @@ def test_shape_metrics_skip_pen_up_points(robot):
     assert m["curve_distance_max_mm"] < 1e-9
     assert m["point_error_max_mm"] == pytest.approx(np.hypot(400, 1))
     assert m["point_error_mean_mm"] == pytest.approx(np.hypot(400, 1) / 2)
+    # ... and the second stroke is never drawn: half the curve uncovered, not drawn
+    assert m["stroke_coverage_pct"] == pytest.approx(50.0) and not m["drawn"]
 
 
 # ----- through the CLI -----------------------------------------------------------------------

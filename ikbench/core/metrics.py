@@ -166,6 +166,16 @@ def _line_metrics(robot, task, poses, fk) -> dict[str, float]:
     }
 
 
+#: The drawn-shape judge of a general shape (letters): a shape is drawn when every pen-down
+#: fingertip point lies within this distance [mm] of the target curve and at least
+#: :data:`DRAWN_COVERAGE_MIN_PCT` of the curve's strokes lie within it of the fingertip's
+#: path. 10 mm is a thirtieth of the letters' default 300 mm height (the line's contract
+#: asks 5 mm of a 10-30 cm line); the optimiser's convergence judges nothing of the shape.
+DRAWN_TOLERANCE_MM = 10.0
+#: The share [%] of a shape's strokes its drawing must come within the tolerance of.
+DRAWN_COVERAGE_MIN_PCT = 95.0
+
+
 def shape_metrics(robot: Robot, task: Task, poses: npt.ArrayLike
                   ) -> dict[str, float]:
     """Figures of a trajectory against a general shape (its task has a ``curve``).
@@ -178,6 +188,11 @@ def shape_metrics(robot: Robot, task: Task, poses: npt.ArrayLike
         the target curve (the nearest point of any pen-down stroke; std is the population
         std); ``point_error_{mean,max}_mm``: |P_i - P^g_i| from the goal points;
         ``pointing_deviation_{mean,std,max}_deg`` from the goal directions;
+        ``stroke_coverage_pct``: the share of the curve's strokes within
+        :data:`DRAWN_TOLERANCE_MM` of the fingertip's pen-down path
+        (:meth:`~ikbench.core.shapes.Curve.coverage`); ``drawn``: True when the largest curve
+        distance is within that tolerance and the coverage at least
+        :data:`DRAWN_COVERAGE_MIN_PCT` (a bool);
         ``start_point_error_mm`` / ``end_point_error_mm``; ``start_pose_error_deg`` /
         ``end_pose_error_deg`` (NaN when the task fixes no pose); the :func:`smoothness`
         figures.
@@ -188,9 +203,15 @@ def shape_metrics(robot: Robot, task: Task, poses: npt.ArrayLike
     distances = cast("Curve", task.goal.curve).distances_mm(fk.point_mm[mask])  # a shape task
     errors = np.linalg.norm(fk.point_mm - task.goal.points_mm, axis=1)[mask]
     deviations = pointing_deviations_deg(fk.direction[mask], task.goal.directions[mask])
+    curve = cast("Curve", task.goal.curve)
+    runs = np.split(np.arange(len(mask)), np.flatnonzero(np.diff(mask.astype(int))) + 1)
+    drawn_paths = [fk.point_mm[run] for run in runs if mask[run[0]]]
+    coverage_pct = 100.0 * curve.coverage(drawn_paths, DRAWN_TOLERANCE_MM)
+    drawn = bool(distances.max() <= DRAWN_TOLERANCE_MM and coverage_pct >= DRAWN_COVERAGE_MIN_PCT)
 
     return {
         **statistics("curve_distance_{}_mm", distances, "mean", "std", "max"),
+        "stroke_coverage_pct": coverage_pct, "drawn": drawn,
         **statistics("point_error_{}_mm", errors, "mean", "max"),
         **statistics("pointing_deviation_{}_deg", deviations, "mean", "std", "max"),
         **_end_errors_and_smoothness(robot, task, fk.point_mm, poses),

@@ -68,6 +68,10 @@ class Resampled:
     pen_down: np.ndarray
 
 
+#: Spacing [mm] of the samples along a curve's strokes that :meth:`Curve.coverage` checks.
+COVERAGE_SPACING_MM = 1.0
+
+
 @dataclass(frozen=True, eq=False)
 class Curve:
     """Pen-down strokes, drawn in order, joined by straight pen-up moves.
@@ -118,9 +122,33 @@ class Curve:
         """Distance [mm] of each point (N, 3) from the nearest pen-down stroke."""
         return distances_to_polylines_mm(points_mm, self.strokes_mm)
 
+    def coverage(self, drawn_mm: Iterable[npt.ArrayLike], within_mm: float,
+                 spacing_mm: float = COVERAGE_SPACING_MM) -> float:
+        """Share [0, 1] of the pen-down strokes' length within ``within_mm`` [mm] of the
+        drawn path: ``drawn_mm``, polylines (k_i, 3) [mm] through the fingertip's pen-down
+        points (one per run of consecutive pen-down points). The strokes are sampled every
+        ``spacing_mm`` [mm]; a path that stops early leaves the rest uncovered."""
+        drawn = [np.asarray(line, dtype=float).reshape(-1, 3) for line in drawn_mm]
+        drawn = [line if len(line) > 1 else np.concatenate([line, line])
+                 for line in drawn if len(line)]
+        if not drawn:
+            return 0.0
+        samples = [_samples(stroke, spacing_mm) for stroke in self.strokes_mm]
+        distances = distances_to_polylines_mm(np.concatenate(samples), drawn)
+        return float(np.mean(distances <= within_mm))
+
     def drawing_plane(self) -> Plane:
         """The curve's plane, or the best-fit plane of its strokes (principal axes)."""
         return self.plane or best_fit_plane(np.concatenate(self.strokes_mm))
+
+
+def _samples(polyline_mm: np.ndarray, spacing_mm: float) -> np.ndarray:
+    """Points evenly spaced by arc length along a polyline (k, 3) [mm], at most
+    ``spacing_mm`` [mm] apart, both ends included."""
+    lengths = np.linalg.norm(np.diff(polyline_mm, axis=0), axis=1)
+    cumulative = np.concatenate([[0.0], np.cumsum(lengths)])
+    s = np.linspace(0.0, cumulative[-1], max(2, int(np.ceil(cumulative[-1] / spacing_mm)) + 1))
+    return np.stack([np.interp(s, cumulative, polyline_mm[:, k]) for k in range(3)], axis=1)
 
 
 def distances_to_polylines_mm(points_mm: npt.ArrayLike,

@@ -37,8 +37,8 @@ TABLE_COLUMNS = [
 #: The table of a general shape (polyline, spline, letter); see ikbench.core.metrics.shape_metrics.
 SHAPE_TABLE_COLUMNS = [
     "trajectory", "method", "iterations", "duration_s", "loss",
-    "curve_distance_mean_mm", "curve_distance_std_mm", "curve_distance_max_mm",
-    "point_error_mean_mm", "point_error_max_mm",
+    "drawn", "curve_distance_mean_mm", "curve_distance_std_mm", "curve_distance_max_mm",
+    "stroke_coverage_pct", "point_error_mean_mm", "point_error_max_mm",
     "pointing_deviation_mean_deg", "pointing_deviation_std_deg", "pointing_deviation_max_deg",
     "mean_sq_joint_step_deg2", "max_joint_step_deg",
 ]

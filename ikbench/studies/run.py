@@ -45,7 +45,13 @@ from ikbench.core.legibility import (
     legibility_metrics,
     true_goal_index,
 )
-from ikbench.core.metrics import frame_metrics, shape_metrics, trajectory_metrics
+from ikbench.core.metrics import (
+    DRAWN_COVERAGE_MIN_PCT,
+    DRAWN_TOLERANCE_MM,
+    frame_metrics,
+    shape_metrics,
+    trajectory_metrics,
+)
 from ikbench.core.problems import load_problem, shipped_problems
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot
@@ -131,7 +137,7 @@ def evaluate(robot: Robot, outcomes: Sequence[Outcome], trajectories: dict[str, 
         task, solution = outcome.task, outcome.solution
         if solution is None:
             rows.append({"trajectory": task.name, "method": method_name,
-                         "duration_s": outcome.wall_s})
+                         "duration_s": outcome.wall_s, **({"drawn": False} if shaped else {})})
             details.append({"trajectory": task.name, "method": method_name,
                             "converged": False, "within_limits": np.nan,
                             "failure": outcome.failure})
@@ -612,7 +618,13 @@ def method_report(solver: Method, table: pd.DataFrame, details: pd.DataFrame, ta
                   f"criteria: {describe()}. loss: the 6-D objective of the method (mm^2, "
                   "deg^2).", ""]
     elif shape != "line":
-        lines += ["curve_distance: distance of each fingertip point from the target curve "
+        lines += [f"drawn: the shape is judged by what the fingertip drew, not by the "
+                  f"optimiser's convergence (Solver details): every pen-down point within "
+                  f"{DRAWN_TOLERANCE_MM:g} mm of the target curve and at least "
+                  f"{DRAWN_COVERAGE_MIN_PCT:g} % of the curve's strokes within "
+                  f"{DRAWN_TOLERANCE_MM:g} mm of the fingertip's path (stroke_coverage_pct; a "
+                  "letter stopped short is not drawn). "
+                  "curve_distance: distance of each fingertip point from the target curve "
                   "(its nearest point); point_error: from the point's own goal point; "
                   "pointing deviation: from the goal direction (letters: the drawing plane's "
                   "normal). Points on pen-up moves are skipped.", ""]
