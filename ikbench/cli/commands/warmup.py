@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ikbench.cli.options import add_robot_arguments, robot_from_args
+from ikbench.cli.options import add_robot_arguments, begin, robot_from_args
 from ikbench.cli.values import Text
 
 HELP = "compile ours-lm's and ours-exact's kernels once for this machine (minutes, then cached)"
@@ -46,6 +46,8 @@ def run(args: argparse.Namespace) -> int:
               if args.groups else GROUP_NAMES)
     if not groups:
         raise InputError(f"--groups: {args.groups!r} names no group")
+    robots = _robots(args)
+    begin(args)
     if numba_unavailable() is not None:
         print(f"nothing to compile: numba cannot import ({numba_unavailable()}); ours-lm "
               "runs its numpy reference")
@@ -54,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"numba's cache: {folder} ({why})", flush=True)
     started = time.perf_counter()
     compiled = loaded = 0
-    for robot in _robots(args):
+    for robot in robots:
         for result in warm_up(robot, groups, say=lambda line: print(line, flush=True)):
             compiled += result.compiled
             loaded += result.loaded

@@ -22,7 +22,7 @@ from typing import Any
 
 #: The kernel groups, in the order they are warmed up, and the commands that run each.
 GROUP_NAMES = ("single-pose", "path", "path-search")
-GROUP_USES = {"single-pose": "ikbench ik, recommend, ikbench.solve_pose",
+GROUP_USES = {"single-pose": "ikbench ik, recommend",
               "path": "run, compare, sweep (ours-lm's path LM)",
               "path-search": "cartesian, compare, ours-exact (the pose-path search)"}
 _MODULES = {
