@@ -65,6 +65,7 @@ BASE = {
     "run": ["run", "--output", "<OUT>"],
     "sweep": ["sweep", "--weight", "c0=1,10", "--output", "<OUT>"],
     "view": ["view", str(REPO / "results" / "ours")],
+    "warmup": ["warmup"],
 }
 #: How a command chooses the method whose options are tested.
 METHOD_FLAG = {"run": "--method", "letters": "--method", "ablate": "--method",

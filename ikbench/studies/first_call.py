@@ -71,9 +71,16 @@ def first_path_call(robot: Any, method: str, settings: Any, task: Any,
         os.unlink(path)
 
 
+#: The child's program: the clock starts before ``import ikbench`` (``python -m`` would import
+#: the package, numpy among it, before :func:`main` could start it), and ``import_s`` holds
+#: the package's import too.
+CHILD = ("import sys, time; started = time.perf_counter(); "
+         "from ikbench.studies.first_call import main; sys.exit(main(sys.argv[1:], started))")
+
+
 def _run_child(args: list[str], timeout_s: float) -> dict[str, Any]:
     try:
-        done = subprocess.run([sys.executable, "-m", "ikbench.studies.first_call", *args],
+        done = subprocess.run([sys.executable, "-c", CHILD, *args],
                               capture_output=True, text=True, timeout=timeout_s)
     except subprocess.TimeoutExpired:
         return {"error": f"no first answer within {timeout_s:g} s"}
@@ -83,13 +90,13 @@ def _run_child(args: list[str], timeout_s: float) -> dict[str, Any]:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def path_main(file: str) -> int:
+def path_main(file: str, started: float | None = None) -> int:
     """In the fresh process, for a path method: time the import (the registry, the harness,
     the method's module), the set-up (the robot, the method, ``check_tasks``, ``prepare``)
     and the first solve of the task; print them as JSON."""
     with open(file, "rb") as source:
-        data = source.read()  # read before the clock; unpickled (imports) within it
-    started = time.perf_counter()
+        data = source.read()  # unpickled (imports) within the clock
+    started = time.perf_counter() if started is None else started
     from ikbench.core.robot import load_robot  # noqa: PLC0415 - what is timed
     from ikbench.methods.registry import get_method  # noqa: PLC0415 - what is timed
     from ikbench.runtime.harness import Progress, solve_tasks  # noqa: PLC0415
@@ -112,13 +119,15 @@ def path_main(file: str) -> int:
     return 0
 
 
-def main(argv: list[str]) -> int:
-    """In the fresh process: time the import of the registry and the method's module, the
-    set-up (robot, solver, ``prepare``) and the first solve; print them as JSON."""
+def main(argv: list[str], started: float | None = None) -> int:
+    """In the fresh process: time the import of ikbench (from ``started``, the clock read
+    before ``import ikbench`` by :data:`CHILD`; None: now), the registry and the method's
+    module, the set-up (robot, solver, ``prepare``: numba's kernels loaded from its cache, or
+    compiled on a machine's first run) and the first solve; print them as JSON."""
     if argv[0] == "--path":
-        return path_main(argv[1])
+        return path_main(argv[1], started)
     job = json.loads(argv[0])
-    started = time.perf_counter()
+    started = time.perf_counter() if started is None else started
     from ikbench.core.robot import load_robot  # noqa: PLC0415 - what is timed
     from ikbench.methods.registry import solver_status  # noqa: PLC0415 - what is timed
 
