@@ -140,7 +140,7 @@ def table_lines(result: Result) -> list[str]:
         ranks = ", ".join(_f(row.get(f"rank_seed{s}", np.nan)) for s in seeds)
         why = cannot_run(row)
         if why:
-            lines.append(f"| {name} | - | {why} | - | - | - | {first} | - | - | - | "
+            lines.append(f"| {name} | - | {why} | - | - | - | - | - | - | - | "
                          f"{row['failed_calls']} |")
             continue
         status = "" if row["status"] == "ok" else f" ({row['status']})"
@@ -215,9 +215,10 @@ def _pose_protocol(result: Result) -> str:
     n = plan.targets_per_seed
     cost = ", ".join(f"{m} {duration(c)}" for m, c in plan.cost_s.items())
     compiled = {m: c for m, c in getattr(plan, "compile_s", {}).items() if c >= 1.0}
-    compile_note = (" The first set-ups held " + ", ".join(
-        f"{m} {c:.0f} s" for m, c in compiled.items()) + " of compiling (a cold cache), spent "
-        "before the sample was sized and counted in --minutes." if compiled else "")
+    compile_note = (" The first set-ups took longer than the second by " + ", ".join(
+        f"{m} {c:.0f} s" for m, c in compiled.items()) + " (a compile, or loading a compiled "
+        "cache), spent before the sample was sized and counted in --minutes." if compiled
+        else "")
     over = getattr(plan, "overrun_s", 0.0)
     over_note = (f" The smallest sample did not fit: the run was expected to pass --minutes by "
                  f"about {over:.0f} s beyond its margin." if over > 0 else "")

@@ -331,9 +331,9 @@ def _run_poses(robot: Robot, names: Sequence[str], settings: RecommendSettings,
                 + ", ".join(f"{m} {duration(c)}" for m, c in cost_s.items()) + ")")
     spent = sum(compile_s.values())
     if spent >= 1.0:
-        report.note(f"the first set-ups held {spent:.0f} s of compiling ("
+        report.note(f"the first set-ups took {spent:.0f} s more than the second ("
                     + ", ".join(f"{m} {c:.0f} s" for m, c in compile_s.items() if c >= 1.0)
-                    + "), counted in --minutes")
+                    + ": a compile or a compiled cache loaded), counted in --minutes")
     if over > 0:
         report.note(f"the smallest sample ({MIN_TARGETS} targets per seed) does not fit: the "
                     f"run will pass --minutes {settings.minutes:g} by about {over:.0f} s more "
@@ -611,7 +611,8 @@ def recheck(folder: str | Path) -> Recheck:
     ``scipy.stats.binomtest(k, n).proportion_ci(method="wilson")``, the verdict by the same
     rules (:func:`verdict_of`; the bootstrap is seeded by the method's name). Compare with
     the folder's recommend.csv and recommend.md."""
-    rows = pd.read_csv(Path(folder) / "results.csv")  # an empty failure reads as NaN: ran
+    rows = pd.read_csv(Path(folder) / "results.csv", dtype={"failure": object})
+    rows["failure"] = rows["failure"].fillna("")  # an empty failure: the call ran
     counts = []
     for method, g in rows.groupby("method", sort=False):
         k, n = int(g["success"].astype(bool).sum()), len(g)
