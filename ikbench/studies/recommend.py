@@ -25,7 +25,6 @@ run on three seeds:
 
 from __future__ import annotations
 
-import json
 import math
 import shlex
 import time
@@ -37,7 +36,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-
 from scipy.stats import binomtest
 
 from ikbench.core.errors import InputError
