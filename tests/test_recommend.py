@@ -213,6 +213,10 @@ def test_path_task_places_paths_and_judges_them_by_validity(tmp_path):
     assert rows["seed"].nunique() == 3
     _check_agreement(folder, 1000.0)  # the default budget per path
     assert json.loads((folder / "run.json").read_text())["wall_s"] > 0
+    from ikbench.studies.recommend import recheck
+
+    verdict = (folder / "recommend.md").read_text().split("\n\n")[1]
+    assert recheck(folder).decision.text == verdict  # paths paired by seed and path too
 
 
 def test_placed_paths_start_at_a_reachable_pose_and_hold_its_orientation():
@@ -409,7 +413,8 @@ def test_a_cold_compile_counts_in_the_minutes(monkeypatch, minutes):
     for name, c in cost_s.items():  # the pilot's set-up share aside
         assert c - 1e-9 <= plan.cost_s[name] <= c + setup_s / rec.PILOT_TARGETS + 1e-9
     spent = clock.now - start + rec.WRITE_RESERVE_S  # the writing is given its reserve
-    assert spent <= minutes * 60 + rec.margin_s(minutes) + plan.overrun_s + 1e-6
+    assert plan.margin_s == rec.margin_s(minutes)
+    assert spent <= minutes * 60 + plan.margin_s + plan.overrun_s + 1e-6
     if minutes >= 2:
         assert plan.overrun_s == 0 and plan.targets_per_seed > rec.MIN_TARGETS
     else:

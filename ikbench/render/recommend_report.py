@@ -188,7 +188,9 @@ def markdown(result: Result, record: dict) -> str:
         + (_path_protocol(result) if s.task == "path" else _pose_protocol(result)),
         "",
         f"Wall time of the whole run {result.wall_s:.0f} s ({result.wall_s / 60:.2f} min of "
-        f"--minutes {s.minutes:g}).",
+        f"--minutes {s.minutes:g}" + (f", which it may pass by {result.plan.margin_s:.0f} s"
+                                      if getattr(result.plan, "margin_s", 0) else "")
+        + "; the writing and the interpreter's start not included).",
         "",
         "Kendall tau between the seeds' rankings: " + ", ".join(
             f"{k}: {_f(v, 2)}" for k, v in result.kendall_tau.items()) + ".",

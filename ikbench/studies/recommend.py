@@ -158,6 +158,8 @@ class Plan:
     #: the seconds the smallest sample (MIN_TARGETS per seed) is expected to pass --minutes
     #: by, beyond the margin (0: it fits)
     overrun_s: float = 0.0
+    #: the seconds the run may end after --minutes (:func:`margin_s`)
+    margin_s: float = 0.0
 
 
 def margin_s(minutes: float) -> float:
@@ -323,7 +325,8 @@ def _run_poses(robot: Robot, names: Sequence[str], settings: RecommendSettings,
     n, sample_s, fit = plan_sample(remaining, cost_s, estimate)
     over = max(sample_s - remaining - margin_s(settings.minutes), 0.0)
     plan = Plan(settings.minutes, PILOT_TARGETS, cost_s, setup_s, estimate, n, sample_s, fit,
-                resetup_s=resetup_s, compile_s=compile_s, overrun_s=over)
+                resetup_s=resetup_s, compile_s=compile_s, overrun_s=over,
+                margin_s=margin_s(settings.minutes))
     report.note(f"{n} targets per seed x {SEEDS} seeds x {len(names)} methods: about "
                 f"{sample_s:.0f} s (pilot: {PILOT_TARGETS} targets per method; per target "
                 + ", ".join(f"{m} {duration(c)}" for m, c in cost_s.items()) + ")")
