@@ -213,6 +213,10 @@ def test_path_task_places_paths_and_judges_them_by_validity(tmp_path):
     assert rows["seed"].nunique() == 3
     _check_agreement(folder, 1000.0)  # the default budget per path
     assert json.loads((folder / "run.json").read_text())["wall_s"] > 0
+    from ikbench.studies.recommend import recheck
+
+    verdict = (folder / "recommend.md").read_text().split("\n\n")[1]
+    assert recheck(folder).decision.text == verdict  # paths paired by seed and path too
 
 
 def test_placed_paths_start_at_a_reachable_pose_and_hold_its_orientation():
@@ -246,3 +250,172 @@ def test_a_path_method_that_cannot_set_up_is_a_row_with_its_reason(monkeypatch):
     rows = recommend_path.solve_paths(robot, "sequential-ik", tasks, 1)
     assert len(rows) == len(tasks)
     assert rows["failure"].str.startswith("cannot run (prepare: ValueError: Error: inertia").all()
+
+
+@needs_erd
+def test_the_verdict_rechecks_from_its_own_results_csv(short_run):
+    """Issue 58: the success counts, their Wilson intervals (scipy's), the verdict and the
+    paired comparison recomputed from results.csv alone agree with the folder's files."""
+    import json
+
+    from scipy.stats import binomtest
+
+    from ikbench.studies.recommend import recheck
+
+    again = recheck(short_run)
+    table = pd.read_csv(short_run / "recommend.csv").set_index("method")
+    record = json.loads((short_run / "run.json").read_text())
+    for _, c in again.counts.iterrows():
+        row = table.loc[c["method"]]
+        assert (row["successes"], row["targets"]) == (c["successes"], c["targets"])
+        ci = binomtest(int(c["successes"]), int(c["targets"])).proportion_ci(method="wilson")
+        if row["budget"] == FAILED:  # cannot run: no rate, no interval
+            assert np.isnan(row["success_low_pct"]) and np.isnan(row["success_pct"])
+            continue
+        assert row["success_low_pct"] == pytest.approx(100 * ci.low, abs=1e-3)
+        assert row["success_high_pct"] == pytest.approx(100 * ci.high, abs=1e-3)
+    assert again.decision.recommended == record["recommended"]
+    assert again.decision.tied == record["tied"]
+    verdict = (short_run / "recommend.md").read_text().split("\n\n")[1]
+    assert again.decision.text == verdict
+    assert again.paired == pytest.approx(record["paired"], nan_ok=True)
+
+
+def _rows(method, success, time_s, seed=1):
+    return pd.DataFrame({"method": method, "seed": seed, "target": range(len(success)),
+                         "success": success, "failure": "", "time_s": time_s,
+                         "joint_distance_deg": 1.0})
+
+
+def test_paired_comparison_calls_a_tie_a_tie_and_a_difference_a_difference():
+    from ikbench.studies.recommend import paired
+
+    rng = np.random.default_rng(0)
+    t = rng.lognormal(size=60) * 1e-3
+    same = np.ones(60, bool)
+    b_success = same.copy()
+    b_success[:3] = False  # a ahead on 3 targets, b on 2: a tie
+    a_success = same.copy()
+    a_success[3:5] = False
+    rows = pd.concat([_rows("a", a_success, t), _rows("b", b_success, t * rng.lognormal(
+        0, 0.05, 60))])
+    p = paired(rows, "a", "b")
+    assert (p["first_only"], p["second_only"], p["targets"]) == (3, 2, 60)
+    assert p["success"] == "tie" and p["sign_test_p"] == pytest.approx(1.0)
+    assert p["faster"] == "tie" and p["time_ratio_low"] <= 1 <= p["time_ratio_high"]
+    # a alone on 20 targets: p = 2 * 0.5 ** 20; b twice as slow on every target
+    b_success = same.copy()
+    b_success[:20] = False
+    rows = pd.concat([_rows("a", same, t), _rows("b", b_success, 2 * t)])
+    p = paired(rows, "a", "b")
+    assert p["sign_test_p"] == pytest.approx(2 * 0.5 ** 20) and p["success"] == "a"
+    assert p["time_ratio"] == pytest.approx(2.0) and p["faster"] == "a"
+
+
+def test_a_method_that_cannot_run_shows_its_reason_not_a_rate():
+    """Issue 64: eaik on a 7-joint arm is "cannot run: <reason>", never "0.0 [0.0, 11.4]"."""
+    from types import SimpleNamespace
+
+    from ikbench.render.recommend_report import table_lines
+    from ikbench.studies.recommend import verdict_of
+
+    t = np.full(30, 1e-3)
+    why = "prepare: ValueError: EAIK cannot solve this 7-joint chain"
+    broken = _rows("eaik", np.zeros(30, bool), np.nan).assign(failure=why)
+    rows = pd.concat([_rows("a", np.ones(30, bool), t), _rows("b", np.ones(30, bool), 2 * t),
+                      broken]).assign(recommend_task="pose", recommend_robot="arm",
+                                      recommend_budget_ms=5.0)
+    decision, pair = verdict_of(rows, {}, 30)
+    row = decision.table.set_index("method").loc["eaik"]
+    assert row["budget"] == FAILED and np.isnan(row["success_high_pct"])
+    assert pair["first"] == decision.recommended and "eaik" not in (pair["first"],
+                                                                    pair["second"])
+    result = SimpleNamespace(table=decision.table.assign(first_call_s=np.nan,
+                                                         first_call_note=""),
+                             settings=SimpleNamespace(seeds=[1]))
+    line = next(x for x in table_lines(result) if x.startswith("| eaik"))
+    assert f"cannot run: {why}" in line and "0.0 [" not in line
+    assert "Paired over the same 30 targets" in decision.text
+
+
+def test_durations_print_three_significant_digits_in_their_unit():
+    from ikbench.render.recommend_report import duration
+
+    assert [duration(x) for x in (4.56e-5, 0.0123, 2.5, np.nan)] == [
+        "45.6 us", "12.3 ms", "2.5 s", "-"]
+
+
+class _Clock:
+    """A fake perf_counter: time passes only when the fakes say so."""
+
+    def __init__(self):
+        self.now = 1000.0
+
+    def perf_counter(self):
+        return self.now
+
+    def advance(self, seconds):
+        self.now += seconds
+
+
+@pytest.mark.parametrize("minutes", [2.0, 5.0, 1.0])
+def test_a_cold_compile_counts_in_the_minutes(monkeypatch, minutes):
+    """Issue 64: a method whose first set-up compiles for 60 s (ours-lm on a cold numba
+    cache) has that time counted: the pilot's cost per target is its calls' (not 0), the
+    sample fits what is left, and the run ends within --minutes plus its margin; when the
+    smallest sample cannot fit (1 minute), the plan says by how much it passes. A fake clock,
+    no timed assertion."""
+    from types import SimpleNamespace
+
+    from ikbench.studies import recommend as rec
+
+    clock = _Clock()
+    monkeypatch.setattr(rec, "time", clock)
+    cost_s, compile_s, setup_s = {"compiles": 0.2, "quick": 5e-4}, {"compiles": 60.0}, 0.05
+    prepared: set[str] = set()
+
+    class Solver:
+        def __init__(self, name):
+            self.name = name
+
+        def prepare(self):
+            clock.advance(setup_s + (0 if self.name in prepared else
+                                     compile_s.get(self.name, 0.0)))
+            prepared.add(self.name)
+
+    status = {n: SimpleNamespace(cls=lambda *a, n=n: Solver(n)) for n in cost_s}
+    monkeypatch.setattr(rec, "solver_status", lambda: status)
+
+    def run_ik(robot, ik, names, progress=False):
+        (name,) = names
+        Solver(name).prepare()
+        clock.advance(ik.count * cost_s[name])
+        table = pd.DataFrame({"method": name, "target": range(ik.count), "success": True,
+                              "failure": "", "time_s": 0.8 * cost_s[name],
+                              "joint_distance_deg": 1.0})
+        return SimpleNamespace(table=table, methods={name: {"library": "x",
+                                                            "deterministic": True}})
+
+    def first_call(*args, timeout_s, **kwargs):
+        clock.advance(min(3.0, timeout_s))
+        return {"first_call_s": 3.0}
+
+    monkeypatch.setattr(rec, "run_ik", run_ik)
+    monkeypatch.setattr(rec, "first_call", first_call)
+    monkeypatch.setattr(rec, "sample_targets", lambda robot, ik: SimpleNamespace(
+        T_target=[None], initials=lambda i, k: None))
+    spec = rec.RecommendSpec(SimpleNamespace(name="arm"), rec.RecommendSettings(
+        minutes=minutes), tuple(cost_s), progress=False)
+    start = clock.now
+    result = rec.run(spec)
+    plan = result.plan
+    assert plan.compile_s["compiles"] == pytest.approx(60.0)
+    for name, c in cost_s.items():  # the pilot's set-up share aside
+        assert c - 1e-9 <= plan.cost_s[name] <= c + setup_s / rec.PILOT_TARGETS + 1e-9
+    spent = clock.now - start + rec.WRITE_RESERVE_S  # the writing is given its reserve
+    assert plan.margin_s == rec.margin_s(minutes)
+    assert spent <= minutes * 60 + plan.margin_s + plan.overrun_s + 1e-6
+    if minutes >= 2:
+        assert plan.overrun_s == 0 and plan.targets_per_seed > rec.MIN_TARGETS
+    else:
+        assert plan.targets_per_seed == rec.MIN_TARGETS and plan.overrun_s > 0

@@ -133,3 +133,22 @@ def test_the_spec_refuses_an_unknown_study_before_running(tmp_path):
     spec = regen.RegenerationSpec(tmp_path, only=("nope",))
     with pytest.raises(InputError, match="nope is not a study"):
         spec.validate()
+
+
+@pytest.mark.parametrize("name, robot", [("recommend-ur5", "example-robot-data:ur5"),
+                                         ("recommend-panda", "example-robot-data:panda")])
+def test_the_recommend_studies_write_where_recommend_writes(name, robot, tmp_path):
+    """A 6-DoF and a 7-DoF recommendation are in the plan (issue 58), and each entry's
+    ``writes`` is the folder ``ikbench recommend`` writes for its robot."""
+    from ikbench.cli import build_parser
+    from ikbench.render.recommend_report import folder_of
+
+    study = next(s for s in regen.STUDIES if s.name == name)
+    argv = study.arguments(tmp_path)
+    args = build_parser(argv).parse_args(argv)
+    assert args.robot == robot and args.minutes <= 5
+
+    class Named:  # folder_of reads the robot's name only
+        name = robot
+
+    assert [str(tmp_path / w) for w in study.writes] == [str(folder_of(tmp_path, Named()))]

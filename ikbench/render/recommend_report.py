@@ -30,6 +30,8 @@ from ikbench.core.provenance import library_versions, provenance
 from ikbench.render.ik_report import robot_slug
 
 FOLDER = "recommend"
+#: The budget class of a method no call of which ran (ikbench.studies.verdict.FAILED).
+CANNOT_RUN = "cannot run"
 #: The study's result (:class:`ikbench.studies.recommend.Recommendation`), taken as it
 #: comes (render is below the studies).
 Result = Any
@@ -82,11 +84,22 @@ def _record(result: Result, command: str, libraries: list[str]) -> dict:
             "settings": asdict(result.settings), "plan": asdict(result.plan),
             "methods": result.methods, "recommended": result.recommended,
             "tied": result.tied, "kendall_tau": result.kendall_tau,
+            "paired": getattr(result, "paired", {}),
             "wall_s": result.wall_s,
             "load_average": {"start": result.load_start,
                              "end": tuple(round(v, 2) for v in os.getloadavg())},
             "library_versions": library_versions(libraries),
             "provenance": provenance(extra=libraries)}
+
+
+def duration(seconds: float) -> str:
+    """``seconds`` in us, ms or s with 3 significant digits ("-" when not finite)."""
+    if not np.isfinite(seconds):
+        return "-"
+    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("us", 1e-6)):
+        if abs(seconds) >= scale or unit == "us":
+            return f"{seconds / scale:.3g} {unit}"
+    return f"{seconds:.3g} s"
 
 
 def _f(value: float, digits: int = 3) -> str:
@@ -102,8 +115,18 @@ def _ci(row: pd.Series, name: str, unit: str) -> str:
     return f"{_f(v)} [{_f(lo)}, {_f(hi)}]"
 
 
+def cannot_run(row: pd.Series) -> str:
+    """"cannot run: <reason>" for a method no call of which ran ("not run: ..." as it is),
+    "" for one that ran: such a row has no rate, no interval."""
+    if row["budget"] != CANNOT_RUN:
+        return ""
+    status = str(row["status"])
+    return status if status.startswith("not run") else f"cannot run: {status}"
+
+
 def table_lines(result: Result) -> list[str]:
-    """The markdown table: one row per method, ranked."""
+    """The markdown table: one row per method, ranked; a method that cannot run says why
+    in place of its rate and intervals."""
     seeds = result.settings.seeds
     lines = ["| method | role | success [%] | per call p50 [ms] | per call p99 [ms] | budget "
              "at p99 | first call [s] | joint distance median [deg] | nearest branch [%] | "
@@ -115,6 +138,11 @@ def table_lines(result: Result) -> list[str]:
         first = _f(row["first_call_s"]) if np.isfinite(row["first_call_s"]) else (
             row["first_call_note"] or "-")
         ranks = ", ".join(_f(row.get(f"rank_seed{s}", np.nan)) for s in seeds)
+        why = cannot_run(row)
+        if why:
+            lines.append(f"| {name} | - | {why} | - | - | - | - | - | - | - | "
+                         f"{row['failed_calls']} |")
+            continue
         status = "" if row["status"] == "ok" else f" ({row['status']})"
         lines.append(
             f"| {name} | {row['role']}{status} | {_ci(row, 'success', 'pct')} "
@@ -160,7 +188,9 @@ def markdown(result: Result, record: dict) -> str:
         + (_path_protocol(result) if s.task == "path" else _pose_protocol(result)),
         "",
         f"Wall time of the whole run {result.wall_s:.0f} s ({result.wall_s / 60:.2f} min of "
-        f"--minutes {s.minutes:g}).",
+        f"--minutes {s.minutes:g}" + (f", which it may pass by {result.plan.margin_s:.0f} s"
+                                      if getattr(result.plan, "margin_s", 0) else "")
+        + "; the writing and the interpreter's start not included).",
         "",
         "Kendall tau between the seeds' rankings: " + ", ".join(
             f"{k}: {_f(v, 2)}" for k, v in result.kendall_tau.items()) + ".",
@@ -185,7 +215,15 @@ def markdown(result: Result, record: dict) -> str:
 def _pose_protocol(result: Result) -> str:
     s, plan = result.settings, result.plan
     n = plan.targets_per_seed
-    cost = ", ".join(f"{m} {1000 * c:.3g} ms" for m, c in plan.cost_s.items())
+    cost = ", ".join(f"{m} {duration(c)}" for m, c in plan.cost_s.items())
+    compiled = {m: c for m, c in getattr(plan, "compile_s", {}).items() if c >= 1.0}
+    compile_note = (" The first set-ups took longer than the second by " + ", ".join(
+        f"{m} {c:.0f} s" for m, c in compiled.items()) + " (a compile, or loading a compiled "
+        "cache), spent before the sample was sized and counted in --minutes." if compiled
+        else "")
+    over = getattr(plan, "overrun_s", 0.0)
+    over_note = (f" The smallest sample did not fit: the run was expected to pass --minutes by "
+                 f"about {over:.0f} s beyond its margin." if over > 0 else "")
     return (
         f"Task: {'6-D pose' if s.task == 'pose' else 'position only'}. Targets: FK of "
         "configurations drawn uniformly within the joint limits (every one reachable), "
@@ -199,7 +237,7 @@ def _pose_protocol(result: Result) -> str:
         f"the first calls (estimated {sum(plan.first_call_estimate_s.values()):.0f} s"
         f"{'' if plan.first_calls_fit else ', measured only as the time allows'}), "
         f"{n} targets per seed fit --minutes {s.minutes:g}: the sample was estimated at "
-        f"{plan.sample_estimate_s:.0f} s.")
+        f"{plan.sample_estimate_s:.0f} s.{compile_note}{over_note}")
 
 
 def _path_protocol(result: Result) -> str:

@@ -26,26 +26,30 @@ run on three seeds:
 from __future__ import annotations
 
 import math
+import shlex
 import time
+import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
+from scipy.stats import binomtest
 
 from ikbench.core.errors import InputError
+from ikbench.core.io import check_folder_writable
+from ikbench.core.robot import Robot, load_robot
 from ikbench.methods.registry import solver_status
+from ikbench.render.recommend_report import duration, folder_of, write_folder
 from ikbench.runtime.harness import describe
 from ikbench.runtime.progress import Reporter
-from ikbench.studies.first_call import first_call
+from ikbench.studies import recommend_path as paths
+from ikbench.studies.first_call import first_call, robot_spec
 from ikbench.studies.folders import RUNS, WITHIN
-from ikbench.studies.ik import IKSettings, load_average, parse_methods, run_ik
-from ikbench.studies.verdict import Verdict, decide, per_method
-
-if TYPE_CHECKING:
-    from ikbench.core.robot import Robot
+from ikbench.studies.ik import IKSettings, load_average, parse_methods, run_ik, sample_targets
+from ikbench.studies.verdict import FAILED, Verdict, decide, per_method
 
 FOLDER = WITHIN["recommend"]
 PATH = "path"
@@ -72,6 +76,9 @@ FRESH_PROCESS_S = 2.0
 #: Seconds of statistics per method and target of each seed (the bootstrap: 2000 pooled and
 #: 1000 per-seed resamples; measured about 1.4e-4 s here, doubled).
 STATS_S_PER_TARGET = 3e-4
+#: The margin [s] a run may pass ``--minutes`` by (the statistics and the writing past their
+#: reserve; the last first call's clean-up): 10 % of ``--minutes``, at least this.
+MARGIN_S = 10.0
 #: The longest run ``--minutes`` may ask (a day).
 MAX_MINUTES = 1440.0
 #: The default budget per call [ms] the p99 must meet (TRAC-IK's default timeout).
@@ -143,6 +150,21 @@ class Plan:
     sample_estimate_s: float
     first_calls_fit: bool
     path_shape: dict = field(default_factory=dict)
+    #: each method's second set-up in the process [s] (what each seed's run pays again) and
+    #: the compile its first one held (first minus second, e.g. ours-lm's numba kernels on a
+    #: cold cache): both spent before the sample was sized, so both count in --minutes
+    resetup_s: dict[str, float] = field(default_factory=dict)
+    compile_s: dict[str, float] = field(default_factory=dict)
+    #: the seconds the smallest sample (MIN_TARGETS per seed) is expected to pass --minutes
+    #: by, beyond the margin (0: it fits)
+    overrun_s: float = 0.0
+    #: the seconds the run may end after --minutes (:func:`margin_s`)
+    margin_s: float = 0.0
+
+
+def margin_s(minutes: float) -> float:
+    """The seconds a run of ``minutes`` may end after ``--minutes`` (:data:`MARGIN_S`)."""
+    return max(MARGIN_S, 0.1 * 60.0 * minutes)
 
 
 @dataclass
@@ -163,6 +185,8 @@ class Recommendation:
             ``seed``).
         settings, robot, wall_s, methods (name -> facts), load_average (start).
         command: the command line recommend.md quotes ("": :func:`command_line`).
+        paired: the recommended method against the runner-up over the same targets
+            (:func:`paired`; empty when there is no pair).
     """
 
     verdict: str
@@ -180,13 +204,12 @@ class Recommendation:
     load_start: tuple | None = None
     decision: Verdict | None = None
     command: str = ""
+    paired: dict = field(default_factory=dict)
 
     def write(self, folder: str | Path) -> Path:
         """Write ``folder/recommend/<robot>/`` whole (:mod:`ikbench.render.recommend_report`;
         the command recorded: :attr:`command`, else :func:`command_line` into ``folder``);
         set :attr:`files`; return the folder written."""
-        from ikbench.render.recommend_report import folder_of, write_folder
-
         out = folder_of(folder, self.robot)
         self.files = write_folder(self, out, self.command or command_line(self, folder))
         return out
@@ -208,26 +231,34 @@ def plan_sample(remaining_s: float, cost_s: dict[str, float],
 
 
 def _setup(robot: Robot, names: Sequence[str], settings: RecommendSettings,
-           report: Reporter) -> tuple[dict[str, Any], dict[str, float]]:
-    """Each method's solver, set up once (untimed by the study; its time kept for the plan),
-    or the failure (``"prepare: ..."``) where the library cannot take the robot."""
+           report: Reporter) -> tuple[dict[str, Any], dict[str, float], dict[str, float]]:
+    """Each method's solver, set up twice (untimed by the study; both times kept for the
+    plan): the first set-up holds what the process then caches (a compile), the second is
+    what each seed's run pays again. The failure (``"prepare: ..."``) where the library
+    cannot take the robot. Returns (solvers, first set-up [s], second set-up [s])."""
     ik = settings.ik_settings(1, settings.seed)
     solvers: dict[str, Any] = {}
     setup_s: dict[str, float] = {}
+    resetup_s: dict[str, float] = {}
     for name in names:
         cls = solver_status()[name].cls
         report.say(f"{name}: setting up")
-        t0 = time.perf_counter()
-        solver = cls(robot, ik.kind, (ik.tolerance_mm, ik.tolerance_deg), ik.budget_s)
-        try:
-            solver.prepare()
-            solvers[name] = solver
-        except Exception as exc:  # the library cannot take this robot: failed rows
-            solvers[name] = f"prepare: {describe(exc)}"
-            report.note(f"{name}: cannot take {robot.name}: {describe(exc)}")
-        setup_s[name] = time.perf_counter() - t0
+        times = []
+        for _ in range(2):
+            t0 = time.perf_counter()
+            solver = cls(robot, ik.kind, (ik.tolerance_mm, ik.tolerance_deg), ik.budget_s)
+            try:
+                solver.prepare()
+                solvers[name] = solver
+            except Exception as exc:  # the library cannot take this robot: failed rows
+                solvers[name] = f"prepare: {describe(exc)}"
+                report.note(f"{name}: cannot take {robot.name}: {describe(exc)}")
+            times.append(time.perf_counter() - t0)
+            if isinstance(solvers[name], str):
+                break
+        setup_s[name], resetup_s[name] = times[0], times[-1]
         report.advance(1, f"{name}: set up")
-    return solvers, setup_s
+    return solvers, setup_s, resetup_s
 
 
 def _sample(robot: Robot, names: Sequence[str], count: int, seed: int,
@@ -255,8 +286,6 @@ def _first_calls(robot: Robot, names: Sequence[str], settings: RecommendSettings
     """Each method's first call in a fresh process, cheapest estimate first, while it fits
     before ``deadline`` (perf_counter seconds); else the reason it was not measured."""
     ik = settings.ik_settings(1, settings.seed + PILOT_SEED_OFFSET)
-    from ikbench.studies.ik import sample_targets
-
     targets = sample_targets(robot, ik)
     out: dict[str, dict] = {}
     for name in sorted(names, key=lambda n: estimate_s[n]):
@@ -277,20 +306,39 @@ def _first_calls(robot: Robot, names: Sequence[str], settings: RecommendSettings
 def _run_poses(robot: Robot, names: Sequence[str], settings: RecommendSettings,
                deadline: float, report: Reporter) -> tuple[pd.DataFrame, dict, Plan]:
     """The single-pose panel (steps 1 to 4 of the module docstring): rows, facts, plan."""
-    solvers, setup_s = _setup(robot, names, settings, report)
-    _, pilot_wall, _ = _sample(robot, names, PILOT_TARGETS,
-                               settings.seed + PILOT_SEED_OFFSET, settings, report)
+    solvers, setup_s, resetup_s = _setup(robot, names, settings, report)
+    pilot_rows, pilot_wall, _ = _sample(robot, names, PILOT_TARGETS,
+                                        settings.seed + PILOT_SEED_OFFSET, settings, report)
     working = [n for n in names if not isinstance(solvers[n], str)]
-    # each sample's run_ik sets a method up again (a library's own cache aside): per target
-    # the pilot's time without its set-up, and each seed's set-ups taken off the time left
-    cost_s = {n: max(pilot_wall[n] - setup_s[n], 0.0) / PILOT_TARGETS for n in names}
-    estimate = {n: setup_s[n] + FRESH_PROCESS_S for n in working}
+    compile_s = {n: max(setup_s[n] - resetup_s[n], 0.0) for n in working}
+    # each sample's run_ik sets a method up again (the process's caches warm, as in the
+    # pilot): per target the pilot's wall time without that second set-up, never less than
+    # its calls on the solver's clock; each seed's set-ups taken off the time left. The
+    # first set-up (a compile included) is already spent: the time left counts it.
+    solved_s = pilot_rows.groupby("method")["time_s"].sum(min_count=1)
+    cost_s = {n: max(pilot_wall[n] - resetup_s[n], float(np.nan_to_num(solved_s.get(n, 0.0))),
+                     0.0) / PILOT_TARGETS for n in names}
+    # a fresh process reads the caches the first set-up filled: its second set-up's time
+    estimate = {n: resetup_s[n] + FRESH_PROCESS_S for n in working}
     remaining = (deadline - time.perf_counter() - WRITE_RESERVE_S
-                 - SEEDS * sum(setup_s[n] for n in working))
+                 - SEEDS * sum(resetup_s[n] for n in working))
     n, sample_s, fit = plan_sample(remaining, cost_s, estimate)
-    plan = Plan(settings.minutes, PILOT_TARGETS, cost_s, setup_s, estimate, n, sample_s, fit)
+    over = max(sample_s - remaining - margin_s(settings.minutes), 0.0)
+    plan = Plan(settings.minutes, PILOT_TARGETS, cost_s, setup_s, estimate, n, sample_s, fit,
+                resetup_s=resetup_s, compile_s=compile_s, overrun_s=over,
+                margin_s=margin_s(settings.minutes))
     report.note(f"{n} targets per seed x {SEEDS} seeds x {len(names)} methods: about "
-                f"{sample_s:.0f} s (pilot: {PILOT_TARGETS} targets per method)")
+                f"{sample_s:.0f} s (pilot: {PILOT_TARGETS} targets per method; per target "
+                + ", ".join(f"{m} {duration(c)}" for m, c in cost_s.items()) + ")")
+    spent = sum(compile_s.values())
+    if spent >= 1.0:
+        report.note(f"the first set-ups took {spent:.0f} s more than the second ("
+                    + ", ".join(f"{m} {c:.0f} s" for m, c in compile_s.items() if c >= 1.0)
+                    + ": a compile or a compiled cache loaded), counted in --minutes")
+    if over > 0:
+        report.note(f"the smallest sample ({MIN_TARGETS} targets per seed) does not fit: the "
+                    f"run will pass --minutes {settings.minutes:g} by about {over:.0f} s more "
+                    f"than its {margin_s(settings.minutes):.0f} s margin")
     frames, info = [], {}
     for s in settings.seeds:
         frame, _, facts = _sample(robot, names, n, s, settings, report)
@@ -307,8 +355,6 @@ def _run_paths(robot: Robot, names: Sequence[str], settings: RecommendSettings,
                deadline: float, report: Reporter) -> tuple[pd.DataFrame, dict, Plan]:
     """The path panel (:mod:`ikbench.studies.recommend_path`): a one-path pilot per method
     (set-up included), then as many paths per seed as fit."""
-    from ikbench.studies import recommend_path as paths
-
     report.say("pilot: one path per method")
     cost_s = paths.pilot(robot, names, settings.seed + PILOT_SEED_OFFSET,
                          deadline - WRITE_RESERVE_S)
@@ -358,9 +404,7 @@ def checked_names(methods: Sequence[str] | None, task: str) -> list[str]:
     :func:`~ikbench.studies.recommend_path.path_methods` for ``path``,
     :func:`~ikbench.studies.ik.parse_methods` else."""
     if task == PATH:
-        from ikbench.studies.recommend_path import path_methods
-
-        return path_methods(methods)
+        return paths.path_methods(methods)
     return parse_methods(methods, task)
 
 
@@ -417,15 +461,10 @@ def recommend(robot: Robot | str, end_frame: str | None = None, *,
     settings = RecommendSettings(budget_ms, task, minutes, seed, attempts,
                                  methods=names_given)
     if isinstance(robot, str):
-        from ikbench.core.robot import load_robot
-
         robot = load_robot(robot, end_frame)
     spec = RecommendSpec(robot, settings, tuple(method_names(settings)), progress, command)
     spec.validate()
     if output is not None:
-        from ikbench.core.io import check_folder_writable
-        from ikbench.render.recommend_report import folder_of
-
         check_folder_writable(folder_of(output, robot))
     result = run(spec)
     if output is not None:
@@ -448,11 +487,12 @@ def run(spec: RecommendSpec) -> Recommendation:
         table, info, plan = panel(robot, names, settings, deadline, report)
         n = plan.targets_per_seed
         report.say("statistics and verdict")
-        summary = per_method(table, info, settings.budget_ms, settings.seeds)
-        decision = decide(summary, settings.budget_ms, task, robot.name, n, settings.seeds)
+        table = table.assign(recommend_task=task, recommend_robot=robot.name,
+                             recommend_budget_ms=settings.budget_ms)
+        decision, pair = verdict_of(table, info, n)
         result = Recommendation(decision.text, decision.table, [], decision.recommended,
                                 decision.tied, decision.kendall_tau, plan, table, settings,
-                                robot, 0.0, info, load, decision, spec.command)
+                                robot, 0.0, info, load, decision, spec.command, pair)
         report.advance(1, "verdict")
     result.wall_s = time.perf_counter() - started
     return result
@@ -460,10 +500,6 @@ def run(spec: RecommendSpec) -> Recommendation:
 
 def command_line(result: Recommendation, output: str | Path = RUNS) -> str:
     """The ``ikbench recommend`` command that reproduces ``result`` into ``output``."""
-    import shlex
-
-    from ikbench.studies.first_call import robot_spec
-
     spec, end_frame = robot_spec(result.robot)
     s = result.settings
     words = ["ikbench", "recommend", "--robot", spec, "--end-frame", end_frame,
@@ -473,3 +509,117 @@ def command_line(result: Recommendation, output: str | Path = RUNS) -> str:
         words += ["--methods", ",".join(s.methods)]
     words += ["--output", str(output)]
     return " ".join(shlex.quote(w) for w in words)
+
+
+#: The level below which the paired sign test calls a difference in success a difference.
+ALPHA = 0.05
+#: Resamples of the paired bootstrap of the per-target time ratio.
+PAIRED_RESAMPLES = 2000
+
+
+def target_key(rows: pd.DataFrame) -> list[str]:
+    """The columns naming one target (a path for ``--task path``) within the rows."""
+    return ["seed", "path" if "path" in rows else "target"]
+
+
+def paired(rows: pd.DataFrame, first: str, second: str) -> dict:
+    """``first`` against ``second`` over the targets both were given (same seed and target):
+    success by the exact sign test on the discordant targets (McNemar's exact test:
+    ``scipy.stats.binomtest``), time by the geometric mean of the per-target time ratio
+    ``second / first`` over the targets both timed, with a seeded paired-bootstrap 95 %
+    interval. A difference is called only where the test rejects at :data:`ALPHA` (success)
+    or the interval excludes 1 (time); else it is a tie."""
+    key = target_key(rows)
+    a = rows[rows["method"] == first].set_index(key)
+    b = rows[rows["method"] == second].set_index(key)
+    both = a.index.intersection(b.index)
+    a, b = a.loc[both], b.loc[both]
+    sa, sb = a["success"].astype(bool).to_numpy(), b["success"].astype(bool).to_numpy()
+    only_a, only_b = int(np.sum(sa & ~sb)), int(np.sum(~sa & sb))
+    p = binomtest(only_a, only_a + only_b, 0.5).pvalue if only_a + only_b else 1.0
+    ta, tb = a["time_s"].to_numpy(dtype=float), b["time_s"].to_numpy(dtype=float)
+    timed = np.isfinite(ta) & np.isfinite(tb) & (ta > 0) & (tb > 0)
+    log_ratio = np.log(tb[timed] / ta[timed])
+    ratio = low = high = float("nan")
+    if len(log_ratio):
+        rng = np.random.default_rng(zlib.crc32(f"{first} {second}".encode()))
+        means = log_ratio[rng.integers(0, len(log_ratio), (PAIRED_RESAMPLES,
+                                                            len(log_ratio)))].mean(axis=1)
+        ratio = float(np.exp(log_ratio.mean()))
+        low, high = (float(np.exp(q)) for q in np.percentile(means, (2.5, 97.5)))
+    success = ("tie" if p >= ALPHA else first if only_a > only_b else second)
+    time_call = ("tie" if not np.isfinite(low) or low <= 1.0 <= high
+                 else first if low > 1.0 else second)
+    return {"first": first, "second": second, "targets": len(both), "first_only": only_a,
+            "second_only": only_b, "sign_test_p": float(p), "success": success,
+            "timed": int(timed.sum()), "time_ratio": ratio, "time_ratio_low": low,
+            "time_ratio_high": high, "faster": time_call}
+
+
+def paired_sentence(pair: dict, unit: str = "targets") -> str:
+    """The paired comparison as one sentence of the verdict."""
+    a, b = pair["first"], pair["second"]
+    won = {"tie": "a tie on success", a: f"{a} succeeds more often",
+           b: f"{b} succeeds more often"}[pair["success"]]
+    text = (f"Paired over the same {pair['targets']} {unit}, {a} against the runner-up {b}: "
+            f"they differ on {pair['first_only'] + pair['second_only']} ({a} alone "
+            f"{pair['first_only']}, {b} alone {pair['second_only']}; exact sign test p = "
+            f"{pair['sign_test_p']:.2g}), {won}")
+    if np.isfinite(pair["time_ratio"]):
+        fast = {"tie": "a tie on time", a: f"{a} faster", b: f"{b} faster"}[pair["faster"]]
+        text += (f"; {b}'s time per target is {pair['time_ratio']:.3g}x {a}'s [95 % paired "
+                 f"bootstrap {pair['time_ratio_low']:.3g}, {pair['time_ratio_high']:.3g}] "
+                 f"over the {pair['timed']} both timed, {fast}")
+    return text + "."
+
+
+def verdict_of(rows: pd.DataFrame, info: dict[str, dict], per_seed: int
+               ) -> tuple[Verdict, dict]:
+    """The statistics and the verdict of the raw rows (those :func:`run` makes, which carry
+    the task, robot and budget), the paired comparison of the recommended method with the
+    runner-up appended; a method no call of which ran keeps no rate or interval."""
+    budget_ms = float(rows["recommend_budget_ms"].iloc[0])
+    seeds = sorted(int(s) for s in rows["seed"].unique())
+    task, robot = str(rows["recommend_task"].iloc[0]), str(rows["recommend_robot"].iloc[0])
+    summary = per_method(rows, info, budget_ms, seeds)
+    decision = decide(summary, budget_ms, task, robot, per_seed, seeds)
+    cannot = decision.table["budget"] == FAILED
+    for column in ("success_pct", "success_low_pct", "success_high_pct"):
+        decision.table.loc[cannot, column] = np.nan
+    ran = decision.table.loc[~cannot, "method"].tolist()
+    pair: dict = {}
+    if decision.recommended is not None and len(ran) > 1:
+        second = next(m for m in ran if m != decision.recommended)
+        pair = paired(rows, decision.recommended, second)
+        decision.text += " " + paired_sentence(pair, "paths" if task == PATH else "targets")
+    return decision, pair
+
+
+@dataclass
+class Recheck:
+    """A committed recommendation recomputed from its results.csv alone: ``counts`` (per
+    method: successes, targets and the Wilson 95 % interval from ``scipy.stats``), the
+    verdict (``decision``) and the paired comparison (``paired``)."""
+
+    counts: pd.DataFrame
+    decision: Verdict
+    paired: dict
+
+
+def recheck(folder: str | Path) -> Recheck:
+    """Recompute a recommendation's intervals and verdict from ``folder/results.csv`` alone
+    (``folder``: an ``OUTPUT/recommend/<robot>/``): the Wilson intervals by
+    ``scipy.stats.binomtest(k, n).proportion_ci(method="wilson")``, the verdict by the same
+    rules (:func:`verdict_of`; the bootstrap is seeded by the method's name). Compare with
+    the folder's recommend.csv and recommend.md."""
+    rows = pd.read_csv(Path(folder) / "results.csv", dtype={"failure": object})
+    rows["failure"] = rows["failure"].fillna("")  # an empty failure: the call ran
+    counts = []
+    for method, g in rows.groupby("method", sort=False):
+        k, n = int(g["success"].astype(bool).sum()), len(g)
+        ci = binomtest(k, n).proportion_ci(method="wilson")
+        counts.append({"method": method, "successes": k, "targets": n,
+                       "success_low_pct": 100.0 * ci.low, "success_high_pct": 100.0 * ci.high})
+    per_seed = int(rows.groupby(["method", "seed"]).size().max())
+    decision, pair = verdict_of(rows, {}, per_seed)
+    return Recheck(pd.DataFrame(counts), decision, pair)

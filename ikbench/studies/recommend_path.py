@@ -18,6 +18,7 @@ have the columns :mod:`ikbench.studies.verdict` reads (``method``, ``seed``, ``s
 
 from __future__ import annotations
 
+import multiprocessing
 import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
@@ -149,8 +150,6 @@ def pilot(robot: Robot, names: Sequence[str], seed: int, deadline: float = np.in
     ``deadline`` (perf_counter seconds); one that passes it is stopped and costs inf (a
     single path solve cannot be interrupted otherwise: ours-lm's path search took 40 s on
     a UR5 path, a one-minute run on a 7-joint arm did not end in ten)."""
-    import multiprocessing
-
     tasks = place_paths(robot, seed, 1)
     context = multiprocessing.get_context("fork")
     cost = {}

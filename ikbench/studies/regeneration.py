@@ -202,6 +202,12 @@ STUDIES: tuple[Study, ...] = (
                                 "--trajectories", "all", "--first-call", "--output",
                                 "{out}/cartesian_methods"), ("cartesian_methods",), 12.5,
           rows_may_fail=True),
+    # recommend (issue 58): a 6-DoF and a 7-DoF arm at a short budget, so a verdict can be
+    # re-checked from its committed results.csv (ikbench.studies.recommend.recheck)
+    *(Study(f"recommend-{robot.rpartition(':')[2]}",
+            ("recommend", "--robot", robot, "--minutes", "2", "--seed", "1", "--output",
+             "{out}"), (f"recommend/{robot.rpartition(':')[2]}",), 2.5)
+      for robot in ("example-robot-data:ur5", "example-robot-data:panda")),
     Study("ours-speed", ("--output", "{out}/ours_speed.csv"), ("ours_speed.csv",), 0.5,
           script="benchmarks/ours_speed.py"),
     Study("designer-latency", ("--output", "{out}/designer_latency.csv"),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import shlex
 
 from ikbench.cli.options import add_progress_arguments, add_robot_arguments, begin, robot_from_args
 from ikbench.cli.values import OUTPUT, SEED, Number, count
@@ -62,8 +63,6 @@ def arguments(parser: argparse.ArgumentParser) -> None:
 
 def command_line(args: argparse.Namespace) -> str:
     """The command as given, every default spelled out (for recommend.md)."""
-    import shlex
-
     words = ["ikbench", "recommend", "--robot", args.robot]
     if args.end_frame:
         words += ["--end-frame", args.end_frame]
@@ -76,6 +75,8 @@ def command_line(args: argparse.Namespace) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported here, not at the top: the CLI starts light (the study pulls in every
+    # installed solver library), and `ikbench --help` must not pay for it
     from ikbench.core.io import check_folder_writable
     from ikbench.render.recommend_report import folder_of
     from ikbench.studies import recommend as study
