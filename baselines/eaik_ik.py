@@ -181,6 +181,7 @@ class EaikSolver(PoseSolver):
                              "locked")
         self.lower, self.upper = self.chain.lower, self.chain.upper
         self._T = np.eye(4)  # the frame EAIK is given, reused by every call
+        self._kernels, self._dof = _kernel(), len(self.lower)
         # compile (or load numba's cache) here, untimed, for the arrays EAIK gives: its answer
         # to the end frame at the zero configuration
         self.solve(np.zeros(len(self.lower)), P.sum(axis=0), self.R_end0)
@@ -217,13 +218,15 @@ class EaikSolver(PoseSolver):
     def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         """The branch within the limits nearest ``q_init``: what :meth:`branches` and an
         argmin give, in one compiled pass (:func:`nearest_in_limits`)."""
-        solution = self.eaik.IK(self._frame(point_m, rotation))
-        Q, q = solution.Q, np.empty(len(self.lower))
+        nearest, frame = self._kernels  # the compiled functions, no lookup per call
+        frame(self._T, rotation, self.R_end0, point_m)
+        solution = self.eaik.IK(self._T)
+        Q, q = solution.Q, np.empty(self._dof)
         found = 0
         if Q.size:  # writeable copies: numba takes EAIK's read-only views more slowly
-            drop = np.array(solution.is_LS, dtype=bool)
-            found = nearest_in_limits(Q.reshape(-1, len(q)).copy(), drop, self.lower,
-                                      self.upper, np.asarray(q_init, dtype=float), q)
+            found = nearest(Q.reshape(-1, self._dof).copy(),
+                            np.array(solution.is_LS, dtype=bool), self.lower, self.upper,
+                            np.asarray(q_init, dtype=float), 1e-9, q)
         if not found:  # unreachable, or only outside the limits: EAIK says no
             return PoseOut(np.asarray(q_init, dtype=float), 0, False)
         return PoseOut(q, found, True)

@@ -195,3 +195,12 @@ def test_ik_writes_the_library_call_columns_and_says_what_the_call_is(tmp_path):
     assert "library call [ms] | x_eaik_call |" in board and "**Library call**" in board
     facts = json.loads((folder / "run.json").read_text())["methods"]["eaik"]
     assert facts["bare_call"].startswith("EAIK's own") and facts["bare_call_median_ms"] > 0
+
+
+def test_the_spread_and_first_call_columns_stay_the_last():
+    summary = pd.DataFrame({"method": ["eaik"], "time_median_ms": [0.02], "runs": [2],
+                            "time_median_ms_max": [0.03], "first_call_ms": [5.0]})
+    out = with_bare_calls(summary, {"eaik": {"bare_call_median_ms": 0.01}})
+    assert list(out.columns) == ["method", "time_median_ms", "bare_call_median_ms",
+                                 "glue_median_ms", "x_eaik_call", "runs",
+                                 "time_median_ms_max", "first_call_ms"]

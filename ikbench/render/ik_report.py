@@ -620,7 +620,8 @@ def with_bare_calls(summary: pd.DataFrame, methods: dict[str, dict]) -> pd.DataF
     :func:`~ikbench.studies.ik.bare_call_times`, in ``methods``: run.json's): columns
     ``bare_call_median_ms`` (NaN where not measured), ``glue_median_ms`` (the per-call median
     minus it: what the adapter and, past one attempt, the restarts add) and ``x_eaik_call``
-    (the per-call median over EAIK's bare call in the same run; NaN without eaik)."""
+    (the per-call median over EAIK's bare call in the same run; NaN without eaik), before
+    the run spread and first-call columns, which stay the last."""
     bare = {m: f.get("bare_call_median_ms") for m, f in methods.items()}
     out = summary.copy()
     out["bare_call_median_ms"] = out["method"].map(
@@ -628,7 +629,9 @@ def with_bare_calls(summary: pd.DataFrame, methods: dict[str, dict]) -> pd.DataF
     out["glue_median_ms"] = out["time_median_ms"] - out["bare_call_median_ms"]
     eaik = bare.get("eaik")
     out["x_eaik_call"] = (out["time_median_ms"] / float(eaik) if eaik else np.nan)
-    return out
+    added = ["bare_call_median_ms", "glue_median_ms", "x_eaik_call"]
+    tail = [c for c in out.columns if c in (*SPREAD, "first_call_ms")]  # stay the last
+    return out[[c for c in out.columns if c not in added and c not in tail] + added + tail]
 
 
 def summarise(table: pd.DataFrame, batches: dict | None = None,
