@@ -204,3 +204,30 @@ def test_the_spread_and_first_call_columns_stay_the_last():
     assert list(out.columns) == ["method", "time_median_ms", "bare_call_median_ms",
                                  "glue_median_ms", "x_eaik_call", "runs",
                                  "time_median_ms_max", "first_call_ms"]
+
+
+@needs_erd
+@pytest.mark.parametrize("name", ["trac-ik", "ikpy"])
+def test_trac_ik_and_ikpy_bare_calls_answer_the_target(name):
+    from ikbench.methods.registry import solver_status
+
+    status = solver_status().get(name)
+    if status is None or not status.cls.available():
+        pytest.skip(f"{name} is not installed")
+    robot = load_robot("example-robot-data:ur5")
+    solver = status.cls(robot)
+    solver.prepare()
+    targets = sample_targets(robot, IKSettings(count=3, seed=2))
+    fk = robot.pinocchio_fk()
+    for k in range(3):
+        T = targets.T_target[k]
+        q_init = robot.to_urdf(targets.initials(k, 1)[0])
+        out = np.asarray(solver.bare_call(q_init, T[:3, 3], T[:3, :3])(), dtype=float)
+        q = out[1:] if name == "trac-ik" else out[solver.active]  # (status, q...) / all links
+        if name == "trac-ik" and out[0] < 0:
+            continue
+        assert q.shape == (robot.dof,)
+        if name == "ikpy":  # deterministic: the answer solve gives
+            np.testing.assert_array_equal(q, solver.solve(q_init, T[:3, 3], T[:3, :3]).q)
+        else:  # TRAC-IK's claimed success holds
+            assert np.linalg.norm(fk.placement(q).translation - T[:3, 3]) < 1e-4
