@@ -184,7 +184,12 @@ class EaikSolver(PoseSolver):
         self._kernels, self._dof = _kernel(), len(self.lower)
         # compile (or load numba's cache) here, untimed, for the arrays EAIK gives: its answer
         # to the end frame at the zero configuration
+        # to the end frame at the zero configuration, given as arrays and as views of a frame
+        # (the study passes T[:3, 3], T[:3, :3])
         self.solve(np.zeros(len(self.lower)), P.sum(axis=0), self.R_end0)
+        T0 = np.eye(4)
+        T0[:3, :3], T0[:3, 3] = self.R_end0, P.sum(axis=0)
+        self.solve(np.zeros(len(self.lower)), T0[:3, 3], T0[:3, :3])
 
     def _frame(self, point_m: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         """The target as EAIK takes it (see the module docstring), in the reused buffer."""

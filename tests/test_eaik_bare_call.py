@@ -231,3 +231,20 @@ def test_trac_ik_and_ikpy_bare_calls_answer_the_target(name):
             np.testing.assert_array_equal(q, solver.solve(q_init, T[:3, 3], T[:3, :3]).q)
         else:  # TRAC-IK's claimed success holds
             assert np.linalg.norm(fk.placement(q).translation - T[:3, 3]) < 1e-4
+
+
+@needs_erd
+def test_eaik_compiles_in_prepare_not_in_a_timed_call():
+    pytest.importorskip("eaik")
+    from ikbench.baselines.eaik_ik import EaikSolver
+
+    robot = load_robot("example-robot-data:ur5")
+    solver = EaikSolver(robot)
+    solver.prepare()
+    compiled = [list(kernel.signatures) for kernel in solver._kernels]
+    targets = sample_targets(robot, IKSettings(count=2, seed=1))
+    T = targets.T_target[1]  # as the study passes it: views of the frame, a row of starts
+    starts = np.ascontiguousarray(robot.to_urdf(targets.initials(1, 3)))
+    solver.solve_within(starts, T[:3, 3], T[:3, :3], 1.0)
+    solver.solve(starts[0], np.ascontiguousarray(T[:3, 3]), np.ascontiguousarray(T[:3, :3]))
+    assert [list(kernel.signatures) for kernel in solver._kernels] == compiled
