@@ -54,6 +54,7 @@ from __future__ import annotations
 import inspect
 import math
 import os
+import re
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
@@ -670,9 +671,10 @@ def bare_call_times(solver: PoseSolver, targets: Targets, count: int) -> dict[st
         except Exception:  # a failed call is not timed
             continue
         times.append(time.perf_counter() - t0)
-    doc = inspect.getdoc(type(solver).bare_call) or ""
+    doc = " ".join((inspect.getdoc(type(solver).bare_call) or "").split("\n\n")[0].split())
+    doc = re.sub(r"\s*\(see :meth:`[^`]*`\)", "", doc).replace("``", "`")  # markdown
     return {"bare_call_median_ms": 1000.0 * float(np.median(times)) if times else None,
-            "bare_call": " ".join(doc.split("\n\n")[0].split())}
+            "bare_call": doc}
 
 
 def _batch(solver: PoseSolver, targets: Targets, count: int, settings: IKSettings, rule: Rule
