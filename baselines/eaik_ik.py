@@ -24,6 +24,7 @@ gives the whole set within the limits. The library is imported inside functions 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -88,6 +89,71 @@ def in_limit_turns(Q: np.ndarray, lower: np.ndarray, upper: np.ndarray, near: np
     return moved, np.all(k_low <= k_high, axis=1)
 
 
+def _kernel():
+    """:func:`nearest_in_limits`'s compiled body (numba, cached; compiled on first use)."""
+    global _NEAREST
+    if _NEAREST is None:
+        from numba import njit
+
+        @njit(cache=True, nogil=True)
+        def nearest(Q, drop, lower, upper, near, tol, out):  # pragma: no cover - compiled
+            turn = 2 * math.pi
+            found = 0
+            best = math.inf
+            for s in range(Q.shape[0]):
+                if drop[s]:
+                    continue
+                inside = True
+                squares = 0.0
+                for j in range(Q.shape[1]):
+                    q = Q[s, j]
+                    k_low = np.ceil((lower[j] - tol - q) / turn)
+                    k_high = np.floor((upper[j] + tol - q) / turn)
+                    if not k_low <= k_high:
+                        inside = False
+                        break
+                    k = min(max(np.rint((near[j] - q) / turn), k_low), k_high)
+                    gap = q + turn * k - near[j]
+                    squares += gap * gap
+                if not inside:
+                    continue
+                found += 1
+                distance = math.sqrt(squares)
+                if distance < best:  # the first of equals, as argmin
+                    best = distance
+                    for j in range(Q.shape[1]):
+                        q = Q[s, j]
+                        k_low = np.ceil((lower[j] - tol - q) / turn)
+                        k_high = np.floor((upper[j] + tol - q) / turn)
+                        out[j] = q + turn * min(max(np.rint((near[j] - q) / turn), k_low),
+                                                k_high)
+            return found
+
+        @njit(cache=True, nogil=True)
+        def frame(T, rotation, R_end0, point_m):  # pragma: no cover - compiled
+            for i in range(3):
+                for j in range(3):
+                    T[i, j] = (rotation[i, 0] * R_end0[j, 0] + rotation[i, 1] * R_end0[j, 1]
+                               + rotation[i, 2] * R_end0[j, 2])
+                T[i, 3] = point_m[i]
+
+        _NEAREST = nearest, frame
+    return _NEAREST
+
+
+_NEAREST = None
+
+
+def nearest_in_limits(Q: np.ndarray, drop: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                      near: np.ndarray, out: np.ndarray, tol: float = 1e-9) -> int:
+    """The answer of :meth:`EaikSolver.solve` without an array per call: of the solutions
+    ``Q`` (S, dof) [rad] not marked in ``drop`` (S,) (bool), each revolute joint at its value
+    within the limits nearest ``near`` (dof,) (exactly :func:`in_limit_turns`), the one
+    nearest ``near`` (norm over the joints; the first of equals) is written into ``out``
+    (dof,); returns how many lie within the limits (0: ``out`` untouched)."""
+    return int(_kernel()[0](Q, drop, lower, upper, near, tol, out))
+
+
 class EaikSolver(PoseSolver):
     """``ikbench ik``: EAIK's analytic IK, the branch nearest the initial configuration (see
     the module docstring)."""
@@ -114,15 +180,27 @@ class EaikSolver(PoseSolver):
                              f"({self.eaik.getKinematicFamily()}); 7-DoF arms need a joint "
                              "locked")
         self.lower, self.upper = self.chain.lower, self.chain.upper
+        self._T = np.eye(4)  # the frame EAIK is given, reused by every call
+        self._kernels, self._dof = _kernel(), len(self.lower)
+        # compile (or load numba's cache) here, untimed, for the arrays EAIK gives: its answer
+        # to the end frame at the zero configuration
+        # to the end frame at the zero configuration, given as arrays and as views of a frame
+        # (the study passes T[:3, 3], T[:3, :3])
+        self.solve(np.zeros(len(self.lower)), P.sum(axis=0), self.R_end0)
+        T0 = np.eye(4)
+        T0[:3, :3], T0[:3, 3] = self.R_end0, P.sum(axis=0)
+        self.solve(np.zeros(len(self.lower)), T0[:3, 3], T0[:3, :3])
+
+    def _frame(self, point_m: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+        """The target as EAIK takes it (see the module docstring), in the reused buffer."""
+        _kernel()[1](self._T, rotation, self.R_end0, point_m)  # R R_end0^T, the point
+        return self._T
 
     def solutions(self, point_m: np.ndarray, rotation: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
         """EAIK's answers to one frame, as EAIK gives them (in (-pi, pi]): the exact ones
         (S, dof) [rad] and the least-squares ones (``is_LS``: the frame is not reached)."""
-        T = np.eye(4)
-        T[:3, :3] = rotation @ self.R_end0.T
-        T[:3, 3] = point_m
-        solution = self.eaik.IK(T)
+        solution = self.eaik.IK(self._frame(point_m, rotation))
         Q = np.asarray(solution.Q, dtype=float).reshape(-1, len(self.lower))
         ls = np.asarray(solution.is_LS, dtype=bool) if len(Q) else np.zeros(0, dtype=bool)
         return Q[~ls], Q[ls]
@@ -143,11 +221,27 @@ class EaikSolver(PoseSolver):
         return moved[inside]
 
     def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
-        found = self.branches(point_m, rotation, q_init)
-        if not len(found):  # unreachable, or only outside the limits: EAIK says no
+        """The branch within the limits nearest ``q_init``: what :meth:`branches` and an
+        argmin give, in one compiled pass (:func:`nearest_in_limits`)."""
+        nearest, frame = self._kernels  # the compiled functions, no lookup per call
+        frame(self._T, rotation, self.R_end0, point_m)
+        solution = self.eaik.IK(self._T)
+        Q, q = solution.Q, np.empty(self._dof)
+        found = 0
+        if Q.size:  # writeable copies: numba takes EAIK's read-only views more slowly
+            found = nearest(Q.reshape(-1, self._dof).copy(),
+                            np.array(solution.is_LS, dtype=bool), self.lower, self.upper,
+                            np.asarray(q_init, dtype=float), 1e-9, q)
+        if not found:  # unreachable, or only outside the limits: EAIK says no
             return PoseOut(np.asarray(q_init, dtype=float), 0, False)
-        nearest = found[np.argmin(np.linalg.norm(found - q_init, axis=1))]
-        return PoseOut(nearest, len(found), True)
+        return PoseOut(q, found, True)
+
+    def bare_call(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray
+                  ) -> Callable[[], object]:
+        """EAIK's own ``IK(T)`` on the frame converted in advance (see
+        :meth:`PoseSolver.bare_call`)."""
+        T, ik = self._frame(point_m, rotation).copy(), self.eaik.IK
+        return lambda: ik(T)
 
     def solve_within(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
                      budget_s: float) -> PoseOut:

@@ -341,6 +341,24 @@ class IkpySolver(PoseSolver):
                 target=frame, initial_position=start, **kwargs), dtype=float)
         return PoseOut(full[self.active], 1, None)
 
+    def bare_call(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray):
+        """The bare ``chain.inverse_kinematics_frame(target, initial_position, ...)`` of
+        :meth:`solve` (inside its warnings filter), frame and start built in advance (see
+        :meth:`PoseSolver.bare_call`)."""
+        frame = np.eye(4)
+        frame[:3, :3], frame[:3, 3] = rotation, point_m
+        start = np.zeros(len(self.ik_chain.links))
+        start[self.active] = np.clip(q_init, self.chain.lower + self.INSIDE,
+                                     self.chain.upper - self.INSIDE)
+        kwargs = {"orientation_mode": "all"} if self.kind == "pose" else {}
+        ik = self.ik_chain.inverse_kinematics_frame
+
+        def call():
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                return ik(target=frame, initial_position=start, **kwargs)
+        return call
+
 
 #: What this library brings (found by :mod:`ikbench.methods.registry`).
 ADAPTER = Adapter(library="ikpy", requires=("ikpy",),

@@ -57,6 +57,7 @@ import gc
 import io
 import warnings
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -191,6 +192,14 @@ class RtbLMSolver(PoseSolver):
         out = self.ik(goal_frame(point_m, rotation), q0=q_init, ilimit=ILIMIT, slimit=1,
                       tol=TOL, mask=self.mask, joint_limits=True)
         return PoseOut(np.asarray(out.q, dtype=float), int(out.iterations), bool(out.success))
+
+    def bare_call(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray
+                  ) -> Callable[[], object]:
+        """The bare ``ets.ik_LM(Tep, q0=..., ...)`` (``ik_NR`` for rtb-nr) of :meth:`solve`,
+        its goal frame built in advance (see :meth:`PoseSolver.bare_call`)."""
+        ik, Tep, q0, mask = self.ik, goal_frame(point_m, rotation), q_init, self.mask
+        return lambda: ik(Tep, q0=q0, ilimit=ILIMIT, slimit=1, tol=TOL, mask=mask,
+                          joint_limits=True)
 
 
 class RtbNRSolver(RtbLMSolver):

@@ -50,6 +50,7 @@ ends, so identical inputs can give slightly different joints (about 1 solve in 2
 from __future__ import annotations
 
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -245,6 +246,18 @@ class TracIKSolver(PoseSolver):
                           *quaternion_xyzw(rotation))
         ok = out[0] >= 0
         return PoseOut(np.asarray(out[1:], dtype=float) if ok else np.asarray(q_init), 1, ok)
+
+    def bare_call(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray
+                  ) -> Callable[[], object]:
+        """The bare ``pytracik.ik(solver, seed, x, y, z, qx, qy, qz, qw)`` of :meth:`solve`, its
+        arguments converted in advance (see :meth:`PoseSolver.bare_call`)."""
+        import pytracik
+
+        ik, solver = pytracik.ik, self.solver
+        seed = np.ascontiguousarray(q_init, dtype=float)
+        x, y, z = (float(v) for v in point_m)
+        quaternion = tuple(float(v) for v in quaternion_xyzw(rotation))
+        return lambda: ik(solver, seed, x, y, z, *quaternion)
 
     def solve_within(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
                      budget_s: float) -> PoseOut:

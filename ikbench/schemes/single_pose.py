@@ -145,6 +145,16 @@ class PoseSolver(abc.ABC):
     def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         """One descent from ``q_init`` (dof,) toward the point [m] and rotation (3, 3)."""
 
+    def bare_call(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray
+                  ) -> Callable[[], object] | None:
+        """The library's own call alone, for measuring the glue an adapter adds: a
+        zero-argument function that makes ONLY the library's call :meth:`solve` makes for
+        ``q_init`` (dof,), the point [m] and the rotation (3, 3), on inputs converted in
+        advance (no conversion, branch choice or answer building inside it); what it returns
+        is the library's, unused. None (the default): the call cannot be isolated, not
+        measured (:func:`ikbench.studies.ik.bare_call_times`)."""
+        return None
+
     def solve_within(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
                      budget_s: float) -> PoseOut:  # pragma: no cover - interface
         """``restarts_itself`` only: from ``initials`` (A, dof), in order, until the answer

@@ -52,8 +52,10 @@ header states it):
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
+import re
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
@@ -535,6 +537,7 @@ def run(spec: IKSpec) -> IKResult:
     frames, info = [], {}
     batches: dict[str, dict[str, dict[str, float]]] = {}
     solvers: dict[str, Any] = {}
+    bare: dict[str, dict[str, Any]] = {}
     for rule in settings.attempts:
         batches[str(rule)] = {}
         runs = rule_runs(rule, settings)
@@ -565,6 +568,8 @@ def run(spec: IKSpec) -> IKResult:
                 done = frames[-1]
                 say(f"{label}: {name}: {int(done['success'].sum())}/{count} succeeded, "
                     f"{np.nansum(done['time_s']):.1f} s")
+                if name not in bare and not isinstance(solver, str):  # after its timed run
+                    bare[name] = bare_call_times(solver, targets, count)
     if settings.first_call:  # after the timed runs: numba's cache as they left it
         rule = settings.attempts[0]
         for name in names:
@@ -575,6 +580,8 @@ def run(spec: IKSpec) -> IKResult:
                 robot, name, settings.kind, (settings.tolerance_mm, settings.tolerance_deg),
                 rule_budget_s(rule, settings, solvers[name].deterministic), targets.T_target[0],
                 targets.initials(0, rule_rows(rule)))
+    for name, facts in bare.items():
+        info[name].update(facts)
     table = pd.concat(frames, ignore_index=True)
     table = table[COLUMNS + [c for c in table.columns if c not in COLUMNS]]
     return IKResult(robot, settings, targets, table, info, time.perf_counter() - started, load,
@@ -639,6 +646,37 @@ def _solve_calls(solver: PoseSolver, targets: Targets, count: int, settings: IKS
             last = time.perf_counter()
             say(f"attempts {rule}: {solver.name}: {k + 1}/{count} solved")
     return _Outcome(out_q, times, iterations, attempts, library_ok, failures)
+
+
+def bare_call_times(solver: PoseSolver, targets: Targets, count: int) -> dict[str, Any]:
+    """The library's own call alone (:meth:`PoseSolver.bare_call`) on the first ``count``
+    targets (the reachable ones, as the tables), each from its row 0 converted in advance,
+    one call each timed by ``time.perf_counter`` as the study times a solve:
+    ``bare_call_median_ms`` (None where the method has no bare call or every call raised) and
+    ``bare_call``, what the call is (its docstring's first paragraph). The glue an adapter
+    adds is its per-call median minus this (:func:`ikbench.render.ik_report.with_bare_calls`).
+    """
+    robot, times = solver.robot, []
+    for k in range(count):
+        if targets.reachable is not None and not targets.reachable[k]:
+            continue
+        q0 = targets.initials(k, 1)[0]
+        start = np.ascontiguousarray(q0 if solver.pose_units else robot.to_urdf(q0))
+        T = targets.T_target[k]
+        call = solver.bare_call(start, np.ascontiguousarray(T[:3, 3]),
+                                np.ascontiguousarray(T[:3, :3]))
+        if call is None:
+            return {"bare_call_median_ms": None, "bare_call": None}
+        t0 = time.perf_counter()
+        try:
+            call()
+        except Exception:  # a failed call is not timed
+            continue
+        times.append(time.perf_counter() - t0)
+    doc = " ".join((inspect.getdoc(type(solver).bare_call) or "").split("\n\n")[0].split())
+    doc = re.sub(r"\s*\(see :meth:`[^`]*`\)", "", doc).replace("``", "`")  # markdown
+    return {"bare_call_median_ms": 1000.0 * float(np.median(times)) if times else None,
+            "bare_call": doc}
 
 
 def _batch(solver: PoseSolver, targets: Targets, count: int, settings: IKSettings, rule: Rule

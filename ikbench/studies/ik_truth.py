@@ -10,7 +10,9 @@ continuous. A successful answer that lies on one of the branches (within
 ``on_nearest_branch`` (it is the configuration nearest the initial one: the same branch a
 whole turn away is not) and
 ``branch_excess_deg``: its joint distance from the initial configuration minus that nearest
-branch's [deg, the Euclidean norm over the joints in pose units], 0 when it is on it.
+branch's [deg, the Euclidean norm over the joints in pose units], 0 when it is on it. A
+success on none of the branches has NaN in both; the report's share on the nearest branch is
+of all the method's successes, such a one counted as not on it.
 
 **Stress** (:func:`stress`): how near a singularity and a joint limit each target's
 configuration is. **Unreachable targets** (:func:`unreachable_mix`): frames beyond a reach
