@@ -48,3 +48,17 @@ def test_solve_pose_names_bad_input(panda):
         ikbench.solve_pose(panda, T, np.zeros(panda.dof + 1))
     with pytest.raises(InputError, match="kind"):
         ikbench.solve_pose(panda, T, np.zeros(panda.dof), kind="twist")
+
+
+def test_solve_pose_keeps_one_solver_per_tolerance(panda):
+    """Another tolerance is another solver (its scale and success test), an array of the same
+    tolerance finds the tuple's; the answer from its own pose is the pose either way."""
+    from ikbench.methods.ours_lm import api
+
+    goal = np.clip(np.zeros(panda.dof), panda.sample_lower, panda.sample_upper)
+    T = panda.fk_transform(goal[None])[0]
+    for tolerance in ((1.0, 0.5), np.array([1.0, 0.5]), (2.0, 1.0), [2.0, 1.0]):
+        q, ok = ikbench.solve_pose(panda, T, goal, tolerance=tolerance)
+        assert ok
+        np.testing.assert_allclose(q, goal, atol=1e-9)
+    assert set(api._SOLVERS[panda]) == {("pose", (1.0, 0.5)), ("pose", (2.0, 1.0))}
