@@ -89,7 +89,7 @@ def _solver(robot: Robot, kind: str, tolerance: tuple[float, float]) -> Any:
     return solver
 
 
-def _build(robot: Robot, kind: str, tolerance: tuple[float, float]) -> Any:
+def _build(robot: Robot, kind: str, tolerance: tuple[float, ...]) -> Any:
     """A prepared :class:`.pose_solver.OursLMSolver` (bad settings: InputError)."""
     from ikbench.methods.ours_lm.pose_solver import OursLMSolver
 
