@@ -10,6 +10,7 @@ The public API, in a few names::
     metrics = ikbench.trajectory_metrics(robot, tasks[0], solution.poses)
     table = ikbench.run("ours-lm", robot=robot, output=None)   # a pandas DataFrame
     advice = ikbench.recommend(robot, budget_ms=1.0, minutes=2)  # which IK solver, and why
+    q, ok = ikbench.solve_pose(robot, T, q0)    # ours-lm's IK of a frame T (4, 4) [m] from q0
 
 Poses are in the robot's units (motor degrees for NICO; joint degrees, mm for prismatic
 joints, otherwise), reports in millimetres and degrees. Names are imported on first use, so
@@ -47,12 +48,13 @@ _EXPORTS = {
     "get_method": "ikbench.methods.registry", "available_methods": "ikbench.methods.registry",
     "method_status": "ikbench.methods.registry",
     "run": "ikbench.studies.run",
+    "solve_pose": "ikbench.methods.ours_lm.api",
     "recommend": "ikbench.studies.recommend", "Recommendation": "ikbench.studies.recommend",
 }
 __all__ = ["IkbenchError", "InputError", "Method", "Recommendation", "Robot", "Solution",
            "SolverError", "Targets", "Task", "available_methods", "build_tasks", "get_method",
            "line_task", "line_tasks", "load_robot", "load_targets", "method_status", "option",
-           "recommend", "run", "shape_metrics", "trajectory_metrics"]
+           "recommend", "run", "shape_metrics", "solve_pose", "trajectory_metrics"]
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from ikbench.core.errors import IkbenchError, InputError, SolverError
@@ -62,6 +64,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from ikbench.core.task import Task, build_tasks, line_task, line_tasks
     from ikbench.methods.base import Method, Solution
     from ikbench.methods.options import option
+    from ikbench.methods.ours_lm.api import solve_pose
     from ikbench.methods.registry import available_methods, get_method, method_status
     from ikbench.studies.recommend import Recommendation, recommend
     from ikbench.studies.run import run

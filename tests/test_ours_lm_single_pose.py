@@ -364,3 +364,30 @@ def test_the_crawl_setting_is_checked(panda):
         SinglePoseLM(panda, crawl=(10, 0.5))
     with pytest.raises(InputError, match="crawl"):
         SinglePoseLM(panda, crawl=(2.5, 0.5, 1.0))
+
+
+@pytest.mark.skipif(robots_folder("example-robot-data") is None,
+                    reason="example-robot-data is not installed")
+def test_the_batch_runs_the_per_call_solver_under_a_fixed_count_rule():
+    """Under ``--attempts 8`` with no clock (the deterministic table) the batched throughput
+    runs the per-call solver with its settings (the crawl kick included): per target the same
+    success, answer and attempts as :meth:`OursLMSolver.solve_within`, on UR10 targets of
+    seed 1 that include the stretched-elbow saddle (target 62) the budgeted solver misses."""
+    from ikbench.methods.ours_lm.pose_solver import OursLMSolver
+    from ikbench.studies.ik import IKSettings, sample_targets
+
+    ur10 = load_robot("example-robot-data:ur10")
+    targets = sample_targets(ur10, IKSettings(count=63, seed=1))
+    picked = list(range(52, 63))
+    T = targets.T_target[picked]
+    initials = np.stack([targets.initials(t, 8) for t in picked])
+    solver = OursLMSolver(ur10, "pose", (1.0, 0.5))
+    solver.prepare()
+    one = [solver.solve_within(initials[b], T[b][:3, 3], T[b][:3, :3], float("inf"))
+           for b in range(len(picked))]
+    for threads in (1, 2):
+        batch = solver.solve_batch(initials, np.ascontiguousarray(T[:, :3, 3]),
+                                   np.ascontiguousarray(T[:, :3, :3]), float("inf"), threads)
+        np.testing.assert_array_equal(batch.q, np.stack([o.q for o in one]))
+        assert list(batch.attempts) == [o.attempts for o in one]
+    assert one[-1].ok  # target 62: solved by the kick, in both

@@ -116,12 +116,13 @@ class OursLMSolver(PoseSolver):
         if compiled is not None:
             # One compiled call does the rest (the goal to [mm], its copies, the checks, the
             # restarts): no Python copies or checks per call.
+            # _solver_for inlined (a Python call less: ~0.08 us of an empty call)
             rows = len(initials)
             if rows == 1:
                 solver = self.descent
-            elif budget_s < math.inf:  # the budgeted protocol: its tuned restarts
+            elif budget_s < math.inf:
                 solver = compiled
-            else:  # K rows, no clock: each a descent of MAX_STEPS, as the other methods'
+            else:
                 solver = self.rows.get(rows) or self._rows_solver(rows)
             if rotation is None:  # kind "position": the rotation is not read
                 rotation = self._identity
@@ -147,6 +148,18 @@ class OursLMSolver(PoseSolver):
                 break
         return PoseOut(out.poses[0], iterations, bool(out.converged[0]), a + 1)
 
+    def _solver_for(self, rows: int, budget_s: float) -> Any:
+        """The compiled solver of ``rows`` starts within ``budget_s`` [s]: one descent for one
+        row, the tuned restarts under a budget, else the fixed-count rule's
+        (:meth:`_rows_solver`). :meth:`solve_within` and :meth:`solve_batch` both ask here, so
+        the batched column runs the per-call table's solver and settings."""
+        if rows == 1:
+            return self.descent
+        if budget_s < math.inf:  # the budgeted protocol: its tuned restarts
+            return self.compiled
+        # K rows, no clock: each a descent of MAX_STEPS, as the other methods'
+        return self.rows.get(rows) or self._rows_solver(rows)
+
     def _rows_solver(self, rows: int) -> Any:
         """The compiled solver of a fixed count of rows without a budget (the deterministic
         table): an attempt gives way after :data:`MAX_STEPS` iterations without success, no
@@ -164,11 +177,12 @@ class OursLMSolver(PoseSolver):
     def solve_batch(self, initials: np.ndarray, points_m: np.ndarray, rotations: np.ndarray,
                     budget_s: float, threads: int | None = None) -> BatchOut:
         """Every target in one call: compiled over ``threads`` numba threads, each target with
-        its own budget, or (numpy) one batch without a deadline on one thread."""
+        its own budget and the solver :meth:`solve_within` runs for the same rows and budget
+        (:meth:`_solver_for`: under a fixed count of rows the crawl kick too, so each target's
+        answer is the per-call one), or (numpy) one batch without a deadline on one thread."""
         points_mm = np.asarray(points_m, dtype=float) * 1000.0
-        compiled, descent = self.compiled, self.descent
-        if compiled is not None:
-            solver = descent if initials.shape[1] == 1 and descent is not None else compiled
+        if self.compiled is not None:
+            solver = self._solver_for(initials.shape[1], budget_s)
             out = solver.solve_batch(points_mm, rotations, initials, budget_s, threads)
             count = max(1, min(threads or numba_threads(), numba_threads(), len(points_mm)))
             return BatchOut(out.poses, out.attempts, count)

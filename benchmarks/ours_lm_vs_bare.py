@@ -1,0 +1,225 @@
+"""ours-lm's per-call time against the libraries' bare calls, in one process, interleaved.
+
+Per robot (``--robot``): ``--count`` targets of ``ikbench ik``'s sampler
+(:func:`ikbench.studies.ik.sample_targets`, ``--seed``: by default 101, disjoint from the
+benchmark seeds 1 and 4, which are refused), each with its first initial configuration. Three
+calls per target, every input prepared before the clock:
+
+- ``ours-lm``: ``ikbench ik``'s adapter call,
+  :meth:`ikbench.methods.ours_lm.pose_solver.OursLMSolver.solve_within` of the one row, no
+  budget (one descent of at most 100 LM iterations, the goal's columns as they come);
+- ``eaik``: EAIK's bare ``HPRobot.IK(T)`` (all branches, closed form), the robot built as
+  ``baselines/eaik_ik.py`` builds it (:func:`baselines.eaik_ik.chain_axes`; the goal
+  rotation times the end frame's zero rotation transposed, computed before the clock); none
+  of the adapter's branch selection. Skipped (with a line) where EAIK has no decomposition;
+- ``rtb-lm``: roboticstoolbox's bare ``ets.ik_LM(Tep, q0=..., ilimit=30, slimit=1, tol=TOL,
+  joint_limits=True)`` on the ETS ``baselines/rtb.py`` builds (:func:`baselines.rtb.rtb_ets`),
+  from the same start in [rad].
+
+Each call is timed alone by ``time.perf_counter`` (garbage collection off), interleaved per
+target (the three calls of a target one after the other, their order rotated from target to
+target), ``--repeat`` rounds. Per method and target the median over rounds; per method the
+median over targets; the ratio of ours-lm's median to each other's with a paired bootstrap
+95 % interval over targets (``scipy.stats.bootstrap``, percentile, 5,000 resamples, seeded).
+Success is judged here (Pinocchio FK within 1 mm / 0.5 deg; EAIK: any exact branch). The load
+average is recorded before and after.
+
+Run: ``.venv/bin/python benchmarks/ours_lm_vs_bare.py [--robot example-robot-data:ur5]
+[--count 100] [--seed 101] [--repeat 5] [--output runs/ours_lm_vs_bare_ur5.csv]``; writes one
+row per method with the medians, ratios, intervals, success and load (and the per-call
+times beside it, ``*_calls.csv``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from ikbench import load_robot
+from ikbench.core.errors import InputError
+from ikbench.core.rotations import geodesic_angle
+from ikbench.methods.ours_lm.pose_solver import OursLMSolver
+from ikbench.studies.ik import IKSettings, sample_targets
+
+#: The benchmarks' own seeds (``ikbench ik``, the committed tables): never used here.
+BENCHMARK_SEEDS = (1, 4)
+TOLERANCE_MM, TOLERANCE_DEG = 1.0, 0.5
+
+
+def _callers(robot, targets) -> dict:
+    """method -> (call(i), answer(i) -> list of (dof,) [rad] answers of the last call)."""
+    count = len(targets.T_target)
+    T = targets.T_target
+    starts = [np.ascontiguousarray(targets.initials(i, 1)) for i in range(count)]
+    ours = OursLMSolver(robot, "pose", (TOLERANCE_MM, TOLERANCE_DEG))
+    ours.prepare()
+    points = [T[i][:3, 3] for i in range(count)]
+    rotations = [T[i][:3, :3] for i in range(count)]
+    last: dict[str, object] = {}
+    inf = math.inf
+
+    def ours_call(i: int) -> None:
+        last["ours-lm"] = ours.solve_within(starts[i], points[i], rotations[i], inf)
+
+    callers = {"ours-lm": (ours_call, lambda: [robot.to_urdf(last["ours-lm"].q)])}
+    try:
+        from eaik.IK_HP import HPRobot
+
+        from baselines.eaik_ik import chain_axes
+
+        fk = robot.pinocchio_fk()
+        H, P, R_end0 = chain_axes(fk.model, fk.model.createData(), fk.frame_id)
+        hp = HPRobot(H, P)
+        if not hp.hasKnownDecomposition():
+            raise ValueError(f"EAIK knows no decomposition ({hp.getKinematicFamily()})")
+        goals = []
+        for i in range(count):
+            G = np.eye(4)
+            G[:3, :3], G[:3, 3] = T[i][:3, :3] @ R_end0.T, T[i][:3, 3]
+            goals.append(G)
+
+        def eaik_call(i: int) -> None:
+            last["eaik"] = hp.IK(goals[i])
+
+        def eaik_answers() -> list:
+            solution = last["eaik"]
+            Q = np.asarray(solution.Q, dtype=float).reshape(-1, robot.dof)
+            ls = np.asarray(solution.is_LS, dtype=bool) if len(Q) else np.zeros(0, bool)
+            return list(Q[~ls])
+
+        callers["eaik"] = (eaik_call, eaik_answers)
+    except (ImportError, ValueError, RuntimeError) as exc:
+        print(f"eaik skipped: {exc}", file=sys.stderr)
+    from baselines.rtb import ILIMIT, TOL, goal_frame, rtb_ets
+    from ikbench.schemes.chain import chain_of
+
+    ets = rtb_ets(chain_of(robot))
+    teps = [goal_frame(T[i][:3, 3], T[i][:3, :3]) for i in range(count)]
+    q0s = [np.ascontiguousarray(robot.to_urdf(starts[i][0]), dtype=float) for i in range(count)]
+    ik_lm = ets.ik_LM
+
+    def rtb_call(i: int) -> None:
+        last["rtb-lm"] = ik_lm(teps[i], q0=q0s[i], ilimit=ILIMIT, slimit=1, tol=TOL,
+                               joint_limits=True)
+
+    callers["rtb-lm"] = (rtb_call, lambda: [np.asarray(last["rtb-lm"].q, dtype=float)])
+    return callers
+
+
+def _judged(robot, answers: list, T: np.ndarray) -> bool:
+    """Any answer [rad] within the tolerances (Pinocchio FK) and the joint limits."""
+    for q_urdf in answers:
+        q = robot.from_urdf(np.asarray(q_urdf, dtype=float))
+        if not np.all((q >= robot.lower - 1e-9) & (q <= robot.upper + 1e-9)):
+            continue
+        got = robot.fk_transform(q[None])[0]
+        if (np.linalg.norm(got[:3, 3] - T[:3, 3]) * 1000.0 <= TOLERANCE_MM and np.degrees(
+                geodesic_angle(T[None, :3, :3], got[None, :3, :3]))[0] <= TOLERANCE_DEG):
+            return True
+    return False
+
+
+def _ratio_interval(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
+    """median(a) / median(b) and its paired bootstrap 95 % interval over targets."""
+    def statistic(x, y, axis=-1):
+        return np.median(x, axis=axis) / np.median(y, axis=axis)
+
+    result = stats.bootstrap((a, b), statistic, paired=True, vectorized=True,
+                             n_resamples=5000, confidence_level=0.95, method="percentile",
+                             random_state=np.random.default_rng(0))
+    ci = result.confidence_interval
+    return float(statistic(a, b)), float(ci.low), float(ci.high)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--robot", default="example-robot-data:ur5")
+    parser.add_argument("--count", type=int, default=100)
+    parser.add_argument("--seed", type=int, default=101)
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--output", type=Path, default=Path("runs/ours_lm_vs_bare.csv"))
+    args = parser.parse_args(argv)
+    try:
+        if args.seed in BENCHMARK_SEEDS:
+            raise InputError(f"--seed: {args.seed} is a benchmark seed {BENCHMARK_SEEDS}; "
+                             "take a disjoint one (default 101)")
+        if args.count < 2 or args.repeat < 1:
+            raise InputError(f"--count {args.count} / --repeat {args.repeat}: need >= 2 / >= 1")
+        robot = load_robot(args.robot)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    targets = sample_targets(robot, IKSettings(count=args.count, seed=args.seed))
+    callers = _callers(robot, targets)
+    names = list(callers)
+    times = {name: np.zeros((args.count, args.repeat)) for name in names}
+    success = {name: np.zeros(args.count, dtype=bool) for name in names}
+    for i in range(min(20, args.count)):  # warm: caches, branch predictors, lazy imports
+        for call, _ in callers.values():
+            call(i)
+    load_before = os.getloadavg()
+    clock = time.perf_counter
+    gc.disable()
+    try:
+        for r in range(args.repeat):
+            for i in range(args.count):
+                shift = (i + r) % len(names)
+                for name in names[shift:] + names[:shift]:
+                    call, answers = callers[name]
+                    start = clock()
+                    call(i)
+                    times[name][i, r] = clock() - start
+                    if r == 0:
+                        gc.enable()
+                        success[name][i] = _judged(robot, answers(), targets.T_target[i])
+                        gc.disable()
+    finally:
+        gc.enable()
+    load_after = os.getloadavg()
+    per_target = {name: np.median(times[name], axis=1) * 1e6 for name in names}
+    rows = []
+    for name in names:
+        row = {"robot": args.robot, "method": name, "count": args.count, "seed": args.seed,
+               "repeat": args.repeat, "median_us": float(np.median(per_target[name])),
+               "success_pct": 100.0 * success[name].mean(),
+               "load_before": load_before[0], "load_after": load_after[0]}
+        for other in names:
+            if other != "ours-lm" and name == "ours-lm":
+                ratio, low, high = _ratio_interval(per_target["ours-lm"], per_target[other])
+                row[f"ratio_to_{other}"] = ratio
+                row[f"ratio_to_{other}_ci95_low"], row[f"ratio_to_{other}_ci95_high"] = low, high
+        rows.append(row)
+    table = pd.DataFrame(rows)
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    table.to_csv(args.output, index=False)
+    calls = pd.DataFrame([{"method": name, "target": i, "round": r,
+                           "time_us": times[name][i, r] * 1e6}
+                          for name in names for i in range(args.count)
+                          for r in range(args.repeat)])
+    calls.to_csv(args.output.with_name(args.output.stem + "_calls.csv"), index=False)
+    print(f"{args.robot}: {args.count} targets (seed {args.seed}) x {args.repeat} rounds, "
+          f"load {load_before[0]:.2f} -> {load_after[0]:.2f}")
+    for row in rows:
+        line = f"  {row['method']:8s} median {row['median_us']:8.2f} us  success " \
+               f"{row['success_pct']:5.1f} %"
+        for other in names:
+            key = f"ratio_to_{other}"
+            if key in row:
+                line += (f"  / {other} {row[key]:.3f} [{row[key + '_ci95_low']:.3f}, "
+                         f"{row[key + '_ci95_high']:.3f}]")
+        print(line)
+    print(f"written to {args.output}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
