@@ -16,20 +16,11 @@ def clean(monkeypatch):
     monkeypatch.setattr(regen, "render_files", lambda paths, root: [])
 
 
-#: results/ folders made by a script of the repository from a clean tree but not yet a plan
-#: entry: an edit of the plan makes every committed result stale, so each joins the plan at
-#: the next full regeneration (tests/test_result_provenance.py checks their records).
-PENDING_PLAN_ENTRY = {"experiment": "examples/pointing_study.py --output results/experiment"}
-
-
 def test_every_committed_results_folder_has_a_study():
     """Each folder and file of results/ (but the record itself) is written by a study."""
     written = {w.split("/")[0] for s in regen.STUDIES for w in s.writes}
     here = {p.name for p in (regen.REPO / "results").iterdir()} - {regen.RECORD}
-    assert here - set(PENDING_PLAN_ENTRY) <= written, sorted(here - written)
-    assert not set(PENDING_PLAN_ENTRY) & written, "in the plan now: take it off the pending list"
-    for name, command in PENDING_PLAN_ENTRY.items():
-        assert (regen.REPO / command.split()[0]).is_file() and f"results/{name}" in command
+    assert here <= written, sorted(here - written)
 
 
 def test_the_plan_runs_each_study_once_and_resumes(tmp_path, clean):

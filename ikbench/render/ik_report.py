@@ -154,6 +154,13 @@ def _load(record: dict) -> str:
                                   for k in ("start", "end")) + " at the end"
 
 
+def _cell(text: str, limit: int = 160) -> str:
+    """Text for one markdown table cell: on one line, ``|`` escaped, at most ``limit``
+    characters."""
+    text = " ".join(str(text).split()).replace("|", "\\|")
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
 def _fmt(value, digits: int = 3) -> str:
     if value is None or (isinstance(value, float) and not np.isfinite(value)):
         return "-"
@@ -293,6 +300,10 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
             if str(rule) == "1" and not facts["one_descent"]:
                 notes.append("its own restarts within the budget: not one descent")
             note = f" ({'; '.join(notes)})" if notes else ""
+            if getattr(row, "cannot_run", ""):  # no call ran: no rate, no times
+                lines.append(f"| {row.method}{note} | {library} | {row.targets} | cannot run: "
+                             f"{_cell(row.cannot_run)} |" + " - |" * 14)
+                continue
             batch = "-"
             if np.isfinite(row.batched_per_s):
                 batch = (f"{row.batched_per_s:,.0f} ({row.batched_threads:.0f} threads, "
@@ -414,6 +425,9 @@ def ground_truth_section(result: StudyResult, summary: pd.DataFrame) -> list[str
         lines += [f"### {rule_title(str(rule), result.auto_rows, runs)}", "",
                   "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for row in table.itertuples(index=False):
+            if getattr(row, "cannot_run", ""):
+                lines.append(f"| {row.method} | cannot run |" + " - |" * (len(head) - 2))
+                continue
             cells = ([row.method, "no claims", "no claims"] if not row.claims else
                      [row.method, f"{row.claimed_rejected} of {row.claims}",
                       f"{row.denied_holding} of {row.claims}"])
@@ -501,10 +515,19 @@ def _figures(result: StudyResult, tmp: Path) -> None:
     table, s = result.table, result.settings
     rules = list(dict.fromkeys(table["attempts_rule"]))
     colors = method_colors(table)
+    # a method no call of which ran has no curve: the legend says it cannot run
+    unable = [m for m, g in table.groupby("method", sort=False) if cannot_run(g)]
+
+    def say_unable(ax) -> None:
+        for method in unable:
+            ax.plot([], [], ls="none", label=f"{method}: cannot run")
+
     fig, axes = plt.subplots(len(rules), 1, figsize=(8.5, 3.6 * len(rules)), squeeze=False)
     for ax, rule in zip(axes[:, 0], rules):
         part = table[table["attempts_rule"] == rule]
         for method, g in part.groupby("method", sort=False):
+            if method in unable:
+                continue
             times = np.sort(g["time_s"].dropna().to_numpy() * 1000.0)
             if len(times):
                 ax.step(times, np.arange(1, len(times) + 1) / len(times) * 100.0, where="post",
@@ -512,6 +535,7 @@ def _figures(result: StudyResult, tmp: Path) -> None:
         if np.isfinite(s.budget_ms):
             ax.axvline(s.budget_ms, color="k", ls=":", lw=1, label="budget")
         ax.set_xscale("log")
+        say_unable(ax)
         ax.set_xlabel("time per call [ms] (log), all attempts included")
         ax.set_ylabel("calls done within [%]")
         ax.set_title(f"{result.robot.name}: --attempts {rule}, {s.count} targets ({s.kind}, "
@@ -525,7 +549,9 @@ def _figures(result: StudyResult, tmp: Path) -> None:
     for ax, rule in zip(axes[:, 0], rules):
         curve = success_curve(table[table["attempts_rule"] == rule], s.kind, ratio, CURVE_MM)
         for method in curve.columns:
-            ax.plot(curve.index, curve[method], color=colors[method], label=method)
+            if method not in unable:
+                ax.plot(curve.index, curve[method], color=colors[method], label=method)
+        say_unable(ax)
         ax.axvline(s.tolerance_mm, color="k", ls=":", lw=1, label="stated tolerance")
         ax.set_xscale("log")
         xlabel = "position tolerance [mm] (log)"
@@ -702,9 +728,19 @@ def _summarise_run(table: pd.DataFrame, batches: dict, by_run: bool = False) -> 
             "joint_distance_median_deg": ok["joint_distance_deg"].median(),
             "iterations_median": g["iterations"].median(),
             "failed_calls": int((g["failure"].fillna("") != "").sum()),
+            "cannot_run": cannot_run(g),
             **_truth(g, ok, unreachable),
         })
     return pd.DataFrame(rows)
+
+
+def cannot_run(g: pd.DataFrame) -> str:
+    """Why a method ran no call at all (its library could not take the robot: every row
+    failed with the same ``prepare: ...``), else "": such a method has no success rate."""
+    failures = g["failure"].fillna("").astype(str).unique()
+    if len(failures) == 1 and failures[0].startswith("prepare: "):
+        return failures[0].removeprefix("prepare: ")
+    return ""
 
 
 def _truth(g: pd.DataFrame, ok: pd.DataFrame, unreachable: pd.DataFrame) -> dict[str, Any]:

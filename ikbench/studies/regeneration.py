@@ -208,6 +208,10 @@ STUDIES: tuple[Study, ...] = (
             ("recommend", "--robot", robot, "--minutes", "2", "--seed", "1", "--output",
              "{out}"), (f"recommend/{robot.rpartition(':')[2]}",), 2.5)
       for robot in ("example-robot-data:ur5", "example-robot-data:panda")),
+    # the pointing experiment's worked example (issue 59): design, simulated participants
+    # from two models of the observer, the analysis and the power study
+    Study("experiment", ("--output", "{out}/experiment"), ("experiment",), 9.0,
+          script="examples/pointing_study.py"),
     Study("ours-speed", ("--output", "{out}/ours_speed.csv"), ("ours_speed.csv",), 0.5,
           script="benchmarks/ours_speed.py"),
     Study("designer-latency", ("--output", "{out}/designer_latency.csv"),

@@ -185,7 +185,12 @@ def run(args: argparse.Namespace) -> int:
                "time_median_ms", "time_mean_ms", "time_p95_ms", "batched_per_s", "runs"]
     if "success_pct_min" in summary and (summary["runs"] > 1).any():  # the auto table's spread
         columns += ["success_pct_min", "success_pct_max"]
-    print(summary[columns].to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    shown = summary[columns].astype({"success_pct": object})
+    unable = summary["cannot_run"].astype(bool) if "cannot_run" in summary else False
+    shown.loc[unable, "success_pct"] = "cannot run"  # no call ran: no rate
+    print(shown.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    for method, why in summary.loc[unable, ["method", "cannot_run"]].drop_duplicates().values:
+        print(f"{method}: cannot run: {why}")
     if study.AUTO in settings.attempts:
         print(auto_note(settings.repeat))
     print(f"written to {folder}/")
