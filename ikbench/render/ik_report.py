@@ -254,8 +254,13 @@ def protocol(result: StudyResult) -> str:
                  "calls only, one target per call, all its attempts included; the study's "
                  "check of each attempt, its bookkeeping and the set-up are untimed, and the "
                  "budget is counted on the same clock: median, mean, p95, max. "
-                 "Batched throughput (every target in one call, the same rows and budget per "
-                 "target) is its own column, in targets per second.")
+                 "Batched throughput (every target in one call, the same solver, rows and "
+                 "budget per target as the per-call table beside it) is its own column, in "
+                 "targets per second.")
+    if getattr(s, "unreachable", 0.0):
+        lines.append("The batched rate is over all targets, the unreachable ones included: "
+                     "each of those runs to its last attempt (or the budget), so it costs many "
+                     "reachable targets' time and lowers the rate.")
     return " ".join(lines)
 
 
