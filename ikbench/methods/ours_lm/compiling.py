@@ -12,7 +12,8 @@ import sys
 from types import ModuleType
 
 #: Said once per process before ours-lm's kernels compile (numba's cache holds none of them).
-COMPILING = "compiling ours-lm kernels (first run on this machine, a minute or more)"
+COMPILING = ("compiling ours-lm's kernels once for this machine (minutes on 2 busy cores; later "
+             "runs load numba's cache; `ikbench warmup` does it ahead, with progress)")
 
 
 def say_if_compiling(module: ModuleType) -> bool:
