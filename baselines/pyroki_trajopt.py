@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import io
 import os
+import platform
 import signal
 import time
 import weakref
@@ -106,7 +107,9 @@ class PyrokiSettings:
 #: an AVX2 one runs), no fast math. Added to XLA_FLAGS before the first JAX computation of
 #: the process; a flag the user set stays theirs.
 XLA_DETERMINISTIC = ("--xla_cpu_multi_thread_eigen=false", "intra_op_parallelism_threads=1",
-                     "--xla_cpu_max_isa=AVX2", "--xla_cpu_enable_fast_math=false")
+                     "--xla_cpu_enable_fast_math=false",
+                     *(("--xla_cpu_max_isa=AVX2",) if platform.machine().lower()
+                       in ("x86_64", "amd64") else ()))
 #: Set by :func:`_on_sigint` (Ctrl-C while a jitted call runs: JAX may drop the
 #: KeyboardInterrupt raised inside it); :func:`_honour_ctrl_c` raises it after the call.
 _CTRL_C = [False]
