@@ -432,6 +432,10 @@ class PyrokiSolver(PoseSolver):
     name, library, modules = "pyroki", "almond-pyroki", ("pyroki", "jaxls", "jax")
     iterations_are = "jaxls Levenberg-Marquardt steps"
     attempt_bound = "jaxls, 100 LM steps"
+    #: benchmarks/determinism_check.py: with XLA_DETERMINISTIC the same answers under XLA's
+    #: AVX-512 code and OpenBLAS' other settings; without the one-thread pin, 16 threads moved
+    #: answers (by ~1e-3 deg). An x86 CPU without AVX2 still gets other answers.
+    stable_across_machines = True
 
     def prepare(self) -> None:
         _CTRL_C[0] = False  # a Ctrl-C an earlier study stopped for is forgotten

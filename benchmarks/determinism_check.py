@@ -10,8 +10,10 @@ below are read when a library loads, so they cannot change inside one process):
   AVX2 CPU such as an AMD EPYC, or an AVX-only one);
 - ``numpy-no-avx512``: ``NPY_DISABLE_CPU_FEATURES`` off numpy's AVX-512 loops;
 - ``numba-generic``: ``NUMBA_CPU_NAME=generic`` (numba's code for no particular CPU);
-- ``xla-avx``: ``XLA_FLAGS=--xla_cpu_max_isa=AVX`` (JAX's code without AVX2; pyroki pins
-  AVX2 otherwise, see baselines/pyroki_trajopt.py).
+- ``xla-avx`` / ``xla-avx512``: ``XLA_FLAGS=--xla_cpu_max_isa=AVX`` or ``AVX512`` (JAX's
+  code without AVX2, or with AVX-512 where the CPU has it; pyroki pins AVX2 otherwise, see
+  baselines/pyroki_trajopt.py); ``xla-16-threads``: XLA's computations split over 16
+  threads (pyroki pins one otherwise).
 
 For each (condition, method) it writes the success count and, target by target, whether the
 answer is the reference's (every joint within ``--atol`` rad) to ``--output`` (CSV), and
@@ -46,6 +48,9 @@ CONDITIONS: dict[str, dict[str, str]] = {
                         "AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL"},
     "numba-generic": {"NUMBA_CPU_NAME": "generic"},
     "xla-avx": {"XLA_FLAGS": "--xla_cpu_max_isa=AVX"},
+    "xla-avx512": {"XLA_FLAGS": "--xla_cpu_max_isa=AVX512"},
+    "xla-16-threads": {"XLA_FLAGS": "--xla_cpu_multi_thread_eigen=true "
+                       "intra_op_parallelism_threads=16"},
 }
 REPO = Path(__file__).resolve().parents[1]
 
