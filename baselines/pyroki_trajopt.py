@@ -45,6 +45,9 @@ jaxls' default tolerances leave the goal points ~1e-3 mm off (tighter ones made 
 from __future__ import annotations
 
 import io
+import os
+import platform
+import signal
 import time
 import weakref
 from collections.abc import Sequence
@@ -99,8 +102,68 @@ class PyrokiSettings:
         self.max_iterations = int(self.max_iterations)
 
 
+#: XLA settings for the same answers on every x86 machine: one thread per computation (no
+#: split of a reduction by core count), code for AVX2 at most (an AVX-512 machine runs what
+#: an AVX2 one runs), no fast math. Added to XLA_FLAGS before the first JAX computation of
+#: the process; a flag the user set stays theirs.
+XLA_DETERMINISTIC = ("--xla_cpu_multi_thread_eigen=false", "intra_op_parallelism_threads=1",
+                     "--xla_cpu_enable_fast_math=false",
+                     *(("--xla_cpu_max_isa=AVX2",) if platform.machine().lower()
+                       in ("x86_64", "amd64") else ()))
+#: Set by :func:`_on_sigint` (Ctrl-C while a jitted call runs: JAX may drop the
+#: KeyboardInterrupt raised inside it); :func:`_honour_ctrl_c` raises it after the call.
+_CTRL_C = [False]
+_PREVIOUS_SIGINT: list = []
+
+
+def _xla_flags(current: str) -> str:
+    """``current`` (XLA_FLAGS) with :data:`XLA_DETERMINISTIC`'s flags it does not set."""
+    given = {flag.split("=")[0].lstrip("-") for flag in current.split()}
+    extra = [f for f in XLA_DETERMINISTIC if f.split("=")[0].lstrip("-") not in given]
+    return " ".join([current.strip(), *extra]).strip()
+
+
+def _xla_pinned() -> bool:
+    """Whether XLA_FLAGS holds every flag of :data:`XLA_DETERMINISTIC` (as the JAX backend
+    started with them only if they were there before its first computation)."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    return _xla_flags(flags) == flags.strip()
+
+
+def _on_sigint(signum, frame):  # type: ignore[no-untyped-def]
+    """SIGINT: remembered for :func:`_honour_ctrl_c`, then the handler before it (Python's
+    raises KeyboardInterrupt; one that ignored SIGINT, as a script's background job
+    inherits, is not called: Ctrl-C still stops the solves)."""
+    _CTRL_C[0] = True
+    previous = _PREVIOUS_SIGINT[0] if _PREVIOUS_SIGINT else None
+    if callable(previous):
+        previous(signum, frame)
+
+
+def _guard_ctrl_c() -> None:
+    """Install :func:`_on_sigint` (once; the main thread only, elsewhere Python's own stays)."""
+    if signal.getsignal(signal.SIGINT) is _on_sigint:
+        return
+    try:
+        previous = signal.signal(signal.SIGINT, _on_sigint)
+    except ValueError:  # not the main thread
+        return
+    _PREVIOUS_SIGINT[:] = [previous]
+
+
+def _honour_ctrl_c() -> None:
+    """Raise the KeyboardInterrupt of a Ctrl-C that came during the last jitted call."""
+    if _CTRL_C[0]:
+        _CTRL_C[0] = False
+        raise KeyboardInterrupt
+
+
 def _setup_jax():
-    """float64 on (process-wide) and jaxls / pyroki logging off; returns jax."""
+    """XLA's deterministic settings (:data:`XLA_DETERMINISTIC`, before the first
+    computation), float64 on (process-wide), jaxls / pyroki logging off, the Ctrl-C guard
+    (:func:`_guard_ctrl_c`); returns jax."""
+    os.environ["XLA_FLAGS"] = _xla_flags(os.environ.get("XLA_FLAGS", ""))
+    _guard_ctrl_c()
     import jax
 
     jax.config.update("jax_enable_x64", True)
@@ -291,6 +354,7 @@ def solve_chain(chain: Chain, goals: Goals, settings: PyrokiSettings,
     _, order, _, _ = pyroki_robot(chain)
     run = _solver(settings.position, settings.max_iterations, max_step is not None)
     q_pyroki, iterations = run(*_inputs(chain, goals, settings, pointing_from, max_step))
+    _honour_ctrl_c()
     q = np.empty((len(goals), chain.dof))
     q[:, order] = np.asarray(q_pyroki, dtype=float)
     inside = chain.clip(q)
@@ -324,8 +388,11 @@ class PyrokiTrajopt(LibraryMethod):
         without the speed constraint) seen by :meth:`check_tasks` (one solve of a placeholder
         task each)."""
 
+        _CTRL_C[0] = False  # a Ctrl-C an earlier study stopped for is forgotten
+        _setup_jax()
         chain = chain_of(robot)
         pyroki_robot(chain)
+        _honour_ctrl_c()
         started = time.perf_counter()
         for size, speed in getattr(self, "_sizes", []):
             q = np.clip(np.zeros(chain.dof), np.nan_to_num(chain.lower),
@@ -365,13 +432,19 @@ class PyrokiSolver(PoseSolver):
     name, library, modules = "pyroki", "almond-pyroki", ("pyroki", "jaxls", "jax")
     iterations_are = "jaxls Levenberg-Marquardt steps"
     attempt_bound = "jaxls, 100 LM steps"
+    #: benchmarks/determinism_check.py: with XLA_DETERMINISTIC the same answers under XLA's
+    #: AVX-512 code and OpenBLAS' other settings; without the one-thread pin, 16 threads moved
+    #: answers (by ~1e-3 deg). An x86 CPU without AVX2 still gets other answers.
+    stable_across_machines = True
 
     def prepare(self) -> None:
+        _CTRL_C[0] = False  # a Ctrl-C an earlier study stopped for is forgotten
+        jax = _setup_jax()
         import jax.numpy as jnp
         import jaxlie
 
-        jax = _setup_jax()
         robot, order, link, base = pyroki_robot(self.chain)
+        _honour_ctrl_c()
         self.order, self.pk = order, robot
         T_root_base = jaxlie.SE3(robot.forward_kinematics(jnp.zeros(self.chain.dof))[base])
         self.T_root_base = T_root_base
@@ -413,6 +486,7 @@ class PyrokiSolver(PoseSolver):
         target = self.T_root_base @ jaxlie.SE3.from_matrix(jnp.asarray(T))
         q, iterations = self.run(self.pk, target, jnp.asarray(np.asarray(q_init)[self.order]),
                                  *self.bounds)
+        _honour_ctrl_c()
         out = np.empty(self.chain.dof)
         out[self.order] = np.asarray(q, dtype=float)
         return PoseOut(out, int(iterations), bool(int(iterations) < MAX_STEPS))

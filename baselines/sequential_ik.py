@@ -299,7 +299,7 @@ class Residual:
                                                pin.LOCAL)
             # e = log6(tip^-1 goal) plays "goal - current": de/dq = -Jlog6 J_local (Pinocchio's
             # CLIK example), so the Jacobian of the "current" quantity is +Jlog6 J_local.
-            return pin.Jlog6(self._tip_M_goal.inverse()) @ J_local
+            return np.einsum("ij,jk->ik", pin.Jlog6(self._tip_M_goal.inverse()), J_local)
         J = pin.computeFrameJacobian(self.model, self.data, q_rad, self.frame_id,
                                      pin.LOCAL_WORLD_ALIGNED)  # (6, nv): linear, angular
         if self.orientation == "position":
@@ -334,6 +334,23 @@ class WeightedResidual:
         return self._scaled(self.residual.jacobian(q_rad))
 
 
+def solve_spd(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x (k,) of A x = b for the small symmetric positive definite A (k, k) of a DLS step,
+    by Gaussian elimination in elementwise numpy operations: no BLAS or LAPACK call, whose
+    kernels OpenBLAS picks for the CPU (``OPENBLAS_CORETYPE``), so the last bits, and with
+    them a chaotic descent's answer, are the same on every machine."""
+    k = len(b)
+    M = np.concatenate([A, b[:, None]], axis=1)  # (k, k + 1)
+    for i in range(k):
+        if not M[i, i] > 0.0:
+            raise np.linalg.LinAlgError("DLS system not positive definite")
+        M[i + 1:] -= np.multiply.outer(M[i + 1:, i] / M[i, i], M[i])
+    x = np.zeros(k)
+    for i in range(k - 1, -1, -1):
+        x[i] = (M[i, k] - (M[i, i + 1:k] * x[i + 1:]).sum()) / M[i, i]
+    return x
+
+
 def dls_step(J: np.ndarray, e: np.ndarray, damping: float, q_rad: np.ndarray,
              lower: np.ndarray, upper: np.ndarray, posture: np.ndarray | None = None
              ) -> np.ndarray:
@@ -353,7 +370,9 @@ def dls_step(J: np.ndarray, e: np.ndarray, damping: float, q_rad: np.ndarray,
     regulariser = damping**2 * np.eye(len(e))
     for _ in range(len(q_rad)):
         J_free = J * free
-        dq = J_free.T @ np.linalg.solve(J_free @ J_free.T + regulariser, e)
+        # einsum's own loops, not BLAS (see solve_spd)
+        dq = np.einsum("ki,k->i", J_free,
+                       solve_spd(np.einsum("ik,jk->ij", J_free, J_free) + regulariser, e))
         if posture is not None:
             _, sigma, Vt = np.linalg.svd(J_free, full_matrices=False)
             rows = Vt[sigma > NULL_SPACE_RCOND * max(sigma[0], 1e-300)]
@@ -722,6 +741,9 @@ class DLSSolver(PoseSolver):
     name, library, modules = "sequential-ik", "pin", ("pinocchio",)
     iterations_are = "DLS steps"
     attempt_bound = "1e-6, 100 DLS steps"
+    #: benchmarks/determinism_check.py: the same answers under OpenBLAS' other kernels and
+    #: thread counts since the step stopped calling BLAS (solve_spd).
+    stable_across_machines = True
 
     def prepare(self) -> None:
         self.fk = self.robot.pinocchio_fk()

@@ -118,6 +118,9 @@ class PoseSolver(abc.ABC):
     attempt_bound: ClassVar[str] = f"its own stopping rule, at most {MAX_STEPS} steps"
     rank: ClassVar[int] = 1000
     analytic: ClassVar[bool] = False
+    #: Same answers on another CPU under the deterministic protocol, as measured by
+    #: benchmarks/determinism_check.py (None: not measured).
+    stable_across_machines: ClassVar[bool | None] = None
 
     def __init__(self, robot: Robot, kind: str = "pose",
                  tolerance: tuple[float, float] = (1.0, 0.5), budget_s: float = BUDGET_S
