@@ -74,7 +74,7 @@ def _callers(robot, targets) -> dict:
     try:
         from eaik.IK_HP import HPRobot
 
-        from baselines.eaik_ik import chain_axes
+        from ikbench.baselines.eaik_ik import chain_axes
 
         fk = robot.pinocchio_fk()
         H, P, R_end0 = chain_axes(fk.model, fk.model.createData(), fk.frame_id)
@@ -99,7 +99,7 @@ def _callers(robot, targets) -> dict:
         callers["eaik"] = (eaik_call, eaik_answers)
     except (ImportError, ValueError, RuntimeError) as exc:
         print(f"eaik skipped: {exc}", file=sys.stderr)
-    from baselines.rtb import ILIMIT, TOL, goal_frame, rtb_ets
+    from ikbench.baselines.rtb import ILIMIT, TOL, goal_frame, rtb_ets
     from ikbench.schemes.chain import chain_of
 
     ets = rtb_ets(chain_of(robot))

@@ -14,7 +14,7 @@ import time
 
 import pytest
 
-from baselines import pyroki_trajopt as pt
+from ikbench.baselines import pyroki_trajopt as pt
 from tests.conftest import REPO
 
 
