@@ -327,6 +327,7 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
                 f"| {_fmt(getattr(row, 'x_eaik_call', np.nan))} |")
         lines.append("")
     lines += bare_call_note(result.methods)
+    lines += stability_note(result.methods)
     lines += ground_truth_section(result, summary)
     capped = {m: f["count"] for m, f in result.methods.items() if f["count"] < s.count}
     if capped:
@@ -354,6 +355,23 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
         "",
     ]
     return "\n".join(lines)
+
+
+#: How each value of ``PoseSolver.stable_across_machines`` reads.
+STABILITY = {True: "stable", False: "not stable", None: "not measured"}
+
+
+def stability_note(methods: dict[str, dict]) -> list[str]:
+    """Which methods' deterministic answers hold on another machine (docs/ik.md, "What is
+    guaranteed"): measured by ``benchmarks/determinism_check.py``."""
+    groups: dict[str, list[str]] = {}
+    for name, facts in methods.items():
+        groups.setdefault(STABILITY[facts.get("stable_across_machines")], []).append(name)
+    return ["**Across machines** (same package versions; `benchmarks/determinism_check.py`, "
+            "which emulates another CPU's kernels and thread counts): the deterministic "
+            "columns are the same on one machine run to run for every method but TRAC-IK; on "
+            "another machine only for the stable ones. "
+            + "; ".join(f"{k}: {', '.join(v)}" for k, v in groups.items()) + ".", ""]
 
 
 def bare_call_note(methods: dict[str, dict]) -> list[str]:

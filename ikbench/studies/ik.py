@@ -549,7 +549,8 @@ def run(spec: IKSpec) -> IKResult:
                               "restarts_itself": cls.restarts_itself,
                               "one_descent": cls.one_descent, "batched": cls.batched,
                               "iterations_are": cls.iterations_are,
-                              "attempt_bound": cls.attempt_bound, "count": count}
+                              "attempt_bound": cls.attempt_bound, "count": count,
+                              "stable_across_machines": cls.stable_across_machines}
                 if name not in solvers:
                     solvers[name] = _prepared(cls, robot, settings, say, count)
                 solver = solvers[name]
