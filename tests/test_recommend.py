@@ -256,6 +256,19 @@ def test_a_path_method_that_cannot_set_up_is_a_row_with_its_reason(monkeypatch):
 def test_the_verdict_rechecks_from_its_own_results_csv(short_run):
     """Issue 58: the success counts, their Wilson intervals (scipy's), the verdict and the
     paired comparison recomputed from results.csv alone agree with the folder's files."""
+    _assert_rechecks(short_run)
+
+
+@pytest.mark.parametrize("robot", ["ur5", "panda"])
+def test_the_committed_recommendations_recheck_from_their_csv(robot):
+    """Issue 58: the committed results/recommend/<robot>/ (a study of the reproduce plan)
+    re-checks from its own results.csv: an auditor needs nothing but the repository."""
+    from pathlib import Path
+
+    _assert_rechecks(Path(__file__).parents[1] / "results" / "recommend" / robot)
+
+
+def _assert_rechecks(short_run) -> None:
     import json
 
     from scipy.stats import binomtest
