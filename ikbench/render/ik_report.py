@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ikbench.baselines.eaik_ik import EaikSolver
 from ikbench.baselines.trac_ik import TracIKSolver
 from ikbench.core.io import atomic_savefig, staged_folder
 from ikbench.core.provenance import library_versions, provenance
@@ -381,7 +382,7 @@ def bare_call_note(methods: dict[str, dict]) -> list[str]:
     if not calls:
         return []
     eaik = ("; **x_eaik_call**: the time per call median over EAIK's library call in this "
-            "run (the analytic limit as the library)" if "eaik" in calls else "")
+            "run (the analytic limit as the library)" if EaikSolver.name in calls else "")
     return ["**Library call**: the median time [ms] of the library's own call alone, once per "
             "target from row 0 on inputs converted in advance, timed after the method's runs; "
             "the time per call median minus it is the glue the adapter (and, past one "
@@ -679,7 +680,7 @@ def with_bare_calls(summary: pd.DataFrame, methods: dict[str, dict]) -> pd.DataF
     out["bare_call_median_ms"] = out["method"].map(
         lambda m: np.nan if bare.get(m) is None else float(bare[m])).astype(float)
     out["glue_median_ms"] = out["time_median_ms"] - out["bare_call_median_ms"]
-    eaik = bare.get("eaik")
+    eaik = bare.get(EaikSolver.name)
     out["x_eaik_call"] = (out["time_median_ms"] / float(eaik) if eaik else np.nan)
     added = ["bare_call_median_ms", "glue_median_ms", "x_eaik_call"]
     tail = [c for c in out.columns if c in (*SPREAD, "first_call_ms")]  # stay the last
