@@ -188,6 +188,18 @@ SPECIFICATION = {
     "setting)",
     ">= 200 000 trajectories/s at a batch of 100 000 in float32, <= 10 ms for the paper's "
     "seven": "the GPU issue's aims for the torch backend (targets, not measurements)",
+    # docs/shapes.md
+    "every pen-down point within 10 mm of the target curve (a thirtieth of the letters' "
+    "default 300 mm height) and at least 95 % of the curve's strokes within 10 mm of the "
+    "fingertip's path": "the drawn-shape judge (DRAWN_TOLERANCE_MM, DRAWN_COVERAGE_MIN_PCT, "
+    "ikbench/core/metrics.py)",
+    "(sampled every 1 mm) within 10 mm of": "the drawn-shape judge's sampling "
+    "(COVERAGE_SPACING_MM, ikbench/core/shapes.py) and tolerance",
+    # docs/recommend.md
+    "a margin of a tenth of it, at least 10 s": "recommend's stated margin past --minutes",
+    "a paired-bootstrap 95 % interval (2000 resamples, seeded)": "recommend's paired "
+    "comparison (ikbench.studies.recommend.paired)",
+    "it is never ranked as 0 %": "what a cannot-run row is not (no measurement)",
     # docs/baselines.md
     "the touch pose's own over the last 20 %": "the tracking scheme's landing share "
     "(LANDING_FRACTION, ikbench/schemes/track.py)",

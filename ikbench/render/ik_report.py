@@ -675,10 +675,10 @@ def with_bare_calls(summary: pd.DataFrame, methods: dict[str, dict]) -> pd.DataF
     minus it: what the adapter and, past one attempt, the restarts add) and ``x_eaik_call``
     (the per-call median over EAIK's bare call in the same run; NaN without eaik), before
     the run spread and first-call columns, which stay the last."""
-    bare = {m: f.get("bare_call_median_ms") for m, f in methods.items()}
+    bare = {m: float(f["bare_call_median_ms"]) for m, f in methods.items()
+            if f.get("bare_call_median_ms") is not None}
     out = summary.copy()
-    out["bare_call_median_ms"] = out["method"].map(
-        lambda m: np.nan if bare.get(m) is None else float(bare[m])).astype(float)
+    out["bare_call_median_ms"] = out["method"].map(lambda m: bare.get(m, np.nan)).astype(float)
     out["glue_median_ms"] = out["time_median_ms"] - out["bare_call_median_ms"]
     eaik = bare.get(EaikSolver.name)
     out["x_eaik_call"] = (out["time_median_ms"] / float(eaik) if eaik else np.nan)
