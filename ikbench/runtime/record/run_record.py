@@ -56,6 +56,10 @@ LAYOUTS: dict[str, tuple[str, ...]] = {
     # ikbench ik's folder: methods by name with their facts, provenance as one entry
     "ik": ("command", "robot", "settings", "methods", "batched?", "solution_columns?",
            "library_versions", "wall_s", "load_average", "provenance"),
+    # ikbench recommend's folder: its plan and verdict before the timing and provenance
+    "recommend": ("command", "robot", "settings", "plan", "methods", "recommended", "tied",
+                  "kendall_tau", "paired?", "wall_s", "load_average", "library_versions",
+                  "provenance"),
 }
 
 
@@ -241,6 +245,8 @@ def _kind_of(data: dict[str, Any]) -> str:
         return "compare"
     if "problems" in data and "command" in data:
         return "cartesian"
+    if "recommended" in data and "plan" in data:
+        return "recommend"
     if "library_versions" in data and "command" in data:
         return "ik"
     return "run"
