@@ -20,6 +20,21 @@ needs_erd = pytest.mark.skipif(robots_folder("example-robot-data") is None,
                                reason="needs example_robot_data")
 
 
+def _prepared(cls):
+    """``cls``'s solver on UR5, prepared, and the robot."""
+    robot = load_robot("example-robot-data:ur5")
+    solver = cls(robot)
+    solver.prepare()
+    return robot, solver
+
+
+def _cases(robot, count, seed):
+    """(target frame (4, 4), the study's first initial configuration [rad]) per target."""
+    targets = sample_targets(robot, IKSettings(count=count, seed=seed))
+    for k in range(count):
+        yield targets.T_target[k], robot.to_urdf(targets.initials(k, 1)[0])
+
+
 def _reference(Q, drop, lower, upper, near, tol=1e-9):
     """The old answer: in_limit_turns on the exact solutions, then the argmin."""
     from ikbench.baselines.eaik_ik import in_limit_turns
@@ -72,13 +87,8 @@ def test_eaik_solve_is_the_nearest_branch_and_its_bare_call_is_eaiks_ik():
     pytest.importorskip("eaik")
     from ikbench.baselines.eaik_ik import EaikSolver
 
-    robot = load_robot("example-robot-data:ur5")
-    solver = EaikSolver(robot)
-    solver.prepare()
-    targets = sample_targets(robot, IKSettings(count=40, seed=4))
-    for k in range(40):
-        T = targets.T_target[k]
-        q_init = robot.to_urdf(targets.initials(k, 1)[0])
+    robot, solver = _prepared(EaikSolver)
+    for T, q_init in _cases(robot, 40, 4):
         exact, _ = solver.solutions(T[:3, 3], T[:3, :3])
         expected, count = _reference(exact, np.zeros(len(exact), dtype=bool), solver.lower,
                                      solver.upper, q_init)
@@ -96,10 +106,8 @@ def test_bare_call_times_measure_what_has_a_bare_call_and_say_what_it_is():
     from ikbench.baselines.eaik_ik import EaikSolver
     from ikbench.schemes.single_pose import PoseOut, PoseSolver
 
-    robot = load_robot("example-robot-data:ur5")
+    robot, solver = _prepared(EaikSolver)
     targets = sample_targets(robot, IKSettings(count=10, seed=2))
-    solver = EaikSolver(robot)
-    solver.prepare()
     timed = bare_call_times(solver, targets, 10)
     assert 0 < timed["bare_call_median_ms"] < 50
     assert timed["bare_call"] == "EAIK's own `IK(T)` on the frame converted in advance."
@@ -119,13 +127,8 @@ def test_rtb_bare_call_is_the_call_its_solve_makes():
     pytest.importorskip("roboticstoolbox")
     from ikbench.baselines.rtb import RtbLMSolver
 
-    robot = load_robot("example-robot-data:ur5")
-    solver = RtbLMSolver(robot)
-    solver.prepare()
-    targets = sample_targets(robot, IKSettings(count=5, seed=2))
-    for k in range(5):
-        T = targets.T_target[k]
-        q_init = robot.to_urdf(targets.initials(k, 1)[0])
+    robot, solver = _prepared(RtbLMSolver)
+    for T, q_init in _cases(robot, 5, 2):
         out = solver.solve(q_init, T[:3, 3], T[:3, :3])
         bare = solver.bare_call(q_init, T[:3, 3], T[:3, :3])()
         assert (bool(bare.success), int(bare.iterations)) == (out.ok, out.iterations)
@@ -214,14 +217,9 @@ def test_trac_ik_and_ikpy_bare_calls_answer_the_target(name):
     status = solver_status().get(name)
     if status is None or not status.cls.available():
         pytest.skip(f"{name} is not installed")
-    robot = load_robot("example-robot-data:ur5")
-    solver = status.cls(robot)
-    solver.prepare()
-    targets = sample_targets(robot, IKSettings(count=3, seed=2))
+    robot, solver = _prepared(status.cls)
     fk = robot.pinocchio_fk()
-    for k in range(3):
-        T = targets.T_target[k]
-        q_init = robot.to_urdf(targets.initials(k, 1)[0])
+    for T, q_init in _cases(robot, 3, 2):
         out = np.asarray(solver.bare_call(q_init, T[:3, 3], T[:3, :3])(), dtype=float)
         q = out[1:] if name == "trac-ik" else out[solver.active]  # (status, q...) / all links
         if name == "trac-ik" and out[0] < 0:
@@ -238,9 +236,7 @@ def test_eaik_compiles_in_prepare_not_in_a_timed_call():
     pytest.importorskip("eaik")
     from ikbench.baselines.eaik_ik import EaikSolver
 
-    robot = load_robot("example-robot-data:ur5")
-    solver = EaikSolver(robot)
-    solver.prepare()
+    robot, solver = _prepared(EaikSolver)
     compiled = [list(kernel.signatures) for kernel in solver._kernels]
     targets = sample_targets(robot, IKSettings(count=2, seed=1))
     T = targets.T_target[1]  # as the study passes it: views of the frame, a row of starts

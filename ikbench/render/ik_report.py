@@ -291,12 +291,7 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
         runs = int(table["runs"].max()) if "runs" in table else 1
         lines += [f"## {rule_title(str(rule), result.auto_rows, runs)}", "",
                   *deterministic_note(result, str(rule)),
-                  "| method | library | targets | success | attempts median | attempts max | "
-                  "time per call median [ms] | mean [ms] | p95 [ms] | max [ms] | batched "
-                  "[targets/s] | position error median [mm] | rotation error median [deg] | "
-                  "joint distance median [deg] | iterations median | failed calls | "
-                  "library call [ms] | x_eaik_call |",
-                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+                  LEADERBOARD_HEAD, "|---" * len(LEADERBOARD_COLUMNS) + "|"]
         for row in table.itertuples(index=False):
             facts = result.methods[row.method]
             library = f"{facts['library']} {versions.get(facts['library']) or ''}".strip()
@@ -308,7 +303,7 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
             note = f" ({'; '.join(notes)})" if notes else ""
             if getattr(row, "cannot_run", ""):  # no call ran: no rate, no times
                 lines.append(f"| {row.method}{note} | {library} | {row.targets} | cannot run: "
-                             f"{_cell(row.cannot_run)} |" + " - |" * 14)
+                             f"{_cell(row.cannot_run)} |" + " - |" * (len(LEADERBOARD_COLUMNS) - 4))
                 continue
             batch = "-"
             if np.isfinite(row.batched_per_s):
@@ -358,6 +353,13 @@ def leaderboard(result: StudyResult, summary: pd.DataFrame, record: dict[str, An
     return "\n".join(lines)
 
 
+#: The columns of each rule's leaderboard table, and its header line.
+LEADERBOARD_COLUMNS = (
+    "method", "library", "targets", "success", "attempts median", "attempts max",
+    "time per call median [ms]", "mean [ms]", "p95 [ms]", "max [ms]", "batched [targets/s]",
+    "position error median [mm]", "rotation error median [deg]", "joint distance median [deg]",
+    "iterations median", "failed calls", "library call [ms]", "x_eaik_call")
+LEADERBOARD_HEAD = "| " + " | ".join(LEADERBOARD_COLUMNS) + " |"
 #: How each value of ``PoseSolver.stable_across_machines`` reads.
 STABILITY = {True: "stable", False: "not stable", None: "not measured"}
 

@@ -98,8 +98,8 @@ def duration(seconds: float) -> str:
         return "-"
     for unit, scale in (("s", 1.0), ("ms", 1e-3), ("us", 1e-6)):
         if abs(seconds) >= scale or unit == "us":
-            return f"{seconds / scale:.3g} {unit}"
-    return f"{seconds:.3g} s"
+            break
+    return f"{seconds / scale:.3g} {unit}"
 
 
 def _f(value: float, digits: int = 3) -> str:
