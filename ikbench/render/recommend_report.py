@@ -84,7 +84,7 @@ def _record(result: Result, command: str, libraries: list[str]) -> dict:
             "settings": asdict(result.settings), "plan": asdict(result.plan),
             "methods": result.methods, "recommended": result.recommended,
             "tied": result.tied, "kendall_tau": result.kendall_tau,
-            "paired": getattr(result, "paired", {}),
+            "paired": result.paired,
             "wall_s": result.wall_s,
             "load_average": {"start": result.load_start,
                              "end": tuple(round(v, 2) for v in os.getloadavg())},
@@ -189,7 +189,7 @@ def markdown(result: Result, record: dict) -> str:
         "",
         f"Wall time of the whole run {result.wall_s:.0f} s ({result.wall_s / 60:.2f} min of "
         f"--minutes {s.minutes:g}" + (f", which it may pass by {result.plan.margin_s:.0f} s"
-                                      if getattr(result.plan, "margin_s", 0) else "")
+                                      if result.plan.margin_s else "")
         + "; the writing and the interpreter's start not included).",
         "",
         "Kendall tau between the seeds' rankings: " + ", ".join(
@@ -216,12 +216,12 @@ def _pose_protocol(result: Result) -> str:
     s, plan = result.settings, result.plan
     n = plan.targets_per_seed
     cost = ", ".join(f"{m} {duration(c)}" for m, c in plan.cost_s.items())
-    compiled = {m: c for m, c in getattr(plan, "compile_s", {}).items() if c >= 1.0}
+    compiled = {m: c for m, c in plan.compile_s.items() if c >= 1.0}
     compile_note = (" The first set-ups took longer than the second by " + ", ".join(
         f"{m} {c:.0f} s" for m, c in compiled.items()) + " (a compile, or loading a compiled "
         "cache), spent before the sample was sized and counted in --minutes." if compiled
         else "")
-    over = getattr(plan, "overrun_s", 0.0)
+    over = plan.overrun_s
     over_note = (f" The smallest sample did not fit: the run was expected to pass --minutes by "
                  f"about {over:.0f} s beyond its margin." if over > 0 else "")
     return (
