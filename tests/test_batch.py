@@ -67,14 +67,14 @@ def test_batch_cli(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--count", "0"], "ikbench batch: error: argument --count: 0 is out of range; give a "
+    (["--count", "0"], "ikbench: error: argument --count: 0 is out of range; give a "
      "number of touch poses from 1 to 100,000"),
     (["--weights", "c0=abc"], "ikbench: error: --weights: 'c0=abc' is not term=value"),
-    (["--line-tolerance-mm", "-1"], "ikbench batch: error: argument --line-tolerance-mm: -1 is "
+    (["--line-tolerance-mm", "-1"], "ikbench: error: argument --line-tolerance-mm: -1 is "
      "out of range; give a tolerance [mm] more than 0 to 10,000"),
-    (["--seed", "-1"], "ikbench batch: error: argument --seed: -1 is out of range; give a seed "
+    (["--seed", "-1"], "ikbench: error: argument --seed: -1 is out of range; give a seed "
      "in [0, 2^63)"),
-    (["--seed", str(2**63)], f"ikbench batch: error: argument --seed: {2**63} is out of range; "
+    (["--seed", str(2**63)], f"ikbench: error: argument --seed: {2**63} is out of range; "
      "give a seed in [0, 2^63)"),
 ])
 def test_batch_cli_bad_input_one_line_exit_2(tmp_path, args, message):

@@ -84,9 +84,9 @@ def test_bench_cli_writes_csv(tmp_path, capsys):
 @pytest.mark.parametrize("args, message", [
     (["--methods", "ours,nope"], "ikbench: error: --methods: unknown method 'nope'; available:"),
     (["--repeat", "ours=x"], "ikbench: error: --repeat: 'ours=x' is not N or method=N"),
-    (["--warmup", "-1"], "ikbench bench: error: argument --warmup: -1 is out of range; give a "
+    (["--warmup", "-1"], "ikbench: error: argument --warmup: -1 is out of range; give a "
      "number of warm-up rounds from 0 to 100"),
-    (["--threads", "0"], "ikbench bench: error: argument --threads: 0 is out of range; give a "
+    (["--threads", "0"], "ikbench: error: argument --threads: 0 is out of range; give a "
      "number of threads from 1 to 1024"),
     (["--only", "9"], "ikbench: error: --only: unknown trajectory id(s) '9'; available:"),
     (["--repeat", "2,foo=3"], "ikbench: error: --repeat: 'foo=3' names 'foo', which is not "

@@ -49,7 +49,7 @@ def test_batch_count_beyond_the_maximum_is_refused(tmp_path, capsys):
     assert exit_code(["batch", "--count", "99999999999", "--output", str(output),
                       "--quiet"]) == 2
     assert one_line_error(capsys) == (
-        "ikbench batch: error: argument --count: 99999999999 is out of range; give a number of "
+        "ikbench: error: argument --count: 99999999999 is out of range; give a number of "
         "touch poses from 1 to 100,000 (in one batch; ikbench dataset builds larger sets) (see "
         "ikbench batch --help)\n")
     assert not output.exists()
@@ -79,7 +79,7 @@ def test_an_empty_output_is_refused(tmp_path, monkeypatch, capsys, argv):
     assert exit_code(argv) == 2
     flag = argv[-2]
     assert one_line_error(capsys).startswith(
-        f"ikbench {argv[0]}: error: argument {flag}: {argv[-1]!r} is empty; give a file or "
+        f"ikbench: error: argument {flag}: {argv[-1]!r} is empty; give a file or "
         "folder to write")
     (tmp_path / "t.csv").unlink()
     assert list(tmp_path.iterdir()) == []

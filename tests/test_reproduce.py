@@ -147,7 +147,7 @@ def test_elapsed_shows_tenths_below_a_minute():
 def test_empty_output_is_rejected(capsys):
     assert exit_code(["reproduce", "--quick", "--output", ""]) == 2  # the CLI refuses it first
     err = capsys.readouterr().err
-    assert err == ("ikbench reproduce: error: argument --output: '' is empty; give a file or "
+    assert err == ("ikbench: error: argument --output: '' is empty; give a file or "
                    "folder to write (see ikbench reproduce --help)\n")
     with pytest.raises(InputError, match=r"--output: '' is empty; give a directory \(default "
                        r"results, or results-quick with --quick\)"):

@@ -37,7 +37,8 @@ _UNIT_SUFFIXES = ("_s", "_mm", "_deg", "_hz", "_rad", "_ms")
 
 
 class _Parser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line (the usage is in ``--help``)."""
+    """An argument parser whose errors are one line (the usage is in ``--help``), with the
+    prefix every error of every command has, ``ikbench: error:`` (issue 64)."""
 
     _words: list[str] = []  # the words this parser was given (for the hint in ``error``)
 
@@ -46,8 +47,18 @@ class _Parser(argparse.ArgumentParser):
         return super().parse_known_args(args, namespace)
 
     def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {shorten(message)}{self._hint(message)} "
-                  f"(see {self.prog} --help)\n")
+        self.exit(2, f"ikbench: error: {shorten(message)}{self._hint(message)} "
+                  f"(see {self._help_of()} --help)\n")
+
+    def _help_of(self) -> str:
+        """The command whose ``--help`` explains the words given: argparse reports an
+        unknown option of a subcommand on the top parser, so follow the subcommands named."""
+        parser: argparse.ArgumentParser = self
+        for word in self._words:
+            sub = _subparser(parser, word)
+            if sub is not None:
+                parser = sub
+        return parser.prog
 
     def _hint(self, message: str) -> str:
         """``; write --pose=-24.9,...`` when an option's value starts with a minus sign:
