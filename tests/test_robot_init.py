@@ -16,6 +16,7 @@ from ikbench.core.robot_init import (
     MAX_LINE_MM,
     MIN_LINE_MM,
     POINTING_DEG,
+    START_POINTING_DEG,
     auto_axis,
     choose_end_frame,
     init_robot,
@@ -163,6 +164,54 @@ def test_the_drawn_touch_poses_point_along_their_lines(tmp_path):
         cos = float(end.direction[0] @ line / np.linalg.norm(line))
         assert np.degrees(np.arccos(min(cos, 1.0))) <= POINTING_DEG + 1e-6
     assert "not checked by a solve" in made["targets"]["description"]
+
+
+def _angles_deg(robot, start_pose, poses) -> list[tuple[float, float]]:
+    """Per touch pose: (the end frame's angle to the line at the start, at the touch) [deg]."""
+    start = robot.fk(np.array(start_pose))
+    angles = []
+    for pose in poses:
+        end = robot.fk(np.array(pose))
+        line = end.point_mm[0] - start.point_mm[0]
+        line = line / np.linalg.norm(line)
+        angles.append(tuple(float(np.degrees(np.arccos(min(float(d @ line), 1.0))))
+                            for d in (start.direction[0], end.direction[0])))
+    return angles
+
+
+def test_the_drawn_lines_start_pointing_along_them_too():
+    """The contract judges the pointing from a fifth of the way on: the end frame may not
+    start pointing away from the line (issue 64)."""
+    made = init_robot(str(REPO / "urdf" / "panda.urdf"), "panda_hand", seed=3)
+    angles = _angles_deg(made["robot"], made["targets"]["start_pose"],
+                         made["targets"]["targets"].values())
+    assert len(angles) == 7
+    assert all(at_start <= START_POINTING_DEG + 1e-6 for at_start, _ in angles), angles
+    assert "the start pose (the middle of the limits)" in made["targets"]["description"]
+
+
+@needs_erd
+def test_romeos_right_arm_gets_a_start_from_which_its_lines_can_be_pointed_along(tmp_path,
+                                                                                 capsys):
+    """Romeo's right arm from its torso: from the middle of its limits the gripper points
+    112-133 deg away from every line it can draw, so no target was solvable; robot init draws
+    a start pose instead, says so, and ours-exact solves every line (issue 64)."""
+    assert main(["robot", "init", "example-robot-data:romeo", "--end-frame", "r_gripper",
+                 "--base-link", "torso", "--name", "romeo-right", "--check-targets",
+                 "--output", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    assert "start pose drawn within the limits by seed [1, 1]" in err
+    assert "every target solved" in err
+    targets = json.loads((tmp_path / "romeo-right.targets.json").read_text())
+    assert "the start pose (drawn within the limits" in targets["description"]
+    assert "every target solved" in targets["description"]
+    robot = load_robot(tmp_path / "romeo-right.toml")
+    assert robot.dof == 7 and robot.end_frame == "r_gripper"
+    middle = (robot.lower + robot.upper) / 2
+    assert not np.allclose(targets["start_pose"], middle, atol=0.01)
+    angles = _angles_deg(robot, targets["start_pose"], targets["targets"].values())
+    assert all(a <= START_POINTING_DEG + 1e-6 and b <= POINTING_DEG + 1e-6
+               for a, b in angles), angles
 
 
 @needs_erd

@@ -27,16 +27,24 @@ CONFIG_KEYS`) and a targets file (``<name>.targets.json``) that ``letters``, ``r
   last moving joint's origin to the end frame's origin at the zero configuration, when that
   offset is at least :data:`MIN_OFFSET_MM` long and within 35 deg of the axis (the tool sticks
   out along it), else ``z``.
-- **Start pose**: ``start_pose``, or the middle of every joint's limits (continuous joints at 0).
+- **Start pose**: ``start_pose``; else the middle of every joint's limits (continuous joints
+  at 0) when touch targets can be drawn from it, else the first of :data:`START_DRAWS` poses
+  drawn within the limits by ``numpy.random.default_rng([seed, 1])`` from which they can (the
+  middle of a humanoid's arm can point away from every line it can draw: Romeo's right arm
+  from its torso, 112-133 deg), else the middle with the pointing at the start unchecked (said
+  in the targets file).
 - **Touch targets**: :data:`COUNT` poses drawn by ``numpy.random.default_rng(seed)`` within
   the reaches of :data:`REACHES_DEG` in turn (joint degrees, mm for prismatic joints) of the
   start pose and within the limits, kept when the line from the start point to their end
-  point is :data:`MIN_LINE_MM`..:data:`MAX_LINE_MM` long and the end frame points within
+  point is :data:`MIN_LINE_MM`..:data:`MAX_LINE_MM` long, the end frame points within
   :data:`POINTING_DEG` of the line at the touch pose (the task contract judges the pointing
-  there): lines of a size an arm draws, on the start pose's IK branch where the nearest reach
-  holds enough. ``robot init --check-targets`` (:mod:`ikbench.studies.target_check`) solves
-  each line under the contract and replaces the unsolved ones; without it, reachability of
-  every point of the line is not checked here: the comparison judges it.
+  there) and within :data:`START_POINTING_DEG` of it at the start pose (the judged part
+  begins a fifth of the way along, so the end frame has a few segments at the joints' speed
+  limits to turn): lines of a size an arm draws, on the start pose's IK branch where the
+  nearest reach holds enough. ``robot init --check-targets``
+  (:mod:`ikbench.studies.target_check`) solves each line under the contract and replaces the
+  unsolved ones; without it, reachability of every point of the line is not checked here:
+  the comparison judges it.
 - **Letters**: on the plane through the start point across the pointing direction (u: the
   viewer's right, v: up as far as the pointing allows).
 """
@@ -74,6 +82,14 @@ REACHES_DEG = (30.0, 45.0, 60.0, 90.0)
 #: At the touch pose, the end frame points within this of the line's direction [deg]: the
 #: contract's pointing tolerance (the judged part ends there).
 POINTING_DEG = DEFAULT_TOLERANCES["pointing_judged_mean_deg"]
+#: At the start pose, the end frame points within this of the line's direction [deg]: the
+#: contract judges the pointing from a fifth of the way on, and the joints' speed limits allow
+#: a turn of a few tens of degrees before it.
+START_POINTING_DEG = 45.0
+#: Start poses drawn at most when the middle of the limits gives no touch target.
+START_DRAWS = 64
+#: Candidates per reach when probing a start pose for a touch target (a tenth of DRAWS).
+PROBE_DRAWS = 2_000
 #: A touch target's line from the start point is this long [mm].
 MIN_LINE_MM, MAX_LINE_MM = 80.0, 400.0
 #: Candidates drawn at most per reach before the next, in batches of BATCH.
@@ -192,34 +208,56 @@ def choose_end_frame(urdf_path: Path, base_link: str | None) -> tuple[str, list[
     return candidates[0], candidates
 
 
-def touch_pose_draws(robot: Robot, start: np.ndarray, seed: int) -> Iterator[np.ndarray]:
+def touch_pose_draws(robot: Robot, start: np.ndarray, seed: int,
+                     start_pointing_deg: float | None = START_POINTING_DEG,
+                     draws: int = DRAWS) -> Iterator[np.ndarray]:
     """Touch poses [pose units], best first (see the module docstring): drawn by
     ``numpy.random.default_rng(seed)`` within each reach of :data:`REACHES_DEG` of the start
-    pose in turn (:data:`DRAWS` each), kept when their line is :data:`MIN_LINE_MM`..
+    pose in turn (``draws`` each), kept when their line is :data:`MIN_LINE_MM`..
     :data:`MAX_LINE_MM` long and the end frame points within :data:`POINTING_DEG` of it at
-    the touch pose (the contract judges the pointing at the line's end)."""
+    the touch pose (the contract judges the pointing at the line's end) and within
+    ``start_pointing_deg`` of it at the start pose (None: not checked)."""
     rng = np.random.default_rng(seed)
     start_fk = robot.fk(start)
-    start_point = start_fk.point_mm[0]
+    start_point, start_direction = start_fk.point_mm[0], start_fk.direction[0]
     cos_max = math.cos(math.radians(POINTING_DEG))
+    cos_start = -1.0 if start_pointing_deg is None else math.cos(math.radians(
+        start_pointing_deg))
     for reach in REACHES_DEG:
         lo = np.maximum(robot.sample_lower, start - reach)
         hi = np.minimum(robot.sample_upper, start + reach)
-        for _ in range(DRAWS // BATCH):
+        for _ in range(max(1, draws // BATCH)):
             poses = rng.uniform(lo, hi, (BATCH, robot.dof))
             fk = robot.fk(poses)
             lines = fk.point_mm - start_point
             lengths = np.linalg.norm(lines, axis=1)
             along = np.sum(fk.direction * lines, axis=1) / np.maximum(lengths, 1e-9)
-            keep = (lengths >= MIN_LINE_MM) & (lengths <= MAX_LINE_MM) & (along >= cos_max)
+            along_start = lines @ start_direction / np.maximum(lengths, 1e-9)
+            keep = (lengths >= MIN_LINE_MM) & (lengths <= MAX_LINE_MM) & (along >= cos_max) \
+                & (along_start >= cos_start)
             yield from (np.round(p, 2) for p in poses[keep])
 
 
-def draw_targets(robot: Robot, start: np.ndarray, seed: int, count: int = COUNT
-                 ) -> list[np.ndarray]:
+def start_poses(robot: Robot, middle: np.ndarray, seed: int) -> Iterator[np.ndarray]:
+    """The start poses :func:`init_robot` tries without ``--start-pose``: ``middle``, then
+    :data:`START_DRAWS` drawn within the limits by ``numpy.random.default_rng([seed, 1])``
+    (rounded to 0.01 deg), each only when a quick probe (:data:`PROBE_DRAWS` candidates per
+    reach) finds a touch target from it."""
+    rng = np.random.default_rng([seed, 1])
+    candidates = itertools.chain(
+        [middle], (np.round(rng.uniform(robot.sample_lower, robot.sample_upper), 2)
+                   for _ in range(START_DRAWS)))
+    for start in candidates:
+        if next(touch_pose_draws(robot, start, seed, draws=PROBE_DRAWS), None) is not None:
+            yield start
+
+
+def draw_targets(robot: Robot, start: np.ndarray, seed: int, count: int = COUNT,
+                 start_pointing_deg: float | None = START_POINTING_DEG) -> list[np.ndarray]:
     """The first ``count`` of :func:`touch_pose_draws`; InputError when the draws find
     fewer."""
-    found = list(itertools.islice(touch_pose_draws(robot, start, seed), count))
+    found = list(itertools.islice(touch_pose_draws(robot, start, seed, start_pointing_deg),
+                                  count))
     if len(found) < count:
         raise InputError(f"robot init: only {len(found)} of {count} touch poses within "
                          f"{REACHES_DEG[-1]:g} deg of the start pose put the end frame "
@@ -227,6 +265,25 @@ def draw_targets(robot: Robot, start: np.ndarray, seed: int, count: int = COUNT
                          f"within {POINTING_DEG:g} deg of the line; give --start-pose or "
                          "--pointing-axis")
     return found
+
+
+def choose_start(robot: Robot, middle: np.ndarray, seed: int
+                 ) -> tuple[np.ndarray, list[np.ndarray], str]:
+    """(start pose, touch poses, how the start was chosen) without ``--start-pose`` (see the
+    module docstring)."""
+    for k, start in enumerate(start_poses(robot, middle, seed)):
+        try:
+            touches = draw_targets(robot, start, seed)
+        except InputError:
+            continue
+        how = "the middle of the limits" if k == 0 and np.array_equal(start, middle) else (
+            f"drawn within the limits by seed [{seed}, 1]: from the middle of the limits the "
+            f"end frame points more than {START_POINTING_DEG:g} deg away from every line")
+        return start, touches, how
+    touches = draw_targets(robot, middle, seed, start_pointing_deg=None)
+    return middle, touches, (f"the middle of the limits, though the end frame points more "
+                             f"than {START_POINTING_DEG:g} deg away from the lines there and "
+                             f"from every start drawn (the contract's pointing may not hold)")
 
 
 def letter_plane(robot: Robot, start: np.ndarray) -> tuple[list[float], list[float]]:
@@ -290,9 +347,11 @@ def init_robot(urdf: str, end_frame: str | None = None, base_link: str | None = 
     bounded = np.isfinite(robot.lower) & np.isfinite(robot.upper)
     middle = np.where(bounded, (np.where(bounded, robot.lower, 0.0)
                                 + np.where(bounded, robot.upper, 0.0)) / 2.0, 0.0)
-    start = middle if start_pose is None else robot.check_pose(start_pose, "--start-pose")
-    start = np.round(start, 2)
-    touches = draw_targets(robot, start, seed)
+    if start_pose is None:
+        start, touches, how = choose_start(robot, np.round(middle, 2), seed)
+    else:
+        start = np.round(robot.check_pose(start_pose, "--start-pose"), 2)
+        touches, how = draw_targets(robot, start, seed), "given (--start-pose)"
     u, v = letter_plane(robot, start)
     config = {"name": name, "description": f"{name}: {robot.dof} joints, {robot.root_link} -> "
               f"{robot.end_frame} (written by ikbench robot init)",
@@ -303,7 +362,7 @@ def init_robot(urdf: str, end_frame: str | None = None, base_link: str | None = 
               "letters": {"start_pose": [float(x) for x in start], "plane_u": u,
                           "plane_v": v}}
     targets = {"description": targets_description(name, len(touches), seed,
-                                                  reach_of(start, touches)),
+                                                  reach_of(start, touches), start=how),
                "joint_names": list(robot.joint_names),
                "start_pose": [float(x) for x in start],
                "targets": {str(k + 1): [float(x) for x in pose]
@@ -311,7 +370,7 @@ def init_robot(urdf: str, end_frame: str | None = None, base_link: str | None = 
                "steps": STEPS}
     return {"name": name, "config": config, "targets": targets, "end_frame": robot.end_frame,
             "candidates": candidates, "axis": axis, "robot": robot, "start": start,
-            "seed": seed}
+            "seed": seed, "start_from": how}
 
 
 def reach_of(start: np.ndarray, touches: list[np.ndarray]) -> float:
@@ -320,14 +379,16 @@ def reach_of(start: np.ndarray, touches: list[np.ndarray]) -> float:
     return next((r for r in REACHES_DEG if far <= r + 1e-6), REACHES_DEG[-1])
 
 
-def targets_description(name: str, count: int, seed: int, reach: float, checked: str = ""
-                        ) -> str:
-    """The targets file's ``description``: how its poses were drawn (and ``checked``: what the
-    check under the task contract found, when it ran)."""
-    return (f"{name}: the start pose (the middle of the limits unless given) and {count} touch "
+def targets_description(name: str, count: int, seed: int, reach: float, checked: str = "",
+                        start: str = "the middle of the limits") -> str:
+    """The targets file's ``description``: how its poses were drawn (``start``: how the start
+    pose was chosen; ``checked``: what the check under the task contract found, when it
+    ran)."""
+    return (f"{name}: the start pose ({start}) and {count} touch "
             f"poses drawn by seed {seed} within {reach:g} deg of it, each line "
             f"{MIN_LINE_MM:g}-{MAX_LINE_MM:g} mm long with the end frame pointing within "
-            f"{POINTING_DEG:g} deg of it at the touch pose; "
+            f"{POINTING_DEG:g} deg of it at the touch pose and within {START_POINTING_DEG:g} "
+            "deg at the start pose; "
             + (checked or "not checked by a solve under the task contract (ikbench robot init "
                "--check-targets)") + "; ikbench robot init")
 

@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ikbench.core.errors import InputError
     from ikbench.core.io import atomic_write_text, check_folder_writable
-    from ikbench.core.robot_init import init_robot, toml_text
+    from ikbench.core.robot_init import init_robot, reach_of, targets_description, toml_text
     from ikbench.core.targets import ID_PATTERN
 
     if args.name is not None and not (ID_PATTERN.fullmatch(args.name)
@@ -88,6 +88,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"checking {len(made['targets']['targets'])} touch poses under the task "
               "contract", file=sys.stderr)
         check = check_targets(made)
+        # the check rewrites the description; say again how the start pose was chosen
+        made["targets"]["description"] = targets_description(
+            made["name"], len(check.touches), made["seed"], reach_of(made["start"],
+                                                                     check.touches),
+            check.sentence(), start=made["start_from"])
     folder = Path(args.output)
     folder.mkdir(parents=True, exist_ok=True)
     config = folder / f"{made['name']}.toml"
@@ -102,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
               f"{shown or 'none'}; --end-frame to change it)", file=sys.stderr)
     print(f"pointing axis {made['axis']} of {made['end_frame']} (--pointing-axis to change it)",
           file=sys.stderr)
+    print(f"start pose {made['start_from']} (--start-pose to change it)", file=sys.stderr)
     if check is not None:
         print(f"targets: {check.sentence()} in {check.seconds:.1f} s", file=sys.stderr)
     print(f"wrote {config} and {targets}; next: ikbench letters P --robot {config}, "
