@@ -143,6 +143,12 @@ def test_cli_letters_uses_the_papers_letter_setting(tmp_path, capsys):
     table = pd.read_csv(folder / "table.csv")
     assert table["iterations"].tolist() == [20, 20]
     assert (folder / "trajectory_X.csv").is_file() and (folder / "shapes.png").is_file()
+    # judged by what was drawn, not by the optimiser's convergence (issue 64): 20 iterations
+    # leave the letters undrawn, and the console says so
+    printed = capsys.readouterr()
+    assert printed.out.splitlines()[0].split()[-2:] == ["stroke_coverage_pct", "drawn"]
+    assert not table["drawn"].any()
+    assert "2 of 2 shapes not drawn (L, X)" in printed.err
     assert exit_code(["letters", "7", "--output", str(tmp_path / "bad"), "--quiet"]) == 2
     assert "letter '7' is not one of A-Z" in capsys.readouterr().err
 

@@ -30,7 +30,8 @@ HELP = "generate trajectories with a method; write CSVs, table, figures and repo
 LINE_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "line_distance_mean_mm",
                 "pointing_deviation_mean_deg", "end_point_error_mm"]
 SHAPE_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "curve_distance_mean_mm",
-                 "curve_distance_max_mm", "point_error_mean_mm", "pointing_deviation_mean_deg"]
+                 "curve_distance_max_mm", "point_error_mean_mm", "pointing_deviation_mean_deg",
+                 "stroke_coverage_pct", "drawn"]
 PROBLEM_COLUMNS = ["trajectory", "iterations", "duration_s", "loss", "position_error_max_mm",
                    "rotation_error_max_deg", "max_joint_change_deg", "valid"]
 DEFAULT_OUTPUT = default_output("run")
@@ -273,6 +274,16 @@ def report_table(table: pd.DataFrame, folder: Path, batch: int | None = None) ->
               f"of {table['duration_s'].sum():.3g} s; each row shows its equal share")
     print(f"written to {folder}/")
     failed = table["trajectory"][table[columns[4]].isna()].tolist()
+    if "drawn" in table:  # a shape is judged by what the fingertip drew, not by convergence
+        from ikbench.core.metrics import DRAWN_COVERAGE_MIN_PCT, DRAWN_TOLERANCE_MM
+
+        missed = table["trajectory"][~table["drawn"].astype(bool)
+                                     & table[columns[4]].notna()].tolist()
+        if missed:
+            print(f"ikbench: {len(missed)} of {len(table)} shapes not drawn "
+                  f"({', '.join(map(str, missed))}): drawn needs every pen-down point within "
+                  f"{DRAWN_TOLERANCE_MM:g} mm of the shape and {DRAWN_COVERAGE_MIN_PCT:g} % of "
+                  "its strokes covered", file=sys.stderr)
     if failed:
         print(f"ikbench: {len(failed)} of {len(table)} solves failed ({', '.join(failed)}); "
               f"details.csv gives each failure", file=sys.stderr)
