@@ -13,10 +13,13 @@ import numpy as np
 
 from ikbench.core.legibility import POINTING_SIGMA_DEG, THRESHOLD
 from ikbench.render.arm_plots import matplotlib_pyplot
+from ikbench.render.palette import distinct_colors
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+#: Columns of the summary figure's legend (below the panels).
+LEGEND_COLUMNS = 4
 #: (key, panel title) of the two observers.
 OBSERVERS = (("position", "position observer (fingertip path; Dragan et al. 2013)"),
              ("pointing", f"pointing observer (finger ray, sigma = {POINTING_SIGMA_DEG:g} deg)"))
@@ -59,17 +62,20 @@ def plot_legibility_summary(curves: dict[str, dict[str, dict[str, np.ndarray]]],
     P(true goal) over time, for both observers."""
     plt = matplotlib_pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
-    colours = plt.get_cmap("tab10")
+    colours = distinct_colors(len(curves))
     styles = ["-", "--", "-.", ":"]
     for ax, (key, title) in zip(axes, OBSERVERS):
         for k, (method, by_trajectory) in enumerate(curves.items()):
             times = next(iter(by_trajectory.values()))["times_s"]
             same = [c[key] for c in by_trajectory.values() if len(c[key]) == len(times)]
             ax.plot(times, np.median(same, axis=0), styles[(k // 10) % 4], lw=1.6,
-                    color=colours(k % 10), label=f"{method} ({len(same)} trajectories)")
+                    color=colours[k], label=f"{method} ({len(same)} trajectories)")
         _axes_style(ax, goals, title)
-    axes[1].legend(fontsize=7, loc="lower right")
     fig.suptitle(f"Median P(true goal) over the trajectories, per method ({goals} goals; "
                  f"dashed: {THRESHOLD:g})", fontsize=10)
     fig.tight_layout()
+    # below both panels, not over the curves (issue 64: it hid the pointing panel's)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=7, loc="upper center", ncol=LEGEND_COLUMNS,
+               bbox_to_anchor=(0.5, 0.0), frameon=False)
     return fig

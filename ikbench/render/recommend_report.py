@@ -28,6 +28,8 @@ import pandas as pd
 from ikbench.core.io import atomic_savefig, staged_folder
 from ikbench.core.provenance import library_versions, provenance
 from ikbench.render.ik_report import robot_slug
+from ikbench.render.labels import label_points
+from ikbench.render.palette import distinct_colors
 
 FOLDER = "recommend"
 #: The budget class of a method no call of which ran (ikbench.studies.verdict.FAILED).
@@ -272,7 +274,8 @@ def pareto(result: Result, path: Path) -> None:
 
     table = result.table[result.table["budget"] != "cannot run"]
     fig, ax = plt.subplots(figsize=(8.5, 5.2))
-    colours = plt.get_cmap("tab20" if len(table) > 10 else "tab10")
+    palette = distinct_colors(len(table))
+    points, names = [], []
     for k, (_, row) in enumerate(table.iterrows()):
         x, y = row["p50_ms"], row["success_pct"]
         # max(0, ...): round-off (a Wilson bound at 100 %), a percentile interval off its
@@ -280,10 +283,10 @@ def pareto(result: Result, path: Path) -> None:
         xerr = [[max(0.0, x - row["p50_low_ms"])], [max(0.0, row["p50_high_ms"] - x)]]
         yerr = [[max(0.0, y - row["success_low_pct"])], [max(0.0, row["success_high_pct"] - y)]]
         marker = "o" if row["budget"] == "within" else "x"
-        ax.errorbar(x, y, xerr=xerr, yerr=yerr, fmt=marker, color=colours(k % colours.N),
+        ax.errorbar(x, y, xerr=xerr, yerr=yerr, fmt=marker, color=palette[k],
                     capsize=3, label=f"{row['method']} (p99 {row['budget']})")
-        ax.annotate(row["method"], (x, y), xytext=(4, 4), textcoords="offset points",
-                    fontsize=7, color=colours(k % colours.N))
+        points.append((x, y))
+        names.append(row["method"])
         if row["role"] == "recommended":
             ax.plot(x, y, "o", ms=16, mfc="none", mec="k", label="recommended")
     ax.set_xscale("log")
@@ -297,5 +300,6 @@ def pareto(result: Result, path: Path) -> None:
                  "budget, x: not)", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    label_points(ax, points, names, palette)  # last: the limits and the layout are set
     atomic_savefig(path, fig)
     plt.close(fig)
