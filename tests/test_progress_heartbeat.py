@@ -331,11 +331,13 @@ def test_the_ikbench_function_that_called_the_opener_counts_as_running():
         description = "opens a reporter in its solve (tests)"
 
         def solve(self, robot, task, progress=None) -> Solution:
-            opened.append(Reporter("inner", enabled=False))
+            opened.append(Reporter("inner", stream=io.StringIO()))
             return Solution(np.zeros((task.goal.steps + 1, 1)), iterations=1,
                             duration_s=0.0, loss=None)
 
     solve_tasks(Opens(), None, [task])
-    called_here = Reporter("here", enabled=False)
+    called_here = Reporter("here", stream=io.StringIO())
     assert len(opened[0]._opened_by[1]) == 2  # solve, and the harness that called it
     assert len(called_here._opened_by[1]) == 1
+    called_here.close()
+    opened[0].close()

@@ -150,7 +150,7 @@ class Reporter:
         self._opened = self._last_event = time.monotonic()
         self._last_output = self._bar_redrawn = -math.inf
         self._generation = _heartbeat["generation"]
-        self._opened_by = _opener(self)
+        self._opened_by = _opener(self) if enabled else None
         if enabled:
             _watch(self)
 
