@@ -30,6 +30,14 @@ Before it is parsed, a file larger than :data:`MAX_URDF_BYTES` or with more than
 :data:`MAX_LINKS` ``<link>`` elements is refused (one line, in well under a second: parsing
 a file of 200,000 links takes yourdfpy minutes and gigabytes).
 
+A parsed model is also kept on disk (:func:`cache_folder`: ``$XDG_CACHE_HOME/ikbench/urdf``,
+``~/.cache/ikbench/urdf`` by default; ``IKBENCH_URDF_CACHE=0`` turns it off), keyed by the
+file's path and bytes and by this module's own source, so a new process reads a robot without
+importing yourdfpy and trimesh (most of a first call's wait, issue 63). Only files that
+parsed without a warning are kept; yourdfpy's tree, which only the URDF writer needs
+(:meth:`UrdfModel.to_xml`, :meth:`UrdfModel.to_yourdfpy`), is parsed again from the same
+bytes when first asked for.
+
 The joints of a robot's chain are checked further when the robot is built
 (:func:`ikbench.core.robot.chain_joints`, with :data:`MAX_LIMIT_RAD` and
 :data:`MAX_LIMIT_M`): a file may hold a gripper's mimic joint or a wheel without a speed
@@ -45,10 +53,12 @@ import hashlib
 import io
 import logging
 import math
+import os
+import pickle
 import re
 import warnings
 from collections import Counter, OrderedDict
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -85,6 +95,13 @@ MAX_LIMIT_M = 1e3
 _LINK_TAG = re.compile(rb"<link[\s/>]")
 
 _MODELS: OrderedDict[tuple[str, str], UrdfModel] = OrderedDict()
+#: The environment variable that turns the disk cache off (``0``).
+CACHE_SWITCH = "IKBENCH_URDF_CACHE"
+#: Files the disk cache keeps at most (the oldest go first; each a few kB).
+CACHE_FILES = 256
+#: This module's source, part of every disk cache key: a model written by other code is not
+#: read back (computed on first use).
+_CODE_KEY: list[str] = []
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,7 +179,24 @@ class UrdfModel:
     joints: tuple[UrdfJoint, ...]
     root_link: str
     collisions: tuple[UrdfCollision, ...]
-    _tree: yourdfpy.Robot
+    _data: bytes = field(repr=False)
+    #: yourdfpy's tree, once parsed (empty in a model read from the disk cache).
+    _trees: list[Any] = field(default_factory=list, repr=False)
+    #: :meth:`to_xml`'s texts, by its arguments (kept in the disk cache with the model).
+    _xml: dict[tuple, str] = field(default_factory=dict, repr=False)
+    #: Kept on disk (a file that parsed with a warning is not: its warnings are said again).
+    _cacheable: bool = field(default=False, repr=False)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without yourdfpy's tree (reading it back would import yourdfpy)."""
+        return {**self.__dict__, "_trees": []}
+
+    @property
+    def _tree(self) -> yourdfpy.Robot:
+        """yourdfpy's tree of the file (parsed from the same bytes on first use)."""
+        if not self._trees:
+            self._trees.append(_yourdfpy_urdf(self._data).robot)
+        return self._trees[0]
 
     def joint(self, name: str) -> UrdfJoint:
         """The joint called ``name`` (KeyError when there is none)."""
@@ -239,11 +273,23 @@ class UrdfModel:
                 with limits -value..value [rad] (their effort and velocity kept, 0 if none).
             unit_axes: write every joint axis normalised.
 
-        Fixed joints are written without an axis (ikpy warns about one).
+        Fixed joints are written without an axis (ikpy warns about one). A text written once
+        is kept with the model, on disk too (see the module docstring).
         """
+        held = dict(fixed or {})
+        key = (visuals, collisions, tuple(sorted(held.items())), continuous_limit, unit_axes)
+        if key not in self._xml:
+            self._xml[key] = self._written(visuals, collisions, held, continuous_limit,
+                                           unit_axes)
+            if self._cacheable:
+                _write_cached(_cache_file((str(self.path), self.sha256)), self)
+        return self._xml[key]
+
+    def _written(self, visuals: bool, collisions: bool, held: dict[str, float],
+                 continuous_limit: float | None, unit_axes: bool) -> str:
+        """:meth:`to_xml`'s text, written by yourdfpy."""
         import yourdfpy
 
-        held = dict(fixed or {})
         joints = [_edited(j, held, continuous_limit, unit_axes) for j in self._tree.joints]
         links = [replace(link, visuals=link.visuals if visuals else [],
                          collisions=link.collisions if collisions else [])
@@ -357,7 +403,10 @@ def load_urdf_model(path: str | Path) -> UrdfModel:
     if key in _MODELS:
         _MODELS.move_to_end(key)
         return _MODELS[key]
-    model = _parse(path, key[1], data)
+    stored = _cache_file(key)
+    model = _read_cached(stored, key)
+    if model is None:
+        model = _parse(path, key[1], data, stored)
     _MODELS[key] = model
     while len(_MODELS) > CACHE_SIZE:
         _MODELS.popitem(last=False)
@@ -376,7 +425,73 @@ class _Errors(logging.Handler):
         self.messages.append(record.getMessage())
 
 
-def _parse(path: Path, digest: str, data: bytes) -> UrdfModel:
+def cache_folder() -> Path | None:
+    """Where parsed models are kept between processes (see the module docstring); None when
+    the cache is off."""
+    if os.environ.get(CACHE_SWITCH, "1") == "0":
+        return None
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "ikbench" / "urdf"
+
+
+def _cache_file(key: tuple[str, str]) -> Path | None:
+    """The disk cache's file of a (path, sha256) key, or None when the cache is off."""
+    folder = cache_folder()
+    if folder is None:
+        return None
+    if not _CODE_KEY:  # this module's source and the yourdfpy that writes to_xml's texts
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            writer = version("yourdfpy")
+        except PackageNotFoundError:
+            writer = "none"
+        _CODE_KEY.append(hashlib.sha256(Path(__file__).read_bytes()).hexdigest() + writer)
+    name = hashlib.sha256("\n".join((_CODE_KEY[0], *key)).encode()).hexdigest()
+    return folder / f"{name}.pickle"
+
+
+def _read_cached(stored: Path | None, key: tuple[str, str]) -> UrdfModel | None:
+    """The model kept in ``stored``, or None (none there, unreadable, or not this key's)."""
+    if stored is None or not stored.is_file():
+        return None
+    try:
+        model = pickle.loads(stored.read_bytes())
+    except Exception:  # a partial or foreign file: parse again (and write it anew)
+        return None
+    if not isinstance(model, UrdfModel) or (str(model.path), model.sha256) != key:
+        return None
+    return model
+
+
+def _write_cached(stored: Path | None, model: UrdfModel) -> None:
+    """Keep ``model`` in ``stored`` (written whole or not at all; a cache that cannot be
+    written is skipped)."""
+    if stored is None:
+        return
+    try:
+        stored.parent.mkdir(parents=True, exist_ok=True)
+        partial = stored.with_suffix(f".{os.getpid()}.tmp")
+        partial.write_bytes(pickle.dumps(model, protocol=pickle.HIGHEST_PROTOCOL))
+        os.replace(partial, stored)
+        kept = sorted(stored.parent.glob("*.pickle"), key=lambda f: f.stat().st_mtime)
+        for old in kept[:max(0, len(kept) - CACHE_FILES)]:
+            old.unlink(missing_ok=True)
+    except OSError:  # includes a file another process removed while this one listed it
+        pass
+
+
+def _yourdfpy_urdf(data: bytes) -> yourdfpy.URDF:
+    """yourdfpy's parse of a URDF's bytes (no scene graph, no meshes)."""
+    import yourdfpy
+
+    return yourdfpy.URDF.load(io.BytesIO(data), build_scene_graph=False, load_meshes=False,
+                              filename_handler=yourdfpy.filename_handler_null)
+
+
+def _parse(path: Path, digest: str, data: bytes, stored: Path | None = None) -> UrdfModel:
+    """Parse and check a URDF's bytes (see the module docstring); a model that parsed
+    without a warning is kept in ``stored``."""
     import yourdfpy
 
     logger = logging.getLogger(yourdfpy.URDF.__module__)
@@ -387,9 +502,7 @@ def _parse(path: Path, digest: str, data: bytes) -> UrdfModel:
     with warnings.catch_warnings(record=True) as warned:
         warnings.simplefilter("always")
         try:
-            urdf = yourdfpy.URDF.load(io.BytesIO(data), build_scene_graph=False,
-                                      load_meshes=False,
-                                      filename_handler=yourdfpy.filename_handler_null)
+            urdf = _yourdfpy_urdf(data)
         except Exception as exc:  # yourdfpy raises what its parsing meets (KeyError, ...)
             reason = (errors.messages[0] if errors.messages
                       else f"an element lacks its {exc} attribute" if isinstance(exc, KeyError)
@@ -413,11 +526,14 @@ def _parse(path: Path, digest: str, data: bytes) -> UrdfModel:
     links = tuple(link.name for link in tree.links)
     children = {j.child for j in joints}
     root = next((name for name in links if name not in children), "")
-    return UrdfModel(path=path, sha256=digest, name=str(tree.name), links=links,
-                     joints=joints, root_link=root,
-                     collisions=tuple(_collision(link.name, c) for link in tree.links
-                                      for c in link.collisions),
-                     _tree=tree)
+    model = UrdfModel(path=path, sha256=digest, name=str(tree.name), links=links,
+                      joints=joints, root_link=root,
+                      collisions=tuple(_collision(link.name, c) for link in tree.links
+                                       for c in link.collisions),
+                      _data=data, _trees=[tree], _cacheable=not warned)
+    if model._cacheable:
+        _write_cached(stored, model)
+    return model
 
 
 def link_words(link: str) -> list[str]:
