@@ -304,6 +304,7 @@ SPECIFICATION = {
     "(MAX_LIMIT_RAD, MAX_LIMIT_M, ikbench/core/urdf_model.py)",
     "within 30 deg of": "robot init's first reach (REACHES_DEG, ikbench/core/robot_init.py)",
     "(15 deg, the contract's pointing tolerance)": "POINTING_DEG (ikbench/core/robot_init.py)",
+    "(45 deg) of it at the start pose": "START_POINTING_DEG (ikbench/core/robot_init.py)",
     # docs/experiment.md, docs/experiment-browser.md: the authors' design and the defaults
     "stops at 60 % or 80 % of its path": "the authors' design (Lucny et al., ICSR 2025)",
     "2400 x 1350 px, 46.7 x 26.7 cm": "the authors' screen (andylucny/nico2 "
