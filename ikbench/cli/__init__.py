@@ -150,7 +150,8 @@ def main(argv: list[str] | None = None) -> int:
     console = argv is None
     argv = sys.argv[1:] if argv is None else list(argv)
     if console:
-        sys.unraisablehook = _ctrl_c_not_swallowed(sys.unraisablehook)
+        sys.unraisablehook = _ctrl_c_not_swallowed(sys.unraisablehook,
+                                                   progress.RERAISE_AFTER_S)
     try:
         try:
             parser = build_parser(argv)
@@ -165,14 +166,16 @@ def main(argv: list[str] | None = None) -> int:
         return code
 
 
-def _ctrl_c_not_swallowed(previous):  # type: ignore[no-untyped-def]
+def _ctrl_c_not_swallowed(previous, reraise_after_s=None):  # type: ignore[no-untyped-def]
     """A ``sys.unraisablehook`` that hands a swallowed Ctrl-C (a KeyboardInterrupt raised in a
-    library's callback, which Python can only print and drop) to the next progress event, which
-    raises it again; anything else goes to ``previous``."""
+    library's callback, which Python can only print and drop: llvmlite's, JAX's at each garbage
+    collection) to the next progress event, which raises it again, or after
+    ``reraise_after_s`` [s] to the main thread
+    (:func:`~ikbench.runtime.progress.ctrl_c_swallowed`); anything else goes to ``previous``."""
 
     def hook(unraisable):  # type: ignore[no-untyped-def]
         if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
-            progress.ctrl_c_swallowed()
+            progress.ctrl_c_swallowed(reraise_after_s)
             return
         previous(unraisable)
 
