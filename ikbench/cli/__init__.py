@@ -152,6 +152,7 @@ def main(argv: list[str] | None = None) -> int:
     if console:
         sys.unraisablehook = _ctrl_c_not_swallowed(sys.unraisablehook,
                                                    progress.RERAISE_AFTER_S)
+        _ctrl_c_even_if_inherited_ignored()
     try:
         try:
             parser = build_parser(argv)
@@ -164,6 +165,20 @@ def main(argv: list[str] | None = None) -> int:
         if console:
             _exit_now(code)
         return code
+
+
+def _ctrl_c_even_if_inherited_ignored() -> None:
+    """Install Python's SIGINT handler (KeyboardInterrupt) when the process started with
+    SIGINT ignored, as a script's background job (``ikbench ik ... &``) inherits it and Python
+    then installs none: a Ctrl-C or ``kill -INT`` sent to the command stops it, with exit 130
+    and its folders kept, whichever library is solving, rather than being lost (the command
+    ran on to the end and replaced the complete run). Only in the main thread; a handler of
+    the caller's own stays."""
+    try:
+        if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+    except ValueError:  # not the main thread (an embedding caller's): leave it
+        pass
 
 
 def _ctrl_c_not_swallowed(previous, reraise_after_s=None):  # type: ignore[no-untyped-def]
