@@ -10,7 +10,8 @@ The latency from the signal to the exit is printed (``-s``) and recorded as a pr
 (``ctrl_c_latency_s``), never asserted: the communicate timeout is a safety net only.
 
 ``inherited`` is how the process starts with SIGINT: ``default`` (Python installs its handler)
-or ``ignored`` (SIG_IGN, as a script's ``cmd &`` inherits it; Python then installs none)."""
+or ``ignored`` (SIG_IGN, as a script's ``cmd &`` inherits it; Python then installs none, the
+console command installs its own)."""
 
 from __future__ import annotations
 
@@ -44,20 +45,40 @@ EXIT_TIMEOUT_S = 120.0
 IGNORED = ("trac-ik", "ikpy", "ours-lm", "pyroki")
 
 
-@pytest.mark.parametrize("inherited, installed", [
-    (signal.SIG_IGN, signal.default_int_handler),  # Python installed none: the CLI does
-    (signal.default_int_handler, signal.default_int_handler),
-    (signal.SIG_DFL, signal.SIG_DFL),  # a caller's choice stays
+@pytest.mark.parametrize("inherited, taken", [
+    (signal.SIG_IGN, True),  # Python installed none: the console command does
+    (signal.default_int_handler, True),
+    (signal.SIG_DFL, False),  # a caller's choice stays
 ])
-def test_the_console_command_takes_sigint_when_it_started_ignored(inherited, installed):
+def test_the_console_command_takes_sigint_also_when_it_started_ignored(inherited, taken):
     from ikbench import cli
 
     before = signal.signal(signal.SIGINT, inherited)
     try:
-        cli._ctrl_c_even_if_inherited_ignored()
-        assert signal.getsignal(signal.SIGINT) is installed
+        cli._take_sigint()
+        assert signal.getsignal(signal.SIGINT) is (cli._on_sigint if taken else inherited)
     finally:
         signal.signal(signal.SIGINT, before)
+
+
+def test_a_ctrl_c_landing_where_compiled_code_drops_it_is_raised_later(monkeypatch):
+    """numba's boxing calls ``_numba_unpickle`` and drops what it raises: a Ctrl-C landing
+    there is raised at the next progress event (or by the timer, off here), elsewhere at
+    once."""
+    from ikbench import cli
+    from ikbench.runtime import progress
+    from ikbench.runtime.progress import Reporter
+
+    monkeypatch.setattr(progress, "RERAISE_AFTER_S", None)  # no timer in pytest's process
+    scope = {"__name__": "numba.core.serialize", "sys": sys}
+    exec("def _numba_unpickle():\n    return sys._getframe()", scope)
+    cli._on_sigint(signal.SIGINT, scope["_numba_unpickle"]())  # not raised there
+    reporter = Reporter("test", total=2, enabled=False)
+    with pytest.raises(KeyboardInterrupt):
+        reporter.advance()
+    reporter.advance()  # once
+    with pytest.raises(KeyboardInterrupt):
+        cli._on_sigint(signal.SIGINT, sys._getframe())
 
 
 def _cases() -> list:
