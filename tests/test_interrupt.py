@@ -85,6 +85,47 @@ def test_a_ctrl_c_a_library_swallows_stops_the_command_at_its_next_progress_even
     reporter.note("still on")
 
 
+def test_a_swallowed_ctrl_c_is_raised_again_in_the_main_thread_without_a_progress_event():
+    """Issue 64: JAX's garbage-collection callback (qpsolvers imports JAX, so pink and mink
+    run it) swallows a Ctrl-C that lands in it, and ``ik`` says a progress line only every
+    10 s while a library solves. The console command's hook raises it again in the main
+    thread, with no progress event, once."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import textwrap
+
+    from tests.conftest import REPO
+
+    script = textwrap.dedent("""
+        import gc, sys, time
+        from ikbench import cli
+        from ikbench.runtime import progress
+        sys.unraisablehook = cli._ctrl_c_not_swallowed(sys.unraisablehook,
+                                                       progress.RERAISE_AFTER_S)
+        def callback(phase, info):
+            gc.callbacks.remove(callback)
+            raise KeyboardInterrupt
+        gc.callbacks.append(callback)
+        gc.collect()
+        print("swallowed", flush=True)
+        for round_, wait_s in (("raised again", 30.0), ("once", 1.0)):  # safety nets
+            try:
+                deadline = time.monotonic() + wait_s  # no progress event in it
+                while time.monotonic() < deadline:
+                    time.sleep(0.01)
+                print("not raised", flush=True)
+            except KeyboardInterrupt:
+                print(round_, flush=True)
+    """)
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120, cwd=REPO,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    assert done.stdout.splitlines() == ["swallowed", "raised again", "not raised"], done.stderr
+
+
 def _snapshot(folder):
     return {p.relative_to(folder).as_posix(): p.read_bytes()
             for p in sorted(folder.rglob("*")) if p.is_file()}

@@ -161,7 +161,9 @@ def main(argv: list[str] | None = None) -> int:
     console = argv is None
     argv = sys.argv[1:] if argv is None else list(argv)
     if console:
-        sys.unraisablehook = _ctrl_c_not_swallowed(sys.unraisablehook)
+        sys.unraisablehook = _ctrl_c_not_swallowed(sys.unraisablehook,
+                                                   progress.RERAISE_AFTER_S)
+        _take_sigint()
     try:
         try:
             parser = build_parser(argv)
@@ -176,14 +178,48 @@ def main(argv: list[str] | None = None) -> int:
         return code
 
 
-def _ctrl_c_not_swallowed(previous):  # type: ignore[no-untyped-def]
+#: Functions that compiled code calls and whose exception it drops, so that a Ctrl-C raised
+#: in one is lost and the command runs on to the end: numba's boxing unpickles the class of
+#: what an ``@njit`` function returns (ours-lm's solve in ``ik`` lost about every second
+#: Ctrl-C there). A Ctrl-C that lands in one is raised a moment later instead.
+DROPS_EXCEPTIONS = frozenset({("numba.core.serialize", "_numba_unpickle")})
+
+
+def _on_sigint(signum, frame):  # type: ignore[no-untyped-def]
+    """The console command's SIGINT handler: Python's (KeyboardInterrupt), but where the
+    signal lands in a function of :data:`DROPS_EXCEPTIONS`, which would lose it, it is
+    raised again shortly in the main thread (or at the next progress event)."""
+    if frame is not None and (frame.f_globals.get("__name__"),
+                              frame.f_code.co_name) in DROPS_EXCEPTIONS:
+        progress.ctrl_c_swallowed(progress.RERAISE_AFTER_S)
+        return
+    raise KeyboardInterrupt
+
+
+def _take_sigint() -> None:
+    """Install :func:`_on_sigint` in place of Python's handler, and also when the process
+    started with SIGINT ignored, as a script's background job (``ikbench ik ... &``) inherits
+    it and Python then installs none: a Ctrl-C or ``kill -INT`` sent to the command stops it,
+    with exit 130 and its folders kept, whichever library is solving, rather than being lost
+    (the command ran on to the end and replaced the complete run). Only in the main thread;
+    a handler of the caller's own (or SIG_DFL) stays."""
+    try:
+        if signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, signal.default_int_handler):
+            signal.signal(signal.SIGINT, _on_sigint)
+    except ValueError:  # not the main thread (an embedding caller's): leave it
+        pass
+
+
+def _ctrl_c_not_swallowed(previous, reraise_after_s=None):  # type: ignore[no-untyped-def]
     """A ``sys.unraisablehook`` that hands a swallowed Ctrl-C (a KeyboardInterrupt raised in a
-    library's callback, which Python can only print and drop) to the next progress event, which
-    raises it again; anything else goes to ``previous``."""
+    library's callback, which Python can only print and drop: llvmlite's, JAX's at each garbage
+    collection) to the next progress event, which raises it again, or after
+    ``reraise_after_s`` [s] to the main thread
+    (:func:`~ikbench.runtime.progress.ctrl_c_swallowed`); anything else goes to ``previous``."""
 
     def hook(unraisable):  # type: ignore[no-untyped-def]
         if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
-            progress.ctrl_c_swallowed()
+            progress.ctrl_c_swallowed(reraise_after_s)
             return
         previous(unraisable)
 

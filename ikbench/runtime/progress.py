@@ -46,10 +46,12 @@ release it) holds the heartbeat back too.
 
 from __future__ import annotations
 
+import _thread
 import atexit
 import json
 import math
 import os
+import signal
 import sys
 import threading
 import time
@@ -79,20 +81,47 @@ _heartbeat: dict[str, Any] = {"thread": None, "stop": threading.Event(), "genera
 #: The enabled reporters the heartbeat looks after (a reporter collected leaves it).
 _watched: weakref.WeakSet[Reporter] = weakref.WeakSet()
 #: Set when a Ctrl-C's KeyboardInterrupt was swallowed by a library (llvmlite's ctypes
-#: callbacks, while numba compiles or loads a kernel, print it as "Exception ignored"): the
-#: next progress event raises it again, so the command stops as it was asked to.
+#: callbacks, while numba compiles or loads a kernel, and JAX's garbage-collection callback,
+#: which any solve that makes garbage can run, print it as "Exception ignored"): the next
+#: progress event raises it again, or the main thread a moment later, so the command stops
+#: as it was asked to.
 _swallowed_ctrl_c = threading.Event()
+_swallowed_lock = threading.Lock()
+#: How long after a swallowed Ctrl-C the CLI raises it again in the main thread [s] when no
+#: progress event came first (``ik`` says a line every 10 s while a library solves).
+RERAISE_AFTER_S = 0.05
 
 
-def ctrl_c_swallowed() -> None:
-    """Say that a KeyboardInterrupt was swallowed (the CLI's ``sys.unraisablehook``)."""
+def ctrl_c_swallowed(reraise_after_s: float | None = None) -> None:
+    """Say that a KeyboardInterrupt was swallowed (the CLI's ``sys.unraisablehook``): the next
+    progress event raises it again; ``reraise_after_s``: also, if none did by then, it is
+    raised in the main thread after that long [s] (as a second SIGINT would be; swallowed
+    again, it is raised again)."""
     _swallowed_ctrl_c.set()
+    if reraise_after_s is not None:
+        timer = threading.Timer(reraise_after_s, _reraise_in_main_thread)
+        timer.daemon = True
+        timer.start()
+
+
+def _take_swallowed_ctrl_c() -> bool:
+    """True once per swallowed Ctrl-C (whoever raises it again takes it)."""
+    if not _swallowed_ctrl_c.is_set():
+        return False
+    with _swallowed_lock:
+        taken = _swallowed_ctrl_c.is_set()
+        _swallowed_ctrl_c.clear()
+    return taken
 
 
 def _raise_swallowed_ctrl_c() -> None:
-    if _swallowed_ctrl_c.is_set():
-        _swallowed_ctrl_c.clear()
+    if _take_swallowed_ctrl_c():
         raise KeyboardInterrupt
+
+
+def _reraise_in_main_thread() -> None:
+    if _take_swallowed_ctrl_c():  # nothing once SIGINT is ignored (the command is ending)
+        _thread.interrupt_main(signal.SIGINT)
 
 
 def configure(mode: str = "lines", log: TextIO | None = None, owned: bool = False) -> None:
