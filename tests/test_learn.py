@@ -169,6 +169,10 @@ def test_the_trajectory_model_predicts_whole_trajectories(dataset, tmp_path):
     assert q.shape == (STEPS + 1, model.robot.dof)
     assert np.array_equal(q[0], start) and model.robot.within_limits(q)
     assert model.predict(data.poses[:4, 0], data.touch_mm[:4]).shape == (4, STEPS + 1, 7)
+    k = model.meta["hyper"]["components"]
+    candidates = model.candidates(start, goal)
+    assert candidates.shape == (k, STEPS + 1, 7) and np.array_equal(candidates[0], q)
+    assert model.robot.within_limits(candidates)
     err = model.meta["held_out_error"]
     assert err["samples"] > 0 and np.isfinite(err["line_distance_mean_mm_median"])
     assert np.isfinite(err["end_point_error_mm_p95"])

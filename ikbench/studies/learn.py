@@ -8,9 +8,11 @@ kind on the CPU with torch and writes the model file (``torch.save`` of a dict):
 - ``pose``: target end frame -> joint configurations, a mixture density network
   (:class:`ikbench.studies.learn_model.PoseMDN`); its samples are every pose of every
   trajectory, each with its end frame by the robot's own FK.
-- ``trajectory``: (start pose, goal point [mm]) -> the whole trajectory (n + 1 poses), an MLP
-  (:class:`ikbench.studies.learn_model.TrajectoryMLP`); its samples are the dataset's
-  converged trajectories.
+- ``trajectory``: (start pose, goal point [mm]) -> the whole trajectory (n + 1 poses), a
+  mixture density network over whole trajectories
+  (:class:`ikbench.studies.learn_model.TrajectoryMDN`): a goal point leaves the touch pose
+  open (the dataset's touch poses are drawn at random, several per point), so a single
+  regression would average branches; its samples are the dataset's converged trajectories.
 
 Training is seeded and deterministic (``torch.manual_seed``, deterministic algorithms, the
 batches of epoch e drawn from a generator seeded by (seed, e)), reports a line per epoch
@@ -50,6 +52,7 @@ from ikbench.studies.learn_model import (
     build_net,
     frame_errors,
     frame_features,
+    trajectory_vector,
 )
 
 FORMAT = "ikbench-learned-model"
@@ -203,12 +206,10 @@ def split(ids: np.ndarray, holdout: float, seed: int) -> tuple[np.ndarray, np.nd
 # ----- samples --------------------------------------------------------------------------------
 @dataclass
 class Samples:
-    """Training tensors of one kind (float32): inputs, targets and for the trajectory kind
-    the normalised start poses."""
+    """Training tensors of one kind (float32): inputs and targets."""
 
     x: Any
     y: Any
-    start: Any | None = None
 
     def __len__(self) -> int:
         return int(self.x.shape[0])
@@ -246,17 +247,15 @@ def _samples(kind: str, data: Dataset, rows: np.ndarray, scale: JointScale,
                        torch.as_tensor(scale.to_unit(q), dtype=torch.float32))
     start = scale.to_unit(data.poses[rows, 0])
     x = np.concatenate([start, (data.touch_mm[rows] - mean) / std], axis=1)
+    y = trajectory_vector(scale.to_unit(data.poses[rows]))
     return Samples(torch.as_tensor(x, dtype=torch.float32),
-                   torch.as_tensor(scale.to_unit(data.poses[rows]), dtype=torch.float32),
-                   torch.as_tensor(start, dtype=torch.float32))
+                   torch.as_tensor(y, dtype=torch.float32))
 
 
 def _loss(net, kind: str, samples: Samples, index=None):
     if index is None:
         index = slice(None)
-    if samples.start is None:  # the pose kind
-        return net.loss(samples.x[index], samples.y[index])
-    return net.loss(samples.x[index], samples.start[index], samples.y[index])
+    return net.loss(samples.x[index], samples.y[index])
 
 
 def _mean_loss(net, kind: str, samples: Samples, chunk: int = 8192) -> float:
@@ -538,8 +537,9 @@ def held_out_error(model: LearnedModel, data: Dataset, held_rows: np.ndarray,
     """The raw error (no refinement) of ``model`` on held-out samples (at most
     :data:`MAX_EVAL_SAMPLES`): pose kind, position [mm] and rotation [deg] error of the best
     proposal (row 0 of ``propose``: the heaviest component's mean) and of the best of the
-    K component means by FK; trajectory kind, the raw predicted trajectory's mean line
-    distance, end point error [mm] and mean pointing deviation [deg]."""
+    K component means by FK; trajectory kind, the raw predicted trajectory's (``predict``:
+    the heaviest component's) mean line distance, end point error [mm] and mean pointing
+    deviation [deg], and those of the best of the K candidates by line distance."""
     if len(held_rows) == 0:
         return {"samples": 0}
     robot = data.robot
@@ -557,21 +557,26 @@ def held_out_error(model: LearnedModel, data: Dataset, held_rows: np.ndarray,
                 **_quantiles(pos[pick, best], "best_of_k_position_mm"),
                 **_quantiles(rot[pick, best], "best_of_k_rotation_deg")}
     rows = held_rows[:MAX_EVAL_SAMPLES]
-    start = data.poses[rows, 0]
-    predicted = model.predict(start, data.touch_mm[rows])         # (B, n + 1, dof)
-    flat = predicted.reshape(-1, robot.dof)
-    point_m, rotation, _, _ = robot.chain_kinematics().transforms(flat)
-    shape = (len(rows), data.steps + 1, 3)
-    points = (point_m * 1000.0).reshape(shape)
-    directions = (rotation @ robot.pointing_axis).reshape(shape)
+    start, goal = data.poses[rows, 0], data.touch_mm[rows]
+    candidates = model.candidates(start, goal)                 # (B, K, n + 1, dof)
+    b, k, n1, dof = candidates.shape
+    flat = candidates.reshape(b * k, n1, dof)
+    point_m, rotation, _, _ = robot.chain_kinematics().transforms(flat.reshape(-1, dof))
+    points = (point_m * 1000.0).reshape(b * k, n1, 3)
+    directions = (rotation @ robot.pointing_axis).reshape(b * k, n1, 3)
     start_mm = robot.chain_kinematics().transforms(start)[0] * 1000.0
-    figures = line_metrics(points, directions, predicted, start_mm, data.touch_mm[rows],
-                           start, predicted[:, -1])
-    return {"samples": int(len(rows)),
-            **_quantiles(figures["line_distance_mean_mm"], "line_distance_mean_mm"),
-            **_quantiles(figures["end_point_error_mm"], "end_point_error_mm"),
-            **_quantiles(figures["pointing_deviation_mean_deg"],
-                         "pointing_deviation_mean_deg")}
+    figures = line_metrics(points, directions, flat, np.repeat(start_mm, k, axis=0),
+                           np.repeat(goal, k, axis=0), np.repeat(start, k, axis=0),
+                           flat[:, -1])
+    names = ("line_distance_mean_mm", "end_point_error_mm", "pointing_deviation_mean_deg")
+    table = {name: figures[name].reshape(b, k) for name in names}
+    best = np.argmin(table["line_distance_mean_mm"], axis=1)
+    pick = np.arange(b)
+    out: dict[str, Any] = {"samples": int(b)}
+    for name in names:
+        out.update(_quantiles(table[name][:, 0], name))
+        out.update(_quantiles(table[name][pick, best], f"best_of_k_{name}"))
+    return out
 
 
 def query_ms(model: LearnedModel, data: Dataset, rows: np.ndarray) -> float:

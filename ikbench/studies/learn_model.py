@@ -8,12 +8,16 @@ Two kinds, both small multilayer perceptrons in float32 on the CPU:
   over the joint configuration in normalised joint space (each joint's sampling range mapped
   to [-1, 1]): weights, means, log standard deviations. Several IK branches are several
   components.
-- ``trajectory``: an MLP (:class:`TrajectoryMLP`) from (start pose, goal point [mm]) to the
-  touch pose and the offsets of the n - 1 inner poses from the linear interpolation between
-  the start pose and that touch pose, in normalised joint space; step 0 is the start pose.
+- ``trajectory``: a mixture density network (:class:`TrajectoryMDN`) from (start pose, goal
+  point [mm]) to whole trajectories: each component a touch pose and the offsets of the n - 1
+  inner poses from the linear interpolation between the start pose and that touch pose, in
+  normalised joint space; step 0 is the start pose. A goal point leaves the touch pose open
+  (a redundant arm reaches a point in many ways, and the dataset's touch poses are drawn at
+  random), so a single regression would average branches into no pose at all.
 
 :class:`LearnedModel` wraps a loaded model file (:func:`ikbench.studies.learn.load_model`):
-``propose`` (pose kind), ``predict`` (trajectory kind), ``error`` and the file's metadata.
+``propose`` (pose kind), ``predict`` and ``candidates`` (trajectory kind), ``error`` and the
+file's metadata.
 """
 
 from __future__ import annotations
@@ -47,66 +51,82 @@ def mlp(inputs: int, outputs: int, hidden: int, layers: int) -> nn.Sequential:
     return nn.Sequential(*modules)
 
 
-class PoseMDN(nn.Module):
-    """Frame features (B, 9) -> a mixture of ``components`` diagonal Gaussians over (dof,)."""
+class MDN(nn.Module):
+    """Features (B, inputs) -> a mixture of ``components`` diagonal Gaussians over (dims,)."""
 
-    def __init__(self, dof: int, components: int, hidden: int, layers: int) -> None:
+    def __init__(self, inputs: int, dims: int, components: int, hidden: int,
+                 layers: int) -> None:
         super().__init__()
-        self.dof, self.components = dof, components
-        self.body = mlp(FRAME_FEATURES, components * (1 + 2 * dof), hidden, layers)
+        self.dims, self.components = dims, components
+        self.body = mlp(inputs, components * (1 + 2 * dims), hidden, layers)
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(log weights (B, K), means (B, K, dof), log sigmas (B, K, dof))."""
+        """(log weights (B, K), means (B, K, dims), log sigmas (B, K, dims))."""
         out = self.body(x)
-        k, d = self.components, self.dof
+        k, d = self.components, self.dims
         logits = out[:, :k]
         mean = out[:, k:k + k * d].reshape(-1, k, d)
         log_sigma = out[:, k + k * d:].reshape(-1, k, d).clamp(*LOG_SIGMA_RANGE)
         return torch.log_softmax(logits, dim=-1), mean, log_sigma
 
-    def loss(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        """Mean negative log-likelihood per sample of normalised configurations u (B, dof)
-        (the constant 0.5 log(2 pi) per dimension left out)."""
+    def loss(self, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+        """Mean negative log-likelihood per sample of targets y (B, dims), per dimension
+        (the constant 0.5 log(2 pi) left out)."""
         log_w, mean, log_sigma = self(x)
-        z = (u[:, None, :] - mean) * torch.exp(-log_sigma)
+        z = (y[:, None, :] - mean) * torch.exp(-log_sigma)
         log_p = -0.5 * (z * z).sum(-1) - log_sigma.sum(-1)
-        return -torch.logsumexp(log_w + log_p, dim=-1).mean()
+        return -torch.logsumexp(log_w + log_p, dim=-1).mean() / self.dims
 
 
-class TrajectoryMLP(nn.Module):
-    """(start pose, goal point) features (B, dof + 3) -> the whole trajectory (B, n + 1, dof)
-    in normalised joint space: the touch pose and the inner poses' offsets from the linear
-    interpolation."""
+class PoseMDN(MDN):
+    """Frame features (B, 9) -> a mixture over normalised configurations (dof,)."""
 
-    def __init__(self, dof: int, steps: int, hidden: int, layers: int) -> None:
-        super().__init__()
+    def __init__(self, dof: int, components: int, hidden: int, layers: int) -> None:
+        super().__init__(FRAME_FEATURES, dof, components, hidden, layers)
+
+
+class TrajectoryMDN(MDN):
+    """(start pose, goal point) features (B, dof + 3) -> a mixture over whole trajectories in
+    normalised joint space, each written as the touch pose (dof) and the n - 1 inner poses'
+    offsets from the linear interpolation between the start pose and that touch pose
+    (:func:`trajectory_vector`, :func:`vector_trajectory`)."""
+
+    def __init__(self, dof: int, steps: int, components: int, hidden: int,
+                 layers: int) -> None:
+        super().__init__(dof + 3, steps * dof, components, hidden, layers)
         self.dof, self.steps = dof, steps
-        self.body = mlp(dof + 3, steps * dof, hidden, layers)
-        fraction = torch.linspace(0.0, 1.0, steps + 1)
-        self.register_buffer("fraction", fraction[None, :, None], persistent=False)
 
-    def forward(self, x: torch.Tensor, start_u: torch.Tensor) -> torch.Tensor:
-        """Trajectories (B, n + 1, dof) [normalised] from features x and the start poses
-        start_u (B, dof) [normalised]."""
-        out = self.body(x)
-        touch = out[:, :self.dof]
-        inner = out[:, self.dof:].reshape(-1, self.steps - 1, self.dof)
-        zero = torch.zeros_like(touch)[:, None, :]
-        offsets = torch.cat([zero, inner, zero], dim=1)
-        line = start_u[:, None, :] + self.fraction * (touch - start_u)[:, None, :]
-        return line + offsets
 
-    def loss(self, x: torch.Tensor, start_u: torch.Tensor, target: torch.Tensor
-             ) -> torch.Tensor:
-        """Mean squared error per joint and step [normalised units^2]."""
-        return ((self(x, start_u) - target) ** 2).mean()
+def _line(start_u: np.ndarray, touch_u: np.ndarray, steps: int) -> np.ndarray:
+    fraction = np.linspace(0.0, 1.0, steps + 1)[:, None]
+    return start_u[..., None, :] + fraction * (touch_u - start_u)[..., None, :]
+
+
+def trajectory_vector(u: np.ndarray) -> np.ndarray:
+    """Trajectories (B, n + 1, dof) [normalised] -> vectors (B, n x dof): the touch pose, then
+    the inner poses' offsets from the line between the start and touch poses."""
+    steps = u.shape[1] - 1
+    offsets = u[:, 1:-1] - _line(u[:, 0], u[:, -1], steps)[:, 1:-1]
+    return np.concatenate([u[:, -1], offsets.reshape(len(u), -1)], axis=1)
+
+
+def vector_trajectory(v: np.ndarray, start_u: np.ndarray, dof: int) -> np.ndarray:
+    """Vectors (..., n x dof) and start poses (..., dof) [normalised] -> trajectories
+    (..., n + 1, dof) (the inverse of :func:`trajectory_vector`)."""
+    steps = v.shape[-1] // dof
+    touch = v[..., :dof]
+    line = _line(start_u, touch, steps)
+    inner = v[..., dof:].reshape(*v.shape[:-1], steps - 1, dof)
+    zero = np.zeros_like(touch)[..., None, :]
+    return line + np.concatenate([zero, inner, zero], axis=-2)
 
 
 def build_net(kind: str, dof: int, hyper: dict[str, Any]) -> nn.Module:
     """The untrained network of ``kind`` (weights from torch's current random state)."""
     if kind == "pose":
         return PoseMDN(dof, hyper["components"], hyper["hidden"], hyper["layers"])
-    return TrajectoryMLP(dof, hyper["steps"], hyper["hidden"], hyper["layers"])
+    return TrajectoryMDN(dof, hyper["steps"], hyper["components"], hyper["hidden"],
+                         hyper["layers"])
 
 
 class JointScale:
@@ -191,20 +211,24 @@ class LearnedModel:
             raise InputError("T: holds a value that is not finite")
         return T
 
+    def _mixture(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(weights (B, K), means (B, K, dims), sigmas (B, K, dims)) for features x, the
+        components sorted by weight, heaviest first."""
+        with torch.inference_mode():
+            log_w, mean, log_sigma = self.net(torch.as_tensor(x, dtype=torch.float32))
+        w, mu, sigma = log_w.exp().numpy(), mean.numpy(), log_sigma.exp().numpy()
+        order = np.argsort(-w, axis=1, kind="stable")
+        take = np.take_along_axis
+        return (take(w, order, 1), take(mu, order[..., None], 1),
+                take(sigma, order[..., None], 1))
+
     def mixture(self, T: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The mixture for frames T (4, 4) or (B, 4, 4) [m]: (weights (B, K), means
         (B, K, dof), sigmas (B, K, dof)) in normalised joint space, components sorted by
         weight, heaviest first."""
         self._need("pose", "mixture")
         T = self._frames(T)
-        x = torch.as_tensor(frame_features(T, self._in_mean, self._in_std), dtype=torch.float32)
-        with torch.inference_mode():
-            log_w, mean, log_sigma = self.net(x)
-        w, mu, sigma = log_w.exp().numpy(), mean.numpy(), log_sigma.exp().numpy()
-        order = np.argsort(-w, axis=1, kind="stable")
-        take = np.take_along_axis
-        return (take(w, order, 1), take(mu, order[..., None], 1),
-                take(sigma, order[..., None], 1))
+        return self._mixture(frame_features(T, self._in_mean, self._in_std))
 
     def propose(self, T: npt.ArrayLike, count: int = 1, seed: int = 0) -> np.ndarray:
         """``count`` configurations for the frame T (4, 4) [m] (or (B, 4, 4): (B, count,
@@ -239,11 +263,12 @@ class LearnedModel:
         return frame_errors(self.robot, np.broadcast_to(T, (len(q), 4, 4)), q)
 
     # ----- trajectory kind --------------------------------------------------------------------
-    def predict(self, start_pose: npt.ArrayLike, goal_point_mm: npt.ArrayLike) -> np.ndarray:
-        """The trajectory (n + 1, dof) [pose units] from ``start_pose`` (dof,) to the goal
-        point (3,) [mm] (or B of each: (B, n + 1, dof)), within the joint limits; row 0 is the
-        start pose."""
-        self._need("trajectory", "predict")
+    def candidates(self, start_pose: npt.ArrayLike, goal_point_mm: npt.ArrayLike
+                   ) -> np.ndarray:
+        """The K trajectories of the mixture's component means, heaviest first, (K, n + 1,
+        dof) [pose units] for one start pose (dof,) and goal point (3,) [mm] (B of each:
+        (B, K, n + 1, dof)), within the joint limits; step 0 is the start pose."""
+        self._need("trajectory", "candidates")
         start = np.asarray(start_pose, dtype=float)
         goal = np.asarray(goal_point_mm, dtype=float)
         single = start.ndim == 1
@@ -254,9 +279,16 @@ class LearnedModel:
                              f"({len(start)}, 3) of finite values [mm]")
         start_u = self.scale.to_unit(start)
         x = np.concatenate([start_u, (goal - self._in_mean) / self._in_std], axis=1)
-        with torch.inference_mode():
-            u = self.net(torch.as_tensor(x, dtype=torch.float32),
-                         torch.as_tensor(start_u, dtype=torch.float32)).numpy()
+        _, mu, _ = self._mixture(x)
+        u = vector_trajectory(mu, start_u[:, None, :], self.dof)
         q = np.clip(self.scale.from_unit(u), self.robot.lower, self.robot.upper)
-        q[:, 0] = start
+        q[:, :, 0] = start[:, None, :]
         return q[0] if single else q
+
+    def predict(self, start_pose: npt.ArrayLike, goal_point_mm: npt.ArrayLike) -> np.ndarray:
+        """The model's best trajectory (the heaviest component's mean), (n + 1, dof) [pose
+        units], from ``start_pose`` (dof,) to the goal point (3,) [mm] (or B of each:
+        (B, n + 1, dof)), within the joint limits; row 0 is the start pose."""
+        self._need("trajectory", "predict")
+        q = self.candidates(start_pose, goal_point_mm)
+        return q[..., 0, :, :]
