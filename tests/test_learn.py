@@ -224,6 +224,8 @@ def test_bad_input_is_one_line_and_exit_2_with_nothing_written(dataset, pose_mod
           "--batch-size", "256"], "--resume: "),
         ([dataset, "--kind", "pose", "--output", tmp_path], "--output: cannot write"),
         ([dataset, "--kind", "pose", "--output", out, "--holdout", "0.001"], "--holdout"),
+        ([dataset, "--kind", "pose", "--output", pose_model, "--resume", "--seed", "1",
+          "--batch-size", "256", "--epochs", "14"], "--epochs: 14 is fewer than the 15"),
     ]
     checkpoint = learn.checkpoint_path(pose_model)
     before = checkpoint.read_bytes()

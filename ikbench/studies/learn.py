@@ -364,8 +364,13 @@ class LearnSpec:
         check_output(self.output)
         if not self.resume:
             return None
-        return read_checkpoint(checkpoint_path(self.output), _identity(
+        state = read_checkpoint(checkpoint_path(self.output), _identity(
             self.kind, self.dataset, self.seed, self.hyper))
+        if int(state["epoch"]) > self.epochs:
+            raise InputError(f"--epochs: {self.epochs} is fewer than the {state['epoch']} "
+                             f"epochs of the checkpoint {checkpoint_path(self.output)}; give "
+                             f"--epochs {state['epoch']} or more")
+        return state
 
     def split(self) -> tuple[np.ndarray, np.ndarray]:
         return split(self.dataset.trajectory_ids, self.hyper.holdout, self.seed)
