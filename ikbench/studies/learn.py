@@ -419,6 +419,7 @@ def run(spec: LearnSpec, state: dict[str, Any] | None = None) -> Path:
 
     data, kind, hyper, seed = spec.dataset, spec.kind, spec.hyper, spec.seed
     robot = data.robot
+    record = provenance()  # the commit and tree as the training starts
     train_ids, held_ids = spec.split()
     train_rows = np.flatnonzero(np.isin(data.trajectory_ids, train_ids))
     held_rows = np.flatnonzero(np.isin(data.trajectory_ids, held_ids))
@@ -477,7 +478,7 @@ def run(spec: LearnSpec, state: dict[str, Any] | None = None) -> Path:
             log.advance(1, f"epoch {epoch + 1}/{spec.epochs}: train loss {train_loss:.4f}, "
                         f"held-out loss {held_loss:.4f}")
         payload = _payload(spec, net, norm, history, cpu_s, wall_s, train_ids, held_ids,
-                           len(training), len(held) if held is not None else 0)
+                           len(training), len(held) if held is not None else 0, record)
         model = LearnedModel(payload, robot)
         payload["held_out_error"] = held_out_error(model, data, held_rows, seed)
         payload["model_query_ms"] = query_ms(model, data, held_rows)
@@ -498,11 +499,11 @@ def _save(path: Path, value: dict[str, Any]) -> None:
 
 
 def _payload(spec: LearnSpec, net, norm, history, cpu_s, wall_s, train_ids, held_ids,
-             train_samples: int, held_samples: int) -> dict[str, Any]:
+             train_samples: int, held_samples: int, record: dict[str, Any]
+             ) -> dict[str, Any]:
     import torch
 
     robot, data = spec.dataset.robot, spec.dataset
-    record = provenance()
     return {"format": FORMAT, "version": VERSION, "kind": spec.kind,
             "robot": {"name": robot.name, "dof": robot.dof, "joints": list(robot.joint_names),
                       "urdf_sha256": robot.urdf_sha256, "end_frame": robot.end_frame,
