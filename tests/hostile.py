@@ -56,6 +56,7 @@ BASE = {
     "experiment stimuli": ["experiment", "stimuli", "<DESIGN>", "--output", "<OUT>"],
     "fk": ["fk"],
     "ik": ["ik", "--output", "<OUT>"],
+    "learn": ["learn", "<DATASET>", "--kind", "pose", "--output", "<OUT>"],
     "legibility": ["legibility", "--output", "<OUT>"],
     "letters": ["letters", "P", "--output", "<OUT>"],
     "plan": ["plan", "<TRAJ>", "--out", "<OUT>"],
@@ -191,7 +192,7 @@ def run_cases(selected: list[dict], parser: argparse.ArgumentParser, fixtures: d
             empty_dir = Path(tmp) / "empty"
             empty_dir.mkdir()
             places = {"<OUT>": str(Path(tmp) / "out"), "<TRAJ>": fixtures["traj"],
-                      "<DESIGN>": fixtures["design"],
+                      "<DESIGN>": fixtures["design"], "<DATASET>": fixtures["dataset"],
                       "<EMPTY_DIR>": str(empty_dir), "<MISSING>": str(Path(tmp) / "missing")}
             value = HOSTILE[case["value"]]
             argv = [places.get(w, w) for w in case["argv"]]
@@ -228,8 +229,8 @@ def _run_one(parser, argv, run_parsed) -> dict:
 
 
 def fixtures(scratch: Path) -> dict:
-    """A trajectory CSV to read (NICO's start pose, 5 times) and a small experiment design
-    folder, in ``scratch``."""
+    """A trajectory CSV to read (NICO's start pose, 5 times), a small experiment design
+    folder and a small dataset (for ``learn``), in ``scratch``."""
     from ikbench.core.robot import load_robot
     from ikbench.core.trajectory import write_trajectory_csv
 
@@ -243,7 +244,12 @@ def fixtures(scratch: Path) -> dict:
     design = folder / "design"
     build(DesignSpec(participants=1, repeats=1, practice=0, conditions=("G", "GP"),
                      fractions=(0.6,))).write(design)
-    return {"traj": str(traj), "scratch": str(scratch), "design": str(design)}
+    from ikbench.studies.dataset import build_dataset
+
+    dataset = folder / "dataset"
+    build_dataset(8, seed=3, steps=4, shard_size=8, output=dataset, progress=False)
+    return {"traj": str(traj), "scratch": str(scratch), "design": str(design),
+            "dataset": str(dataset)}
 
 
 def main(argv: list[str]) -> int:

@@ -6,9 +6,6 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
-import subprocess
-import sys
-import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +17,6 @@ pytest.importorskip("pyarrow")
 from ikbench.cli import main  # noqa: E402
 from ikbench.core.errors import InputError  # noqa: E402
 from ikbench.studies import learn  # noqa: E402
-from tests.conftest import REPO  # noqa: E402
 
 COUNT, STEPS = 64, 10
 
@@ -247,42 +243,3 @@ def test_the_command_trains_and_says_what_it_wrote(dataset, tmp_path, capsys):
     assert code == 0 and out.is_file() and learn.checkpoint_path(out).is_file()
     assert "pose model of nico_right_arm" in text and "CPU-min" in text
     assert _payload(out)["epochs"] == 2
-
-
-HOSTILE_DRIVER = textwrap.dedent("""
-    import json, sys, tempfile
-    from pathlib import Path
-    sys.path.insert(0, sys.argv[3])
-    from tests import hostile
-    from ikbench.cli import build_parser
-    hostile.BASE["learn"] = ["learn", sys.argv[1], "--kind", "pose", "--output", "<OUT>"]
-    parser = build_parser(None)
-    cases = [c for c in hostile.cases(parser) if c["command"] == "learn"]
-    with tempfile.TemporaryDirectory() as scratch:
-        out = hostile.run_cases(cases, parser, {"scratch": scratch, "traj": "", "design": ""})
-    Path(sys.argv[2]).write_text(json.dumps({"cases": out}))
-""")
-
-
-def test_hostile_values_are_refused_in_one_line(dataset, tmp_path):
-    """tests/test_hostile_input.py's cases for ``learn``, on a base command line with a real
-    dataset (its BASE table has no dataset to give)."""
-    from ikbench.cli import build_parser
-    from ikbench.cli.values import Number
-    from tests import hostile
-    from tests.test_hostile_input import _failures
-
-    cwd = tmp_path / "cwd"
-    cwd.mkdir()
-    result = tmp_path / "cases.json"
-    done = subprocess.run([sys.executable, "-c", HOSTILE_DRIVER, str(dataset), str(result),
-                           str(REPO)], cwd=cwd, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert list(cwd.iterdir()) == []
-    results = json.loads(result.read_text())
-    sub = hostile._subparsers(build_parser(None))["learn"]
-    kinds = {("learn", hostile._name(a)): ("number" if isinstance(a.type, Number) else "text")
-             for a in sub._actions if a.nargs != 0}
-    assert {c["argument"] for c in results["cases"]} == {a for _, a in kinds}
-    bad = _failures(results, kinds, "learn")
-    assert not bad, f"{len(bad)} failing cases:\n" + "\n".join(bad[:40])
