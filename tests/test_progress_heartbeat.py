@@ -105,18 +105,24 @@ def test_a_heartbeat_does_not_hold_back_the_next_events_line(monkeypatch, capsys
         "1/1 done; written to out/compare/"]
 
 
-def test_no_heartbeat_after_close():
-    stream = io.StringIO()
-    reporter = Reporter("run", total=2, stream=stream)
+def _silent_after(stop, reporter: Reporter, stream: io.StringIO) -> None:
+    """``reporter`` beats; after ``stop()`` it writes nothing more while another reporter
+    beats twice."""
     reporter.say("solving")
     wait_for(lambda: beats(stream), "heartbeat")
-    reporter.close()
+    stop()
     written = stream.getvalue()
     other_stream = io.StringIO()
     other = Reporter("control", total=1, stream=other_stream)
     after_two_more_beats(other_stream)
     other.close()
     assert stream.getvalue() == written
+
+
+def test_no_heartbeat_after_close():
+    stream = io.StringIO()
+    reporter = Reporter("run", total=2, stream=stream)
+    _silent_after(reporter.close, reporter, stream)
 
 
 def test_no_heartbeat_when_off_or_disabled(capsys):
@@ -156,16 +162,7 @@ def test_no_heartbeat_once_the_study_that_opened_the_reporter_returned():
 def test_no_heartbeat_after_the_command_ended():
     """The CLI calls reset() when a command ends: its reporters go silent."""
     stream = io.StringIO()
-    reporter = Reporter("ik", stream=stream)
-    reporter.say("solving")
-    wait_for(lambda: beats(stream), "heartbeat")
-    progress.reset()
-    written = stream.getvalue()
-    other_stream = io.StringIO()
-    other = Reporter("control", total=1, stream=other_stream)
-    after_two_more_beats(other_stream)
-    other.close()
-    assert stream.getvalue() == written
+    _silent_after(progress.reset, Reporter("ik", stream=stream), stream)
 
 
 def test_periodic_mode_on_stderr_beats_and_counts_as_the_periodic_line(capsys):

@@ -132,27 +132,35 @@ def read_manifest(path: str | Path) -> tuple[dict[str, Any], str]:
     return manifest, hashlib.sha256(data).hexdigest()
 
 
-def dataset_robot(manifest: dict[str, Any], robot: Robot | str | None = None) -> Robot:
-    """The robot of a dataset: ``robot`` when given (InputError unless it is the dataset's:
-    name, URDF hash and joints), else the shipped robot the manifest names."""
-    want = manifest["config"]["robot"]
+def recorded_robot(want: dict[str, Any], robot: Robot | str | None, what: str,
+                   names: tuple[str, str]) -> Robot:
+    """The robot a dataset or model file records (``want``: name, urdf_sha256, joints):
+    ``robot`` when given (InputError unless it is that robot), else the shipped robot of that
+    name. ``what``: the file, for the errors ("the dataset"); ``names``: (what names the
+    file, what names the robot) on the command line (("DATASET", "--robot"))."""
+    source, flag = names
     if robot is None:
         try:
             robot = load_robot(want["name"])
         except InputError:
-            raise InputError(f"DATASET: its robot {want['name']!r} is not a shipped robot; "
-                             "give it with --robot") from None
-        given = False
-    else:
-        robot, given = as_robot(robot), True
+            raise InputError(f"{source}: its robot {want['name']!r} is not a shipped robot; "
+                             f"give it with {flag}") from None
+        flag = source
+    robot = as_robot(robot)
     same = (robot.name == want.get("name") and robot.urdf_sha256 == want.get("urdf_sha256")
             and list(robot.joint_names) == list(want.get("joints", [])))
     if not same:
-        flag = "--robot" if given else "DATASET"
-        raise InputError(f"{flag}: the dataset is of robot {want.get('name')!r} (URDF "
+        raise InputError(f"{flag}: {what} is of robot {want.get('name')!r} (URDF "
                          f"{str(want.get('urdf_sha256'))[:12]}), not {robot.name!r} (URDF "
                          f"{robot.urdf_sha256[:12]})")
     return robot
+
+
+def dataset_robot(manifest: dict[str, Any], robot: Robot | str | None = None) -> Robot:
+    """The robot of a dataset: ``robot`` when given (InputError unless it is the dataset's:
+    name, URDF hash and joints), else the shipped robot the manifest names."""
+    return recorded_robot(manifest["config"]["robot"], robot, "the dataset",
+                          ("DATASET", "--robot"))
 
 
 def read_dataset(path: str | Path, robot: Robot | str | None = None) -> Dataset:
@@ -649,16 +657,5 @@ def load_model(path: str | Path, robot: Robot | str | None = None,
                          f"ikbench reads version {VERSION}")
     if kind is not None and payload["kind"] != kind:
         raise InputError(f"model: {path} is a {payload['kind']} model, not a {kind} model")
-    want = payload["robot"]
-    if robot is None:
-        try:
-            robot = load_robot(want["name"])
-        except InputError:
-            raise InputError(f"model: its robot {want['name']!r} is not a shipped robot; give "
-                             "the robot") from None
-    robot = as_robot(robot)
-    if (robot.name != want["name"] or robot.urdf_sha256 != want["urdf_sha256"]
-            or list(robot.joint_names) != list(want["joints"])):
-        raise InputError(f"model: {path} is a model of robot {want['name']!r}, not of "
-                         f"{robot.name!r}")
+    robot = recorded_robot(payload["robot"], robot, f"the model {path}", ("model", "robot"))
     return LearnedModel(payload, robot)
