@@ -17,6 +17,7 @@ REPO = Path(__file__).resolve().parents[1]
 #: Layer of each top-level part; a module may import only its own layer or lower ones.
 LAYERS = {"core": 0, "methods": 1, "schemes": 1, "baselines": 1, "runtime": 2, "render": 2,
           "studies": 3, "hw": 3, "paper": 4, "viewer": 4, "experiment": 4,
+          "learned": 4,
           "cli": 5}
 
 

@@ -1,4 +1,4 @@
-"""``ikbench learn`` and its Python API (ikbench/studies/learn.py, learn_model.py): tiny NICO
+"""``ikbench learn`` and its Python API (ikbench/learned/train.py, model.py): tiny NICO
 datasets made once for the module, a few epochs each."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ pytest.importorskip("pyarrow")
 
 from ikbench.cli import main  # noqa: E402
 from ikbench.core.errors import InputError  # noqa: E402
-from ikbench.studies import learn  # noqa: E402
+from ikbench.learned import train as learn  # noqa: E402
 
 COUNT, STEPS = 64, 10
 

@@ -271,12 +271,12 @@ def choose_start(robot: Robot, middle: np.ndarray, seed: int
                  ) -> tuple[np.ndarray, list[np.ndarray], str]:
     """(start pose, touch poses, how the start was chosen) without ``--start-pose`` (see the
     module docstring)."""
-    for k, start in enumerate(start_poses(robot, middle, seed)):
+    for start in start_poses(robot, middle, seed):
         try:
             touches = draw_targets(robot, start, seed)
         except InputError:
             continue
-        how = "the middle of the limits" if k == 0 and np.array_equal(start, middle) else (
+        how = "the middle of the limits" if np.array_equal(start, middle) else (
             f"drawn within the limits by seed [{seed}, 1]: from the middle of the limits the "
             f"end frame points more than {START_POINTING_DEG:g} deg away from every line")
         return start, touches, how

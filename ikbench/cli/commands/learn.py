@@ -25,8 +25,8 @@ DESCRIPTION = (
 
 
 def arguments(parser: argparse.ArgumentParser) -> None:
-    from ikbench.studies.learn import MAX_BATCH_SIZE, MAX_EPOCHS
-    from ikbench.studies.learn_model import KINDS
+    from ikbench.learned.model import KINDS
+    from ikbench.learned.train import MAX_BATCH_SIZE, MAX_EPOCHS
 
     parser.add_argument("dataset", metavar="DATASET",
                         type=PathValue("a dataset folder (ikbench dataset --output)",
@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ikbench.core.errors import InputError
-    from ikbench.studies import learn
+    from ikbench.learned import train as learn
 
     check_threads(args.threads)
     robot = None

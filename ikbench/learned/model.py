@@ -15,7 +15,7 @@ Two kinds, both small multilayer perceptrons in float32 on the CPU:
   (a redundant arm reaches a point in many ways, and the dataset's touch poses are drawn at
   random), so a single regression would average branches into no pose at all.
 
-:class:`LearnedModel` wraps a loaded model file (:func:`ikbench.studies.learn.load_model`):
+:class:`LearnedModel` wraps a loaded model file (:func:`ikbench.learned.train.load_model`):
 ``propose`` (pose kind), ``predict`` and ``candidates`` (trajectory kind), ``error`` and the
 file's metadata.
 """
@@ -165,7 +165,7 @@ def frame_errors(robot: Robot, T: np.ndarray, q: np.ndarray) -> tuple[np.ndarray
 
 
 class LearnedModel:
-    """A model file of ``ikbench learn``, loaded (:func:`ikbench.studies.learn.load_model`).
+    """A model file of ``ikbench learn``, loaded (:func:`ikbench.learned.train.load_model`).
 
     Attributes:
         kind: ``pose`` or ``trajectory``.

@@ -6,11 +6,11 @@
 kind on the CPU with torch and writes the model file (``torch.save`` of a dict):
 
 - ``pose``: target end frame -> joint configurations, a mixture density network
-  (:class:`ikbench.studies.learn_model.PoseMDN`); its samples are every pose of every
+  (:class:`ikbench.learned.model.PoseMDN`); its samples are every pose of every
   trajectory, each with its end frame by the robot's own FK.
 - ``trajectory``: (start pose, goal point [mm]) -> the whole trajectory (n + 1 poses), a
   mixture density network over whole trajectories
-  (:class:`ikbench.studies.learn_model.TrajectoryMDN`): a goal point leaves the touch pose
+  (:class:`ikbench.learned.model.TrajectoryMDN`): a goal point leaves the touch pose
   open (the dataset's touch poses are drawn at random, several per point), so a single
   regression would average branches; its samples are the dataset's converged trajectories.
 
@@ -21,7 +21,7 @@ every epoch (``MODEL.checkpoint``); ``resume=True`` continues from it, and ends 
 weights as an uninterrupted run.
 
 :func:`load_model` reads a model file back as a
-:class:`~ikbench.studies.learn_model.LearnedModel` (``propose``, ``predict``, ``error``).
+:class:`~ikbench.learned.model.LearnedModel` (``propose``, ``predict``, ``error``).
 """
 
 from __future__ import annotations
@@ -42,10 +42,7 @@ from ikbench.core.io import atomic_path, check_writable
 from ikbench.core.metrics_batch import line_metrics
 from ikbench.core.provenance import provenance
 from ikbench.core.robot import Robot, as_robot, load_robot
-from ikbench.runtime.progress import Reporter
-from ikbench.studies.dataset import MANIFEST
-from ikbench.studies.dataset_shard import FORMAT as DATASET_FORMAT
-from ikbench.studies.learn_model import (
+from ikbench.learned.model import (
     KINDS,
     JointScale,
     LearnedModel,
@@ -54,6 +51,9 @@ from ikbench.studies.learn_model import (
     frame_features,
     trajectory_vector,
 )
+from ikbench.runtime.progress import Reporter
+from ikbench.studies.dataset import MANIFEST
+from ikbench.studies.dataset_shard import FORMAT as DATASET_FORMAT
 
 FORMAT = "ikbench-learned-model"
 VERSION = 1
