@@ -6,8 +6,10 @@ subproblems of IK-Geo (spherical wrist, three parallel axes, intersecting pairs,
 form and returns all its solutions. ``ikbench ik`` uses it as the analytic limit: the robot's
 chain is given to EAIK as its joint axes ``H`` (N, 3) and the offsets between them ``P``
 (N+1, 3) at the zero configuration, in the chain's base frame, from Pinocchio
-(``eaik.IK_HP.HPRobot(H, P)``: the end frame's rotation is the identity there, so a target's
-rotation is taken as ``R_target R_end(0)^T``). A chain EAIK cannot decompose (most 7-DoF arms
+(``eaik.IK_HP.HPRobot(H, P)``'s construction, ``eaik.pybindings.EAIK.Robot(H^T, P^T, R6T, [],
+True)``, with the end frame's rotation at the zero configuration as ``R6T``, so EAIK takes a
+target frame as it is; on UR5 and UR10 its answers are bit-identical to HPRobot's on the target
+rotated by ``R_end(0)^T``, 500 targets each). A chain EAIK cannot decompose (most 7-DoF arms
 unless a joint is locked, prismatic joints) is refused when it is prepared, with EAIK's
 reason, and its rows fail saying so.
 
@@ -19,6 +21,13 @@ may have its only one a turn away); a solution is dropped only when some joint h
 within its limits. The one nearest the initial configuration (row 0 of the protocol) is the
 answer: one call, no restarts, deterministic. :meth:`EaikSolver.branches`
 gives the whole set within the limits. The library is imported inside functions only.
+
+Per call (:meth:`EaikSolver.solve_within`) the glue is what the protocol needs and no more: the
+target copied into the reused 4x4 frame (compiled), EAIK's ``calculate_IK``, and one compiled
+pass over EAIK's ``Q`` and ``is_LS`` arrays as EAIK returns them (no copy, no conversion; the
+specialisations are loaded in ``prepare``, and one of another layout converts instead of
+compiling on the clock). ``ikbench ik`` times EAIK's bare call beside it
+(:meth:`EaikSolver.bare_call`).
 """
 
 from __future__ import annotations
@@ -96,7 +105,8 @@ def _kernel():
         from numba import njit
 
         @njit(cache=True, nogil=True)
-        def nearest(Q, drop, lower, upper, near, tol, out):  # pragma: no cover - compiled
+        def nearest(Q, drop, bounds, near, out):  # pragma: no cover - compiled
+            # bounds: (2, dof), the limits widened by the tolerance (lower - tol, upper + tol)
             turn = 2 * math.pi
             found = 0
             best = math.inf
@@ -107,8 +117,8 @@ def _kernel():
                 squares = 0.0
                 for j in range(Q.shape[1]):
                     q = Q[s, j]
-                    k_low = np.ceil((lower[j] - tol - q) / turn)
-                    k_high = np.floor((upper[j] + tol - q) / turn)
+                    k_low = np.ceil((bounds[0, j] - q) / turn)
+                    k_high = np.floor((bounds[1, j] - q) / turn)
                     if not k_low <= k_high:
                         inside = False
                         break
@@ -123,18 +133,17 @@ def _kernel():
                     best = distance
                     for j in range(Q.shape[1]):
                         q = Q[s, j]
-                        k_low = np.ceil((lower[j] - tol - q) / turn)
-                        k_high = np.floor((upper[j] + tol - q) / turn)
+                        k_low = np.ceil((bounds[0, j] - q) / turn)
+                        k_high = np.floor((bounds[1, j] - q) / turn)
                         out[j] = q + turn * min(max(np.rint((near[j] - q) / turn), k_low),
                                                 k_high)
             return found
 
         @njit(cache=True, nogil=True)
-        def frame(T, rotation, R_end0, point_m):  # pragma: no cover - compiled
+        def frame(T, rotation, point_m):  # pragma: no cover - compiled
             for i in range(3):
                 for j in range(3):
-                    T[i, j] = (rotation[i, 0] * R_end0[j, 0] + rotation[i, 1] * R_end0[j, 1]
-                               + rotation[i, 2] * R_end0[j, 2])
+                    T[i, j] = rotation[i, j]
                 T[i, 3] = point_m[i]
 
         _NEAREST = nearest, frame
@@ -151,7 +160,15 @@ def nearest_in_limits(Q: np.ndarray, drop: np.ndarray, lower: np.ndarray, upper:
     within the limits nearest ``near`` (dof,) (exactly :func:`in_limit_turns`), the one
     nearest ``near`` (norm over the joints; the first of equals) is written into ``out``
     (dof,); returns how many lie within the limits (0: ``out`` untouched)."""
-    return int(_kernel()[0](Q, drop, lower, upper, near, tol, out))
+    return int(_kernel()[0](Q, drop, widened(lower, upper, tol), near, out))
+
+
+def widened(lower: np.ndarray, upper: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """The limits as the compiled pass reads them: (2, dof) ``lower - tol``, ``upper + tol``
+    [rad] (the same floating-point operations as :func:`in_limit_turns`' ``lower - tol - Q``,
+    evaluated left to right)."""
+    return np.ascontiguousarray([np.asarray(lower, dtype=float) - tol,
+                                 np.asarray(upper, dtype=float) + tol])
 
 
 class EaikSolver(PoseSolver):
@@ -167,40 +184,57 @@ class EaikSolver(PoseSolver):
     attempt_bound = "closed form"
 
     def prepare(self) -> None:
-        from eaik.IK_HP import HPRobot
+        from eaik.pybindings.EAIK import Robot as EaikRobot
 
         fk = self.robot.pinocchio_fk()
         H, P, self.R_end0 = chain_axes(fk.model, fk.model.createData(), fk.frame_id)
-        try:
-            self.eaik = HPRobot(H, P)
+        try:  # HPRobot(H, P)'s own construction, with the end frame's zero rotation as R6T
+            self.eaik = EaikRobot(H.T, P.T, self.R_end0, [], True)
         except RuntimeError as exc:  # EAIK's own refusal (e.g. more than 6 joints)
             raise ValueError(f"EAIK cannot solve this {len(H)}-joint chain: {exc}") from None
-        if not self.eaik.hasKnownDecomposition():
+        if not self.eaik.has_known_decomposition():
             raise ValueError(f"EAIK knows no decomposition of this {len(H)}-joint chain "
-                             f"({self.eaik.getKinematicFamily()}); 7-DoF arms need a joint "
+                             f"({self.eaik.get_kinematic_family()}); 7-DoF arms need a joint "
                              "locked")
         self.lower, self.upper = self.chain.lower, self.chain.upper
         self._T = np.eye(4)  # the frame EAIK is given, reused by every call
-        self._kernels, self._dof = _kernel(), len(self.lower)
-        # compile (or load numba's cache) here, untimed, for the arrays EAIK gives: its answer
-        # to the end frame at the zero configuration
-        # to the end frame at the zero configuration, given as arrays and as views of a frame
-        # (the study passes T[:3, 3], T[:3, :3])
-        self.solve(np.zeros(len(self.lower)), P.sum(axis=0), self.R_end0)
+        self._bounds, self._dof = widened(self.lower, self.upper), len(self.lower)
+        self._ik = self.eaik.calculate_IK
+        nearest, self._frame_into = _kernel()
+        # compile (or load numba's cache) here, untimed, for the arrays a call passes: EAIK's
+        # answer (read-only, column-major) to the end frame at the zero configuration and to
+        # one out of reach (least-squares answers), the target given as arrays and as views
+        # of a frame (the study passes T[:3, 3], T[:3, :3])
         T0 = np.eye(4)
         T0[:3, :3], T0[:3, 3] = self.R_end0, P.sum(axis=0)
-        self.solve(np.zeros(len(self.lower)), T0[:3, 3], T0[:3, :3])
+        far = T0.copy()
+        far[:3, 3] *= 1e3
+        self._nearest = nearest
+        for T in (T0, far):
+            self.solve(np.zeros(self._dof), T[:3, 3].copy(), T[:3, :3].copy())
+            self.solve(np.zeros(self._dof), T[:3, 3], T[:3, :3])
+            self._solve_converted(np.zeros(self._dof), T[:3, 3], T[:3, :3])
+        for rows in (1, 3):  # EAIK's Q of one solution reads as C-ordered, of more as F
+            Q = np.zeros((rows, self._dof), order="F")
+            drop = np.zeros(rows, dtype=bool)
+            Q.flags.writeable = drop.flags.writeable = False
+            nearest(Q, drop, self._bounds, np.zeros(self._dof), np.empty(self._dof))
+        # from here on a call of another layout or dtype converts instead of compiling on
+        # the clock (:meth:`solve`)
+        self._nearest = _compiled_only(nearest)
+        self._frame_into = _compiled_only(self._frame_into)
 
     def _frame(self, point_m: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         """The target as EAIK takes it (see the module docstring), in the reused buffer."""
-        _kernel()[1](self._T, rotation, self.R_end0, point_m)  # R R_end0^T, the point
+        self._frame_into(self._T, np.ascontiguousarray(rotation, dtype=float),
+                         np.ascontiguousarray(point_m, dtype=float))
         return self._T
 
     def solutions(self, point_m: np.ndarray, rotation: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
         """EAIK's answers to one frame, as EAIK gives them (in (-pi, pi]): the exact ones
         (S, dof) [rad] and the least-squares ones (``is_LS``: the frame is not reached)."""
-        solution = self.eaik.IK(self._frame(point_m, rotation))
+        solution = self._ik(self._frame(point_m, rotation))
         Q = np.asarray(solution.Q, dtype=float).reshape(-1, len(self.lower))
         ls = np.asarray(solution.is_LS, dtype=bool) if len(Q) else np.zeros(0, dtype=bool)
         return Q[~ls], Q[ls]
@@ -222,30 +256,62 @@ class EaikSolver(PoseSolver):
 
     def solve(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray) -> PoseOut:
         """The branch within the limits nearest ``q_init``: what :meth:`branches` and an
-        argmin give, in one compiled pass (:func:`nearest_in_limits`)."""
-        nearest, frame = self._kernels  # the compiled functions, no lookup per call
-        frame(self._T, rotation, self.R_end0, point_m)
-        solution = self.eaik.IK(self._T)
-        Q, q = solution.Q, np.empty(self._dof)
-        found = 0
-        if Q.size:  # writeable copies: numba takes EAIK's read-only views more slowly
-            found = nearest(Q.reshape(-1, self._dof).copy(),
-                            np.array(solution.is_LS, dtype=bool), self.lower, self.upper,
-                            np.asarray(q_init, dtype=float), 1e-9, q)
+        argmin give, in one compiled pass (:func:`nearest_in_limits`) over EAIK's arrays as
+        it returns them (no copies)."""
+        return self.solve_within(np.asarray(q_init, dtype=float)[None], point_m, rotation,
+                                 math.inf)
+
+    def solve_within(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
+                     budget_s: float) -> PoseOut:
+        """:meth:`solve` from row 0 of ``initials`` (closed form: one call, no budget)."""
+        T, q_init = self._T, initials[0]
+        try:
+            self._frame_into(T, rotation, point_m)  # the target frame, as EAIK takes it
+            solution = self._ik(T)
+            q = np.empty(self._dof)
+            found = self._nearest(solution.Q, solution.is_LS, self._bounds, q_init, q)
+        except TypeError:  # an argument of another layout or dtype: float64 copies
+            return self._solve_converted(q_init, point_m, rotation)
         if not found:  # unreachable, or only outside the limits: EAIK says no
+            return PoseOut(np.asarray(q_init, dtype=float), 0, False)
+        return _new_tuple(PoseOut, (q, found, True, 1))
+
+    def _solve_converted(self, q_init, point_m, rotation) -> PoseOut:
+        """:meth:`solve` of inputs converted to C-ordered float64 first (never a compile)."""
+        f64 = np.ascontiguousarray
+        self._frame_into(self._T, f64(rotation, dtype=float), f64(point_m, dtype=float))
+        solution = self._ik(self._T)
+        Q = np.asarray(solution.Q, dtype=float).reshape(-1, self._dof).copy()
+        drop = np.array(solution.is_LS, dtype=bool).reshape(len(Q))
+        q = np.empty(self._dof)
+        found = self._nearest(Q, drop, self._bounds, f64(q_init, dtype=float), q) if len(Q) else 0
+        if not found:
             return PoseOut(np.asarray(q_init, dtype=float), 0, False)
         return PoseOut(q, found, True)
 
     def bare_call(self, q_init: np.ndarray, point_m: np.ndarray, rotation: np.ndarray
                   ) -> Callable[[], object]:
-        """EAIK's own ``IK(T)`` on the frame converted in advance (see
+        """EAIK's own ``calculate_IK(T)`` on the target frame assembled in advance (see
         :meth:`PoseSolver.bare_call`)."""
-        T, ik = self._frame(point_m, rotation).copy(), self.eaik.IK
+        T, ik = self._frame(point_m, rotation).copy(), self._ik
         return lambda: ik(T)
 
-    def solve_within(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
-                     budget_s: float) -> PoseOut:
-        return self.solve(initials[0], point_m, rotation)
+
+def _compiled_only(kernel):
+    """A dispatcher of ``kernel``'s function (numba) that runs the specialisations ``kernel``
+    has compiled or loaded and raises TypeError for any other argument types instead of
+    compiling inside a timed call (the shared ``kernel`` keeps compiling for other
+    callers)."""
+    from numba import njit
+
+    dispatcher = njit(cache=True, nogil=True)(kernel.py_func)
+    for signature in kernel.signatures:
+        dispatcher.compile(signature)  # from numba's cache, which kernel has filled
+    dispatcher.disable_compile()
+    return dispatcher
+
+
+_new_tuple = tuple.__new__  # PoseOut without its Python __new__ (~0.07 us a call)
 
 
 #: What this library brings (found by :mod:`ikbench.methods.registry`).

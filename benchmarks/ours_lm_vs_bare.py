@@ -8,10 +8,10 @@ calls per target, every input prepared before the clock:
 - ``ours-lm``: ``ikbench ik``'s adapter call,
   :meth:`ikbench.methods.ours_lm.pose_solver.OursLMSolver.solve_within` of the one row, no
   budget (one descent of at most 100 LM iterations, the goal's columns as they come);
-- ``eaik``: EAIK's bare ``HPRobot.IK(T)`` (all branches, closed form), the robot built as
-  ``baselines/eaik_ik.py`` builds it (:func:`baselines.eaik_ik.chain_axes`; the goal
-  rotation times the end frame's zero rotation transposed, computed before the clock); none
-  of the adapter's branch selection. Skipped (with a line) where EAIK has no decomposition;
+- ``eaik``: EAIK's bare ``calculate_IK(T)`` (all branches, closed form), the robot built as
+  ``baselines/eaik_ik.py`` builds it (:meth:`baselines.eaik_ik.EaikSolver.bare_call`, the
+  frame assembled before the clock); none of the adapter's branch selection. Skipped (with
+  a line) where EAIK has no decomposition;
 - ``rtb-lm``: roboticstoolbox's bare ``ets.ik_LM(Tep, q0=..., ilimit=30, slimit=1, tol=TOL,
   joint_limits=True)`` on the ETS ``baselines/rtb.py`` builds (:func:`baselines.rtb.rtb_ets`),
   from the same start in [rad].
@@ -72,23 +72,15 @@ def _callers(robot, targets) -> dict:
 
     callers = {"ours-lm": (ours_call, lambda: [robot.to_urdf(last["ours-lm"].q)])}
     try:
-        from eaik.IK_HP import HPRobot
+        from ikbench.baselines.eaik_ik import EaikSolver
 
-        from ikbench.baselines.eaik_ik import chain_axes
-
-        fk = robot.pinocchio_fk()
-        H, P, R_end0 = chain_axes(fk.model, fk.model.createData(), fk.frame_id)
-        hp = HPRobot(H, P)
-        if not hp.hasKnownDecomposition():
-            raise ValueError(f"EAIK knows no decomposition ({hp.getKinematicFamily()})")
-        goals = []
-        for i in range(count):
-            G = np.eye(4)
-            G[:3, :3], G[:3, 3] = T[i][:3, :3] @ R_end0.T, T[i][:3, 3]
-            goals.append(G)
+        eaik = EaikSolver(robot)
+        eaik.prepare()  # ValueError where EAIK has no decomposition
+        calls = [eaik.bare_call(starts[i][0], np.ascontiguousarray(points[i]),
+                                np.ascontiguousarray(rotations[i])) for i in range(count)]
 
         def eaik_call(i: int) -> None:
-            last["eaik"] = hp.IK(goals[i])
+            last["eaik"] = calls[i]()
 
         def eaik_answers() -> list:
             solution = last["eaik"]

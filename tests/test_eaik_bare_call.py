@@ -110,7 +110,8 @@ def test_bare_call_times_measure_what_has_a_bare_call_and_say_what_it_is():
     targets = sample_targets(robot, IKSettings(count=10, seed=2))
     timed = bare_call_times(solver, targets, 10)
     assert 0 < timed["bare_call_median_ms"] < 50
-    assert timed["bare_call"] == "EAIK's own `IK(T)` on the frame converted in advance."
+    assert timed["bare_call"] == ("EAIK's own `calculate_IK(T)` on the target frame "
+                                  "assembled in advance.")
 
     class NoBareCall(PoseSolver):
         name = "none"
@@ -237,10 +238,34 @@ def test_eaik_compiles_in_prepare_not_in_a_timed_call():
     from ikbench.baselines.eaik_ik import EaikSolver
 
     robot, solver = _prepared(EaikSolver)
-    compiled = [list(kernel.signatures) for kernel in solver._kernels]
+    kernels = (solver._nearest, solver._frame_into)
+    compiled = [list(kernel.signatures) for kernel in kernels]
+    converted = []
+    solver._solve_converted = lambda *args: converted.append(args)  # the slow path, counted
     targets = sample_targets(robot, IKSettings(count=2, seed=1))
     T = targets.T_target[1]  # as the study passes it: views of the frame, a row of starts
     starts = np.ascontiguousarray(robot.to_urdf(targets.initials(1, 3)))
-    solver.solve_within(starts, T[:3, 3], T[:3, :3], 1.0)
+    assert solver.solve_within(starts, T[:3, 3], T[:3, :3], 1.0).ok
     solver.solve(starts[0], np.ascontiguousarray(T[:3, 3]), np.ascontiguousarray(T[:3, :3]))
-    assert [list(kernel.signatures) for kernel in solver._kernels] == compiled
+    far = T.copy()
+    far[:3, 3] *= 100.0  # out of reach: EAIK's least-squares answers only
+    assert not solver.solve_within(starts, far[:3, 3], far[:3, :3], 1.0).ok
+    assert converted == []  # every call ran a specialisation loaded in prepare
+    assert [list(kernel.signatures) for kernel in kernels] == compiled
+
+
+def test_eaik_answers_inputs_of_another_dtype_or_layout_as_float64_without_compiling():
+    pytest.importorskip("eaik")
+    from ikbench.baselines.eaik_ik import EaikSolver
+
+    robot, solver = _prepared(EaikSolver)
+    compiled = [list(kernel.signatures) for kernel in (solver._nearest, solver._frame_into)]
+    T = sample_targets(robot, IKSettings(count=3, seed=1)).T_target[2]
+    q0 = np.zeros(robot.dof)
+    plain = solver.solve(q0, np.ascontiguousarray(T[:3, 3]), np.ascontiguousarray(T[:3, :3]))
+    odd = solver.solve(q0.astype(np.float32), T[:3, 3].astype(np.float32),
+                       np.asfortranarray(T[:3, :3]))
+    assert plain.ok and odd.ok
+    # float32 inputs move the frame by ~1e-7 relative, so the answer by as little
+    assert np.abs(odd.q - plain.q).max() < 1e-4
+    assert [list(k.signatures) for k in (solver._nearest, solver._frame_into)] == compiled
