@@ -15,6 +15,7 @@ from ikbench.cli import main
 from ikbench.core.intervals import bootstrap_quantiles, kendall_tau, wilson
 from ikbench.core.robot_packages import robots_folder
 from ikbench.methods.registry import solver_status
+from ikbench.studies.recommend import paired
 from ikbench.studies.verdict import FAILED, MISSES, RECOMMENDED, WITHIN, decide, dominates
 
 needs_erd = pytest.mark.skipif(robots_folder("example-robot-data") is None,
@@ -140,7 +141,8 @@ def short_run(tmp_path_factory):
 def _check_agreement(folder, budget_ms):
     """The recommended method is within the budget at p99 and no candidate dominates it on
     success and median time (intervals compared); "best" only where the success lead is
-    outside the intervals; every tie named is a tie."""
+    outside the intervals; the candidates called tied are exactly those the paired
+    comparison over the same targets finds tied on success and on time."""
     table = pd.read_csv(folder / "recommend.csv").fillna({"role": ""})
     verdict = (folder / "recommend.md").read_text().split("\n\n")[1]
     rec = table[table["role"] == RECOMMENDED]
@@ -155,10 +157,13 @@ def _check_agreement(folder, budget_ms):
         assert not dominates(o, r), (o["method"], r["method"])
     if re.search(r"\bbest\b", verdict):
         assert all(r["success_low_pct"] > o["success_high_pct"] for _, o in others.iterrows())
-    for _, o in table[table["role"] == "tied"].iterrows():
-        s, t = _interval(o, "success"), _interval(o, "p50")
-        assert s[0] <= r["success_high_pct"] and r["success_low_pct"] <= s[1]
-        assert t[0] <= r["p50_high_ms"] and r["p50_low_ms"] <= t[1]
+    rows = pd.read_csv(folder / "results.csv")
+    for _, o in table.iterrows():  # a tie is a paired tie on both criteria, and only that
+        if o["method"] == r["method"] or o["budget"] != r["budget"]:
+            continue
+        pair = paired(rows, r["method"], o["method"])
+        tie = pair["success"] == pair["faster"] == "tie"
+        assert (o["role"] == "tied") == tie, (o["method"], pair)
 
 
 def _interval(row, name):

@@ -582,7 +582,8 @@ def verdict_of(rows: pd.DataFrame, info: dict[str, dict], per_seed: int
     seeds = sorted(int(s) for s in rows["seed"].unique())
     task, robot = str(rows["recommend_task"].iloc[0]), str(rows["recommend_robot"].iloc[0])
     summary = per_method(rows, info, budget_ms, seeds)
-    decision = decide(summary, budget_ms, task, robot, per_seed, seeds)
+    decision = decide(summary, budget_ms, task, robot, per_seed, seeds,
+                      lambda a, b: paired(rows, a, b))
     cannot = decision.table["budget"] == FAILED
     for column in ("success_pct", "success_low_pct", "success_high_pct"):
         decision.table.loc[cannot, column] = np.nan

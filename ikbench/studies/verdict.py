@@ -14,7 +14,12 @@ The verdict (:func:`decide`) compares intervals, never point estimates alone:
   A dominates B when A is not worse on either (intervals overlap or A leads) and better on
   one outside the intervals;
 - **recommended**: of the candidates no other dominates, the most successful (then the
-  fastest); **tied**: the candidates whose success and median intervals both overlap its;
+  fastest); **tied**: the candidates that neither succeed more or less often than it by the
+  exact sign test on the targets where the two differ nor are faster or slower by the paired
+  bootstrap interval of the per-target time ratio (:func:`decide`'s ``pairs``, which
+  ``ikbench recommend`` always gives; from a summary alone, those whose success and median
+  intervals both overlap its); every other comparison of the recommended method with
+  another (as reliable and faster, more successful but slower) is paired in the same way;
   **best** is said only where its success lead over every other candidate is outside the
   intervals;
 - **ranking** (:func:`order`), pooled and on each seed alone with that seed's intervals: by
@@ -27,7 +32,7 @@ from __future__ import annotations
 
 import itertools
 import zlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -195,9 +200,14 @@ def _names(names: Sequence[str]) -> str:
 
 
 def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
-           per_seed: int, seeds: Sequence[int]) -> Verdict:
+           per_seed: int, seeds: Sequence[int],
+           pairs: Callable[[str, str], dict] | None = None) -> Verdict:
     """The recommendation, its ties and trade-offs, as a paragraph and a ranked table (see
-    the module docstring)."""
+    the module docstring). ``pairs(a, b)``: the paired comparison of two methods over the
+    same targets (:func:`ikbench.studies.recommend.paired`: ``success`` and ``faster`` name
+    the winner or say "tie", ``time_ratio`` is b's time per target over a's); with it, every
+    statement that compares the recommended method with another is paired, and without it
+    (a summary alone) the intervals decide."""
     ranked = order(summary)
     table = summary.set_index("method").loc[ranked].reset_index()
     ranks = rankings(table, seeds)
@@ -246,53 +256,55 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
                          "p99 interval straddles the budget.")
     others = [m for m in candidates if m != rec]
     s_rec, t_rec = _interval(r, "success"), _interval(r, "p50")
+    versus = {m: _versus(rec, m, r, rows[m], pairs) for m in rows
+              if m != rec and rows[m]["budget"] != FAILED}
+    how = ("paired over the same targets: no difference in success by the sign test nor in "
+           "time by the paired bootstrap interval" if pairs is not None
+           else "success and median-time intervals overlap")
     if others and all(clearly_above(s_rec, _interval(rows[m], "success")) for m in others):
         among = "whose p99 may meet the budget" if straddles else "within the budget"
         sentences.append(f"{rec} is the best on success among the methods {among}: its lead "
                          "is outside the intervals.")
-    tied = [m for m in others if overlap(s_rec, _interval(rows[m], "success"))
-            and overlap(t_rec, _interval(rows[m], "p50"))]
+    tied = [m for m in others if versus[m]["success"] == versus[m]["faster"] == "tie"]
     if tied:
-        sentences.append(f"Statistically tied with it (success and median-time intervals "
-                         f"overlap): {_names(tied)}.")
+        sentences.append(f"Statistically tied with it ({how}): {_names(tied)}.")
     elif others:
         sentences.append("No other method within the budget is tied with it on both success "
                          "and median time.")
-    slower = [m for m in others if overlap(s_rec, _interval(rows[m], "success"))
-              and clearly_above(_interval(rows[m], "p50"), t_rec)]
+    same = "paired: a tie" if pairs is not None else "intervals overlap"
+    slower = [m for m in others if versus[m]["success"] == "tie" and versus[m]["faster"] == rec]
     for m in sorted(slower, key=lambda m: rows[m]["p50_ms"])[:3]:
-        sentences.append(f"{rec} is as reliable as {m} (intervals overlap) and "
+        sentences.append(f"{rec} is as reliable as {m} ({same}) and "
                          f"{_ratio(rows[m]['p50_ms'], r['p50_ms'])} faster per {call} at the "
-                         "median.")
-    for m in [m for m in others if clearly_above(_interval(rows[m], "success"), s_rec)]:
+                         f"median{versus[m]['ratio_text']}.")
+    for m in [m for m in others if versus[m]["success"] == m]:
         sentences.append(f"{m} succeeds more often ({rows[m]['success_pct']:.1f} % vs "
-                         f"{r['success_pct']:.1f} %) but is "
+                         f"{r['success_pct']:.1f} %{versus[m]['success_text']}) but is "
                          f"{_ratio(rows[m]['p50_ms'], r['p50_ms'])} slower per {call} at the "
                          "median.")
-    faster = [m for m in others if clearly_above(t_rec, _interval(rows[m], "p50"))
-              and clearly_above(s_rec, _interval(rows[m], "success"))]
+    faster = [m for m in others if versus[m]["faster"] == m and versus[m]["success"] == rec]
     for m in sorted(faster, key=lambda m: rows[m]["p50_ms"])[:2]:
         sentences.append(f"{m} is {_ratio(r['p50_ms'], rows[m]['p50_ms'])} faster per {call} "
                          f"at the median but succeeds less often ({rows[m]['success_pct']:.1f} "
-                         f"% vs {r['success_pct']:.1f} %).")
+                         f"% vs {r['success_pct']:.1f} %{versus[m]['success_text']}).")
     may_pass: list[str] = []
     over: list[str] = []
     for m, row in rows.items():
         if m in candidates or row["budget"] == FAILED:
             continue
-        if clearly_above(_interval(row, "success"), s_rec):
+        if versus[m]["success"] == m:
             how = ("misses" if row["budget"] == MISSES else "may pass (its interval straddles)")
             sentences.append(f"{m} succeeds more often ({row['success_pct']:.1f} % vs "
-                             f"{r['success_pct']:.1f} %) but {how} the {budget_ms:g} ms budget "
-                             f"at p99 ({_ms_ci(row, 'p99')}).")
-        elif overlap(_interval(row, "success"), s_rec):
+                             f"{r['success_pct']:.1f} %{versus[m]['success_text']}) but {how} "
+                             f"the {budget_ms:g} ms budget at p99 ({_ms_ci(row, 'p99')}).")
+        elif versus[m]["success"] == "tie":
             (may_pass if row["budget"] == UNCERTAIN else over).append(m)
     if may_pass:
-        sentences.append("As reliable (intervals overlap), but with a p99 that may pass the "
+        sentences.append(f"As reliable ({same}), but with a p99 that may pass the "
                          "budget: " + ", ".join(f"{m} ({_ms_ci(rows[m], 'p99')})"
                                                 for m in may_pass) + ".")
     if over:
-        sentences.append(f"As reliable, but over the budget at p99: {_names(over)}.")
+        sentences.append(f"As reliable ({same}), but over the budget at p99: {_names(over)}.")
     failed = [m for m, row in rows.items() if row["budget"] == FAILED]
     if failed:
         sentences.append(f"Did not run (cannot take the robot, or not within --minutes; the "
@@ -301,6 +313,29 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
     table.loc[table["method"] == rec, "role"] = RECOMMENDED
     table.loc[table["method"].isin(tied), "role"] = TIED
     return Verdict(" ".join(sentences), table, rec, tied, taus)
+
+
+def _versus(rec: str, m: str, r, row, pairs: Callable[[str, str], dict] | None) -> dict:
+    """``rec`` against ``m``: ``success`` and ``faster`` (the winner's name or "tie"), paired
+    where ``pairs`` is given, else by the intervals (success, median time), and the words the
+    verdict adds (the sign test's counts, the paired time ratio)."""
+    if pairs is None:
+        s_rec, s_m = _interval(r, "success"), _interval(row, "success")
+        t_rec, t_m = _interval(r, "p50"), _interval(row, "p50")
+        return {"success": rec if clearly_above(s_rec, s_m) else m if clearly_above(s_m, s_rec)
+                else "tie",
+                "faster": rec if clearly_above(t_m, t_rec) else m if clearly_above(t_rec, t_m)
+                else "tie", "success_text": "", "ratio_text": ""}
+    pair = pairs(rec, m)
+    ratio = pair["time_ratio"]
+    ratio_text = (f"; paired, {m}'s time per target is {ratio:.3g}x {rec}'s [95 % "
+                  f"{pair['time_ratio_low']:.3g}, {pair['time_ratio_high']:.3g}]"
+                  if np.isfinite(ratio) else "")
+    return {"success": pair["success"], "faster": pair["faster"],
+            "success_text": (f"; paired over {pair['targets']}: {m} alone "
+                             f"{pair['second_only']}, {rec} alone {pair['first_only']}, sign "
+                             f"test p = {pair['sign_test_p']:.2g}"),
+            "ratio_text": ratio_text}
 
 
 def _agreement(taus: dict[str, float], seeds: Sequence[int]) -> str:
