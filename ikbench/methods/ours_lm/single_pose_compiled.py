@@ -271,6 +271,50 @@ def compiled_only(kernel: Any) -> Any:
     return dispatcher
 
 
+@functools.cache
+def loaded_on_first_use(kernel: Any) -> Any:
+    """A dispatcher of ``kernel``'s function holding no specialisation yet, compiling none by
+    itself (TypeError for argument types it lacks, as :func:`compiled_only`'s):
+    :func:`load_layout` loads one into it when a call first needs it. The first call of
+    :func:`ikbench.solve_pose` loads one layout of :func:`.single_pose_kernels.solve_views`
+    instead of the ~11 specialisations :meth:`SinglePoseLM.warm_up` and :func:`compiled_only`
+    load (~0.1 s each from numba's cache on a 2-core machine)."""
+    dispatcher = numba.njit(cache=True, nogil=True)(kernel.py_func)
+    # what disable_compile() sets; it refuses a dispatcher holding no specialisation yet
+    dispatcher._can_compile = False
+    return dispatcher
+
+
+@functools.cache
+def view_layouts() -> frozenset[tuple[Any, ...]]:
+    """The argument types of :func:`.single_pose_kernels.solve_views` that
+    :meth:`SinglePoseLM.warm_up` compiles (the goal frame's column views and C-ordered copies
+    of the point and rotation; the packed spec and the starts C-ordered, the budget a float),
+    as numba types them."""
+    T = np.eye(4)
+    spec, starts = numba.typeof(np.zeros((3, WIDTH))), numba.typeof(np.zeros((1, 1)))
+    return frozenset((spec, numba.typeof(point), numba.typeof(rotation), starts, numba.float64)
+                     for point in (T[:3, 3], np.ascontiguousarray(T[:3, 3]))
+                     for rotation in (T[:3, :3], np.ascontiguousarray(T[:3, :3])))
+
+
+def load_layout(dispatcher: Any, args: tuple[Any, ...]) -> bool:
+    """Load into ``dispatcher`` (:func:`loaded_on_first_use`) the specialisation of ``args``'
+    types when it is one of :func:`view_layouts` (from numba's cache, which any warm-up of
+    ours-lm fills; compiled where the cache holds none, as a warm-up would); False, loading
+    nothing, for any other types. True when ``dispatcher`` can now run ``args``."""
+    signature = tuple(numba.typeof(arg) for arg in args)
+    if signature not in view_layouts():
+        return False
+    if signature not in dispatcher.overloads:
+        dispatcher._can_compile = True
+        try:
+            dispatcher.compile(signature)
+        finally:
+            dispatcher._can_compile = False
+    return True
+
+
 def max_threads() -> int:
     """The most threads numba runs (``NUMBA_NUM_THREADS``, by default the cores)."""
     return int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
