@@ -122,3 +122,16 @@ def test_a_fresh_process_first_answer_loads_one_layout():
                           timeout=600, check=True)
     counts = json.loads(done.stdout.strip().splitlines()[-1])
     assert counts == {"ok": True, "kernels": 0, "lazy": 1}
+
+
+def test_the_first_call_study_answers_ours_lm_from_its_first_use_set_up(ur5):
+    """``first_call`` (``ikbench ik --first-call``) of ours-lm in a fresh process: the three
+    times and their sum, no error (its set-up is ``prepare_first_call``)."""
+    from ikbench.studies.first_call import first_call
+
+    T = ur5.fk_transform(np.full(ur5.dof, 20.0)[None])[0]
+    out = first_call(ur5, "ours-lm", "pose", (1.0, 0.5), 0.01, T,
+                     np.full((2, ur5.dof), 25.0))
+    assert "error" not in out, out
+    assert out["first_call_s"] == pytest.approx(out["import_s"] + out["setup_s"]
+                                                + out["solve_s"])

@@ -38,7 +38,9 @@ solve_batch` runs numba threads (``prange``, GIL released) that each take the ne
 from an atomic counter when done with one, each target with its own deadline. numba is the
 core dependency; the first use compiles the kernels (~25 s on a 2-core machine: the loop's
 helpers are inlined into it, which halved an iteration's time), numba caches them
-(``__pycache__``).
+(``__pycache__``). :meth:`SinglePoseLM.warm_up` loads every layout before timed calls;
+:func:`loaded_on_first_use` and :func:`load_layout` load one as a call first needs it (the
+first answer of :func:`ikbench.solve_pose`).
 """
 
 from __future__ import annotations
@@ -235,7 +237,10 @@ class SinglePoseLM:
             len(points), 3, 3)
 
     def warm_up(self) -> None:
-        """Compile (or load from numba's cache) every kernel, outside any timed region."""
+        """Compile (or load from numba's cache) every kernel and every layout of
+        :func:`.single_pose_kernels.solve_views` a timed call can meet, outside any timed
+        region (:meth:`.pose_solver.OursLMSolver.prepare`). :func:`ikbench.solve_pose` skips
+        this: it loads one layout when a call first needs it (:func:`load_layout`)."""
         say_if_compiling(kernels)
         pose = np.clip(np.zeros(self.dof), self.robot.sample_lower, self.robot.sample_upper)
         T = self.robot.fk_transform(pose)[0]
