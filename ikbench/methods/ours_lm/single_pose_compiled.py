@@ -303,6 +303,34 @@ def view_layouts() -> frozenset[tuple[Any, ...]]:
                      for rotation in (T[:3, :3], np.ascontiguousarray(T[:3, :3])))
 
 
+def numba_target_without_scipy_linalg() -> None:
+    """Import numba's array maths (``numba.np.arraymath``, imported when the CPU target first
+    loads any kernel, cached or not) without the ``import scipy.linalg.cython_blas`` its
+    module-level BLAS probe runs (~0.3 s on a quiet 2-core machine, most of scipy.linalg's
+    import): the probe only sets whether ``np.dot``-like overloads may lower to BLAS, and
+    every BLAS or LAPACK lowering calls numba's ``ensure_blas``/``ensure_lapack`` again (then
+    scipy.linalg imports), while a kernel loaded from the cache fetches its BLAS pointers
+    from scipy when it first calls one. The probe's other half, numba's check that scipy's
+    BLAS integer width is the one numba was built for, still runs (it reads
+    ``scipy.__config__`` only). ours-lm's single-pose kernels use no BLAS (their Cholesky is
+    written out in :mod:`.single_pose_kernels`). Nothing happens when numba's array maths is
+    already imported, or scipy is not installed (the probe's answer is then False)."""
+    import importlib.util
+    import sys
+
+    if "numba.np.arraymath" in sys.modules or importlib.util.find_spec("scipy") is None:
+        return
+    from numba.np import linalg
+
+    probe = linalg.ensure_blas
+    linalg.ensure_blas = linalg._check_lapack_int_width
+    try:
+        arraymath = importlib.import_module("numba.np.arraymath")
+    finally:
+        linalg.ensure_blas = probe
+    arraymath.ensure_blas = probe  # the name it imported, for any later caller
+
+
 def load_layout(dispatcher: Any, args: tuple[Any, ...]) -> bool:
     """Load into ``dispatcher`` (:func:`loaded_on_first_use`) the specialisation of ``args``'
     types when it is one of :func:`view_layouts` (from numba's cache, which any warm-up of
@@ -312,6 +340,7 @@ def load_layout(dispatcher: Any, args: tuple[Any, ...]) -> bool:
     if signature not in view_layouts():
         return False
     if signature not in dispatcher.overloads:
+        numba_target_without_scipy_linalg()
         dispatcher._can_compile = True
         try:
             dispatcher.compile(signature)
