@@ -56,7 +56,8 @@ def solve_pose(robot: Robot, T: npt.ArrayLike, q0: npt.ArrayLike, *,
         tolerance; a failed answer is the last attempt's pose).
 
     The first call for a robot builds its solver and loads the one kernel layout it needs
-    from numba's cache (compiled once per machine: ``ikbench warmup``); later ones cost the kernel's time and ~1 us besides (``benchmarks/ours_lm_empty_call.py``).
+    from numba's cache (compiled once per machine: ``ikbench warmup``); later ones cost
+    the kernel's time and ~1 us besides (``benchmarks/ours_lm_empty_call.py``).
     """
     last = _LAST
     if last[0] is robot and last[1] == kind and (

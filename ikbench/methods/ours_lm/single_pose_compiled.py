@@ -286,7 +286,7 @@ def loaded_on_first_use(kernel: Any) -> Any:
     load (~0.1 s each from numba's cache on a 2-core machine)."""
     dispatcher = numba.njit(cache=True, nogil=True)(kernel.py_func)
     # what disable_compile() sets; it refuses a dispatcher holding no specialisation yet
-    dispatcher._can_compile = False
+    dispatcher._can_compile = False  # type: ignore[attr-defined]
     return dispatcher
 
 
@@ -328,7 +328,7 @@ def numba_target_without_scipy_linalg() -> None:
         arraymath = importlib.import_module("numba.np.arraymath")
     finally:
         linalg.ensure_blas = probe
-    arraymath.ensure_blas = probe  # the name it imported, for any later caller
+    arraymath.ensure_blas = probe  # type: ignore[attr-defined]  # the name it imported
 
 
 def load_layout(dispatcher: Any, args: tuple[Any, ...]) -> bool:
