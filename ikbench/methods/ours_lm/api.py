@@ -1,9 +1,13 @@
 """``ikbench.solve_pose``: ours-lm's single-pose IK of one goal frame, as a library call.
 
 The call ``ikbench ik`` times (:meth:`.pose_solver.OursLMSolver.solve_within`), without the
-benchmark around it: the compiled solver of a robot is built (and its kernels compiled, or
-loaded from numba's cache) on the first call for that robot, kind and tolerance, and kept;
-every later call is one compiled call (the goal's conversion to [mm] inside it).
+benchmark around it: the compiled solver of a robot is built on the first call for that
+robot, kind and tolerance, and kept
+(:meth:`.pose_solver.OursLMSolver.prepare_first_call`): a call loads from numba's cache only
+the kernel layout its arrays need, on its first use (compiled where the cache holds none),
+instead of every layout the benchmark's timed calls can meet; every later call is one
+compiled call (the goal's conversion to [mm] inside it), with the answers of the benchmark's
+solver bit for bit.
 """
 
 from __future__ import annotations
@@ -51,8 +55,9 @@ def solve_pose(robot: Robot, T: npt.ArrayLike, q0: npt.ArrayLike, *,
         and whether both errors are below 1e-3 x ``tolerance`` (far inside the judge's
         tolerance; a failed answer is the last attempt's pose).
 
-    The first call for a robot builds its solver (and compiles the kernels once per machine);
-    later ones cost the kernel's time and ~1 us besides (``benchmarks/ours_lm_empty_call.py``).
+    The first call for a robot builds its solver and loads the one kernel layout it needs
+    from numba's cache (compiled once per machine: ``ikbench warmup``); later ones cost
+    the kernel's time and ~1 us besides (``benchmarks/ours_lm_empty_call.py``).
     """
     last = _LAST
     if last[0] is robot and last[1] == kind and (
@@ -90,7 +95,8 @@ def _solver(robot: Robot, kind: str, tolerance: tuple[float, float]) -> Any:
 
 
 def _build(robot: Robot, kind: str, tolerance: tuple[float, ...]) -> Any:
-    """A prepared :class:`.pose_solver.OursLMSolver` (bad settings: InputError)."""
+    """A :class:`.pose_solver.OursLMSolver` set up for first use (its layouts loaded as calls
+    need them; bad settings: InputError)."""
     from ikbench.methods.ours_lm.pose_solver import OursLMSolver
 
     if kind not in ("pose", "position"):
@@ -98,5 +104,5 @@ def _build(robot: Robot, kind: str, tolerance: tuple[float, ...]) -> Any:
     if len(tolerance) != 2 or not min(tolerance) > 0:
         raise InputError(f"tolerance: {tolerance!r} must be (mm > 0, deg > 0)")
     solver = OursLMSolver(robot, kind, tolerance)
-    solver.prepare()
+    solver.prepare_first_call()
     return solver

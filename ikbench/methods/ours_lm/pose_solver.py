@@ -82,22 +82,47 @@ class OursLMSolver(PoseSolver):
     #: The compiled solvers (:meth:`prepare`; None: the numpy reference runs).
     compiled: Any = None
     descent: Any = None
+    #: True after :meth:`prepare_first_call`: layouts are loaded on first use.
+    _lazy = False
 
     def prepare(self) -> None:
-        """Build (and compile or load) the compiled solver when numba is installed."""
+        """Build (and compile or load) the compiled solver when numba is installed: every
+        kernel layout the timed calls can meet is loaded here, so no timed call loads or
+        compiles one (``ikbench ik`` times calls after this)."""
+        self._build(warm=True)
+
+    def prepare_first_call(self) -> None:
+        """The cheaper set-up of :func:`ikbench.solve_pose` and of the first-call column
+        (:mod:`ikbench.studies.first_call`): the compiled solvers built, no kernel loaded; a
+        call loads (from numba's cache: compiles where it holds none) only the layout of
+        :func:`.single_pose_kernels.solve_views` its arrays need, one that :meth:`prepare`
+        would have loaded (:func:`.single_pose_compiled.load_layout`), on its first use
+        (UR5, warm cache: one of ~11 specialisations). The answers are :meth:`prepare`'s, bit
+        for bit: the same compiled code runs. Not for timed calls: a call meeting a layout
+        the first time waits for its load."""
+        self._build(warm=False)
+
+    def _build(self, warm: bool) -> None:
         self.compiled = None
+        self._lazy = False
         if compiled_available():
             module = importlib.import_module("ikbench.methods.ours_lm.single_pose_compiled")
             SinglePoseLM = module.SinglePoseLM  # noqa: N806
+            self._module = module
             self._views_any = module.kernels.solve_views
             self._identity = np.eye(3)
             self.compiled = SinglePoseLM(self.robot, self.kind, self.tolerance)
             self.descent = SinglePoseLM(self.robot, self.kind, self.tolerance,
                                         max_iterations=MAX_STEPS)
-            self.compiled.warm_up()
-            self.descent.warm_up()
-            self._views = module.compiled_only(self._views_any)
             self.rows: dict[int, Any] = {}
+            if warm:
+                self.compiled.warm_up()
+                self.descent.warm_up()
+                self._views = module.compiled_only(self._views_any)
+            else:  # each layout loaded on its first call (_load_views)
+                module.say_if_compiling(module.kernels)
+                self._views = module.loaded_on_first_use(self._views_any)
+                self._lazy = True
 
     def runtime(self) -> dict[str, Any]:
         """The solver that runs: compiled (numba) or the numpy reference."""
@@ -131,6 +156,9 @@ class OursLMSolver(PoseSolver):
                 return _new_tuple(PoseOut, self._views(solver.spec, point_m, rotation,
                                                        initials, budget_s))
             except TypeError:  # another layout or dtype: float64 copies, never a compile
+                if self._lazy:  # prepare_first_call: a layout not loaded yet, or copies
+                    return _new_tuple(PoseOut, self._load_views(
+                        solver.spec, point_m, rotation, initials, budget_s))
                 return _new_tuple(PoseOut, self._views_any(
                     solver.spec, _f64(point_m), _f64(rotation), _f64(initials),
                     float(budget_s)))
@@ -147,6 +175,19 @@ class OursLMSolver(PoseSolver):
             if out.converged[0] or last or time.perf_counter() >= deadline:
                 break
         return PoseOut(out.poses[0], iterations, bool(out.converged[0]), a + 1)
+
+    def _load_views(self, spec: np.ndarray, point_m: Any, rotation: Any, initials: Any,
+                    budget_s: float) -> tuple:
+        """:meth:`prepare_first_call`'s first call with a layout: the arrays as they come
+        when :meth:`prepare` would have loaded their layout, else their float64 copies (as
+        :meth:`prepare`'s path copies them), that layout loaded into ``self._views`` first."""
+        load = self._module.load_layout
+        args = (spec, point_m, rotation, initials, budget_s)
+        if not load(self._views, args):
+            args = (spec, _f64(point_m), _f64(rotation), _f64(initials), float(budget_s))
+            if not load(self._views, args):  # not reached: copies have a loaded layout
+                return self._views_any(*args)
+        return self._views(*args)
 
     def _solver_for(self, rows: int, budget_s: float) -> Any:
         """The compiled solver of ``rows`` starts within ``budget_s`` [s]: one descent for one

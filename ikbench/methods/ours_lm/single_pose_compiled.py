@@ -38,7 +38,9 @@ solve_batch` runs numba threads (``prange``, GIL released) that each take the ne
 from an atomic counter when done with one, each target with its own deadline. numba is the
 core dependency; the first use compiles the kernels (~25 s on a 2-core machine: the loop's
 helpers are inlined into it, which halved an iteration's time), numba caches them
-(``__pycache__``).
+(``__pycache__``). :meth:`SinglePoseLM.warm_up` loads every layout before timed calls;
+:func:`loaded_on_first_use` and :func:`load_layout` load one as a call first needs it (the
+first answer of :func:`ikbench.solve_pose`).
 """
 
 from __future__ import annotations
@@ -235,7 +237,10 @@ class SinglePoseLM:
             len(points), 3, 3)
 
     def warm_up(self) -> None:
-        """Compile (or load from numba's cache) every kernel, outside any timed region."""
+        """Compile (or load from numba's cache) every kernel and every layout of
+        :func:`.single_pose_kernels.solve_views` a timed call can meet, outside any timed
+        region (:meth:`.pose_solver.OursLMSolver.prepare`). :func:`ikbench.solve_pose` skips
+        this: it loads one layout when a call first needs it (:func:`load_layout`)."""
         say_if_compiling(kernels)
         pose = np.clip(np.zeros(self.dof), self.robot.sample_lower, self.robot.sample_upper)
         T = self.robot.fk_transform(pose)[0]
@@ -269,6 +274,79 @@ def compiled_only(kernel: Any) -> Any:
         dispatcher.compile(signature)  # loaded from numba's cache, which kernel has filled
     dispatcher.disable_compile()
     return dispatcher
+
+
+@functools.cache
+def loaded_on_first_use(kernel: Any) -> Any:
+    """A dispatcher of ``kernel``'s function holding no specialisation yet, compiling none by
+    itself (TypeError for argument types it lacks, as :func:`compiled_only`'s):
+    :func:`load_layout` loads one into it when a call first needs it. The first call of
+    :func:`ikbench.solve_pose` loads one layout of :func:`.single_pose_kernels.solve_views`
+    instead of the ~11 specialisations :meth:`SinglePoseLM.warm_up` and :func:`compiled_only`
+    load (~0.1 s each from numba's cache on a 2-core machine)."""
+    dispatcher = numba.njit(cache=True, nogil=True)(kernel.py_func)
+    # what disable_compile() sets; it refuses a dispatcher holding no specialisation yet
+    dispatcher._can_compile = False  # type: ignore[attr-defined]
+    return dispatcher
+
+
+@functools.cache
+def view_layouts() -> frozenset[tuple[Any, ...]]:
+    """The argument types of :func:`.single_pose_kernels.solve_views` that
+    :meth:`SinglePoseLM.warm_up` compiles (the goal frame's column views and C-ordered copies
+    of the point and rotation; the packed spec and the starts C-ordered, the budget a float),
+    as numba types them."""
+    T = np.eye(4)
+    spec, starts = numba.typeof(np.zeros((3, WIDTH))), numba.typeof(np.zeros((1, 1)))
+    return frozenset((spec, numba.typeof(point), numba.typeof(rotation), starts, numba.float64)
+                     for point in (T[:3, 3], np.ascontiguousarray(T[:3, 3]))
+                     for rotation in (T[:3, :3], np.ascontiguousarray(T[:3, :3])))
+
+
+def numba_target_without_scipy_linalg() -> None:
+    """Import numba's array maths (``numba.np.arraymath``, imported when the CPU target first
+    loads any kernel, cached or not) without the ``import scipy.linalg.cython_blas`` its
+    module-level BLAS probe runs (~0.3 s on a quiet 2-core machine, most of scipy.linalg's
+    import): the probe only sets whether ``np.dot``-like overloads may lower to BLAS, and
+    every BLAS or LAPACK lowering calls numba's ``ensure_blas``/``ensure_lapack`` again (then
+    scipy.linalg imports), while a kernel loaded from the cache fetches its BLAS pointers
+    from scipy when it first calls one. The probe's other half, numba's check that scipy's
+    BLAS integer width is the one numba was built for, still runs (it reads
+    ``scipy.__config__`` only). ours-lm's single-pose kernels use no BLAS (their Cholesky is
+    written out in :mod:`.single_pose_kernels`). Nothing happens when numba's array maths is
+    already imported, or scipy is not installed (the probe's answer is then False)."""
+    import importlib.util
+    import sys
+
+    if "numba.np.arraymath" in sys.modules or importlib.util.find_spec("scipy") is None:
+        return
+    from numba.np import linalg
+
+    probe = linalg.ensure_blas
+    linalg.ensure_blas = linalg._check_lapack_int_width
+    try:
+        arraymath = importlib.import_module("numba.np.arraymath")
+    finally:
+        linalg.ensure_blas = probe
+    arraymath.ensure_blas = probe  # type: ignore[attr-defined]  # the name it imported
+
+
+def load_layout(dispatcher: Any, args: tuple[Any, ...]) -> bool:
+    """Load into ``dispatcher`` (:func:`loaded_on_first_use`) the specialisation of ``args``'
+    types when it is one of :func:`view_layouts` (from numba's cache, which any warm-up of
+    ours-lm fills; compiled where the cache holds none, as a warm-up would); False, loading
+    nothing, for any other types. True when ``dispatcher`` can now run ``args``."""
+    signature = tuple(numba.typeof(arg) for arg in args)
+    if signature not in view_layouts():
+        return False
+    if signature not in dispatcher.overloads:
+        numba_target_without_scipy_linalg()
+        dispatcher._can_compile = True
+        try:
+            dispatcher.compile(signature)
+        finally:
+            dispatcher._can_compile = False
+    return True
 
 
 def max_threads() -> int:

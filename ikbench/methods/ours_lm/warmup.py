@@ -7,7 +7,9 @@ them (the chain's arrays are typed by it), and keeps the result in its on-disk c
 the compile (minutes) and every later one loads it (about a second). :func:`warm_up` runs
 the warm-ups the methods run before their timed calls, one kernel group at a time, and says
 per group how long it took and how many kernels numba compiled or loaded from its cache.
-ours-exact has no kernels of its own: its pose paths are ours-lm's path search.
+ours-exact has no kernels of its own: its pose paths are ours-lm's path search. The
+single-pose group runs ``OursLMSolver.prepare`` (every layout the timed calls meet), so it
+fills the cache for :func:`ikbench.solve_pose` too, whose first call loads one of them.
 """
 
 from __future__ import annotations
