@@ -69,6 +69,11 @@ def write_folder(result: StudyResult, folder: Path, command: str = "") -> Path:
         _targets(result, tmp)
         summary = with_bare_calls(summarise(result.table, result.batches,
                                             first_calls(result.methods)), result.methods)
+        model = getattr(result, "init_model", None)
+        if model:  # --init learned: the model's figures in every row (the same starts)
+            for key in ("model_query_ms", "model_error_mm", "model_error_deg",
+                        "training_samples", "training_cpu_min", "model_file"):
+                summary[key] = model[key]
         summary.to_csv(tmp / "summary.csv", index=False, float_format="%.6g")
         record = _record(result, command)
         (tmp / "leaderboard.md").write_text(leaderboard(result, summary, record),
@@ -139,7 +144,7 @@ def _record(result: StudyResult, command: str) -> dict:
     units = ["m" if p else "rad" for p in robot.prismatic]
     return {"command": command, "robot": robot.describe(),
             "settings": asdict(result.settings), "methods": result.methods,
-            "batched": result.batches,
+            "batched": result.batches, "init_model": getattr(result, "init_model", None),
             "solution_columns": {f"q{j}": {"joint": name, "unit": unit}
                                  for j, (name, unit) in enumerate(zip(robot.joint_names,
                                                                       units))},
@@ -236,6 +241,9 @@ def protocol(result: StudyResult) -> str:
     first = ("drawn uniformly within the limits, independent of the target" if s.init ==
              "random" else f"the target's configuration moved by up to {s.perturb_deg:g} deg "
              "per joint")
+    if s.init == "learned":
+        first = ("the best proposal of the pose model `--model`; rows 1 .. K - 1 its next "
+                 "ones, rows past K as below")
     itself = [m for m, f in result.methods.items() if f["restarts_itself"]]
     restarted = [m for m, f in result.methods.items() if not f["restarts_itself"]]
     lines = [f"**Protocol**, the same for every method: {budget}; **initial "

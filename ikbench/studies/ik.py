@@ -9,7 +9,11 @@ header states it):
 - **Initial configurations**: each target k has a seeded sequence (:meth:`Targets.initials`).
   Row 0 is its initial pose: ``random`` (drawn uniformly within the limits, independent of the
   target) or ``nearby`` (the target's configuration moved by up to ``perturb_deg`` per joint,
-  the tracking case). Rows 1, 2, ... are drawn uniformly within the limits from the seed's
+  the tracking case) or ``learned`` (a pose model of ``ikbench learn``, ``model``: row 0 is its
+  best proposal for the target frame, rows 1 .. K - 1 its next ones, the means of its K
+  mixture components heaviest first, in pose units within the limits; rows past K as below;
+  :func:`learned_initials`). Rows 1, 2, ... (past the model's K under ``learned``) are
+  drawn uniformly within the limits from the seed's
   k-th child generator (``SeedSequence(seed).spawn``; restarts are random, as TRAC-IK's,
   KDL's and roboticstoolbox's own).
   Every method gets the same rows.
@@ -88,7 +92,7 @@ if TYPE_CHECKING:
 
 FOLDER = WITHIN["ik"]
 KINDS = ("pose", "position")
-INITS = ("random", "nominal", "nearby")
+INITS = ("random", "nominal", "nearby", "learned")
 AUTO = "auto"
 #: The default attempts rule: the deterministic protocol (at most 8 attempts, no wall-clock
 #: cut), as the committed studies run it; ``auto`` is asked for.
@@ -141,6 +145,8 @@ class IKSettings:
             (:func:`ikbench.studies.ik_truth.unreachable_mix`), 0 to 0.9.
         repeat: runs of the ``auto`` table (the wall-clock budget decides its success);
             fixed-count rules run once.
+        model: ``init="learned"``: the pose model file of ``ikbench learn`` whose proposals
+            are the initial configurations (None otherwise).
     """
 
     count: int = 1000
@@ -157,6 +163,7 @@ class IKSettings:
     unreachable: float = 0.0
     first_call: bool = False
     repeat: int = 1
+    model: str | None = None
 
     def __post_init__(self):
         check_settings(self)
@@ -201,18 +208,26 @@ class Targets:
     limit_margin_deg: np.ndarray | None = None
     branches: list[np.ndarray] | None = None
     branches_by: str = ""
+    #: ``--init learned``: (B, K, dof) the model's proposals [pose units]; rows 0 .. K - 1 of
+    #: each sequence (row 0 is ``q_init``); None otherwise.
+    proposals: np.ndarray | None = None
+    #: ``--init learned``: what the run records of the model (:func:`learned_initials`).
+    init_model: dict | None = None
 
     def initials(self, k: int, rows: int) -> np.ndarray:
         """Target ``k``'s first ``rows`` initial configurations (rows, dof) [pose units]: row
         0 its initial pose, then uniform draws within the limits; the same for every method,
         and a prefix of any longer sequence."""
-        first = self.q_init[k:k + 1]
-        if rows <= 1:
+        first = (self.q_init[k:k + 1] if self.proposals is None
+                 else self.proposals[k, :max(1, rows)])
+        if rows <= len(first):
             return first.copy()
         lower = self.q_init[k] if self.sample_lower is None else self.sample_lower
         upper = self.q_init[k] if self.sample_upper is None else self.sample_upper
         rng = np.random.default_rng(np.random.SeedSequence(int(self.seed), spawn_key=(int(k),)))
-        return np.concatenate([first, rng.uniform(lower, upper, (rows - 1, first.shape[1]))])
+        # the same child stream under every init: row r is the r-th draw, whatever row 0 is
+        draws = rng.uniform(lower, upper, (rows - 1, first.shape[1]))
+        return np.concatenate([first, draws[len(first) - 1:]])
 
 
 @dataclass
@@ -232,6 +247,9 @@ class IKResult:
     auto_rows: int = AUTO_ROWS
     #: The command line the leaderboard quotes ("" for none).
     command: str = ""
+    #: ``--init learned``: the model's file, training samples and CPU-minutes, its query
+    #: time per target and its raw error on these targets (:func:`learned_initials`).
+    init_model: dict | None = None
 
     def write(self, folder: str | Path) -> Path:
         """Write ``folder/ik/<robot>/`` whole (:mod:`ikbench.render.ik_report`); return it."""
@@ -257,6 +275,8 @@ class IKSpec:
         settings = self.settings
         names = parse_methods(list(self.methods), settings.kind)
         self.robot.check_loads()
+        if settings.init == "learned":
+            init_model(self.robot, settings.model)
         unknown = [n for n in settings.max_count if n not in names]
         if unknown:
             raise InputError(f"--max-count-per-method: {unknown[0]} is not among the methods "
@@ -315,6 +335,12 @@ def check_settings(s: IKSettings) -> None:
         raise InputError(f"--kind: {s.kind!r} is not one of {', '.join(KINDS)}")
     if s.init not in INITS:
         raise InputError(f"--init: {s.init!r} is not one of {', '.join(INITS)}")
+    if s.init == "learned" and not s.model:
+        raise InputError("--init learned: needs --model MODEL (a pose model file of "
+                         "ikbench learn)")
+    if s.model is not None and s.init != "learned":
+        raise InputError(f"--model: {s.model!r} is used only with --init learned, not "
+                         f"--init {s.init}")
     for flag, value in (("--tolerance-mm", s.tolerance_mm), ("--tolerance-deg", s.tolerance_deg),
                         ("--perturb-deg", s.perturb_deg)):
         if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
@@ -375,7 +401,9 @@ def sample_targets(robot: Robot, settings: IKSettings) -> Targets:
     lo, hi = robot.sample_lower, robot.sample_upper
     q_target = rng.uniform(lo, hi, (settings.count, robot.dof))
     T = robot.fk_transform(q_target)
-    if settings.init == "random":
+    if settings.init == "learned":  # after the unreachable mix below; no draw from rng
+        q_init = np.full((settings.count, robot.dof), np.nan)
+    elif settings.init == "random":
         q_init = rng.uniform(lo, hi, (settings.count, robot.dof))
     elif settings.init == "nominal":  # the middle of the limits, as TRAC-IK's benchmark seeds
         q_init = np.tile((np.asarray(lo) + np.asarray(hi)) / 2.0, (settings.count, 1))
@@ -391,8 +419,60 @@ def sample_targets(robot: Robot, settings: IKSettings) -> Targets:
         truth = analytic_solver(robot) if settings.kind == "pose" and n > 1 else None
         T[chosen], kinds[chosen] = unreachable_mix(robot, T[chosen], mixer, truth)
         reachable[chosen] = False
+    proposals = facts = None
+    if settings.init == "learned":  # the model's proposals for the frames as posed
+        learned = learned_initials(robot, settings, T)
+        proposals, facts = learned["proposals"], learned["facts"]
+        q_init = proposals[:, 0].copy()
     return Targets(q_target, T, q_init, int(settings.seed), np.asarray(lo), np.asarray(hi),
-                   reachable, kinds)
+                   reachable, kinds, proposals=proposals, init_model=facts)
+
+
+def init_model(robot: Robot, path: str | Path | None):
+    """The pose model of ``--init learned`` (:func:`ikbench.learned.train.load_model`),
+    InputError (``--model: ...``) for a file that is missing or not a model, of a trajectory
+    model, or of a model of another robot (name, URDF hash, joints)."""
+    from ikbench.learned.train import load_model
+
+    try:
+        return load_model(str(path), robot=robot, kind="pose")
+    except InputError as exc:
+        text = str(exc)
+        for head in ("model: ", "robot: "):
+            if text.startswith(head):
+                text = text[len(head):]
+                break
+        raise InputError(f"--model: {text}") from None
+
+
+def learned_initials(robot: Robot, settings: IKSettings, T: np.ndarray) -> dict[str, Any]:
+    """``--init learned``: the model's K proposals per target frame T (B, 4, 4) [m] (the
+    means of its mixture's components, heaviest first: ``LearnedModel.propose(T, K)``, in pose
+    units, clipped into the limits), one target per query as a method gets one per call;
+    with what the run records of the model: its file, training samples, epochs and
+    CPU-minutes, the median query time per target [ms] and the raw error of row 0 against
+    these targets (median position [mm] and rotation [deg] error, no refinement)."""
+    model = init_model(robot, settings.model)
+    k = int(model.meta["hyper"]["components"])
+    proposals = np.empty((len(T), k, robot.dof))
+    times = np.empty(len(T))
+    model.propose(T[0], k)  # warm-up, untimed
+    for i in range(len(T)):
+        t0 = time.perf_counter()
+        proposals[i] = model.propose(T[i], k)
+        times[i] = time.perf_counter() - t0
+    proposals = np.clip(proposals, robot.lower, robot.upper)
+    position_mm, rotation_deg = model.error(T, proposals[:, 0])
+    meta = model.meta
+    facts = {"model_file": str(Path(str(settings.model)).resolve()),
+             "training_samples": int(meta["samples"]["train"]),
+             "training_cpu_min": float(meta["training_cpu_min"]),
+             "epochs": int(meta["epochs"]), "seed": meta.get("seed"),
+             "components": k, "dataset": meta.get("dataset"),
+             "model_query_ms": 1000.0 * float(np.median(times)),
+             "model_error_mm": float(np.median(position_mm)),
+             "model_error_deg": float(np.median(rotation_deg))}
+    return {"proposals": proposals, "facts": facts}
 
 
 def annotate(robot: Robot, targets: Targets, settings: IKSettings) -> None:
@@ -586,7 +666,8 @@ def run(spec: IKSpec) -> IKResult:
     table = pd.concat(frames, ignore_index=True)
     table = table[COLUMNS + [c for c in table.columns if c not in COLUMNS]]
     return IKResult(robot, settings, targets, table, info, time.perf_counter() - started, load,
-                    batches, command=spec.command)
+                    batches, command=spec.command,
+                    init_model=targets.init_model)
 
 
 def _prepared(cls: type[PoseSolver], robot: Robot, settings: IKSettings, say, count: int

@@ -198,6 +198,11 @@ STUDIES: tuple[Study, ...] = (
     *(Study(f"ik-init-{init}", ("ik", *TRUTH_PROTOCOL, "--init", init, "--output",
                                 f"{{out}}/ik_truth/init_{init}"), (f"ik_truth/init_{init}",),
             0.7) for init in ("random", "nominal", "nearby")),
+    # learned starts (issue 61): per robot a dataset, a pose model trained on it (seeds 61, 62),
+    # then ik with --init random, nominal, nearby and learned, --attempts 1,8 (3.8 min by hand,
+    # load 1.4-2.9)
+    Study("learned", ("--output", "{out}/learned"), ("learned",), 4.0,
+          script="ikbench/studies/learned.py"),
     Study("cartesian-methods", ("cartesian", "--problems", "cppflow", "--seeds", "1",
                                 "--trajectories", "all", "--first-call", "--output",
                                 "{out}/cartesian_methods"), ("cartesian_methods",), 12.5,

@@ -79,11 +79,19 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         help="position tolerance of a success [mm] (default 1)")
     parser.add_argument("--tolerance-deg", type=float, default=0.5,
                         help="rotation tolerance of a success [deg] (default 0.5)")
-    parser.add_argument("--init", choices=("random", "nominal", "nearby"), default="random",
+    parser.add_argument("--init", choices=("random", "nominal", "nearby", "learned"),
+                        default="random",
                         help="the first initial configuration: random (uniform within the "
                         "limits, default), nominal (the middle of the limits, as TRAC-IK's "
-                        "benchmark seeds) or nearby (the target's configuration perturbed by "
-                        "--perturb-deg, the tracking case); the further ones are uniform draws")
+                        "benchmark seeds), nearby (the target's configuration perturbed by "
+                        "--perturb-deg, the tracking case) or learned (the best proposal of "
+                        "the pose model --model, and its next K - 1 proposals as the next "
+                        "rows); the further ones are uniform draws")
+    parser.add_argument("--model", default=None, metavar="MODEL",
+                        help="--init learned: a pose model file of ikbench learn, trained for "
+                        "this robot; its file, training samples and CPU-minutes, query time "
+                        "per target (model_query_ms) and raw error go into run.json and "
+                        "summary.csv")
     parser.add_argument("--first-call", action="store_true",
                         help="also time each method's first call in a fresh process (import, "
                         "set-up, first solve), after the timed runs: its own table and the "
@@ -140,6 +148,8 @@ def command_line(args: argparse.Namespace) -> str:
               "--tolerance-deg", f"{args.tolerance_deg:g}", "--init", args.init]
     if args.init == "nearby":
         words += ["--perturb-deg", f"{args.perturb_deg:g}"]
+    if args.model is not None:
+        words += ["--model", args.model]
     if args.max_count_per_method:
         words += ["--max-count-per-method", args.max_count_per_method]
     if args.unreachable:
@@ -170,7 +180,7 @@ def run(args: argparse.Namespace) -> int:
                                 parse_caps(args.max_count_per_method), args.budget_ms,
                                 study.parse_attempts(args.attempts), args.threads,
                                 unreachable=args.unreachable, repeat=args.repeat,
-                                first_call=args.first_call)
+                                first_call=args.first_call, model=args.model)
     robot = robot_from_args(args)
     spec = study.IKSpec(robot, settings, tuple(study.parse_methods(args.methods, args.kind)),
                         progress=not args.quiet, command=command_line(args))
