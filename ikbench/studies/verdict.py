@@ -43,7 +43,6 @@ from ikbench.core.intervals import (
     bootstrap_quantiles,
     clearly_above,
     kendall_tau,
-    overlap,
     wilson,
 )
 
@@ -255,7 +254,7 @@ def decide(summary: pd.DataFrame, budget_ms: float, task: str, robot: str,
         sentences.append(f"No method's p99 is within {budget_ms:g} ms beyond doubt: {rec}'s "
                          "p99 interval straddles the budget.")
     others = [m for m in candidates if m != rec]
-    s_rec, t_rec = _interval(r, "success"), _interval(r, "p50")
+    s_rec = _interval(r, "success")
     versus = {m: _versus(rec, m, r, rows[m], pairs) for m in rows
               if m != rec and rows[m]["budget"] != FAILED}
     how = ("paired over the same targets: no difference in success by the sign test nor in "
