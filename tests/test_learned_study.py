@@ -38,7 +38,19 @@ def test_the_study_writes_its_table_with_the_model_columns_where_they_belong(tmp
     assert (learned["training_samples"] == model["training_samples"]).all()
     assert record["settings"]["dataset_seed"] not in (1, 4)
     assert record["settings"]["train_seed"] not in (1, 4)
-    assert (tmp_path / "nico_right_arm" / "pose.pt").is_file()
+    # the record names no machine's folder; the datasets and models are not kept
+    assert model["model_file"] == "nico_right_arm/pose.pt" and len(model["model_sha256"]) == 64
+    assert model["dataset"]["path"] == "nico_right_arm/dataset"
+    assert str(tmp_path) not in (tmp_path / "learned.json").read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["learned.csv", "learned.json"]
+
+
+def test_keep_names_the_folder_the_models_stay_in(tmp_path):
+    keep = tmp_path / "kept"
+    code = study.main(["--output", str(tmp_path / "out"), "--robots", "nico_right_arm",
+                       "--trajectories", "20", "--epochs", "1", "--count", "2", "--quiet",
+                       "--keep", str(keep)])
+    assert code == 0 and (keep / "nico_right_arm" / "pose.pt").is_file()
 
 
 def test_the_plan_has_the_learned_entry_and_its_script():

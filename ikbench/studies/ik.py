@@ -56,6 +56,7 @@ header states it):
 
 from __future__ import annotations
 
+import hashlib
 import inspect
 import math
 import os
@@ -464,7 +465,8 @@ def learned_initials(robot: Robot, settings: IKSettings, T: np.ndarray) -> dict[
     proposals = np.clip(proposals, robot.lower, robot.upper)
     position_mm, rotation_deg = model.error(T, proposals[:, 0])
     meta = model.meta
-    facts = {"model_file": str(Path(str(settings.model)).resolve()),
+    facts = {"model_file": str(settings.model),  # as given: no machine's folders recorded
+             "model_sha256": hashlib.sha256(Path(str(settings.model)).read_bytes()).hexdigest(),
              "training_samples": int(meta["samples"]["train"]),
              "training_cpu_min": float(meta["training_cpu_min"]),
              "epochs": int(meta["epochs"]), "seed": meta.get("seed"),

@@ -13,8 +13,10 @@ Per robot (:data:`ROBOTS`: Panda, UR10, NICO's right arm), in this order:
 
 It writes ``OUTPUT/learned.csv`` (:data:`COLUMNS`: one row per robot, method, init and
 attempts rule; the model's columns empty for the other inits, the training columns in every
-learned row), ``OUTPUT/learned.json`` (settings, each model's record, provenance, load) and
-keeps each robot's dataset and model under ``OUTPUT/<robot>/``.
+learned row) and ``OUTPUT/learned.json`` (settings, each model's record with the SHA-256 of
+its file and of its dataset, provenance, load). The datasets and models (~4.5 MB a robot) are
+made in a temporary folder and not kept, unless ``--keep FOLDER`` names one: the seeds make
+them again.
 
 Run: ``python ikbench/studies/learned.py --output OUTPUT`` (the ``learned`` entry of
 ``ikbench reproduce``'s plan). Sized to run within 6 minutes on the 2-core machine (measured:
@@ -25,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -112,6 +115,9 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"training epochs (default {EPOCHS})")
     parser.add_argument("--count", type=int, default=COUNT,
                         help=f"IK targets per robot (default {COUNT})")
+    parser.add_argument("--keep", metavar="FOLDER", default=None,
+                        help="keep each robot's dataset and model under FOLDER/<robot>/ "
+                             "(default: a temporary folder, removed at the end)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
     args = parser.parse_args(argv)
 
@@ -132,17 +138,21 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     started, load_start = time.perf_counter(), os.getloadavg()
     rows, models, wall = [], {}, {}
+    scratch = tempfile.TemporaryDirectory(prefix="ikbench-learned-")
+    work = Path(args.keep) if args.keep else Path(scratch.name)
     try:
         for name in [r.strip() for r in args.robots.split(",") if r.strip()]:
             t0 = time.perf_counter()
-            got, facts = robot_rows(name, out / slug(name), trajectories=args.trajectories,
+            got, facts = robot_rows(name, work / slug(name), trajectories=args.trajectories,
                                     epochs=args.epochs, count=args.count,
                                     progress=not args.quiet)
             rows += got
-            models[name], wall[name] = facts, time.perf_counter() - t0
+            models[name], wall[name] = _portable(facts, work), time.perf_counter() - t0
     except InputError as exc:
         print(str(exc), file=sys.stderr)
         return 2
+    finally:
+        scratch.cleanup()
     table = pd.DataFrame(rows, columns=COLUMNS)
     table["training_samples"] = table["training_samples"].astype("Int64")  # empty or whole
     atomic_write_csv(out / "learned.csv", table)
@@ -158,6 +168,23 @@ def main(argv: list[str] | None = None) -> int:
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
     print(f"written to {out / 'learned.csv'}")
     return 0
+
+
+def _portable(facts: dict, work: Path) -> dict:
+    """A model's record with its file and dataset named relative to the work folder (the
+    record names no machine's folders; the SHA-256s identify them)."""
+    facts = dict(facts)
+
+    def relative(path: str) -> str:
+        try:
+            return Path(path).resolve().relative_to(work.resolve()).as_posix()
+        except ValueError:
+            return Path(path).name
+    if facts.get("model_file"):
+        facts["model_file"] = relative(facts["model_file"])
+    if isinstance(facts.get("dataset"), dict) and facts["dataset"].get("path"):
+        facts["dataset"] = {**facts["dataset"], "path": relative(facts["dataset"]["path"])}
+    return facts
 
 
 if __name__ == "__main__":
