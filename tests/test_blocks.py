@@ -175,6 +175,8 @@ FIGURE = re.compile(rf"(?<![\w.^/=])(?<![\w.]-){NUMBER}(?:\s*(?:-|to|/|vs)\s*{NU
 #: matching any other) holds a figure that is a setting, a tolerance, a limit or a definition,
 #: not a measurement; the value says why.
 SPECIFICATION = {
+    "judged success [%] (1 mm, 0.5 deg)": "ikbench ik's default tolerances (--tolerance-mm, "
+    "--tolerance-deg), docs/learned.md's column table",
     "fingertip x <= -250 mm, z >= 0 mm, at least 100 mm below the start point, finger within "
     "20 deg of the line direction": "NICO's [batch] workspace filter (urdf/nico_right_arm.toml)",
     "mean line distance below 1 mm": "ikbench batch's line tolerance",

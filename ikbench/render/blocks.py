@@ -74,7 +74,8 @@ BLOCK = re.compile(r"(<!-- generated: (?P<spec>[^>]*?) -->)(?P<body>.*?)(<!-- /g
                    re.S)
 #: JSON records a results folder may hold, in the order they are looked for.
 RECORDS = ("run.json", "benchmark.json", "throughput.json", "batch.json", "sweep.json",
-           "manifest.json", "analysis.json", "design.json", "power.json", "methods.json")
+           "manifest.json", "analysis.json", "design.json", "power.json", "methods.json",
+           "learned.json")
 
 #: renderer name -> function(source path, options, repo root) -> text
 Renderer = Callable[[Path, dict[str, str], Path], str]
