@@ -104,26 +104,16 @@ def test_generic_code_names_no_method():
     one exception; code about one method takes the name from its class (``OursLM.name``)."""
     names = _method_names()
     assert {"ours", "ours-lm", "sequential-ik", "trac-ik", "rtb-nr"} <= names
-    bad, waived = [], []
+    bad = []
     for path, part in _modules():
         if part not in GENERIC or path == REPO / "ikbench" / "core" / "defaults.py":
             continue
         for node in ast.walk(ast.parse(path.read_text())):
             if (isinstance(node, ast.Constant) and isinstance(node.value, str)
                     and all(piece.strip() in names for piece in node.value.split(","))):
-                found = f"{path.relative_to(REPO)}:{node.lineno}: {node.value!r}"
-                (waived if found in WAIVED else bad).append(found)
+                bad.append(f"{path.relative_to(REPO)}:{node.lineno}: {node.value!r}")
     assert not bad, "import the name from ikbench.core.defaults or the method's class:\n" + \
         "\n".join(bad)
-    # a waiver ends with its cause: once the literal is gone, its entry must go too
-    assert sorted(waived) == sorted(WAIVED), f"remove the waivers no longer needed: {WAIVED}"
-
-
-#: Method names written out in generic code that cannot move yet, each with its reason. The
-#: learned study's methods were committed as literals in the commit whose results are
-#: committed (c766ca2); moving them to core/defaults.py changes ikbench/studies/, which makes
-#: every committed result stale, so it goes with the next full regeneration.
-WAIVED = ("ikbench/studies/learned.py:37: 'ours-lm'", "ikbench/studies/learned.py:37: 'rtb-lm'")
 
 
 #: The defaults several layers share, each defined once in ikbench/core/defaults.py.

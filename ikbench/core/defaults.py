@@ -39,6 +39,9 @@ BENCH_METHODS = ("ours", "ours-lm")
 #: The trajectory optimisers that meet the contract exactly: the ``exact-benchmark`` study of
 #: ``ikbench reproduce --all`` times these (``results/exact_benchmark/``).
 EXACT_BENCHMARK_METHODS = ("ours-lm", "ours-exact", "drake-trajopt", "pyroki")
+#: The learned-start study's methods (``results/learned/``): ikbench's compiled LM and the
+#: library LM the issue names beside it (issue 61).
+LEARNED_STUDY_METHODS = ("ours-lm", "rtb-lm")
 #: The backend a method's published figures ran on: a leaderboard whose run used another
 #: says so above its table (``Method.runtime()["backend"]``; issue 50).
 PUBLISHED_BACKENDS = {"ours-lm": "numba"}

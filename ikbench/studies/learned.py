@@ -31,10 +31,12 @@ import tempfile
 import time
 from pathlib import Path
 
+from ikbench.core.defaults import LEARNED_STUDY_METHODS
+
 #: The robots of the table.
 ROBOTS = ("example-robot-data:panda", "example-robot-data:ur10", "nico_right_arm")
 #: The methods, the first configurations and the attempts rules of the IK runs.
-METHODS = ("ours-lm", "rtb-lm")
+METHODS = LEARNED_STUDY_METHODS
 INITS = ("random", "nominal", "nearby", "learned")
 ATTEMPTS = (1, 8)
 #: IK targets per robot and their seed (the benchmark's).
