@@ -143,3 +143,87 @@ def test_the_recommend_studies_write_where_recommend_writes(name, robot, tmp_pat
         name = robot
 
     assert [str(tmp_path / w) for w in study.writes] == [str(folder_of(tmp_path, Named()))]
+
+
+def _timed_runner(events, lock, hold_s=0.2):
+    """A runner that records when each study starts and ends (by its --output folder)."""
+    import threading
+    import time
+
+    def runner(argv):
+        name = argv[argv.index("--output") + 1]  # the folder names the study
+        with lock:
+            events.append(("start", name, time.monotonic(), threading.active_count()))
+        time.sleep(hold_s)
+        with lock:
+            events.append(("end", name, time.monotonic(), 0))
+        return 0
+    return runner
+
+
+def _concurrent(events):
+    """The pairs of studies whose runs overlapped in time."""
+    spans = {}
+    for kind, name, t, _ in events:
+        spans.setdefault(name, [0.0, 0.0])[0 if kind == "start" else 1] = t
+    names = sorted(spans)
+    return {(a, b) for i, a in enumerate(names) for b in names[i + 1:]
+            if spans[a][0] < spans[b][1] and spans[b][0] < spans[a][1]}
+
+
+def test_jobs_runs_studies_at_once_and_records_every_one(tmp_path, clean):
+    import threading
+
+    events, lock = [], threading.Lock()
+    times = regen.regenerate(tmp_path, only=["sweep", "batch", "letters-sweep"], jobs=2,
+                             say=lambda text: None, runner=_timed_runner(events, lock))
+    assert sorted(times) == ["batch", "letters-sweep", "sweep"]
+    assert _concurrent(events)  # two ran at once
+    record = regen.read_record(tmp_path)
+    assert sorted(record) == ["batch", "letters-sweep", "sweep"]
+    assert {entry["jobs"] for entry in record.values()} == {2}
+    # never more than two at once
+    starts = sorted((t, 1) for kind, _, t, _ in events if kind == "start")
+    ends = sorted((t, -1) for kind, _, t, _ in events if kind == "end")
+    running, most = 0, 0
+    for _, step in sorted(starts + ends, key=lambda e: (e[0], e[1])):
+        running += step
+        most = max(most, running)
+    assert most == 2
+
+
+def test_jobs_never_runs_two_studies_that_write_into_the_same_folder(tmp_path, clean,
+                                                                   monkeypatch):
+    import threading
+
+    inner = regen.Study("inner", ("sweep", "--output", "{out}/x/y"), ("x/y",), 1.0)
+    outer = regen.Study("outer", ("sweep", "--output", "{out}/x"), ("x",), 1.0)
+    other = regen.Study("other", ("sweep", "--output", "{out}/z"), ("z",), 1.0)
+    assert regen._overlaps(inner, outer) and regen._overlaps(outer, inner)
+    assert not regen._overlaps(inner, other)
+    monkeypatch.setattr(regen, "STUDIES", (inner, outer, other))
+    events, lock = [], threading.Lock()
+    regen.regenerate(tmp_path, only=["inner", "outer", "other"], jobs=3,
+                     say=lambda text: None, runner=_timed_runner(events, lock, 0.1))
+    together = {tuple(sorted(p.rsplit("/", 1)[-1] for p in pair))
+                for pair in _concurrent(events)}
+    assert ("x", "y") not in together and together  # other ran beside one of them
+
+
+def test_jobs_below_one_is_refused(tmp_path):
+    with pytest.raises(InputError, match="--jobs: 0"):
+        regen.regenerate(tmp_path, only=["sweep"], jobs=0, say=lambda text: None,
+                         runner=lambda argv: 0)
+
+
+def test_a_failed_study_under_jobs_starts_no_new_one_and_is_not_recorded(tmp_path, clean):
+    ran = []
+
+    def runner(argv):
+        ran.append(argv)
+        return 3 if "sweep" in argv[-1] else 0
+    with pytest.raises(InputError, match="study sweep failed .exit code 3."):
+        regen.regenerate(tmp_path, only=["sweep", "batch", "letters", "letters-sweep"], jobs=2,
+                         say=lambda text: None, runner=runner)
+    assert "sweep" not in regen.read_record(tmp_path)
+    assert len(ran) <= 3  # the one beside it may finish; nothing starts after the failure

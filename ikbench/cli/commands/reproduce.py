@@ -52,6 +52,12 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     every.add_argument("--allow-dirty", action="store_true",
                        help="with --all: run from a tree with modified code (recorded; the "
                        "committed results must come from a clean tree)")
+    every.add_argument("--jobs", type=int, default=1, metavar="N",
+                       help="with --all: run N studies at once (default 1: one at a time, "
+                       "each timing alone on the machine; 2 on 2 cores roughly halves the "
+                       "wall time, each study's timings then made beside another's, which "
+                       "the record states with its load); never two that write into the "
+                       "same folder")
     every.add_argument("--docs", action="store_true",
                        help="only render README.md's and docs/'s generated blocks again from "
                        "results/ (no solving)")
@@ -66,8 +72,8 @@ def run(args: argparse.Namespace) -> int:
         return render_docs()
     if args.all or args.plan:
         return run_all(args)
-    if args.only or args.force or args.allow_dirty:
-        raise InputError("--only, --force and --allow-dirty go with --all (or --plan)")
+    if args.only or args.force or args.allow_dirty or args.jobs != 1:
+        raise InputError("--only, --force, --allow-dirty and --jobs go with --all (or --plan)")
 
     check_threads(args.threads)
     check_output(args.output, args.quick)
@@ -86,7 +92,7 @@ def run_all(args: argparse.Namespace) -> int:
 
     only = tuple(s.strip() for s in args.only.split(",") if s.strip()) if args.only else ()
     spec = RegenerationSpec(Path(args.output or "results"), only, args.force, args.allow_dirty,
-                            args.plan)
+                            args.plan, args.jobs)
     spec.validate()  # an unknown study or a bad entry is refused before anything runs
     begin(args)
     times = run(spec).wall_s
