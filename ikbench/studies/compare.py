@@ -162,7 +162,7 @@ class CompareResult:
             _write_tables(stage, self.results, self.leaderboard, pending.record, spec.contract,
                           pending.sweep_frame)
             _write_legibility_figures(stage, spec, pending.files)
-        pending.log.say(f"written to {root}/ in {time.perf_counter() - pending.started:.1f} s")
+        pending.log.note(f"written to {root}/ in {time.perf_counter() - pending.started:.1f} s")
         self.record = pending.record.to_dict()
         return root
 

@@ -615,56 +615,58 @@ def run(spec: IKSpec) -> IKResult:
     targets = sample_targets(robot, settings)
     annotate(robot, targets, settings)
     check = AttemptCheck(robot, settings)
-    say = Progress(FOLDER, enabled=progress).say
-    frames, info = [], {}
-    batches: dict[str, dict[str, dict[str, float]]] = {}
-    solvers: dict[str, Any] = {}
-    bare: dict[str, dict[str, Any]] = {}
-    for rule in settings.attempts:
-        batches[str(rule)] = {}
-        runs = rule_runs(rule, settings)
-        for round_ in range(1, runs + 1):
+    # closed when the solving ends, so no heartbeat speaks while the caller writes
+    with Progress(FOLDER, enabled=progress) as reporter:
+        say = reporter.say
+        frames, info = [], {}
+        batches: dict[str, dict[str, dict[str, float]]] = {}
+        solvers: dict[str, Any] = {}
+        bare: dict[str, dict[str, Any]] = {}
+        for rule in settings.attempts:
+            batches[str(rule)] = {}
+            runs = rule_runs(rule, settings)
+            for round_ in range(1, runs + 1):
+                for name in names:
+                    cls = solver_status()[name].cls
+                    count = min(settings.count, settings.max_count.get(name, settings.count))
+                    info[name] = {"library": cls.library, "deterministic": cls.deterministic,
+                                  "restarts_itself": cls.restarts_itself,
+                                  "one_descent": cls.one_descent, "batched": cls.batched,
+                                  "iterations_are": cls.iterations_are,
+                                  "attempt_bound": cls.attempt_bound, "count": count,
+                                  "stable_across_machines": cls.stable_across_machines}
+                    if name not in solvers:
+                        solvers[name] = _prepared(cls, robot, settings, say, count)
+                    solver = solvers[name]
+                    info[name]["runtime"] = None if isinstance(solver, str) else solver.runtime()
+                    label = f"attempts {rule}" + (f", run {round_}/{runs}" if runs > 1 else "")
+                    if isinstance(solver, str):  # the library cannot take this robot
+                        outcome = _Outcome.failed(count, robot.dof, solver)
+                    else:
+                        say(f"{label}: {name}: solving {count} targets, one per call")
+                        outcome = _solve_calls(solver, targets, count, settings, rule, check, say)
+                        if solver.batched and round_ == 1:  # throughput: the first run's
+                            batches[str(rule)][name] = _batch(solver, targets, count, settings,
+                                                              rule)
+                    frames.append(_rows(robot, name, rule, targets, count, settings, outcome,
+                                        round_))
+                    done = frames[-1]
+                    say(f"{label}: {name}: {int(done['success'].sum())}/{count} succeeded, "
+                        f"{np.nansum(done['time_s']):.1f} s")
+                    if name not in bare and not isinstance(solver, str):  # after its timed run
+                        bare[name] = bare_call_times(solver, targets, count)
+        if settings.first_call:  # after the timed runs: numba's cache as they left it
+            rule = settings.attempts[0]
             for name in names:
-                cls = solver_status()[name].cls
-                count = min(settings.count, settings.max_count.get(name, settings.count))
-                info[name] = {"library": cls.library, "deterministic": cls.deterministic,
-                              "restarts_itself": cls.restarts_itself,
-                              "one_descent": cls.one_descent, "batched": cls.batched,
-                              "iterations_are": cls.iterations_are,
-                              "attempt_bound": cls.attempt_bound, "count": count,
-                              "stable_across_machines": cls.stable_across_machines}
-                if name not in solvers:
-                    solvers[name] = _prepared(cls, robot, settings, say, count)
-                solver = solvers[name]
-                info[name]["runtime"] = None if isinstance(solver, str) else solver.runtime()
-                label = f"attempts {rule}" + (f", run {round_}/{runs}" if runs > 1 else "")
-                if isinstance(solver, str):  # the library cannot take this robot
-                    outcome = _Outcome.failed(count, robot.dof, solver)
-                else:
-                    say(f"{label}: {name}: solving {count} targets, one per call")
-                    outcome = _solve_calls(solver, targets, count, settings, rule, check, say)
-                    if solver.batched and round_ == 1:  # throughput: the first run's
-                        batches[str(rule)][name] = _batch(solver, targets, count, settings,
-                                                          rule)
-                frames.append(_rows(robot, name, rule, targets, count, settings, outcome,
-                                    round_))
-                done = frames[-1]
-                say(f"{label}: {name}: {int(done['success'].sum())}/{count} succeeded, "
-                    f"{np.nansum(done['time_s']):.1f} s")
-                if name not in bare and not isinstance(solver, str):  # after its timed run
-                    bare[name] = bare_call_times(solver, targets, count)
-    if settings.first_call:  # after the timed runs: numba's cache as they left it
-        rule = settings.attempts[0]
-        for name in names:
-            if isinstance(solvers.get(name), str):
-                continue
-            say(f"{name}: timing its first call in a fresh process")
-            info[name]["first_call"] = first_call(
-                robot, name, settings.kind, (settings.tolerance_mm, settings.tolerance_deg),
-                rule_budget_s(rule, settings, solvers[name].deterministic), targets.T_target[0],
-                targets.initials(0, rule_rows(rule)))
-    for name, facts in bare.items():
-        info[name].update(facts)
+                if isinstance(solvers.get(name), str):
+                    continue
+                say(f"{name}: timing its first call in a fresh process")
+                info[name]["first_call"] = first_call(
+                    robot, name, settings.kind, (settings.tolerance_mm, settings.tolerance_deg),
+                    rule_budget_s(rule, settings, solvers[name].deterministic), targets.T_target[0],
+                    targets.initials(0, rule_rows(rule)))
+        for name, facts in bare.items():
+            info[name].update(facts)
     table = pd.concat(frames, ignore_index=True)
     table = table[COLUMNS + [c for c in table.columns if c not in COLUMNS]]
     return IKResult(robot, settings, targets, table, info, time.perf_counter() - started, load,
