@@ -8,13 +8,13 @@ writes under the results directory, and the time it took when last measured here
 studies, force, a dirty tree, a dry run); :func:`run` prints the plan first, then runs each
 study in its own process (so one study's imports, caches and threads cannot change another's
 timing; ``jobs`` > 1 runs that many at once, never two that write into the same folder, and
-records it beside each study's load), streams its progress, and records each finished study in ``RESULTS/regenerated.json``
-(commit, clean tree, wall time, load) as soon as it finishes, so an interrupted regeneration
-keeps every complete study. It is resumable: a study already made at this commit is skipped
-unless ``force``; a dirty tree is refused unless ``allow_dirty`` (then recorded as such, and the
-provenance test refuses the results). After the studies, every generated block of README.md
-and docs/ is rendered again (:mod:`ikbench.render.blocks`). :func:`regenerate` is the keyword
-form.
+records it beside each study's load), streams its progress, and records each finished study
+in ``RESULTS/regenerated.json`` (commit, clean tree, wall time, load) as soon as it finishes,
+so an interrupted regeneration keeps every complete study. It is resumable: a study already
+made at this commit is skipped unless ``force``; a dirty tree is refused unless
+``allow_dirty`` (then recorded as such, and the provenance test refuses the results). After
+the studies, every generated block of README.md and docs/ is rendered again
+(:mod:`ikbench.render.blocks`). :func:`regenerate` is the keyword form.
 """
 
 from __future__ import annotations
@@ -395,7 +395,8 @@ def _in_lanes(todo: list[tuple[int, Study]], jobs: int, one: Callable[[int, Stud
                 return
             one(k, s)
         return
-    waiting, running = list(todo), {}
+    waiting = list(todo)
+    running: dict[str, Study] = {}
     done = threading.Condition()
 
     def lane(k: int, s: Study) -> None:
