@@ -37,6 +37,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ikbench.core.compiled import compiled_only
 from ikbench.methods.registry import Adapter
 from ikbench.schemes.single_pose import PoseOut, PoseSolver
 
@@ -221,8 +222,8 @@ class EaikSolver(PoseSolver):
             nearest(Q, drop, self._bounds, np.zeros(self._dof), np.empty(self._dof))
         # from here on a call of another layout or dtype converts instead of compiling on
         # the clock (:meth:`solve`)
-        self._nearest = _compiled_only(nearest)
-        self._frame_into = _compiled_only(self._frame_into)
+        self._nearest = compiled_only(nearest)
+        self._frame_into = compiled_only(self._frame_into)
 
     def _frame(self, point_m: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         """The target as EAIK takes it (see the module docstring), in the reused buffer."""
@@ -295,20 +296,6 @@ class EaikSolver(PoseSolver):
         :meth:`PoseSolver.bare_call`)."""
         T, ik = self._frame(point_m, rotation).copy(), self._ik
         return lambda: ik(T)
-
-
-def _compiled_only(kernel):
-    """A dispatcher of ``kernel``'s function (numba) that runs the specialisations ``kernel``
-    has compiled or loaded and raises TypeError for any other argument types instead of
-    compiling inside a timed call (the shared ``kernel`` keeps compiling for other
-    callers)."""
-    from numba import njit
-
-    dispatcher = njit(cache=True, nogil=True)(kernel.py_func)
-    for signature in kernel.signatures:
-        dispatcher.compile(signature)  # from numba's cache, which kernel has filled
-    dispatcher.disable_compile()
-    return dispatcher
 
 
 _new_tuple = tuple.__new__  # PoseOut without its Python __new__ (~0.07 us a call)

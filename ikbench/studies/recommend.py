@@ -582,8 +582,13 @@ def verdict_of(rows: pd.DataFrame, info: dict[str, dict], per_seed: int
     seeds = sorted(int(s) for s in rows["seed"].unique())
     task, robot = str(rows["recommend_task"].iloc[0]), str(rows["recommend_robot"].iloc[0])
     summary = per_method(rows, info, budget_ms, seeds)
-    decision = decide(summary, budget_ms, task, robot, per_seed, seeds,
-                      lambda a, b: paired(rows, a, b))
+    pairs: dict[tuple[str, str], dict] = {}
+
+    def pair_of(a: str, b: str) -> dict:  # each pair once: the verdict's and the runner-up's
+        if (a, b) not in pairs:
+            pairs[a, b] = paired(rows, a, b)
+        return pairs[a, b]
+    decision = decide(summary, budget_ms, task, robot, per_seed, seeds, pair_of)
     cannot = decision.table["budget"] == FAILED
     for column in ("success_pct", "success_low_pct", "success_high_pct"):
         decision.table.loc[cannot, column] = np.nan
@@ -591,7 +596,7 @@ def verdict_of(rows: pd.DataFrame, info: dict[str, dict], per_seed: int
     pair: dict = {}
     if decision.recommended is not None and len(ran) > 1:
         second = next(m for m in ran if m != decision.recommended)
-        pair = paired(rows, decision.recommended, second)
+        pair = pair_of(decision.recommended, second)
         decision.text += " " + paired_sentence(pair, "paths" if task == PATH else "targets")
     return decision, pair
 

@@ -409,12 +409,12 @@ def _in_lanes(todo: list[tuple[int, Study]], jobs: int, one: Callable[[int, Stud
 
     with done:
         while waiting or running:
-            startable = [] if stop() else [
-                (k, s) for k, s in waiting
-                if len(running) < jobs and not any(_overlaps(s, r) for r in running.values())]
-            if startable and len(running) < jobs:
-                k, s = startable[0]
-                waiting.remove((k, s))
+            free = len(running) < jobs and not stop()
+            ready = next(((k, s) for k, s in waiting if free
+                          and not any(_overlaps(s, r) for r in running.values())), None)
+            if ready is not None:
+                k, s = ready
+                waiting.remove(ready)
                 running[s.name] = s
                 threading.Thread(target=lane, args=(k, s), daemon=True,
                                  name=f"study-{s.name}").start()

@@ -52,6 +52,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numba
 import numpy as np
 
+from ikbench.core.compiled import compiled_only as _compiled_only
 from ikbench.core.errors import InputError
 from ikbench.methods.ours_lm import single_pose_kernels as kernels
 from ikbench.methods.ours_lm.compiled_chain import WIDTH, Chain, pack
@@ -263,17 +264,11 @@ def random_initials(robot: Robot, shape: tuple[int, ...], seed: int | np.random.
     return rng.uniform(robot.sample_lower, robot.sample_upper, (*shape, robot.dof))
 
 
-@functools.cache
-def compiled_only(kernel: Any) -> Any:
-    """A dispatcher of ``kernel``'s function that runs the specialisations ``kernel`` has
-    compiled (or loaded) when first asked, and raises TypeError for any other argument types
-    instead of compiling one inside a timed call: the caller's layout checks (~0.3 us a call,
-    :func:`ikbench.methods.ours_lm.pose_solver._f64`) run only on that rare path."""
-    dispatcher = numba.njit(cache=True, nogil=True)(kernel.py_func)
-    for signature in kernel.signatures:
-        dispatcher.compile(signature)  # loaded from numba's cache, which kernel has filled
-    dispatcher.disable_compile()
-    return dispatcher
+#: :func:`ikbench.core.compiled.compiled_only`, one dispatcher per kernel: the specialisations
+#: ``kernel`` has compiled (or loaded) when first asked; TypeError for any other argument types
+#: instead of a compile inside a timed call, so the caller's layout checks (~0.3 us a call,
+#: :func:`ikbench.methods.ours_lm.pose_solver._f64`) run only on that rare path.
+compiled_only = functools.cache(_compiled_only)
 
 
 @functools.cache
