@@ -233,3 +233,18 @@ def test_emulate_cli_unwritable_log_is_refused_before_serving(tmp_path, capsys):
     assert out == ""  # no port printed: nothing was started
     assert err == (f"ikbench: error: --log: cannot write {log}: {blocker} is a file, not a "
                    "directory\n")
+
+
+def test_the_bus_waits_longer_only_on_a_port_the_emulator_serves(config):
+    """A status packet from the in-process emulator may come late on a loaded machine: the Bus
+    waits at least EMULATED_STATUS_TIMEOUT_MS there, and the SDK's own wait on any other port."""
+    from ikbench.hw.bus import EMULATED_STATUS_TIMEOUT_MS, Bus
+
+    with Emulator(config, START) as emulator:
+        bus = Bus(emulator.port, config)
+        bus.port.setPacketTimeout(8)
+        assert bus.port.packet_timeout == EMULATED_STATUS_TIMEOUT_MS
+        served = emulator.port
+    plain = Bus(served, config)  # the emulator has stopped: an ordinary port name again
+    plain.port.setPacketTimeout(8)
+    assert plain.port.packet_timeout < EMULATED_STATUS_TIMEOUT_MS

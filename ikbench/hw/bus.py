@@ -48,6 +48,31 @@ def describe_sdk_exception(exc: Exception) -> tuple[bool, str]:
     return False, f"dynamixel-sdk raised {type(exc).__name__}: {exc}"
 
 
+#: The least wait [ms] for a status packet from a port the in-process emulator serves. The SDK
+#: waits two USB latency timers plus the transfer (about 34 ms at 1 Mbaud), which a real servo
+#: meets; the emulator's thread can miss it while the client's thread spins on the same
+#: interpreter on a loaded machine. Real ports keep the SDK's wait.
+EMULATED_STATUS_TIMEOUT_MS = 500.0
+
+
+def _port_handler(sdk, port_name: str):
+    """dynamixel-sdk's PortHandler for ``port_name``; for an emulated port (see
+    :data:`ikbench.hw.emulator.SERVED_PORTS`) one whose status wait is at least
+    :data:`EMULATED_STATUS_TIMEOUT_MS`."""
+    from ikbench.hw.emulator import SERVED_PORTS
+
+    if port_name not in SERVED_PORTS:
+        return sdk.PortHandler(port_name)
+
+    class EmulatedPortHandler(sdk.PortHandler):
+        def setPacketTimeout(self, packet_length):  # noqa: N802 (the SDK's name)
+            super().setPacketTimeout(packet_length)
+            wait_ms = float(getattr(self, "packet_timeout"))  # noqa: B009 (untyped SDK)
+            setattr(self, "packet_timeout", max(wait_ms, EMULATED_STATUS_TIMEOUT_MS))  # noqa: B010
+
+    return EmulatedPortHandler(port_name)
+
+
 class Bus:
     """dynamixel-sdk port + Protocol 1.0 packet handler; failures raise CommunicationError.
 
@@ -64,7 +89,7 @@ class Bus:
                                 "installed: pip install 'ikbench[hw]'") from None
 
         self.sdk, self.config, self.name = sdk, config, port_name
-        self.port = sdk.PortHandler(port_name)
+        self.port = _port_handler(sdk, port_name)
         self.handler = sdk.PacketHandler(1.0)
         self.last_goal_raw: dict[int, int] = {}
 

@@ -56,6 +56,12 @@ FULL_SPEED_DEG_S = SPEED_RAW_MAX * SPEED_UNIT_DEG_S
 FAULT_KINDS = ("drop", "corrupt", "error")
 
 
+#: The pty paths an :class:`Emulator` of this process serves now. Its servos answer from a
+#: thread that shares the interpreter with the client, so on a loaded machine a status packet can
+#: come later than a real servo's; :class:`ikbench.hw.bus.Bus` gives these ports a longer wait.
+SERVED_PORTS: set[str] = set()
+
+
 @dataclass
 class Fault:
     """Tamper with status packets.
@@ -228,6 +234,7 @@ class Emulator:
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)  # 8-bit clean, no echo, even before a client configures it
         self.port = os.ttyname(self._slave)
+        SERVED_PORTS.add(self.port)
         self._stop_r, self._stop_w = os.pipe()
         thread = self._thread = threading.Thread(target=self._serve, name="dynamixel-emulator",
                                                  daemon=True)
@@ -240,6 +247,7 @@ class Emulator:
             return
         os.write(self._stop_w, b"x")
         self._thread.join(timeout=2.0)
+        SERVED_PORTS.discard(self.port or "")
         for fd in (self._master, self._slave, self._stop_r, self._stop_w):
             os.close(fd)
         self._thread = None
