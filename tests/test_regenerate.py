@@ -37,10 +37,50 @@ def test_the_plan_runs_each_study_once_and_resumes(tmp_path, clean):
     ran.clear()
     assert regen.regenerate(tmp_path, only=["sweep", "batch"], say=lines.append,
                             runner=lambda argv: ran.append(argv) or 0) == {}
-    assert ran == [] and any("made at this commit: skipped" in line for line in lines)
+    assert ran == [] and any("made at aaaaaaaaaaaa: skipped" in line for line in lines)
     regen.regenerate(tmp_path, only=["sweep"], force=True, say=lines.append,
                      runner=lambda argv: ran.append(argv) or 0)
     assert len(ran) == 1
+
+
+def test_a_study_made_at_an_unchanged_ancestor_is_skipped(tmp_path, clean, monkeypatch):
+    """Resuming after the studies done so far were committed: a study recorded at another
+    commit is skipped when nothing but RESUMABLE_CHANGES changed since, and runs otherwise."""
+    ran = []
+    regen.regenerate(tmp_path, only=["sweep", "batch"], say=lambda text: None,
+                     runner=lambda argv: ran.append(argv) or 0)
+    record = json.loads((tmp_path / regen.RECORD).read_text())
+    record["sweep"]["commit"], record["batch"]["commit"] = "b" * 40, "c" * 40
+    (tmp_path / regen.RECORD).write_text(json.dumps(record))
+    monkeypatch.setattr(regen, "unchanged_since", lambda commit: commit == "b" * 40)
+    ran.clear()
+    lines: list[str] = []
+    regen.regenerate(tmp_path, only=["sweep", "batch"], say=lines.append,
+                     runner=lambda argv: ran.append(argv) or 0)
+    assert len(ran) == 1 and ran[0][-1] == f"{tmp_path}/batch"
+    assert any("sweep" in line and "made at bbbbbbbbbbbb: skipped" in line for line in lines)
+
+
+def test_unchanged_since_knows_what_makes_a_study_stale():
+    """HEAD stands; the parent of the last commit that changed a solver does not; nor does a
+    commit git does not know."""
+    import subprocess
+
+    from ikbench.core.provenance import REPO, unchanged_since
+
+    def git(*args):
+        return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True,
+                              timeout=30).stdout.strip()
+
+    head = git("rev-parse", "HEAD")
+    if not head:
+        pytest.skip("needs the git checkout")
+    assert unchanged_since(head)
+    solver_change = git("log", "-1", "--format=%H", "--", "ikbench/methods")
+    parent = git("rev-parse", f"{solver_change}~1")
+    if parent:
+        assert not unchanged_since(parent)
+    assert not unchanged_since("f" * 40)
 
 
 def test_a_failed_study_stops_the_run_and_is_not_recorded(tmp_path, clean):

@@ -27,6 +27,10 @@ SOLVER_CODE = ("ikbench/methods", "baselines", "ikbench/schemes", "ikbench/core/
 #: The studies (the judge, the restart loop, the clock): a change to a module that ran makes a
 #: result stale; a module added since (a new study) did not run.
 STUDY_CODE = ("ikbench/studies",)
+#: The plan's runner (``reproduce --all``) starts each study's command in its own process and
+#: records its wall time and load; it computes nothing a study writes, so a change to it does
+#: not make a result stale.
+RUNNER = "ikbench/studies/regeneration.py"
 
 
 def _changed(commit: str) -> list[str]:
@@ -34,7 +38,7 @@ def _changed(commit: str) -> list[str]:
     solvers = _git("diff", "--name-only", commit, "HEAD", "--", *SOLVER_CODE).stdout.split()
     studies = _git("diff", "--name-only", "--diff-filter=MDR", commit, "HEAD", "--",
                    *STUDY_CODE).stdout.split()
-    return solvers + studies
+    return solvers + [path for path in studies if path != RUNNER]
 
 
 def _git(*args: str) -> subprocess.CompletedProcess:

@@ -11,9 +11,11 @@ timing; ``jobs`` > 1 runs that many at once, never two that write into the same 
 records it beside each study's load), streams its progress, and records each finished study
 in ``RESULTS/regenerated.json`` (commit, clean tree, wall time, load) as soon as it finishes,
 so an interrupted regeneration keeps every complete study. It is resumable: a study already
-made at this commit is skipped unless ``force``; a dirty tree is refused unless
-``allow_dirty`` (then recorded as such, and the provenance test refuses the results). After
-the studies, every generated block of README.md and docs/ is rendered again
+made at this commit, or at an ancestor with nothing changed since but the results, the docs,
+the tests and this runner (:data:`ikbench.core.provenance.RESUMABLE_CHANGES`; so a partial
+regeneration can be committed and finished later), is skipped unless ``force``; a dirty tree
+is refused unless ``allow_dirty`` (then recorded as such, and the provenance test refuses
+the results). After the studies, every generated block of README.md and docs/ is rendered again
 (:mod:`ikbench.render.blocks`). :func:`regenerate` is the keyword form.
 """
 
@@ -35,7 +37,7 @@ from ikbench.baselines.sequential_ik import SequentialIK
 from ikbench.core.defaults import EXACT_BENCHMARK_METHODS, REFERENCE_METHOD
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_json
-from ikbench.core.provenance import REPO, git_state, load_average
+from ikbench.core.provenance import REPO, git_state, load_average, unchanged_since
 from ikbench.methods.ours import Ours
 from ikbench.methods.registry import method_status
 from ikbench.render.blocks import documents, render_files
@@ -257,7 +259,7 @@ class RegenerationSpec:
     Attributes:
         output: the results directory.
         only: study names to run (empty: all).
-        force: run studies already made at this commit again.
+        force: run studies already made (at this commit or an unchanged ancestor) again.
         allow_dirty: run from a tree with modified code (recorded as dirty).
         dry_run: print the plan and what would be skipped; run nothing.
         jobs: studies run at once (1: one at a time, the default; 2 on a 2-core machine
@@ -328,15 +330,16 @@ def run(spec: RegenerationSpec, say: Callable[[str], None] | None = None,
 
     def made(study: Study) -> bool:
         done = record.get(study.name, {})
-        return not spec.force and commit is not None and done.get("commit") == commit \
-            and done.get("clean") == clean
+        return not spec.force and commit is not None and done.get("clean") == clean and (
+            done.get("commit") == commit
+            or bool(clean and done.get("commit") and unchanged_since(done["commit"])))
 
     total = sum(s.minutes for s in studies)
     say(f"plan: {len(studies)} studies into {out}/ at commit {str(commit)[:12]}"
         f"{'' if clean else ' (modified tree)'}, about {total:.0f} min when last measured:")
     for s in studies:
         say(f"  {s.name:<16} {s.minutes:5.1f} min  {s.shown(out)}"
-            f"{'   (made at this commit: skipped)' if made(s) else ''}")
+            f"{_skipped(record, s) if made(s) else ''}")
     times: dict[str, float] = {}
     if spec.dry_run:
         return RegenerationResult(times, record)
@@ -374,6 +377,11 @@ def run(spec: RegenerationSpec, say: Callable[[str], None] | None = None,
     say(f"generated blocks re-rendered: {', '.join(str(p.relative_to(REPO)) for p in changed)}"
         if changed else "generated blocks: all current")
     return RegenerationResult(times, record)
+
+
+def _skipped(record: dict, study: Study) -> str:
+    """The plan's note on a study that is made already: where it was made."""
+    return f"   (made at {str(record[study.name]['commit'])[:12]}: skipped)"
 
 
 def _overlaps(a: Study, b: Study) -> bool:
