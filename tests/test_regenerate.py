@@ -66,7 +66,7 @@ def test_unchanged_since_knows_what_makes_a_study_stale():
     commit git does not know."""
     import subprocess
 
-    from ikbench.core.provenance import REPO, unchanged_since
+    from ikbench.studies.regeneration import REPO, unchanged_since
 
     def git(*args):
         return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True,

@@ -64,30 +64,6 @@ def git_state() -> tuple[str, bool] | None:
     return commit, not changed
 
 
-#: What may change after a study was made without it having to run again on resume
-#: (``ikbench reproduce --all``): the results themselves, the documents rendered from them, the
-#: tests, and the plan's own runner (it starts each study's command in a process and records
-#: its wall time and load; it computes nothing a study writes). Anything else changed (a
-#: solver, a study, the judge, a benchmark script, a dependency pin) makes the study run again.
-RESUMABLE_CHANGES = ("results*/**", "docs/**", "tests/**", "README.md", "CHANGELOG.md",
-                     "ikbench/studies/regeneration.py")
-
-
-def unchanged_since(commit: str) -> bool:
-    """Whether ``commit`` is HEAD, or an ancestor of HEAD with nothing changed since but
-    :data:`RESUMABLE_CHANGES` (a study made there still stands at HEAD). False outside git
-    or for a commit git does not know."""
-    try:
-        if subprocess.run(["git", "merge-base", "--is-ancestor", commit, "HEAD"], cwd=REPO,
-                          capture_output=True, timeout=10).returncode != 0:
-            return False
-        changed = _git("diff", "--name-only", commit, "HEAD", "--", ".",
-                       *(f":(exclude,glob){path}" for path in RESUMABLE_CHANGES))
-    except (OSError, subprocess.SubprocessError):
-        return False
-    return not changed
-
-
 def git_revision() -> str | None:
     """The checkout's commit (12 hex digits), with ``-dirty`` if code is modified; None
     outside git (see :func:`git_state`)."""

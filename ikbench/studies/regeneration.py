@@ -12,7 +12,7 @@ records it beside each study's load), streams its progress, and records each fin
 in ``RESULTS/regenerated.json`` (commit, clean tree, wall time, load) as soon as it finishes,
 so an interrupted regeneration keeps every complete study. It is resumable: a study already
 made at this commit, or at an ancestor with nothing changed since but the results, the docs,
-the tests and this runner (:data:`ikbench.core.provenance.RESUMABLE_CHANGES`; so a partial
+the tests and this runner (:data:`RESUMABLE_CHANGES`; so a partial
 regeneration can be committed and finished later), is skipped unless ``force``; a dirty tree
 is refused unless ``allow_dirty`` (then recorded as such, and the provenance test refuses
 the results). After the studies, every generated block of README.md and docs/ is rendered again
@@ -37,7 +37,7 @@ from ikbench.baselines.sequential_ik import SequentialIK
 from ikbench.core.defaults import EXACT_BENCHMARK_METHODS, REFERENCE_METHOD
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_json
-from ikbench.core.provenance import REPO, git_state, load_average, unchanged_since
+from ikbench.core.provenance import REPO, git_state, load_average
 from ikbench.methods.ours import Ours
 from ikbench.methods.registry import method_status
 from ikbench.render.blocks import documents, render_files
@@ -377,6 +377,33 @@ def run(spec: RegenerationSpec, say: Callable[[str], None] | None = None,
     say(f"generated blocks re-rendered: {', '.join(str(p.relative_to(REPO)) for p in changed)}"
         if changed else "generated blocks: all current")
     return RegenerationResult(times, record)
+
+
+#: What may change after a study was made without it having to run again on resume: the
+#: results themselves, the documents rendered from them, the tests, and this runner (it starts
+#: each study's command in a process and records its wall time and load; it computes nothing a
+#: study writes). Anything else changed (a solver, a study, the judge, the CLI, a benchmark
+#: script, a dependency pin) makes the study run again.
+RESUMABLE_CHANGES = ("results*/**", "docs/**", "tests/**", "README.md", "CHANGELOG.md",
+                     "ikbench/studies/regeneration.py")
+
+
+def unchanged_since(commit: str) -> bool:
+    """Whether ``commit`` is HEAD, or an ancestor of HEAD with nothing changed since but
+    :data:`RESUMABLE_CHANGES` (a study made there still stands at HEAD). False outside git
+    or for a commit git does not know."""
+    def git(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True,
+                              timeout=10)
+
+    try:
+        if git("merge-base", "--is-ancestor", commit, "HEAD").returncode != 0:
+            return False
+        changed = git("diff", "--name-only", commit, "HEAD", "--", ".",
+                      *(f":(exclude,glob){path}" for path in RESUMABLE_CHANGES)).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return not changed
 
 
 def _skipped(record: dict, study: Study) -> str:

@@ -39,10 +39,8 @@ def arguments(parser: argparse.ArgumentParser) -> None:
         "every results folder (--all)",
         "Regenerate every committed results folder, one study per process, from a clean "
         "commit: the plan (each study, its command, its expected time) is printed first; a "
-        "study already made at this commit, or at an ancestor with only results, docs, tests "
-        "or this plan's runner changed since, is skipped (resumable, also after committing "
-        "the studies done so far); README.md's and docs/'s generated blocks are rendered again "
-        "at the end. See docs/results-at-a-glance.md.")
+        "study already made at this commit is skipped (resumable); README.md's and docs/'s "
+        "generated blocks are rendered again at the end. See docs/results-at-a-glance.md.")
     every.add_argument("--all", action="store_true",
                        help="run every study of the plan (the paper's reproduction is one)")
     every.add_argument("--only", default=None, metavar="STUDY[,STUDY...]",
@@ -50,7 +48,7 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     every.add_argument("--plan", action="store_true",
                        help="print the plan and what would be skipped; run nothing")
     every.add_argument("--force", action="store_true",
-                       help="with --all: run studies already made (see above) again")
+                       help="with --all: run studies already made at this commit again")
     every.add_argument("--allow-dirty", action="store_true",
                        help="with --all: run from a tree with modified code (recorded; the "
                        "committed results must come from a clean tree)")
