@@ -40,6 +40,22 @@ def _press_point(shown: np.ndarray, hidden: np.ndarray) -> tuple[float, float]:
     return float(np.median(xs[blue][top])), float(np.median(ys[blue][top]))
 
 
+#: Drags tried before the test fails, and how long each may take to reach the designer [s]:
+#: on a loaded machine software WebGL draws a few frames a second, and a press the page
+#: handles before it has seen the hover misses the gizmo; a second drag, slower, then lands.
+DRAG_ATTEMPTS, DRAG_WAIT_S = 3, 30.0
+
+
+def _reached(designer, before: np.ndarray, wait_s: float) -> bool:
+    """Whether the touch point rose 10 mm within ``wait_s`` [s]."""
+    deadline = time.monotonic() + wait_s
+    while designer.handles()["touch"][2] < before[2] + 10:
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.1)
+    return True
+
+
 def test_a_mouse_drag_on_the_gizmo_re_solves_and_the_page_shows_it(tmp_path):
     from ikbench.viewer.design.view import serve_design
 
@@ -50,17 +66,18 @@ def test_a_mouse_drag_on_the_gizmo_re_solves_and_the_page_shows_it(tmp_path):
     try:
         with HeadlessPage(view.url, width=1280, height=800) as page:
             page.wait_for_text("Judged")
-            shown = page.settled()
-            view.gizmos["touch"].visible = False
-            hidden = page.settled()
-            view.gizmos["touch"].visible = True
-            shown = page.settled()
-            x, y = _press_point(shown, hidden)
-            page.drag(x, y, 0.0, -60.0)
-            deadline = time.monotonic() + 60
-            while designer.handles()["touch"][2] < before[2] + 10:
-                assert time.monotonic() < deadline, "the drag did not reach the designer"
-                time.sleep(0.1)
+            for attempt in range(DRAG_ATTEMPTS):
+                shown = page.settled()
+                view.gizmos["touch"].visible = False
+                hidden = page.settled()
+                view.gizmos["touch"].visible = True
+                shown = page.settled()
+                x, y = _press_point(shown, hidden)
+                page.drag(x, y, 0.0, -60.0, pause_s=0.05 * (attempt + 1))
+                if _reached(designer, before, DRAG_WAIT_S):
+                    break
+            else:
+                pytest.fail(f"none of {DRAG_ATTEMPTS} drags reached the designer")
             view.gui["time"].value = 0.6  # the arm on its way, not hiding at the touch point
             time.sleep(1.0)
             after = page.settled(tmp_path / "after_drag.png")

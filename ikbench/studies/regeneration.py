@@ -207,6 +207,11 @@ STUDIES: tuple[Study, ...] = (
     # load 1.4-2.9)
     Study("learned", ("--output", "{out}/learned"), ("learned",), 4.0,
           script="ikbench/studies/learned.py"),
+    # learned starts for whole trajectories (issue 61, part 2): a NICO dataset of the paper's
+    # n, a trajectory model on it (seeds 63, 64), ours-lm and ours-exact from their usual start
+    # and from the model's on the paper's seven targets
+    Study("learned-trajectory", ("--output", "{out}/learned_trajectory"),
+          ("learned_trajectory",), 3.0, script="ikbench/studies/learned_trajectory.py"),
     Study("cartesian-methods", ("cartesian", "--problems", "cppflow", "--seeds", "1",
                                 "--trajectories", "all", "--first-call", "--output",
                                 "{out}/cartesian_methods"), ("cartesian_methods",), 12.5,

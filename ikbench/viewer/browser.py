@@ -173,8 +173,11 @@ class HeadlessPage:
         """Press the left mouse button at (x, y) [px], move by (dx, dy) in ``steps`` steps
         and release: a drag, as a hand makes it (DevTools ``Input.dispatchMouseEvent``)."""
         self.call("Input.dispatchMouseEvent", type="mouseMoved", x=x, y=y)
+        time.sleep(4 * pause_s)  # a hover the page sees before the press (a loaded machine
+        # draws software WebGL at a few frames a second, and the gizmo picks on hover)
         self.call("Input.dispatchMouseEvent", type="mousePressed", x=x, y=y, button="left",
                   buttons=1, clickCount=1)
+        time.sleep(4 * pause_s)
         for k in range(1, steps + 1):
             self.call("Input.dispatchMouseEvent", type="mouseMoved", x=x + dx * k / steps,
                       y=y + dy * k / steps, button="left", buttons=1)

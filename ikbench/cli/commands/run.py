@@ -86,6 +86,11 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                         "and report.md, a targets file whose touch poses' fingertip points "
                         "are the goals (default: every touch point of --targets; "
                         "docs/legibility.md)")
+    parser.add_argument("--init-model", default=None, metavar="MODEL", type=INPUT_FILE,
+                        help="a trajectory model of ikbench learn --kind trajectory: the "
+                        "method (one with warm starts: ours-lm, ours-exact) starts each line "
+                        "from the model's predicted trajectory instead of its usual start; "
+                        "the run folder is <method>-learned (docs/learned.md)")
     add_solve_arguments(parser, methods)
 
 
@@ -184,6 +189,8 @@ def run(args: argparse.Namespace, shape: str | None = None, fixed: dict | None =
                                                                  "--start-pose")
     shape = shape or args.shape
     solver = _solver(args, fixed)
+    if getattr(args, "init_model", None) is not None:
+        solver = _learned_start(solver, args.init_model, shape)
     # the goal set: --goals, else every id of the targets (not --only's)
     goals = load_targets(getattr(args, "goals", None) or args.targets, robot) \
         if shape == "line" else None
@@ -211,6 +218,19 @@ def _solver(args: argparse.Namespace, fixed: dict | None) -> Method:
 
     return method_from_args(args, get_method(args.method), available_methods(),
                             **(fixed or {}))
+
+
+def _learned_start(solver: Method, model: str, shape: str) -> Method:
+    """``solver`` refining the trajectory model's start (:class:`LearnedStart`); the query
+    runs on --threads torch threads (default 1: a second costs its wake-up on a loaded
+    machine)."""
+    from ikbench.core.errors import InputError
+    from ikbench.learned.starts import LearnedStart
+
+    if shape != "line":
+        raise InputError(f"--init-model: the trajectory model learned lines; --shape {shape} "
+                         "is not one")
+    return LearnedStart(solver, model)
 
 
 def solve_write_report(spec: RunSpec) -> int:
