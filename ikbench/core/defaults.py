@@ -42,6 +42,9 @@ EXACT_BENCHMARK_METHODS = ("ours-lm", "ours-exact", "drake-trajopt", "pyroki")
 #: The learned-start study's methods (``results/learned/``): ikbench's compiled LM and the
 #: library LM the issue names beside it (issue 61).
 LEARNED_STUDY_METHODS = ("ours-lm", "rtb-lm")
+#: The methods the learned-trajectory study runs from their usual and from a trajectory
+#: model's start (``ikbench/studies/learned_trajectory.py``): the two with warm starts.
+LEARNED_TRAJECTORY_METHODS = ("ours-lm", "ours-exact")
 #: The backend a method's published figures ran on: a leaderboard whose run used another
 #: says so above its table (``Method.runtime()["backend"]``; issue 50).
 PUBLISHED_BACKENDS = {"ours-lm": "numba"}

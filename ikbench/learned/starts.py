@@ -19,8 +19,8 @@ pose, or not a line (letters, pose paths), is refused with one line.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -96,11 +96,13 @@ class LearnedStart(Method):
                              f"poses; methods that can: {', '.join(able)}")
         self.method, self.settings = method, method.settings
         self._model = model
-        self.name = f"{method.name}-learned"
-        self.description = f"{method.name} from a learned trajectory model's start"
-        self.library = method.library
-        # one task at a time: the model's query and the refinement are timed per task
-        self.capabilities = replace(method.capabilities, batched=False)
+        # A Method keeps these on its class; this wrapper's depend on the method it wraps,
+        # so they are the instance's own. Batched off: one task at a time, the model's query
+        # and the refinement timed per task.
+        vars(self).update(name=f"{method.name}-learned",
+                          description=f"{method.name} from a learned trajectory model's start",
+                          library=method.library,
+                          capabilities=replace(method.capabilities, batched=False))
 
     def model(self, robot: Robot) -> LearnedModel:
         """The loaded model (read now if a path was given; InputError for a file that is not

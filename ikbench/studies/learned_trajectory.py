@@ -45,8 +45,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ikbench.core.defaults import LEARNED_TRAJECTORY_METHODS
+
 ROBOT = "nico_right_arm"
-METHODS = ("ours-lm", "ours-exact")
+METHODS = LEARNED_TRAJECTORY_METHODS
 STARTS = ("usual", "learned")
 #: The training data and model (seeds disjoint from the benchmark seeds 1 and 4 and from the
 #: pose study's 61, 62).
@@ -70,7 +72,8 @@ SUMMARY_COLUMNS = ["robot", "method", "start", "targets", "success_count",
                    "line_distance_mean_mm_median", "pointing_deviation_mean_deg_median",
                    "iterations_median", "time_median_ms", "refine_median_ms",
                    "time_ratio_to_usual_median", "time_ratio_to_usual_min",
-                   "time_ratio_to_usual_max", "refine_ratio_to_usual_median", "raw_line_distance_mean_mm_median",
+                   "time_ratio_to_usual_max", "refine_ratio_to_usual_median",
+                   "raw_line_distance_mean_mm_median",
                    "raw_pointing_deviation_mean_deg_median", "model_query_ms",
                    "training_samples", "training_cpu_min"]
 
@@ -118,11 +121,11 @@ def study(folder: Path, *, trajectories: int, epochs: int, repeats: int,
           progress: bool) -> tuple[list[dict], dict]:
     """The rows of trajectories.csv and the record of the model and the exclusion check."""
     from ikbench.core.errors import InputError
+    from ikbench.core.metrics import trajectory_metrics
     from ikbench.core.robot import load_robot
     from ikbench.core.targets import load_targets
     from ikbench.core.task import line_tasks
     from ikbench.learned import train as learn
-    from ikbench.core.metrics import trajectory_metrics
     from ikbench.learned.starts import LearnedStart, learned_start, resample
     from ikbench.methods.registry import get_method
     from ikbench.studies.dataset import build_dataset
@@ -145,7 +148,8 @@ def study(folder: Path, *, trajectories: int, epochs: int, repeats: int,
     samples, cpu_min = model.meta["samples"]["train"], model.meta["training_cpu_min"]
     starts, raw, query_ms = {}, {}, {}
     for task in tasks:
-        predicted = model.predict(task.required.start_pose, task.goal.end_point_mm)
+        start_pose = np.asarray(task.required.start_pose, dtype=float)  # line tasks have one
+        predicted = model.predict(start_pose, task.goal.end_point_mm)
         predicted = resample(predicted, len(task.goal.points_mm) - 1)
         raw[task.name] = {**_figures(robot, task, predicted), "end_point_error_mm":
                           trajectory_metrics(robot, task, predicted)["end_point_error_mm"]}

@@ -54,8 +54,9 @@ LAYOUTS: dict[str, tuple[str, ...]] = {
     "cartesian": ("command", "problems", "methods", "seeds", "settings", "options", "validity",
                   "validity_source", "wall_time_s", "files", PROVENANCE),
     # ikbench ik's folder: methods by name with their facts, provenance as one entry
-    "ik": ("command", "robot", "settings", "methods", "batched?", "solution_columns?",
-           "library_versions", "wall_s", "load_average", "provenance"),
+    # (init_model: the learned model of --init learned, null for every other init)
+    "ik": ("command", "robot", "settings", "methods", "batched?", "init_model",
+           "solution_columns?", "library_versions", "wall_s", "load_average", "provenance"),
     # ikbench recommend's folder: its plan and verdict before the timing and provenance
     "recommend": ("command", "robot", "settings", "plan", "methods", "recommended", "tied",
                   "kendall_tau", "paired?", "wall_s", "load_average", "library_versions",
