@@ -137,12 +137,12 @@ class LearnedStart(Method):
         return self.method.settings_for(task)
 
     def solve(self, robot: Robot, task: Task, progress: Progress | None = None) -> Solution:
+        model = self.model(robot)
         began = time.perf_counter()
-        initial = learned_start(self.model(robot), task)
+        initial = learned_start(model, task)
         queried = time.perf_counter()
         solution = self.method.solve_from(robot, task, initial)
         ended = time.perf_counter()
-        model = self.model(robot)
         solution.info = {**solution.info, "initial": "learned",
                          "model_query_s": queried - began, "refine_s": ended - queried,
                          "model_training_samples": model.meta.get("samples", {}).get("train")}

@@ -146,7 +146,7 @@ def study(folder: Path, *, trajectories: int, epochs: int, repeats: int,
         raise InputError("a paper target's touch pose is in the training set; change "
                          "the dataset seed")
     samples, cpu_min = model.meta["samples"]["train"], model.meta["training_cpu_min"]
-    starts, raw, query_ms = {}, {}, {}
+    start_figures, raw, query_ms = {}, {}, {}
     for task in tasks:
         start_pose = np.asarray(task.required.start_pose, dtype=float)  # line tasks have one
         predicted = model.predict(start_pose, task.goal.end_point_mm)
@@ -154,7 +154,7 @@ def study(folder: Path, *, trajectories: int, epochs: int, repeats: int,
         raw[task.name] = {**_figures(robot, task, predicted), "end_point_error_mm":
                           trajectory_metrics(robot, task, predicted)["end_point_error_mm"]}
         made, query_ms[task.name] = _timed(lambda t=task: learned_start(model, t), repeats)
-        starts[task.name] = made[-1]
+        start_figures[task.name] = _figures(robot, task, made[-1])
     rows = []
     for name in METHODS:
         solvers = {"usual": get_method(name)(), "learned": LearnedStart(get_method(name)(),
@@ -177,7 +177,7 @@ def study(folder: Path, *, trajectories: int, epochs: int, repeats: int,
                        "iterations": int(solution.iterations), "time_median_ms": time_ms,
                        "refine_median_ms": refine_ms, "nearest_training_goal_mm": nearest[k]}
                 if start == "learned":
-                    begun = _figures(robot, task, starts[task.name])
+                    begun = start_figures[task.name]
                     row.update({
                         "model_query_ms": query_ms[task.name],
                         "raw_line_distance_mean_mm": raw[task.name]["line_distance_mean_mm"],
