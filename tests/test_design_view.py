@@ -120,8 +120,10 @@ def test_a_letter_and_a_pose_path_get_their_own_controls():
         goal = path.designer.update.task.goal.points_mm[3]
         _wait(lambda: np.allclose(path.designer.handles()["waypoint"], goal))
         T = path.T_root_base
-        np.testing.assert_allclose(path.gizmos["waypoint"].position,
-                                   goal / 1000 @ T[:3, :3].T + T[:3, 3], atol=1e-6)
+        # the GUI callback selects the waypoint, then moves the gizmo: wait for both
+        expected = goal / 1000 @ T[:3, :3].T + T[:3, 3]
+        _wait(lambda: np.allclose(path.gizmos["waypoint"].position, expected, atol=1e-6))
+        np.testing.assert_allclose(path.gizmos["waypoint"].position, expected, atol=1e-6)
     finally:
         path.stop()
 
