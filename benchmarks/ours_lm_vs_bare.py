@@ -2,7 +2,7 @@
 
 Per robot (``--robot``): ``--count`` targets of ``ikbench ik``'s sampler
 (:func:`ikbench.studies.ik.sample_targets`, ``--seed``: by default 101, disjoint from the
-benchmark seeds 1 and 4, which are refused), each with its first initial configuration. Three
+benchmark seeds 1 and 4, which are refused), each with its first initial configuration. Four
 calls per target, every input prepared before the clock:
 
 - ``ours-lm``: ``ikbench ik``'s adapter call,
@@ -12,15 +12,20 @@ calls per target, every input prepared before the clock:
   ``baselines/eaik_ik.py`` builds it (:meth:`baselines.eaik_ik.EaikSolver.bare_call`, the
   frame assembled before the clock); none of the adapter's branch selection. Skipped (with
   a line) where EAIK has no decomposition;
+- ``eaik-adapter``: ``ikbench ik``'s eaik adapter call
+  (:meth:`baselines.eaik_ik.EaikSolver.solve_within`: the frame, EAIK's call and the
+  compiled branch choice nearest the start), so its ratio to ``eaik`` is the glue ikbench
+  adds around the library, measured under the same interleaved rule;
 - ``rtb-lm``: roboticstoolbox's bare ``ets.ik_LM(Tep, q0=..., ilimit=30, slimit=1, tol=TOL,
   joint_limits=True)`` on the ETS ``baselines/rtb.py`` builds (:func:`baselines.rtb.rtb_ets`),
   from the same start in [rad].
 
 Each call is timed alone by ``time.perf_counter`` (garbage collection off), interleaved per
-target (the three calls of a target one after the other, their order rotated from target to
+target (the four calls of a target one after the other, their order rotated from target to
 target), ``--repeat`` rounds. Per method and target the median over rounds; per method the
-median over targets; the ratio of ours-lm's median to each other's with a paired bootstrap
-95 % interval over targets (``scipy.stats.bootstrap``, percentile, 5,000 resamples, seeded).
+median over targets; the ratios of :data:`RATIOS` (ours-lm's to each other's, the eaik
+adapter's to EAIK's bare call) with a paired bootstrap 95 % interval over targets
+(``scipy.stats.bootstrap``, percentile, 5,000 resamples, seeded).
 Success is judged here (Pinocchio FK within 1 mm / 0.5 deg; EAIK: any exact branch). The load
 average is recorded before and after.
 
@@ -53,6 +58,8 @@ from ikbench.studies.ik import IKSettings, sample_targets
 #: The benchmarks' own seeds (``ikbench ik``, the committed tables): never used here.
 BENCHMARK_SEEDS = (1, 4)
 TOLERANCE_MM, TOLERANCE_DEG = 1.0, 0.5
+#: method -> the methods its median is divided by (paired, with a bootstrap interval)
+RATIOS = {"ours-lm": ("eaik", "eaik-adapter", "rtb-lm"), "eaik-adapter": ("eaik",)}
 
 
 def _callers(robot, targets) -> dict:
@@ -89,6 +96,20 @@ def _callers(robot, targets) -> dict:
             return list(Q[~ls])
 
         callers["eaik"] = (eaik_call, eaik_answers)
+
+        # the adapter takes and gives [rad] (no pose units), as the study passes them
+        urdf_starts = [np.ascontiguousarray(robot.to_urdf(starts[i][0]), dtype=float)[None]
+                       for i in range(count)]
+
+        def adapter_call(i: int) -> None:
+            last["eaik-adapter"] = eaik.solve_within(urdf_starts[i], points[i], rotations[i],
+                                                     inf)
+
+        def adapter_answers() -> list:
+            out = last["eaik-adapter"]
+            return [out.q] if out.ok else []
+
+        callers["eaik-adapter"] = (adapter_call, adapter_answers)
     except (ImportError, ValueError, RuntimeError) as exc:
         print(f"eaik skipped: {exc}", file=sys.stderr)
     from ikbench.baselines.rtb import ILIMIT, TOL, goal_frame, rtb_ets
@@ -184,9 +205,9 @@ def main(argv: list[str] | None = None) -> int:
                "repeat": args.repeat, "median_us": float(np.median(per_target[name])),
                "success_pct": 100.0 * success[name].mean(),
                "load_before": load_before[0], "load_after": load_after[0]}
-        for other in names:
-            if other != "ours-lm" and name == "ours-lm":
-                ratio, low, high = _ratio_interval(per_target["ours-lm"], per_target[other])
+        for other in RATIOS.get(name, ()):
+            if other in names:
+                ratio, low, high = _ratio_interval(per_target[name], per_target[other])
                 row[f"ratio_to_{other}"] = ratio
                 row[f"ratio_to_{other}_ci95_low"], row[f"ratio_to_{other}_ci95_high"] = low, high
         rows.append(row)
@@ -201,7 +222,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.robot}: {args.count} targets (seed {args.seed}) x {args.repeat} rounds, "
           f"load {load_before[0]:.2f} -> {load_after[0]:.2f}")
     for row in rows:
-        line = f"  {row['method']:8s} median {row['median_us']:8.2f} us  success " \
+        line = f"  {row['method']:12s} median {row['median_us']:8.2f} us  success " \
                f"{row['success_pct']:5.1f} %"
         for other in names:
             key = f"ratio_to_{other}"
