@@ -72,6 +72,8 @@ def _callers(robot, targets) -> dict:
     points = [T[i][:3, 3] for i in range(count)]
     rotations = [T[i][:3, :3] for i in range(count)]
     last: dict[str, object] = {}
+    # the first start in [rad] (URDF order), for the libraries that take no pose units
+    q0s = [np.ascontiguousarray(robot.to_urdf(starts[i][0]), dtype=float) for i in range(count)]
     inf = math.inf
 
     def ours_call(i: int) -> None:
@@ -98,8 +100,7 @@ def _callers(robot, targets) -> dict:
         callers["eaik"] = (eaik_call, eaik_answers)
 
         # the adapter takes and gives [rad] (no pose units), as the study passes them
-        urdf_starts = [np.ascontiguousarray(robot.to_urdf(starts[i][0]), dtype=float)[None]
-                       for i in range(count)]
+        urdf_starts = [q0[None] for q0 in q0s]
 
         def adapter_call(i: int) -> None:
             last["eaik-adapter"] = eaik.solve_within(urdf_starts[i], points[i], rotations[i],
@@ -117,7 +118,6 @@ def _callers(robot, targets) -> dict:
 
     ets = rtb_ets(chain_of(robot))
     teps = [goal_frame(T[i][:3, 3], T[i][:3, :3]) for i in range(count)]
-    q0s = [np.ascontiguousarray(robot.to_urdf(starts[i][0]), dtype=float) for i in range(count)]
     ik_lm = ets.ik_LM
 
     def rtb_call(i: int) -> None:
