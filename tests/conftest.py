@@ -42,7 +42,6 @@ def interrupt_while(argv: list[str], cwd: Path, when: str, timeout_s: float = 18
     stderr less its progress lines (``[label m:ss] ...``: stderr is a pipe, so the command
     writes a start line and one every ~10 s). Fails when that line does not come within
     ``timeout_s``."""
-    import json
     import os
     import signal
     import subprocess
@@ -50,14 +49,14 @@ def interrupt_while(argv: list[str], cwd: Path, when: str, timeout_s: float = 18
     import time
 
     log = cwd / "progress.jsonl"
+    log.unlink(missing_ok=True)  # a reused cwd's log would hold an earlier run's lines
     env = {**os.environ, "PYTHONPATH": str(REPO), "PYTHONUNBUFFERED": "1"}
     proc = subprocess.Popen([sys.executable, "-m", "ikbench.cli", *argv, "--log", str(log)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
                             cwd=cwd)
     deadline = time.monotonic() + timeout_s
     try:
-        while not any(when in json.dumps(json.loads(line))
-                      for line in (log.read_text().splitlines() if log.exists() else [])):
+        while not any(when in line for line in _complete_events(log)):
             assert proc.poll() is None, f"ended before {when!r}: {proc.communicate()}"
             assert time.monotonic() < deadline, f"no progress line with {when!r}"
             time.sleep(0.1)
@@ -67,6 +66,20 @@ def interrupt_while(argv: list[str], cwd: Path, when: str, timeout_s: float = 18
         if proc.poll() is None:
             proc.kill()
     return proc.returncode, without_progress(err)
+
+
+def _complete_events(log: Path) -> list[str]:
+    """The events of a JSON-lines progress log written so far, each as JSON text; a last line
+    still being written (not yet a whole JSON object) is left for the next look."""
+    import json
+
+    events = []
+    for line in (log.read_text().splitlines() if log.exists() else []):
+        try:
+            events.append(json.dumps(json.loads(line)))
+        except json.JSONDecodeError:
+            break
+    return events
 
 
 def without_progress(err: str) -> str:

@@ -147,6 +147,10 @@ def test_resume_ends_with_the_weights_of_an_uninterrupted_run(dataset, tmp_path)
     for key in a["state_dict"]:
         assert torch.equal(a["state_dict"][key], b["state_dict"][key]), key
     assert a["history"] == b["history"] and b["epochs"] == 3
+    # each run is recorded with its commit and its epochs, the resumed one as two runs
+    assert [(r["first_epoch"], r["last_epoch"]) for r in a["runs"]] == [(1, 3)]
+    assert [(r["first_epoch"], r["last_epoch"]) for r in b["runs"]] == [(1, 1), (2, 3)]
+    assert all(r["git_commit"] == b["git_commit"] for r in b["runs"])
     # and a different seed gives different weights (the comparison can fail)
     other = _payload(learn.train(dataset, "pose", tmp_path / "other.pt", epochs=1, seed=6,
                                  batch_size=128, progress=False))

@@ -151,6 +151,28 @@ def test_every_command_that_loads_a_robot_refuses_it(command, case, tmp_path, ca
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("case", ["revolute without limit", "zero axis"])
+def test_learn_refuses_a_broken_robot_config_before_it_trains(case, tmp_path, capfd):
+    """``learn --robot`` takes a name or a robot config (no ``--end-frame``): a config whose
+    URDF is broken is refused in one line, the dataset (a real one) untouched, no model."""
+    from ikbench.studies.dataset import build_dataset
+
+    dataset = tmp_path / "dataset"
+    build_dataset(8, seed=3, steps=4, shard_size=8, output=dataset, progress=False)
+    before = sorted(p.name for p in dataset.iterdir())
+    text, message = CASES[case]
+    (tmp_path / "broken.urdf").write_text(text)
+    config = tmp_path / "arm.toml"
+    config.write_text(f'urdf = "{tmp_path / "broken.urdf"}"\nend_frame = "{END}"\n')
+    capfd.readouterr()
+    code = main(["learn", str(dataset), "--kind", "pose", "--output",
+                 str(tmp_path / "m.pt"), "--robot", str(config)])
+    err = _one_line(capfd)
+    assert code == 2 and message in err and "--robot" in err, err
+    assert not list(tmp_path.glob("m.pt*"))
+    assert sorted(p.name for p in dataset.iterdir()) == before
+
+
 def test_a_chain_that_does_not_reach_the_end_frame_names_the_candidates(tmp_path, capfd):
     config = tmp_path / "arm.toml"
     config.write_text(f'urdf = "{ROOT / "urdf" / "nico_right_arm.urdf"}"\n'

@@ -449,12 +449,16 @@ def run(spec: LearnSpec, state: dict[str, Any] | None = None) -> Path:
             torch.manual_seed(seed)
             net = build_net(kind, robot.dof, h)
         optimiser = torch.optim.Adam(net.parameters(), lr=hyper.learning_rate)
-        done, history, cpu_s, wall_s = 0, [], 0.0, 0.0
+        done, history, cpu_s, wall_s, runs = 0, [], 0.0, 0.0, []
         if state is not None:
             net.load_state_dict(state["net"])
             optimiser.load_state_dict(state["optimiser"])
             done, history = int(state["epoch"]), list(state["history"])
             cpu_s, wall_s = float(state["cpu_s"]), float(state["wall_s"])
+            runs = list(state.get("runs", []))
+        # every run (the first and each --resume) with the commit it ran at and its epochs
+        runs.append({"git_commit": record["git_commit"], "git_clean": record["git_clean"],
+                     "first_epoch": done + 1, "last_epoch": done})
         log.note(f"{kind} model of {robot.name}: {len(training)} training and "
                  f"{len(held) if held is not None else 0} held-out samples "
                  f"({len(train_ids)} and {len(held_ids)} trajectories), epochs "
@@ -479,14 +483,15 @@ def run(spec: LearnSpec, state: dict[str, Any] | None = None) -> Path:
             wall_s += time.perf_counter() - wall0
             history.append({"epoch": epoch + 1, "train_loss": train_loss,
                             "held_out_loss": held_loss})
+            runs[-1]["last_epoch"] = epoch + 1
             _save(checkpoint_path(spec.output), {
                 "identity": identity, "epoch": epoch + 1, "net": net.state_dict(),
                 "optimiser": optimiser.state_dict(), "history": history, "cpu_s": cpu_s,
-                "wall_s": wall_s})
+                "wall_s": wall_s, "runs": runs})
             log.advance(1, f"epoch {epoch + 1}/{spec.epochs}: train loss {train_loss:.4f}, "
                         f"held-out loss {held_loss:.4f}")
         payload = _payload(spec, net, norm, history, cpu_s, wall_s, train_ids, held_ids,
-                           len(training), len(held) if held is not None else 0, record)
+                           len(training), len(held) if held is not None else 0, record, runs)
         model = LearnedModel(payload, robot)
         payload["held_out_error"] = held_out_error(model, data, held_rows, seed)
         payload["model_query_ms"] = query_ms(model, data, held_rows)
@@ -507,8 +512,8 @@ def _save(path: Path, value: dict[str, Any]) -> None:
 
 
 def _payload(spec: LearnSpec, net, norm, history, cpu_s, wall_s, train_ids, held_ids,
-             train_samples: int, held_samples: int, record: dict[str, Any]
-             ) -> dict[str, Any]:
+             train_samples: int, held_samples: int, record: dict[str, Any],
+             runs: list[dict[str, Any]]) -> dict[str, Any]:
     import torch
 
     robot, data = spec.dataset.robot, spec.dataset
@@ -518,6 +523,7 @@ def _payload(spec: LearnSpec, net, norm, history, cpu_s, wall_s, train_ids, held
                       "pose_unit": robot.pose_unit},
             "dataset": data.describe(),
             "git_commit": record["git_commit"], "git_clean": record["git_clean"],
+            "runs": runs,
             "samples": {"train": train_samples, "held_out": held_samples,
                         "train_trajectories": int(len(train_ids)),
                         "held_out_trajectories": int(len(held_ids))},
