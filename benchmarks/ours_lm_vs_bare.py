@@ -29,16 +29,20 @@ adapter's to EAIK's bare call) with a paired bootstrap 95 % interval over target
 Success is judged here (Pinocchio FK within 1 mm / 0.5 deg; EAIK: any exact branch). The load
 average is recorded before and after.
 
-Run: ``.venv/bin/python benchmarks/ours_lm_vs_bare.py [--robot example-robot-data:ur5]
-[--count 100] [--seed 101] [--repeat 5] [--output runs/ours_lm_vs_bare_ur5.csv]``; writes one
-row per method with the medians, ratios, intervals, success and load (and the per-call
-times beside it, ``*_calls.csv``).
+Run: ``.venv/bin/python benchmarks/ours_lm_vs_bare.py [--robot example-robot-data:ur5
+[--robot ...]] [--count 100] [--seed 101] [--repeat 5] [--output runs/ours_lm_vs_bare]``;
+writes to the folder ``summary.csv`` (a row per robot and method: the medians, ratios,
+intervals, success and load), ``calls.csv`` (every timed call) and ``run.json`` (the settings
+and the provenance: commit, CPU, load, library versions). The ``bare-calls`` entry of
+``ikbench reproduce --all`` runs it on the arms of the IK tables and the zoo into
+``results/bare_calls/``.
 """
 
 from __future__ import annotations
 
 import argparse
 import gc
+import json
 import math
 import os
 import sys
@@ -51,6 +55,8 @@ from scipy import stats
 
 from ikbench import load_robot
 from ikbench.core.errors import InputError
+from ikbench.core.io import atomic_path
+from ikbench.core.provenance import provenance
 from ikbench.core.rotations import geodesic_angle
 from ikbench.methods.ours_lm.pose_solver import OursLMSolver
 from ikbench.studies.ik import IKSettings, sample_targets
@@ -153,38 +159,23 @@ def _ratio_interval(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
     return float(statistic(a, b)), float(ci.low), float(ci.high)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--robot", default="example-robot-data:ur5")
-    parser.add_argument("--count", type=int, default=100)
-    parser.add_argument("--seed", type=int, default=101)
-    parser.add_argument("--repeat", type=int, default=5)
-    parser.add_argument("--output", type=Path, default=Path("runs/ours_lm_vs_bare.csv"))
-    args = parser.parse_args(argv)
-    try:
-        if args.seed in BENCHMARK_SEEDS:
-            raise InputError(f"--seed: {args.seed} is a benchmark seed {BENCHMARK_SEEDS}; "
-                             "take a disjoint one (default 101)")
-        if args.count < 2 or args.repeat < 1:
-            raise InputError(f"--count {args.count} / --repeat {args.repeat}: need >= 2 / >= 1")
-        robot = load_robot(args.robot)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    targets = sample_targets(robot, IKSettings(count=args.count, seed=args.seed))
+def _measure(robot_name: str, robot, count: int, seed: int, repeat: int
+             ) -> tuple[list[dict], pd.DataFrame]:
+    """One robot's rows (a row per method) and its per-call times."""
+    targets = sample_targets(robot, IKSettings(count=count, seed=seed))
     callers = _callers(robot, targets)
     names = list(callers)
-    times = {name: np.zeros((args.count, args.repeat)) for name in names}
-    success = {name: np.zeros(args.count, dtype=bool) for name in names}
-    for i in range(min(20, args.count)):  # warm: caches, branch predictors, lazy imports
+    times = {name: np.zeros((count, repeat)) for name in names}
+    success = {name: np.zeros(count, dtype=bool) for name in names}
+    for i in range(min(20, count)):  # warm: caches, branch predictors, lazy imports
         for call, _ in callers.values():
             call(i)
     load_before = os.getloadavg()
     clock = time.perf_counter
     gc.disable()
     try:
-        for r in range(args.repeat):
-            for i in range(args.count):
+        for r in range(repeat):
+            for i in range(count):
                 shift = (i + r) % len(names)
                 for name in names[shift:] + names[:shift]:
                     call, answers = callers[name]
@@ -201,8 +192,9 @@ def main(argv: list[str] | None = None) -> int:
     per_target = {name: np.median(times[name], axis=1) * 1e6 for name in names}
     rows = []
     for name in names:
-        row = {"robot": args.robot, "method": name, "count": args.count, "seed": args.seed,
-               "repeat": args.repeat, "median_us": float(np.median(per_target[name])),
+        row = {"robot": robot_name, "dof": robot.dof, "method": name, "count": count,
+               "seed": seed, "repeat": repeat,
+               "median_us": float(np.median(per_target[name])),
                "success_pct": 100.0 * success[name].mean(),
                "load_before": load_before[0], "load_after": load_after[0]}
         for other in RATIOS.get(name, ()):
@@ -211,15 +203,10 @@ def main(argv: list[str] | None = None) -> int:
                 row[f"ratio_to_{other}"] = ratio
                 row[f"ratio_to_{other}_ci95_low"], row[f"ratio_to_{other}_ci95_high"] = low, high
         rows.append(row)
-    table = pd.DataFrame(rows)
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    table.to_csv(args.output, index=False)
-    calls = pd.DataFrame([{"method": name, "target": i, "round": r,
+    calls = pd.DataFrame([{"robot": robot_name, "method": name, "target": i, "round": r,
                            "time_us": times[name][i, r] * 1e6}
-                          for name in names for i in range(args.count)
-                          for r in range(args.repeat)])
-    calls.to_csv(args.output.with_name(args.output.stem + "_calls.csv"), index=False)
-    print(f"{args.robot}: {args.count} targets (seed {args.seed}) x {args.repeat} rounds, "
+                          for name in names for i in range(count) for r in range(repeat)])
+    print(f"{robot_name}: {count} targets (seed {seed}) x {repeat} rounds, "
           f"load {load_before[0]:.2f} -> {load_after[0]:.2f}")
     for row in rows:
         line = f"  {row['method']:12s} median {row['median_us']:8.2f} us  success " \
@@ -229,8 +216,52 @@ def main(argv: list[str] | None = None) -> int:
             if key in row:
                 line += (f"  / {other} {row[key]:.3f} [{row[key + '_ci95_low']:.3f}, "
                          f"{row[key + '_ci95_high']:.3f}]")
-        print(line)
-    print(f"written to {args.output}")
+        print(line, flush=True)
+    return rows, calls
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--robot", action="append", metavar="NAME",
+                        help="a robot (repeat for several; default example-robot-data:ur5)")
+    parser.add_argument("--count", type=int, default=100, help="targets per robot")
+    parser.add_argument("--seed", type=int, default=101,
+                        help="seed of the targets and starts (not 1 or 4, the benchmarks')")
+    parser.add_argument("--repeat", type=int, default=5, help="timed rounds over the targets")
+    parser.add_argument("--output", type=Path, default=Path("runs/ours_lm_vs_bare"),
+                        help="folder for summary.csv, calls.csv and run.json")
+    args = parser.parse_args(argv)
+    names = args.robot or ["example-robot-data:ur5"]
+    try:
+        if args.seed in BENCHMARK_SEEDS:
+            raise InputError(f"--seed: {args.seed} is a benchmark seed {BENCHMARK_SEEDS}; "
+                             "take a disjoint one (default 101)")
+        if args.count < 2 or args.repeat < 1:
+            raise InputError(f"--count {args.count} / --repeat {args.repeat}: need >= 2 / >= 1")
+        if args.output.suffix or args.output.is_file():
+            raise InputError(f"--output: {args.output} is a file name; give a folder")
+        robots = [load_robot(name) for name in names]
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    record = provenance(extra=("eaik", "roboticstoolbox-python"))
+    rows, calls = [], []
+    for name, robot in zip(names, robots, strict=True):
+        robot_rows, robot_calls = _measure(name, robot, args.count, args.seed, args.repeat)
+        rows += robot_rows
+        calls.append(robot_calls)
+    args.output.mkdir(parents=True, exist_ok=True)
+    with atomic_path(args.output / "summary.csv") as tmp:
+        pd.DataFrame(rows).to_csv(tmp, index=False)
+    with atomic_path(args.output / "calls.csv") as tmp:
+        pd.concat(calls).to_csv(tmp, index=False)
+    settings = {"robots": names, "count": args.count, "seed": args.seed,
+                "repeat": args.repeat, "tolerance_mm": TOLERANCE_MM,
+                "tolerance_deg": TOLERANCE_DEG, "ratios": {k: list(v) for k, v in RATIOS.items()}}
+    with atomic_path(args.output / "run.json") as tmp:
+        tmp.write_text(json.dumps({"study": "ours_lm_vs_bare", "settings": settings,
+                                   "provenance": record}, indent=2) + "\n")
+    print(f"written to {args.output}/")
     return 0
 
 

@@ -197,6 +197,13 @@ STUDIES: tuple[Study, ...] = (
     *(Study(f"zoo-{robot.rpartition(':')[2]}", ("ik", "--robot", robot, *ZOO_PROTOCOL,
                                                 "--output", "{out}/ik_zoo"),
             (f"ik_zoo/ik/{robot.rpartition(':')[2]}",), 0.8) for robot in ZOO),
+    # ours-lm's and the eaik adapter's per call against the libraries' bare calls, in one
+    # process, interleaved, with paired bootstrap intervals (issues 58, 63): every arm above
+    Study("bare-calls", ("--output", "{out}/bare_calls", "--count", "200", "--repeat", "5",
+                         *(w for robot in ("example-robot-data:ur5", "example-robot-data:panda",
+                                           "example-robot-data:xarm7", "fetch_arm", *ZOO)
+                           for w in ("--robot", robot))),
+          ("bare_calls",), 1.5, script="benchmarks/ours_lm_vs_bare.py"),
     Study("ik-unreachable", ("ik", *TRUTH_PROTOCOL, "--unreachable", "0.2", "--output",
                              "{out}/ik_truth/unreachable"), ("ik_truth/unreachable",), 0.7),
     *(Study(f"ik-init-{init}", ("ik", *TRUTH_PROTOCOL, "--init", init, "--output",
