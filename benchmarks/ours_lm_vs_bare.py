@@ -26,7 +26,9 @@ target), ``--repeat`` rounds. Per method and target the median over rounds; per 
 median over targets; the ratios of :data:`RATIOS` (ours-lm's to each other's, the eaik
 adapter's to EAIK's bare call) with a paired bootstrap 95 % interval over targets
 (``scipy.stats.bootstrap``, percentile, 5,000 resamples, seeded).
-Success is judged here (Pinocchio FK within 1 mm / 0.5 deg; EAIK: any exact branch). The load
+Success is judged here (Pinocchio FK within 1 mm / 0.5 deg and the joint limits; EAIK's bare
+call: any exact branch, its angles moved by whole turns into the limits where that brings
+them there, as its branches lie in (-pi, pi]). The load
 average is recorded before and after.
 
 Run: ``.venv/bin/python benchmarks/ours_lm_vs_bare.py [--robot example-robot-data:ur5
@@ -134,10 +136,16 @@ def _callers(robot, targets) -> dict:
     return callers
 
 
-def _judged(robot, answers: list, T: np.ndarray) -> bool:
-    """Any answer [rad] within the tolerances (Pinocchio FK) and the joint limits."""
+def _judged(robot, answers: list, T: np.ndarray, turns: bool = False) -> bool:
+    """Any answer [rad] within the tolerances (Pinocchio FK) and the joint limits; with
+    ``turns``, a revolute joint's angle first moved by whole turns into its limits where one
+    brings it there (the same frame: EAIK's bare branches lie in (-pi, pi], while Kinova's
+    joints 2, 3 and 5, for one, are limited to 47-313 deg)."""
     for q_urdf in answers:
-        q = robot.from_urdf(np.asarray(q_urdf, dtype=float))
+        q_urdf = np.asarray(q_urdf, dtype=float)
+        if turns:
+            q_urdf = _into_limits_by_turns(robot, q_urdf)
+        q = robot.from_urdf(q_urdf)
         if not np.all((q >= robot.lower - 1e-9) & (q <= robot.upper + 1e-9)):
             continue
         got = robot.fk_transform(q[None])[0]
@@ -145,6 +153,23 @@ def _judged(robot, answers: list, T: np.ndarray) -> bool:
                 geodesic_angle(T[None, :3, :3], got[None, :3, :3]))[0] <= TOLERANCE_DEG):
             return True
     return False
+
+
+def _into_limits_by_turns(robot, q_urdf: np.ndarray) -> np.ndarray:
+    """``q_urdf`` [rad] with each revolute joint moved by the whole turns (-2..2) that bring
+    it within its limits, where some do; others as they were."""
+    lower, upper = robot.to_urdf(robot.lower), robot.to_urdf(robot.upper)
+    lo, hi = np.minimum(lower, upper), np.maximum(lower, upper)
+    out = q_urdf.copy()
+    for j, kind in enumerate(robot.joint_types):
+        if kind == "prismatic" or lo[j] - 1e-9 <= out[j] <= hi[j] + 1e-9:
+            continue
+        for k in (1, -1, 2, -2):
+            shifted = q_urdf[j] + 2.0 * math.pi * k
+            if lo[j] - 1e-9 <= shifted <= hi[j] + 1e-9:
+                out[j] = shifted
+                break
+    return out
 
 
 def _ratio_interval(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
@@ -184,7 +209,8 @@ def _measure(robot_name: str, robot, count: int, seed: int, repeat: int
                     times[name][i, r] = clock() - start
                     if r == 0:
                         gc.enable()
-                        success[name][i] = _judged(robot, answers(), targets.T_target[i])
+                        success[name][i] = _judged(robot, answers(), targets.T_target[i],
+                                                   turns=name == "eaik")
                         gc.disable()
     finally:
         gc.enable()

@@ -82,3 +82,16 @@ def test_bad_options_are_refused_in_one_line_with_nothing_written(args, named, t
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and named in err[0], err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_analytic_branch_is_moved_by_whole_turns_into_the_limits():
+    """Kinova's joint 2 is limited to 47-313 deg: EAIK's branch at -60 deg is the same frame
+    at 300 deg, within them; an angle no whole turn brings in (20 deg) stays as it was."""
+    from ikbench import load_robot
+
+    robot = load_robot("example-robot-data:kinova")
+    q = np.zeros(robot.dof)
+    q[1], q[2] = np.radians(-60.0), np.radians(20.0)
+    moved = bare._into_limits_by_turns(robot, q)
+    assert np.degrees(moved[1]) == pytest.approx(300.0)
+    assert moved[2] == q[2] and moved[0] == q[0]
