@@ -203,7 +203,7 @@ STUDIES: tuple[Study, ...] = (
                          *(w for robot in ("example-robot-data:ur5", "example-robot-data:panda",
                                            "example-robot-data:xarm7", "fetch_arm", *ZOO)
                            for w in ("--robot", robot))),
-          ("bare_calls",), 1.5, script="benchmarks/ours_lm_vs_bare.py"),
+          ("bare_calls",), 0.2, script="benchmarks/ours_lm_vs_bare.py"),
     Study("ik-unreachable", ("ik", *TRUTH_PROTOCOL, "--unreachable", "0.2", "--output",
                              "{out}/ik_truth/unreachable"), ("ik_truth/unreachable",), 0.7),
     *(Study(f"ik-init-{init}", ("ik", *TRUTH_PROTOCOL, "--init", init, "--output",
