@@ -34,8 +34,8 @@ average is recorded before and after.
 Run: ``.venv/bin/python benchmarks/ours_lm_vs_bare.py [--robot example-robot-data:ur5
 [--robot ...]] [--count 100] [--seed 101] [--repeat 5] [--output runs/ours_lm_vs_bare]``;
 writes to the folder ``summary.csv`` (a row per robot and method: the medians, ratios,
-intervals, success and load), ``calls.csv`` (every timed call) and ``run.json`` (the settings
-and the provenance: commit, CPU, load, library versions). The ``bare-calls`` entry of
+intervals, success and load), ``calls.csv`` (every timed call) and ``bare_calls.json`` (the
+settings and the provenance: commit, CPU, load, library versions). The ``bare-calls`` entry of
 ``ikbench reproduce --all`` runs it on the arms of the IK tables and the zoo into
 ``results/bare_calls/``.
 """
@@ -255,7 +255,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="seed of the targets and starts (not 1 or 4, the benchmarks')")
     parser.add_argument("--repeat", type=int, default=5, help="timed rounds over the targets")
     parser.add_argument("--output", type=Path, default=Path("runs/ours_lm_vs_bare"),
-                        help="folder for summary.csv, calls.csv and run.json")
+                        help="folder for summary.csv, calls.csv and bare_calls.json")
     args = parser.parse_args(argv)
     names = args.robot or ["example-robot-data:ur5"]
     try:
@@ -284,7 +284,7 @@ def main(argv: list[str] | None = None) -> int:
     settings = {"robots": names, "count": args.count, "seed": args.seed,
                 "repeat": args.repeat, "tolerance_mm": TOLERANCE_MM,
                 "tolerance_deg": TOLERANCE_DEG, "ratios": {k: list(v) for k, v in RATIOS.items()}}
-    with atomic_path(args.output / "run.json") as tmp:
+    with atomic_path(args.output / "bare_calls.json") as tmp:
         tmp.write_text(json.dumps({"study": "ours_lm_vs_bare", "settings": settings,
                                    "provenance": record}, indent=2) + "\n")
     print(f"written to {args.output}/")

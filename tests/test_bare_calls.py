@@ -60,7 +60,7 @@ def test_the_summary_is_recomputed_from_the_calls(written):
 
 
 def test_the_record_names_the_settings_and_the_provenance(written):
-    record = json.loads((written / "run.json").read_text())
+    record = json.loads((written / "bare_calls.json").read_text())
     assert record["settings"]["robots"] == ["example-robot-data:ur5", "panda"]
     assert record["settings"]["count"] == 12 and record["settings"]["seed"] == 101
     assert record["provenance"]["git_commit"]

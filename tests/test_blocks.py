@@ -319,6 +319,8 @@ SPECIFICATION = {
     "(median 0.9 s). An answer slower than the 2 s window": "the observers' reaction-time "
     "default and the authors' response window",
     "Wilson 95 % intervals": "the intervals' coverage",
+    "paired bootstrap 95 % interval over targets": "the bare-calls study's intervals "
+    "(benchmarks/ours_lm_vs_bare.py)",
     "simulation gaze 3 deg, pointing and position 6 deg": "the worked example's simulation "
     "(the observers' defaults)",
     "pointing read to 6 degrees": "the observers' default pointing noise",

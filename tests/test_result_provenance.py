@@ -19,7 +19,7 @@ RESULTS = REPO / "results"
 #: The records a results folder holds (run.json of runs and studies, the benchmarks').
 RECORDS = ("run.json", "benchmark.json", "throughput.json", "batch.json", "sweep.json",
            "dataset.json", "design.json", "analysis.json", "power.json", "methods.json",
-           "learned.json")
+           "learned.json", "bare_calls.json")
 #: The code a result's numbers come from: a commit after it that touches these makes it stale
 #: (a module added to baselines/ too: the registry finds it, and "every installed method"
 #: changes).

@@ -75,7 +75,7 @@ BLOCK = re.compile(r"(<!-- generated: (?P<spec>[^>]*?) -->)(?P<body>.*?)(<!-- /g
 #: JSON records a results folder may hold, in the order they are looked for.
 RECORDS = ("run.json", "benchmark.json", "throughput.json", "batch.json", "sweep.json",
            "manifest.json", "analysis.json", "design.json", "power.json", "methods.json",
-           "learned.json")
+           "learned.json", "bare_calls.json")
 
 #: renderer name -> function(source path, options, repo root) -> text
 Renderer = Callable[[Path, dict[str, str], Path], str]
