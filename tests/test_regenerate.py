@@ -267,3 +267,26 @@ def test_a_failed_study_under_jobs_starts_no_new_one_and_is_not_recorded(tmp_pat
                          say=lambda text: None, runner=runner)
     assert "sweep" not in regen.read_record(tmp_path)
     assert len(ran) <= 3  # the one beside it may finish; nothing starts after the failure
+
+
+def test_jobs_runs_a_study_marked_alone_with_nothing_beside_it(tmp_path, clean, monkeypatch):
+    """A per-call timing table (``alone``) starts when nothing runs and nothing starts beside
+    it, while the other studies still run two at once."""
+    import threading
+
+    studies = [regen.Study(name, ("sweep", "--output", f"{{out}}/{name}"), (name,), 1.0,
+                           alone=name == "timed") for name in ("a", "timed", "b", "c")]
+    monkeypatch.setattr(regen, "STUDIES", tuple(studies))
+    events, lock = [], threading.Lock()
+    times = regen.regenerate(tmp_path, only=["a", "timed", "b", "c"], jobs=2,
+                             say=lambda text: None, runner=_timed_runner(events, lock, 0.1))
+    assert sorted(times) == ["a", "b", "c", "timed"]
+    together = {tuple(sorted(p.rsplit("/", 1)[-1] for p in pair))
+                for pair in _concurrent(events)}
+    assert together and not any("timed" in pair for pair in together), together
+
+
+def test_the_per_call_tables_of_the_plan_run_alone():
+    alone = {s.name for s in regen.STUDIES if s.alone}
+    assert {"ik-ur5", "ik-panda", "zoo-ur10", "bare-calls"} <= alone
+    assert "compare" not in alone

@@ -7,8 +7,9 @@ writes under the results directory, and the time it took when last measured here
 :class:`RegenerationSpec` is what a regeneration is asked to do (the results directory, the
 studies, force, a dirty tree, a dry run); :func:`run` prints the plan first, then runs each
 study in its own process (so one study's imports, caches and threads cannot change another's
-timing; ``jobs`` > 1 runs that many at once, never two that write into the same folder, and
-records it beside each study's load), streams its progress, and records each finished study
+timing; ``jobs`` > 1 runs that many at once, never two that write into the same folder nor
+one beside a study marked ``alone`` (the per-call timing tables), and records it beside each
+study's load), streams its progress, and records each finished study
 in ``RESULTS/regenerated.json`` (commit, clean tree, wall time, load) as soon as it finishes,
 so an interrupted regeneration keeps every complete study. It is resumable: a study already
 made at this commit, or at an ancestor with nothing changed since but the results, the docs,
@@ -62,6 +63,10 @@ class Study:
         rows_may_fail: the command exits 1 when a row of its table fails (a method that does
             not meet the contract, an invalid path): the results are complete and say why, so
             exit code 1 is a finished study (recorded as ``exit_code``), not a failed one.
+        alone: with ``--jobs`` > 1, run with no other study beside it (a per-call timing
+            table: a neighbour study's threads slowed the committed zoo's per-call medians
+            1.8-3.6x against a quiet rerun, unevenly between methods, so the ratios of one
+            table's rows carried the neighbour's phases).
     """
 
     name: str
@@ -70,6 +75,7 @@ class Study:
     minutes: float
     script: str = ""
     rows_may_fail: bool = False
+    alone: bool = False
 
     def validate(self) -> None:
         """InputError naming the entry and its bad value: a name that ``--only`` cannot take,
@@ -185,25 +191,25 @@ STUDIES: tuple[Study, ...] = (
           ("cartesian",), 1.0, rows_may_fail=True),
     Study("ik-panda", ("ik", "--robot", "example-robot-data:panda", *IK_PROTOCOL,
                     "--output", "{out}"),
-          ("ik/panda",), 3.5),
+          ("ik/panda",), 3.5, alone=True),
     Study("ik-ur5", ("ik", "--robot", "example-robot-data:ur5", *IK_PROTOCOL,
                     "--output", "{out}"),
-          ("ik/ur5",), 3.5),
+          ("ik/ur5",), 3.5, alone=True),
     Study("ik-xarm7", ("ik", "--robot", "example-robot-data:xarm7", *IK_PROTOCOL,
                     "--output", "{out}"),
-          ("ik/xarm7",), 3.5),
+          ("ik/xarm7",), 3.5, alone=True),
     Study("ik-fetch", ("ik", "--robot", "fetch_arm", *IK_PROTOCOL, "--output", "{out}"),
-          ("ik/fetch_arm",), 2.5),
+          ("ik/fetch_arm",), 2.5, alone=True),
     *(Study(f"zoo-{robot.rpartition(':')[2]}", ("ik", "--robot", robot, *ZOO_PROTOCOL,
                                                 "--output", "{out}/ik_zoo"),
-            (f"ik_zoo/ik/{robot.rpartition(':')[2]}",), 0.8) for robot in ZOO),
+            (f"ik_zoo/ik/{robot.rpartition(':')[2]}",), 0.8, alone=True) for robot in ZOO),
     # ours-lm's and the eaik adapter's per call against the libraries' bare calls, in one
     # process, interleaved, with paired bootstrap intervals (issues 58, 63): every arm above
     Study("bare-calls", ("--output", "{out}/bare_calls", "--count", "200", "--repeat", "5",
                          *(w for robot in ("example-robot-data:ur5", "example-robot-data:panda",
                                            "example-robot-data:xarm7", "fetch_arm", *ZOO)
                            for w in ("--robot", robot))),
-          ("bare_calls",), 0.2, script="benchmarks/ours_lm_vs_bare.py"),
+          ("bare_calls",), 0.2, script="benchmarks/ours_lm_vs_bare.py", alone=True),
     Study("ik-unreachable", ("ik", *TRUTH_PROTOCOL, "--unreachable", "0.2", "--output",
                              "{out}/ik_truth/unreachable"), ("ik_truth/unreachable",), 0.7),
     *(Study(f"ik-init-{init}", ("ik", *TRUTH_PROTOCOL, "--init", init, "--output",
@@ -234,9 +240,10 @@ STUDIES: tuple[Study, ...] = (
     Study("experiment", ("--output", "{out}/experiment"), ("experiment",), 9.0,
           script="examples/pointing_study.py"),
     Study("ours-speed", ("--output", "{out}/ours_speed.csv"), ("ours_speed.csv",), 0.5,
-          script="benchmarks/ours_speed.py"),
+          script="benchmarks/ours_speed.py", alone=True),
     Study("designer-latency", ("--output", "{out}/designer_latency.csv"),
-          ("designer_latency.csv",), 0.5, script="benchmarks/designer_latency.py"),
+          ("designer_latency.csv",), 0.5, script="benchmarks/designer_latency.py",
+          alone=True),
 )
 
 
@@ -351,6 +358,7 @@ def run(spec: RegenerationSpec, say: Callable[[str], None] | None = None,
         f"{'' if clean else ' (modified tree)'}, about {total:.0f} min when last measured:")
     for s in studies:
         say(f"  {s.name:<16} {s.minutes:5.1f} min  {s.shown(out)}"
+            f"{'  (alone)' if s.alone and spec.jobs > 1 else ''}"
             f"{_skipped(record, s) if made(s) else ''}")
     times: dict[str, float] = {}
     if spec.dry_run:
@@ -358,7 +366,8 @@ def run(spec: RegenerationSpec, say: Callable[[str], None] | None = None,
     todo = [(k, s) for k, s in enumerate(studies) if not made(s)]
     if spec.jobs > 1:
         say(f"running {spec.jobs} studies at once (--jobs {spec.jobs}); never two that write "
-            "into the same folder")
+            "into the same folder, and those marked (alone), the per-call timing tables, "
+            "with nothing beside them")
     lock = threading.Lock()  # the record is this process's alone: one writer, no race
     failures: list[str] = []
 
@@ -433,9 +442,11 @@ def _overlaps(a: Study, b: Study) -> bool:
 
 def _in_lanes(todo: list[tuple[int, Study]], jobs: int, one: Callable[[int, Study], None],
               stop: Callable[[], bool]) -> None:
-    """Run ``one(k, study)`` for each of ``todo`` in plan order, at most ``jobs`` at once and
-    never two whose ``writes`` overlap (:func:`_overlaps`); after ``stop()`` turns true no
-    new study starts (the running ones finish). One at a time with ``jobs`` 1."""
+    """Run ``one(k, study)`` for each of ``todo`` in plan order, at most ``jobs`` at once,
+    never two whose ``writes`` overlap (:func:`_overlaps`) and never one beside a study marked
+    ``alone`` (it starts when nothing runs and nothing starts while it runs); after ``stop()``
+    turns true no new study starts (the running ones finish). One at a time with ``jobs``
+    1."""
     if jobs == 1:
         for k, s in todo:
             if stop():
@@ -457,7 +468,8 @@ def _in_lanes(todo: list[tuple[int, Study]], jobs: int, one: Callable[[int, Stud
     with done:
         while waiting or running:
             free = len(running) < jobs and not stop()
-            ready = next(((k, s) for k, s in waiting if free
+            free = free and not any(r.alone for r in running.values())
+            ready = next(((k, s) for k, s in waiting if free and (not s.alone or not running)
                           and not any(_overlaps(s, r) for r in running.values())), None)
             if ready is not None:
                 k, s = ready

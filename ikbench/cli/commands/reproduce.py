@@ -57,7 +57,8 @@ def arguments(parser: argparse.ArgumentParser) -> None:
                        "each timing alone on the machine; 2 on 2 cores roughly halves the "
                        "wall time, each study's timings then made beside another's, which "
                        "the record states with its load); never two that write into the "
-                       "same folder")
+                       "same folder, and the per-call timing tables (alone in --plan) with "
+                       "nothing beside them")
     every.add_argument("--docs", action="store_true",
                        help="only render README.md's and docs/'s generated blocks again from "
                        "results/ (no solving)")
