@@ -156,20 +156,16 @@ def _judged(robot, answers: list, T: np.ndarray, turns: bool = False) -> bool:
 
 
 def _into_limits_by_turns(robot, q_urdf: np.ndarray) -> np.ndarray:
-    """``q_urdf`` [rad] with each revolute joint moved by the whole turns (-2..2) that bring
-    it within its limits, where some do; others as they were."""
+    """``q_urdf`` [rad] with each revolute joint moved by the whole turns that bring it
+    within its limits, the least move (:func:`ikbench.baselines.eaik_ik.in_limit_turns`
+    nearest the answer itself), as the eaik adapter moves its branches."""
+    from ikbench.baselines.eaik_ik import in_limit_turns
+
     lower, upper = robot.to_urdf(robot.lower), robot.to_urdf(robot.upper)
-    lo, hi = np.minimum(lower, upper), np.maximum(lower, upper)
-    out = q_urdf.copy()
-    for j, kind in enumerate(robot.joint_types):
-        if kind == "prismatic" or lo[j] - 1e-9 <= out[j] <= hi[j] + 1e-9:
-            continue
-        for k in (1, -1, 2, -2):
-            shifted = q_urdf[j] + 2.0 * math.pi * k
-            if lo[j] - 1e-9 <= shifted <= hi[j] + 1e-9:
-                out[j] = shifted
-                break
-    return out
+    revolute = np.array([kind != "prismatic" for kind in robot.joint_types])
+    moved, _ = in_limit_turns(q_urdf, np.minimum(lower, upper), np.maximum(lower, upper),
+                              q_urdf, revolute)
+    return moved[0]
 
 
 def _ratio_interval(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
@@ -276,8 +272,7 @@ def main(argv: list[str] | None = None) -> int:
         robot_rows, robot_calls = _measure(name, robot, args.count, args.seed, args.repeat)
         rows += robot_rows
         calls.append(robot_calls)
-    args.output.mkdir(parents=True, exist_ok=True)
-    with atomic_path(args.output / "summary.csv") as tmp:
+    with atomic_path(args.output / "summary.csv") as tmp:  # makes the folder
         pd.DataFrame(rows).to_csv(tmp, index=False)
     with atomic_path(args.output / "calls.csv") as tmp:
         pd.concat(calls).to_csv(tmp, index=False)
