@@ -62,7 +62,7 @@ def test_the_summary_is_recomputed_from_the_calls(written):
 def test_the_record_names_the_settings_and_the_provenance(written):
     record = json.loads((written / "bare_calls.json").read_text())
     assert record["settings"]["robots"] == ["example-robot-data:ur5", "panda"]
-    assert record["settings"]["count"] == 12 and record["settings"]["seed"] == 101
+    assert record["settings"]["count"] == 12 and record["settings"]["seed"] == 201
     assert record["provenance"]["git_commit"]
     assert len(record["provenance"]["load_average"]) == 3
     assert record["provenance"]["packages"].get("eaik")
@@ -70,6 +70,7 @@ def test_the_record_names_the_settings_and_the_provenance(written):
 
 @pytest.mark.parametrize("args, named", [
     (["--seed", "1"], "--seed"),
+    (["--seed", "101"], "--seed: 101"),
     (["--count", "1"], "--count"),
     (["--robot", "no-such-robot"], "no-such-robot"),
     (["--output", "{tmp}/summary.csv"], "--output"),
