@@ -3,8 +3,8 @@
 Per robot (``--robot``): ``--count`` targets of ``ikbench ik``'s sampler
 (:func:`ikbench.studies.ik.sample_targets`, ``--seed``: by default 201, disjoint from the
 benchmark seeds 1 and 4 and from the tuning seeds 101 and 102 of
-``benchmarks/tune_ours_lm_single_pose.py``, which are all refused), each with its first initial configuration. Four
-calls per target, every input prepared before the clock:
+``benchmarks/tune_ours_lm_single_pose.py``, which are all refused), each with its first
+initial configuration. Four calls per target, every input prepared before the clock:
 
 - ``ours-lm``: ``ikbench ik``'s adapter call,
   :meth:`ikbench.methods.ours_lm.pose_solver.OursLMSolver.solve_within` of the one row, no

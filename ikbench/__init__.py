@@ -22,6 +22,7 @@ docs/contributing.md.
 from __future__ import annotations
 
 import importlib
+import os as _os
 from typing import TYPE_CHECKING, Any
 
 from ikbench.render.sections import name_report_section as _name_report_section
@@ -33,6 +34,11 @@ __version__ = "0.4.0"
 # and the studies, below the paper, never name it; imported when such a report is written.
 _name_report_section("run", "ikbench.paper.report_tables:run_section")
 _name_report_section("ablation", "ikbench.paper.ablation_claims:ablation_section")
+
+if _os.environ.get("IKBENCH_MODULES_LOG"):  # ``reproduce --all`` records the code a study ran
+    from ikbench.core import module_log as _module_log
+
+    _module_log.install()
 
 #: public name -> module that defines it
 _EXPORTS = {

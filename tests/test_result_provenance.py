@@ -1,8 +1,10 @@
 """Every committed result names the clean commit that made it (issue 36): an ancestor of HEAD,
 with no change since to the code that produced its numbers (the methods, the library
 adapters, the planning schemes, the kinematics, and the studies: the judge, the restart loop,
-the clock). A result made from a modified tree, or before its solver or study changed, fails
-here: regenerate it (``ikbench reproduce --all``)."""
+the clock). Where ``regenerated.json`` records the files the study's processes ran
+(``modules``), only a change to one of those counts; a record without them counts every
+change to that code. A result made from a modified tree, or before code it ran changed,
+fails here: regenerate it (``ikbench reproduce --all``)."""
 
 from __future__ import annotations
 
@@ -33,12 +35,40 @@ STUDY_CODE = ("ikbench/studies",)
 RUNNER = "ikbench/studies/regeneration.py"
 
 
-def _changed(commit: str) -> list[str]:
-    """The solver and study files changed from ``commit`` to HEAD (see the constants)."""
-    solvers = _git("diff", "--name-only", commit, "HEAD", "--", *SOLVER_CODE).stdout.split()
-    studies = _git("diff", "--name-only", "--diff-filter=MDR", commit, "HEAD", "--",
-                   *STUDY_CODE).stdout.split()
-    return solvers + [path for path in studies if path != RUNNER]
+#: A study that ran the registry would list a method file added to baselines/ since.
+REGISTRY = "ikbench/methods/registry.py"
+
+
+def _changed(commit: str, modules: list[str] | None = None) -> list[str]:
+    """The solver and study files changed from ``commit`` to HEAD (see the constants; a
+    rename is the old file deleted). With ``modules``, the checkout's files the study's
+    processes ran (``regenerated.json``, :mod:`ikbench.core.module_log`), only those of them
+    that changed, and a file added to baselines/ when the study ran the registry; without,
+    every one (a record made before the modules were recorded)."""
+    solvers = _git("diff", "--name-only", "--no-renames", commit, "HEAD", "--",
+                   *SOLVER_CODE).stdout.split()
+    studies = _git("diff", "--name-only", "--no-renames", "--diff-filter=MD", commit, "HEAD",
+                   "--", *STUDY_CODE).stdout.split()
+    changed = solvers + [path for path in studies if path != RUNNER]
+    if modules is None:
+        return changed
+    ran = set(modules)
+    added = set(_git("diff", "--name-only", "--no-renames", "--diff-filter=A", commit, "HEAD",
+                     "--", "baselines").stdout.split()) if REGISTRY in ran else set()
+    return [path for path in changed if path in ran or path in added]
+
+
+def _ran(path: Path, commit: str) -> list[str] | None:
+    """The files the studies of ``regenerated.json`` that wrote ``path`` at ``commit`` ran
+    (their union); None unless every such study recorded them, or when none did."""
+    record = json.loads((RESULTS / "regenerated.json").read_text())
+    where = path.relative_to(RESULTS).as_posix()
+    studies = [s for s in record.values() if str(s.get("commit")) == commit
+               and any(w in ("", ".") or where == w or where.startswith(w.rstrip("/") + "/")
+                       for w in s.get("writes") or [""])]
+    if not studies or any("modules" not in s for s in studies):
+        return None
+    return sorted({m for s in studies for m in s["modules"]})
 
 
 def _git(*args: str) -> subprocess.CompletedProcess:
@@ -87,7 +117,7 @@ def test_a_committed_result_names_a_clean_ancestor_with_its_solvers_unchanged(pa
     commit = str(commit).removesuffix("-dirty")
     assert _git("merge-base", "--is-ancestor", commit, "HEAD").returncode == 0, (
         f"{path}: {commit} is not an ancestor of HEAD")
-    changed = _changed(commit)
+    changed = _changed(commit, _ran(path, commit))
     assert not changed, f"{path}: made at {commit[:12]}; changed since: {changed[:10]}"
 
 
@@ -99,5 +129,30 @@ def test_every_study_of_the_regeneration_record_is_clean_and_current():
     for name, study in record.items():
         assert study["clean"], name
         assert _git("merge-base", "--is-ancestor", study["commit"], "HEAD").returncode == 0, name
-        changed = _changed(study["commit"])
+        changed = _changed(study["commit"], study.get("modules"))
         assert not changed, (name, changed[:10])
+
+
+def _last(change: str, where: str) -> tuple[str, list[str]]:
+    """The newest commit with a ``change`` (git's --diff-filter) under ``where``: its parent
+    and the files it changed there."""
+    commit = _git("log", "-n", "1", f"--diff-filter={change}", "--no-renames", "--format=%H",
+                  "--", where).stdout.strip()
+    if not commit or _git("rev-parse", "--verify", "-q", f"{commit}^").returncode != 0:
+        pytest.skip(f"no commit with a parent changes {where}")
+    files = _git("diff", "--name-only", "--no-renames", f"--diff-filter={change}", f"{commit}^",
+                 commit, "--", where).stdout.split()
+    return f"{commit}^", files
+
+
+def test_a_study_that_recorded_what_it_ran_is_stale_only_when_that_changed():
+    before, touched = _last("M", "ikbench/methods")
+    assert touched and set(touched) <= set(_changed(before))  # no record: every change
+    assert set(touched) <= set(_changed(before, touched))  # it ran them
+    assert _changed(before, ["ikbench/core/rotations.py"]) == []  # it ran none of them
+
+
+def test_a_method_added_to_baselines_stales_a_study_that_ran_the_registry():
+    before, added = _last("A", "baselines")
+    assert added and set(added) <= set(_changed(before, [REGISTRY]))
+    assert not set(added) & set(_changed(before, ["ikbench/core/rotations.py"]))

@@ -10,10 +10,11 @@ study in its own process (so one study's imports, caches and threads cannot chan
 timing; ``jobs`` > 1 runs that many at once, never two that write into the same folder nor
 one beside a study marked ``alone`` (the per-call timing tables), and records it beside each
 study's load), streams its progress, and records each finished study
-in ``RESULTS/regenerated.json`` (commit, clean tree, wall time, load) as soon as it finishes,
-so an interrupted regeneration keeps every complete study. It is resumable: a study already
-made at this commit, or at an ancestor with nothing changed since but the results, the docs,
-the tests and this runner (:data:`RESUMABLE_CHANGES`; so a partial
+in ``RESULTS/regenerated.json`` (commit, clean tree, wall time, load, and ``modules``: the
+checkout's Python files its processes ran, :mod:`ikbench.core.module_log`) as soon as it
+finishes, so an interrupted regeneration keeps every complete study. It is resumable: a
+study already made at this commit, or at an ancestor with nothing changed since but the
+results, the docs, the tests and this runner (:data:`RESUMABLE_CHANGES`; so a partial
 regeneration can be committed and finished later), is skipped unless ``force``; a dirty tree
 is refused unless ``allow_dirty`` (then recorded as such, and the provenance test refuses
 the results). After the studies, every generated block of README.md and docs/ is rendered again
@@ -27,6 +28,7 @@ import os
 import shlex
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -35,6 +37,7 @@ from pathlib import Path, PurePosixPath
 
 from ikbench.baselines.ikpy_ik import IkpyIK
 from ikbench.baselines.sequential_ik import SequentialIK
+from ikbench.core import module_log
 from ikbench.core.defaults import EXACT_BENCHMARK_METHODS, REFERENCE_METHOD
 from ikbench.core.errors import InputError
 from ikbench.core.io import atomic_write_json
@@ -336,7 +339,6 @@ def run(spec: RegenerationSpec, say: Callable[[str], None] | None = None,
             or a study that failed (its name and exit code).
     """
     say = say or (lambda text: print(text, file=sys.stderr, flush=True))
-    runner = runner or _run
     out = Path(spec.output)
     studies = spec.studies()
     state = git_state()
@@ -375,7 +377,10 @@ def run(spec: RegenerationSpec, say: Callable[[str], None] | None = None,
         say(f"[{k + 1}/{len(studies)}] {s.name}: {s.shown(out)}")
         load_start = load_average()
         started = time.perf_counter()
-        code = runner(s.command(out))
+        with tempfile.TemporaryDirectory(prefix="ikbench-modules-") as folder:
+            log = Path(folder) / "modules.log"
+            code = _run(s.command(out), log) if runner is None else runner(s.command(out))
+            modules = module_log.read(log)
         wall = time.perf_counter() - started
         with lock:
             if code != 0 and not (code == 1 and s.rows_may_fail):
@@ -387,6 +392,8 @@ def run(spec: RegenerationSpec, say: Callable[[str], None] | None = None,
                               "wall_s": round(wall, 1), "load_start": load_start,
                               "load_end": load_average(), "writes": list(s.writes),
                               "jobs": spec.jobs}
+            if modules:  # the checkout's files its processes ran (ikbench.core.module_log)
+                record[s.name]["modules"] = modules
             RegenerationResult(times, record).write(out)
         say(f"[{k + 1}/{len(studies)}] {s.name} done in {wall / 60:.1f} min")
 
@@ -496,7 +503,10 @@ def regenerate(output: str | Path = RESULTS, only: Sequence[str] | None = None,
     return run(spec, say=say, runner=runner).wall_s
 
 
-def _run(argv: list[str]) -> int:
-    """Run one study's command with its output streaming through."""
+def _run(argv: list[str], modules_log: Path | None = None) -> int:
+    """Run one study's command with its output streaming through; with ``modules_log``, its
+    processes append the checkout's files they ran there (:mod:`ikbench.core.module_log`)."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    if modules_log is not None:
+        env[module_log.ENV] = str(modules_log)
     return subprocess.run(argv, cwd=REPO, env=env).returncode
