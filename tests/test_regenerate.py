@@ -52,7 +52,8 @@ def test_a_study_made_at_an_unchanged_ancestor_is_skipped(tmp_path, clean, monke
     record = json.loads((tmp_path / regen.RECORD).read_text())
     record["sweep"]["commit"], record["batch"]["commit"] = "b" * 40, "c" * 40
     (tmp_path / regen.RECORD).write_text(json.dumps(record))
-    monkeypatch.setattr(regen, "unchanged_since", lambda commit: commit == "b" * 40)
+    monkeypatch.setattr(regen, "unchanged_since",
+                        lambda commit, modules=None: commit == "b" * 40)
     ran.clear()
     lines: list[str] = []
     regen.regenerate(tmp_path, only=["sweep", "batch"], say=lines.append,
@@ -81,6 +82,22 @@ def test_unchanged_since_knows_what_makes_a_study_stale():
     if parent:
         assert not unchanged_since(parent)
     assert not unchanged_since("f" * 40)
+
+
+def test_a_study_that_recorded_what_it_ran_stands_until_one_of_those_changes():
+    """Resume with ``modules``: a Python file the study did not run leaves it standing; one it
+    ran, any file but Python (read, not imported: not in the record), or a method added to
+    baselines/ when it ran the registry make it run again. Without the record: any change."""
+    ran = ["ikbench/studies/ik.py", "ikbench/methods/ours_lm/pose_solver.py"]
+    assert regen.stands([], ran) and regen.stands([])
+    assert regen.stands(["ikbench/methods/ours_lm/compiled.py"], ran)  # not run
+    assert not regen.stands(["ikbench/methods/ours_lm/compiled.py"])  # no record
+    assert not regen.stands(["ikbench/studies/ik.py"], ran)
+    assert not regen.stands(["urdf/nico_right_arm.urdf"], ran)
+    assert not regen.stands(["constraints.txt"], ran)
+    assert regen.stands(["baselines/new_ik.py"], ran, ["baselines/new_ik.py"])
+    assert not regen.stands(["baselines/new_ik.py"], [*ran, regen.REGISTRY],
+                            ["baselines/new_ik.py"])
 
 
 def test_a_failed_study_stops_the_run_and_is_not_recorded(tmp_path, clean):

@@ -14,10 +14,12 @@ in ``RESULTS/regenerated.json`` (commit, clean tree, wall time, load, and ``modu
 checkout's Python files its processes ran, :mod:`ikbench.core.module_log`) as soon as it
 finishes, so an interrupted regeneration keeps every complete study. It is resumable: a
 study already made at this commit, or at an ancestor with nothing changed since but the
-results, the docs, the tests and this runner (:data:`RESUMABLE_CHANGES`; so a partial
-regeneration can be committed and finished later), is skipped unless ``force``; a dirty tree
-is refused unless ``allow_dirty`` (then recorded as such, and the provenance test refuses
-the results). After the studies, every generated block of README.md and docs/ is rendered again
+results, the docs, the tests and this runner (:data:`RESUMABLE_CHANGES`), or, where it
+recorded the files it ran, with none of those changed (:func:`stands`; so a partial
+regeneration can be committed and finished later, and a change to one solver reruns the
+studies that ran it), is skipped unless ``force``; a dirty tree is refused unless
+``allow_dirty`` (then recorded as such, and the provenance test refuses the results). After
+the studies, every generated block of README.md and docs/ is rendered again
 (:mod:`ikbench.render.blocks`). :func:`regenerate` is the keyword form.
 """
 
@@ -353,7 +355,8 @@ def run(spec: RegenerationSpec, say: Callable[[str], None] | None = None,
         done = record.get(study.name, {})
         return not spec.force and commit is not None and done.get("clean") == clean and (
             done.get("commit") == commit
-            or bool(clean and done.get("commit") and unchanged_since(done["commit"])))
+            or bool(clean and done.get("commit")
+                    and unchanged_since(done["commit"], done.get("modules"))))
 
     total = sum(s.minutes for s in studies)
     say(f"plan: {len(studies)} studies into {out}/ at commit {str(commit)[:12]}"
@@ -411,15 +414,22 @@ def run(spec: RegenerationSpec, say: Callable[[str], None] | None = None,
 #: results themselves, the documents rendered from them, the tests, and this runner (it starts
 #: each study's command in a process and records its wall time and load; it computes nothing a
 #: study writes). Anything else changed (a solver, a study, the judge, the CLI, a benchmark
-#: script, a dependency pin) makes the study run again.
+#: script, a dependency pin) makes the study run again; where the study recorded the files
+#: it ran (``modules``), a Python file it did not run does not (:func:`stands`).
 RESUMABLE_CHANGES = ("results*/**", "docs/**", "tests/**", "README.md", "CHANGELOG.md",
                      "ikbench/studies/regeneration.py")
 
 
-def unchanged_since(commit: str) -> bool:
-    """Whether ``commit`` is HEAD, or an ancestor of HEAD with nothing changed since but
-    :data:`RESUMABLE_CHANGES` (a study made there still stands at HEAD). False outside git
-    or for a commit git does not know."""
+#: The method registry: a study that ran it lists every method, so one added to baselines/
+#: since changes what it made.
+REGISTRY = "ikbench/methods/registry.py"
+
+
+def unchanged_since(commit: str, modules: Sequence[str] | None = None) -> bool:
+    """Whether a study made at ``commit`` still stands at HEAD: ``commit`` is HEAD, or an
+    ancestor of HEAD after which nothing changed but :data:`RESUMABLE_CHANGES` or, where the
+    study recorded the files its processes ran (``modules``), nothing it ran
+    (:func:`stands`). False outside git or for a commit git does not know."""
     def git(*args: str) -> subprocess.CompletedProcess:
         return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True,
                               timeout=10)
@@ -427,11 +437,30 @@ def unchanged_since(commit: str) -> bool:
     try:
         if git("merge-base", "--is-ancestor", commit, "HEAD").returncode != 0:
             return False
-        changed = git("diff", "--name-only", commit, "HEAD", "--", ".",
-                      *(f":(exclude,glob){path}" for path in RESUMABLE_CHANGES)).stdout.strip()
+        changed = git("diff", "--name-only", "--no-renames", commit, "HEAD", "--", ".",
+                      *(f":(exclude,glob){path}" for path in RESUMABLE_CHANGES)).stdout.split()
+        added = git("diff", "--name-only", "--no-renames", "--diff-filter=A", commit, "HEAD",
+                    "--", "baselines").stdout.split() if modules is not None else []
     except (OSError, subprocess.SubprocessError):
         return False
-    return not changed
+    return stands(changed, modules, added)
+
+
+def stands(changed: Sequence[str], modules: Sequence[str] | None = None,
+           added_methods: Sequence[str] = ()) -> bool:
+    """Whether a study stands after ``changed`` (the files changed since it was made, those of
+    :data:`RESUMABLE_CHANGES` left out; a rename is the old file deleted and the new added).
+    Without ``modules``: when nothing changed. With them (the checkout's Python files its
+    processes ran, :mod:`ikbench.core.module_log`): when none of them changed, no file but a
+    Python file changed (data, a URDF, a configuration or a pin is read, not imported, so it
+    is not in the record), and no method was added to baselines/ (``added_methods``) if it
+    ran the registry. A Python file it did not run cannot have changed what it made: a new
+    import of it would have changed a file it ran."""
+    if modules is None:
+        return not changed
+    ran = set(modules)
+    return not any(path in ran or not path.endswith(".py")
+                   or (REGISTRY in ran and path in added_methods) for path in changed)
 
 
 def _skipped(record: dict, study: Study) -> str:
