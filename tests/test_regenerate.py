@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 
 import pytest
 
@@ -307,3 +308,55 @@ def test_the_per_call_tables_of_the_plan_run_alone():
     alone = {s.name for s in regen.STUDIES if s.alone}
     assert {"ik-ur5", "ik-panda", "zoo-ur10", "bare-calls"} <= alone
     assert "compare" not in alone
+
+
+SLEEPER = [sys.executable, "-c", "import time; time.sleep(120)"]
+
+
+def test_an_interrupted_runner_leaves_no_study_running():
+    """Ctrl-C while a study runs (one lane: the main thread waits on it) interrupts the study
+    too, instead of leaving it to write into the results after the runner has gone."""
+    import signal
+    import threading
+    import time
+
+    seen = []
+
+    def interrupt():
+        for _ in range(200):  # until the study has started
+            with regen._CHILDREN_LOCK:
+                seen.extend(regen._CHILDREN)
+            if seen:
+                break
+            time.sleep(0.05)
+        signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)  # as Ctrl-C
+
+    threading.Thread(target=interrupt, daemon=True).start()
+    with pytest.raises(KeyboardInterrupt):
+        regen._run(SLEEPER)
+    assert seen and seen[0].poll() == -signal.SIGINT  # interrupted, not waited for
+    assert not regen._CHILDREN
+
+
+def test_the_other_lanes_studies_are_ended_with_the_runner():
+    """Under --jobs the other lanes' threads end with the runner: their studies are ended by
+    _stop_children, a study that ignores SIGINT killed after the grace time."""
+    import subprocess
+
+    stubborn = [sys.executable, "-c",
+                "import signal, time; signal.signal(signal.SIGINT, signal.SIG_IGN); "
+                "print('ready', flush=True); time.sleep(120)"]
+    polite = subprocess.Popen(SLEEPER)
+    deaf = subprocess.Popen(stubborn, stdout=subprocess.PIPE, text=True)
+    assert deaf.stdout.readline().strip() == "ready"  # its SIGINT handler is in place
+    with regen._CHILDREN_LOCK:
+        regen._CHILDREN.update({polite, deaf})
+    try:
+        regen._stop_children(grace_s=1.0)
+        assert polite.returncode is not None and deaf.returncode == -9
+    finally:
+        with regen._CHILDREN_LOCK:
+            regen._CHILDREN.difference_update({polite, deaf})
+        for p in (polite, deaf):
+            if p.poll() is None:
+                p.kill()

@@ -28,6 +28,7 @@ from __future__ import annotations
 import json
 import os
 import shlex
+import signal
 import subprocess
 import sys
 import tempfile
@@ -400,7 +401,11 @@ def run(spec: RegenerationSpec, say: Callable[[str], None] | None = None,
             RegenerationResult(times, record).write(out)
         say(f"[{k + 1}/{len(studies)}] {s.name} done in {wall / 60:.1f} min")
 
-    _in_lanes(todo, spec.jobs, one, lambda: bool(failures))
+    try:
+        _in_lanes(todo, spec.jobs, one, lambda: bool(failures))
+    except BaseException:  # Ctrl-C: no study left running into the results
+        _stop_children()
+        raise
     if failures:
         raise InputError(failures[0])
     changed = render_files(documents(REPO), REPO) if out.resolve() == (REPO / "results") \
@@ -532,10 +537,59 @@ def regenerate(output: str | Path = RESULTS, only: Sequence[str] | None = None,
     return run(spec, say=say, runner=runner).wall_s
 
 
+#: The studies' processes running now: ended with the runner (:func:`_stop_children`), so
+#: none is left writing into the results after an interrupted regeneration.
+_CHILDREN: set[subprocess.Popen] = set()
+_CHILDREN_LOCK = threading.Lock()
+#: How long an interrupted study has to stop (as after Ctrl-C) before it is killed [s].
+STOP_GRACE_S = 10.0
+
+
 def _run(argv: list[str], modules_log: Path | None = None) -> int:
     """Run one study's command with its output streaming through; with ``modules_log``, its
-    processes append the checkout's files they ran there (:mod:`ikbench.core.module_log`)."""
+    processes append the checkout's files they ran there (:mod:`ikbench.core.module_log`).
+    Interrupted while it runs, the study is interrupted too (:func:`_end`)."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     if modules_log is not None:
         env[module_log.ENV] = str(modules_log)
-    return subprocess.run(argv, cwd=REPO, env=env).returncode
+    process = subprocess.Popen(argv, cwd=REPO, env=env)
+    with _CHILDREN_LOCK:
+        _CHILDREN.add(process)
+    try:
+        return process.wait()
+    except BaseException:
+        _end(process)
+        raise
+    finally:
+        with _CHILDREN_LOCK:
+            _CHILDREN.discard(process)
+
+
+def _end(process: subprocess.Popen, grace_s: float = STOP_GRACE_S) -> None:
+    """Interrupt a study's process (SIGINT, what Ctrl-C sends) and kill it if it has not
+    stopped after ``grace_s`` [s]."""
+    _stop([process], grace_s)
+
+
+def _stop_children(grace_s: float = STOP_GRACE_S) -> None:
+    """:func:`_end` every study still running (those of the other lanes of ``--jobs``, whose
+    threads end with the runner)."""
+    with _CHILDREN_LOCK:
+        children = list(_CHILDREN)
+    _stop(children, grace_s)
+
+
+def _stop(processes: list[subprocess.Popen], grace_s: float) -> None:
+    for process in processes:
+        if process.poll() is None:
+            try:
+                process.send_signal(signal.SIGINT)
+            except OSError:  # gone meanwhile
+                pass
+    deadline = time.monotonic() + grace_s
+    for process in processes:
+        try:
+            process.wait(max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
