@@ -548,7 +548,7 @@ STOP_GRACE_S = 10.0
 def _run(argv: list[str], modules_log: Path | None = None) -> int:
     """Run one study's command with its output streaming through; with ``modules_log``, its
     processes append the checkout's files they ran there (:mod:`ikbench.core.module_log`).
-    Interrupted while it runs, the study is interrupted too (:func:`_end`)."""
+    Interrupted while it runs, the study is interrupted too (:func:`_stop`)."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     if modules_log is not None:
         env[module_log.ENV] = str(modules_log)
@@ -558,28 +558,24 @@ def _run(argv: list[str], modules_log: Path | None = None) -> int:
     try:
         return process.wait()
     except BaseException:
-        _end(process)
+        _stop([process])
         raise
     finally:
         with _CHILDREN_LOCK:
             _CHILDREN.discard(process)
 
 
-def _end(process: subprocess.Popen, grace_s: float = STOP_GRACE_S) -> None:
-    """Interrupt a study's process (SIGINT, what Ctrl-C sends) and kill it if it has not
-    stopped after ``grace_s`` [s]."""
-    _stop([process], grace_s)
-
-
 def _stop_children(grace_s: float = STOP_GRACE_S) -> None:
-    """:func:`_end` every study still running (those of the other lanes of ``--jobs``, whose
+    """:func:`_stop` every study still running (those of the other lanes of ``--jobs``, whose
     threads end with the runner)."""
     with _CHILDREN_LOCK:
         children = list(_CHILDREN)
     _stop(children, grace_s)
 
 
-def _stop(processes: list[subprocess.Popen], grace_s: float) -> None:
+def _stop(processes: list[subprocess.Popen], grace_s: float = STOP_GRACE_S) -> None:
+    """Interrupt each process (SIGINT, what Ctrl-C sends) and kill those still running after
+    ``grace_s`` [s]."""
     for process in processes:
         if process.poll() is None:
             try:
