@@ -22,12 +22,15 @@ within its limits. The one nearest the initial configuration (row 0 of the proto
 answer: one call, no restarts, deterministic. :meth:`EaikSolver.branches`
 gives the whole set within the limits. The library is imported inside functions only.
 
-Per call (:meth:`EaikSolver.solve_within`) the glue is what the protocol needs and no more: the
-target copied into the reused 4x4 frame (compiled), EAIK's ``calculate_IK``, and one compiled
-pass over EAIK's ``Q`` and ``is_LS`` arrays as EAIK returns them (no copy, no conversion; the
-specialisations are loaded in ``prepare``, and one of another layout converts instead of
-compiling on the clock). ``ikbench ik`` times EAIK's bare call beside it
-(:meth:`EaikSolver.bare_call`).
+Per call (:meth:`EaikSolver.solve_within`) the glue is what the protocol needs and no more: one
+compiled copy of the target and row 0 into the solver's reused work buffer (the 4x4 frame EAIK
+is given is a view of it; numba's dispatcher checks the caller's arrays there), EAIK's
+``calculate_IK``, and one compiled pass over EAIK's ``Q`` and ``is_LS`` arrays as EAIK returns
+them (no copy, no conversion), called at its compiled entry point since its argument types are
+EAIK's and the solver's own (:func:`branch_entry`). The specialisations are loaded in
+``prepare``; an argument of another layout converts instead of compiling on the clock; the
+kernels keep the GIL (releasing and taking it back is a measurable share of so short a call).
+``ikbench ik`` times EAIK's bare call beside it, interleaved (:meth:`EaikSolver.bare_call`).
 """
 
 from __future__ import annotations
@@ -99,59 +102,87 @@ def in_limit_turns(Q: np.ndarray, lower: np.ndarray, upper: np.ndarray, near: np
     return moved, np.all(k_low <= k_high, axis=1)
 
 
+#: The solver's work buffer (float64): the 4x4 target frame EAIK is given (C order), then
+#: per joint the limits widened by the tolerance and the configuration the answer is nearest,
+#: then two scratch rows of ``_SCRATCH`` (per solution: the squares, within the limits).
+_FRAME, _SCRATCH = 16, 32
+
+
 def _kernel():
-    """:func:`nearest_in_limits`'s compiled body (numba, cached; compiled on first use)."""
+    """The compiled bodies (numba, cached; compiled on first use): the branch pass of
+    :func:`nearest_in_limits` and the copy of a call's target and start into the work buffer
+    (``[T (16) | lower - tol (dof) | upper + tol (dof) | near (dof)]``)."""
     global _NEAREST
     if _NEAREST is None:
         from numba import njit
 
-        @njit(cache=True, nogil=True)
-        def nearest(Q, drop, bounds, near, out):  # pragma: no cover - compiled
-            # bounds: (2, dof), the limits widened by the tolerance (lower - tol, upper + tol)
+        @njit(cache=True)
+        def nearest(Q, drop, work, out):  # pragma: no cover - compiled
+            # joint by joint over the solutions (EAIK's Q is column-major: each joint's values
+            # are contiguous, so the loop vectorises), the squares summed in joint order as
+            # the norm's; a solution with a joint without a value within its limits is out
             turn = 2 * math.pi
-            found = 0
-            best = math.inf
-            for s in range(Q.shape[0]):
-                if drop[s]:
-                    continue
-                inside = True
-                squares = 0.0
-                for j in range(Q.shape[1]):
+            dof, S = out.shape[0], Q.shape[0]
+            low, high, near = _FRAME, _FRAME + dof, _FRAME + 2 * dof
+            if S <= _SCRATCH:  # the scratch rows of the work buffer
+                squares = work[_FRAME + 3 * dof:_FRAME + 3 * dof + S]
+                inside = work[_FRAME + 3 * dof + _SCRATCH:_FRAME + 3 * dof + _SCRATCH + S]
+            else:
+                squares, inside = np.empty(S), np.empty(S)
+            for s in range(S):
+                squares[s] = 0.0
+                inside[s] = 0.0 if drop[s] else 1.0
+            for j in range(dof):
+                lower, upper, to = work[low + j], work[high + j], work[near + j]
+                for s in range(S):
                     q = Q[s, j]
-                    k_low = np.ceil((bounds[0, j] - q) / turn)
-                    k_high = np.floor((bounds[1, j] - q) / turn)
-                    if not k_low <= k_high:
-                        inside = False
-                        break
-                    k = min(max(np.rint((near[j] - q) / turn), k_low), k_high)
-                    gap = q + turn * k - near[j]
-                    squares += gap * gap
-                if not inside:
-                    continue
-                found += 1
-                distance = math.sqrt(squares)
-                if distance < best:  # the first of equals, as argmin
-                    best = distance
-                    for j in range(Q.shape[1]):
-                        q = Q[s, j]
-                        k_low = np.ceil((bounds[0, j] - q) / turn)
-                        k_high = np.floor((bounds[1, j] - q) / turn)
-                        out[j] = q + turn * min(max(np.rint((near[j] - q) / turn), k_low),
-                                                k_high)
+                    k_low = np.ceil((lower - q) / turn)  # -inf without a lower limit
+                    k_high = np.floor((upper - q) / turn)
+                    k = min(max(np.rint((to - q) / turn), k_low), k_high)
+                    gap = q + turn * k - to
+                    squares[s] += gap * gap
+                    inside[s] = inside[s] if k_low <= k_high else 0.0
+            found, pick, best = 0, -1, math.inf
+            for s in range(S):
+                if inside[s] != 0.0:
+                    found += 1
+                    distance = math.sqrt(squares[s])
+                    if distance < best:  # the first of equals, as argmin
+                        best, pick = distance, s
+            if pick >= 0:
+                for j in range(dof):
+                    q, to = Q[pick, j], work[near + j]
+                    k_low = np.ceil((work[low + j] - q) / turn)
+                    k_high = np.floor((work[high + j] - q) / turn)
+                    out[j] = q + turn * min(max(np.rint((to - q) / turn), k_low), k_high)
             return found
 
-        @njit(cache=True, nogil=True)
-        def frame(T, rotation, point_m):  # pragma: no cover - compiled
+        @njit(cache=True)
+        def frame(work, rotation, point_m, initials):  # pragma: no cover - compiled
+            dof = (work.shape[0] - _FRAME - 2 * _SCRATCH) // 3
+            if rotation.shape != (3, 3) or point_m.shape != (3,) or initials.shape[1] != dof:
+                raise ValueError("expected a (3, 3) rotation, a (3,) point and (A, dof) starts")
             for i in range(3):
                 for j in range(3):
-                    T[i, j] = rotation[i, j]
-                T[i, 3] = point_m[i]
+                    work[4 * i + j] = rotation[i, j]
+                work[4 * i + 3] = point_m[i]
+            for j in range(dof):
+                work[_FRAME + 2 * dof + j] = initials[0, j]
 
         _NEAREST = nearest, frame
     return _NEAREST
 
 
 _NEAREST = None
+
+
+def work_buffer(lower: np.ndarray, upper: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """A work buffer of the compiled pass (see :data:`_FRAME`): the identity frame, the limits
+    widened by ``tol`` (the same floating-point operations as :func:`in_limit_turns`'
+    ``lower - tol - Q``, evaluated left to right), ``near`` zero."""
+    lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    return np.concatenate([np.eye(4).ravel(), lower - tol, upper + tol, np.zeros(len(lower)),
+                           np.zeros(2 * _SCRATCH)])
 
 
 def nearest_in_limits(Q: np.ndarray, drop: np.ndarray, lower: np.ndarray, upper: np.ndarray,
@@ -161,15 +192,28 @@ def nearest_in_limits(Q: np.ndarray, drop: np.ndarray, lower: np.ndarray, upper:
     within the limits nearest ``near`` (dof,) (exactly :func:`in_limit_turns`), the one
     nearest ``near`` (norm over the joints; the first of equals) is written into ``out``
     (dof,); returns how many lie within the limits (0: ``out`` untouched)."""
-    return int(_kernel()[0](Q, drop, widened(lower, upper, tol), near, out))
+    work = work_buffer(lower, upper, tol)
+    work[_FRAME + 2 * len(out):_FRAME + 3 * len(out)] = near
+    return int(_kernel()[0](Q, drop, work, out))
 
 
-def widened(lower: np.ndarray, upper: np.ndarray, tol: float = 1e-9) -> np.ndarray:
-    """The limits as the compiled pass reads them: (2, dof) ``lower - tol``, ``upper + tol``
-    [rad] (the same floating-point operations as :func:`in_limit_turns`' ``lower - tol - Q``,
-    evaluated left to right)."""
-    return np.ascontiguousarray([np.asarray(lower, dtype=float) - tol,
-                                 np.asarray(upper, dtype=float) + tol])
+def branch_entry(nearest, dof: int):
+    """The branch pass's compiled entry point for EAIK's arrays (``Q`` (S, dof) float64,
+    column-major and read-only; ``is_LS`` (S,) bool), a work buffer and an answer (float64,
+    C order): the call without numba's type dispatch (a share of so short a call). Those types
+    are EAIK's for every S (Eigen's column-major matrices; S <= 1 is contiguous both ways),
+    checked here on EAIK's own kind of arrays; ``nearest`` (the dispatcher) itself where the
+    check fails."""
+    import numba
+
+    Q = np.zeros((3, dof), order="F")
+    drop = np.zeros(3, dtype=bool)
+    Q.flags.writeable = drop.flags.writeable = False
+    signature = tuple(numba.typeof(a) for a in (Q, drop, work_buffer(np.zeros(dof),
+                                                                     np.zeros(dof)),
+                                                  np.zeros(dof)))
+    compiled = nearest.overloads.get(signature)
+    return nearest if compiled is None else compiled.entry_point
 
 
 class EaikSolver(PoseSolver):
@@ -198,19 +242,21 @@ class EaikSolver(PoseSolver):
                              f"({self.eaik.get_kinematic_family()}); 7-DoF arms need a joint "
                              "locked")
         self.lower, self.upper = self.chain.lower, self.chain.upper
-        self._T = np.eye(4)  # the frame EAIK is given, reused by every call
-        self._bounds, self._dof = widened(self.lower, self.upper), len(self.lower)
+        self._dof = len(self.lower)
+        self._work = work_buffer(self.lower, self.upper)  # reused by every call
+        self._T = self._work[:_FRAME].reshape(4, 4)  # the frame EAIK is given: a view of it
+        self._near = self._work[_FRAME + 2 * self._dof:_FRAME + 3 * self._dof]
         self._ik = self.eaik.calculate_IK
-        nearest, self._frame_into = _kernel()
+        nearest, frame = _kernel()
         # compile (or load numba's cache) here, untimed, for the arrays a call passes: EAIK's
         # answer (read-only, column-major) to the end frame at the zero configuration and to
         # one out of reach (least-squares answers), the target given as arrays and as views
-        # of a frame (the study passes T[:3, 3], T[:3, :3])
+        # of a frame
         T0 = np.eye(4)
         T0[:3, :3], T0[:3, 3] = self.R_end0, P.sum(axis=0)
         far = T0.copy()
         far[:3, 3] *= 1e3
-        self._nearest = nearest
+        self._nearest, self._frame_into, self._branch_pass = nearest, frame, nearest
         for T in (T0, far):
             self.solve(np.zeros(self._dof), T[:3, 3].copy(), T[:3, :3].copy())
             self.solve(np.zeros(self._dof), T[:3, 3], T[:3, :3])
@@ -219,16 +265,19 @@ class EaikSolver(PoseSolver):
             Q = np.zeros((rows, self._dof), order="F")
             drop = np.zeros(rows, dtype=bool)
             Q.flags.writeable = drop.flags.writeable = False
-            nearest(Q, drop, self._bounds, np.zeros(self._dof), np.empty(self._dof))
+            nearest(Q, drop, self._work.copy(), np.empty(self._dof))
         # from here on a call of another layout or dtype converts instead of compiling on
         # the clock (:meth:`solve`)
         self._nearest = compiled_only(nearest)
-        self._frame_into = compiled_only(self._frame_into)
+        self._frame_into = compiled_only(frame)
+        self._branch_pass = branch_entry(self._nearest, self._dof)
+        # the instance's own attribute, found before the class's method by every call
+        setattr(self, "solve_within", self._per_call())  # noqa: B010 - mypy's method-assign
 
     def _frame(self, point_m: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         """The target as EAIK takes it (see the module docstring), in the reused buffer."""
-        self._frame_into(self._T, np.ascontiguousarray(rotation, dtype=float),
-                         np.ascontiguousarray(point_m, dtype=float))
+        self._frame_into(self._work, np.ascontiguousarray(rotation, dtype=float),
+                         np.ascontiguousarray(point_m, dtype=float), self._near[None])
         return self._T
 
     def solutions(self, point_m: np.ndarray, rotation: np.ndarray
@@ -264,28 +313,48 @@ class EaikSolver(PoseSolver):
 
     def solve_within(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
                      budget_s: float) -> PoseOut:
-        """:meth:`solve` from row 0 of ``initials`` (closed form: one call, no budget)."""
-        T, q_init = self._T, initials[0]
-        try:
-            self._frame_into(T, rotation, point_m)  # the target frame, as EAIK takes it
-            solution = self._ik(T)
-            q = np.empty(self._dof)
-            found = self._nearest(solution.Q, solution.is_LS, self._bounds, q_init, q)
-        except TypeError:  # an argument of another layout or dtype: float64 copies
-            return self._solve_converted(q_init, point_m, rotation)
-        if not found:  # unreachable, or only outside the limits: EAIK says no
-            return PoseOut(np.asarray(q_init, dtype=float), 0, False)
-        return _new_tuple(PoseOut, (q, found, True, 1))
+        """:meth:`solve` from row 0 of ``initials`` (closed form: one call, no budget).
+
+        ``prepare`` replaces this by the same call with the solver's arrays and kernels bound
+        (:meth:`_per_call`): the target and row 0 are copied into the work buffer by a
+        compiled call whose dispatcher checks their types (another layout or dtype converts,
+        :meth:`solve`); the branch pass over EAIK's arrays and the solver's own, of types
+        fixed in ``prepare``, is called at its compiled entry point (:func:`branch_entry`)."""
+        return self._per_call()(initials, point_m, rotation, budget_s)
+
+    def _per_call(self) -> Callable[[np.ndarray, np.ndarray, np.ndarray, float], PoseOut]:
+        """:meth:`solve_within` as one closure over the prepared solver (no attribute looked
+        up per call)."""
+        work, T, dof, ik = self._work, self._T, self._dof, self._ik
+        frame_into, branch_pass, empty, new = self._frame_into, self._branch_pass, np.empty, \
+            _new_tuple
+
+        def solve_within(initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
+                         budget_s: float) -> PoseOut:
+            try:
+                frame_into(work, rotation, point_m, initials)  # the target, as EAIK takes it
+            except TypeError:  # an argument of another layout or dtype: float64 copies
+                return self._solve_converted(initials[0], point_m, rotation)
+            solution = ik(T)
+            q = empty(dof)
+            found = branch_pass(solution.Q, solution.is_LS, work, q)
+            if found:
+                return new(PoseOut, (q, found, True, 1))
+            # unreachable, or only outside the limits: EAIK says no
+            return PoseOut(np.asarray(initials[0], dtype=float), 0, False)
+
+        return solve_within
 
     def _solve_converted(self, q_init, point_m, rotation) -> PoseOut:
         """:meth:`solve` of inputs converted to C-ordered float64 first (never a compile)."""
         f64 = np.ascontiguousarray
-        self._frame_into(self._T, f64(rotation, dtype=float), f64(point_m, dtype=float))
+        self._frame_into(self._work, f64(rotation, dtype=float), f64(point_m, dtype=float),
+                         f64(q_init, dtype=float).reshape(1, -1))
         solution = self._ik(self._T)
         Q = np.asarray(solution.Q, dtype=float).reshape(-1, self._dof).copy()
         drop = np.array(solution.is_LS, dtype=bool).reshape(len(Q))
         q = np.empty(self._dof)
-        found = self._nearest(Q, drop, self._bounds, f64(q_init, dtype=float), q) if len(Q) else 0
+        found = self._nearest(Q, drop, self._work, q) if len(Q) else 0
         if not found:
             return PoseOut(np.asarray(q_init, dtype=float), 0, False)
         return PoseOut(q, found, True)

@@ -17,7 +17,8 @@ def compiled_only(kernel: Any) -> Any:
     callers)."""
     import numba
 
-    dispatcher = numba.njit(cache=True, nogil=True)(kernel.py_func)
+    # the kernel's own options (nopython, nogil, ...), so that its cached code is what loads
+    dispatcher = numba.jit(cache=True, **kernel.targetoptions)(kernel.py_func)
     for signature in kernel.signatures:
         dispatcher.compile(signature)  # loaded from numba's cache, which kernel has filled
     dispatcher.disable_compile()
