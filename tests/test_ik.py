@@ -569,3 +569,44 @@ def test_committed_ik_results_recompute_from_their_solutions(record_path):
     for other in ("rtb-lm", "trac-ik"):
         if other in auto.index:
             assert auto["ours-lm"] >= auto[other], (other, auto.to_dict())
+
+
+class _WithBareCall(PoseSolver):
+    """Restarted by the study; logs its solves and its bare calls in the order they run."""
+
+    name, library = "with-bare-call", "ikbench"
+    log: ClassVar[list] = []
+
+    def solve(self, q_init, point_m, rotation) -> PoseOut:
+        type(self).log.append(("solve", point_m.flags.c_contiguous, rotation.flags.c_contiguous))
+        return PoseOut(np.asarray(q_init), 1, False)
+
+    def bare_call(self, q_init, point_m, rotation):
+        return lambda: type(self).log.append(("bare", tuple(point_m)))
+
+
+def test_the_bare_call_is_timed_beside_the_first_run_alternating_on_reachable_targets(
+        monkeypatch):
+    monkeypatch.setitem(solver_status(), "with-bare-call",
+                        MethodStatus("with-bare-call", _WithBareCall))
+    monkeypatch.setattr(_WithBareCall, "log", [])
+    robot = load_robot("panda")
+    settings = IKSettings(count=8, seed=2, attempts=(1, 2), unreachable=0.25)
+    result = run_ik(robot, settings, ["with-bare-call"], progress=False)
+    reachable = result.targets.reachable
+    assert reachable is not None and 0 < reachable.sum() < 8
+    log = _WithBareCall.log
+    first = log[:8 + int(reachable.sum())]  # the first rule's run: the bare calls beside it
+    assert all(entry[0] == "solve" for entry in log[len(first):])  # none in the second
+    # each solve is given C-ordered copies of the target, as its bare call
+    assert all(entry[1] and entry[2] for entry in log if entry[0] == "solve")
+    solves = [i for i, entry in enumerate(first) if entry[0] == "solve"]
+    assert len(solves) == 8
+    for target, at in enumerate(solves):
+        point = tuple(result.targets.T_target[target][:3, 3])
+        # even targets: solve then bare call; odd ones: bare call then solve
+        neighbour = first[at - 1] if target % 2 else first[at + 1] if at + 1 < len(first) \
+            else None
+        assert (neighbour == ("bare", point)) == bool(reachable[target]), target
+    facts = result.methods["with-bare-call"]
+    assert facts["bare_call_median_ms"] > 0 and facts["bare_call"]

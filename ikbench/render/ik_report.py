@@ -394,7 +394,8 @@ def bare_call_note(methods: dict[str, dict]) -> list[str]:
     eaik = ("; **x_eaik_call**: the time per call median over EAIK's library call in this "
             "run (the analytic limit as the library)" if EaikSolver.name in calls else "")
     return ["**Library call**: the median time [ms] of the library's own call alone, once per "
-            "target from row 0 on inputs converted in advance, timed after the method's runs; "
+            "target from row 0 on inputs converted in advance, timed beside the method's first run "
+            "(before its call on odd targets, after it on even ones); "
             "the time per call median minus it is the glue the adapter (and, past one "
             "attempt, the restarts) adds (`glue_median_ms` in summary.csv)" + eaik
             + ". Not measured (-) where the call cannot be isolated. The calls: "

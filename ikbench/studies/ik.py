@@ -39,10 +39,14 @@ header states it):
   the target is below the budget (the attempt running when it runs out finishes), and each
   answer is checked as the judge checks it (:class:`AttemptCheck`), inside the timed call.
 - **Time**: ``time.perf_counter`` around the call with all its attempts, one target per call
-  (set-up untimed; the rows are drawn and converted before the clock starts); per method:
-  median, mean, p95, max. A method that batches (``batched``) also solves all the targets in
-  one call from the same rows within the same budget per target: its throughput (targets/s,
-  threads stated) is its own column, never mixed with per-call times.
+  (set-up untimed; the rows are drawn and converted and the target copied into C-ordered
+  arrays, :func:`goal_arrays`, before the clock starts); per method: median, mean, p95, max.
+  The library's bare call (:meth:`PoseSolver.bare_call`, where a method has one) is timed on
+  the same arrays beside the method's first timed run, just before its call on odd targets
+  and just after it on even ones (:func:`bare_call_times` times it alone). A method that
+  batches (``batched``) also solves all the targets in one call from the same rows within
+  the same budget per target: its throughput (targets/s, threads stated) is its own column,
+  never mixed with per-call times.
 - **Success** is judged here (:func:`judge`), never taken from the method: FK through Pinocchio
   of the answer within ``tolerance_mm`` and ``tolerance_deg`` (position only for
   ``kind="position"``) and within the joint limits. The method's own claim is ``library_ok``.
@@ -545,17 +549,27 @@ class AttemptCheck:
         return bool(math.degrees(math.acos(min(1.0, max(-1.0, cos)))) <= s.tolerance_deg)
 
 
+def goal_arrays(T_target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The target frame (4, 4) as every method is given it: C-ordered float64 copies of its
+    point [m] (3,) and rotation (3, 3), made before the clock (the same arrays for the
+    method's call and for its library's bare call)."""
+    return (np.ascontiguousarray(T_target[:3, 3], dtype=float),
+            np.ascontiguousarray(T_target[:3, :3], dtype=float))
+
+
 def restart(solve: Callable[[np.ndarray, np.ndarray, np.ndarray], PoseOut],
             starts: np.ndarray, T_target: np.ndarray,
             holds: Callable[[np.ndarray, np.ndarray], bool], budget_s: float,
-            clock: Callable[[], float] = time.perf_counter) -> tuple[PoseOut, float]:
+            clock: Callable[[], float] = time.perf_counter,
+            goal: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[PoseOut, float]:
     """One descent per row of ``starts`` (A, dof), in order, until the answer holds
     (``holds(q, T_target)``), the rows are used up or the solver has run ``budget_s`` [s]
     (checked before each new attempt); the last answer, its iterations summed and the attempts
     made, and the solver's time [s]. Only the calls to ``solve`` are timed (by ``clock``): the
     judge's check of each attempt runs outside the clock and outside the budget, so a
-    library the study restarts is timed as one that restarts itself."""
-    point, rotation = T_target[:3, 3], T_target[:3, :3]
+    library the study restarts is timed as one that restarts itself. ``goal``: the point and
+    rotation ``solve`` is given (default :func:`goal_arrays` of ``T_target``)."""
+    point, rotation = goal_arrays(T_target) if goal is None else goal
     iterations, a, spent_s = 0, 0, 0.0
     while True:
         t0 = clock()
@@ -577,6 +591,9 @@ class _Outcome:
     attempts: np.ndarray
     library_ok: np.ndarray
     failures: list[str]
+    #: the library's bare call [s] on the reachable targets, timed beside the solve (None:
+    #: not asked for, or the method has no bare call)
+    bare_s: list[float] | None = None
 
     @classmethod
     def failed(cls, count: int, dof: int, failure: str) -> _Outcome:
@@ -644,7 +661,10 @@ def run(spec: IKSpec) -> IKResult:
                         outcome = _Outcome.failed(count, robot.dof, solver)
                     else:
                         say(f"{label}: {name}: solving {count} targets, one per call")
-                        outcome = _solve_calls(solver, targets, count, settings, rule, check, say)
+                        outcome = _solve_calls(solver, targets, count, settings, rule, check, say,
+                                               with_bare=name not in bare)
+                        if name not in bare:  # its first timed run, the bare call beside it
+                            bare[name] = bare_facts(solver, outcome.bare_s)
                         if solver.batched and round_ == 1:  # throughput: the first run's
                             batches[str(rule)][name] = _batch(solver, targets, count, settings,
                                                               rule)
@@ -653,8 +673,6 @@ def run(spec: IKSpec) -> IKResult:
                     done = frames[-1]
                     say(f"{label}: {name}: {int(done['success'].sum())}/{count} succeeded, "
                         f"{np.nansum(done['time_s']):.1f} s")
-                    if name not in bare and not isinstance(solver, str):  # after its timed run
-                        bare[name] = bare_call_times(solver, targets, count)
         if settings.first_call:  # after the timed runs: numba's cache as they left it
             rule = settings.attempts[0]
             for name in names:
@@ -689,8 +707,10 @@ def _prepared(cls: type[PoseSolver], robot: Robot, settings: IKSettings, say, co
 
 
 def _solve_calls(solver: PoseSolver, targets: Targets, count: int, settings: IKSettings,
-                 rule: Rule, check: AttemptCheck, say) -> _Outcome:
-    """Solve the first ``count`` targets one call each under ``rule`` (see the module doc)."""
+                 rule: Rule, check: AttemptCheck, say, with_bare: bool = False) -> _Outcome:
+    """Solve the first ``count`` targets one call each under ``rule`` (see the module doc);
+    ``with_bare``: the library's bare call timed beside each reachable target's solve
+    (:func:`bare_call_times`)."""
     robot = solver.robot
     dof, rows = robot.dof, rule_rows(rule)
     budget_s = rule_budget_s(rule, settings, solver.deterministic)
@@ -699,6 +719,7 @@ def _solve_calls(solver: PoseSolver, targets: Targets, count: int, settings: IKS
     iterations, attempts = np.zeros(count, dtype=int), np.zeros(count, dtype=int)
     library_ok = np.empty(count, dtype=object)
     failures = [""] * count
+    bare_s: list[float] | None = [] if with_bare else None
 
     def to_urdf(q: np.ndarray) -> np.ndarray:
         q = np.asarray(q, dtype=float).reshape(dof)
@@ -713,56 +734,85 @@ def _solve_calls(solver: PoseSolver, targets: Targets, count: int, settings: IKS
         starts = np.ascontiguousarray(initials if solver.pose_units
                                       else robot.to_urdf(initials))
         T = targets.T_target[k]
+        point, rotation = goal_arrays(T)
+        call: Callable[[], object] | None = None
+        out: PoseOut | None
+        if bare_s is not None and (targets.reachable is None or targets.reachable[k]):
+            call = solver.bare_call(starts[0], point, rotation)
+            if call is None:  # the method has no bare call
+                bare_s = None
+        if call is not None and k % 2:  # alternating which runs first
+            _time_into(bare_s, call)
         t0 = time.perf_counter()
         try:
             if solver.restarts_itself:
-                out = solver.solve_within(starts, T[:3, 3], T[:3, :3], budget_s)
+                out = solver.solve_within(starts, point, rotation, budget_s)
                 times[k] = time.perf_counter() - t0
             else:  # the study's check of each attempt is untimed
-                out, times[k] = restart(solver.solve, starts, T, holds, budget_s)
+                out, times[k] = restart(solver.solve, starts, T, holds, budget_s,
+                                        goal=(point, rotation))
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # one failed solve is a row
             times[k] = time.perf_counter() - t0
             failures[k] = describe(exc)
+            out = None
+        if call is not None and not k % 2:
+            _time_into(bare_s, call)
+        if out is None:
             continue
         out_q[k] = to_urdf(out.q)
         iterations[k], attempts[k], library_ok[k] = out.iterations, out.attempts, out.ok
         if time.perf_counter() - last > PROGRESS_EVERY_S:
             last = time.perf_counter()
             say(f"attempts {rule}: {solver.name}: {k + 1}/{count} solved")
-    return _Outcome(out_q, times, iterations, attempts, library_ok, failures)
+    return _Outcome(out_q, times, iterations, attempts, library_ok, failures, bare_s)
+
+
+def _time_into(times: list[float] | None, call: Callable[[], Any]) -> None:
+    """``call()`` timed by ``time.perf_counter`` as a solve is, appended to ``times`` [s]; a
+    call that raises is not timed."""
+    t0 = time.perf_counter()
+    try:
+        call()
+    except Exception:  # a failed call is not timed
+        return
+    if times is not None:
+        times.append(time.perf_counter() - t0)
+
+
+def bare_facts(solver: PoseSolver, times_s: Sequence[float] | None) -> dict[str, Any]:
+    """run.json's facts of a method's bare call from its times [s] (None: no bare call):
+    ``bare_call_median_ms`` (None where the method has no bare call or every call raised)
+    and ``bare_call``, what the call is (its docstring's first paragraph, markdown)."""
+    if times_s is None:
+        return {"bare_call_median_ms": None, "bare_call": None}
+    doc = " ".join((inspect.getdoc(type(solver).bare_call) or "").split("\n\n")[0].split())
+    doc = re.sub(r"\s*\(see :meth:`[^`]*`\)", "", doc).replace("``", "`")  # markdown
+    return {"bare_call_median_ms": 1000.0 * float(np.median(times_s)) if times_s else None,
+            "bare_call": doc}
 
 
 def bare_call_times(solver: PoseSolver, targets: Targets, count: int) -> dict[str, Any]:
     """The library's own call alone (:meth:`PoseSolver.bare_call`) on the first ``count``
     targets (the reachable ones, as the tables), each from its row 0 converted in advance,
-    one call each timed by ``time.perf_counter`` as the study times a solve:
-    ``bare_call_median_ms`` (None where the method has no bare call or every call raised) and
-    ``bare_call``, what the call is (its docstring's first paragraph). The glue an adapter
-    adds is its per-call median minus this (:func:`ikbench.render.ik_report.with_bare_calls`).
-    """
-    robot, times = solver.robot, []
+    one call each timed by ``time.perf_counter`` as the study times a solve
+    (:func:`bare_facts`). ``ikbench ik`` itself times it interleaved with the method's first
+    timed run (``_solve_calls``: before the solve on odd targets, after it on even ones, so
+    neither is favoured by the caches the other warms); this is the call alone, back to back.
+    The glue an adapter adds is its per-call median minus this
+    (:func:`ikbench.render.ik_report.with_bare_calls`)."""
+    robot, times = solver.robot, list[float]()
     for k in range(count):
         if targets.reachable is not None and not targets.reachable[k]:
             continue
         q0 = targets.initials(k, 1)[0]
         start = np.ascontiguousarray(q0 if solver.pose_units else robot.to_urdf(q0))
-        T = targets.T_target[k]
-        call = solver.bare_call(start, np.ascontiguousarray(T[:3, 3]),
-                                np.ascontiguousarray(T[:3, :3]))
+        call = solver.bare_call(start, *goal_arrays(targets.T_target[k]))
         if call is None:
-            return {"bare_call_median_ms": None, "bare_call": None}
-        t0 = time.perf_counter()
-        try:
-            call()
-        except Exception:  # a failed call is not timed
-            continue
-        times.append(time.perf_counter() - t0)
-    doc = " ".join((inspect.getdoc(type(solver).bare_call) or "").split("\n\n")[0].split())
-    doc = re.sub(r"\s*\(see :meth:`[^`]*`\)", "", doc).replace("``", "`")  # markdown
-    return {"bare_call_median_ms": 1000.0 * float(np.median(times)) if times else None,
-            "bare_call": doc}
+            return bare_facts(solver, None)
+        _time_into(times, call)
+    return bare_facts(solver, times)
 
 
 def _batch(solver: PoseSolver, targets: Targets, count: int, settings: IKSettings, rule: Rule
