@@ -22,15 +22,17 @@ within its limits. The one nearest the initial configuration (row 0 of the proto
 answer: one call, no restarts, deterministic. :meth:`EaikSolver.branches`
 gives the whole set within the limits. The library is imported inside functions only.
 
-Per call (:meth:`EaikSolver.solve_within`) the glue is what the protocol needs and no more: one
-compiled copy of the target and row 0 into the solver's reused work buffer (the 4x4 frame EAIK
-is given is a view of it; numba's dispatcher checks the caller's arrays there), EAIK's
-``calculate_IK``, and one compiled pass over EAIK's ``Q`` and ``is_LS`` arrays as EAIK returns
-them (no copy, no conversion), called at its compiled entry point since its argument types are
-EAIK's and the solver's own (:func:`branch_entry`). The specialisations are loaded in
-``prepare``; an argument of another layout converts instead of compiling on the clock; the
-kernels keep the GIL (releasing and taking it back is a measurable share of so short a call).
-``ikbench ik`` times EAIK's bare call beside it, interleaved (:meth:`EaikSolver.bare_call`).
+Per call the glue is what the protocol needs and no more. ``ikbench ik`` times
+:meth:`EaikSolver.prepared_call`: the target is made the 4x4 frame EAIK takes (and row 0 a
+float64 copy) before the clock, as for EAIK's bare call (:meth:`EaikSolver.bare_call`, timed
+beside it, interleaved); the timed call is EAIK's ``calculate_IK``, the reads of its ``Q`` and
+``is_LS`` and one compiled pass over those arrays as EAIK returns them (no copy, no
+conversion), called at its compiled entry point since its argument types are EAIK's and the
+solver's own (:func:`branch_entry`). :meth:`EaikSolver.solve_within` (any caller) copies the
+target into the solver's reused work buffer on the call, through numba's dispatchers, which
+check the arrays given. The specialisations are loaded in ``prepare``; an argument of another
+layout converts instead of compiling on the clock; the kernels keep the GIL (releasing and
+taking it back is a measurable share of so short a call).
 """
 
 from __future__ import annotations
@@ -103,37 +105,37 @@ def in_limit_turns(Q: np.ndarray, lower: np.ndarray, upper: np.ndarray, near: np
 
 
 #: The solver's work buffer (float64): the 4x4 target frame EAIK is given (C order), then
-#: per joint the limits widened by the tolerance and the configuration the answer is nearest,
-#: then two scratch rows of ``_SCRATCH`` (per solution: the squares, within the limits).
+#: per joint the limits widened by the tolerance, then two scratch rows of ``_SCRATCH`` (per
+#: solution: the squares, within the limits).
 _FRAME, _SCRATCH = 16, 32
 
 
 def _kernel():
     """The compiled bodies (numba, cached; compiled on first use): the branch pass of
-    :func:`nearest_in_limits` and the copy of a call's target and start into the work buffer
-    (``[T (16) | lower - tol (dof) | upper + tol (dof) | near (dof)]``)."""
+    :func:`nearest_in_limits` and the copy of a call's target into the work buffer
+    (``[T (16) | lower - tol (dof) | upper + tol (dof) | scratch]``)."""
     global _NEAREST
     if _NEAREST is None:
         from numba import njit
 
         @njit(cache=True)
-        def nearest(Q, drop, work, out):  # pragma: no cover - compiled
+        def nearest(Q, drop, work, near, out):  # pragma: no cover - compiled
             # joint by joint over the solutions (EAIK's Q is column-major: each joint's values
             # are contiguous, so the loop vectorises), the squares summed in joint order as
             # the norm's; a solution with a joint without a value within its limits is out
             turn = 2 * math.pi
             dof, S = out.shape[0], Q.shape[0]
-            low, high, near = _FRAME, _FRAME + dof, _FRAME + 2 * dof
+            low, high, scratch = _FRAME, _FRAME + dof, _FRAME + 2 * dof
             if S <= _SCRATCH:  # the scratch rows of the work buffer
-                squares = work[_FRAME + 3 * dof:_FRAME + 3 * dof + S]
-                inside = work[_FRAME + 3 * dof + _SCRATCH:_FRAME + 3 * dof + _SCRATCH + S]
+                squares = work[scratch:scratch + S]
+                inside = work[scratch + _SCRATCH:scratch + _SCRATCH + S]
             else:
                 squares, inside = np.empty(S), np.empty(S)
             for s in range(S):
                 squares[s] = 0.0
                 inside[s] = 0.0 if drop[s] else 1.0
             for j in range(dof):
-                lower, upper, to = work[low + j], work[high + j], work[near + j]
+                lower, upper, to = work[low + j], work[high + j], near[j]
                 for s in range(S):
                     q = Q[s, j]
                     k_low = np.ceil((lower - q) / turn)  # -inf without a lower limit
@@ -151,23 +153,21 @@ def _kernel():
                         best, pick = distance, s
             if pick >= 0:
                 for j in range(dof):
-                    q, to = Q[pick, j], work[near + j]
+                    q, to = Q[pick, j], near[j]
                     k_low = np.ceil((work[low + j] - q) / turn)
                     k_high = np.floor((work[high + j] - q) / turn)
                     out[j] = q + turn * min(max(np.rint((to - q) / turn), k_low), k_high)
             return found
 
         @njit(cache=True)
-        def frame(work, rotation, point_m, initials):  # pragma: no cover - compiled
-            dof = (work.shape[0] - _FRAME - 2 * _SCRATCH) // 3
-            if rotation.shape != (3, 3) or point_m.shape != (3,) or initials.shape[1] != dof:
-                raise ValueError("expected a (3, 3) rotation, a (3,) point and (A, dof) starts")
+        def frame(T, rotation, point_m):  # pragma: no cover - compiled
+            # T: the frame's 16 values, C order (the work buffer's first or a frame's own)
+            if rotation.shape != (3, 3) or point_m.shape != (3,):
+                raise ValueError("expected a (3, 3) rotation and a (3,) point")
             for i in range(3):
                 for j in range(3):
-                    work[4 * i + j] = rotation[i, j]
-                work[4 * i + 3] = point_m[i]
-            for j in range(dof):
-                work[_FRAME + 2 * dof + j] = initials[0, j]
+                    T[4 * i + j] = rotation[i, j]
+                T[4 * i + 3] = point_m[i]
 
         _NEAREST = nearest, frame
     return _NEAREST
@@ -179,9 +179,9 @@ _NEAREST = None
 def work_buffer(lower: np.ndarray, upper: np.ndarray, tol: float = 1e-9) -> np.ndarray:
     """A work buffer of the compiled pass (see :data:`_FRAME`): the identity frame, the limits
     widened by ``tol`` (the same floating-point operations as :func:`in_limit_turns`'
-    ``lower - tol - Q``, evaluated left to right), ``near`` zero."""
+    ``lower - tol - Q``, evaluated left to right), the scratch rows."""
     lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
-    return np.concatenate([np.eye(4).ravel(), lower - tol, upper + tol, np.zeros(len(lower)),
+    return np.concatenate([np.eye(4).ravel(), lower - tol, upper + tol,
                            np.zeros(2 * _SCRATCH)])
 
 
@@ -192,15 +192,15 @@ def nearest_in_limits(Q: np.ndarray, drop: np.ndarray, lower: np.ndarray, upper:
     within the limits nearest ``near`` (dof,) (exactly :func:`in_limit_turns`), the one
     nearest ``near`` (norm over the joints; the first of equals) is written into ``out``
     (dof,); returns how many lie within the limits (0: ``out`` untouched)."""
-    work = work_buffer(lower, upper, tol)
-    work[_FRAME + 2 * len(out):_FRAME + 3 * len(out)] = near
-    return int(_kernel()[0](Q, drop, work, out))
+    near = np.ascontiguousarray(near, dtype=float)
+    return int(_kernel()[0](Q, drop, work_buffer(lower, upper, tol), near, out))
 
 
 def branch_entry(nearest, dof: int):
     """The branch pass's compiled entry point for EAIK's arrays (``Q`` (S, dof) float64,
-    column-major and read-only; ``is_LS`` (S,) bool), a work buffer and an answer (float64,
-    C order): the call without numba's type dispatch (a share of so short a call). Those types
+    column-major and read-only; ``is_LS`` (S,) bool), a work buffer, the configuration to be
+    nearest and an answer (float64, C order; made by :meth:`EaikSolver.prepared_call`): the
+    call without numba's type dispatch (a share of so short a call). Those types
     are EAIK's for every S (Eigen's column-major matrices; S <= 1 is contiguous both ways),
     checked here on EAIK's own kind of arrays; ``nearest`` (the dispatcher) itself where the
     check fails."""
@@ -209,9 +209,8 @@ def branch_entry(nearest, dof: int):
     Q = np.zeros((3, dof), order="F")
     drop = np.zeros(3, dtype=bool)
     Q.flags.writeable = drop.flags.writeable = False
-    signature = tuple(numba.typeof(a) for a in (Q, drop, work_buffer(np.zeros(dof),
-                                                                     np.zeros(dof)),
-                                                  np.zeros(dof)))
+    work = work_buffer(np.zeros(dof), np.zeros(dof))
+    signature = tuple(numba.typeof(a) for a in (Q, drop, work, np.zeros(dof), np.zeros(dof)))
     compiled = nearest.overloads.get(signature)
     return nearest if compiled is None else compiled.entry_point
 
@@ -245,7 +244,6 @@ class EaikSolver(PoseSolver):
         self._dof = len(self.lower)
         self._work = work_buffer(self.lower, self.upper)  # reused by every call
         self._T = self._work[:_FRAME].reshape(4, 4)  # the frame EAIK is given: a view of it
-        self._near = self._work[_FRAME + 2 * self._dof:_FRAME + 3 * self._dof]
         self._ik = self.eaik.calculate_IK
         nearest, frame = _kernel()
         # compile (or load numba's cache) here, untimed, for the arrays a call passes: EAIK's
@@ -265,19 +263,17 @@ class EaikSolver(PoseSolver):
             Q = np.zeros((rows, self._dof), order="F")
             drop = np.zeros(rows, dtype=bool)
             Q.flags.writeable = drop.flags.writeable = False
-            nearest(Q, drop, self._work.copy(), np.empty(self._dof))
+            nearest(Q, drop, self._work.copy(), np.zeros(self._dof), np.empty(self._dof))
         # from here on a call of another layout or dtype converts instead of compiling on
         # the clock (:meth:`solve`)
         self._nearest = compiled_only(nearest)
         self._frame_into = compiled_only(frame)
         self._branch_pass = branch_entry(self._nearest, self._dof)
-        # the instance's own attribute, found before the class's method by every call
-        setattr(self, "solve_within", self._per_call())  # noqa: B010 - mypy's method-assign
 
     def _frame(self, point_m: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         """The target as EAIK takes it (see the module docstring), in the reused buffer."""
         self._frame_into(self._work, np.ascontiguousarray(rotation, dtype=float),
-                         np.ascontiguousarray(point_m, dtype=float), self._near[None])
+                         np.ascontiguousarray(point_m, dtype=float))
         return self._T
 
     def solutions(self, point_m: np.ndarray, rotation: np.ndarray
@@ -313,48 +309,58 @@ class EaikSolver(PoseSolver):
 
     def solve_within(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
                      budget_s: float) -> PoseOut:
-        """:meth:`solve` from row 0 of ``initials`` (closed form: one call, no budget).
+        """:meth:`solve` from row 0 of ``initials`` (closed form: one call, no budget): the
+        target copied into the work buffer and row 0 passed to the branch pass through numba's
+        dispatchers, which check their types (another layout or dtype converts,
+        :meth:`solve`)."""
+        try:
+            self._frame_into(self._work, rotation, point_m)  # the target, as EAIK takes it
+            solution = self._ik(self._T)
+            q = np.empty(self._dof)
+            found = self._nearest(solution.Q, solution.is_LS, self._work, initials[0], q)
+        except TypeError:  # an argument of another layout or dtype: float64 copies
+            return self._solve_converted(initials[0], point_m, rotation)
+        if found:
+            return _new_tuple(PoseOut, (q, found, True, 1))
+        # unreachable, or only outside the limits: EAIK says no
+        return PoseOut(np.asarray(initials[0], dtype=float), 0, False)
 
-        ``prepare`` replaces this by the same call with the solver's arrays and kernels bound
-        (:meth:`_per_call`): the target and row 0 are copied into the work buffer by a
-        compiled call whose dispatcher checks their types (another layout or dtype converts,
-        :meth:`solve`); the branch pass over EAIK's arrays and the solver's own, of types
-        fixed in ``prepare``, is called at its compiled entry point (:func:`branch_entry`)."""
-        return self._per_call()(initials, point_m, rotation, budget_s)
+    def prepared_call(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
+                      budget_s: float) -> Callable[[], PoseOut]:
+        """:meth:`solve_within` with its inputs in EAIK's form made in advance (see
+        :meth:`PoseSolver.prepared_call`): the target frame as a 4x4 array of its own, as
+        :meth:`bare_call` gives it to EAIK, and row 0 as a float64 copy; the call is EAIK's
+        ``calculate_IK``, the reads of its ``Q`` and ``is_LS`` and the branch pass at its
+        compiled entry point (:func:`branch_entry`; the types are the ones it was compiled for,
+        made here), writing the answer into an array made here too: the call is one solve
+        (called again, it answers again into the same array)."""
+        T = self._frame(point_m, rotation).copy()
+        near = np.array(np.asarray(initials, dtype=float)[0], dtype=float)  # C order, own
+        if near.shape != (self._dof,):
+            raise ValueError(f"expected starts (A, {self._dof}), got {np.shape(initials)}")
+        ik, branch_pass, work, q, new = self._ik, self._branch_pass, self._work, \
+            np.empty(self._dof), _new_tuple
 
-    def _per_call(self) -> Callable[[np.ndarray, np.ndarray, np.ndarray, float], PoseOut]:
-        """:meth:`solve_within` as one closure over the prepared solver (no attribute looked
-        up per call)."""
-        work, T, dof, ik = self._work, self._T, self._dof, self._ik
-        frame_into, branch_pass, empty, new = self._frame_into, self._branch_pass, np.empty, \
-            _new_tuple
-
-        def solve_within(initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
-                         budget_s: float) -> PoseOut:
-            try:
-                frame_into(work, rotation, point_m, initials)  # the target, as EAIK takes it
-            except TypeError:  # an argument of another layout or dtype: float64 copies
-                return self._solve_converted(initials[0], point_m, rotation)
+        def call() -> PoseOut:
             solution = ik(T)
-            q = empty(dof)
-            found = branch_pass(solution.Q, solution.is_LS, work, q)
+            found = branch_pass(solution.Q, solution.is_LS, work, near, q)
             if found:
                 return new(PoseOut, (q, found, True, 1))
             # unreachable, or only outside the limits: EAIK says no
-            return PoseOut(np.asarray(initials[0], dtype=float), 0, False)
+            return PoseOut(near.copy(), 0, False)
 
-        return solve_within
+        return call
 
     def _solve_converted(self, q_init, point_m, rotation) -> PoseOut:
         """:meth:`solve` of inputs converted to C-ordered float64 first (never a compile)."""
         f64 = np.ascontiguousarray
-        self._frame_into(self._work, f64(rotation, dtype=float), f64(point_m, dtype=float),
-                         f64(q_init, dtype=float).reshape(1, -1))
+        self._frame_into(self._work, f64(rotation, dtype=float), f64(point_m, dtype=float))
         solution = self._ik(self._T)
         Q = np.asarray(solution.Q, dtype=float).reshape(-1, self._dof).copy()
         drop = np.array(solution.is_LS, dtype=bool).reshape(len(Q))
         q = np.empty(self._dof)
-        found = self._nearest(Q, drop, self._work, q) if len(Q) else 0
+        near = f64(q_init, dtype=float)
+        found = self._nearest(Q, drop, self._work, near, q) if len(Q) else 0
         if not found:
             return PoseOut(np.asarray(q_init, dtype=float), 0, False)
         return PoseOut(q, found, True)

@@ -272,3 +272,29 @@ def test_eaik_answers_inputs_of_another_dtype_or_layout_as_float64_without_compi
     # float32 inputs move the frame by ~1e-7 relative, so the answer by as little
     assert np.abs(odd.q - plain.q).max() < 1e-4
     assert [list(k.signatures) for k in (solver._nearest, solver._frame_into)] == compiled
+
+
+@needs_erd
+def test_eaik_prepared_call_answers_as_solve_within_each_with_its_own_inputs():
+    pytest.importorskip("eaik")
+    from ikbench.baselines.eaik_ik import EaikSolver
+    from ikbench.studies.ik import goal_arrays
+
+    robot, solver = _prepared(EaikSolver)
+    cases = list(_cases(robot, 30, 5))
+    far = cases[0][0].copy()
+    far[:3, 3] *= 100.0  # out of reach: EAIK says no
+    cases.append((far, cases[0][1]))
+    # every call prepared before any runs: each keeps its own frame and start
+    calls = [solver.prepared_call(q_init[None], *goal_arrays(T), math.inf)
+             for T, q_init in cases]
+    for (T, q_init), call in zip(cases, calls):
+        expected = solver.solve_within(np.ascontiguousarray(q_init[None]), *goal_arrays(T),
+                                       math.inf)
+        got = call()
+        assert (got.ok, got.iterations, got.attempts) == (expected.ok, expected.iterations,
+                                                          expected.attempts)
+        np.testing.assert_array_equal(got.q, expected.q)
+    assert not calls[-1]().ok and sum(call().ok for call in calls) == 30
+    with pytest.raises(ValueError, match="expected starts"):
+        solver.prepared_call(np.zeros((1, 5)), *goal_arrays(cases[0][0]), math.inf)

@@ -158,6 +158,16 @@ class PoseSolver(abc.ABC):
         measured (:func:`ikbench.studies.ik.bare_call_times`)."""
         return None
 
+    def prepared_call(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
+                      budget_s: float) -> Callable[[], PoseOut] | None:
+        """``restarts_itself`` only, optional: :meth:`solve_within` of these inputs as a
+        zero-argument function, its inputs converted to the library's form in advance, as
+        :meth:`bare_call`'s are (``ikbench ik`` makes it before the clock and times the call
+        alone: what a conversion costs is then outside the adapter's time, so an adapter that
+        has one says what it prepares). None (the default): the study times
+        :meth:`solve_within` itself, conversions included."""
+        return None
+
     def solve_within(self, initials: np.ndarray, point_m: np.ndarray, rotation: np.ndarray,
                      budget_s: float) -> PoseOut:  # pragma: no cover - interface
         """``restarts_itself`` only: from ``initials`` (A, dof), in order, until the answer
